@@ -1,0 +1,212 @@
+#pragma once
+/// @file deck.hpp
+/// The input deck as typed structs. A YAML deck is parsed once, at the boundary, by read_deck();
+/// every value is SI from then on. Each spec remembers the deck line it came from so that errors
+/// found later (empty node set, inverted element) still name the line.
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rkfem/config/time_function.hpp"
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+/// Where a value came from: "deck.yaml:12" or "--set parts.a.E=1".
+struct SourceLocation
+{
+    std::string where; ///< "FILE:LINE" or "--set ..."
+    std::string path;  ///< key path, e.g. "parts.column.material.nu"
+};
+
+/// Thrown for any bad input. what() is one line: "DECK:LINE: key.path: what is wrong; expected".
+class DeckError : public std::runtime_error
+{
+  public:
+    DeckError(const SourceLocation& loc, const std::string& problem, const std::string& expected);
+    const SourceLocation location;
+};
+
+/// Linear elastic (hypoelastic, Jaumann rate). Further models extend MaterialSpec::model.
+struct MaterialSpec
+{
+    std::string model = "elastic";
+    real_t rho = 0.0; ///< density [kg/m^3]
+    real_t E = 0.0;   ///< Young's modulus [Pa]
+    real_t nu = 0.0;  ///< Poisson's ratio [-]
+    SourceLocation loc;
+};
+
+enum class Formulation
+{
+    Fem1pt,   ///< 1-point uniform-strain hex (Flanagan-Belytschko) + hourglass control
+    Fem2x2x2, ///< fully integrated hex, 8 Gauss points
+};
+
+enum class HourglassType
+{
+    None,         ///< no control (hourglass modes are free)
+    Viscous,      ///< Flanagan-Belytschko viscous, exact volume integration (LS-DYNA IHQ 3)
+    Stiffness,    ///< Flanagan-Belytschko stiffness, exact volume integration (LS-DYNA IHQ 5)
+    ViscousPlain, ///< viscous on the raw base vectors Gamma (LS-DYNA IHQ 1 analog): fails the patch test
+};
+
+struct HourglassSpec
+{
+    HourglassType type = HourglassType::Viscous;
+    real_t coefficient = 0.1; ///< QM
+};
+
+struct BulkViscositySpec
+{
+    real_t linear = 0.06;   ///< Q2 (LS-DYNA), multiplies rho c l |tr D|
+    real_t quadratic = 1.5; ///< Q1 (LS-DYNA), multiplies rho l^2 (tr D)^2
+};
+
+struct GeneratorSpec
+{
+    enum class Type
+    {
+        Box,
+        Cylinder,
+        Projectile
+    };
+    Type type = Type::Box;
+    // box
+    Vec3 origin = Vec3::Zero();
+    Vec3 size = Vec3::Zero();
+    std::array<int, 3> divisions{0, 0, 0}; ///< 0: derived from element_size
+    // cylinder (axis +z from `origin`, bottom face at origin.z) and projectile
+    real_t radius = 0.0;
+    real_t height = 0.0; ///< cylinder height / projectile length
+    std::string core = "butterfly"; ///< cylinder core: butterfly | ogrid
+    int direction = -1;  ///< projectile: nose points to -z (-1) or +z (+1); origin = nose centre
+    real_t element_size = 0.0;
+    SourceLocation loc;
+};
+
+struct PartSpec
+{
+    std::string name;
+    GeneratorSpec generator;
+    MaterialSpec material;
+    Formulation formulation = Formulation::Fem1pt;
+    HourglassSpec hourglass;
+    BulkViscositySpec bulk_viscosity;
+    Vec3 initial_velocity = Vec3::Zero();
+    SourceLocation loc;
+};
+
+/// Geometric predicate or generator name selecting nodes (or faces whose 4 nodes all match).
+struct SelectorSpec
+{
+    enum class Type
+    {
+        Named,    ///< generator set name: top, bottom, side, xmin, ..., nose, tail, all
+        Plane,    ///< |(x - point) . n| <= tolerance
+        Box,      ///< min <= x <= max (componentwise, with tolerance)
+        Cylinder, ///< | distance to axis - radius | <= tolerance
+        Sphere,   ///< |x - point| <= radius
+    };
+    Type type = Type::Named;
+    std::string name;
+    Vec3 point = Vec3::Zero();
+    Vec3 normal = Vec3::UnitZ(); ///< plane normal or cylinder axis direction
+    Vec3 min = Vec3::Zero();
+    Vec3 max = Vec3::Zero();
+    real_t radius = 0.0;
+    real_t tolerance = -1.0; ///< < 0: 1e-6 of the part's bounding-box diagonal
+};
+
+struct SetSpec
+{
+    std::string name;
+    std::string part; ///< "" = every part
+    SelectorSpec select;
+    SourceLocation loc;
+};
+
+struct BoundarySpec
+{
+    enum class Kind
+    {
+        Fixed,
+        Velocity,
+        Displacement
+    };
+    Kind kind = Kind::Fixed;
+    std::string node_set;
+    std::array<bool, 3> active{false, false, false};
+    std::array<TimeFunction, 3> value; ///< per component (velocity [m/s] or displacement [m])
+    SourceLocation loc;
+};
+
+struct LoadSpec
+{
+    enum class Kind
+    {
+        NodalForce,
+        Pressure
+    };
+    Kind kind = Kind::NodalForce;
+    std::string set; ///< node set (nodal force) or face set (pressure)
+    std::array<bool, 3> active{false, false, false};
+    std::array<TimeFunction, 3> force; ///< nodal force per component [N]
+    bool total = false;                ///< nodal force: value is the total, split equally
+    TimeFunction pressure;             ///< pressure [Pa], positive pushes into the body
+    SourceLocation loc;
+};
+
+struct ProbeSpec
+{
+    std::string name;
+    Vec3 point = Vec3::Zero();
+    std::string part; ///< "" = nearest node of any part
+    SourceLocation loc;
+};
+
+enum class StepperKind
+{
+    CentralDifference,
+};
+
+struct TimeSpec
+{
+    real_t end = 0.0;             ///< termination time [s]
+    real_t output_interval = 0.0; ///< field output interval [s]; 0: start and end only
+    real_t history_interval = 0.0; ///< history interval [s]; 0: every step
+    real_t dt_scale = 0.9;
+    real_t dt_max = 0.0; ///< 0: unlimited
+    std::int64_t max_steps = 0; ///< 0: unlimited
+    StepperKind stepper = StepperKind::CentralDifference;
+    real_t energy_error_limit = 0.05; ///< stop when the balance error exceeds this (fraction)
+    real_t mass_damping = 0.0; ///< dynamic-relaxation damping coefficient [1/s] (a -= c v)
+};
+
+struct Deck
+{
+    std::string path;
+    std::string title;
+    TimeSpec time;
+    std::vector<PartSpec> parts;
+    std::vector<SetSpec> node_sets;
+    std::vector<SetSpec> face_sets;
+    std::vector<BoundarySpec> boundary_conditions;
+    std::vector<LoadSpec> loads;
+    std::vector<ProbeSpec> probes;
+    SourceLocation time_loc;
+};
+
+/// Reads and validates a deck. `overrides` are "key.path=value" strings applied to the YAML tree
+/// before validation (sequence entries by index: loads.0.pressure=...). Throws DeckError.
+Deck read_deck(const std::string& path, const std::vector<std::string>& overrides = {});
+
+/// Same, from text (`name` is used in messages).
+Deck parse_deck(const std::string& text, const std::string& name,
+                const std::vector<std::string>& overrides = {});
+
+/// The resolved deck in SI, as YAML (what `rkfem check` prints).
+std::string to_yaml(const Deck& deck);
+} // namespace rkfem

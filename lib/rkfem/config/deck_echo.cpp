@@ -1,0 +1,217 @@
+#include <sstream>
+
+#include "rkfem/config/deck.hpp"
+
+namespace rkfem
+{
+namespace
+{
+std::string vec(const Vec3& v)
+{
+    std::ostringstream os;
+    os.precision(10);
+    os << "[" << v[0] << ", " << v[1] << ", " << v[2] << "]";
+    return os.str();
+}
+
+std::string fn(const TimeFunction& f)
+{
+    std::ostringstream os;
+    os.precision(10);
+    switch (f.kind)
+    {
+    case TimeFunction::Kind::Constant:
+        os << f.value * f.scale;
+        break;
+    case TimeFunction::Kind::Triangular:
+        os << "{triangular: {peak: " << f.peak << ", duration: " << f.duration
+           << ", start: " << f.start << "}, scale: " << f.scale << "}";
+        break;
+    case TimeFunction::Kind::Table:
+        os << "{curve: [";
+        for (std::size_t i = 0; i < f.times.size(); ++i)
+            os << (i ? ", " : "") << "[" << f.times[i] << ", " << f.values[i] << "]";
+        os << "], scale: " << f.scale << "}";
+        break;
+    }
+    return os.str();
+}
+
+const char* selector_name(SelectorSpec::Type t)
+{
+    switch (t)
+    {
+    case SelectorSpec::Type::Named:
+        return "named";
+    case SelectorSpec::Type::Plane:
+        return "plane";
+    case SelectorSpec::Type::Box:
+        return "box";
+    case SelectorSpec::Type::Cylinder:
+        return "cylinder";
+    case SelectorSpec::Type::Sphere:
+        return "sphere";
+    }
+    return "?";
+}
+
+void sets(std::ostringstream& os, const char* key, const std::vector<SetSpec>& v)
+{
+    if (v.empty())
+        return;
+    os << key << ":\n";
+    for (const auto& s : v)
+    {
+        os << "  " << s.name << ": {";
+        if (!s.part.empty())
+            os << "part: " << s.part << ", ";
+        os << "select: {type: " << selector_name(s.select.type);
+        switch (s.select.type)
+        {
+        case SelectorSpec::Type::Named:
+            os << ", name: " << s.select.name;
+            break;
+        case SelectorSpec::Type::Plane:
+            os << ", point: " << vec(s.select.point) << ", normal: " << vec(s.select.normal);
+            break;
+        case SelectorSpec::Type::Box:
+            os << ", min: " << vec(s.select.min) << ", max: " << vec(s.select.max);
+            break;
+        case SelectorSpec::Type::Cylinder:
+            os << ", point: " << vec(s.select.point) << ", axis: " << vec(s.select.normal)
+               << ", radius: " << s.select.radius;
+            break;
+        case SelectorSpec::Type::Sphere:
+            os << ", point: " << vec(s.select.point) << ", radius: " << s.select.radius;
+            break;
+        }
+        if (s.select.tolerance >= 0)
+            os << ", tolerance: " << s.select.tolerance;
+        os << "}}\n";
+    }
+}
+
+void components(std::ostringstream& os, const std::array<bool, 3>& active,
+                const std::array<TimeFunction, 3>& f)
+{
+    os << "{";
+    bool first = true;
+    for (int k = 0; k < 3; ++k)
+        if (active[k])
+        {
+            os << (first ? "" : ", ") << "xyz"[k] << ": " << fn(f[k]);
+            first = false;
+        }
+    os << "}";
+}
+} // namespace
+
+std::string to_yaml(const Deck& d)
+{
+    std::ostringstream os;
+    os.precision(10);
+    os << "# resolved deck, SI units (kg, m, s, N, Pa)\n";
+    os << "title: \"" << d.title << "\"\n";
+    os << "time: {end: " << d.time.end << ", output_interval: " << d.time.output_interval
+       << ", history_interval: " << d.time.history_interval << ", dt_scale: " << d.time.dt_scale
+       << ", dt_max: " << d.time.dt_max << ", max_steps: " << d.time.max_steps
+       << ", stepper: central-difference, energy_error_limit: " << d.time.energy_error_limit
+       << ", mass_damping: " << d.time.mass_damping << "}\n";
+    os << "parts:\n";
+    for (const auto& p : d.parts)
+    {
+        const auto& g = p.generator;
+        os << "  " << p.name << ":\n    generator: {";
+        switch (g.type)
+        {
+        case GeneratorSpec::Type::Box:
+            os << "type: box, origin: " << vec(g.origin) << ", size: " << vec(g.size);
+            if (g.divisions[0] > 0)
+                os << ", divisions: [" << g.divisions[0] << ", " << g.divisions[1] << ", "
+                   << g.divisions[2] << "]";
+            else
+                os << ", element_size: " << g.element_size;
+            break;
+        case GeneratorSpec::Type::Cylinder:
+            os << "type: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius
+               << ", height: " << g.height << ", element_size: " << g.element_size
+               << ", core: " << g.core;
+            break;
+        case GeneratorSpec::Type::Projectile:
+            os << "type: projectile, origin: " << vec(g.origin) << ", radius: " << g.radius
+               << ", length: " << g.height << ", element_size: " << g.element_size
+               << ", direction: " << (g.direction < 0 ? "-z" : "+z");
+            break;
+        }
+        os << "}\n";
+        os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho
+           << ", E: " << p.material.E << ", nu: " << p.material.nu << "}\n";
+        os << "    formulation: " << (p.formulation == Formulation::Fem1pt ? "fem-1pt" : "fem-2x2x2")
+           << "\n";
+        if (p.formulation == Formulation::Fem1pt)
+        {
+            const char* t = p.hourglass.type == HourglassType::Viscous     ? "viscous"
+                            : p.hourglass.type == HourglassType::Stiffness ? "stiffness"
+                            : p.hourglass.type == HourglassType::None      ? "none"
+                                                                           : "viscous-plain";
+            os << "    hourglass: {type: " << t << ", coefficient: " << p.hourglass.coefficient
+               << "}\n";
+        }
+        os << "    bulk_viscosity: {linear: " << p.bulk_viscosity.linear
+           << ", quadratic: " << p.bulk_viscosity.quadratic << "}\n";
+        os << "    initial_velocity: " << vec(p.initial_velocity) << "\n";
+    }
+    sets(os, "node_sets", d.node_sets);
+    sets(os, "face_sets", d.face_sets);
+    if (!d.boundary_conditions.empty())
+    {
+        os << "boundary_conditions:\n";
+        for (const auto& b : d.boundary_conditions)
+        {
+            os << "  - {node_set: " << b.node_set << ", ";
+            if (b.kind == BoundarySpec::Kind::Fixed)
+            {
+                os << "fixed: [";
+                bool first = true;
+                for (int k = 0; k < 3; ++k)
+                    if (b.active[k])
+                    {
+                        os << (first ? "" : ", ") << "xyz"[k];
+                        first = false;
+                    }
+                os << "]";
+            }
+            else
+            {
+                os << (b.kind == BoundarySpec::Kind::Velocity ? "velocity: " : "displacement: ");
+                components(os, b.active, b.value);
+            }
+            os << "}\n";
+        }
+    }
+    if (!d.loads.empty())
+    {
+        os << "loads:\n";
+        for (const auto& l : d.loads)
+        {
+            if (l.kind == LoadSpec::Kind::NodalForce)
+            {
+                os << "  - {type: nodal_force, node_set: " << l.set << ", force: ";
+                components(os, l.active, l.force);
+                os << ", total: " << (l.total ? "true" : "false") << "}\n";
+            }
+            else
+                os << "  - {type: pressure, face_set: " << l.set << ", pressure: " << fn(l.pressure)
+                   << "}\n";
+        }
+    }
+    if (!d.probes.empty())
+    {
+        os << "probes:\n";
+        for (const auto& p : d.probes)
+            os << "  " << p.name << ": {point: " << vec(p.point)
+               << (p.part.empty() ? "" : ", part: " + p.part) << "}\n";
+    }
+    return os.str();
+}
+} // namespace rkfem

@@ -1,0 +1,72 @@
+#pragma once
+/// @file parallel.hpp
+/// One loop shim over OpenMP. Kernels never spell pragmas; every loop carries a label so that
+/// timers and profilers can name it.
+#include <algorithm>
+#include <limits>
+#include <memory>
+#include <omp.h>
+
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+/// Runs body(i) for i in [0, n) on the OpenMP team (static schedule, so the assignment of
+/// indices to threads is reproducible).
+template <class Body> inline void parallel_for(const char* /*label*/, index_t n, Body&& body)
+{
+#pragma omp parallel for schedule(static)
+    for (index_t i = 0; i < n; ++i)
+        body(i);
+}
+
+/// Minimum of f(i) over [0, n). Deterministic: min is exact regardless of order.
+template <class F> inline real_t parallel_reduce_min(const char* /*label*/, index_t n, F&& f)
+{
+    real_t result = std::numeric_limits<real_t>::max();
+#pragma omp parallel for schedule(static) reduction(min : result)
+    for (index_t i = 0; i < n; ++i)
+        result = std::min(result, f(i));
+    return result;
+}
+
+/// Sum of f(i) over [0, n), reproducible for a given thread count only through a fixed-chunk
+/// two-level sum: chunks of 4096 are summed serially, then chunk sums in order.
+template <class F> inline real_t parallel_reduce_sum(const char* /*label*/, index_t n, F&& f)
+{
+    constexpr index_t chunk = 4096;
+    const index_t n_chunks = (n + chunk - 1) / chunk;
+    real_t total = 0.0;
+    if (n_chunks <= 1)
+    {
+        for (index_t i = 0; i < n; ++i)
+            total += f(i);
+        return total;
+    }
+    // Small stack buffer for typical sizes; chunk sums are combined in index order so the
+    // result does not depend on the number of threads.
+    constexpr index_t max_stack = 1024;
+    real_t stack_sums[max_stack];
+    real_t* sums = stack_sums;
+    std::unique_ptr<real_t[]> heap;
+    if (n_chunks > max_stack)
+    {
+        heap.reset(new real_t[n_chunks]);
+        sums = heap.get();
+    }
+#pragma omp parallel for schedule(static)
+    for (index_t c = 0; c < n_chunks; ++c)
+    {
+        real_t s = 0.0;
+        const index_t end = std::min(n, (c + 1) * chunk);
+        for (index_t i = c * chunk; i < end; ++i)
+            s += f(i);
+        sums[c] = s;
+    }
+    for (index_t c = 0; c < n_chunks; ++c)
+        total += sums[c];
+    return total;
+}
+
+inline int max_threads() { return omp_get_max_threads(); }
+} // namespace rkfem

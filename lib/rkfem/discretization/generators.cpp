@@ -1,0 +1,226 @@
+#include "rkfem/discretization/generators.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "rkfem/core/error.hpp"
+
+namespace rkfem
+{
+namespace
+{
+void name_faces_by_normal(HexMesh& m, const std::vector<std::pair<std::string, Vec3>>& by_normal,
+                          const std::string& rest)
+{
+    for (index_t f = 0; f < static_cast<index_t>(m.faces.size()); ++f)
+    {
+        Vec3 n = quad_normal(m.x, m.faces[f]);
+        n.normalize();
+        bool named = false;
+        for (const auto& [name, dir] : by_normal)
+            if (n.dot(dir) > 0.999)
+            {
+                m.named_faces[name].push_back(f);
+                named = true;
+                break;
+            }
+        if (!named && !rest.empty())
+            m.named_faces[rest].push_back(f);
+    }
+}
+
+int divisions_for(real_t length, real_t h) { return std::max(1, static_cast<int>(std::lround(length / h))); }
+
+/// Quadrilateral mesh of a disk of radius R: a core block (straight or bulged edges) and four
+/// blocks between the core and the circle. Returns points (n x 2) and CCW quads.
+void disk_mesh(real_t R, real_t h, bool ogrid, std::vector<real_t>& pts, std::vector<index_t>& quads)
+{
+    const real_t a = 0.5 * R; // half-width of the core square
+    const int nc = std::max(2, static_cast<int>(std::lround(M_PI * R / (2.0 * h))));
+    const int nr = std::max(1, static_cast<int>(std::lround(0.4 * R / h)));
+    const real_t bulge = ogrid ? 0.35 : 0.0;
+
+    // Core edge point for side s (0:+x, 1:+y, 2:-x, 3:-y) at parameter t in [0,1], CCW.
+    auto edge = [&](int s, real_t t)
+    {
+        const real_t theta = -M_PI / 4 + t * M_PI / 2;
+        const real_t sx = a, sy = a * std::tan(theta); // straight edge, equal-angle spacing
+        const real_t r = a * std::sqrt(2.0);
+        const real_t cx = (1 - bulge) * sx + bulge * r * std::cos(theta);
+        const real_t cy = (1 - bulge) * sy + bulge * r * std::sin(theta);
+        const real_t c = std::cos(s * M_PI / 2), sn = std::sin(s * M_PI / 2);
+        return std::array<real_t, 2>{c * cx - sn * cy, sn * cx + c * cy};
+    };
+    auto add_block = [&](int ni, int nj, auto&& point)
+    {
+        const index_t base = static_cast<index_t>(pts.size() / 2);
+        for (int j = 0; j <= nj; ++j)
+            for (int i = 0; i <= ni; ++i)
+            {
+                const auto p = point(real_t(i) / ni, real_t(j) / nj);
+                pts.push_back(p[0]);
+                pts.push_back(p[1]);
+            }
+        for (int j = 0; j < nj; ++j)
+            for (int i = 0; i < ni; ++i)
+            {
+                index_t q[4] = {base + j * (ni + 1) + i, base + j * (ni + 1) + i + 1,
+                                base + (j + 1) * (ni + 1) + i + 1, base + (j + 1) * (ni + 1) + i};
+                // orientation fixed later
+                quads.insert(quads.end(), q, q + 4);
+            }
+    };
+    // Core: Coons patch over the four core edges. u along +x, v along +y.
+    add_block(nc, nc,
+              [&](real_t u, real_t v)
+              {
+                  const auto e = edge(0, v);       // x = +a side, param along +y
+                  const auto w = edge(2, 1.0 - v); // x = -a side, param reversed
+                  const auto n = edge(1, 1.0 - u); // y = +a side
+                  const auto s = edge(3, u);       // y = -a side
+                  const auto c00 = edge(3, 0.0), c10 = edge(3, 1.0), c11 = edge(1, 0.0),
+                             c01 = edge(1, 1.0);
+                  std::array<real_t, 2> p;
+                  for (int d = 0; d < 2; ++d)
+                      p[d] = (1 - u) * w[d] + u * e[d] + (1 - v) * s[d] + v * n[d] -
+                             ((1 - u) * (1 - v) * c00[d] + u * (1 - v) * c10[d] +
+                              u * v * c11[d] + (1 - u) * v * c01[d]);
+                  return p;
+              });
+    for (int side = 0; side < 4; ++side)
+        add_block(nc, nr,
+                  [&](real_t t, real_t s)
+                  {
+                      const auto p = edge(side, t);
+                      const real_t theta = -M_PI / 4 + t * M_PI / 2 + side * M_PI / 2;
+                      return std::array<real_t, 2>{(1 - s) * p[0] + s * R * std::cos(theta),
+                                                   (1 - s) * p[1] + s * R * std::sin(theta)};
+                  });
+    // orient CCW
+    for (std::size_t q = 0; q < quads.size(); q += 4)
+    {
+        real_t area2 = 0;
+        for (int k = 0; k < 4; ++k)
+        {
+            const index_t i = quads[q + k], j = quads[q + (k + 1) % 4];
+            area2 += pts[2 * i] * pts[2 * j + 1] - pts[2 * j] * pts[2 * i + 1];
+        }
+        if (area2 < 0)
+            std::swap(quads[q + 1], quads[q + 3]);
+    }
+}
+} // namespace
+
+HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int, 3>& n)
+{
+    HexMesh m;
+    const index_t nx = n[0] + 1, ny = n[1] + 1, nz = n[2] + 1;
+    m.x.resize(static_cast<std::size_t>(nx) * ny * nz * 3);
+    for (index_t k = 0; k < nz; ++k)
+        for (index_t j = 0; j < ny; ++j)
+            for (index_t i = 0; i < nx; ++i)
+            {
+                const std::size_t id = static_cast<std::size_t>(i + nx * (j + ny * k));
+                m.x[3 * id + 0] = origin[0] + size[0] * i / n[0];
+                m.x[3 * id + 1] = origin[1] + size[1] * j / n[1];
+                m.x[3 * id + 2] = origin[2] + size[2] * k / n[2];
+            }
+    m.conn.reserve(static_cast<std::size_t>(n[0]) * n[1] * n[2] * 8);
+    auto id = [&](index_t i, index_t j, index_t k) { return i + nx * (j + ny * k); };
+    for (index_t k = 0; k < n[2]; ++k)
+        for (index_t j = 0; j < n[1]; ++j)
+            for (index_t i = 0; i < n[0]; ++i)
+            {
+                const index_t e[8] = {id(i, j, k),         id(i + 1, j, k),
+                                      id(i + 1, j + 1, k), id(i, j + 1, k),
+                                      id(i, j, k + 1),     id(i + 1, j, k + 1),
+                                      id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
+                m.conn.insert(m.conn.end(), e, e + 8);
+            }
+    m.faces = extract_boundary_faces(m.conn);
+    name_faces_by_normal(m,
+                         {{"xmin", -Vec3::UnitX()}, {"xmax", Vec3::UnitX()},
+                          {"ymin", -Vec3::UnitY()}, {"ymax", Vec3::UnitY()},
+                          {"zmin", -Vec3::UnitZ()}, {"zmax", Vec3::UnitZ()}},
+                         "");
+    m.named_faces["top"] = m.named_faces["zmax"];
+    m.named_faces["bottom"] = m.named_faces["zmin"];
+    auto& side = m.named_faces["side"];
+    for (const char* s : {"xmin", "xmax", "ymin", "ymax"})
+        side.insert(side.end(), m.named_faces[s].begin(), m.named_faces[s].end());
+    std::sort(side.begin(), side.end());
+    return m;
+}
+
+HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t h, bool ogrid)
+{
+    std::vector<real_t> pts;
+    std::vector<index_t> quads;
+    disk_mesh(radius, h, ogrid, pts, quads);
+    // merge the shared block edges in 2D
+    {
+        std::vector<real_t> p3;
+        for (std::size_t i = 0; i < pts.size() / 2; ++i)
+            p3.insert(p3.end(), {pts[2 * i], pts[2 * i + 1], 0.0});
+        merge_coincident_nodes(p3, quads, 1e-9 * radius);
+        pts.clear();
+        for (std::size_t i = 0; i < p3.size() / 3; ++i)
+            pts.insert(pts.end(), {p3[3 * i], p3[3 * i + 1]});
+    }
+    const index_t np = static_cast<index_t>(pts.size() / 2);
+    const int nz = divisions_for(height, h);
+    HexMesh m;
+    m.x.reserve(static_cast<std::size_t>(np) * (nz + 1) * 3);
+    for (int k = 0; k <= nz; ++k)
+        for (index_t i = 0; i < np; ++i)
+            m.x.insert(m.x.end(), {origin[0] + pts[2 * i], origin[1] + pts[2 * i + 1],
+                                   origin[2] + height * k / nz});
+    const std::size_t nq = quads.size() / 4;
+    for (int k = 0; k < nz; ++k)
+        for (std::size_t q = 0; q < nq; ++q)
+        {
+            index_t e[8];
+            for (int j = 0; j < 4; ++j)
+            {
+                e[j] = quads[4 * q + j] + np * k;
+                e[j + 4] = quads[4 * q + j] + np * (k + 1);
+            }
+            m.conn.insert(m.conn.end(), e, e + 8);
+        }
+    m.faces = extract_boundary_faces(m.conn);
+    name_faces_by_normal(m, {{"top", Vec3::UnitZ()}, {"bottom", -Vec3::UnitZ()}}, "side");
+    return m;
+}
+
+HexMesh generate(const GeneratorSpec& g)
+{
+    switch (g.type)
+    {
+    case GeneratorSpec::Type::Box:
+    {
+        std::array<int, 3> n = g.divisions;
+        if (n[0] == 0)
+            for (int d = 0; d < 3; ++d)
+                n[d] = divisions_for(g.size[d], g.element_size);
+        return generate_box(g.origin, g.size, n);
+    }
+    case GeneratorSpec::Type::Cylinder:
+        return generate_cylinder(g.origin, g.radius, g.height, g.element_size, g.core == "ogrid");
+    case GeneratorSpec::Type::Projectile:
+    {
+        Vec3 base = g.origin;
+        if (g.direction > 0)
+            base[2] -= g.height; // nose at origin.z, body below it
+        HexMesh m = generate_cylinder(base, g.radius, g.height, g.element_size, false);
+        auto top = m.named_faces["top"];
+        auto bottom = m.named_faces["bottom"];
+        m.named_faces.erase("top");
+        m.named_faces.erase("bottom");
+        m.named_faces["nose"] = g.direction < 0 ? bottom : top;
+        m.named_faces["tail"] = g.direction < 0 ? top : bottom;
+        return m;
+    }
+    }
+    throw Error("unknown generator");
+}
+} // namespace rkfem

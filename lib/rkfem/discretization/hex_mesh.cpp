@@ -1,0 +1,116 @@
+#include "rkfem/discretization/hex_mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+namespace rkfem
+{
+std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn)
+{
+    const index_t ne = static_cast<index_t>(conn.size() / 8);
+    struct Entry
+    {
+        std::array<index_t, 4> key;
+        index_t element;
+        int face;
+    };
+    std::vector<Entry> entries;
+    entries.reserve(static_cast<std::size_t>(ne) * 6);
+    for (index_t e = 0; e < ne; ++e)
+        for (int f = 0; f < 6; ++f)
+        {
+            std::array<index_t, 4> k;
+            for (int j = 0; j < 4; ++j)
+                k[j] = conn[8 * e + hex_faces[f][j]];
+            std::sort(k.begin(), k.end());
+            entries.push_back({k, e, f});
+        }
+    std::vector<std::size_t> order(entries.size());
+    for (std::size_t i = 0; i < order.size(); ++i)
+        order[i] = i;
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return entries[a].key < entries[b].key; });
+    std::vector<char> boundary(entries.size(), 0);
+    for (std::size_t i = 0; i < order.size();)
+    {
+        std::size_t j = i + 1;
+        while (j < order.size() && entries[order[j]].key == entries[order[i]].key)
+            ++j;
+        if (j - i == 1)
+            boundary[order[i]] = 1;
+        i = j;
+    }
+    std::vector<Quad> faces;
+    for (std::size_t i = 0; i < entries.size(); ++i)
+        if (boundary[i])
+        {
+            const index_t e = entries[i].element;
+            const int f = entries[i].face;
+            faces.push_back({conn[8 * e + hex_faces[f][0]], conn[8 * e + hex_faces[f][1]],
+                             conn[8 * e + hex_faces[f][2]], conn[8 * e + hex_faces[f][3]]});
+        }
+    return faces;
+}
+
+Vec3 quad_normal(const std::vector<real_t>& x, const Quad& q)
+{
+    auto p = [&](int j) { return Vec3(x[3 * q[j]], x[3 * q[j] + 1], x[3 * q[j] + 2]); };
+    return 0.5 * (p(2) - p(0)).cross(p(3) - p(1));
+}
+
+index_t merge_coincident_nodes(std::vector<real_t>& x, std::vector<index_t>& conn, real_t tol)
+{
+    const index_t n = static_cast<index_t>(x.size() / 3);
+    struct KeyHash
+    {
+        std::size_t operator()(const std::array<long long, 3>& k) const
+        {
+            return std::hash<long long>()(k[0] * 73856093LL ^ k[1] * 19349663LL ^ k[2] * 83492791LL);
+        }
+    };
+    std::unordered_map<std::array<long long, 3>, std::vector<index_t>, KeyHash> grid;
+    std::vector<index_t> new_id(n, -1);
+    std::vector<real_t> kept;
+    index_t n_kept = 0;
+    const real_t cell = 2.0 * tol;
+    for (index_t i = 0; i < n; ++i)
+    {
+        std::array<long long, 3> c;
+        for (int d = 0; d < 3; ++d)
+            c[d] = static_cast<long long>(std::floor(x[3 * i + d] / cell));
+        index_t found = -1;
+        for (int dx = -1; dx <= 1 && found < 0; ++dx)
+            for (int dy = -1; dy <= 1 && found < 0; ++dy)
+                for (int dz = -1; dz <= 1 && found < 0; ++dz)
+                {
+                    auto it = grid.find({c[0] + dx, c[1] + dy, c[2] + dz});
+                    if (it == grid.end())
+                        continue;
+                    for (index_t k : it->second)
+                    {
+                        real_t d2 = 0;
+                        for (int d = 0; d < 3; ++d)
+                            d2 += (kept[3 * k + d] - x[3 * i + d]) * (kept[3 * k + d] - x[3 * i + d]);
+                        if (d2 <= tol * tol)
+                        {
+                            found = k;
+                            break;
+                        }
+                    }
+                }
+        if (found < 0)
+        {
+            found = n_kept++;
+            for (int d = 0; d < 3; ++d)
+                kept.push_back(x[3 * i + d]);
+            grid[c].push_back(found);
+        }
+        new_id[i] = found;
+    }
+    for (auto& c : conn)
+        c = new_id[c];
+    x.swap(kept);
+    return n_kept;
+}
+} // namespace rkfem

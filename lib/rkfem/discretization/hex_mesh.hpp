@@ -1,0 +1,49 @@
+#pragma once
+/// @file hex_mesh.hpp
+/// A hexahedral mesh as flat arrays, the boundary faces it exposes, and named face groups.
+///
+/// Node order in an element is LS-DYNA's *ELEMENT_SOLID and VTK_HEXAHEDRON order: nodes 0-3 are
+/// the face at natural coordinate zeta = -1, counter-clockwise seen from +zeta; nodes 4-7 lie
+/// above them. Natural coordinates of node I are hex8_nodes[I] (approximation/fem/hex8_basis.hpp).
+#include <array>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+using Quad = std::array<index_t, 4>; ///< boundary face, outward normal by the right-hand rule
+
+struct HexMesh
+{
+    std::vector<real_t> x;       ///< n_nodes x 3, node-major (x0 y0 z0 x1 y1 z1 ...)
+    std::vector<index_t> conn;   ///< n_elements x 8
+    std::vector<Quad> faces;     ///< boundary faces (each appears in exactly one element)
+    std::map<std::string, std::vector<index_t>> named_faces; ///< name -> indices into `faces`
+
+    index_t n_nodes() const { return static_cast<index_t>(x.size() / 3); }
+    index_t n_elements() const { return static_cast<index_t>(conn.size() / 8); }
+    Vec3 node(index_t i) const { return {x[3 * i], x[3 * i + 1], x[3 * i + 2]}; }
+};
+
+/// The six faces of a hex as local node indices, outward normals.
+inline constexpr std::array<std::array<int, 4>, 6> hex_faces{{
+    {0, 3, 2, 1}, // zeta = -1
+    {4, 5, 6, 7}, // zeta = +1
+    {0, 1, 5, 4}, // eta = -1
+    {1, 2, 6, 5}, // xi = +1
+    {2, 3, 7, 6}, // eta = +1
+    {3, 0, 4, 7}, // xi = -1
+}};
+
+/// Finds faces that belong to one element only. Order: by element, then by local face.
+std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn);
+
+/// Area-weighted normal of a quad (|n| = area for a planar quad): (x2 - x0) x (x3 - x1) / 2.
+Vec3 quad_normal(const std::vector<real_t>& x, const Quad& q);
+
+/// Merges nodes closer than `tol` and renumbers `conn`; returns the number of nodes kept.
+index_t merge_coincident_nodes(std::vector<real_t>& x, std::vector<index_t>& conn, real_t tol);
+} // namespace rkfem

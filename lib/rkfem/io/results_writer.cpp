@@ -1,0 +1,185 @@
+#include "rkfem/io/results_writer.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <hdf5.h>
+#include <iomanip>
+#include <sstream>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/model/model.hpp"
+
+namespace rkfem
+{
+namespace
+{
+void write_dataset(hid_t loc, const char* name, const real_t* data, hsize_t rows, hsize_t cols)
+{
+    const hsize_t dims[2] = {rows, cols};
+    const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
+    const hid_t set = H5Dcreate2(loc, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (set < 0)
+        throw Error(std::string("HDF5: cannot create dataset ") + name);
+    H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+    H5Dclose(set);
+    H5Sclose(space);
+}
+
+void write_dataset_int(hid_t loc, const char* name, const index_t* data, hsize_t rows, hsize_t cols)
+{
+    const hsize_t dims[2] = {rows, cols};
+    const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
+    const hid_t set = H5Dcreate2(loc, name, H5T_STD_I32LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    H5Dwrite(set, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+    H5Dclose(set);
+    H5Sclose(space);
+}
+
+std::string step_name(int i)
+{
+    std::ostringstream os;
+    os << std::setw(6) << std::setfill('0') << i;
+    return os.str();
+}
+} // namespace
+
+ResultsWriter::ResultsWriter(const std::string& directory) : dir_(directory)
+{
+    const std::string path = dir_ + "/results.h5";
+    file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    if (file_ < 0)
+        throw Error("cannot create " + path);
+}
+
+ResultsWriter::~ResultsWriter()
+{
+    if (file_ >= 0)
+        H5Fclose(static_cast<hid_t>(file_));
+}
+
+void ResultsWriter::write_mesh(const Model& model)
+{
+    const hid_t f = static_cast<hid_t>(file_);
+    const hid_t g = H5Gcreate2(f, "mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    n_nodes_ = model.nodes.size();
+    n_elements_ = model.n_elements();
+    write_dataset(g, "coordinates", model.nodes.x0.data(), n_nodes_, 3);
+    std::vector<index_t> conn, part;
+    for (const auto& b : model.blocks)
+    {
+        conn.insert(conn.end(), b.conn.begin(), b.conn.end());
+        part.insert(part.end(), b.n_elements(), b.part);
+    }
+    write_dataset_int(g, "connectivity", conn.data(), n_elements_, 8);
+    write_dataset_int(g, "part", part.data(), n_elements_, 1);
+    H5Gclose(g);
+    const hid_t s = H5Gcreate2(f, "steps", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    H5Gclose(s);
+    H5Fflush(f, H5F_SCOPE_GLOBAL);
+}
+
+void ResultsWriter::write_step(const Model& model, real_t time)
+{
+    const hid_t f = static_cast<hid_t>(file_);
+    const std::string name = "steps/" + step_name(n_steps());
+    const hid_t g = H5Gcreate2(f, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    {
+        const hid_t space = H5Screate(H5S_SCALAR);
+        const hid_t attr = H5Acreate2(g, "time", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT);
+        H5Awrite(attr, H5T_NATIVE_DOUBLE, &time);
+        H5Aclose(attr);
+        H5Sclose(space);
+    }
+    const NodeSet& n = model.nodes;
+    write_dataset(g, "coordinates", n.x.data(), n_nodes_, 3);
+    write_dataset(g, "displacement", n.u.data(), n_nodes_, 3);
+    write_dataset(g, "velocity", n.v.data(), n_nodes_, 3);
+    std::vector<real_t> stress(6 * n_elements_), pressure(n_elements_), eps(n_elements_, 0.0),
+        volume(n_elements_);
+    std::size_t e_global = 0;
+    for (std::size_t b = 0; b < model.blocks.size(); ++b)
+        for (index_t e = 0; e < model.blocks[b].n_elements(); ++e, ++e_global)
+        {
+            const Sym6 s = model.element_stress(static_cast<index_t>(b), e);
+            for (int k = 0; k < 6; ++k)
+                stress[6 * e_global + k] = s[k];
+            pressure[e_global] = -(s[0] + s[1] + s[2]) / 3.0;
+            volume[e_global] = model.blocks[b].volume[e];
+        }
+    write_dataset(g, "stress", stress.data(), n_elements_, 6);
+    write_dataset(g, "pressure", pressure.data(), n_elements_, 1);
+    write_dataset(g, "effective_plastic_strain", eps.data(), n_elements_, 1);
+    write_dataset(g, "volume", volume.data(), n_elements_, 1);
+    H5Gclose(g);
+    H5Fflush(f, H5F_SCOPE_GLOBAL);
+    times_.push_back(time);
+    write_xdmf();
+}
+
+void ResultsWriter::write_history(const std::vector<std::string>& columns,
+                                  const std::vector<real_t>& rows)
+{
+    const hid_t f = static_cast<hid_t>(file_);
+    if (H5Lexists(f, "history", H5P_DEFAULT) > 0)
+        H5Ldelete(f, "history", H5P_DEFAULT);
+    const hid_t g = H5Gcreate2(f, "history", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    const hsize_t nc = columns.size();
+    const hsize_t nr = nc ? rows.size() / nc : 0;
+    for (hsize_t c = 0; c < nc; ++c)
+    {
+        std::vector<real_t> col(nr);
+        for (hsize_t r = 0; r < nr; ++r)
+            col[r] = rows[r * nc + c];
+        write_dataset(g, columns[c].c_str(), col.data(), nr, 1);
+    }
+    H5Gclose(g);
+    H5Fflush(f, H5F_SCOPE_GLOBAL);
+}
+
+void ResultsWriter::write_xdmf() const
+{
+    const std::string path = dir_ + "/results.xdmf";
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream x(tmp);
+        x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n<Domain>\n"
+          << "<Grid Name=\"rkfem\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+        x << std::setprecision(17);
+        for (std::size_t i = 0; i < times_.size(); ++i)
+        {
+            const std::string g = "results.h5:/steps/" + step_name(static_cast<int>(i));
+            auto item = [&](const char* name, long long rows, int cols, const char* type = "Float",
+                            int prec = 8)
+            {
+                std::ostringstream os;
+                os << "<DataItem Dimensions=\"" << rows;
+                if (cols > 1)
+                    os << " " << cols;
+                os << "\" NumberType=\"" << type << "\" Precision=\"" << prec
+                   << "\" Format=\"HDF\">" << name << "</DataItem>";
+                return os.str();
+            };
+            x << " <Grid Name=\"step_" << i << "\" GridType=\"Uniform\">\n"
+              << "  <Time Value=\"" << times_[i] << "\"/>\n"
+              << "  <Topology TopologyType=\"Hexahedron\" NumberOfElements=\"" << n_elements_ << "\">"
+              << item("results.h5:/mesh/connectivity", n_elements_, 8, "Int", 4) << "</Topology>\n"
+              << "  <Geometry GeometryType=\"XYZ\">" << item((g + "/coordinates").c_str(), n_nodes_, 3)
+              << "</Geometry>\n";
+            for (const char* v : {"displacement", "velocity"})
+                x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
+                  << item((g + "/" + v).c_str(), n_nodes_, 3) << "</Attribute>\n";
+            x << "  <Attribute Name=\"stress\" AttributeType=\"Tensor6\" Center=\"Cell\">"
+              << item((g + "/stress").c_str(), n_elements_, 6) << "</Attribute>\n";
+            for (const char* v : {"pressure", "effective_plastic_strain", "volume"})
+                x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Scalar\" Center=\"Cell\">"
+                  << item((g + "/" + v).c_str(), n_elements_, 1) << "</Attribute>\n";
+            x << "  <Attribute Name=\"part\" AttributeType=\"Scalar\" Center=\"Cell\">"
+              << item("results.h5:/mesh/part", n_elements_, 1, "Int", 4) << "</Attribute>\n";
+            x << " </Grid>\n";
+        }
+        x << "</Grid>\n</Domain>\n</Xdmf>\n";
+    }
+    std::filesystem::rename(tmp, path);
+}
+} // namespace rkfem

@@ -1,0 +1,44 @@
+#pragma once
+/// @file results_writer.hpp
+/// Field output: DIR/results.h5 (HDF5) with an XDMF index DIR/results.xdmf that ParaView 5.11
+/// opens as a time series (Xdmf3 reader). Layout of results.h5:
+///   /mesh/coordinates        n_nodes x 3   reference coordinates [m]
+///   /mesh/connectivity       n_elem x 8    int32, VTK/LS-DYNA hex order
+///   /mesh/part               n_elem        int32 part index
+///   /steps/NNNNNN/            one group per output, attribute `time` [s]
+///       coordinates, displacement, velocity   n_nodes x 3
+///       stress                                n_elem x 6  (xx yy zz xy yz zx) [Pa]
+///       pressure, effective_plastic_strain, volume   n_elem
+/// The file is flushed and the XDMF index rewritten after every output, so a run that stops
+/// keeps everything written so far.
+#include <string>
+#include <vector>
+
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+class Model;
+
+class ResultsWriter
+{
+  public:
+    explicit ResultsWriter(const std::string& directory);
+    ~ResultsWriter();
+    ResultsWriter(const ResultsWriter&) = delete;
+    ResultsWriter& operator=(const ResultsWriter&) = delete;
+
+    void write_mesh(const Model& model);
+    void write_step(const Model& model, real_t time);
+    /// Time history table (same content as history.csv).
+    void write_history(const std::vector<std::string>& columns, const std::vector<real_t>& rows);
+    int n_steps() const { return static_cast<int>(times_.size()); }
+
+  private:
+    void write_xdmf() const;
+    std::string dir_;
+    long long file_ = -1; // hid_t
+    std::vector<real_t> times_;
+    long long n_nodes_ = 0, n_elements_ = 0;
+};
+} // namespace rkfem

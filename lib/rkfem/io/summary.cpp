@@ -1,0 +1,109 @@
+#include "rkfem/io/summary.hpp"
+
+#include <algorithm>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/model/simulation.hpp"
+
+namespace rkfem
+{
+namespace
+{
+std::string quote(const std::string& s)
+{
+    std::string out = "\"";
+    for (char c : s)
+    {
+        switch (c)
+        {
+        case '"':
+            out += "\\\"";
+            break;
+        case '\\':
+            out += "\\\\";
+            break;
+        case '\n':
+            out += "\\n";
+            break;
+        case '\t':
+            out += "\\t";
+            break;
+        default:
+            if (static_cast<unsigned char>(c) < 0x20)
+                out += ' ';
+            else
+                out += c;
+        }
+    }
+    return out + "\"";
+}
+
+std::string num(double v)
+{
+    if (!std::isfinite(v))
+        return "null";
+    std::ostringstream os;
+    os << std::setprecision(12) << v;
+    return os.str();
+}
+} // namespace
+
+void write_summary_json(const std::string& path, const Model& model, const RunOptions& opt,
+                        const RunSummary& s)
+{
+    std::ofstream o(path);
+    const Energies& e = s.energy;
+    o << "{\n";
+    o << "  \"deck\": " << quote(opt.deck_path) << ",\n";
+    o << "  \"title\": " << quote(model.deck().title) << ",\n";
+    o << "  \"overrides\": [";
+    for (std::size_t i = 0; i < opt.overrides.size(); ++i)
+        o << (i ? ", " : "") << quote(opt.overrides[i]);
+    o << "],\n";
+    o << "  \"resolved_deck_si\": " << quote(to_yaml(model.deck())) << ",\n";
+    o << "  \"status\": " << quote(s.status) << ",\n";
+    o << "  \"message\": " << quote(s.message) << ",\n";
+    o << "  \"nodes\": " << model.nodes.size() << ",\n";
+    o << "  \"elements\": " << model.n_elements() << ",\n";
+    o << "  \"threads\": " << max_threads() << ",\n";
+    o << "  \"steps\": " << s.steps << ",\n";
+    o << "  \"end_time\": " << num(s.end_time) << ",\n";
+    o << "  \"wall_seconds\": " << num(s.wall_seconds) << ",\n";
+    o << "  \"ns_per_element_cycle\": " << num(s.ns_per_element_cycle) << ",\n";
+    o << "  \"outputs\": " << s.n_outputs << ",\n";
+    o << "  \"energy\": {\"kinetic\": " << num(e.kinetic) << ", \"internal\": " << num(e.internal)
+      << ", \"hourglass\": " << num(e.hourglass) << ", \"bulk_viscosity\": " << num(e.bulk_viscosity)
+      << ", \"damping\": " << num(e.damping) << ", \"external_work\": " << num(e.external_work)
+      << ", \"kinetic0\": " << num(e.kinetic0) << ", \"internal0\": " << num(e.internal0) << "},\n";
+    o << "  \"balance_error\": " << num(e.balance_error()) << ",\n";
+    o << "  \"max_balance_error\": " << num(s.max_balance_error) << ",\n";
+    o << "  \"hourglass_ratio\": " << num(e.hourglass_ratio()) << ",\n";
+    o << "  \"probes\": {";
+    const std::size_t nc = s.history_columns.size();
+    const std::size_t nr = nc ? s.history.size() / nc : 0;
+    const auto& probes = model.deck().probes;
+    for (std::size_t p = 0; p < probes.size(); ++p)
+    {
+        o << (p ? ",\n" : "\n") << "    " << quote(probes[p].name) << ": {\"node\": "
+          << model.probe_nodes[p];
+        for (std::size_t q = 0; q < 12; ++q)
+        {
+            const std::size_t col = 11 + 12 * p + q;
+            double lo = 1e300, hi = -1e300;
+            for (std::size_t r = 0; r < nr; ++r)
+            {
+                lo = std::min(lo, s.history[r * nc + col]);
+                hi = std::max(hi, s.history[r * nc + col]);
+            }
+            o << ", " << quote(s.history_columns[col].substr(probes[p].name.size() + 1))
+              << ": {\"min\": " << num(nr ? lo : 0) << ", \"max\": " << num(nr ? hi : 0) << "}";
+        }
+        o << "}";
+    }
+    o << (probes.empty() ? "}\n" : "\n  }\n");
+    o << "}\n";
+}
+} // namespace rkfem

@@ -1,0 +1,491 @@
+#include "rkfem/model/model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/discretization/generators.hpp"
+
+namespace rkfem
+{
+real_t Energies::balance_error() const
+{
+    const real_t lhs = kinetic + kinetic_correction + internal + hourglass + bulk_viscosity + damping;
+    const real_t err = std::abs(lhs - kinetic0 - internal0 - external_work);
+    const real_t scale = std::max({std::abs(kinetic) + std::abs(internal) + std::abs(hourglass) +
+                                       std::abs(bulk_viscosity) + std::abs(damping),
+                                   std::abs(external_work), std::abs(kinetic0 + internal0),
+                                   std::numeric_limits<real_t>::min()});
+    return err / scale;
+}
+
+real_t Energies::hourglass_ratio() const
+{
+    const real_t denom = internal + hourglass;
+    return denom > 0 ? hourglass / denom : 0.0;
+}
+
+namespace
+{
+bool matches(const SelectorSpec& s, const Vec3& p, real_t tol)
+{
+    switch (s.type)
+    {
+    case SelectorSpec::Type::Plane:
+        return std::abs((p - s.point).dot(s.normal)) <= tol;
+    case SelectorSpec::Type::Box:
+        return (p.array() >= s.min.array() - tol).all() && (p.array() <= s.max.array() + tol).all();
+    case SelectorSpec::Type::Cylinder:
+    {
+        const Vec3 r = p - s.point;
+        const Vec3 radial = r - r.dot(s.normal) * s.normal;
+        return std::abs(radial.norm() - s.radius) <= tol;
+    }
+    case SelectorSpec::Type::Sphere:
+        return (p - s.point).norm() <= s.radius;
+    case SelectorSpec::Type::Named:
+        return false;
+    }
+    return false;
+}
+
+real_t default_tolerance(const NodeSet& nodes, index_t begin, index_t end)
+{
+    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    for (index_t i = begin; i < end; ++i)
+        for (int d = 0; d < 3; ++d)
+        {
+            lo[d] = std::min(lo[d], nodes.x0[3 * i + d]);
+            hi[d] = std::max(hi[d], nodes.x0[3 * i + d]);
+        }
+    return 1e-6 * (hi - lo).norm();
+}
+} // namespace
+
+index_t Model::n_elements() const
+{
+    index_t n = 0;
+    for (const auto& b : blocks)
+        n += b.n_elements();
+    return n;
+}
+
+std::pair<index_t, index_t> Model::locate_element(index_t global) const
+{
+    for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
+    {
+        if (global < blocks[b].n_elements())
+            return {b, global};
+        global -= blocks[b].n_elements();
+    }
+    return {-1, -1};
+}
+
+Model Model::build(const Deck& deck)
+{
+    Model m;
+    m.deck_ = deck;
+    const Deck& d = m.deck_;
+    // meshes
+    std::vector<HexMesh> meshes;
+    index_t n_nodes = 0;
+    for (const auto& p : d.parts)
+    {
+        meshes.push_back(generate(p.generator));
+        n_nodes += meshes.back().n_nodes();
+    }
+    m.nodes.resize(n_nodes);
+    index_t offset = 0, elem_offset = 0;
+    for (std::size_t ip = 0; ip < d.parts.size(); ++ip)
+    {
+        const PartSpec& ps = d.parts[ip];
+        const HexMesh& mesh = meshes[ip];
+        PartInfo info;
+        info.name = ps.name;
+        info.node_begin = offset;
+        info.node_end = offset + mesh.n_nodes();
+        info.element_offset = elem_offset;
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+            for (int k = 0; k < 3; ++k)
+            {
+                const std::size_t g = 3 * static_cast<std::size_t>(offset + i) + k;
+                m.nodes.x0[g] = m.nodes.x[g] = mesh.x[3 * i + k];
+                m.nodes.v[g] = ps.initial_velocity[k];
+            }
+        for (index_t i = info.node_begin; i < info.node_end; ++i)
+            m.nodes.part[i] = static_cast<index_t>(ip);
+        for (const auto& f : mesh.faces)
+            info.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset, f[3] + offset});
+        info.named_faces = mesh.named_faces;
+
+        HexBlock blk;
+        blk.part = static_cast<index_t>(ip);
+        blk.formulation = ps.formulation;
+        blk.hourglass = ps.hourglass;
+        blk.bulk_viscosity = ps.bulk_viscosity;
+        blk.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
+        blk.conn = mesh.conn;
+        for (auto& c : blk.conn)
+            c += offset;
+        blk.node_begin = info.node_begin;
+        blk.node_end = info.node_end;
+        blk.initialize(m.nodes);
+        for (index_t e = 0; e < blk.n_elements(); ++e)
+            if (!(blk.volume0[e] > 0.0))
+                throw DeckError({ps.generator.loc.where, ps.loc.path + ".generator"},
+                                "element " + std::to_string(e) + " has non-positive volume " +
+                                    std::to_string(blk.volume0[e]) + " m^3",
+                                "expected a generator that makes valid (positive-volume) hexahedra");
+        add_lumped_mass(blk, m.nodes);
+        elem_offset += blk.n_elements();
+        offset = info.node_end;
+        m.blocks.push_back(std::move(blk));
+        m.parts.push_back(std::move(info));
+    }
+
+    auto part_range = [&](const std::string& name)
+    {
+        std::vector<index_t> ids;
+        for (index_t ip = 0; ip < static_cast<index_t>(m.parts.size()); ++ip)
+            if (name.empty() || m.parts[ip].name == name)
+                ids.push_back(ip);
+        return ids;
+    };
+
+    // node sets
+    for (const auto& s : d.node_sets)
+    {
+        std::vector<index_t> ids;
+        for (index_t ip : part_range(s.part))
+        {
+            const PartInfo& pi = m.parts[ip];
+            if (s.select.type == SelectorSpec::Type::Named)
+            {
+                if (s.select.name == "all")
+                {
+                    for (index_t i = pi.node_begin; i < pi.node_end; ++i)
+                        ids.push_back(i);
+                    continue;
+                }
+                auto it = pi.named_faces.find(s.select.name);
+                if (it == pi.named_faces.end())
+                {
+                    std::string names = "all";
+                    for (const auto& [n, _] : pi.named_faces)
+                        names += ", " + n;
+                    throw DeckError({s.loc.where, s.loc.path + ".select.name"},
+                                    "part '" + pi.name + "' has no set named '" + s.select.name + "'",
+                                    "expected one of " + names);
+                }
+                for (index_t f : it->second)
+                    for (index_t n : pi.faces[f])
+                        ids.push_back(n);
+            }
+            else
+            {
+                const real_t tol = s.select.tolerance >= 0
+                                       ? s.select.tolerance
+                                       : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
+                for (index_t i = pi.node_begin; i < pi.node_end; ++i)
+                    if (matches(s.select, Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]), tol))
+                        ids.push_back(i);
+            }
+        }
+        std::sort(ids.begin(), ids.end());
+        ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+        if (ids.empty())
+            throw DeckError({s.loc.where, s.loc.path + ".select"}, "selects no node",
+                            "expected a selector that matches at least one node of " +
+                                (s.part.empty() ? std::string("any part") : "part '" + s.part + "'"));
+        m.node_sets[s.name] = std::move(ids);
+    }
+    // face sets
+    for (const auto& s : d.face_sets)
+    {
+        std::vector<Quad> faces;
+        for (index_t ip : part_range(s.part))
+        {
+            const PartInfo& pi = m.parts[ip];
+            if (s.select.type == SelectorSpec::Type::Named)
+            {
+                auto it = pi.named_faces.find(s.select.name);
+                if (it == pi.named_faces.end())
+                {
+                    std::string names;
+                    for (const auto& [n, _] : pi.named_faces)
+                        names += (names.empty() ? "" : ", ") + n;
+                    throw DeckError({s.loc.where, s.loc.path + ".select.name"},
+                                    "part '" + pi.name + "' has no face set named '" + s.select.name + "'",
+                                    "expected one of " + names);
+                }
+                for (index_t f : it->second)
+                    faces.push_back(pi.faces[f]);
+            }
+            else
+            {
+                const real_t tol = s.select.tolerance >= 0
+                                       ? s.select.tolerance
+                                       : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
+                for (const auto& f : pi.faces)
+                {
+                    bool all = true;
+                    for (index_t n : f)
+                        all = all && matches(s.select, Vec3(m.nodes.x0[3 * n], m.nodes.x0[3 * n + 1], m.nodes.x0[3 * n + 2]), tol);
+                    if (all)
+                        faces.push_back(f);
+                }
+            }
+        }
+        if (faces.empty())
+            throw DeckError({s.loc.where, s.loc.path + ".select"}, "selects no boundary face",
+                            "expected a selector that matches all four nodes of at least one boundary face");
+        m.face_sets[s.name] = std::move(faces);
+    }
+    // boundary conditions (later entries override earlier ones on the same dof)
+    std::map<index_t, std::size_t> dof_slot;
+    for (const auto& b : d.boundary_conditions)
+        for (index_t n : m.node_sets.at(b.node_set))
+            for (int k = 0; k < 3; ++k)
+                if (b.active[k])
+                {
+                    const DofCondition c{3 * n + k, b.kind, &b.value[k]};
+                    auto it = dof_slot.find(c.dof);
+                    if (it == dof_slot.end())
+                    {
+                        dof_slot[c.dof] = m.conditions.size();
+                        m.conditions.push_back(c);
+                    }
+                    else
+                        m.conditions[it->second] = c;
+                }
+    for (const auto& l : d.loads)
+    {
+        if (l.kind == LoadSpec::Kind::NodalForce)
+            m.nodal_loads_.push_back({&l, m.node_sets.at(l.set)});
+        else
+            m.pressure_loads_.push_back({&l, &m.face_sets.at(l.set)});
+    }
+    // probes: nearest node
+    for (const auto& p : d.probes)
+    {
+        index_t best = -1;
+        real_t best_d = 1e300;
+        for (index_t ip : part_range(p.part))
+            for (index_t i = m.parts[ip].node_begin; i < m.parts[ip].node_end; ++i)
+            {
+                const real_t dd = (Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - p.point).squaredNorm();
+                if (dd < best_d)
+                {
+                    best_d = dd;
+                    best = i;
+                }
+            }
+        if (best < 0)
+            throw DeckError({p.loc.where, p.loc.path + ".part"}, "unknown part '" + p.part + "'",
+                            "expected the name of a part");
+        m.probe_nodes.push_back(best);
+    }
+    m.f_ext_prev_.assign(m.nodes.f_ext.size(), 0.0);
+    m.reaction_prev_.assign(m.conditions.size(), 0.0);
+    return m;
+}
+
+void Model::impose_velocity(real_t t, real_t dt, bool half_step)
+{
+    for (const auto& c : conditions)
+    {
+        real_t v = 0.0;
+        switch (c.kind)
+        {
+        case BoundarySpec::Kind::Fixed:
+            v = 0.0;
+            break;
+        case BoundarySpec::Kind::Velocity:
+            v = (*c.value)(half_step ? t + 0.5 * dt : t);
+            break;
+        case BoundarySpec::Kind::Displacement:
+            if (half_step)
+                v = dt > 0 ? ((*c.value)(t + dt) - nodes.u[c.dof]) / dt : 0.0;
+            else
+            {
+                const real_t h = dt > 0 ? dt : 1e-9;
+                v = ((*c.value)(t + h) - (*c.value)(t)) / h;
+            }
+            break;
+        }
+        nodes.v[c.dof] = v;
+    }
+}
+
+void Model::update_coordinates()
+{
+    const index_t n3 = 3 * nodes.size();
+    parallel_for("rkfem::coordinates", n3, [&](index_t i) { nodes.x[i] = nodes.x0[i] + nodes.u[i]; });
+}
+
+void Model::apply_external_forces(real_t t)
+{
+    std::fill(nodes.f_ext.begin(), nodes.f_ext.end(), 0.0);
+    for (const auto& [load, ids] : nodal_loads_)
+        for (int k = 0; k < 3; ++k)
+            if (load->active[k])
+            {
+                real_t f = load->force[k](t);
+                if (load->total)
+                    f /= static_cast<real_t>(ids.size());
+                for (index_t n : ids)
+                    nodes.f_ext[3 * n + k] += f;
+            }
+    for (const auto& [load, faces] : pressure_loads_)
+    {
+        const real_t p = load->pressure(t);
+        if (p == 0.0)
+            continue;
+        for (const auto& q : *faces)
+        {
+            const Vec3 n = quad_normal(nodes.x, q); // area-weighted, outward
+            for (index_t node : q)
+                for (int k = 0; k < 3; ++k)
+                    nodes.f_ext[3 * node + k] -= 0.25 * p * n[k];
+        }
+    }
+}
+
+ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
+{
+    ForceReport rep;
+    pending_int_ = pending_hg_ = pending_bv_ = 0.0;
+    index_t offset = 0;
+    for (std::size_t ib = 0; ib < blocks.size(); ++ib)
+    {
+        HexBlock& blk = blocks[ib];
+        const ForcePassResult r = hex_internal_force(blk, nodes, dt);
+        if (r.bad_element >= 0)
+        {
+            std::ostringstream os;
+            os << "element " << offset + r.bad_element << " (part '" << parts[ib].name
+               << "', local " << r.bad_element << ") has non-positive or NaN volume "
+               << blk.volume[r.bad_element] << " m^3 at t = " << t << " s, step " << step;
+            throw InstabilityError(os.str());
+        }
+        pending_int_ += r.d_internal;
+        pending_hg_ += r.d_hourglass;
+        pending_bv_ += r.d_bulk_viscosity;
+        if (r.dt_stable < rep.dt_stable)
+        {
+            rep.dt_stable = r.dt_stable;
+            rep.dt_element = offset + r.dt_element;
+        }
+        assemble_block_forces(blk, nodes);
+        offset += blk.n_elements();
+    }
+    apply_external_forces(t);
+    return rep;
+}
+
+void Model::compute_accelerations()
+{
+    const real_t c = deck_.time.mass_damping;
+    const index_t n = nodes.size();
+    parallel_for("rkfem::accelerations", n,
+                 [&](index_t i)
+                 {
+                     const real_t inv_m = 1.0 / nodes.mass[i];
+                     for (int k = 0; k < 3; ++k)
+                     {
+                         const std::size_t j = 3 * static_cast<std::size_t>(i) + k;
+                         nodes.a[j] = (nodes.f_ext[j] - nodes.f_int[j]) * inv_m - c * nodes.v[j];
+                     }
+                 });
+    for (const auto& cnd : conditions)
+        nodes.a[cnd.dof] = 0.0;
+}
+
+void Model::commit()
+{
+    for (auto& b : blocks)
+        b.commit();
+    energy.internal += pending_int_;
+    energy.hourglass += pending_hg_;
+    energy.bulk_viscosity += pending_bv_;
+    pending_int_ = pending_hg_ = pending_bv_ = 0.0;
+}
+
+void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
+{
+    const index_t n = nodes.size();
+    energy.kinetic = parallel_reduce_sum("rkfem::kinetic", n,
+                                         [&](index_t i)
+                                         {
+                                             const std::size_t j = 3 * static_cast<std::size_t>(i);
+                                             return 0.5 * nodes.mass[i] *
+                                                    (nodes.v[j] * nodes.v[j] + nodes.v[j + 1] * nodes.v[j + 1] +
+                                                     nodes.v[j + 2] * nodes.v[j + 2]);
+                                         });
+    energy.kinetic_correction =
+        -0.125 * dt * dt *
+        parallel_reduce_sum("rkfem::kinetic_correction", n,
+                            [&](index_t i)
+                            {
+                                const std::size_t j = 3 * static_cast<std::size_t>(i);
+                                return nodes.mass[i] * (nodes.a[j] * nodes.a[j] + nodes.a[j + 1] * nodes.a[j + 1] +
+                                                        nodes.a[j + 2] * nodes.a[j + 2]);
+                            });
+    if (dt <= 0)
+    {
+        f_ext_prev_ = nodes.f_ext;
+        bc_v_prev_.resize(conditions.size());
+        for (std::size_t k = 0; k < conditions.size(); ++k)
+            bc_v_prev_[k] = nodes.v[conditions[k].dof];
+        return;
+    }
+    // external work, trapezoid in time
+    energy.external_work += parallel_reduce_sum(
+        "rkfem::external_work", 3 * n,
+        [&](index_t j) { return 0.5 * (f_ext_prev_[j] + nodes.f_ext[j]) * (nodes.u[j] - u_prev[j]); });
+    // work of reactions at prescribed dofs: R = f_int - f_ext + m a_prescribed
+    for (std::size_t k = 0; k < conditions.size(); ++k)
+    {
+        const index_t j = conditions[k].dof;
+        const real_t du = nodes.u[j] - u_prev[j];
+        // prescribed acceleration over the step, from the imposed velocities
+        const real_t ap = (nodes.v[j] - bc_v_prev_[k]) / dt;
+        bc_v_prev_[k] = nodes.v[j];
+        const real_t r = nodes.f_int[j] - nodes.f_ext[j] + nodes.mass[j / 3] * ap;
+        energy.external_work += 0.5 * (reaction_prev_[k] + r) * du;
+        reaction_prev_[k] = r;
+    }
+    // mass damping dissipation
+    const real_t c = deck_.time.mass_damping;
+    if (c > 0)
+        energy.damping += dt * c * 2.0 * energy.kinetic;
+    f_ext_prev_ = nodes.f_ext;
+}
+
+Sym6 Model::element_stress(index_t b, index_t e) const
+{
+    const HexBlock& blk = blocks[b];
+    const index_t npe = blk.points_per_element();
+    const std::size_t np = static_cast<std::size_t>(blk.n_points());
+    Sym6 s = Sym6::Zero();
+    for (index_t g = 0; g < npe; ++g)
+        for (int k = 0; k < 6; ++k)
+            s[k] += blk.stress[k * np + static_cast<std::size_t>(e) * npe + g];
+    return s / static_cast<real_t>(npe);
+}
+
+Sym6 Model::nodal_stress(index_t node) const
+{
+    const index_t ip = nodes.part[node];
+    const HexBlock& blk = blocks[ip];
+    const index_t i = node - blk.node_begin;
+    Sym6 s = Sym6::Zero();
+    const index_t k0 = blk.node_elem_offsets[i], k1 = blk.node_elem_offsets[i + 1];
+    for (index_t k = k0; k < k1; ++k)
+        s += element_stress(ip, blk.node_elem_slots[k] / 8);
+    return k1 > k0 ? Sym6(s / static_cast<real_t>(k1 - k0)) : s;
+}
+} // namespace rkfem

@@ -1,0 +1,120 @@
+#pragma once
+/// @file model.hpp
+/// The model built from a deck: nodes of every part in one NodeSet, one HexBlock per part, named
+/// node and face sets, boundary conditions, loads and probes; and the per-step phases the time
+/// steppers call (kinematic conditions, forces, accelerations, commit, energies).
+#include <map>
+#include <string>
+#include <vector>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/hex_mesh.hpp"
+#include "rkfem/discretization/node_set.hpp"
+#include "rkfem/operators/hex_block.hpp"
+
+namespace rkfem
+{
+struct PartInfo
+{
+    std::string name;
+    index_t node_begin = 0, node_end = 0;
+    index_t element_offset = 0; ///< first global element index of the part's block
+    std::vector<Quad> faces;    ///< boundary faces (global node ids)
+    std::map<std::string, std::vector<index_t>> named_faces;
+};
+
+/// Prescribed motion of one degree of freedom (3 node + component).
+struct DofCondition
+{
+    index_t dof = 0;
+    BoundarySpec::Kind kind = BoundarySpec::Kind::Fixed;
+    const TimeFunction* value = nullptr; ///< velocity or displacement history
+};
+
+struct Energies
+{
+    real_t kinetic = 0.0;            ///< 1/2 m v.v at the full step
+    /// -(dt^2 / 8) sum m a.a: turns `kinetic` into the leapfrog-consistent 1/2 m v(n-1/2).v(n+1/2),
+    /// the kinetic energy that central difference conserves exactly for linear elasticity.
+    real_t kinetic_correction = 0.0;
+    real_t internal = 0.0;
+    real_t hourglass = 0.0;
+    real_t bulk_viscosity = 0.0;
+    real_t damping = 0.0;       ///< dissipated by mass damping
+    real_t external_work = 0.0; ///< loads and prescribed motion
+    real_t kinetic0 = 0.0, internal0 = 0.0; ///< leapfrog-consistent kinetic energy at t = 0
+
+    real_t total() const { return kinetic + internal + hourglass + bulk_viscosity; }
+    /// |E_kin' + E_int + E_hg + E_bv + E_damp - E_kin0' - E_int0 - W_ext| / max(energy scale),
+    /// with E_kin' = kinetic + kinetic_correction (leapfrog-consistent kinetic energy)
+    real_t balance_error() const;
+    /// E_hg / (E_int + E_hg), 0 when there is no internal energy
+    real_t hourglass_ratio() const;
+};
+
+/// Everything a step reports back to the run loop.
+struct ForceReport
+{
+    real_t dt_stable = 1e300; ///< before the scale factor
+    index_t dt_element = -1;  ///< global element index controlling dt
+};
+
+class Model
+{
+  public:
+    Model() = default;
+    Model(Model&&) = default;
+    Model& operator=(Model&&) = default;
+    Model(const Model&) = delete; // holds pointers into its own deck
+    Model& operator=(const Model&) = delete;
+
+    /// Builds the mesh, sets, conditions and probes. Throws DeckError for input that is well
+    /// formed but unusable (empty node set, inverted element).
+    static Model build(const Deck& deck);
+
+    const Deck& deck() const { return deck_; }
+    NodeSet nodes;
+    std::vector<HexBlock> blocks; ///< one per part, same order
+    std::vector<PartInfo> parts;
+    std::map<std::string, std::vector<index_t>> node_sets;
+    std::map<std::string, std::vector<Quad>> face_sets;
+    std::vector<DofCondition> conditions;
+    std::vector<index_t> probe_nodes; ///< one per deck probe
+    Energies energy;
+
+    index_t n_elements() const;
+    /// Global element index -> (block, local element).
+    std::pair<index_t, index_t> locate_element(index_t global) const;
+
+    // ---- phases of a step (called by the steppers) ----
+    /// Sets velocities of constrained dofs for the interval (t, t + dt) (half step) or at t.
+    void impose_velocity(real_t t, real_t dt, bool half_step);
+    /// x = x0 + u.
+    void update_coordinates();
+    /// Internal forces (all blocks, assembled) and external forces at time t; stress trial state.
+    /// Throws InstabilityError on a non-positive element volume.
+    ForceReport compute_forces(real_t t, real_t dt, std::int64_t step);
+    /// a = (f_ext - f_int) / m - c v; zero on constrained dofs.
+    void compute_accelerations();
+    /// Commits material trial state and books this step's energy increments.
+    void commit();
+    /// Recomputes kinetic energy; books external work over a step with displacement increment
+    /// given by u - u_prev (uses stored previous external and reaction forces).
+    void update_energies(const std::vector<real_t>& u_prev, real_t dt);
+
+    /// Nodal stress (average of adjacent points) at node i, Voigt.
+    Sym6 nodal_stress(index_t node) const;
+    /// Element stress (average over its points), Voigt.
+    Sym6 element_stress(index_t block, index_t e) const;
+
+  private:
+    Deck deck_;
+    std::vector<real_t> f_ext_prev_;
+    std::vector<real_t> reaction_prev_;
+    std::vector<real_t> bc_v_prev_;
+    real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;
+    std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;
+    std::vector<std::pair<const LoadSpec*, const std::vector<Quad>*>> pressure_loads_;
+    void apply_external_forces(real_t t);
+};
+} // namespace rkfem

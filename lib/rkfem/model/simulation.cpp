@@ -1,0 +1,219 @@
+#include "rkfem/model/simulation.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <unistd.h>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/io/results_writer.hpp"
+#include "rkfem/io/summary.hpp"
+#include "rkfem/time/stepper.hpp"
+
+namespace rkfem
+{
+namespace
+{
+std::vector<std::string> history_columns(const Model& m)
+{
+    std::vector<std::string> c{"time", "dt", "kinetic", "internal", "hourglass", "bulk_viscosity",
+                               "damping", "external_work", "total", "balance_error", "hourglass_ratio"};
+    for (const auto& p : m.deck().probes)
+    {
+        for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
+            c.push_back(p.name + "_" + q);
+        for (const char* q : {"sxx", "syy", "szz", "sxy", "syz", "szx"})
+            c.push_back(p.name + "_" + q);
+    }
+    return c;
+}
+
+void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows)
+{
+    const Energies& e = m.energy;
+    rows.insert(rows.end(), {t, dt, e.kinetic, e.internal, e.hourglass, e.bulk_viscosity, e.damping,
+                             e.external_work, e.total(), e.balance_error(), e.hourglass_ratio()});
+    for (index_t n : m.probe_nodes)
+    {
+        for (int k = 0; k < 3; ++k)
+            rows.push_back(m.nodes.u[3 * n + k]);
+        for (int k = 0; k < 3; ++k)
+            rows.push_back(m.nodes.v[3 * n + k]);
+        const Sym6 s = m.nodal_stress(n);
+        for (int k = 0; k < 6; ++k)
+            rows.push_back(s[k]);
+    }
+}
+
+class Progress
+{
+  public:
+    explicit Progress(bool enabled) : enabled_(enabled), tty_(isatty(STDERR_FILENO) != 0) {}
+    void update(real_t t, real_t t_end, std::int64_t step, real_t dt, real_t energy_ratio,
+                real_t elapsed, bool force = false)
+    {
+        if (!enabled_)
+            return;
+        const real_t interval = tty_ ? 0.25 : 5.0;
+        if (!force && elapsed - last_ < interval)
+            return;
+        last_ = elapsed;
+        const real_t frac = t / t_end;
+        const real_t eta = frac > 0 ? elapsed * (1 - frac) / frac : 0.0;
+        char line[200];
+        std::snprintf(line, sizeof line,
+                      "t = %.4e s (%5.1f%%)  step %lld  dt = %.3e s  energy ratio %.4f  ETA %.1f s",
+                      t, 100 * frac, static_cast<long long>(step), dt, energy_ratio, eta);
+        if (tty_)
+            std::fprintf(stderr, "\r%s\033[K", line);
+        else
+            std::fprintf(stderr, "%s\n", line);
+        std::fflush(stderr);
+    }
+    void finish()
+    {
+        if (enabled_ && tty_)
+            std::fprintf(stderr, "\n");
+    }
+
+  private:
+    bool enabled_;
+    bool tty_;
+    real_t last_ = -1e9;
+};
+} // namespace
+
+RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserver& observer)
+{
+    const TimeSpec& ts = model.deck().time;
+    RunSummary sum;
+    sum.history_columns = history_columns(model);
+    const auto wall0 = std::chrono::steady_clock::now();
+    auto elapsed = [&]
+    { return std::chrono::duration<real_t>(std::chrono::steady_clock::now() - wall0).count(); };
+
+    std::unique_ptr<ResultsWriter> writer;
+    std::ofstream csv;
+    if (!opt.out_dir.empty())
+    {
+        writer = std::make_unique<ResultsWriter>(opt.out_dir);
+        writer->write_mesh(model);
+        csv.open(opt.out_dir + "/history.csv");
+        for (std::size_t i = 0; i < sum.history_columns.size(); ++i)
+            csv << (i ? "," : "") << sum.history_columns[i];
+        csv << "\n" << std::setprecision(12);
+    }
+    auto flush_history_row = [&](std::size_t first)
+    {
+        if (!csv.is_open())
+            return;
+        const std::size_t nc = sum.history_columns.size();
+        for (std::size_t r = first; r < sum.history.size() / nc; ++r)
+        {
+            for (std::size_t c = 0; c < nc; ++c)
+                csv << (c ? "," : "") << sum.history[r * nc + c];
+            csv << "\n";
+        }
+    };
+
+    auto stepper = make_stepper(ts.stepper);
+    Progress progress(opt.progress);
+    real_t t = 0.0;
+    std::int64_t step = 0;
+    real_t next_output = ts.output_interval > 0 ? 0.0 : 0.0;
+    real_t next_history = 0.0;
+    real_t dt_last = 0.0;
+    std::size_t element_steps = 0;
+    try
+    {
+        StepReport rep = stepper->initialize(model, t);
+        auto observe = [&](bool final_step)
+        {
+            if (t >= next_history - 1e-15 * ts.end || final_step)
+            {
+                const std::size_t first = sum.history.size() / sum.history_columns.size();
+                append_row(model, t, dt_last, sum.history);
+                flush_history_row(first);
+                if (ts.history_interval > 0)
+                    while (next_history <= t)
+                        next_history += ts.history_interval;
+            }
+            if (writer && (t >= next_output - 1e-12 * ts.end || final_step))
+            {
+                writer->write_step(model, t);
+                if (ts.output_interval > 0)
+                    while (next_output <= t + 1e-12 * ts.end)
+                        next_output += ts.output_interval;
+                else
+                    next_output = 2 * ts.end + 1; // start and end only
+                if (csv.is_open())
+                    csv.flush();
+            }
+            if (observer)
+                observer(model, t, dt_last, step);
+        };
+        observe(false);
+        real_t dt_stable = rep.dt_stable;
+        const index_t ne = model.n_elements();
+        while (t < ts.end * (1 - 1e-12))
+        {
+            if (ts.max_steps > 0 && step >= ts.max_steps)
+                break;
+            real_t dt = ts.dt_scale * dt_stable;
+            if (ts.dt_max > 0)
+                dt = std::min(dt, ts.dt_max);
+            if (t + dt > ts.end)
+                dt = ts.end - t;
+            if (!(dt > 0) || !std::isfinite(dt))
+                throw InstabilityError("time step collapsed to " + std::to_string(dt) + " s at t = " +
+                                       std::to_string(t) + " s, step " + std::to_string(step));
+            ++step;
+            rep = stepper->step(model, t, dt, step);
+            t = rep.t;
+            dt_last = dt;
+            dt_stable = rep.dt_stable;
+            element_steps += static_cast<std::size_t>(ne);
+            const real_t err = model.energy.balance_error();
+            sum.max_balance_error = std::max(sum.max_balance_error, err);
+            const bool last = t >= ts.end * (1 - 1e-12) || (ts.max_steps > 0 && step >= ts.max_steps);
+            observe(last);
+            if (err > ts.energy_error_limit && model.energy.total() > 0)
+            {
+                std::ostringstream os;
+                os << "energy balance error " << err << " exceeds time.energy_error_limit "
+                   << ts.energy_error_limit << " at t = " << t << " s, step " << step;
+                throw InstabilityError(os.str());
+            }
+            const real_t total = model.energy.total();
+            const real_t ref = model.energy.kinetic0 + model.energy.internal0 + model.energy.external_work;
+            progress.update(t, ts.end, step, dt, ref > 0 ? total / ref : 1.0, elapsed());
+        }
+        progress.update(t, ts.end, step, dt_last, 1.0, elapsed(), true);
+    }
+    catch (const InstabilityError& e)
+    {
+        sum.status = "unstable";
+        sum.message = e.what();
+        // keep the last good state on disk: the fields written so far plus this state
+        if (writer)
+            writer->write_step(model, t);
+    }
+    progress.finish();
+    sum.steps = step;
+    sum.end_time = t;
+    sum.wall_seconds = elapsed();
+    sum.ns_per_element_cycle = element_steps > 0 ? 1e9 * sum.wall_seconds / element_steps : 0.0;
+    sum.energy = model.energy;
+    sum.n_outputs = writer ? writer->n_steps() : 0;
+    if (writer)
+    {
+        writer->write_history(sum.history_columns, sum.history);
+        write_summary_json(opt.out_dir + "/summary.json", model, opt, sum);
+    }
+    return sum;
+}
+} // namespace rkfem

@@ -1,0 +1,41 @@
+#pragma once
+/// @file simulation.hpp
+/// The run loop: step, check, observe. Output (fields, histories, progress) is an observer that
+/// runs at step boundaries and never changes the solution.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "rkfem/model/model.hpp"
+
+namespace rkfem
+{
+struct RunOptions
+{
+    std::string out_dir;      ///< "" = no files (tests)
+    bool progress = true;     ///< progress line on stderr
+    std::string deck_path;
+    std::vector<std::string> overrides;
+};
+
+struct RunSummary
+{
+    std::string status = "completed"; ///< completed | unstable
+    std::string message;
+    std::int64_t steps = 0;
+    real_t end_time = 0.0;
+    real_t wall_seconds = 0.0;
+    real_t ns_per_element_cycle = 0.0;
+    Energies energy;
+    real_t max_balance_error = 0.0;
+    int n_outputs = 0;
+    std::vector<std::string> history_columns;
+    std::vector<real_t> history; ///< rows x columns, row-major
+};
+
+/// Observer called after each accepted step (and once after initialization with dt = 0).
+using StepObserver = std::function<void(const Model&, real_t t, real_t dt, std::int64_t step)>;
+
+/// Runs the model to deck.time.end. Never throws on instability: the summary says where and when.
+RunSummary run_simulation(Model& model, const RunOptions& options, const StepObserver& observer = {});
+} // namespace rkfem

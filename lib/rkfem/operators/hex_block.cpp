@@ -1,0 +1,506 @@
+#include "rkfem/operators/hex_block.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/discretization/hex_mesh.hpp"
+
+namespace rkfem
+{
+namespace
+{
+constexpr int W = 8; // lanes per batch (one AVX-512 register of doubles)
+
+index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
+
+/// Bulk viscosity pressure (LS-DYNA form): q = rho l (Q1 l trD^2 - Q2 c trD) when trD < 0.
+inline real_t bulk_q(real_t rho, real_t c, real_t l, real_t trd, real_t q1, real_t q2)
+{
+    return trd < 0.0 ? rho * l * (q1 * l * trd * trd - q2 * c * trd) : 0.0;
+}
+
+/// Stable time step of an element: l / (Q + sqrt(Q^2 + c^2)), Q = Q1 l |trD| + Q2 c when trD < 0.
+inline real_t element_dt(real_t c, real_t l, real_t trd, real_t q1, real_t q2)
+{
+    const real_t Q = trd < 0.0 ? q1 * l * (-trd) + q2 * c : 0.0;
+    return l / (Q + std::sqrt(Q * Q + c * c));
+}
+
+/// Largest face area of a hex given lane coordinates.
+inline real_t max_face_area_sq(const real_t (&xe)[8][3][W], int l)
+{
+    real_t amax = 0.0;
+    for (const auto& f : hex_faces)
+    {
+        real_t d1[3], d2[3];
+        for (int d = 0; d < 3; ++d)
+        {
+            d1[d] = xe[f[2]][d][l] - xe[f[0]][d][l];
+            d2[d] = xe[f[3]][d][l] - xe[f[1]][d][l];
+        }
+        const real_t cx = d1[1] * d2[2] - d1[2] * d2[1];
+        const real_t cy = d1[2] * d2[0] - d1[0] * d2[2];
+        const real_t cz = d1[0] * d2[1] - d1[1] * d2[0];
+        amax = std::max(amax, 0.25 * (cx * cx + cy * cy + cz * cz));
+    }
+    return amax;
+}
+
+template <HourglassType HG>
+void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt)
+{
+    const auto& tab = hex8_volume_gradient_table();
+    const index_t ne = blk.n_elements();
+    const index_t e0 = batch * W;
+    const int nl = static_cast<int>(std::min<index_t>(W, ne - e0));
+
+    alignas(64) real_t xe[8][3][W];
+    alignas(64) real_t ve[8][3][W];
+    for (int l = 0; l < W; ++l)
+    {
+        const index_t e = e0 + (l < nl ? l : 0);
+        const index_t* c = &blk.conn[8 * static_cast<std::size_t>(e)];
+        for (int I = 0; I < 8; ++I)
+        {
+            const std::size_t n = 3 * static_cast<std::size_t>(c[I]);
+            for (int d = 0; d < 3; ++d)
+            {
+                xe[I][d][l] = nodes.x[n + d];
+                ve[I][d][l] = nodes.v[n + d];
+            }
+        }
+    }
+
+    // b_I = dV/dx_I (Flanagan-Belytschko, exact volume integration)
+    alignas(64) real_t cr[Hex8VolumeGradientTable::max_pairs][3][W];
+    for (int p = 0; p < tab.n_pairs; ++p)
+    {
+        const int k = tab.pair_k[p], m = tab.pair_l[p];
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            cr[p][0][l] = xe[k][1][l] * xe[m][2][l] - xe[k][2][l] * xe[m][1][l];
+            cr[p][1][l] = xe[k][2][l] * xe[m][0][l] - xe[k][0][l] * xe[m][2][l];
+            cr[p][2][l] = xe[k][0][l] * xe[m][1][l] - xe[k][1][l] * xe[m][0][l];
+        }
+    }
+    alignas(64) real_t b[8][3][W] = {};
+    for (int t = 0; t < tab.n_terms; ++t)
+    {
+        const int I = tab.term_node[t], p = tab.term_pair[t];
+        const real_t c = tab.term_coef[t];
+        for (int d = 0; d < 3; ++d)
+#pragma omp simd
+            for (int l = 0; l < W; ++l)
+                b[I][d][l] += c * cr[p][d][l];
+    }
+    alignas(64) real_t vol[W], inv_v[W];
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        real_t s = 0.0;
+        for (int I = 0; I < 8; ++I)
+            s += b[I][0][l] * xe[I][0][l] + b[I][1][l] * xe[I][1][l] + b[I][2][l] * xe[I][2][l];
+        vol[l] = s / 3.0;
+        inv_v[l] = 1.0 / vol[l];
+    }
+
+    // velocity gradient L_ij = (1/V) sum_I v_iI b_jI
+    alignas(64) real_t L[3][3][W];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+#pragma omp simd
+            for (int l = 0; l < W; ++l)
+            {
+                real_t s = 0.0;
+                for (int I = 0; I < 8; ++I)
+                    s += ve[I][i][l] * b[I][j][l];
+                L[i][j][l] = s * inv_v[l];
+            }
+
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+    const std::size_t np = static_cast<std::size_t>(ne);
+    const real_t* s_in = blk.stress.data();
+    real_t* s_out = blk.stress_trial.data();
+
+    alignas(64) real_t sig[6][W]; // effective stress for the force (incl. bulk viscosity)
+    alignas(64) real_t lc[W], dt_e[W], de_int[W], de_bv[W];
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        const std::size_t e = static_cast<std::size_t>(e0 + (l < nl ? l : 0));
+        const real_t d[6] = {L[0][0][l],
+                             L[1][1][l],
+                             L[2][2][l],
+                             0.5 * (L[0][1][l] + L[1][0][l]),
+                             0.5 * (L[1][2][l] + L[2][1][l]),
+                             0.5 * (L[2][0][l] + L[0][2][l])};
+        const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
+                             0.5 * (L[2][0][l] - L[0][2][l])};
+        real_t s_old[6], s[6];
+        for (int k = 0; k < 6; ++k)
+            s_old[k] = s[k] = s_in[k * np + e];
+        elastic_update(mat, d, w, dt, s);
+        if (l < nl)
+            for (int k = 0; k < 6; ++k)
+                s_out[k * np + e] = s[k];
+        const real_t trd = d[0] + d[1] + d[2];
+        const real_t amax2 = max_face_area_sq(xe, l);
+        lc[l] = vol[l] / std::sqrt(amax2);
+        const real_t rho = mat.rho * blk.volume0[e] / vol[l];
+        const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
+        dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
+        real_t power = 0.0;
+        for (int k = 0; k < 3; ++k)
+            power += 0.5 * (s_old[k] + s[k]) * d[k] + (s_old[k + 3] + s[k + 3]) * d[k + 3];
+        de_int[l] = dt * vol[l] * power;
+        de_bv[l] = -dt * vol[l] * q * trd;
+        for (int k = 0; k < 3; ++k)
+            sig[k][l] = s[k] - q;
+        for (int k = 3; k < 6; ++k)
+            sig[k][l] = s[k];
+    }
+
+    // internal force f_iI = sigma_ij b_jI
+    alignas(64) real_t f[8][3][W];
+    for (int I = 0; I < 8; ++I)
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            f[I][0][l] = sig[0][l] * b[I][0][l] + sig[3][l] * b[I][1][l] + sig[5][l] * b[I][2][l];
+            f[I][1][l] = sig[3][l] * b[I][0][l] + sig[1][l] * b[I][1][l] + sig[4][l] * b[I][2][l];
+            f[I][2][l] = sig[5][l] * b[I][0][l] + sig[4][l] * b[I][1][l] + sig[2][l] * b[I][2][l];
+        }
+
+    alignas(64) real_t de_hg[W] = {};
+    if constexpr (HG != HourglassType::None)
+    {
+        const real_t qm = blk.hourglass.coefficient;
+        for (int a = 0; a < 4; ++a)
+        {
+            const auto& G = hex8_hourglass_base[a];
+            alignas(64) real_t gam[8][W];
+            if constexpr (HG == HourglassType::ViscousPlain)
+            {
+                for (int I = 0; I < 8; ++I)
+                    for (int l = 0; l < W; ++l)
+                        gam[I][l] = G[I];
+            }
+            else
+            {
+                // gamma_I = Gamma_I - (1/V) b_I . (sum_J x_J Gamma_J)
+                alignas(64) real_t gx[3][W];
+                for (int d = 0; d < 3; ++d)
+#pragma omp simd
+                    for (int l = 0; l < W; ++l)
+                    {
+                        real_t s = 0.0;
+                        for (int J = 0; J < 8; ++J)
+                            s += G[J] * xe[J][d][l];
+                        gx[d][l] = s * inv_v[l];
+                    }
+                for (int I = 0; I < 8; ++I)
+#pragma omp simd
+                    for (int l = 0; l < W; ++l)
+                        gam[I][l] = G[I] - (b[I][0][l] * gx[0][l] + b[I][1][l] * gx[1][l] +
+                                            b[I][2][l] * gx[2][l]);
+            }
+            // hourglass velocity qdot_i = sum_I v_iI gamma_I, and generalized force Q_i
+            alignas(64) real_t Q[3][W];
+            for (int d = 0; d < 3; ++d)
+#pragma omp simd
+                for (int l = 0; l < W; ++l)
+                {
+                    real_t qd = 0.0;
+                    for (int I = 0; I < 8; ++I)
+                        qd += ve[I][d][l] * gam[I][l];
+                    if constexpr (HG == HourglassType::Stiffness)
+                    {
+                        // k = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V)   (Flanagan-Belytschko)
+                        real_t bb = 0.0;
+                        for (int I = 0; I < 8; ++I)
+                            bb += b[I][0][l] * b[I][0][l] + b[I][1][l] * b[I][1][l] +
+                                  b[I][2][l] * b[I][2][l];
+                        const real_t k = qm * mat.plane_wave_modulus() * bb * inv_v[l] / 3.0;
+                        const std::size_t e = static_cast<std::size_t>(e0 + (l < nl ? l : 0));
+                        const std::size_t slot = static_cast<std::size_t>(3 * a + d) * np + e;
+                        const real_t Qold = blk.hg_force[slot];
+                        const real_t Qnew = Qold + k * dt * qd;
+                        if (l < nl)
+                            blk.hg_force_trial[slot] = Qnew;
+                        Q[d][l] = Qnew;
+                        de_hg[l] += 0.5 * (Qold + Qnew) * qd * dt;
+                    }
+                    else
+                    {
+                        // a_h = QM rho c V^(2/3) / 4, with V^(2/3) taken as lc^2 (equal for cubes)
+                        const real_t ah = 0.25 * qm * mat.rho * c * lc[l] * lc[l];
+                        Q[d][l] = ah * qd;
+                        de_hg[l] += Q[d][l] * qd * dt;
+                    }
+                }
+            for (int I = 0; I < 8; ++I)
+                for (int d = 0; d < 3; ++d)
+#pragma omp simd
+                    for (int l = 0; l < W; ++l)
+                        f[I][d][l] += gam[I][l] * Q[d][l];
+        }
+    }
+
+    // write element forces and batch results
+    real_t sum_int = 0.0, sum_hg = 0.0, sum_bv = 0.0, dt_min = 1e300;
+    index_t dt_elem = -1, bad = -1;
+    for (int l = 0; l < nl; ++l)
+    {
+        const index_t e = e0 + l;
+        real_t* fe = &blk.elem_force[24 * static_cast<std::size_t>(e)];
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                fe[3 * I + d] = f[I][d][l];
+        blk.volume[e] = vol[l];
+        sum_int += de_int[l];
+        sum_hg += de_hg[l];
+        sum_bv += de_bv[l];
+        if (dt_e[l] < dt_min)
+        {
+            dt_min = dt_e[l];
+            dt_elem = e;
+        }
+        if (!(vol[l] > 0.0) && bad < 0)
+            bad = e;
+    }
+    blk.batch_sums[4 * batch + 0] = sum_int;
+    blk.batch_sums[4 * batch + 1] = sum_hg;
+    blk.batch_sums[4 * batch + 2] = sum_bv;
+    blk.batch_sums[4 * batch + 3] = dt_min;
+    blk.batch_idx[2 * batch + 0] = dt_elem;
+    blk.batch_idx[2 * batch + 1] = bad;
+}
+
+/// Fully integrated hex: 8 Gauss points, stress per point, bulk viscosity from the mean tr D.
+void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, real_t out[4],
+                         index_t& bad)
+{
+    const std::size_t ne = static_cast<std::size_t>(blk.n_elements());
+    const std::size_t np = 8 * ne;
+    real_t xe[8][3], ve[8][3];
+    for (int I = 0; I < 8; ++I)
+    {
+        const std::size_t n = 3 * static_cast<std::size_t>(blk.conn[8 * e + I]);
+        for (int d = 0; d < 3; ++d)
+        {
+            xe[I][d] = nodes.x[n + d];
+            ve[I][d] = nodes.v[n + d];
+        }
+    }
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const real_t g = 1.0 / std::sqrt(3.0);
+    real_t f[8][3] = {};
+    real_t vol = 0.0, trd_mean = 0.0, de_int = 0.0;
+    real_t dNdx[8][8][3], detj[8], s_new[8][6];
+    for (int gp = 0; gp < 8; ++gp)
+    {
+        const real_t xi[3] = {g * hex8_nodes[gp][0], g * hex8_nodes[gp][1], g * hex8_nodes[gp][2]};
+        detj[gp] = hex8_gradients(xe, xi, dNdx[gp]);
+        if (!(detj[gp] > 0.0) && bad < 0)
+            bad = e;
+        real_t Lm[3][3] = {};
+        for (int I = 0; I < 8; ++I)
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    Lm[i][j] += ve[I][i] * dNdx[gp][I][j];
+        const real_t d[6] = {Lm[0][0], Lm[1][1], Lm[2][2], 0.5 * (Lm[0][1] + Lm[1][0]),
+                             0.5 * (Lm[1][2] + Lm[2][1]), 0.5 * (Lm[2][0] + Lm[0][2])};
+        const real_t w[3] = {0.5 * (Lm[0][1] - Lm[1][0]), 0.5 * (Lm[1][2] - Lm[2][1]),
+                             0.5 * (Lm[2][0] - Lm[0][2])};
+        const std::size_t p = 8 * static_cast<std::size_t>(e) + gp;
+        real_t s_old[6];
+        for (int k = 0; k < 6; ++k)
+            s_old[k] = s_new[gp][k] = blk.stress[k * np + p];
+        elastic_update(mat, d, w, dt, s_new[gp]);
+        for (int k = 0; k < 6; ++k)
+            blk.stress_trial[k * np + p] = s_new[gp][k];
+        real_t power = 0.0;
+        for (int k = 0; k < 3; ++k)
+            power += 0.5 * (s_old[k] + s_new[gp][k]) * d[k] + (s_old[k + 3] + s_new[gp][k + 3]) * d[k + 3];
+        de_int += dt * detj[gp] * power;
+        vol += detj[gp];
+        trd_mean += detj[gp] * (d[0] + d[1] + d[2]);
+    }
+    trd_mean /= vol;
+    real_t amax2 = 0.0;
+    for (const auto& fc : hex_faces)
+    {
+        Vec3 d1, d2;
+        for (int d = 0; d < 3; ++d)
+        {
+            d1[d] = xe[fc[2]][d] - xe[fc[0]][d];
+            d2[d] = xe[fc[3]][d] - xe[fc[1]][d];
+        }
+        amax2 = std::max(amax2, 0.25 * d1.cross(d2).squaredNorm());
+    }
+    const real_t lc = vol / std::sqrt(amax2);
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+    const real_t rho = mat.rho * blk.volume0[e] / vol;
+    const real_t q = bulk_q(rho, c, lc, trd_mean, q1, q2);
+    for (int gp = 0; gp < 8; ++gp)
+    {
+        const real_t* s = s_new[gp];
+        for (int I = 0; I < 8; ++I)
+        {
+            const real_t* B = dNdx[gp][I];
+            f[I][0] += detj[gp] * ((s[0] - q) * B[0] + s[3] * B[1] + s[5] * B[2]);
+            f[I][1] += detj[gp] * (s[3] * B[0] + (s[1] - q) * B[1] + s[4] * B[2]);
+            f[I][2] += detj[gp] * (s[5] * B[0] + s[4] * B[1] + (s[2] - q) * B[2]);
+        }
+    }
+    real_t* fe = &blk.elem_force[24 * static_cast<std::size_t>(e)];
+    for (int I = 0; I < 8; ++I)
+        for (int d = 0; d < 3; ++d)
+            fe[3 * I + d] = f[I][d];
+    blk.volume[e] = vol;
+    out[0] = de_int;
+    out[1] = 0.0;
+    out[2] = -dt * vol * q * trd_mean;
+    out[3] = element_dt(c, lc, trd_mean, q1, q2);
+}
+} // namespace
+
+void HexBlock::initialize(const NodeSet& nodes)
+{
+    const index_t ne = n_elements();
+    const std::size_t np = static_cast<std::size_t>(n_points());
+    stress.assign(6 * np, 0.0);
+    stress_trial.assign(6 * np, 0.0);
+    hg_force.assign(12 * static_cast<std::size_t>(ne), 0.0);
+    hg_force_trial.assign(12 * static_cast<std::size_t>(ne), 0.0);
+    elem_force.assign(24 * static_cast<std::size_t>(ne), 0.0);
+    volume0.assign(static_cast<std::size_t>(ne), 0.0);
+    volume.assign(static_cast<std::size_t>(ne), 0.0);
+    const index_t nb = formulation == Formulation::Fem1pt ? n_batches(ne) : ne;
+    batch_sums.assign(4 * static_cast<std::size_t>(nb), 0.0);
+    batch_idx.assign(2 * static_cast<std::size_t>(nb), -1);
+    for (index_t e = 0; e < ne; ++e)
+    {
+        real_t xe[8][3], b[8][3];
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                xe[I][d] = nodes.x0[3 * static_cast<std::size_t>(conn[8 * e + I]) + d];
+        volume0[e] = volume[e] = hex8_volume_gradient(xe, b);
+    }
+    // node -> (element, local) CSR, counts -> offsets -> slots
+    const index_t nn = node_end - node_begin;
+    node_elem_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+    for (index_t s = 0; s < 8 * ne; ++s)
+        ++node_elem_offsets[conn[s] - node_begin + 1];
+    for (index_t i = 0; i < nn; ++i)
+        node_elem_offsets[i + 1] += node_elem_offsets[i];
+    node_elem_slots.assign(static_cast<std::size_t>(8) * ne, 0);
+    std::vector<index_t> fill(node_elem_offsets.begin(), node_elem_offsets.end() - 1);
+    for (index_t s = 0; s < 8 * ne; ++s)
+        node_elem_slots[fill[conn[s] - node_begin]++] = s;
+}
+
+ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t dt)
+{
+    ForcePassResult r;
+    const index_t ne = blk.n_elements();
+    index_t nb = 0;
+    if (blk.formulation == Formulation::Fem1pt)
+    {
+        nb = n_batches(ne);
+        switch (blk.hourglass.type)
+        {
+        case HourglassType::None:
+            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                         { force_1pt_batch<HourglassType::None>(blk, nodes, b, dt); });
+            break;
+        case HourglassType::Viscous:
+            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                         { force_1pt_batch<HourglassType::Viscous>(blk, nodes, b, dt); });
+            break;
+        case HourglassType::Stiffness:
+            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                         { force_1pt_batch<HourglassType::Stiffness>(blk, nodes, b, dt); });
+            break;
+        case HourglassType::ViscousPlain:
+            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                         { force_1pt_batch<HourglassType::ViscousPlain>(blk, nodes, b, dt); });
+            break;
+        }
+    }
+    else
+    {
+        nb = ne;
+        parallel_for("rkfem::hex2x2x2", ne,
+                     [&](index_t e)
+                     {
+                         real_t out[4];
+                         index_t bad = -1;
+                         force_2x2x2_element(blk, nodes, e, dt, out, bad);
+                         for (int k = 0; k < 4; ++k)
+                             blk.batch_sums[4 * e + k] = out[k];
+                         blk.batch_idx[2 * e] = e;
+                         blk.batch_idx[2 * e + 1] = bad;
+                     });
+    }
+    r.d_internal = parallel_reduce_sum("rkfem::hex_energy", nb,
+                                       [&](index_t b) { return blk.batch_sums[4 * b]; });
+    r.d_hourglass = parallel_reduce_sum("rkfem::hex_energy", nb,
+                                        [&](index_t b) { return blk.batch_sums[4 * b + 1]; });
+    r.d_bulk_viscosity = parallel_reduce_sum("rkfem::hex_energy", nb,
+                                             [&](index_t b) { return blk.batch_sums[4 * b + 2]; });
+    for (index_t b = 0; b < nb; ++b)
+    {
+        if (blk.batch_sums[4 * b + 3] < r.dt_stable)
+        {
+            r.dt_stable = blk.batch_sums[4 * b + 3];
+            r.dt_element = blk.batch_idx[2 * b];
+        }
+        if (r.bad_element < 0 && blk.batch_idx[2 * b + 1] >= 0)
+            r.bad_element = blk.batch_idx[2 * b + 1];
+        if (std::isnan(blk.batch_sums[4 * b + 3]) && r.bad_element < 0)
+            r.bad_element = blk.batch_idx[2 * b];
+    }
+    return r;
+}
+
+void assemble_block_forces(const HexBlock& blk, NodeSet& nodes)
+{
+    const index_t nn = blk.node_end - blk.node_begin;
+    parallel_for("rkfem::assemble", nn,
+                 [&](index_t i)
+                 {
+                     real_t f0 = 0.0, f1 = 0.0, f2 = 0.0;
+                     for (index_t k = blk.node_elem_offsets[i]; k < blk.node_elem_offsets[i + 1]; ++k)
+                     {
+                         const real_t* fe = &blk.elem_force[3 * static_cast<std::size_t>(blk.node_elem_slots[k])];
+                         f0 += fe[0];
+                         f1 += fe[1];
+                         f2 += fe[2];
+                     }
+                     const std::size_t n = 3 * static_cast<std::size_t>(blk.node_begin + i);
+                     nodes.f_int[n] = f0;
+                     nodes.f_int[n + 1] = f1;
+                     nodes.f_int[n + 2] = f2;
+                 });
+}
+
+void add_lumped_mass(const HexBlock& blk, NodeSet& nodes)
+{
+    const index_t nn = blk.node_end - blk.node_begin;
+    for (index_t i = 0; i < nn; ++i)
+    {
+        real_t m = 0.0;
+        for (index_t k = blk.node_elem_offsets[i]; k < blk.node_elem_offsets[i + 1]; ++k)
+            m += blk.material.rho * blk.volume0[blk.node_elem_slots[k] / 8] / 8.0;
+        nodes.mass[blk.node_begin + i] += m;
+    }
+}
+} // namespace rkfem

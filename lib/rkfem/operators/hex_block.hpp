@@ -1,0 +1,78 @@
+#pragma once
+/// @file hex_block.hpp
+/// One block of 8-node hexahedra with one material and one formulation, and the element kernels
+/// that integrate it (updated Lagrangian: gradients from current coordinates, every step).
+///
+/// Per-point arrays are component-major: component c of point p is at [c * n_points + p], where a
+/// 1-point block has n_points = n_elements and a 2x2x2 block has point p = 8 e + g.
+/// The element force buffer is n_elements x 8 x 3 ([24 e + 3 I + d]); nodal forces are gathered
+/// from it through the node -> (element, local node) transpose CSR, so the sum for each node is
+/// taken in one fixed order whatever the thread count.
+#include <vector>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/node_set.hpp"
+#include "rkfem/materials/elastic.hpp"
+
+namespace rkfem
+{
+struct HexBlock
+{
+    index_t part = 0;
+    Formulation formulation = Formulation::Fem1pt;
+    HourglassSpec hourglass;
+    BulkViscositySpec bulk_viscosity;
+    ElasticParams material;
+
+    std::vector<index_t> conn; ///< n_elements x 8, global node ids
+    index_t node_begin = 0;    ///< this block's nodes are [node_begin, node_end)
+    index_t node_end = 0;
+    std::vector<index_t> node_elem_offsets; ///< (node_end - node_begin + 1)
+    std::vector<index_t> node_elem_slots;   ///< 8 e + I, for each node in order
+
+    // state (committed / trial), component-major
+    std::vector<real_t> stress, stress_trial;     ///< 6 x n_points [Pa]
+    std::vector<real_t> hg_force, hg_force_trial; ///< 12 x n_elements (stiffness form) [N]
+    std::vector<real_t> volume0;                  ///< n_elements, reference volume [m^3]
+    std::vector<real_t> volume;                   ///< n_elements, current volume [m^3]
+
+    // per-step scratch
+    std::vector<real_t> elem_force; ///< n_elements x 24 [N]
+    std::vector<real_t> batch_sums;  ///< n_batches x 4: d_int, d_hg, d_bv, dt_min
+    std::vector<index_t> batch_idx;  ///< n_batches x 2: dt element, bad element
+
+    index_t n_elements() const { return static_cast<index_t>(conn.size() / 8); }
+    index_t points_per_element() const { return formulation == Formulation::Fem1pt ? 1 : 8; }
+    index_t n_points() const { return n_elements() * points_per_element(); }
+
+    /// Sizes state arrays and builds the assembly CSR. Nodes must already hold coordinates.
+    void initialize(const NodeSet& nodes);
+    /// Commits trial state.
+    void commit()
+    {
+        stress.swap(stress_trial);
+        hg_force.swap(hg_force_trial);
+    }
+};
+
+/// Sums and extrema from one internal-force pass over a block.
+struct ForcePassResult
+{
+    real_t d_internal = 0.0;  ///< stress work this step [J]
+    real_t d_hourglass = 0.0; ///< hourglass work this step [J]
+    real_t d_bulk_viscosity = 0.0;
+    real_t dt_stable = 1e300; ///< before the scale factor [s]
+    index_t dt_element = -1;  ///< element that controls dt
+    index_t bad_element = -1; ///< first element with non-positive volume (or NaN), -1 if none
+};
+
+/// Internal force pass: velocity gradient from v at current x, material update into trial state,
+/// element forces into blk.elem_force; assembly is separate (assemble_block_forces).
+ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t dt);
+
+/// f_int[node] = sum over the node's (element, local) slots, for the block's node range.
+void assemble_block_forces(const HexBlock& blk, NodeSet& nodes);
+
+/// Lumped mass rho V0 / 8 to each node of each element.
+void add_lumped_mass(const HexBlock& blk, NodeSet& nodes);
+} // namespace rkfem

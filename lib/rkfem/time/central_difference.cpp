@@ -1,0 +1,94 @@
+#include "rkfem/time/central_difference.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/model/model.hpp"
+
+namespace rkfem
+{
+namespace
+{
+void kick(NodeSet& n, real_t h)
+{
+    const index_t n3 = 3 * n.size();
+    parallel_for("rkfem::cd::kick", n3, [&](index_t j) { n.v[j] += h * n.a[j]; });
+}
+
+void check_finite(const Model& m, real_t t, std::int64_t step)
+{
+    const NodeSet& n = m.nodes;
+    const real_t bad_r = parallel_reduce_min(
+        "rkfem::cd::check", n.size(),
+        [&](index_t i)
+        {
+            for (int k = 0; k < 3; ++k)
+                if (!std::isfinite(n.a[3 * i + k]) || !std::isfinite(n.u[3 * i + k]))
+                    return static_cast<real_t>(i);
+            return 1e300;
+        });
+    if (bad_r < 1e299)
+    {
+        const index_t bad = static_cast<index_t>(bad_r);
+        std::ostringstream os;
+        os << "non-finite acceleration or displacement at node " << bad << " (part '"
+           << m.parts[n.part[bad]].name << "') at t = " << t << " s, step " << step;
+        throw InstabilityError(os.str());
+    }
+}
+} // namespace
+
+StepReport CentralDifference::initialize(Model& model, real_t t)
+{
+    model.impose_velocity(t, 0.0, false);
+    model.update_coordinates();
+    const ForceReport fr = model.compute_forces(t, 0.0, 0);
+    model.compute_accelerations();
+    check_finite(model, t, 0);
+    model.commit();
+    model.update_energies(model.nodes.u, 0.0);
+    model.energy.kinetic0 = model.energy.kinetic + model.energy.kinetic_correction;
+    model.energy.internal0 = model.energy.internal;
+    StepReport r;
+    r.t = t;
+    r.dt_stable = fr.dt_stable;
+    r.dt_element = fr.dt_element;
+    return r;
+}
+
+StepReport CentralDifference::step(Model& model, real_t t, real_t dt, std::int64_t step_index)
+{
+    NodeSet& n = model.nodes;
+    u_prev_ = n.u; // capacity is reused after the first step
+    kick(n, 0.5 * dt);
+    model.impose_velocity(t, dt, true);
+    const index_t n3 = 3 * n.size();
+    parallel_for("rkfem::cd::drift", n3, [&](index_t j) { n.u[j] += dt * n.v[j]; });
+    model.update_coordinates();
+    const ForceReport fr = model.compute_forces(t + dt, dt, step_index);
+    model.compute_accelerations();
+    check_finite(model, t + dt, step_index);
+    kick(n, 0.5 * dt);
+    model.impose_velocity(t + dt, dt, false);
+    model.commit();
+    model.update_energies(u_prev_, dt);
+    StepReport r;
+    r.t = t + dt;
+    r.dt = dt;
+    r.dt_stable = fr.dt_stable;
+    r.dt_element = fr.dt_element;
+    return r;
+}
+
+std::unique_ptr<TimeStepper> make_stepper(StepperKind kind)
+{
+    switch (kind)
+    {
+    case StepperKind::CentralDifference:
+        return std::make_unique<CentralDifference>();
+    }
+    throw Error("unknown stepper");
+}
+} // namespace rkfem

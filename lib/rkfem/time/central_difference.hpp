@@ -1,0 +1,23 @@
+#pragma once
+/// @file central_difference.hpp
+/// Explicit central difference with variable dt, in kick-drift-kick form:
+///   v(n+1/2) = v(n) + dt/2 a(n);  u(n+1) = u(n) + dt v(n+1/2);  a(n+1);  v(n+1) = v(n+1/2) + dt/2 a(n+1)
+/// which is algebraically the classical scheme v(n+1/2) = v(n-1/2) + (dt(n-1) + dt(n))/2 a(n), and
+/// keeps full-step velocities for energies and output.
+#include <vector>
+
+#include "rkfem/time/stepper.hpp"
+
+namespace rkfem
+{
+class CentralDifference final : public TimeStepper
+{
+  public:
+    StepReport initialize(Model& model, real_t t) override;
+    StepReport step(Model& model, real_t t, real_t dt, std::int64_t step_index) override;
+    const char* name() const override { return "central-difference"; }
+
+  private:
+    std::vector<real_t> u_prev_; ///< displacement at the start of the step (work bookkeeping)
+};
+} // namespace rkfem

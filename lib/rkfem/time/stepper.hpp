@@ -1,0 +1,37 @@
+#pragma once
+/// @file stepper.hpp
+/// Steppers see a model (the operator: forces and accelerations) and advance it. The hand-written
+/// central difference and (next) SUNDIALS ARKODE steppers implement this one interface.
+#include <cstdint>
+#include <memory>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+class Model;
+
+struct StepReport
+{
+    real_t t = 0.0;          ///< time reached [s]
+    real_t dt = 0.0;         ///< step just taken [s]
+    real_t dt_stable = 0.0;  ///< stable step found in this step's force pass (unscaled) [s]
+    index_t dt_element = -1; ///< element that controls it
+};
+
+class TimeStepper
+{
+  public:
+    virtual ~TimeStepper() = default;
+    /// Prepares the model at time t (initial forces, accelerations, energies). Call again after
+    /// the discretization changes.
+    virtual StepReport initialize(Model& model, real_t t) = 0;
+    /// Advances from t by dt; commits material state when the step is accepted.
+    /// Throws InstabilityError when the step cannot be completed.
+    virtual StepReport step(Model& model, real_t t, real_t dt, std::int64_t step_index) = 0;
+    virtual const char* name() const = 0;
+};
+
+std::unique_ptr<TimeStepper> make_stepper(StepperKind kind);
+} // namespace rkfem
