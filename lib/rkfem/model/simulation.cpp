@@ -181,7 +181,9 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             sum.max_balance_error = std::max(sum.max_balance_error, err);
             const bool last = t >= ts.end * (1 - 1e-12) || (ts.max_steps > 0 && step >= ts.max_steps);
             observe(last);
-            if (err > ts.energy_error_limit && model.energy.total() > 0)
+            // The first steps after a step load or an impulsive start carry an O(1) relative balance error
+            // that decays like 1/n; an unstable run grows instead, so the check starts at step 50.
+            if (step >= 50 && err > ts.energy_error_limit && model.energy.total() > 0)
             {
                 std::ostringstream os;
                 os << "energy balance error " << err << " exceeds time.energy_error_limit "

@@ -1,0 +1,118 @@
+// Hex8 basis on distorted elements: partition of unity, linear completeness and gradient
+// consistency to round-off; the Flanagan-Belytschko volume gradient equals the exact integral of
+// grad N over the element (2x2x2 Gauss is exact for it).
+#include <gtest/gtest.h>
+#include <random>
+
+#include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+void distorted_element(unsigned seed, real_t xe[8][3])
+{
+    std::mt19937 gen(seed);
+    std::uniform_real_distribution<real_t> jitter(-0.2, 0.2);
+    for (int I = 0; I < 8; ++I)
+        for (int d = 0; d < 3; ++d)
+            xe[I][d] = 0.5 * (1 + hex8_nodes[I][d]) * (1.0 + 0.3 * d) + jitter(gen);
+}
+} // namespace
+
+TEST(Hex8Basis, PartitionOfUnityAndLinearCompletenessOnDistortedElements)
+{
+    const real_t A[3][3] = {{0.3, -1.2, 0.7}, {2.0, 0.1, -0.4}, {-0.9, 0.5, 1.1}};
+    const real_t c[3] = {0.25, -3.0, 1.5};
+    for (unsigned seed = 1; seed <= 20; ++seed)
+    {
+        real_t xe[8][3];
+        distorted_element(seed, xe);
+        const real_t pts[3][3] = {{0.1, -0.7, 0.4}, {-0.55, 0.3, 0.9}, {0.0, 0.0, 0.0}};
+        for (const auto& xi : pts)
+        {
+            real_t N[8], dNdx[8][3];
+            hex8_shape(xi, N);
+            const real_t detj = hex8_gradients(xe, xi, dNdx);
+            ASSERT_GT(detj, 0.0);
+            real_t sum = 0, gsum[3] = {0, 0, 0};
+            real_t x[3] = {0, 0, 0};
+            for (int I = 0; I < 8; ++I)
+            {
+                sum += N[I];
+                for (int d = 0; d < 3; ++d)
+                {
+                    gsum[d] += dNdx[I][d];
+                    x[d] += N[I] * xe[I][d];
+                }
+            }
+            EXPECT_NEAR(sum, 1.0, 1e-14);
+            for (int d = 0; d < 3; ++d)
+                EXPECT_NEAR(gsum[d], 0.0, 1e-12);
+            // linear field u = A x + c: interpolation and gradient exact
+            for (int i = 0; i < 3; ++i)
+            {
+                real_t u = 0, exact = c[i], grad[3] = {0, 0, 0};
+                for (int j = 0; j < 3; ++j)
+                    exact += A[i][j] * x[j];
+                for (int I = 0; I < 8; ++I)
+                {
+                    real_t uI = c[i];
+                    for (int j = 0; j < 3; ++j)
+                        uI += A[i][j] * xe[I][j];
+                    u += N[I] * uI;
+                    for (int j = 0; j < 3; ++j)
+                        grad[j] += dNdx[I][j] * uI;
+                }
+                EXPECT_NEAR(u, exact, 1e-12);
+                for (int j = 0; j < 3; ++j)
+                    EXPECT_NEAR(grad[j], A[i][j], 1e-12);
+            }
+        }
+    }
+}
+
+TEST(Hex8VolumeGradient, EqualsExactIntegralOfShapeGradients)
+{
+    const auto& tab = hex8_volume_gradient_table();
+    EXPECT_EQ(tab.n_terms % 8, 0); // each node has the same number of terms (symmetry)
+    for (unsigned seed = 1; seed <= 20; ++seed)
+    {
+        real_t xe[8][3], b[8][3];
+        distorted_element(seed, xe);
+        const real_t V = hex8_volume_gradient(xe, b);
+        // reference: 2x2x2 Gauss of grad N_I det J (exact: integrand is cubic per direction at most)
+        real_t Vg = 0, bg[8][3] = {};
+        const real_t g = 1.0 / std::sqrt(3.0);
+        for (const auto& n : hex8_nodes)
+        {
+            const real_t xi[3] = {g * n[0], g * n[1], g * n[2]};
+            real_t dNdx[8][3];
+            const real_t detj = hex8_gradients(xe, xi, dNdx);
+            Vg += detj;
+            for (int I = 0; I < 8; ++I)
+                for (int d = 0; d < 3; ++d)
+                    bg[I][d] += dNdx[I][d] * detj;
+        }
+        EXPECT_NEAR(V, Vg, 1e-13 * Vg);
+        real_t bscale = std::cbrt(Vg * Vg);
+        real_t sum[3] = {0, 0, 0};
+        real_t xb[3][3] = {};
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+            {
+                EXPECT_NEAR(b[I][d], bg[I][d], 1e-13 * bscale) << "node " << I << " dir " << d;
+                sum[d] += b[I][d];
+                for (int j = 0; j < 3; ++j)
+                    xb[j][d] += xe[I][j] * b[I][d];
+            }
+        // sum_I b_I = 0 (a rigid translation does not change V); sum_I x_jI b_iI = V delta_ij
+        for (int d = 0; d < 3; ++d)
+        {
+            EXPECT_NEAR(sum[d], 0.0, 1e-13 * bscale);
+            for (int j = 0; j < 3; ++j)
+                EXPECT_NEAR(xb[j][d], j == d ? V : 0.0, 1e-13 * V);
+        }
+    }
+}

@@ -1,0 +1,181 @@
+// Decks through the real executable: each class of bad input gives one line
+// "DECK:LINE: key.path: what is wrong; what is expected", exit code 2 and no output directory;
+// every deck in studies/decks passes `rkfem check`, and the resolved deck it prints is itself a
+// deck that resolves to the same text (round trip).
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <gtest/gtest.h>
+#include <regex>
+#include <string>
+#include <sys/wait.h>
+
+namespace fs = std::filesystem;
+
+namespace
+{
+struct Result
+{
+    int code = -1;
+    std::string output;
+};
+
+Result run(const std::string& args)
+{
+    Result r;
+    const std::string cmd = std::string(RKFEM_EXE) + " " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    std::array<char, 4096> buf;
+    while (fgets(buf.data(), buf.size(), p))
+        r.output += buf.data();
+    const int status = pclose(p);
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+const std::string good = R"(title: small
+time:
+  end: 1 us
+parts:
+  col:
+    generator: {type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+node_sets:
+  end: {part: col, select: {type: plane, point: [0, 0, 0], normal: [0, 0, 1]}}
+boundary_conditions:
+  - {node_set: end, velocity: {z: 10 m/s}}
+)";
+
+std::string write_deck(const std::string& name, const std::string& text)
+{
+    const fs::path dir = fs::temp_directory_path() / "rkfem_test_decks";
+    fs::create_directories(dir);
+    const fs::path p = dir / name;
+    std::ofstream(p) << text;
+    return p.string();
+}
+
+std::string replace(std::string s, const std::string& from, const std::string& to)
+{
+    const auto pos = s.find(from);
+    EXPECT_NE(pos, std::string::npos) << from;
+    return s.replace(pos, from.size(), to);
+}
+
+/// Runs `rkfem run` on a bad deck and checks exit code 2, a single located line containing
+/// `key` and `fragment`, and that no output directory was created.
+void expect_rejected(const std::string& name, const std::string& text, const std::string& location,
+                     const std::string& fragment)
+{
+    const std::string deck = write_deck(name, text);
+    const fs::path out = fs::temp_directory_path() / ("rkfem_out_" + name);
+    fs::remove_all(out);
+    const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find(name + location), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(fragment), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(out)) << "partial output directory left behind";
+}
+} // namespace
+
+TEST(Decks, GoodDeckRuns)
+{
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_good";
+    fs::remove_all(out);
+    const Result r = run("run " + write_deck("good.yaml", good) + " --out " + out.string() + " --quiet");
+    EXPECT_EQ(r.code, 0) << r.output;
+    for (const char* f : {"results.h5", "results.xdmf", "history.csv", "summary.json"})
+        EXPECT_TRUE(fs::exists(out / f)) << f;
+}
+
+TEST(Decks, UnknownKeySuggestsTheClosest)
+{
+    expect_rejected("unknown_key.yaml", replace(good, "material:", "materail:"),
+                    ":7: parts.col.materail", "did you mean 'material'");
+}
+
+TEST(Decks, MissingKey)
+{
+    expect_rejected("missing_key.yaml", replace(good, "  end: 1 us\n", "  dt_scale: 0.9\n"),
+                    ":3: time.end", "missing required key");
+}
+
+TEST(Decks, WrongType)
+{
+    expect_rejected("wrong_type.yaml", replace(good, "size: [1 mm, 1 mm, 10 mm]", "size: 1 mm"),
+                    ":6: parts.col.generator.size", "expected [x, y, z]");
+}
+
+TEST(Decks, UnknownUnit)
+{
+    expect_rejected("unknown_unit.yaml", replace(good, "E: 200 GPa", "E: 200 GPascal"),
+                    ":7: parts.col.material.E", "unknown unit 'GPascal'");
+}
+
+TEST(Decks, MismatchedUnit)
+{
+    expect_rejected("mismatched_unit.yaml", replace(good, "rho: 7850 kg/m^3", "rho: 7850 m/s"),
+                    ":7: parts.col.material.rho", "not a density");
+}
+
+TEST(Decks, PoissonRatioOutOfRange)
+{
+    expect_rejected("nu_range.yaml", replace(good, "nu: 0.3", "nu: 0.5"), ":7: parts.col.material.nu",
+                    "expected -1 < nu < 0.5");
+}
+
+TEST(Decks, NonPositiveDensity)
+{
+    expect_rejected("rho_range.yaml", replace(good, "rho: 7850 kg/m^3", "rho: -1 kg/m^3"),
+                    ":7: parts.col.material.rho", "expected rho > 0");
+}
+
+TEST(Decks, EmptyNodeSet)
+{
+    expect_rejected("empty_set.yaml", replace(good, "point: [0, 0, 0]", "point: [0, 0, 5 m]"),
+                    ":9: node_sets.end.select", "selects no node");
+}
+
+TEST(Decks, ZeroVolumeElement)
+{
+    expect_rejected("zero_volume.yaml",
+                    replace(good, "size: [1 mm, 1 mm, 10 mm], element_size: 1 mm",
+                            "size: [1e-200 m, 1e-200 m, 10 mm], divisions: [1, 1, 10]"),
+                    ":6: parts.col.generator", "non-positive volume");
+}
+
+TEST(Decks, BadOverrideIsLocatedAtTheSetArgument)
+{
+    const Result r = run("check " + write_deck("override.yaml", good) + " --set parts.col.material.nu=0.7");
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.output.find("--set parts.col.material.nu=0.7: parts.col.material.nu"), std::string::npos)
+        << r.output;
+}
+
+TEST(Decks, OverrideChangesTheResolvedDeck)
+{
+    const Result r = run("check " + write_deck("override2.yaml", good) +
+                         " --set \"parts.col.material.E=30 Msi\"");
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("E: 2.068427188e+11"), std::string::npos) << r.output; // 30e6 psi in Pa
+}
+
+TEST(Decks, EveryStudyDeckChecksAndRoundTrips)
+{
+    int n = 0;
+    for (const auto& entry : fs::directory_iterator(fs::path(RKFEM_SOURCE_DIR) / "studies" / "decks"))
+    {
+        if (entry.path().extension() != ".yaml")
+            continue;
+        ++n;
+        const Result first = run("check " + entry.path().string());
+        ASSERT_EQ(first.code, 0) << entry.path() << "\n" << first.output;
+        const std::string resolved = write_deck("resolved_" + entry.path().filename().string(), first.output);
+        const Result second = run("check " + resolved);
+        ASSERT_EQ(second.code, 0) << second.output;
+        EXPECT_EQ(first.output, second.output) << entry.path();
+    }
+    EXPECT_GE(n, 2);
+}

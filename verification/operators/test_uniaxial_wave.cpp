@@ -1,0 +1,105 @@
+// Uniaxial-strain wave in a steel column (E 200 GPa, nu 0.3, rho 7850 kg/m^3), lateral rollers,
+// end driven at 10 m/s. Theory: c_p = sqrt((lambda + 2 mu)/rho) = 5856.4 m/s, plateau
+// sigma_zz = -rho c_p v = -459.7 MPa, front at c_p t.
+#include <gtest/gtest.h>
+
+#include "../support.hpp"
+#include "rkfem/model/simulation.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+const char* deck = R"(
+title: wave
+time: {end: 26 us}
+parts:
+  column:
+    generator: {type: box, size: [1 mm, 1 mm, 300 mm], divisions: [1, 1, 300]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: viscous, coefficient: 0.1}
+node_sets:
+  all: {select: {type: named, name: all}}
+  end: {select: {type: named, name: bottom}}
+boundary_conditions:
+  - {node_set: all, fixed: [x, y]}
+  - {node_set: end, velocity: {z: 10 m/s}}
+)";
+
+void check_wave(const std::vector<std::string>& overrides)
+{
+    Model m = test::model_from(deck, overrides);
+    const real_t h = 1e-3, v = 10.0;
+    const real_t c = m.blocks[0].material.wave_speed();
+    ASSERT_NEAR(c, 5856.4, 0.1);
+    const real_t plateau = -7850 * c * v;
+    ASSERT_NEAR(plateau, -459.7e6, 0.05e6);
+    real_t worst_balance_after_startup = 0.0;
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt,
+                                        [&](const Model& mm, real_t t, real_t, std::int64_t)
+                                        {
+                                            if (t > 20 * h / c) // startup transient of the impulsive start
+                                                worst_balance_after_startup =
+                                                    std::max(worst_balance_after_startup, mm.energy.balance_error());
+                                        });
+    ASSERT_EQ(s.status, "completed") << s.message;
+    const real_t t = s.end_time;
+    // plateau behind the front (elements 20 .. 120 mm from the driven end)
+    for (index_t e = 20; e < 120; ++e)
+        EXPECT_NEAR(m.element_stress(0, e)[ZZ], plateau, 0.02 * std::abs(plateau)) << "element " << e;
+    // lateral stress: lambda/(lambda + 2 mu) of the axial plateau = -197.0 MPa
+    const real_t ratio = m.blocks[0].material.lambda / m.blocks[0].material.plane_wave_modulus();
+    EXPECT_NEAR(m.element_stress(0, 60)[XX], ratio * plateau, 0.02 * std::abs(ratio * plateau));
+    // front: first element centre where |sigma_zz| falls below half the plateau
+    real_t front = -1;
+    for (index_t e = 1; e < m.blocks[0].n_elements(); ++e)
+    {
+        const real_t s0 = m.element_stress(0, e - 1)[ZZ], s1 = m.element_stress(0, e)[ZZ];
+        if (s1 > 0.5 * plateau)
+        {
+            const real_t z0 = (e - 0.5) * h, z1 = (e + 0.5) * h;
+            front = z0 + (z1 - z0) * (0.5 * plateau - s0) / (s1 - s0);
+            break;
+        }
+    }
+    std::printf("front %.3f mm vs c t = %.3f mm; balance error after startup %.3e; plateau error %.3e\n",
+                front * 1e3, c * t * 1e3, worst_balance_after_startup,
+                m.element_stress(0, 60)[ZZ] / plateau - 1);
+    EXPECT_NEAR(front, c * t, 1.5 * h);
+    EXPECT_LT(worst_balance_after_startup, 0.005);
+}
+} // namespace
+
+TEST(UniaxialWave, OnePointViscousHourglassMatchesTheory) { check_wave({}); }
+
+TEST(UniaxialWave, OnePointStiffnessHourglassMatchesTheory)
+{
+    check_wave({"parts.column.hourglass.type=stiffness", "parts.column.hourglass.coefficient=0.05"});
+}
+
+TEST(UniaxialWave, FullyIntegratedMatchesTheory)
+{
+    check_wave({"parts.column.formulation=fem-2x2x2", "parts.column.hourglass=~"});
+}
+
+TEST(UniaxialWave, ResultsDoNotDependOnThreadCount)
+{
+    auto run = [](int threads)
+    {
+        const int saved = omp_get_max_threads();
+        omp_set_num_threads(threads);
+        Model m = test::model_from(deck);
+        RunOptions opt;
+        opt.progress = false;
+        run_simulation(m, opt);
+        omp_set_num_threads(saved);
+        return m.nodes.u;
+    };
+    const auto u1 = run(1), u2 = run(2);
+    ASSERT_EQ(u1.size(), u2.size());
+    for (std::size_t i = 0; i < u1.size(); ++i)
+        ASSERT_EQ(u1[i], u2[i]) << "dof " << i; // bitwise: deterministic assembly
+}

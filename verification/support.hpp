@@ -1,0 +1,69 @@
+#pragma once
+// Helpers shared by verification tests: a block built straight from a generated mesh, and a
+// model built from deck text.
+#include <random>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/generators.hpp"
+#include "rkfem/model/model.hpp"
+#include "rkfem/operators/hex_block.hpp"
+
+namespace rkfem::test
+{
+/// Box mesh of n^3 unit-ish hexes with interior nodes jittered by up to `jitter` x element size.
+inline HexMesh distorted_box(int n, real_t h, real_t jitter, unsigned seed = 7)
+{
+    HexMesh m = generate_box(Vec3::Zero(), Vec3::Constant(n * h), {n, n, n});
+    std::mt19937 gen(seed);
+    std::uniform_real_distribution<real_t> u(-jitter * h, jitter * h);
+    for (index_t i = 0; i < m.n_nodes(); ++i)
+    {
+        bool interior = true;
+        for (int d = 0; d < 3; ++d)
+        {
+            const real_t x = m.x[3 * i + d];
+            interior = interior && x > 1e-9 * h && x < n * h - 1e-9 * h;
+        }
+        if (interior)
+            for (int d = 0; d < 3; ++d)
+                m.x[3 * i + d] += u(gen);
+    }
+    return m;
+}
+
+inline bool is_interior(const HexMesh& m, index_t i, real_t lo, real_t hi)
+{
+    for (int d = 0; d < 3; ++d)
+    {
+        const real_t x = m.x[3 * i + d];
+        if (!(x > lo && x < hi))
+            return false;
+    }
+    return true;
+}
+
+/// A single block (part 0) over all nodes of `mesh`.
+inline HexBlock make_block(const HexMesh& mesh, NodeSet& nodes, Formulation f, HourglassSpec hg,
+                           ElasticParams mat, BulkViscositySpec bv = {0.0, 0.0})
+{
+    nodes.resize(mesh.n_nodes());
+    for (std::size_t i = 0; i < mesh.x.size(); ++i)
+        nodes.x0[i] = nodes.x[i] = mesh.x[i];
+    HexBlock b;
+    b.formulation = f;
+    b.hourglass = f == Formulation::Fem1pt ? hg : HourglassSpec{HourglassType::None, 0.0};
+    b.bulk_viscosity = bv;
+    b.material = mat;
+    b.conn = mesh.conn;
+    b.node_begin = 0;
+    b.node_end = mesh.n_nodes();
+    b.initialize(nodes);
+    add_lumped_mass(b, nodes);
+    return b;
+}
+
+inline Model model_from(const std::string& deck_text, const std::vector<std::string>& overrides = {})
+{
+    return Model::build(parse_deck(deck_text, "test.yaml", overrides));
+}
+} // namespace rkfem::test
