@@ -181,6 +181,23 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
     if constexpr (HG != HourglassType::None)
     {
         const real_t qm = blk.hourglass.coefficient;
+        // per-lane hourglass coefficient: viscous a_h = QM rho c V^(2/3) / 4 with V^(2/3) taken
+        // as lc^2 (equal for cubes); stiffness k = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V)
+        // (Flanagan-Belytschko)
+        alignas(64) real_t coef[W];
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            if constexpr (HG == HourglassType::Stiffness)
+            {
+                real_t bb = 0.0;
+                for (int I = 0; I < 8; ++I)
+                    bb += b[I][0][l] * b[I][0][l] + b[I][1][l] * b[I][1][l] + b[I][2][l] * b[I][2][l];
+                coef[l] = qm * mat.plane_wave_modulus() * bb * inv_v[l] / 3.0;
+            }
+            else
+                coef[l] = 0.25 * qm * mat.rho * c * lc[l] * lc[l];
+        }
         for (int a = 0; a < 4; ++a)
         {
             const auto& G = hex8_hourglass_base[a];
@@ -221,12 +238,7 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
                         qd += ve[I][d][l] * gam[I][l];
                     if constexpr (HG == HourglassType::Stiffness)
                     {
-                        // k = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V)   (Flanagan-Belytschko)
-                        real_t bb = 0.0;
-                        for (int I = 0; I < 8; ++I)
-                            bb += b[I][0][l] * b[I][0][l] + b[I][1][l] * b[I][1][l] +
-                                  b[I][2][l] * b[I][2][l];
-                        const real_t k = qm * mat.plane_wave_modulus() * bb * inv_v[l] / 3.0;
+                        const real_t k = coef[l];
                         const std::size_t e = static_cast<std::size_t>(e0 + (l < nl ? l : 0));
                         const std::size_t slot = static_cast<std::size_t>(3 * a + d) * np + e;
                         const real_t Qold = blk.hg_force[slot];
@@ -238,9 +250,7 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
                     }
                     else
                     {
-                        // a_h = QM rho c V^(2/3) / 4, with V^(2/3) taken as lc^2 (equal for cubes)
-                        const real_t ah = 0.25 * qm * mat.rho * c * lc[l] * lc[l];
-                        Q[d][l] = ah * qd;
+                        Q[d][l] = coef[l] * qd;
                         de_hg[l] += Q[d][l] * qd * dt;
                     }
                 }
