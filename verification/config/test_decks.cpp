@@ -179,3 +179,21 @@ TEST(Decks, EveryStudyDeckChecksAndRoundTrips)
     }
     EXPECT_GE(n, 2);
 }
+
+TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
+{
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_unstable";
+    fs::remove_all(out);
+    const std::string deck = write_deck(
+        "unstable.yaml",
+        replace(good, "boundary_conditions:\n  - {node_set: end, velocity: {z: 10 m/s}}\n",
+                "face_sets:\n  top: {select: {type: named, name: top}}\n"
+                "loads:\n  - {type: pressure, face_set: top, pressure: 1e16 Pa}\n"));
+    const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
+    EXPECT_EQ(r.code, 3) << r.output;
+    EXPECT_NE(r.output.find("run stopped"), std::string::npos) << r.output;
+    EXPECT_TRUE(fs::exists(out / "results.xdmf"));
+    std::ifstream summary(out / "summary.json");
+    std::string text((std::istreambuf_iterator<char>(summary)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\"status\": \"unstable\""), std::string::npos) << text;
+}

@@ -103,3 +103,65 @@ TEST(UniaxialWave, ResultsDoNotDependOnThreadCount)
     for (std::size_t i = 0; i < u1.size(); ++i)
         ASSERT_EQ(u1[i], u2[i]) << "dof " << i; // bitwise: deterministic assembly
 }
+
+TEST(UniaxialWave, PressureStepOnAFaceSetGivesMinusPBehindTheFront)
+{
+    // A pressure step p on the free end of a laterally confined column: sigma_zz = -p behind the
+    // front (elastic, uniaxial strain), front at c_p t from the loaded end.
+    const std::string d = R"(
+title: pressure wave
+time: {end: 20 us}
+parts:
+  column:
+    generator: {type: box, size: [1 mm, 1 mm, 300 mm], divisions: [1, 1, 300]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+node_sets:
+  all: {select: {type: named, name: all}}
+face_sets:
+  loaded: {select: {type: plane, point: [0, 0, 300 mm], normal: [0, 0, 1]}}
+boundary_conditions:
+  - {node_set: all, fixed: [x, y]}
+loads:
+  - {type: pressure, face_set: loaded, pressure: {curve: [[0 s, 14503.77 psi], [1 s, 14503.77 psi]]}}
+)";
+    Model m = test::model_from(d);
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt);
+    ASSERT_EQ(s.status, "completed") << s.message;
+    const real_t p = 100e6; // 14503.77 psi
+    const index_t ne = m.blocks[0].n_elements();
+    for (index_t e = ne - 90; e < ne - 10; ++e) // 10 .. 90 mm from the loaded end; front at 117 mm
+        EXPECT_NEAR(m.element_stress(0, e)[ZZ], -p, 0.02 * p) << "element " << e;
+    EXPECT_NEAR(m.element_stress(0, ne - 200)[ZZ], 0.0, 1e-6 * p); // ahead of the front
+}
+
+TEST(UniaxialWave, RunawayLoadStopsWithWhereAndWhen)
+{
+    // A pressure far beyond anything the mesh can carry inverts the loaded elements: the run must
+    // stop with a message naming the element, time and step, not produce NaNs.
+    const std::string d = R"(
+title: crush
+time: {end: 20 us}
+parts:
+  column:
+    generator: {type: box, size: [1 mm, 1 mm, 10 mm], divisions: [1, 1, 10]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+face_sets:
+  loaded: {select: {type: named, name: top}}
+loads:
+  - {type: pressure, face_set: loaded, pressure: 1e16 Pa}
+)";
+    Model m = test::model_from(d);
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt);
+    EXPECT_EQ(s.status, "unstable");
+    EXPECT_NE(s.message.find("step"), std::string::npos) << s.message;
+    EXPECT_NE(s.message.find("t = "), std::string::npos) << s.message;
+    EXPECT_TRUE(s.message.find("element") != std::string::npos ||
+                s.message.find("node") != std::string::npos ||
+                s.message.find("energy") != std::string::npos)
+        << s.message;
+    std::printf("unstable run message: %s\n", s.message.c_str());
+}
