@@ -9,14 +9,20 @@
 
 namespace rkfem
 {
-namespace
-{
-void kick(NodeSet& n, real_t h)
+void central_difference_kick(NodeSet& n, real_t h)
 {
     const index_t n3 = 3 * n.size();
     parallel_for("rkfem::cd::kick", n3, [&](index_t j) { n.v[j] += h * n.a[j]; });
 }
 
+void central_difference_drift(NodeSet& n, real_t dt)
+{
+    const index_t n3 = 3 * n.size();
+    parallel_for("rkfem::cd::drift", n3, [&](index_t j) { n.u[j] += dt * n.v[j]; });
+}
+
+namespace
+{
 void check_finite(const Model& m, real_t t, std::int64_t step)
 {
     const NodeSet& n = m.nodes;
@@ -62,15 +68,14 @@ StepReport CentralDifference::step(Model& model, real_t t, real_t dt, std::int64
 {
     NodeSet& n = model.nodes;
     u_prev_ = n.u; // capacity is reused after the first step
-    kick(n, 0.5 * dt);
+    central_difference_kick(n, 0.5 * dt);
     model.impose_velocity(t, dt, true);
-    const index_t n3 = 3 * n.size();
-    parallel_for("rkfem::cd::drift", n3, [&](index_t j) { n.u[j] += dt * n.v[j]; });
+    central_difference_drift(n, dt);
     model.update_coordinates();
     const ForceReport fr = model.compute_forces(t + dt, dt, step_index);
     model.compute_accelerations();
     check_finite(model, t + dt, step_index);
-    kick(n, 0.5 * dt);
+    central_difference_kick(n, 0.5 * dt);
     model.impose_velocity(t + dt, dt, false);
     model.commit();
     model.update_energies(u_prev_, dt);

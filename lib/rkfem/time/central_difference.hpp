@@ -10,6 +10,13 @@
 
 namespace rkfem
 {
+struct NodeSet;
+
+/// v += h a over all nodes (one half kick).
+void central_difference_kick(NodeSet& nodes, real_t h);
+/// u += dt v over all nodes.
+void central_difference_drift(NodeSet& nodes, real_t dt);
+
 class CentralDifference final : public TimeStepper
 {
   public:
