@@ -1,0 +1,172 @@
+// GCC 12 reports a false "may be used uninitialized" inside Eigen's AVX-512 packet code for the
+// fixed-size LDL^T below; every value is initialised.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
+#include "rkfem/approximation/rk/rk_shape.hpp"
+
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace rkfem
+{
+namespace
+{
+/// H(y) and dH/dy_i (i = 0..2); m = 4 (order 1) or 10 (order 2).
+template <int m>
+void basis(const Vec3& y, Eigen::Matrix<real_t, m, 1>& H, Eigen::Matrix<real_t, m, 1> dH[3])
+{
+    for (int i = 0; i < 3; ++i)
+        dH[i].setZero();
+    H[0] = 1.0;
+    for (int i = 0; i < 3; ++i)
+    {
+        H[1 + i] = y[i];
+        dH[i][1 + i] = 1.0;
+    }
+    if constexpr (m == 10)
+    {
+        for (int i = 0; i < 3; ++i)
+        {
+            H[4 + i] = y[i] * y[i];
+            dH[i][4 + i] = 2.0 * y[i];
+        }
+        // cross terms y0 y1, y1 y2, y2 y0
+        for (int i = 0; i < 3; ++i)
+        {
+            const int j = (i + 1) % 3;
+            H[7 + i] = y[i] * y[j];
+            dH[i][7 + i] = y[j];
+            dH[j][7 + i] = y[i];
+        }
+    }
+}
+/// Moment matrix, its LDL^T, and Psi (and direct gradients) for every sample entry.
+template <int m, class OnSingular>
+void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singular)
+{
+    using MatM = Eigen::Matrix<real_t, m, m>;
+    using VecM = Eigen::Matrix<real_t, m, 1>;
+    const index_t n = out.size();
+    const real_t inv_s = 1.0 / s;
+
+    MatM M = MatM::Zero();
+    MatM dM[3];
+    if (gradients)
+        for (auto& d : dM)
+            d.setZero();
+    VecM H, dH[3];
+    for (index_t k = 0; k < n; ++k)
+    {
+        basis<m>(out.dx[k] * inv_s, H, dH);
+        const real_t phi = out.phi[k];
+        M.noalias() += phi * H * H.transpose();
+        if (gradients)
+            for (int i = 0; i < 3; ++i)
+            {
+                const VecM Hi = dH[i] * inv_s;
+                dM[i].noalias() += phi * (Hi * H.transpose() + H * Hi.transpose()) + out.dphi[k][i] * H * H.transpose();
+            }
+    }
+    Eigen::LDLT<MatM> ldlt(M);
+    const auto D = ldlt.vectorD();
+    const real_t dmax = D.cwiseAbs().maxCoeff();
+    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
+        singular("pivot ratio below 1e-12");
+    VecM H0 = VecM::Zero();
+    H0[0] = 1.0;
+    const VecM b = ldlt.solve(H0);
+    VecM db[3];
+    if (gradients)
+        for (int i = 0; i < 3; ++i)
+            db[i] = -ldlt.solve(dM[i] * b);
+
+    out.psi.resize(static_cast<std::size_t>(n));
+    if (gradients)
+        out.grad.resize(static_cast<std::size_t>(n));
+    for (index_t k = 0; k < n; ++k)
+    {
+        basis<m>(out.dx[k] * inv_s, H, dH);
+        const real_t bH = b.dot(H);
+        out.psi[k] = bH * out.phi[k];
+        if (gradients)
+            for (int i = 0; i < 3; ++i)
+                out.grad[k][i] = out.phi[k] * (db[i].dot(H) + inv_s * b.dot(dH[i])) + out.dphi[k][i] * bH;
+    }
+}
+} // namespace
+
+RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> radius, RkParams params)
+    : x_(std::move(x)), a_(std::move(radius)), p_(params)
+{
+    RKFEM_REQUIRE(p_.order == 1 || p_.order == 2, "RK basis order must be 1 or 2, got " << p_.order);
+    RKFEM_REQUIRE(x_.size() == 3 * a_.size(), "RK shape functions: " << x_.size() / 3 << " positions but "
+                                                                      << a_.size() << " support radii");
+    real_t a_max = 0.0;
+    for (real_t a : a_)
+    {
+        RKFEM_REQUIRE(a > 0.0, "RK shape functions: support radius must be positive, got " << a);
+        a_max = std::max(a_max, a);
+    }
+    // box support reaches a * sqrt(3) along a diagonal but each axis only a: bins of side a_max
+    // cover every axis-aligned offset below a_max
+    cells_ = CellList(x_, a_.empty() ? 1.0 : a_max);
+}
+
+void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const
+{
+    out.clear();
+    real_t s = 1e300;
+    cells_.for_each_candidate(x,
+                              [&](index_t j)
+                              {
+                                  const Vec3 dx = x - position(j);
+                                  real_t phi = 0.0;
+                                  Vec3 g;
+                                  if (kernel_3d(p_.kernel, p_.support, dx, a_[j], phi, g) && phi > 0.0)
+                                  {
+                                      out.nodes.push_back(j);
+                                      out.phi.push_back(phi);
+                                      out.dphi.push_back(g);
+                                      out.dx.push_back(dx);
+                                      s = std::min(s, a_[j]);
+                                  }
+                              });
+    const index_t n = out.size();
+    const int m = p_.basis_size();
+    auto singular = [&](const char* why)
+    {
+        std::ostringstream os;
+        os << "RK moment matrix is singular at x = (" << x[0] << ", " << x[1] << ", " << x[2] << ") m: "
+           << n << " particle(s) cover the point (" << why << "); a basis of order " << p_.order
+           << " needs at least " << m << " covering particles not all in one "
+           << (p_.order == 1 ? "plane" : "quadric")
+           << "; increase rk.normalized_support or refine the particle cloud there";
+        throw SingularMomentError(os.str());
+    };
+    if (n < m)
+        singular("too few neighbours");
+    if (m == 4)
+        solve_and_fill<4>(out, s, gradients, singular);
+    else
+        solve_and_fill<10>(out, s, gradients, singular);
+}
+
+std::vector<real_t> nodal_spacing(const HexMesh& mesh)
+{
+    static constexpr int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                         {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+    std::vector<real_t> h(static_cast<std::size_t>(mesh.n_nodes()), 0.0);
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+        for (const auto& ed : edges)
+        {
+            const index_t i = mesh.conn[8 * e + ed[0]], j = mesh.conn[8 * e + ed[1]];
+            const real_t len = (mesh.node(i) - mesh.node(j)).norm();
+            h[i] = std::max(h[i], len);
+            h[j] = std::max(h[j], len);
+        }
+    return h;
+}
+} // namespace rkfem

@@ -1,0 +1,83 @@
+#pragma once
+/// @file rk_shape.hpp
+/// Reproducing kernel (RK) shape functions in 3-D with a shifted and scaled monomial basis of
+/// order 1 (m = 4) or 2 (m = 10), and their direct gradients.
+///
+///   Psi_I(x) = b(x)^T H((x - x_I)/s) phi_a(x - x_I),   M(x) b(x) = H(0),
+///   M(x) = sum_I H((x - x_I)/s) H^T((x - x_I)/s) phi_a(x - x_I),
+/// with one scale s per evaluation point (the smallest support radius among the particles that
+/// cover it), so that M is O(1). Direct gradients: b_,i = -M^-1 M_,i b. The moment matrix is
+/// factored by LDL^T; a pivot ratio below 1e-12 (too few or coplanar neighbours) throws
+/// SingularMomentError naming the point. ../shared/reference/rkpm-methods.md sections 1.1-1.5.
+#include <vector>
+
+#include "rkfem/approximation/rk/kernel.hpp"
+#include "rkfem/core/error.hpp"
+#include "rkfem/discretization/cell_list.hpp"
+#include "rkfem/discretization/hex_mesh.hpp"
+
+namespace rkfem
+{
+struct RkParams
+{
+    int order = 1; ///< basis order: 1 (linear) or 2 (quadratic)
+    KernelType kernel = KernelType::CubicBSpline;
+    SupportShape support = SupportShape::Box;
+    real_t normalized_support = 1.51; ///< a / h; never an integer on uniform grids
+
+    int basis_size() const { return order == 1 ? 4 : 10; }
+};
+
+/// The moment matrix at a point could not be inverted.
+class SingularMomentError : public Error
+{
+  public:
+    explicit SingularMomentError(const std::string& what) : Error(what) {}
+};
+
+/// Shape functions (and gradients) of every particle that covers one evaluation point.
+struct RkSample
+{
+    std::vector<index_t> nodes; ///< covering particles, ascending within each bin visit
+    std::vector<real_t> psi;    ///< Psi_I(x)
+    std::vector<Vec3> grad;     ///< grad Psi_I(x) (when requested)
+    // workspace
+    std::vector<real_t> phi;
+    std::vector<Vec3> dphi;
+    std::vector<Vec3> dx;
+    void clear()
+    {
+        nodes.clear();
+        psi.clear();
+        grad.clear();
+        phi.clear();
+        dphi.clear();
+        dx.clear();
+    }
+    index_t size() const { return static_cast<index_t>(nodes.size()); }
+};
+
+class RkShapeFunctions
+{
+  public:
+    RkShapeFunctions() = default;
+    /// x: particle positions (n x 3); radius: support radius a_I per particle [m].
+    RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> radius, RkParams params);
+
+    /// Psi_I(x) for every covering particle, and grad Psi_I(x) when `gradients`.
+    void evaluate(const Vec3& x, bool gradients, RkSample& out) const;
+
+    index_t size() const { return static_cast<index_t>(a_.size()); }
+    real_t radius(index_t i) const { return a_[static_cast<std::size_t>(i)]; }
+    Vec3 position(index_t i) const { return {x_[3 * i], x_[3 * i + 1], x_[3 * i + 2]}; }
+    const RkParams& params() const { return p_; }
+
+  private:
+    std::vector<real_t> x_, a_;
+    RkParams p_;
+    CellList cells_;
+};
+
+/// h_I = the longest mesh edge incident to node I (reference configuration), per node.
+std::vector<real_t> nodal_spacing(const HexMesh& mesh);
+} // namespace rkfem

@@ -1,0 +1,64 @@
+#pragma once
+/// @file cell_list.hpp
+/// Uniform-bin neighbour search over a point cloud: points are binned into cubes of side
+/// `cell_size` (>= the largest search radius), and a query visits the 27 bins around a point.
+/// Bins are a CSR (bin -> point ids, ascending), so a query returns candidates in a fixed order.
+#include <algorithm>
+#include <vector>
+
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+class CellList
+{
+  public:
+    CellList() = default;
+    /// `x` is n x 3 node-major; cell_size > 0.
+    CellList(const std::vector<real_t>& x, real_t cell_size);
+
+    /// Calls f(j) for every point j in the 27 bins around p (a superset of the points within
+    /// cell_size of p), bins in a fixed order.
+    template <class F> void for_each_candidate(const Vec3& p, F&& f) const
+    {
+        int c[3];
+        for (int d = 0; d < 3; ++d)
+            c[d] = bin_coord(p[d], d);
+        for (int k = c[2] - 1; k <= c[2] + 1; ++k)
+        {
+            if (k < 0 || k >= dims_[2])
+                continue;
+            for (int j = c[1] - 1; j <= c[1] + 1; ++j)
+            {
+                if (j < 0 || j >= dims_[1])
+                    continue;
+                for (int i = c[0] - 1; i <= c[0] + 1; ++i)
+                {
+                    if (i < 0 || i >= dims_[0])
+                        continue;
+                    const std::size_t b = (static_cast<std::size_t>(k) * dims_[1] + j) * dims_[0] + i;
+                    for (index_t q = offsets_[b]; q < offsets_[b + 1]; ++q)
+                        f(ids_[q]);
+                }
+            }
+        }
+    }
+
+    real_t cell_size() const { return h_; }
+
+  private:
+    int bin_coord(real_t v, int d) const
+    {
+        const real_t t = (v - lo_[d]) / h_;
+        if (t < 0)
+            return -1 - static_cast<int>(std::min<real_t>(-t, 1.0)); // -1 or -2: outside
+        const real_t m = static_cast<real_t>(dims_[d]);
+        return t >= m ? dims_[d] + static_cast<int>(std::min<real_t>(t - m, 1.0))
+                      : static_cast<int>(t);
+    }
+    Vec3 lo_ = Vec3::Zero();
+    real_t h_ = 1.0;
+    int dims_[3] = {0, 0, 0};
+    std::vector<index_t> offsets_, ids_;
+};
+} // namespace rkfem

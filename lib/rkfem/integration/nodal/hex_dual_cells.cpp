@@ -1,0 +1,104 @@
+#include "rkfem/integration/nodal/hex_dual_cells.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "rkfem/approximation/fem/hex8_basis.hpp"
+
+namespace rkfem
+{
+namespace
+{
+/// Local element face lying on natural plane xi_d = sign (see hex_faces).
+int element_face_of(int d, real_t sign)
+{
+    static constexpr int table[3][2] = {{5, 3}, {2, 4}, {0, 1}}; // [d][sign > 0]
+    return table[d][sign > 0 ? 1 : 0];
+}
+} // namespace
+
+void build_sub_hex(const real_t xe[8][3], int a, SubHex& out)
+{
+    const real_t g = 1.0 / std::sqrt(3.0);
+    const real_t s[3] = {hex8_nodes[a][0], hex8_nodes[a][1], hex8_nodes[a][2]};
+    real_t vol = 0.0;
+    for (int d = 0; d < 3; ++d)
+    {
+        const int p = (d + 1) % 3, q = (d + 2) % 3;
+        for (int side = 0; side < 2; ++side)
+        {
+            const int f = 2 * d + side;
+            const real_t xi_d = side == 0 ? 0.0 : s[d];
+            // outward in natural space: -s_d on the internal facet, +s_d on the external one
+            const real_t orient = side == 0 ? -s[d] : s[d];
+            out.element_face[f] = side == 0 ? -1 : element_face_of(d, s[d]);
+            int k = 0;
+            for (int i = 0; i < 2; ++i)
+                for (int j = 0; j < 2; ++j, ++k)
+                {
+                    real_t xi[3];
+                    xi[d] = xi_d;
+                    xi[p] = s[p] * 0.5 * (1.0 + (i == 0 ? -g : g));
+                    xi[q] = s[q] * 0.5 * (1.0 + (j == 0 ? -g : g));
+                    real_t N[8], dN[8][3];
+                    hex8_shape(xi, N);
+                    hex8_shape_derivatives(xi, dN);
+                    Vec3 x = Vec3::Zero(), xp = Vec3::Zero(), xq = Vec3::Zero();
+                    for (int I = 0; I < 8; ++I)
+                        for (int c = 0; c < 3; ++c)
+                        {
+                            x[c] += N[I] * xe[I][c];
+                            xp[c] += dN[I][p] * xe[I][c];
+                            xq[c] += dN[I][q] * xe[I][c];
+                        }
+                    FacetPoint& fp = out.facets[f][k];
+                    fp.xi = Vec3(xi[0], xi[1], xi[2]);
+                    fp.x = x;
+                    // (p, q) follow d cyclically, so x_p x x_q points along +xi_d; the facet spans
+                    // half the natural range in p and q: weight 1/4 per Gauss point
+                    fp.nda = 0.25 * orient * xp.cross(xq);
+                    vol += x.dot(fp.nda);
+                }
+        }
+    }
+    out.volume = vol / 3.0;
+}
+
+std::vector<index_t> face_neighbours(const HexMesh& mesh)
+{
+    const index_t ne = mesh.n_elements();
+    std::vector<index_t> nb(6 * static_cast<std::size_t>(ne), -1);
+    std::map<std::array<index_t, 4>, index_t> seen;
+    for (index_t e = 0; e < ne; ++e)
+        for (int f = 0; f < 6; ++f)
+        {
+            std::array<index_t, 4> key;
+            for (int k = 0; k < 4; ++k)
+                key[k] = mesh.conn[8 * e + hex_faces[f][k]];
+            std::sort(key.begin(), key.end());
+            auto [it, inserted] = seen.emplace(key, 6 * e + f);
+            if (!inserted)
+            {
+                const index_t other = it->second;
+                nb[6 * e + f] = other / 6;
+                nb[other] = e;
+            }
+        }
+    return nb;
+}
+
+void node_element_incidence(const HexMesh& mesh, std::vector<index_t>& offsets, std::vector<index_t>& slots)
+{
+    const index_t nn = mesh.n_nodes(), ne = mesh.n_elements();
+    offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+    for (index_t k = 0; k < 8 * ne; ++k)
+        ++offsets[mesh.conn[k] + 1];
+    for (index_t i = 0; i < nn; ++i)
+        offsets[i + 1] += offsets[i];
+    slots.resize(static_cast<std::size_t>(8 * ne));
+    std::vector<index_t> fill(offsets.begin(), offsets.end() - 1);
+    for (index_t k = 0; k < 8 * ne; ++k)
+        slots[fill[mesh.conn[k]]++] = k;
+}
+} // namespace rkfem

@@ -1,0 +1,42 @@
+#pragma once
+/// @file hex_dual_cells.hpp
+/// Conforming nodal cells from a hex mesh (../shared/reference/rkpm-methods.md section 2.3.1):
+/// node I's cell is the union over its elements e of the sub-hex Omega_I^e, the image of the
+/// natural octant between node I and the element centre. Each sub-hex has 3 internal facets
+/// (natural planes xi_d = 0, shared with the sub-hex of the node across that edge) and 3 external
+/// facets (on element faces). Every facet is a bilinear patch integrated by 2x2 Gauss points, which
+/// integrates x (n dA) exactly, so the cell volume (1/3) sum x . n dA and the smoothed gradient of
+/// any linear field are exact to round-off.
+#include <array>
+#include <vector>
+
+#include "rkfem/discretization/hex_mesh.hpp"
+
+namespace rkfem
+{
+struct FacetPoint
+{
+    Vec3 xi;  ///< natural coordinates in the element
+    Vec3 x;   ///< position
+    Vec3 nda; ///< outward normal times quadrature weight times area Jacobian
+};
+
+struct SubHex
+{
+    /// facet f = 2 d + side: d = natural direction, side 0 the internal facet (xi_d = 0), side 1
+    /// the external facet (on the element face); 4 points per facet.
+    std::array<std::array<FacetPoint, 4>, 6> facets;
+    std::array<int, 6> element_face; ///< local element face (hex_faces) of external facets, -1 internal
+    real_t volume = 0.0;             ///< (1/3) sum over all 24 points x . n dA
+};
+
+/// The sub-hex of element e (coordinates xe[8][3]) at local node a.
+void build_sub_hex(const real_t xe[8][3], int a, SubHex& out);
+
+/// For every element face (6 e + f), the neighbouring element across it, or -1 on the boundary.
+std::vector<index_t> face_neighbours(const HexMesh& mesh);
+
+/// Node -> (element, local node) incidence as CSR: slots 8 e + a for node i in
+/// [offsets[i], offsets[i + 1]), ascending.
+void node_element_incidence(const HexMesh& mesh, std::vector<index_t>& offsets, std::vector<index_t>& slots);
+} // namespace rkfem

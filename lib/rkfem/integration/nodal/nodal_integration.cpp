@@ -1,0 +1,268 @@
+#include "rkfem/integration/nodal/nodal_integration.hpp"
+
+#include <algorithm>
+#include <utility>
+
+#include "rkfem/core/error.hpp"
+
+namespace rkfem
+{
+namespace
+{
+using Entries = std::vector<std::pair<index_t, Vec3>>;
+
+/// Sorts by node and merges duplicates; scales by `scale`.
+void merge(Entries& e, real_t scale)
+{
+    std::stable_sort(e.begin(), e.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::size_t w = 0;
+    for (std::size_t r = 0; r < e.size(); ++r)
+    {
+        if (w > 0 && e[w - 1].first == e[r].first)
+            e[w - 1].second += e[r].second;
+        else
+            e[w++] = e[r];
+    }
+    e.resize(w);
+    for (auto& [n, g] : e)
+        g *= scale;
+}
+
+void element_coordinates(const HexMesh& mesh, index_t e, real_t xe[8][3])
+{
+    for (int I = 0; I < 8; ++I)
+        for (int d = 0; d < 3; ++d)
+            xe[I][d] = mesh.x[3 * static_cast<std::size_t>(mesh.conn[8 * e + I]) + d];
+}
+
+/// Adds sum_q Psi(x_q) n dA_q over the given facets of sub-hex `sh` in element e.
+void add_facets(const ShapeEvaluator& shapes, index_t e, const SubHex& sh, const bool use[6], Entries& out,
+                std::vector<index_t>& nodes, std::vector<real_t>& psi)
+{
+    for (int f = 0; f < 6; ++f)
+    {
+        if (!use[f])
+            continue;
+        for (const FacetPoint& fp : sh.facets[f])
+        {
+            shapes.values(e, fp.xi, fp.x, nodes, psi);
+            for (std::size_t k = 0; k < nodes.size(); ++k)
+                out.emplace_back(nodes[k], psi[k] * fp.nda);
+        }
+    }
+}
+
+/// Builds an operator from per-point entry lists (parallel over points, concatenated in order).
+template <class PointFn>
+IntegrationOperator assemble(index_t n_points, PointFn&& fn)
+{
+    std::vector<Entries> entries(static_cast<std::size_t>(n_points));
+    std::vector<real_t> weight(static_cast<std::size_t>(n_points)), position(3 * static_cast<std::size_t>(n_points));
+    std::vector<index_t> owner(static_cast<std::size_t>(n_points));
+    std::string error;
+#pragma omp parallel
+    {
+        std::vector<index_t> nodes;
+        std::vector<real_t> psi;
+#pragma omp for schedule(dynamic, 64)
+        for (index_t p = 0; p < n_points; ++p)
+        {
+            try
+            {
+                Vec3 pos;
+                fn(p, entries[p], weight[p], pos, owner[p], nodes, psi);
+                for (int d = 0; d < 3; ++d)
+                    position[3 * p + d] = pos[d];
+            }
+            catch (const std::exception& ex)
+            {
+#pragma omp critical(rkfem_nodal_build_error)
+                if (error.empty())
+                    error = ex.what();
+            }
+        }
+    }
+    if (!error.empty())
+        throw Error(error);
+    IntegrationOperator op;
+    op.weight = std::move(weight);
+    op.position = std::move(position);
+    op.owner = std::move(owner);
+    op.offsets.assign(1, 0);
+    for (const auto& e : entries)
+    {
+        for (const auto& [n, g] : e)
+        {
+            op.nodes.push_back(n);
+            op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
+        }
+        op.offsets.push_back(op.n_entries());
+    }
+    return op;
+}
+} // namespace
+
+std::vector<real_t> nodal_volumes(const HexMesh& mesh)
+{
+    std::vector<real_t> v(static_cast<std::size_t>(mesh.n_nodes()), 0.0);
+    SubHex sh;
+    real_t xe[8][3];
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        element_coordinates(mesh, e, xe);
+        for (int a = 0; a < 8; ++a)
+        {
+            build_sub_hex(xe, a, sh);
+            v[mesh.conn[8 * e + a]] += sh.volume;
+        }
+    }
+    return v;
+}
+
+IntegrationOperator build_dni(const HexMesh& mesh, const ShapeEvaluator& shapes)
+{
+    const std::vector<real_t> vol = nodal_volumes(mesh);
+    return assemble(mesh.n_nodes(),
+                    [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
+                        std::vector<real_t>&)
+                    {
+                        std::vector<Vec3> grad;
+                        shapes.gradients_at_node(i, nodes, grad);
+                        for (std::size_t k = 0; k < nodes.size(); ++k)
+                            out.emplace_back(nodes[k], grad[k]);
+                        merge(out, 1.0);
+                        w = vol[i];
+                        pos = mesh.node(i);
+                        owner = i;
+                    });
+}
+
+IntegrationOperator build_scni(const HexMesh& mesh, const ShapeEvaluator& shapes)
+{
+    std::vector<index_t> offsets, slots;
+    node_element_incidence(mesh, offsets, slots);
+    const std::vector<index_t> nb = face_neighbours(mesh);
+    return assemble(mesh.n_nodes(),
+                    [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
+                        std::vector<real_t>& psi)
+                    {
+                        real_t vol = 0.0;
+                        SubHex sh;
+                        real_t xe[8][3];
+                        for (index_t k = offsets[i]; k < offsets[i + 1]; ++k)
+                        {
+                            const index_t e = slots[k] / 8;
+                            const int a = slots[k] % 8;
+                            element_coordinates(mesh, e, xe);
+                            build_sub_hex(xe, a, sh);
+                            vol += sh.volume;
+                            // facets on element faces shared with another element of the cell
+                            // are interior to the nodal cell: skip them
+                            bool use[6];
+                            for (int f = 0; f < 6; ++f)
+                                use[f] = sh.element_face[f] < 0 || nb[6 * e + sh.element_face[f]] < 0;
+                            add_facets(shapes, e, sh, use, out, nodes, psi);
+                        }
+                        RKFEM_REQUIRE(vol > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << vol);
+                        merge(out, 1.0 / vol);
+                        w = vol;
+                        pos = mesh.node(i);
+                        owner = i;
+                    });
+}
+
+IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& shapes)
+{
+    return assemble(8 * mesh.n_elements(),
+                    [&](index_t p, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
+                        std::vector<real_t>& psi)
+                    {
+                        const index_t e = p / 8;
+                        const int a = p % 8;
+                        SubHex sh;
+                        real_t xe[8][3];
+                        element_coordinates(mesh, e, xe);
+                        build_sub_hex(xe, a, sh);
+                        const bool use[6] = {true, true, true, true, true, true};
+                        add_facets(shapes, e, sh, use, out, nodes, psi);
+                        RKFEM_REQUIRE(sh.volume > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
+                                                                             << " has non-positive volume " << sh.volume);
+                        merge(out, 1.0 / sh.volume);
+                        w = sh.volume;
+                        // centroid of the sub-hex: natural centre of the octant
+                        real_t N[8];
+                        const real_t xi[3] = {0.5 * hex8_nodes[a][0], 0.5 * hex8_nodes[a][1], 0.5 * hex8_nodes[a][2]};
+                        hex8_shape(xi, N);
+                        pos.setZero();
+                        for (int I = 0; I < 8; ++I)
+                            pos += N[I] * Vec3(xe[I][0], xe[I][1], xe[I][2]);
+                        owner = mesh.conn[8 * e + a];
+                    });
+}
+
+IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const ShapeEvaluator& shapes)
+{
+    switch (scheme)
+    {
+    case NodalScheme::Dni:
+        return build_dni(mesh, shapes);
+    case NodalScheme::Scni:
+        return build_scni(mesh, shapes);
+    case NodalScheme::SdScni:
+        return build_sd_scni(mesh, shapes);
+    }
+    return {};
+}
+
+IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd)
+{
+    IntegrationOperator op;
+    op.weight = sd.weight;
+    op.position = sd.position;
+    op.owner = sd.owner;
+    op.parent = sd.owner; // SCNI point index = node index
+    for (index_t s = 0; s < sd.n_points(); ++s)
+    {
+        const index_t L = sd.owner[s];
+        Entries e;
+        for (index_t k = sd.offsets[s]; k < sd.offsets[s + 1]; ++k)
+            e.emplace_back(sd.nodes[k], sd.gradient(k));
+        for (index_t k = scni.offsets[L]; k < scni.offsets[L + 1]; ++k)
+            e.emplace_back(scni.nodes[k], -scni.gradient(k));
+        merge(e, 1.0);
+        for (const auto& [n, g] : e)
+        {
+            op.nodes.push_back(n);
+            op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
+        }
+        op.offsets.push_back(op.n_entries());
+    }
+    return op;
+}
+
+std::vector<BoundaryPoint> boundary_quadrature(const HexMesh& mesh)
+{
+    const std::vector<index_t> nb = face_neighbours(mesh);
+    std::vector<BoundaryPoint> out;
+    SubHex sh;
+    real_t xe[8][3];
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        bool any = false;
+        for (int f = 0; f < 6; ++f)
+            any = any || nb[6 * e + f] < 0;
+        if (!any)
+            continue;
+        element_coordinates(mesh, e, xe);
+        for (int a = 0; a < 8; ++a)
+        {
+            build_sub_hex(xe, a, sh);
+            for (int f = 1; f < 6; f += 2) // external facets
+                if (nb[6 * e + sh.element_face[f]] < 0)
+                    for (const FacetPoint& fp : sh.facets[f])
+                        out.push_back({e, mesh.conn[8 * e + a], fp});
+        }
+    }
+    return out;
+}
+} // namespace rkfem

@@ -1,0 +1,203 @@
+// RK shape functions: reproducing conditions (partition of unity, linear and gradient
+// reproduction) to 1e-12 on regular and jittered clouds for every kernel and support shape,
+// quadratic reproduction for the order-2 basis, direct gradients against central differences,
+// zero weight on the support boundary, and a named error for a singular moment matrix.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <random>
+
+#include "rkfem/approximation/rk/rk_shape.hpp"
+#include "rkfem/discretization/generators.hpp"
+#include "../support.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+struct Cloud
+{
+    HexMesh mesh;
+    RkShapeFunctions rk;
+};
+
+Cloud make_cloud(int n, real_t h, real_t jitter, RkParams p)
+{
+    Cloud c{test::distorted_box(n, h, jitter), {}};
+    std::vector<real_t> a = nodal_spacing(c.mesh);
+    for (auto& v : a)
+        v *= p.normalized_support;
+    c.rk = RkShapeFunctions(c.mesh.x, a, p);
+    return c;
+}
+
+std::vector<Vec3> sample_points(int count, real_t lo, real_t hi, unsigned seed)
+{
+    std::mt19937 gen(seed);
+    std::uniform_real_distribution<real_t> u(lo, hi);
+    std::vector<Vec3> pts;
+    for (int i = 0; i < count; ++i)
+        pts.emplace_back(u(gen), u(gen), u(gen));
+    return pts;
+}
+
+struct Case
+{
+    KernelType kernel;
+    SupportShape support;
+    real_t c;
+    real_t jitter;
+    const char* name;
+};
+
+class Reproduction : public ::testing::TestWithParam<Case>
+{
+};
+} // namespace
+
+TEST_P(Reproduction, LinearAndGradientReproductionToRoundOff)
+{
+    const Case cs = GetParam();
+    const real_t h = 0.1;
+    Cloud cl = make_cloud(6, h, cs.jitter, {1, cs.kernel, cs.support, cs.c});
+    RkSample s;
+    real_t worst = 0.0;
+    for (const Vec3& x : sample_points(200, 0.0, 0.6, 3))
+    {
+        cl.rk.evaluate(x, true, s);
+        real_t pu = 0.0;
+        Vec3 lin = Vec3::Zero(), gsum = Vec3::Zero();
+        Mat3 glin = Mat3::Zero();
+        for (index_t k = 0; k < s.size(); ++k)
+        {
+            const Vec3 xi = cl.rk.position(s.nodes[k]);
+            pu += s.psi[k];
+            lin += s.psi[k] * xi;
+            gsum += s.grad[k];
+            glin += xi * s.grad[k].transpose();
+        }
+        worst = std::max({worst, std::abs(pu - 1.0), (lin - x).norm() / h, gsum.norm() * h,
+                          (glin - Mat3::Identity()).cwiseAbs().maxCoeff()});
+    }
+    std::printf("%s: worst identity error %.2e\n", cs.name, worst);
+    EXPECT_LT(worst, 1e-12) << cs.name;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    KernelsAndSupports, Reproduction,
+    ::testing::Values(Case{KernelType::CubicBSpline, SupportShape::Box, 1.51, 0.0, "cubic_box_regular"},
+                      Case{KernelType::CubicBSpline, SupportShape::Box, 1.51, 0.3, "cubic_box_jittered"},
+                      Case{KernelType::CubicBSpline, SupportShape::Sphere, 2.01, 0.0, "cubic_sphere_regular"},
+                      Case{KernelType::CubicBSpline, SupportShape::Sphere, 2.01, 0.3, "cubic_sphere_jittered"},
+                      Case{KernelType::QuinticBSpline, SupportShape::Box, 1.51, 0.3, "quintic_box_jittered"},
+                      Case{KernelType::QuinticBSpline, SupportShape::Sphere, 2.01, 0.3, "quintic_sphere_jittered"},
+                      Case{KernelType::Gaussian, SupportShape::Box, 1.51, 0.3, "gaussian_box_jittered"},
+                      Case{KernelType::Gaussian, SupportShape::Sphere, 2.01, 0.3, "gaussian_sphere_jittered"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(RkShape, QuadraticBasisReproducesQuadratics)
+{
+    const real_t h = 0.1;
+    Cloud cl = make_cloud(6, h, 0.3, {2, KernelType::CubicBSpline, SupportShape::Sphere, 2.51});
+    RkSample s;
+    real_t worst = 0.0;
+    for (const Vec3& x : sample_points(100, 0.05, 0.55, 5))
+    {
+        cl.rk.evaluate(x, true, s);
+        Mat3 q = Mat3::Zero();
+        real_t dq = 0.0; // d/dx0 of x0 x1 reproduced: x1
+        for (index_t k = 0; k < s.size(); ++k)
+        {
+            const Vec3 xi = cl.rk.position(s.nodes[k]);
+            q += s.psi[k] * xi * xi.transpose();
+            dq += s.grad[k][0] * xi[0] * xi[1];
+        }
+        worst = std::max({worst, (q - x * x.transpose()).cwiseAbs().maxCoeff() / (h * h), std::abs(dq - x[1]) / h});
+    }
+    EXPECT_LT(worst, 1e-10);
+}
+
+TEST(RkShape, DirectGradientsMatchCentralDifferences)
+{
+    const real_t h = 0.1;
+    Cloud cl = make_cloud(6, h, 0.3, {1, KernelType::CubicBSpline, SupportShape::Box, 1.51});
+    RkSample s, sp, sm;
+    real_t worst = 0.0;
+    for (const Vec3& x : sample_points(40, 0.1, 0.5, 11))
+    {
+        cl.rk.evaluate(x, true, s);
+        for (int d = 0; d < 3; ++d)
+        {
+            const real_t step = 1e-6 * 1.51 * h;
+            Vec3 xp = x, xm = x;
+            xp[d] += step;
+            xm[d] -= step;
+            cl.rk.evaluate(xp, false, sp);
+            cl.rk.evaluate(xm, false, sm);
+            for (index_t k = 0; k < s.size(); ++k)
+            {
+                auto value = [&](const RkSample& q)
+                {
+                    for (index_t j = 0; j < q.size(); ++j)
+                        if (q.nodes[j] == s.nodes[k])
+                            return q.psi[j];
+                    return 0.0;
+                };
+                const real_t fd = (value(sp) - value(sm)) / (2 * step);
+                worst = std::max(worst, std::abs(fd - s.grad[k][d]) * h);
+            }
+        }
+    }
+    EXPECT_LT(worst, 1e-7);
+}
+
+TEST(RkShape, ParticleOnTheSupportBoundaryHasNoWeight)
+{
+    // lattice spacing h, spherical support exactly 1.5 h: at x = (1.5 h, 0, 0) the particles at
+    // x = 0 and x = 3 h sit on the support boundary and carry no weight (phi(1) = phi'(1) = 0);
+    // a step of 1e-6 h inside brings particle 0 back with a weight of order (1e-6)^3
+    const real_t h = 1.0;
+    HexMesh m = generate_box(Vec3::Zero(), Vec3::Constant(4 * h), {4, 4, 4});
+    std::vector<real_t> a(static_cast<std::size_t>(m.n_nodes()), 1.5 * h);
+    RkShapeFunctions rk(m.x, a, {1, KernelType::CubicBSpline, SupportShape::Sphere, 1.5});
+    RkSample s;
+    const Vec3 x(1.5 * h, 0.0, 0.0);
+    rk.evaluate(x, true, s);
+    ASSERT_GT(s.size(), 4);
+    for (index_t k = 0; k < s.size(); ++k)
+        EXPECT_LT((rk.position(s.nodes[k]) - x).norm(), 1.5 * h) << "node " << s.nodes[k] << " on the boundary";
+    rk.evaluate(x - Vec3(1e-6 * h, 0, 0), true, s);
+    bool found = false;
+    for (index_t k = 0; k < s.size(); ++k)
+        if (rk.position(s.nodes[k]).norm() == 0.0)
+        {
+            found = true;
+            EXPECT_LT(std::abs(s.psi[k]), 1e-15);
+            EXPECT_LT(s.grad[k].norm() * h, 1e-10);
+        }
+    EXPECT_TRUE(found);
+}
+
+TEST(RkShape, SingularMomentMatrixIsANamedError)
+{
+    // three collinear particles cover the point: the linear moment matrix is singular
+    std::vector<real_t> x = {0, 0, 0, 1, 0, 0, 2, 0, 0, 0, 0, 5};
+    std::vector<real_t> a = {1.6, 1.6, 1.6, 1.0};
+    RkShapeFunctions rk(x, a, {1, KernelType::CubicBSpline, SupportShape::Sphere, 1.6});
+    RkSample s;
+    try
+    {
+        rk.evaluate(Vec3(1.0, 0.1, 0.0), false, s);
+        FAIL() << "expected SingularMomentError";
+    }
+    catch (const SingularMomentError& e)
+    {
+        const std::string msg = e.what();
+        EXPECT_NE(msg.find("3 particle(s) cover the point"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("normalized_support"), std::string::npos) << msg;
+    }
+    // four particles, but all in one line plus the far one out of reach: still too few
+    std::vector<real_t> x2 = {0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0};
+    RkShapeFunctions rk2(x2, {2.5, 2.5, 2.5, 2.5}, {1, KernelType::CubicBSpline, SupportShape::Sphere, 2.5});
+    EXPECT_THROW(rk2.evaluate(Vec3(1.5, 0.2, 0.0), false, s), SingularMomentError);
+}
