@@ -85,6 +85,16 @@ TEST(UniaxialWave, FullyIntegratedMatchesTheory)
     check_wave({"parts.column.formulation=fem-2x2x2", "parts.column.hourglass=~"});
 }
 
+TEST(UniaxialWave, RkParticlesMatchTheory)
+{
+    check_wave({"parts.column.formulation=rkpm", "parts.column.hourglass=~"});
+}
+
+TEST(UniaxialWave, NodalIntegratedFemMatchesTheory)
+{
+    check_wave({"parts.column.formulation=fem-nodal", "parts.column.hourglass=~"});
+}
+
 TEST(UniaxialWave, ResultsDoNotDependOnThreadCount)
 {
     auto run = [](int threads)

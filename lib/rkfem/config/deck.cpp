@@ -437,14 +437,54 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
 {
     Section s(ctx, n, path,
               {"generator", "material", "formulation", "hourglass", "bulk_viscosity",
-               "initial_velocity"});
+               "nodal_integration", "rk", "initial_velocity"});
     PartSpec p;
     p.name = name;
     p.loc = s.loc();
     p.generator = read_generator(s);
     p.material = read_material(s);
-    const std::string f = s.choice("formulation", {"fem-1pt", "fem-2x2x2"}, "fem-1pt");
-    p.formulation = f == "fem-1pt" ? Formulation::Fem1pt : Formulation::Fem2x2x2;
+    const std::string f = s.choice("formulation", {"fem-1pt", "fem-2x2x2", "fem-nodal", "rkpm"}, "fem-1pt");
+    p.formulation = f == "fem-1pt"     ? Formulation::Fem1pt
+                    : f == "fem-2x2x2" ? Formulation::Fem2x2x2
+                    : f == "fem-nodal" ? Formulation::FemNodal
+                                       : Formulation::Rkpm;
+    if (s.has("nodal_integration"))
+    {
+        if (!is_nodal(p.formulation))
+            s.fail("nodal_integration", "is only used by formulations fem-nodal and rkpm",
+                   "remove it or set formulation: rkpm (or fem-nodal)");
+        Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
+                   {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
+        p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
+        p.nodal.stabilization = ni.choice("stabilization", {"mscni", "none"}, p.nodal.scheme == "scni" ? "mscni" : "none");
+        if (p.nodal.stabilization == "mscni" && p.nodal.scheme != "scni")
+            ni.fail("stabilization", "mscni stabilizes scheme scni only",
+                    "expected stabilization: none with scheme " + p.nodal.scheme);
+        p.nodal.stabilization_coefficient = ni.quantity("stabilization_coefficient", dim::none, 1.0);
+        if (!(p.nodal.stabilization_coefficient >= 0.0))
+            ni.fail("stabilization_coefficient", "is negative", "expected c_s >= 0 (1 is the RKPM2D default)");
+        p.nodal.dt_factor = ni.quantity("dt_factor", dim::none, 0.0);
+        if (!(p.nodal.dt_factor >= 0.0 && p.nodal.dt_factor <= 2.0))
+            ni.fail("dt_factor", "is outside [0, 2]", "expected alpha in (0, 2], or 0 for the calibrated default");
+    }
+    if (s.has("rk"))
+    {
+        if (p.formulation != Formulation::Rkpm)
+            s.fail("rk", "is only used by formulation rkpm", "remove it or set formulation: rkpm");
+        Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support"});
+        const std::string order = r.choice("order", {"1", "2"}, "1");
+        p.rk.order = order == "1" ? 1 : 2;
+        p.rk.kernel = r.choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
+        p.rk.support = r.choice("support", {"box", "sphere"}, "box");
+        p.rk.normalized_support = r.quantity("normalized_support", dim::none, 1.51);
+        const real_t c = p.rk.normalized_support;
+        if (!(c >= 1.0 && c <= 4.0))
+            r.fail("normalized_support", "is outside [1, 4]", "expected a / h between 1 and 4 (box 1.5-1.8, sphere 1.6-2.0)");
+        if (std::abs(c - std::round(c)) < 1e-6)
+            r.fail("normalized_support",
+                   "is an integer, which puts neighbours exactly on the support boundary of uniform grids",
+                   "expected a non-integer value such as " + std::to_string(std::round(c)).substr(0, 1) + ".01");
+    }
     if (s.has("hourglass"))
     {
         if (p.formulation != Formulation::Fem1pt)

@@ -43,7 +43,11 @@ enum class Formulation
 {
     Fem1pt,   ///< 1-point uniform-strain hex (Flanagan-Belytschko) + hourglass control
     Fem2x2x2, ///< fully integrated hex, 8 Gauss points
+    FemNodal, ///< trilinear FE functions, nodal integration, state at nodes (total Lagrangian)
+    Rkpm,     ///< RK particles at the mesh nodes, nodal integration (total Lagrangian)
 };
+
+inline bool is_nodal(Formulation f) { return f == Formulation::FemNodal || f == Formulation::Rkpm; }
 
 enum class HourglassType
 {
@@ -63,6 +67,24 @@ struct BulkViscositySpec
 {
     real_t linear = 0.06;   ///< Q2 (LS-DYNA), multiplies rho c l |tr D|
     real_t quadratic = 1.5; ///< Q1 (LS-DYNA), multiplies rho l^2 (tr D)^2
+};
+
+/// Nodal integration of `fem-nodal` and `rkpm` parts.
+struct NodalIntegrationSpec
+{
+    std::string scheme = "scni";        ///< dni | scni | sd-scni
+    std::string stabilization = "mscni"; ///< none | mscni (scheme scni only)
+    real_t stabilization_coefficient = 1.0; ///< c_s of MSCNI (1 = RKPM2D default)
+    real_t dt_factor = 0.0; ///< alpha in dt = alpha J^(1/3) l0 / c (l0: shortest edge at the node); 0: calibrated default
+};
+
+/// RK approximation of `rkpm` parts.
+struct RkSpec
+{
+    int order = 1;
+    std::string kernel = "cubic-bspline"; ///< cubic-bspline | quintic-bspline | gaussian
+    std::string support = "box";          ///< box | sphere
+    real_t normalized_support = 1.51;     ///< a / h, h = longest incident mesh edge
 };
 
 struct GeneratorSpec
@@ -95,6 +117,8 @@ struct PartSpec
     Formulation formulation = Formulation::Fem1pt;
     HourglassSpec hourglass;
     BulkViscositySpec bulk_viscosity;
+    NodalIntegrationSpec nodal;
+    RkSpec rk;
     Vec3 initial_velocity = Vec3::Zero();
     SourceLocation loc;
 };

@@ -146,8 +146,19 @@ std::string to_yaml(const Deck& d)
         os << "}\n";
         os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho
            << ", E: " << p.material.E << ", nu: " << p.material.nu << "}\n";
-        os << "    formulation: " << (p.formulation == Formulation::Fem1pt ? "fem-1pt" : "fem-2x2x2")
+        os << "    formulation: "
+           << (p.formulation == Formulation::Fem1pt     ? "fem-1pt"
+               : p.formulation == Formulation::Fem2x2x2 ? "fem-2x2x2"
+               : p.formulation == Formulation::FemNodal ? "fem-nodal"
+                                                        : "rkpm")
            << "\n";
+        if (is_nodal(p.formulation))
+            os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
+               << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
+               << ", dt_factor: " << p.nodal.dt_factor << "}\n";
+        if (p.formulation == Formulation::Rkpm)
+            os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
+               << ", normalized_support: " << p.rk.normalized_support << "}\n";
         if (p.formulation == Formulation::Fem1pt)
         {
             const char* t = p.hourglass.type == HourglassType::Viscous     ? "viscous"

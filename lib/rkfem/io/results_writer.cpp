@@ -91,10 +91,15 @@ void ResultsWriter::write_step(const Model& model, real_t time)
         H5Aclose(attr);
         H5Sclose(space);
     }
-    const NodeSet& n = model.nodes;
-    write_dataset(g, "coordinates", n.x.data(), n_nodes_, 3);
-    write_dataset(g, "displacement", n.u.data(), n_nodes_, 3);
-    write_dataset(g, "velocity", n.v.data(), n_nodes_, 3);
+    // physical nodal values (RK parts carry generalized coefficients)
+    std::vector<real_t> u, v, x(model.nodes.x0.size());
+    model.physical_field(model.nodes.u, u);
+    model.physical_field(model.nodes.v, v);
+    for (std::size_t i = 0; i < x.size(); ++i)
+        x[i] = model.nodes.x0[i] + u[i];
+    write_dataset(g, "coordinates", x.data(), n_nodes_, 3);
+    write_dataset(g, "displacement", u.data(), n_nodes_, 3);
+    write_dataset(g, "velocity", v.data(), n_nodes_, 3);
     std::vector<real_t> stress(6 * n_elements_), pressure(n_elements_), eps(n_elements_, 0.0),
         volume(n_elements_);
     std::size_t e_global = 0;

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <sstream>
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/integration/nodal/nodal_integration.hpp"
 
 namespace rkfem
 {
@@ -133,13 +136,23 @@ Model Model::build(const Deck& deck)
         blk.node_begin = info.node_begin;
         blk.node_end = info.node_end;
         blk.initialize(m.nodes);
+        m.part_nodal.push_back(-1);
+        if (is_nodal(ps.formulation))
+        {
+            NodalBlock nb = build_nodal_block(ps, mesh, offset);
+            nb.part = static_cast<index_t>(ip);
+            add_nodal_mass(nb, m.nodes);
+            m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
+            m.nodal_blocks.push_back(std::move(nb));
+        }
         for (index_t e = 0; e < blk.n_elements(); ++e)
             if (!(blk.volume0[e] > 0.0))
                 throw DeckError({ps.generator.loc.where, ps.loc.path + ".generator"},
                                 "element " + std::to_string(e) + " has non-positive volume " +
                                     std::to_string(blk.volume0[e]) + " m^3",
                                 "expected a generator that makes valid (positive-volume) hexahedra");
-        add_lumped_mass(blk, m.nodes);
+        if (!is_nodal(ps.formulation))
+            add_lumped_mass(blk, m.nodes);
         elem_offset += blk.n_elements();
         offset = info.node_end;
         m.blocks.push_back(std::move(blk));
@@ -362,6 +375,30 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
     for (std::size_t ib = 0; ib < blocks.size(); ++ib)
     {
         HexBlock& blk = blocks[ib];
+        if (part_nodal[ib] >= 0)
+        {
+            NodalBlock& nb = nodal_blocks[part_nodal[ib]];
+            const ForcePassResult r = nodal_internal_force(nb, nodes, dt);
+            if (r.bad_element >= 0)
+            {
+                std::ostringstream os;
+                os << "integration point " << r.bad_element << " (owner node " << nb.points.owner[r.bad_element]
+                   << ", part '" << parts[ib].name << "') has non-positive or NaN det F = "
+                   << nb.jacobian[r.bad_element] << " at t = " << t << " s, step " << step;
+                throw InstabilityError(os.str());
+            }
+            pending_int_ += r.d_internal;
+            pending_hg_ += r.d_hourglass;
+            pending_bv_ += r.d_bulk_viscosity;
+            if (r.dt_stable < rep.dt_stable)
+            {
+                rep.dt_stable = r.dt_stable;
+                rep.dt_element = offset; // first element of the part; nodal points are not elements
+            }
+            assemble_nodal_forces(nb, nodes);
+            offset += blk.n_elements();
+            continue;
+        }
         const ForcePassResult r = hex_internal_force(blk, nodes, dt);
         if (r.bad_element >= 0)
         {
@@ -407,6 +444,8 @@ void Model::compute_accelerations()
 void Model::commit()
 {
     for (auto& b : blocks)
+        b.commit();
+    for (auto& b : nodal_blocks)
         b.commit();
     energy.internal += pending_int_;
     energy.hourglass += pending_hg_;
@@ -465,8 +504,38 @@ void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
     f_ext_prev_ = nodes.f_ext;
 }
 
+Vec3 Model::physical(const std::vector<real_t>& field, index_t node) const
+{
+    const index_t ip = nodes.part[node];
+    if (part_nodal[ip] < 0 || nodal_blocks[part_nodal[ip]].interp_offsets.empty())
+        return {field[3 * node], field[3 * node + 1], field[3 * node + 2]};
+    const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+    const index_t i = node - nb.node_begin;
+    Vec3 s = Vec3::Zero();
+    for (index_t k = nb.interp_offsets[i]; k < nb.interp_offsets[i + 1]; ++k)
+    {
+        const index_t j = nb.interp_nodes[k];
+        s += nb.interp_values[k] * Vec3(field[3 * j], field[3 * j + 1], field[3 * j + 2]);
+    }
+    return s;
+}
+
+void Model::physical_field(const std::vector<real_t>& field, std::vector<real_t>& out) const
+{
+    out = field;
+    for (const auto& nb : nodal_blocks)
+        physical_values(nb, field, out);
+}
+
 Sym6 Model::element_stress(index_t b, index_t e) const
 {
+    if (part_nodal[b] >= 0)
+    {
+        Sym6 s = Sym6::Zero();
+        for (int I = 0; I < 8; ++I)
+            s += nodal_stress(blocks[b].conn[8 * static_cast<std::size_t>(e) + I]);
+        return s / 8.0;
+    }
     const HexBlock& blk = blocks[b];
     const index_t npe = blk.points_per_element();
     const std::size_t np = static_cast<std::size_t>(blk.n_points());
@@ -480,6 +549,18 @@ Sym6 Model::element_stress(index_t b, index_t e) const
 Sym6 Model::nodal_stress(index_t node) const
 {
     const index_t ip = nodes.part[node];
+    if (part_nodal[ip] >= 0)
+    {
+        const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+        const index_t i = node - nb.node_begin;
+        const std::size_t np = static_cast<std::size_t>(nb.n_points());
+        Sym6 s = Sym6::Zero();
+        const index_t k0 = nb.owner_offsets[i], k1 = nb.owner_offsets[i + 1];
+        for (index_t k = k0; k < k1; ++k)
+            for (int c = 0; c < 6; ++c)
+                s[c] += nb.stress[c * np + nb.owner_points[k]];
+        return k1 > k0 ? Sym6(s / static_cast<real_t>(k1 - k0)) : s;
+    }
     const HexBlock& blk = blocks[ip];
     const index_t i = node - blk.node_begin;
     Sym6 s = Sym6::Zero();

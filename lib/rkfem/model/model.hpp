@@ -11,6 +11,7 @@
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/operators/hex_block.hpp"
+#include "rkfem/operators/nodal_block.hpp"
 
 namespace rkfem
 {
@@ -74,7 +75,10 @@ class Model
 
     const Deck& deck() const { return deck_; }
     NodeSet nodes;
-    std::vector<HexBlock> blocks; ///< one per part, same order
+    std::vector<HexBlock> blocks; ///< one per part, same order (mesh and output of every part;
+                                  ///< integrates only fem-1pt / fem-2x2x2 parts)
+    std::vector<NodalBlock> nodal_blocks; ///< fem-nodal and rkpm parts
+    std::vector<index_t> part_nodal;      ///< per part: index into nodal_blocks, -1 for Gauss-point FE
     std::vector<PartInfo> parts;
     std::map<std::string, std::vector<index_t>> node_sets;
     std::map<std::string, std::vector<Quad>> face_sets;
@@ -101,6 +105,12 @@ class Model
     /// Recomputes kinetic energy; books external work over a step with displacement increment
     /// given by u - u_prev (uses stored previous external and reaction forces).
     void update_energies(const std::vector<real_t>& u_prev, real_t dt);
+
+    /// Physical value of a node-major 3-vector field (u, v) at a node: the RK interpolant
+    /// sum_J Psi_J(X_I) d_J on rkpm parts, the nodal value elsewhere.
+    Vec3 physical(const std::vector<real_t>& field, index_t node) const;
+    /// The same for every node.
+    void physical_field(const std::vector<real_t>& field, std::vector<real_t>& out) const;
 
     /// Nodal stress (average of adjacent points) at node i, Voigt.
     Sym6 nodal_stress(index_t node) const;

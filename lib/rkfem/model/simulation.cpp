@@ -39,10 +39,8 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows)
                              e.external_work, e.total(), e.balance_error(), e.hourglass_ratio()});
     for (index_t n : m.probe_nodes)
     {
-        for (int k = 0; k < 3; ++k)
-            rows.push_back(m.nodes.u[3 * n + k]);
-        for (int k = 0; k < 3; ++k)
-            rows.push_back(m.nodes.v[3 * n + k]);
+        const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);
+        rows.insert(rows.end(), {u[0], u[1], u[2], v[0], v[1], v[2]});
         const Sym6 s = m.nodal_stress(n);
         for (int k = 0; k < 6; ++k)
             rows.push_back(s[k]);

@@ -154,18 +154,18 @@ void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) co
         solve_and_fill<10>(out, s, gradients, singular);
 }
 
-std::vector<real_t> nodal_spacing(const HexMesh& mesh)
+std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest)
 {
     static constexpr int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
                                          {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
-    std::vector<real_t> h(static_cast<std::size_t>(mesh.n_nodes()), 0.0);
+    std::vector<real_t> h(static_cast<std::size_t>(mesh.n_nodes()), longest ? 0.0 : 1e300);
     for (index_t e = 0; e < mesh.n_elements(); ++e)
         for (const auto& ed : edges)
         {
             const index_t i = mesh.conn[8 * e + ed[0]], j = mesh.conn[8 * e + ed[1]];
             const real_t len = (mesh.node(i) - mesh.node(j)).norm();
-            h[i] = std::max(h[i], len);
-            h[j] = std::max(h[j], len);
+            h[i] = longest ? std::max(h[i], len) : std::min(h[i], len);
+            h[j] = longest ? std::max(h[j], len) : std::min(h[j], len);
         }
     return h;
 }

@@ -78,6 +78,7 @@ class RkShapeFunctions
     CellList cells_;
 };
 
-/// h_I = the longest mesh edge incident to node I (reference configuration), per node.
-std::vector<real_t> nodal_spacing(const HexMesh& mesh);
+/// h_I = the longest (or, with longest = false, the shortest) mesh edge incident to node I, per
+/// node, in the mesh's configuration.
+std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest = true);
 } // namespace rkfem

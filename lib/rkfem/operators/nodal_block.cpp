@@ -1,0 +1,376 @@
+#include "rkfem/operators/nodal_block.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/approximation/shape_evaluator.hpp"
+#include "rkfem/integration/nodal/nodal_integration.hpp"
+#include <memory>
+
+namespace rkfem
+{
+namespace
+{
+/// Default dt factor alpha (dt = alpha J^(1/3) l0 / c) per nodal formulation, calibrated from
+/// the largest eigenvalue of M^-1 K on free regular and jittered blocks (verification/
+/// operators/test_nodal_dynamics.cpp, NodalTimeStep prints alpha_crit): the smallest critical
+/// value found (regular block: rkpm 1.054, fem-nodal 0.957), rounded down. Like l/c for hexes
+/// it is the critical estimate; time.dt_scale (0.9) applies on top.
+real_t default_dt_factor(const PartSpec& ps)
+{
+    return ps.formulation == Formulation::Rkpm ? 1.0 : 0.95;
+}
+
+} // namespace
+
+NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
+{
+    NodalBlock nb;
+    nb.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
+    nb.node_begin = offset;
+    nb.node_end = offset + mesh.n_nodes();
+    nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);
+    nb.bulk_viscosity = ps.bulk_viscosity;
+    const NodalScheme scheme = ps.nodal.scheme == "dni"       ? NodalScheme::Dni
+                               : ps.nodal.scheme == "sd-scni" ? NodalScheme::SdScni
+                                                              : NodalScheme::Scni;
+    std::unique_ptr<RkShapeFunctions> rk;
+    std::unique_ptr<ShapeEvaluator> shapes;
+    if (ps.formulation == Formulation::Rkpm)
+    {
+        RkParams rp;
+        rp.order = ps.rk.order;
+        rp.kernel = ps.rk.kernel == "quintic-bspline" ? KernelType::QuinticBSpline
+                    : ps.rk.kernel == "gaussian"      ? KernelType::Gaussian
+                                                      : KernelType::CubicBSpline;
+        rp.support = ps.rk.support == "sphere" ? SupportShape::Sphere : SupportShape::Box;
+        rp.normalized_support = ps.rk.normalized_support;
+        std::vector<real_t> a = nodal_spacing(mesh);
+        for (auto& v : a)
+            v *= rp.normalized_support;
+        rk = std::make_unique<RkShapeFunctions>(mesh.x, a, rp);
+        shapes = std::make_unique<RkShapes>(*rk);
+    }
+    else
+        shapes = std::make_unique<FemShapes>(mesh);
+    try
+    {
+        nb.points = build_nodal(scheme, mesh, *shapes);
+        if (scheme == NodalScheme::Scni && ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
+        if (rk)
+        {
+            // interpolation Psi_J(X_I) for physical nodal values
+            RkSample smp;
+            nb.interp_offsets.assign(1, 0);
+            for (index_t i = 0; i < mesh.n_nodes(); ++i)
+            {
+                rk->evaluate(mesh.node(i), false, smp);
+                for (index_t k = 0; k < smp.size(); ++k)
+                {
+                    nb.interp_nodes.push_back(smp.nodes[k] + offset);
+                    nb.interp_values.push_back(smp.psi[k]);
+                }
+                nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
+            }
+        }
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw DeckError({ps.loc.where, ps.loc.path + ".rk.normalized_support"}, e.what(),
+                        "expected a support large enough that every point is covered by 4 particles not in one plane");
+    }
+    for (auto* op : {&nb.points, &nb.stabilization})
+    {
+        for (auto& n : op->nodes)
+            n += offset;
+        for (auto& o : op->owner)
+            o += offset;
+    }
+    const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+    nb.length0.resize(static_cast<std::size_t>(nb.points.n_points()));
+    for (index_t p = 0; p < nb.points.n_points(); ++p)
+        nb.length0[p] = l0[nb.points.owner[p] - offset];
+    nb.initialize();
+    return nb;
+}
+
+void NodalBlock::initialize()
+{
+    const index_t np = n_points(), ns = n_stab();
+    const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
+    const index_t nn = node_end - node_begin;
+    entry_point.resize(static_cast<std::size_t>(ne_p + ne_s));
+    for (index_t p = 0; p < np; ++p)
+        for (index_t k = points.offsets[p]; k < points.offsets[p + 1]; ++k)
+            entry_point[k] = p;
+    for (index_t s = 0; s < ns; ++s)
+        for (index_t k = stabilization.offsets[s]; k < stabilization.offsets[s + 1]; ++k)
+            entry_point[ne_p + k] = np + s;
+    node_entry_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+    auto node_of = [&](index_t k) { return k < ne_p ? points.nodes[k] : stabilization.nodes[k - ne_p]; };
+    for (index_t k = 0; k < ne_p + ne_s; ++k)
+    {
+        const index_t n = node_of(k);
+        RKFEM_REQUIRE(n >= node_begin && n < node_end, "nodal block: entry touches node " << n << " outside the part's range ["
+                                                                                         << node_begin << ", " << node_end << ")");
+        ++node_entry_offsets[n - node_begin + 1];
+    }
+    for (index_t i = 0; i < nn; ++i)
+        node_entry_offsets[i + 1] += node_entry_offsets[i];
+    node_entries.resize(static_cast<std::size_t>(ne_p + ne_s));
+    std::vector<index_t> fill(node_entry_offsets.begin(), node_entry_offsets.end() - 1);
+    for (index_t k = 0; k < ne_p + ne_s; ++k)
+        node_entries[fill[node_of(k) - node_begin]++] = k;
+
+    owner_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+    for (index_t p = 0; p < np; ++p)
+        ++owner_offsets[points.owner[p] - node_begin + 1];
+    for (index_t i = 0; i < nn; ++i)
+        owner_offsets[i + 1] += owner_offsets[i];
+    owner_points.resize(static_cast<std::size_t>(np));
+    {
+        std::vector<index_t> f(owner_offsets.begin(), owner_offsets.end() - 1);
+        for (index_t p = 0; p < np; ++p)
+            owner_points[f[points.owner[p] - node_begin]++] = p;
+    }
+
+    stress.assign(6 * static_cast<std::size_t>(np), 0.0);
+    stress_trial = stress;
+    stab_stress.assign(6 * static_cast<std::size_t>(ns), 0.0);
+    stab_stress_trial = stab_stress;
+    jacobian.assign(static_cast<std::size_t>(np), 1.0);
+    point_tensor.assign(9 * static_cast<std::size_t>(np + ns), 0.0);
+    finv.assign(9 * static_cast<std::size_t>(np), 0.0);
+    spin.assign(3 * static_cast<std::size_t>(np), 0.0);
+    point_energy.assign(3 * static_cast<std::size_t>(np + ns), 0.0);
+    point_dt.assign(static_cast<std::size_t>(np), 0.0);
+}
+
+ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt)
+{
+    const IntegrationOperator& op = blk.points;
+    const index_t np = blk.n_points(), ns = blk.n_stab();
+    const std::size_t snp = static_cast<std::size_t>(np);
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const real_t alpha = blk.dt_factor;
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+    const real_t* u = nodes.u.data();
+    const real_t* v = nodes.v.data();
+
+    parallel_for("rkfem::nodal_points", np,
+                 [&](index_t p)
+                 {
+                     real_t F[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, Fd[3][3] = {};
+                     for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+                     {
+                         const std::size_t n = 3 * static_cast<std::size_t>(op.nodes[k]);
+                         const real_t* g = &op.grad[3 * static_cast<std::size_t>(k)];
+                         for (int i = 0; i < 3; ++i)
+                             for (int j = 0; j < 3; ++j)
+                             {
+                                 F[i][j] += u[n + i] * g[j];
+                                 Fd[i][j] += v[n + i] * g[j];
+                             }
+                     }
+                     const real_t J = F[0][0] * (F[1][1] * F[2][2] - F[1][2] * F[2][1]) -
+                                      F[0][1] * (F[1][0] * F[2][2] - F[1][2] * F[2][0]) +
+                                      F[0][2] * (F[1][0] * F[2][1] - F[1][1] * F[2][0]);
+                     blk.jacobian[p] = J;
+                     if (!(J > 0.0))
+                     {
+                         blk.point_dt[p] = -1.0; // flags the bad point
+                         return;
+                     }
+                     const real_t iJ = 1.0 / J;
+                     real_t Fi[3][3];
+                     Fi[0][0] = (F[1][1] * F[2][2] - F[1][2] * F[2][1]) * iJ;
+                     Fi[0][1] = (F[0][2] * F[2][1] - F[0][1] * F[2][2]) * iJ;
+                     Fi[0][2] = (F[0][1] * F[1][2] - F[0][2] * F[1][1]) * iJ;
+                     Fi[1][0] = (F[1][2] * F[2][0] - F[1][0] * F[2][2]) * iJ;
+                     Fi[1][1] = (F[0][0] * F[2][2] - F[0][2] * F[2][0]) * iJ;
+                     Fi[1][2] = (F[0][2] * F[1][0] - F[0][0] * F[1][2]) * iJ;
+                     Fi[2][0] = (F[1][0] * F[2][1] - F[1][1] * F[2][0]) * iJ;
+                     Fi[2][1] = (F[0][1] * F[2][0] - F[0][0] * F[2][1]) * iJ;
+                     Fi[2][2] = (F[0][0] * F[1][1] - F[0][1] * F[1][0]) * iJ;
+                     real_t L[3][3];
+                     for (int i = 0; i < 3; ++i)
+                         for (int j = 0; j < 3; ++j)
+                             L[i][j] = Fd[i][0] * Fi[0][j] + Fd[i][1] * Fi[1][j] + Fd[i][2] * Fi[2][j];
+                     const real_t d[6] = {L[0][0], L[1][1], L[2][2], 0.5 * (L[0][1] + L[1][0]),
+                                          0.5 * (L[1][2] + L[2][1]), 0.5 * (L[2][0] + L[0][2])};
+                     const real_t w[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]),
+                                          0.5 * (L[2][0] - L[0][2])};
+                     real_t s_old[6], s[6];
+                     for (int k = 0; k < 6; ++k)
+                         s_old[k] = s[k] = blk.stress[k * snp + p];
+                     elastic_update(mat, d, w, dt, s);
+                     for (int k = 0; k < 6; ++k)
+                         blk.stress_trial[k * snp + p] = s[k];
+                     real_t power = 0.0;
+                     for (int k = 0; k < 3; ++k)
+                         power += 0.5 * (s_old[k] + s[k]) * d[k] + (s_old[k + 3] + s[k + 3]) * d[k + 3];
+                     const real_t V0 = op.weight[p];
+                     // bulk viscosity (LS-DYNA form) with l = alpha J^(1/3) l0, the length of the
+                     // stable-step estimate
+                     const real_t l = alpha * std::cbrt(J) * blk.length0[p];
+                     const real_t trd = d[0] + d[1] + d[2];
+                     const real_t q = trd < 0.0 ? mat.rho / J * l * (q1 * l * trd * trd - q2 * c * trd) : 0.0;
+                     const real_t Q = trd < 0.0 ? q1 * l * (-trd) + q2 * c : 0.0;
+                     const std::size_t e3 = 3 * static_cast<std::size_t>(p);
+                     blk.point_energy[e3] = dt * V0 * J * power;
+                     blk.point_energy[e3 + 1] = 0.0;
+                     blk.point_energy[e3 + 2] = -dt * V0 * J * q * trd;
+                     blk.point_dt[p] = l / (Q + std::sqrt(Q * Q + c * c));
+                     // V0 P = V0 J (sigma - q 1) F^-T: (V0 P)_ij = V0 J sigma_ik Fi_jk
+                     const real_t S[3][3] = {{s[0] - q, s[3], s[5]}, {s[3], s[1] - q, s[4]}, {s[5], s[4], s[2] - q}};
+                     real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(p)];
+                     for (int i = 0; i < 3; ++i)
+                         for (int j = 0; j < 3; ++j)
+                             P[3 * i + j] = V0 * J * (S[i][0] * Fi[j][0] + S[i][1] * Fi[j][1] + S[i][2] * Fi[j][2]);
+                     real_t* fi = &blk.finv[9 * static_cast<std::size_t>(p)];
+                     for (int i = 0; i < 3; ++i)
+                         for (int j = 0; j < 3; ++j)
+                             fi[3 * i + j] = Fi[i][j];
+                     for (int k = 0; k < 3; ++k)
+                         blk.spin[3 * static_cast<std::size_t>(p) + k] = w[k];
+                 });
+
+    ForcePassResult r;
+    for (index_t p = 0; p < np; ++p)
+        if (!(blk.point_dt[p] > 0.0))
+        {
+            r.bad_element = p;
+            return r;
+        }
+
+    if (ns > 0)
+    {
+        const IntegrationOperator& st = blk.stabilization;
+        const std::size_t sns = static_cast<std::size_t>(ns);
+        ElasticParams smat = mat;
+        smat.lambda *= blk.stabilization_coefficient;
+        smat.mu *= blk.stabilization_coefficient;
+        parallel_for("rkfem::nodal_stabilization", ns,
+                     [&](index_t s)
+                     {
+                         const index_t L = st.parent[s];
+                         real_t G[3][3] = {};
+                         for (index_t k = st.offsets[s]; k < st.offsets[s + 1]; ++k)
+                         {
+                             const std::size_t n = 3 * static_cast<std::size_t>(st.nodes[k]);
+                             const real_t* g = &st.grad[3 * static_cast<std::size_t>(k)];
+                             for (int i = 0; i < 3; ++i)
+                                 for (int j = 0; j < 3; ++j)
+                                     G[i][j] += v[n + i] * g[j];
+                         }
+                         const real_t* Fi = &blk.finv[9 * static_cast<std::size_t>(L)];
+                         real_t Ls[3][3];
+                         for (int i = 0; i < 3; ++i)
+                             for (int j = 0; j < 3; ++j)
+                                 Ls[i][j] = G[i][0] * Fi[j] + G[i][1] * Fi[3 + j] + G[i][2] * Fi[6 + j];
+                         const real_t d[6] = {Ls[0][0], Ls[1][1], Ls[2][2], 0.5 * (Ls[0][1] + Ls[1][0]),
+                                              0.5 * (Ls[1][2] + Ls[2][1]), 0.5 * (Ls[2][0] + Ls[0][2])};
+                         const real_t* w = &blk.spin[3 * static_cast<std::size_t>(L)];
+                         real_t s_old[6], sg[6];
+                         for (int k = 0; k < 6; ++k)
+                             s_old[k] = sg[k] = blk.stab_stress[k * sns + s];
+                         elastic_update(smat, d, w, dt, sg);
+                         for (int k = 0; k < 6; ++k)
+                             blk.stab_stress_trial[k * sns + s] = sg[k];
+                         real_t power = 0.0;
+                         for (int k = 0; k < 3; ++k)
+                             power += 0.5 * (s_old[k] + sg[k]) * d[k] + (s_old[k + 3] + sg[k + 3]) * d[k + 3];
+                         const real_t J = blk.jacobian[L];
+                         const real_t V0 = st.weight[s];
+                         const std::size_t q = static_cast<std::size_t>(np) + s;
+                         blk.point_energy[3 * q] = 0.0;
+                         blk.point_energy[3 * q + 1] = dt * V0 * J * power;
+                         blk.point_energy[3 * q + 2] = 0.0;
+                         const real_t S[3][3] = {{sg[0], sg[3], sg[5]}, {sg[3], sg[1], sg[4]}, {sg[5], sg[4], sg[2]}};
+                         real_t* P = &blk.point_tensor[9 * q];
+                         for (int i = 0; i < 3; ++i)
+                             for (int j = 0; j < 3; ++j)
+                                 P[3 * i + j] = V0 * J * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
+                     });
+    }
+
+    const index_t nq = np + ns;
+    r.d_internal = parallel_reduce_sum("rkfem::nodal_energy", nq,
+                                       [&](index_t q) { return blk.point_energy[3 * static_cast<std::size_t>(q)]; });
+    r.d_hourglass = parallel_reduce_sum("rkfem::nodal_stab_energy", nq,
+                                        [&](index_t q) { return blk.point_energy[3 * static_cast<std::size_t>(q) + 1]; });
+    r.d_bulk_viscosity = parallel_reduce_sum("rkfem::nodal_bv_energy", nq, [&](index_t q)
+                                             { return blk.point_energy[3 * static_cast<std::size_t>(q) + 2]; });
+    r.dt_stable = parallel_reduce_min("rkfem::nodal_dt", np, [&](index_t p) { return blk.point_dt[p]; });
+    for (index_t p = 0; p < np; ++p)
+        if (blk.point_dt[p] == r.dt_stable)
+        {
+            r.dt_element = p;
+            break;
+        }
+    return r;
+}
+
+void assemble_nodal_forces(const NodalBlock& blk, NodeSet& nodes)
+{
+    const index_t nn = blk.node_end - blk.node_begin;
+    const index_t ne_p = blk.points.n_entries();
+    const real_t* gp = blk.points.grad.data();
+    const real_t* gs = blk.stabilization.grad.data();
+    parallel_for("rkfem::nodal_assemble", nn,
+                 [&](index_t i)
+                 {
+                     real_t f[3] = {0, 0, 0};
+                     for (index_t q = blk.node_entry_offsets[i]; q < blk.node_entry_offsets[i + 1]; ++q)
+                     {
+                         const index_t k = blk.node_entries[q];
+                         const real_t* g = k < ne_p ? gp + 3 * static_cast<std::size_t>(k)
+                                                    : gs + 3 * static_cast<std::size_t>(k - ne_p);
+                         const real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(blk.entry_point[k])];
+                         for (int a = 0; a < 3; ++a)
+                             f[a] += P[3 * a] * g[0] + P[3 * a + 1] * g[1] + P[3 * a + 2] * g[2];
+                     }
+                     const std::size_t n = 3 * static_cast<std::size_t>(blk.node_begin + i);
+                     for (int a = 0; a < 3; ++a)
+                         nodes.f_int[n + a] = f[a];
+                 });
+}
+
+void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes)
+{
+    for (index_t p = 0; p < blk.n_points(); ++p)
+        nodes.mass[blk.points.owner[p]] += blk.material.rho * blk.points.weight[p];
+}
+
+void physical_values(const NodalBlock& blk, const std::vector<real_t>& coef, std::vector<real_t>& out)
+{
+    const index_t nn = blk.node_end - blk.node_begin;
+    if (blk.interp_offsets.empty())
+    {
+        std::copy(coef.begin() + 3 * static_cast<std::ptrdiff_t>(blk.node_begin),
+                  coef.begin() + 3 * static_cast<std::ptrdiff_t>(blk.node_end),
+                  out.begin() + 3 * static_cast<std::ptrdiff_t>(blk.node_begin));
+        return;
+    }
+    parallel_for("rkfem::nodal_interpolate", nn,
+                 [&](index_t i)
+                 {
+                     real_t s[3] = {0, 0, 0};
+                     for (index_t k = blk.interp_offsets[i]; k < blk.interp_offsets[i + 1]; ++k)
+                     {
+                         const std::size_t n = 3 * static_cast<std::size_t>(blk.interp_nodes[k]);
+                         for (int a = 0; a < 3; ++a)
+                             s[a] += blk.interp_values[k] * coef[n + a];
+                     }
+                     for (int a = 0; a < 3; ++a)
+                         out[3 * static_cast<std::size_t>(blk.node_begin + i) + a] = s[a];
+                 });
+}
+} // namespace rkfem

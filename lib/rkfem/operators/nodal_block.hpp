@@ -1,0 +1,89 @@
+#pragma once
+/// @file nodal_block.hpp
+/// A part integrated by a nodal scheme (RK particles or nodal-integrated FE), total Lagrangian:
+/// gradients G_pI are built once in the reference configuration (an IntegrationOperator), and
+/// each step forms
+///   F_p = 1 + sum_I u_I (x) G_pI,  Fdot_p = sum_I v_I (x) G_pI,  L_p = Fdot_p F_p^-1,
+/// updates the rate-form material with (D, W) = sym/skew L_p, and scatters
+///   f_I += V0_p P_p G_pI,  P_p = J_p sigma_p F_p^-T.
+/// An optional stabilization operator (MSCNI) adds, per sub-cell s with parent point L,
+///   D_s = sym((sum_I v_I (x) g_sI) F_L^-1),  sigma_s += dt c_s C : D_s (rotated with W_L),
+///   f_I += V0_s J_L sigma_s F_L^-T g_sI,
+/// which vanishes for linear fields (g_s = b_s - b_L) and so keeps the patch test.
+///
+/// Nodal forces are gathered through the node -> entry transpose of both operators, in a fixed
+/// order, so results do not depend on the thread count. For RK parts the node unknowns are
+/// generalized coefficients; `interpolation` (Psi_J(X_I) per node) gives physical values.
+#include <vector>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/hex_mesh.hpp"
+#include "rkfem/discretization/node_set.hpp"
+#include "rkfem/integration/integration_operator.hpp"
+#include "rkfem/materials/elastic.hpp"
+#include "rkfem/operators/hex_block.hpp"
+
+namespace rkfem
+{
+struct NodalBlock
+{
+    index_t part = 0;
+    ElasticParams material;
+    real_t stabilization_coefficient = 0.0; ///< c_s (MSCNI), 0: none
+    BulkViscositySpec bulk_viscosity; ///< q = rho l (Q1 l trD^2 - Q2 c trD) for trD < 0, l = J^(1/3) l0
+    real_t dt_factor = 1.0; ///< alpha in dt = alpha J^(1/3) l0 / c
+    std::vector<real_t> length0; ///< per point: l0, the shortest mesh edge at the owner node [m]
+    IntegrationOperator points;             ///< stress points (global node ids)
+    IntegrationOperator stabilization;      ///< MSCNI sub-cells (empty: none)
+    /// RK parts: physical value at node I = sum over k in [interp_offsets[i], interp_offsets[i+1])
+    /// of interp_values[k] * coefficient[interp_nodes[k]] (local node i); empty for FE parts.
+    std::vector<index_t> interp_offsets, interp_nodes;
+    std::vector<real_t> interp_values;
+    /// point -> owner node CSR (local node i: points [owner_offsets[i], owner_offsets[i+1]))
+    std::vector<index_t> owner_offsets, owner_points;
+    index_t node_begin = 0, node_end = 0;
+
+    // transpose (node -> entries of points, then of stabilization), built by initialize()
+    std::vector<index_t> node_entry_offsets, node_entries, entry_point;
+
+    // state, component-major
+    std::vector<real_t> stress, stress_trial;         ///< 6 x n_points [Pa]
+    std::vector<real_t> stab_stress, stab_stress_trial; ///< 6 x n_stab [Pa]
+    std::vector<real_t> jacobian;                     ///< n_points, det F
+
+    // per-step scratch
+    std::vector<real_t> point_tensor; ///< 9 x (n_points + n_stab): V0 P (row-major 3x3)
+    std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for stabilization
+    std::vector<real_t> spin;         ///< 3 x n_points: W of the point
+    std::vector<real_t> point_energy; ///< 3 x (n_points + n_stab): internal, stabilization, bulk viscosity
+    std::vector<real_t> point_dt;     ///< n_points
+
+    index_t n_points() const { return points.n_points(); }
+    index_t n_stab() const { return stabilization.n_points(); }
+    void initialize();
+    void commit()
+    {
+        stress.swap(stress_trial);
+        stab_stress.swap(stab_stress_trial);
+    }
+};
+
+/// Builds the block of a fem-nodal or rkpm part from its mesh (local numbering; node ids are
+/// shifted by `offset`): approximation, nodal integration, stabilization, RK interpolation at
+/// the nodes. A singular RK moment matrix becomes a DeckError naming rk.normalized_support.
+NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
+
+/// Internal force pass (material update into trial state, per-point tensors); assembly is
+/// separate (assemble_nodal_forces). d_hourglass carries the stabilization work.
+ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt);
+
+/// f_int[node] = sum over the node's entries, for the block's node range.
+void assemble_nodal_forces(const NodalBlock& blk, NodeSet& nodes);
+
+/// Lumped mass rho V0_p to each point's owner node.
+void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes);
+
+/// Physical values (u^h(X_I)) of a node-major 3-vector field for the block's nodes, written
+/// into out (same layout); identity for FE blocks.
+void physical_values(const NodalBlock& blk, const std::vector<real_t>& coef, std::vector<real_t>& out);
+} // namespace rkfem
