@@ -132,6 +132,36 @@ TEST(Decks, NonPositiveDensity)
                     ":7: parts.col.material.rho", "expected rho > 0");
 }
 
+TEST(Decks, IntegerRkSupportIsRejected)
+{
+    expect_rejected("rk_integer.yaml",
+                    replace(good, "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                            "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
+                            "    formulation: rkpm\n    rk: {normalized_support: 2}\n"),
+                    ":9: parts.col.rk.normalized_support", "expected a non-integer value such as 2.01");
+}
+
+TEST(Decks, NodalIntegrationKeysNeedANodalFormulation)
+{
+    expect_rejected("nodal_on_fem.yaml",
+                    replace(good, "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                            "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
+                            "    nodal_integration: {scheme: scni}\n"),
+                    ":8: parts.col.nodal_integration", "set formulation: rkpm");
+}
+
+TEST(Decks, TooSmallRkSupportNamesTheKey)
+{
+    // a / h = 1.01 with box support: a point between nodes of a stretched lattice sees fewer than
+    // four particles; the singular moment matrix is reported against the deck key
+    expect_rejected("rk_small.yaml",
+                    replace(replace(good, "element_size: 1 mm", "divisions: [1, 1, 4]"),
+                            "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                            "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
+                            "    formulation: rkpm\n    rk: {normalized_support: 1.01, support: sphere}\n"),
+                    ":9: parts.col.rk.normalized_support", "RK moment matrix is singular");
+}
+
 TEST(Decks, EmptyNodeSet)
 {
     expect_rejected("empty_set.yaml", replace(good, "point: [0, 0, 0]", "point: [0, 0, 5 m]"),

@@ -472,6 +472,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         if (p.formulation != Formulation::Rkpm)
             s.fail("rk", "is only used by formulation rkpm", "remove it or set formulation: rkpm");
         Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support"});
+        p.rk.loc = r.loc();
         const std::string order = r.choice("order", {"1", "2"}, "1");
         p.rk.order = order == "1" ? 1 : 2;
         p.rk.kernel = r.choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");

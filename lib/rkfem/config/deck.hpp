@@ -85,6 +85,7 @@ struct RkSpec
     std::string kernel = "cubic-bspline"; ///< cubic-bspline | quintic-bspline | gaussian
     std::string support = "box";          ///< box | sphere
     real_t normalized_support = 1.51;     ///< a / h, h = longest incident mesh edge
+    SourceLocation loc;
 };
 
 struct GeneratorSpec

@@ -82,7 +82,8 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     }
     catch (const SingularMomentError& e)
     {
-        throw DeckError({ps.loc.where, ps.loc.path + ".rk.normalized_support"}, e.what(),
+        throw DeckError({ps.rk.loc.where.empty() ? ps.loc.where : ps.rk.loc.where, ps.loc.path + ".rk.normalized_support"},
+                        e.what(),
                         "expected a support large enough that every point is covered by 4 particles not in one plane");
     }
     for (auto* op : {&nb.points, &nb.stabilization})

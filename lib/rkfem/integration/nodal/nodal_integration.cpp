@@ -1,6 +1,7 @@
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 
 #include <algorithm>
+#include <exception>
 #include <utility>
 
 #include "rkfem/core/error.hpp"
@@ -59,7 +60,7 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
     std::vector<Entries> entries(static_cast<std::size_t>(n_points));
     std::vector<real_t> weight(static_cast<std::size_t>(n_points)), position(3 * static_cast<std::size_t>(n_points));
     std::vector<index_t> owner(static_cast<std::size_t>(n_points));
-    std::string error;
+    std::exception_ptr error;
 #pragma omp parallel
     {
         std::vector<index_t> nodes;
@@ -74,16 +75,16 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
                 for (int d = 0; d < 3; ++d)
                     position[3 * p + d] = pos[d];
             }
-            catch (const std::exception& ex)
+            catch (...)
             {
 #pragma omp critical(rkfem_nodal_build_error)
-                if (error.empty())
-                    error = ex.what();
+                if (!error)
+                    error = std::current_exception();
             }
         }
     }
-    if (!error.empty())
-        throw Error(error);
+    if (error)
+        std::rethrow_exception(error); // the first failure, with its type (SingularMomentError)
     IntegrationOperator op;
     op.weight = std::move(weight);
     op.position = std::move(position);

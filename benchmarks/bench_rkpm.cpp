@@ -1,0 +1,91 @@
+// RKPM kernels.
+//   build/release/bin/bench_rkpm --benchmark_counters_tabular=true
+// BM_RkShapeFunctions: Psi and direct gradients at every particle of a lattice, us per particle.
+// BM_NodalInternalForce: one internal-force pass of a total-Lagrangian nodal block (gather F and
+// Fdot, elastic update, V0 P, plus MSCNI stabilization when on) and the transpose assembly, in
+// ns per particle-step. Arguments: {particles (approximate cube), 100 a/h, stabilization 0/1,
+// threads}. `entries` is the gradient stencil per stress point.
+#include <benchmark/benchmark.h>
+#include <cmath>
+#include <omp.h>
+
+#include "rkfem/approximation/rk/rk_shape.hpp"
+#include "rkfem/discretization/generators.hpp"
+#include "rkfem/operators/nodal_block.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+HexMesh lattice(index_t n_particles)
+{
+    const int n = std::max(2, static_cast<int>(std::lround(std::cbrt(static_cast<double>(n_particles)))) - 1);
+    return generate_box(Vec3::Zero(), Vec3::Constant(n * 1e-3), {n, n, n});
+}
+
+void BM_RkShapeFunctions(benchmark::State& state)
+{
+    const HexMesh mesh = lattice(state.range(0));
+    const real_t c = state.range(1) / 100.0;
+    std::vector<real_t> a = nodal_spacing(mesh);
+    for (auto& v : a)
+        v *= c;
+    const RkShapeFunctions rk(mesh.x, a, {1, KernelType::CubicBSpline, SupportShape::Box, c});
+    RkSample s;
+    std::size_t nbrs = 0;
+    for (auto _ : state)
+    {
+        nbrs = 0;
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+        {
+            rk.evaluate(mesh.node(i), true, s);
+            nbrs += s.nodes.size();
+            benchmark::DoNotOptimize(s.grad.data());
+        }
+    }
+    state.counters["us_per_particle"] =
+        benchmark::Counter(static_cast<double>(mesh.n_nodes()) * 1e-6,
+                           benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.counters["neighbours"] = static_cast<double>(nbrs) / mesh.n_nodes();
+}
+
+void BM_NodalInternalForce(benchmark::State& state)
+{
+    const HexMesh mesh = lattice(state.range(0));
+    PartSpec ps;
+    ps.formulation = Formulation::Rkpm;
+    ps.material = {"elastic", 2400.0, 30e9, 0.2, {}};
+    ps.rk.normalized_support = state.range(1) / 100.0;
+    ps.nodal.stabilization = state.range(2) ? "mscni" : "none";
+    NodalBlock blk = build_nodal_block(ps, mesh, 0);
+    NodeSet nodes;
+    nodes.resize(mesh.n_nodes());
+    for (std::size_t i = 0; i < mesh.x.size(); ++i)
+    {
+        nodes.x0[i] = nodes.x[i] = mesh.x[i];
+        nodes.v[i] = 1e-3 * std::sin(1e3 * mesh.x[i] + i % 3);
+        nodes.u[i] = 1e-9 * std::cos(1e3 * mesh.x[i] + i % 3);
+    }
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(static_cast<int>(state.range(3)));
+    for (auto _ : state)
+    {
+        benchmark::DoNotOptimize(nodal_internal_force(blk, nodes, 1e-8));
+        assemble_nodal_forces(blk, nodes);
+        benchmark::ClobberMemory();
+    }
+    omp_set_num_threads(saved);
+    state.counters["ns_per_particle_step"] =
+        benchmark::Counter(static_cast<double>(blk.n_points()) * 1e-9,
+                           benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.counters["entries"] = static_cast<double>(blk.points.n_entries()) / blk.n_points();
+    state.counters["particles"] = static_cast<double>(blk.n_points());
+}
+} // namespace
+
+BENCHMARK(BM_RkShapeFunctions)->Args({10000, 151})->Args({10000, 125})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_NodalInternalForce)
+    ->ArgsProduct({{10000, 300000}, {125, 151}, {0, 1}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_MAIN();
