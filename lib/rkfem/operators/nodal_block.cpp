@@ -106,7 +106,7 @@ void NodalBlock::initialize()
     const index_t np = n_points(), ns = n_stab();
     const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     const index_t nn = node_end - node_begin;
-    entry_point.resize(static_cast<std::size_t>(ne_p + ne_s));
+    std::vector<index_t> entry_point(static_cast<std::size_t>(ne_p + ne_s));
     for (index_t p = 0; p < np; ++p)
         for (index_t k = points.offsets[p]; k < points.offsets[p + 1]; ++k)
             entry_point[k] = p;
@@ -124,10 +124,18 @@ void NodalBlock::initialize()
     }
     for (index_t i = 0; i < nn; ++i)
         node_entry_offsets[i + 1] += node_entry_offsets[i];
-    node_entries.resize(static_cast<std::size_t>(ne_p + ne_s));
+    node_point.resize(static_cast<std::size_t>(ne_p + ne_s));
+    node_grad.resize(3 * static_cast<std::size_t>(ne_p + ne_s));
     std::vector<index_t> fill(node_entry_offsets.begin(), node_entry_offsets.end() - 1);
     for (index_t k = 0; k < ne_p + ne_s; ++k)
-        node_entries[fill[node_of(k) - node_begin]++] = k;
+    {
+        const index_t q = fill[node_of(k) - node_begin]++;
+        node_point[q] = entry_point[k];
+        const real_t* g = k < ne_p ? &points.grad[3 * static_cast<std::size_t>(k)]
+                                   : &stabilization.grad[3 * static_cast<std::size_t>(k - ne_p)];
+        for (int d = 0; d < 3; ++d)
+            node_grad[3 * static_cast<std::size_t>(q) + d] = g[d];
+    }
 
     owner_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
     for (index_t p = 0; p < np; ++p)
@@ -322,19 +330,14 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
 void assemble_nodal_forces(const NodalBlock& blk, NodeSet& nodes)
 {
     const index_t nn = blk.node_end - blk.node_begin;
-    const index_t ne_p = blk.points.n_entries();
-    const real_t* gp = blk.points.grad.data();
-    const real_t* gs = blk.stabilization.grad.data();
     parallel_for("rkfem::nodal_assemble", nn,
                  [&](index_t i)
                  {
                      real_t f[3] = {0, 0, 0};
                      for (index_t q = blk.node_entry_offsets[i]; q < blk.node_entry_offsets[i + 1]; ++q)
                      {
-                         const index_t k = blk.node_entries[q];
-                         const real_t* g = k < ne_p ? gp + 3 * static_cast<std::size_t>(k)
-                                                    : gs + 3 * static_cast<std::size_t>(k - ne_p);
-                         const real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(blk.entry_point[k])];
+                         const real_t* g = &blk.node_grad[3 * static_cast<std::size_t>(q)];
+                         const real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(blk.node_point[q])];
                          for (int a = 0; a < 3; ++a)
                              f[a] += P[3 * a] * g[0] + P[3 * a + 1] * g[1] + P[3 * a + 2] * g[2];
                      }

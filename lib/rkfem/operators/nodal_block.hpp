@@ -43,8 +43,12 @@ struct NodalBlock
     std::vector<index_t> owner_offsets, owner_points;
     index_t node_begin = 0, node_end = 0;
 
-    // transpose (node -> entries of points, then of stabilization), built by initialize()
-    std::vector<index_t> node_entry_offsets, node_entries, entry_point;
+    // transpose (node -> entries of points, then of stabilization), built by initialize(): for
+    // slot q of local node i in [node_entry_offsets[i], node_entry_offsets[i + 1]), the point
+    // (stabilization points numbered after the stress points) and a contiguous copy of its
+    // gradient, so the assembly pass streams through memory
+    std::vector<index_t> node_entry_offsets, node_point;
+    std::vector<real_t> node_grad; ///< 3 per slot
 
     // state, component-major
     std::vector<real_t> stress, stress_trial;         ///< 6 x n_points [Pa]
