@@ -1,6 +1,7 @@
 // rkfem: command-line driver.
 //   rkfem check DECK [--set key.path=value ...]      validate, print the resolved deck in SI
 //   rkfem run DECK --out DIR [--set ...] [--quiet]   run, write DIR/results.h5 + .xdmf, history, summary
+//   rkfem convergence SWEEP --out DIR [--quiet]      manufactured-solution sweep -> DIR/convergence.{csv,h5}
 // Exit codes: 0 success, 2 bad input (one line naming deck, line and key), 3 run went unstable
 // (output so far kept), 1 other failure.
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/config/deck.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
@@ -22,7 +24,8 @@ int usage()
 {
     std::fprintf(stderr,
                  "usage: rkfem check DECK [--set key.path=value ...]\n"
-                 "       rkfem run DECK --out DIR [--set key.path=value ...] [--quiet]\n");
+                 "       rkfem run DECK --out DIR [--set key.path=value ...] [--quiet]\n"
+                 "       rkfem convergence SWEEP --out DIR [--quiet]\n");
     return 2;
 }
 } // namespace
@@ -53,8 +56,32 @@ int main(int argc, char** argv)
             return usage();
         }
     }
-    if (command != "check" && command != "run")
+    if (command != "check" && command != "run" && command != "convergence")
         return usage();
+    if (command == "convergence")
+    {
+        if (out_dir.empty())
+        {
+            std::fprintf(stderr, "rkfem: convergence needs --out DIR\n");
+            return 2;
+        }
+        try
+        {
+            const rkfem::ConvergenceSweep sweep = rkfem::read_sweep(deck_path);
+            rkfem::run_sweep(sweep, out_dir, quiet);
+            return 0;
+        }
+        catch (const rkfem::DeckError& e)
+        {
+            std::fprintf(stderr, "%s\n", e.what());
+            return 2;
+        }
+        catch (const std::exception& e)
+        {
+            std::fprintf(stderr, "rkfem: error: %s\n", e.what());
+            return 1;
+        }
+    }
     if (command == "run" && out_dir.empty())
     {
         std::fprintf(stderr, "rkfem: run needs --out DIR\n");

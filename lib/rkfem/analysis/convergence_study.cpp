@@ -1,0 +1,191 @@
+#include "rkfem/analysis/convergence_study.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <hdf5.h>
+#include <yaml-cpp/yaml.h>
+
+#include "rkfem/core/error.hpp"
+
+namespace rkfem
+{
+namespace
+{
+SourceLocation at(const std::string& file, const YAML::Node& n, const std::string& path)
+{
+    return {file + ":" + std::to_string(n.Mark().line + 1), path};
+}
+
+std::string text(const std::string& file, const YAML::Node& m, const std::string& key, const std::string& path,
+                 const std::vector<std::string>& options, const std::string& fallback)
+{
+    if (!m[key])
+        return fallback;
+    const std::string v = m[key].as<std::string>();
+    for (const auto& o : options)
+        if (v == o)
+            return v;
+    std::string all;
+    for (const auto& o : options)
+        all += (all.empty() ? "" : " | ") + o;
+    throw DeckError(at(file, m[key], path + "." + key), "'" + v + "' is not a valid choice", "expected one of " + all);
+}
+
+real_t number(const std::string& file, const YAML::Node& m, const std::string& key, const std::string& path,
+              real_t fallback)
+{
+    if (!m[key])
+        return fallback;
+    try
+    {
+        return m[key].as<real_t>();
+    }
+    catch (const YAML::Exception&)
+    {
+        throw DeckError(at(file, m[key], path + "." + key), "is not a number", "expected a number");
+    }
+}
+
+void write_column(hid_t g, const char* name, const std::vector<real_t>& v)
+{
+    const hsize_t n = v.size();
+    const hid_t space = H5Screate_simple(1, &n, nullptr);
+    const hid_t set = H5Dcreate2(g, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
+    H5Dclose(set);
+    H5Sclose(space);
+}
+} // namespace
+
+ConvergenceSweep read_sweep(const std::string& path)
+{
+    YAML::Node root;
+    try
+    {
+        root = YAML::LoadFile(path);
+    }
+    catch (const YAML::Exception& e)
+    {
+        throw DeckError({path + ":" + std::to_string(e.mark.line + 1), "(file)"}, e.msg, "expected a YAML sweep definition");
+    }
+    ConvergenceSweep s;
+    for (auto it = root.begin(); it != root.end(); ++it)
+    {
+        const std::string k = it->first.as<std::string>();
+        if (k != "title" && k != "resolutions" && k != "cases")
+            throw DeckError(at(path, it->first, k), "unknown key", "expected title, resolutions, cases");
+    }
+    s.title = root["title"] ? root["title"].as<std::string>() : "convergence";
+    const YAML::Node res = root["resolutions"];
+    if (!res || !res.IsSequence() || res.size() < 2)
+        throw DeckError(at(path, res ? res : root, "resolutions"), "missing or too short",
+                        "expected a list of at least two resolutions (elements per side), e.g. [8, 16]");
+    for (std::size_t i = 0; i < res.size(); ++i)
+    {
+        int v = 0;
+        try
+        {
+            v = res[i].as<int>();
+        }
+        catch (const YAML::Exception&)
+        {
+            throw DeckError(at(path, res[i], "resolutions." + std::to_string(i)), "is not an integer",
+                            "expected elements per side, e.g. 8");
+        }
+        if (v < 2)
+            throw DeckError(at(path, res[i], "resolutions." + std::to_string(i)), "is below 2", "expected >= 2 elements per side");
+        s.resolutions.push_back(v);
+    }
+    const YAML::Node cases = root["cases"];
+    if (!cases || !cases.IsSequence() || cases.size() == 0)
+        throw DeckError(at(path, cases ? cases : root, "cases"), "missing or empty", "expected a list of cases");
+    for (std::size_t i = 0; i < cases.size(); ++i)
+    {
+        const YAML::Node c = cases[i];
+        const std::string p = "cases." + std::to_string(i);
+        for (auto it = c.begin(); it != c.end(); ++it)
+        {
+            const std::string k = it->first.as<std::string>();
+            static const std::vector<std::string> keys = {"formulation", "scheme", "stabilization", "normalized_support",
+                                                          "support", "kernel", "order"};
+            if (std::find(keys.begin(), keys.end(), k) == keys.end())
+                throw DeckError(at(path, it->first, p + "." + k), "unknown key",
+                                "expected formulation, scheme, stabilization, normalized_support, support, kernel, order");
+        }
+        MmsCase mc;
+        mc.formulation = text(path, c, "formulation", p, {"rkpm", "fem-nodal"}, "rkpm") == "rkpm" ? Formulation::Rkpm
+                                                                                                : Formulation::FemNodal;
+        mc.scheme = text(path, c, "scheme", p, {"scni", "sd-scni", "dni"}, "scni");
+        mc.stabilization = number(path, c, "stabilization", p, 0.0);
+        mc.rk.normalized_support = number(path, c, "normalized_support", p, 1.51);
+        const real_t a = mc.rk.normalized_support;
+        if (std::abs(a - std::round(a)) < 1e-6)
+            throw DeckError(at(path, c["normalized_support"], p + ".normalized_support"), "is an integer",
+                            "expected a non-integer a/h such as 1.51");
+        mc.rk.support = text(path, c, "support", p, {"box", "sphere"}, "box") == "box" ? SupportShape::Box : SupportShape::Sphere;
+        const std::string k = text(path, c, "kernel", p, {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
+        mc.rk.kernel = k == "quintic-bspline" ? KernelType::QuinticBSpline
+                       : k == "gaussian"      ? KernelType::Gaussian
+                                              : KernelType::CubicBSpline;
+        mc.rk.order = text(path, c, "order", p, {"1", "2"}, "1") == "1" ? 1 : 2;
+        s.cases.push_back(mc);
+    }
+    return s;
+}
+
+std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const std::string& out_dir, bool quiet)
+{
+    std::filesystem::create_directories(out_dir);
+    std::vector<std::vector<MmsResult>> all;
+    std::ofstream csv(out_dir + "/convergence.csv");
+    csv << "case,formulation,scheme,stabilization,normalized_support,n,h,dofs,l2,h1,l2_rate,h1_rate,seconds\n";
+    const hid_t f = H5Fcreate((out_dir + "/convergence.h5").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    RKFEM_REQUIRE(f >= 0, "cannot create " << out_dir << "/convergence.h5");
+    for (const MmsCase& base : s.cases)
+    {
+        std::vector<MmsResult> rs;
+        std::vector<real_t> col[8];
+        for (int n : s.resolutions)
+        {
+            MmsCase c = base;
+            c.n = n;
+            rs.push_back(solve_mms(c));
+            const MmsResult& r = rs.back();
+            real_t l2r = NAN, h1r = NAN;
+            if (rs.size() > 1)
+            {
+                const MmsResult& q = rs[rs.size() - 2];
+                l2r = observed_rate(q.l2, r.l2, q.h, r.h);
+                h1r = observed_rate(q.h1, r.h1, q.h, r.h);
+            }
+            if (!quiet)
+                std::printf("%-24s h = 1/%-3d dofs %8d  L2 %.4e  H1 %.4e  rates %6.3f %6.3f  (%.1f s)\n",
+                            base.label().c_str(), n, r.dofs, r.l2, r.h1, l2r, h1r, r.seconds);
+            csv << '"' << base.label() << "\"," << (base.formulation == Formulation::Rkpm ? "rkpm" : "fem-nodal") << ','
+                << base.scheme << ',' << base.stabilization << ',' << base.rk.normalized_support << ',' << n << ','
+                << r.h << ',' << r.dofs << ',' << r.l2 << ',' << r.h1 << ',' << l2r << ',' << h1r << ',' << r.seconds
+                << '\n';
+            const real_t vals[8] = {static_cast<real_t>(n), r.h, static_cast<real_t>(r.dofs), r.l2, r.h1, l2r, h1r, r.seconds};
+            for (int k = 0; k < 8; ++k)
+                col[k].push_back(vals[k]);
+        }
+        std::string name = base.label();
+        if (base.formulation == Formulation::Rkpm)
+            name += " a" + std::to_string(base.rk.normalized_support).substr(0, 4);
+        for (auto& ch : name)
+            if (ch == ' ' || ch == '+')
+                ch = '_';
+        const hid_t g = H5Gcreate2(f, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+        const char* names[8] = {"n", "h", "dofs", "l2", "h1", "l2_rate", "h1_rate", "seconds"};
+        for (int k = 0; k < 8; ++k)
+            write_column(g, names[k], col[k]);
+        H5Gclose(g);
+        all.push_back(std::move(rs));
+    }
+    H5Fclose(f);
+    return all;
+}
+} // namespace rkfem
