@@ -1,6 +1,7 @@
 #include "rkfem/operators/linear_static.hpp"
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/UmfPackSupport>
 #include <algorithm>
 
 #include "rkfem/core/error.hpp"
@@ -111,5 +112,38 @@ std::vector<real_t> solve_static(const SparseMatrix& K, const std::vector<real_t
         if (map[i] >= 0)
             u[i] = uf[map[i]];
     return u;
+}
+std::vector<real_t> solve_static_constrained(const SparseMatrix& K, const std::vector<real_t>& f, const SparseMatrix& C,
+                                             const std::vector<real_t>& g)
+{
+    const index_t n = static_cast<index_t>(K.rows()), m = static_cast<index_t>(C.rows());
+    RKFEM_REQUIRE(static_cast<index_t>(C.cols()) == n && static_cast<index_t>(g.size()) == m &&
+                      static_cast<index_t>(f.size()) == n,
+                  "solve_static_constrained: K " << n << " dofs, C " << m << " x " << C.cols() << ", f " << f.size()
+                                                 << ", g " << g.size());
+    std::vector<Eigen::Triplet<real_t, int>> t;
+    t.reserve(static_cast<std::size_t>(K.nonZeros() + 2 * C.nonZeros()));
+    for (int c = 0; c < K.outerSize(); ++c)
+        for (SparseMatrix::InnerIterator it(K, c); it; ++it)
+            t.emplace_back(static_cast<int>(it.row()), c, it.value());
+    for (int c = 0; c < C.outerSize(); ++c)
+        for (SparseMatrix::InnerIterator it(C, c); it; ++it)
+        {
+            t.emplace_back(n + static_cast<int>(it.row()), c, it.value());
+            t.emplace_back(c, n + static_cast<int>(it.row()), it.value());
+        }
+    SparseMatrix A(n + m, n + m);
+    A.setFromTriplets(t.begin(), t.end());
+    Eigen::VectorXd rhs(n + m);
+    for (index_t i = 0; i < n; ++i)
+        rhs[i] = f[i];
+    for (index_t i = 0; i < m; ++i)
+        rhs[n + i] = g[i];
+    Eigen::UmfPackLU<SparseMatrix> lu;
+    lu.compute(A);
+    RKFEM_REQUIRE(lu.info() == Eigen::Success, "constrained static solve: the saddle-point matrix with " << m
+                                                   << " constraints is singular (free zero-energy mode or dependent constraints)");
+    const Eigen::VectorXd x = lu.solve(rhs);
+    return std::vector<real_t>(x.data(), x.data() + n);
 }
 } // namespace rkfem

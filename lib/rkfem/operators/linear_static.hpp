@@ -26,4 +26,9 @@ SparseMatrix assemble_stiffness(const IntegrationOperator& op, const ElasticPara
 std::vector<real_t> solve_static(const SparseMatrix& K, const std::vector<real_t>& f,
                                  const std::vector<index_t>& prescribed_dofs,
                                  const std::vector<real_t>& prescribed_values);
+/// Solves K u = f subject to linear constraints C u = g (C: one row per constraint, e.g. RK
+/// collocation sum_J Psi_J(X_b) d_J = g_b for physical boundary values), through the saddle-point
+/// system [K C^T; C 0] by UMFPACK (SuiteSparse). Returns u.
+std::vector<real_t> solve_static_constrained(const SparseMatrix& K, const std::vector<real_t>& f, const SparseMatrix& C,
+                                             const std::vector<real_t>& g);
 } // namespace rkfem
