@@ -10,10 +10,23 @@
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/operators/linear_static.hpp"
+#include <Eigen/SparseLU>
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 
 namespace rkfem
 {
+struct RkVelocityConstraint
+{
+    index_t block = 0;                  ///< nodal block
+    int component = 0;
+    std::vector<index_t> condition;     ///< index into Model::conditions, per constrained node
+    std::vector<index_t> node;          ///< global node per constrained node
+    std::vector<index_t> slot;          ///< global node -> position in `node`, -1 if free (block range)
+    Eigen::SparseLU<SparseMatrix> lu;   ///< Lambda_bb
+    Eigen::VectorXd rhs, x;
+};
+
 real_t Energies::balance_error() const
 {
     const real_t lhs = kinetic + kinetic_correction + internal + hourglass + bulk_viscosity + damping;
@@ -301,6 +314,7 @@ Model Model::build(const Deck& deck)
                             "expected the name of a part");
         m.probe_nodes.push_back(best);
     }
+    m.build_rk_constraints();
     m.f_ext_prev_.assign(m.nodes.f_ext.size(), 0.0);
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
     return m;
@@ -330,6 +344,90 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step)
             break;
         }
         nodes.v[c.dof] = v;
+    }
+    // rkpm parts: the values just set are targets for the physical velocity
+    for (auto& rc : rk_constraints_)
+    {
+        const NodalBlock& nb = nodal_blocks[rc->block];
+        const int k = rc->component;
+        const index_t nb_count = static_cast<index_t>(rc->node.size());
+        for (index_t q = 0; q < nb_count; ++q)
+        {
+            const index_t i = rc->node[q] - nb.node_begin;
+            real_t r = nodes.v[3 * rc->node[q] + k];
+            if (conditions[rc->condition[q]].kind == BoundarySpec::Kind::Displacement && half_step)
+            {
+                // target from the physical displacement: (g(t + dt) - u^h(X_b)) / dt
+                const DofCondition& c = conditions[rc->condition[q]];
+                const real_t uh = physical(nodes.u, rc->node[q])[k];
+                r = dt > 0 ? ((*c.value)(t + dt) - uh) / dt : 0.0;
+            }
+            for (index_t m = nb.interp_offsets[i]; m < nb.interp_offsets[i + 1]; ++m)
+            {
+                const index_t J = nb.interp_nodes[m];
+                if (rc->slot[J - nb.node_begin] < 0)
+                    r -= nb.interp_values[m] * nodes.v[3 * J + k];
+            }
+            rc->rhs[q] = r;
+        }
+        rc->x = rc->lu.solve(rc->rhs);
+        for (index_t q = 0; q < nb_count; ++q)
+            nodes.v[3 * rc->node[q] + k] = rc->x[q];
+    }
+}
+
+void Model::build_rk_constraints()
+{
+    for (index_t b = 0; b < static_cast<index_t>(nodal_blocks.size()); ++b)
+    {
+        const NodalBlock& nb = nodal_blocks[b];
+        if (nb.interp_offsets.empty())
+            continue;
+        for (int k = 0; k < 3; ++k)
+        {
+            auto rc = std::make_shared<RkVelocityConstraint>();
+            rc->block = b;
+            rc->component = k;
+            rc->slot.assign(static_cast<std::size_t>(nb.node_end - nb.node_begin), -1);
+            for (index_t ci = 0; ci < static_cast<index_t>(conditions.size()); ++ci)
+            {
+                const index_t n = conditions[ci].dof / 3;
+                if (conditions[ci].dof % 3 != k || n < nb.node_begin || n >= nb.node_end)
+                    continue;
+                rc->slot[n - nb.node_begin] = static_cast<index_t>(rc->node.size());
+                rc->node.push_back(n);
+                rc->condition.push_back(ci);
+            }
+            if (rc->node.empty())
+                continue;
+            const index_t m = static_cast<index_t>(rc->node.size());
+            std::vector<Eigen::Triplet<real_t, int>> t;
+            for (index_t q = 0; q < m; ++q)
+            {
+                const index_t i = rc->node[q] - nb.node_begin;
+                for (index_t e = nb.interp_offsets[i]; e < nb.interp_offsets[i + 1]; ++e)
+                {
+                    const index_t col = rc->slot[nb.interp_nodes[e] - nb.node_begin];
+                    if (col >= 0)
+                        t.emplace_back(q, col, nb.interp_values[e]);
+                }
+            }
+            SparseMatrix A(m, m);
+            A.setFromTriplets(t.begin(), t.end());
+            rc->lu.compute(A);
+            if (rc->lu.info() != Eigen::Success)
+            {
+                const auto& bc = deck_.boundary_conditions;
+                const std::string where = bc.empty() ? deck_.path : bc.front().loc.where;
+                throw DeckError({where, "boundary_conditions"},
+                                "the RK interpolation matrix of the " + std::to_string(m) + " particles constrained in component " +
+                                    std::to_string(k) + " of part '" + parts[nb.part].name + "' is singular",
+                                "expected constrained particle sets whose kernel functions are independent (e.g. whole faces)");
+            }
+            rc->rhs.resize(m);
+            rc->x.resize(m);
+            rk_constraints_.push_back(std::move(rc));
+        }
     }
 }
 

@@ -4,6 +4,7 @@
 /// node and face sets, boundary conditions, loads and probes; and the per-step phases the time
 /// steppers call (kinematic conditions, forces, accelerations, commit, energies).
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,12 @@ struct DofCondition
     BoundarySpec::Kind kind = BoundarySpec::Kind::Fixed;
     const TimeFunction* value = nullptr; ///< velocity or displacement history
 };
+
+/// Prescribed physical velocities on the particles of one rkpm part, one component: the mixed
+/// transformation (Chen & Wang 2000) solves Lambda_bb v_b = g_b - Lambda_bi v_i each step, with
+/// Lambda_IJ = Psi_J(X_I), so that u^h(X_b) follows the prescribed motion at every constrained
+/// particle. Lambda_bb is factored once (total Lagrangian).
+struct RkVelocityConstraint;
 
 struct Energies
 {
@@ -119,6 +126,8 @@ class Model
 
   private:
     Deck deck_;
+    std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
+    void build_rk_constraints();
     std::vector<real_t> f_ext_prev_;
     std::vector<real_t> reaction_prev_;
     std::vector<real_t> bc_v_prev_;
