@@ -8,6 +8,7 @@
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/operators/linear_static.hpp"
@@ -315,6 +316,66 @@ Model Model::build(const Deck& deck)
         m.probe_nodes.push_back(best);
     }
     m.build_rk_constraints();
+    // consistent pressure distribution on rkpm faces: Psi_I at 2x2 Gauss points of each face
+    for (const auto& [load, faces] : m.pressure_loads_)
+    {
+        RkFaceLoads rl;
+        rl.point_offsets.assign(1, 0);
+        std::unique_ptr<RkShapeFunctions> rk;
+        index_t rk_part = -1;
+        RkSample smp;
+        for (const Quad& q : *faces)
+        {
+            const index_t ip = m.nodes.part[q[0]];
+            const bool is_rk = d.parts[ip].formulation == Formulation::Rkpm;
+            rl.is_rk.push_back(is_rk);
+            if (!is_rk)
+            {
+                for (int gp = 0; gp < 4; ++gp)
+                    rl.point_offsets.push_back(rl.point_offsets.back());
+                continue;
+            }
+            if (rk_part != ip)
+            {
+                const PartInfo& pi = m.parts[ip];
+                HexMesh mesh;
+                mesh.x.assign(m.nodes.x0.begin() + 3 * pi.node_begin, m.nodes.x0.begin() + 3 * pi.node_end);
+                mesh.conn = m.blocks[ip].conn;
+                for (auto& c : mesh.conn)
+                    c -= pi.node_begin;
+                std::vector<real_t> a = nodal_spacing(mesh);
+                RkParams rp;
+                rp.order = d.parts[ip].rk.order;
+                rp.kernel = d.parts[ip].rk.kernel == "quintic-bspline" ? KernelType::QuinticBSpline
+                            : d.parts[ip].rk.kernel == "gaussian"      ? KernelType::Gaussian
+                                                                       : KernelType::CubicBSpline;
+                rp.support = d.parts[ip].rk.support == "sphere" ? SupportShape::Sphere : SupportShape::Box;
+                rp.normalized_support = d.parts[ip].rk.normalized_support;
+                for (auto& v : a)
+                    v *= rp.normalized_support;
+                rk = std::make_unique<RkShapeFunctions>(mesh.x, a, rp);
+                rk_part = ip;
+            }
+            const real_t g = 1.0 / std::sqrt(3.0);
+            Vec3 xc[4];
+            for (int c = 0; c < 4; ++c)
+                xc[c] = Vec3(m.nodes.x0[3 * q[c]], m.nodes.x0[3 * q[c] + 1], m.nodes.x0[3 * q[c] + 2]);
+            for (int gp = 0; gp < 4; ++gp)
+            {
+                const real_t r = gp % 2 ? g : -g, s = gp / 2 ? g : -g;
+                const Vec3 X = 0.25 * ((1 - r) * (1 - s) * xc[0] + (1 + r) * (1 - s) * xc[1] + (1 + r) * (1 + s) * xc[2] +
+                                       (1 - r) * (1 + s) * xc[3]);
+                rk->evaluate(X, false, smp);
+                for (index_t k = 0; k < smp.size(); ++k)
+                {
+                    rl.nodes.push_back(smp.nodes[k] + m.parts[ip].node_begin);
+                    rl.psi.push_back(smp.psi[k]);
+                }
+                rl.point_offsets.push_back(static_cast<index_t>(rl.nodes.size()));
+            }
+        }
+        m.rk_face_loads_.push_back(std::move(rl));
+    }
     m.f_ext_prev_.assign(m.nodes.f_ext.size(), 0.0);
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
     return m;
@@ -450,17 +511,42 @@ void Model::apply_external_forces(real_t t)
                 for (index_t n : ids)
                     nodes.f_ext[3 * n + k] += f;
             }
-    for (const auto& [load, faces] : pressure_loads_)
+    for (std::size_t il = 0; il < pressure_loads_.size(); ++il)
     {
+        const auto& [load, faces] = pressure_loads_[il];
         const real_t p = load->pressure(t);
         if (p == 0.0)
             continue;
-        for (const auto& q : *faces)
+        const RkFaceLoads& rl = rk_face_loads_[il];
+        for (std::size_t fi = 0; fi < faces->size(); ++fi)
         {
-            const Vec3 n = quad_normal(nodes.x, q); // area-weighted, outward
-            for (index_t node : q)
-                for (int k = 0; k < 3; ++k)
-                    nodes.f_ext[3 * node + k] -= 0.25 * p * n[k];
+            const Quad& q = (*faces)[fi];
+            if (!rl.is_rk[fi])
+            {
+                const Vec3 n = quad_normal(nodes.x, q); // area-weighted, outward
+                for (index_t node : q)
+                    for (int k = 0; k < 3; ++k)
+                        nodes.f_ext[3 * node + k] -= 0.25 * p * n[k];
+                continue;
+            }
+            // RK face: bilinear patch through the physical corner positions, 2x2 Gauss points,
+            // force -p n dA distributed with Psi_I(X_K)
+            Vec3 xc[4];
+            for (int c = 0; c < 4; ++c)
+                xc[c] = Vec3(nodes.x0[3 * q[c]], nodes.x0[3 * q[c] + 1], nodes.x0[3 * q[c] + 2]) + physical(nodes.u, q[c]);
+            const real_t g = 1.0 / std::sqrt(3.0);
+            for (int gp = 0; gp < 4; ++gp)
+            {
+                const real_t r = gp % 2 ? g : -g, s = gp / 2 ? g : -g;
+                // corners in order (-1,-1), (1,-1), (1,1), (-1,1)
+                const Vec3 xr = 0.25 * ((1 - s) * (xc[1] - xc[0]) + (1 + s) * (xc[2] - xc[3]));
+                const Vec3 xs = 0.25 * ((1 - r) * (xc[3] - xc[0]) + (1 + r) * (xc[2] - xc[1]));
+                const Vec3 nda = xr.cross(xs); // weight 1 per Gauss point on [-1, 1]^2
+                const std::size_t pt = 4 * fi + gp;
+                for (index_t k = rl.point_offsets[pt]; k < rl.point_offsets[pt + 1]; ++k)
+                    for (int d = 0; d < 3; ++d)
+                        nodes.f_ext[3 * rl.nodes[k] + d] -= p * rl.psi[k] * nda[d];
+            }
         }
     }
 }

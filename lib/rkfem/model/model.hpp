@@ -134,6 +134,16 @@ class Model
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;
     std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;
     std::vector<std::pair<const LoadSpec*, const std::vector<Quad>*>> pressure_loads_;
+    /// Pressure faces on rkpm parts: per face and 2x2 Gauss point, Psi_I at the reference point
+    /// (CSR over face-major points), so loads reach the coefficients consistently.
+    struct RkFaceLoads
+    {
+        std::vector<char> is_rk;            ///< per face of the load's set
+        std::vector<index_t> point_offsets; ///< per face: 4 points; per point: CSR offsets
+        std::vector<index_t> nodes;
+        std::vector<real_t> psi;
+    };
+    std::vector<RkFaceLoads> rk_face_loads_; ///< one per pressure load
     void apply_external_forces(real_t t);
 };
 } // namespace rkfem
