@@ -215,6 +215,26 @@ IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const S
     return {};
 }
 
+IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vector<real_t>& x, const ShapeEvaluator& shapes)
+{
+    return assemble(cells.size(),
+                    [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
+                        std::vector<real_t>& psi)
+                    {
+                        for (index_t q = cells.offsets[i]; q < cells.offsets[i + 1]; ++q)
+                        {
+                            const CellFacetPoint& fp = cells.points[q];
+                            shapes.values(-1, Vec3::Zero(), fp.x, nodes, psi);
+                            for (std::size_t k = 0; k < nodes.size(); ++k)
+                                out.emplace_back(nodes[k], psi[k] * fp.nda);
+                        }
+                        merge(out, 1.0 / cells.volume[i]);
+                        w = cells.volume[i];
+                        pos = Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                        owner = i;
+                    });
+}
+
 IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd)
 {
     IntegrationOperator op;

@@ -14,6 +14,7 @@
 
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/integration/integration_operator.hpp"
+#include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/integration/nodal/hex_dual_cells.hpp"
 
 namespace rkfem
@@ -29,6 +30,11 @@ IntegrationOperator build_dni(const HexMesh& mesh, const ShapeEvaluator& shapes)
 IntegrationOperator build_scni(const HexMesh& mesh, const ShapeEvaluator& shapes);
 IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& shapes);
 IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const ShapeEvaluator& shapes);
+
+/// SCNI on the cells of a cloud that does not come from a mesh (Voronoi cells clipped to the
+/// body, discretization/voronoi_cells.hpp); x: particle positions. RK shapes only (element-free).
+IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vector<real_t>& x,
+                                     const ShapeEvaluator& shapes);
 
 /// MSCNI stabilization from an SCNI operator and the SD-SCNI operator of the same mesh.
 IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd);

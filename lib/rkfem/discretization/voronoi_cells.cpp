@@ -1,0 +1,137 @@
+#include "rkfem/discretization/voronoi_cells.hpp"
+
+#include <CGAL/Convex_hull_3/dual/halfspace_intersection_3.h>
+#include <CGAL/Delaunay_triangulation_3.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polyhedron_3.h>
+#include <CGAL/Triangulation_vertex_base_with_info_3.h>
+#include <algorithm>
+#include <cmath>
+
+#include "rkfem/core/error.hpp"
+
+namespace rkfem
+{
+namespace
+{
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Vb = CGAL::Triangulation_vertex_base_with_info_3<index_t, K>;
+using Tds = CGAL::Triangulation_data_structure_3<Vb>;
+using Delaunay = CGAL::Delaunay_triangulation_3<K, Tds>;
+using Polyhedron = CGAL::Polyhedron_3<K>;
+
+Vec3 vec(const K::Point_3& p) { return {p.x(), p.y(), p.z()}; }
+} // namespace
+
+std::vector<HalfSpace> box_halfspaces(const Vec3& lo, const Vec3& hi)
+{
+    std::vector<HalfSpace> h;
+    for (int d = 0; d < 3; ++d)
+    {
+        Vec3 n = Vec3::Zero();
+        n[d] = 1.0;
+        h.push_back({n, hi[d]});
+        h.push_back({-n, -lo[d]});
+    }
+    return h;
+}
+
+VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body)
+{
+    const index_t n = static_cast<index_t>(x.size() / 3);
+    RKFEM_REQUIRE(n >= 5, "Voronoi cells: need at least 5 points, got " << n);
+    std::vector<std::pair<K::Point_3, index_t>> pts;
+    for (index_t i = 0; i < n; ++i)
+    {
+        const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+        for (const HalfSpace& h : body)
+            RKFEM_REQUIRE(h.normal.dot(p) < h.offset, "Voronoi cells: point " << i << " (" << p.transpose()
+                                                                             << ") is not inside the body");
+        pts.emplace_back(K::Point_3(p[0], p[1], p[2]), i);
+    }
+    const Delaunay dt(pts.begin(), pts.end());
+    std::vector<Delaunay::Vertex_handle> vh(static_cast<std::size_t>(n));
+    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
+        vh[v->info()] = v;
+
+    VoronoiCells cells;
+    cells.volume.resize(static_cast<std::size_t>(n));
+    cells.spacing.assign(static_cast<std::size_t>(n), 0.0);
+    std::vector<Delaunay::Vertex_handle> adj;
+    for (index_t i = 0; i < n; ++i)
+    {
+        RKFEM_REQUIRE(vh[i] != Delaunay::Vertex_handle(), "Voronoi cells: point " << i << " duplicates another point");
+        const Vec3 xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+        adj.clear();
+        dt.finite_adjacent_vertices(vh[i], std::back_inserter(adj));
+        // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
+        std::vector<K::Plane_3> planes;
+        std::vector<index_t> owner; // neighbour per plane, -1 body
+        for (const auto& v : adj)
+        {
+            const index_t j = v->info();
+            const Vec3 xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
+            const Vec3 nrm = xj - xi;
+            const Vec3 mid = 0.5 * (xi + xj);
+            // a x + b y + c z + d <= 0 on x_i's side
+            planes.emplace_back(nrm[0], nrm[1], nrm[2], -nrm.dot(mid));
+            owner.push_back(j);
+        }
+        for (const HalfSpace& h : body)
+        {
+            planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
+            owner.push_back(-1);
+        }
+        Polyhedron P;
+        CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, K::Point_3(xi[0], xi[1], xi[2]));
+        real_t vol = 0.0;
+        for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
+        {
+            std::vector<Vec3> poly;
+            auto h = f->facet_begin();
+            do
+            {
+                poly.push_back(vec(h->vertex()->point()));
+            } while (++h != f->facet_begin());
+            Vec3 c = Vec3::Zero();
+            for (const Vec3& p : poly)
+                c += p;
+            c /= static_cast<real_t>(poly.size());
+            // which plane this facet lies on: the one with the smallest distance of the centroid
+            // and a normal parallel to the facet's
+            Vec3 area = Vec3::Zero();
+            for (std::size_t k = 0; k < poly.size(); ++k)
+                area += 0.5 * (poly[k] - c).cross(poly[(k + 1) % poly.size()] - c);
+            if (area.norm() == 0.0)
+                continue;
+            index_t nb = -1;
+            real_t best = 1e300;
+            for (std::size_t q = 0; q < planes.size(); ++q)
+            {
+                const Vec3 pn(planes[q].a(), planes[q].b(), planes[q].c());
+                const real_t dist = std::abs(pn.dot(c) + planes[q].d()) / pn.norm();
+                if (pn.dot(area) > 0 && dist < best)
+                {
+                    best = dist;
+                    nb = owner[q];
+                }
+            }
+            for (std::size_t k = 0; k < poly.size(); ++k)
+            {
+                const Vec3& a = poly[k];
+                const Vec3& b = poly[(k + 1) % poly.size()];
+                const Vec3 nda = 0.5 * (a - c).cross(b - c);
+                const Vec3 xq = (a + b + c) / 3.0;
+                cells.points.push_back({xq, nda, nb});
+                vol += xq.dot(nda) / 3.0;
+            }
+            if (nb >= 0)
+                cells.spacing[i] = std::max(cells.spacing[i], (Vec3(x[3 * nb], x[3 * nb + 1], x[3 * nb + 2]) - xi).norm());
+        }
+        RKFEM_REQUIRE(vol > 0.0, "Voronoi cells: cell " << i << " has non-positive volume " << vol);
+        cells.volume[i] = vol;
+        cells.offsets.push_back(static_cast<index_t>(cells.points.size()));
+    }
+    return cells;
+}
+} // namespace rkfem

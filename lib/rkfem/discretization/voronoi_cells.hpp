@@ -1,0 +1,45 @@
+#pragma once
+/// @file voronoi_cells.hpp
+/// Voronoi cells of a point cloud clipped to a convex body (intersection of half-spaces), for
+/// particle clouds that do not come from a hex mesh (imported points, refinement). Each cell is
+/// a convex polyhedron; its facets are fanned into triangles from the facet centroid and each
+/// triangle carries one quadrature point (centroid, n dA), which integrates linear fields exactly,
+/// so the cell volume (1/3) sum x . n dA and SCNI gradients of linear fields are exact. Facets
+/// shared by two cells are built from the same polygon on both sides (IC1 up to round-off).
+/// CGAL (Delaunay_triangulation_3 for the neighbours, halfspace_intersection_3 for the cells) is
+/// confined to voronoi_cells.cpp.
+#include <vector>
+
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+/// The half-space n . x <= d (n outward unit normal).
+struct HalfSpace
+{
+    Vec3 normal;
+    real_t offset = 0.0;
+};
+
+/// The six half-spaces of an axis-aligned box.
+std::vector<HalfSpace> box_halfspaces(const Vec3& lo, const Vec3& hi);
+
+struct CellFacetPoint
+{
+    Vec3 x;               ///< quadrature point
+    Vec3 nda;             ///< outward normal times area of its triangle
+    index_t neighbour = -1; ///< particle on the other side, -1 on the body boundary
+};
+
+struct VoronoiCells
+{
+    std::vector<real_t> volume;                ///< per particle
+    std::vector<index_t> offsets{0};           ///< per particle: facet points [offsets[i], offsets[i+1])
+    std::vector<CellFacetPoint> points;
+    std::vector<real_t> spacing;               ///< per particle: largest distance to a facet neighbour
+    index_t size() const { return static_cast<index_t>(volume.size()); }
+};
+
+/// Cells of the points x (n x 3) inside the convex body; throws Error for points outside it.
+VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body);
+} // namespace rkfem
