@@ -56,7 +56,7 @@ struct NodalBlock
     std::vector<real_t> jacobian;                     ///< n_points, det F
 
     // per-step scratch
-    std::vector<real_t> point_tensor; ///< 9 x (n_points + n_stab): V0 P (row-major 3x3)
+    std::vector<real_t> point_tensor; ///< 9 x (n_points + n_stab): V0 P by columns ([9 p + 3 j + a] = P_aj)
     std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for stabilization
     std::vector<real_t> spin;         ///< 3 x n_points: W of the point
     std::vector<real_t> point_energy; ///< 3 x (n_points + n_stab): internal, stabilization, bulk viscosity
