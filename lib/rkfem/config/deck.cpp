@@ -1,4 +1,5 @@
 #include "rkfem/config/deck.hpp"
+#include "rkfem/config/erk_table_names.hpp"
 
 #include <algorithm>
 #include <fstream>
@@ -682,7 +683,7 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
                         "expected a mapping with at least end: (e.g. end: 26 us)");
     Section s(ctx, root["time"], "time",
               {"end", "output_interval", "history_interval", "dt_scale", "dt_max", "max_steps",
-               "stepper", "energy_error_limit", "mass_damping"});
+               "stepper", "erk_table", "energy_error_limit", "mass_damping"});
     TimeSpec t;
     t.end = s.positive("end", dim::time);
     t.output_interval = s.quantity("output_interval", dim::time, 0.0);
@@ -697,7 +698,16 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
     t.max_steps = s.integer("max_steps", 0);
     if (t.max_steps < 0)
         s.fail("max_steps", "is negative", "expected an integer >= 0 (0: no limit)");
-    s.choice("stepper", {"central-difference"}, "central-difference");
+    const std::string st = s.choice("stepper", {"central-difference", "arkode-cd", "arkode-erk"}, "central-difference");
+    t.stepper = st == "arkode-cd"    ? StepperKind::ArkodeCd
+                : st == "arkode-erk" ? StepperKind::ArkodeErk
+                                     : StepperKind::CentralDifference;
+    if (s.has("erk_table"))
+    {
+        if (t.stepper != StepperKind::ArkodeErk)
+            s.fail("erk_table", "is only used by stepper arkode-erk", "remove it or set stepper: arkode-erk");
+        t.erk_table = s.choice("erk_table", erk_table_names(), "ARKODE_BOGACKI_SHAMPINE_4_2_3");
+    }
     t.energy_error_limit = s.quantity("energy_error_limit", dim::none, 0.05);
     if (!(t.energy_error_limit > 0))
         s.fail("energy_error_limit", "must be positive", "expected a fraction > 0 (e.g. 0.05)");

@@ -194,7 +194,9 @@ struct ProbeSpec
 
 enum class StepperKind
 {
-    CentralDifference,
+    CentralDifference, ///< hand-written kick-drift-kick
+    ArkodeCd,          ///< the same central difference through SUNDIALS ARKODE ERKStep (1-stage table)
+    ArkodeErk,         ///< ARKODE ERKStep with an explicit Runge-Kutta table (verification)
 };
 
 struct TimeSpec
@@ -206,6 +208,7 @@ struct TimeSpec
     real_t dt_max = 0.0; ///< 0: unlimited
     std::int64_t max_steps = 0; ///< 0: unlimited
     StepperKind stepper = StepperKind::CentralDifference;
+    std::string erk_table = "ARKODE_BOGACKI_SHAMPINE_4_2_3"; ///< arkode-erk: built-in name, RK4 or SSPRK3
     real_t energy_error_limit = 0.05; ///< stop when the balance error exceeds this (fraction)
     real_t mass_damping = 0.0; ///< dynamic-relaxation damping coefficient [1/s] (a -= c v)
 };

@@ -115,7 +115,12 @@ std::string to_yaml(const Deck& d)
     os << "time: {end: " << d.time.end << ", output_interval: " << d.time.output_interval
        << ", history_interval: " << d.time.history_interval << ", dt_scale: " << d.time.dt_scale
        << ", dt_max: " << d.time.dt_max << ", max_steps: " << d.time.max_steps
-       << ", stepper: central-difference, energy_error_limit: " << d.time.energy_error_limit
+       << ", stepper: "
+       << (d.time.stepper == StepperKind::ArkodeCd    ? "arkode-cd"
+           : d.time.stepper == StepperKind::ArkodeErk ? "arkode-erk"
+                                                      : "central-difference")
+       << (d.time.stepper == StepperKind::ArkodeErk ? ", erk_table: " + d.time.erk_table : std::string())
+       << ", energy_error_limit: " << d.time.energy_error_limit
        << ", mass_damping: " << d.time.mass_damping << "}\n";
     os << "parts:\n";
     for (const auto& p : d.parts)

@@ -118,7 +118,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         }
     };
 
-    auto stepper = make_stepper(ts.stepper);
+    auto stepper = make_stepper(ts);
     Progress progress(opt.progress);
     real_t t = 0.0;
     std::int64_t step = 0;
@@ -161,11 +161,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         {
             if (ts.max_steps > 0 && step >= ts.max_steps)
                 break;
-            real_t dt = ts.dt_scale * dt_stable;
-            if (ts.dt_max > 0)
-                dt = std::min(dt, ts.dt_max);
-            if (t + dt > ts.end)
-                dt = ts.end - t;
+            const real_t dt = next_time_step(ts, t, dt_stable);
             if (!(dt > 0) || !std::isfinite(dt))
                 throw InstabilityError("time step collapsed to " + std::to_string(dt) + " s at t = " +
                                        std::to_string(t) + " s, step " + std::to_string(step));

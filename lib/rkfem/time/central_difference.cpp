@@ -6,6 +6,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/time/arkode_stepper.hpp"
 
 namespace rkfem
 {
@@ -87,12 +88,16 @@ StepReport CentralDifference::step(Model& model, real_t t, real_t dt, std::int64
     return r;
 }
 
-std::unique_ptr<TimeStepper> make_stepper(StepperKind kind)
+std::unique_ptr<TimeStepper> make_stepper(const TimeSpec& ts)
 {
-    switch (kind)
+    switch (ts.stepper)
     {
     case StepperKind::CentralDifference:
         return std::make_unique<CentralDifference>();
+    case StepperKind::ArkodeCd:
+        return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::CentralDifference, ts);
+    case StepperKind::ArkodeErk:
+        return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, ts);
     }
     throw Error("unknown stepper");
 }

@@ -33,5 +33,19 @@ class TimeStepper
     virtual const char* name() const = 0;
 };
 
-std::unique_ptr<TimeStepper> make_stepper(StepperKind kind);
+/// The step the run loop takes next: dt_scale * dt_stable, capped by dt_max and by the end time.
+/// The ARKODE central difference evaluates the same rule inside its right-hand side (it needs the
+/// next step when it forms the kick), so both steppers follow one dt sequence.
+inline real_t next_time_step(const TimeSpec& ts, real_t t, real_t dt_stable)
+{
+    real_t dt = ts.dt_scale * dt_stable;
+    if (ts.dt_max > 0 && dt > ts.dt_max)
+        dt = ts.dt_max;
+    if (t + dt > ts.end)
+        dt = ts.end - t;
+    return dt;
+}
+
+/// A stepper for the deck's time section (central difference, arkode-cd, arkode-erk + table).
+std::unique_ptr<TimeStepper> make_stepper(const TimeSpec& ts);
 } // namespace rkfem

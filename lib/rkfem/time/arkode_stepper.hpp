@@ -1,0 +1,66 @@
+#pragma once
+/// @file arkode_stepper.hpp
+/// Explicit time integration through SUNDIALS ARKODE ERKStep (Debian 12: SUNDIALS 6.4.1), behind
+/// the same TimeStepper interface as the hand-written central difference. State y = (u, v).
+///
+/// Mode CentralDifference (`arkode-cd`): a 1-stage forward-Euler table with the right-hand side
+///   u' = v + h s a,  v' = s a,  s = (h_prev + h) / (2 h),
+/// so one ERK step is v(n+1/2) = v(n-1/2) + (h_prev + h)/2 a(n), u(n+1) = u(n) + h v(n+1/2): the
+/// variable-step central difference with one force evaluation per step. Prescribed velocities are
+/// imposed on the kicked velocity inside the right-hand side. h is the next step, computed by
+/// next_time_step() from the stable step of the same force pass, exactly as the run loop does.
+///
+/// Mode RungeKutta (`arkode-erk`): u' = v, v' = a(u, v) with a built-in or rkfem-built ERK table.
+/// Every stage starts the material update from the committed state at t_n with the stage's
+/// displacement increment (kernels see v = (u_stage - u_n) / (t_stage - t_n)), and the state is
+/// committed only after the step, from a fresh right-hand side at y(n+1).
+///
+/// Around the three defects of Debian's 6.4.1 (../shared/reference/arkode-scaleout-io.md s. 3.2):
+/// a registered post-process step function forces a fresh f(y(n+1)) (the FSAL bug), the vector
+/// operations ARKODE uses are replaced by rkfem's -O3 OpenMP loops (Debian builds SUNDIALS at -O0),
+/// and a no-op error-weight function avoids the denormal WRMS norm in fixed-step mode.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rkfem/time/stepper.hpp"
+
+namespace rkfem
+{
+class ArkodeStepper final : public TimeStepper
+{
+  public:
+    enum class Mode
+    {
+        CentralDifference,
+        RungeKutta,
+    };
+    /// `project_vector_ops` = false keeps Debian's own (unoptimised) vector operations, for the
+    /// benchmark that shows what the project's operations buy.
+    /// `fsal_workaround` = false leaves out the post-process step function (only for the test that
+    /// shows Debian's 6.4.1 FSAL bug: classical RK4 then converges at order 3).
+    ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops = true, bool fsal_workaround = true);
+    ~ArkodeStepper() override;
+    StepReport initialize(Model& model, real_t t) override;
+    StepReport step(Model& model, real_t t, real_t dt, std::int64_t step_index) override;
+    const char* name() const override { return mode_ == Mode::CentralDifference ? "arkode-cd" : "arkode-erk"; }
+
+    long rhs_evaluations() const { return n_rhs_; }
+
+    struct Impl;
+
+  private:
+    Mode mode_;
+    TimeSpec ts_;
+    bool project_ops_;
+    bool fsal_workaround_;
+    std::unique_ptr<Impl> impl_;
+    long n_rhs_ = 0;
+    friend struct Impl;
+};
+
+/// Builds the Butcher table for a name of config/erk_table_names.hpp; returns its stages and
+/// order through the pointers (for tests). The table is owned by the caller (ARKodeButcherTable).
+void* make_erk_table(const std::string& name, int* stages = nullptr, int* order = nullptr);
+void free_erk_table(void* table);
+} // namespace rkfem
