@@ -224,3 +224,131 @@ TEST(ArkodeConvergence, ClassicalRk4WithoutTheFsalWorkaroundLosesAnOrder)
     // here is larger than the one order seen on a plain ODE
     EXPECT_LT(q, 3.5);
 }
+
+namespace
+{
+/// One steel hexahedron with every dof held except the z motion of the corner (1, 1, 1): a single
+/// degree of freedom oscillator.
+const char* oscillator_deck = R"(
+title: single-dof oscillator
+time: {end: 1 s}
+parts:
+  cube:
+    generator: {type: box, size: [1 mm, 1 mm, 1 mm], divisions: [1, 1, 1]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-2x2x2
+    bulk_viscosity: {linear: 0, quadratic: 0}
+node_sets:
+  all: {select: {type: named, name: all}}
+  lo_x: {select: {type: box, min: [-1 mm, -1 mm, -1 mm], max: [0.5 mm, 2 mm, 2 mm]}}
+  lo_y: {select: {type: box, min: [-1 mm, -1 mm, -1 mm], max: [2 mm, 0.5 mm, 2 mm]}}
+  lo_z: {select: {type: box, min: [-1 mm, -1 mm, -1 mm], max: [2 mm, 2 mm, 0.5 mm]}}
+boundary_conditions:
+  - {node_set: all, fixed: [x, y]}
+  - {node_set: lo_x, fixed: [z]}
+  - {node_set: lo_y, fixed: [z]}
+  - {node_set: lo_z, fixed: [z]}
+)";
+
+struct OscillatorRun
+{
+    real_t energy_ratio = 0.0; ///< E(N) / E(0), E = kinetic + internal
+    real_t max_deviation = 0.0; ///< max |E / E0 - 1| over the run
+};
+
+OscillatorRun oscillate(TimeStepper& st, real_t dt, long steps)
+{
+    Model m = test::model_from(oscillator_deck);
+    index_t free_node = -1;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (m.nodes.x0[3 * i] > 0.5e-3 && m.nodes.x0[3 * i + 1] > 0.5e-3 && m.nodes.x0[3 * i + 2] > 0.5e-3)
+            free_node = i;
+    m.nodes.v[3 * free_node + 2] = 1e-4; // strain ~1e-8: linear
+    StepReport r = st.initialize(m, 0.0);
+    const real_t e0 = m.energy.kinetic + m.energy.internal;
+    OscillatorRun out;
+    real_t t = 0.0;
+    for (long k = 1; k <= steps; ++k)
+    {
+        r = st.step(m, t, dt, k);
+        t = r.t;
+        const real_t e = m.energy.kinetic + m.energy.internal;
+        out.max_deviation = std::max(out.max_deviation, std::abs(e / e0 - 1.0));
+        out.energy_ratio = e / e0;
+    }
+    return out;
+}
+
+/// |R(i y)| of an ERK table: R(z) = 1 + z b^T (I - z A)^-1 1.
+real_t stability_modulus(const std::string& table, real_t y)
+{
+    auto* B = static_cast<ARKodeButcherTable>(make_erk_table(table));
+    const int s = B->stages;
+    Eigen::MatrixXcd A(s, s);
+    Eigen::VectorXcd b(s);
+    for (int i = 0; i < s; ++i)
+    {
+        b[i] = B->b[i];
+        for (int j = 0; j < s; ++j)
+            A(i, j) = B->A[i][j];
+    }
+    free_erk_table(B);
+    const std::complex<real_t> z(0.0, y);
+    const Eigen::VectorXcd w = (Eigen::MatrixXcd::Identity(s, s) - z * A).lu().solve(Eigen::VectorXcd::Ones(s));
+    return std::abs(1.0 + z * b.dot(w.conjugate()).real() * 0.0 + z * (b.transpose() * w)(0));
+}
+} // namespace
+
+TEST(ArkodeEnergy, UndampedOscillatorOverAThousandPeriods)
+{
+    // omega from the central difference at a small step (period from the energy exchange would
+    // need zero crossings; use the frequency of the discrete system: omega^2 = k/m from one
+    // force evaluation at a known displacement)
+    Model probe = test::model_from(oscillator_deck);
+    index_t free_node = -1;
+    for (index_t i = 0; i < probe.nodes.size(); ++i)
+        if (probe.nodes.x0[3 * i] > 0.5e-3 && probe.nodes.x0[3 * i + 1] > 0.5e-3 && probe.nodes.x0[3 * i + 2] > 0.5e-3)
+            free_node = i;
+    {
+        // a displacement u0 reached in one step of velocity u0/dt gives the elastic force k u0
+        CentralDifference cd;
+        cd.initialize(probe, 0.0);
+        const real_t u0 = 1e-12, dt = 1e-9;
+        probe.nodes.v[3 * free_node + 2] = u0 / dt;
+        probe.nodes.a[3 * free_node + 2] = 0.0;
+        probe.nodes.u[3 * free_node + 2] += u0;
+        probe.update_coordinates();
+        probe.compute_forces(dt, dt, 1);
+        probe.compute_accelerations();
+    }
+    const real_t omega = std::sqrt(-probe.nodes.a[3 * free_node + 2] / 1e-12);
+    const real_t wh = 0.5, dt = wh / omega;
+    const long steps = static_cast<long>(std::lround(1000 * 2 * M_PI / wh));
+    std::printf("omega = %.6e rad/s, omega h = %.2f, %ld steps (1000 periods)\n", omega, wh, steps);
+    {
+        CentralDifference cd;
+        const OscillatorRun r = oscillate(cd, dt, steps);
+        std::printf("%-34s E_N/E_0 = %.6f, max |E/E0 - 1| = %.2e (bounded)\n", "central-difference", r.energy_ratio,
+                    r.max_deviation);
+        EXPECT_LT(r.max_deviation, 0.1); // leapfrog: bounded oscillation of order (omega h)^2 / 4
+        TimeSpec ts;
+        ArkodeStepper ark(ArkodeStepper::Mode::CentralDifference, ts);
+        const OscillatorRun ra = oscillate(ark, dt, steps);
+        std::printf("%-34s E_N/E_0 = %.6f, max |E/E0 - 1| = %.2e (bounded)\n", "arkode-cd", ra.energy_ratio, ra.max_deviation);
+        EXPECT_LT(ra.max_deviation, 0.1);
+    }
+    for (const char* table : {"RK4", "SSPRK3", "ARKODE_BOGACKI_SHAMPINE_4_2_3", "ARKODE_ZONNEVELD_5_3_4"})
+    {
+        // over 1000 periods, or fewer where the prediction falls below 1e-3 (the accumulated
+        // internal energy then has a round-off floor near 1e-9 of E_0)
+        const real_t r2 = std::pow(stability_modulus(table, wh), 2.0);
+        const long n = std::min(steps, static_cast<long>(std::ceil(std::log(1e-3) / std::log(r2))));
+        ArkodeStepper ark(ArkodeStepper::Mode::RungeKutta, erk_spec(table));
+        const OscillatorRun r = oscillate(ark, dt, n);
+        const real_t predicted = std::pow(r2, static_cast<real_t>(n));
+        std::printf("%-34s after %.0f periods: E_N/E_0 = %.4e, |R(i omega h)|^(2N) = %.4e; per 1000 periods %.2e\n",
+                    table, n * wh / (2 * M_PI), r.energy_ratio, predicted, std::pow(r2, static_cast<real_t>(steps)));
+        // the measured ratio follows the stability function (log within 2 %)
+        EXPECT_NEAR(std::log(r.energy_ratio), std::log(predicted), 0.02 * std::abs(std::log(predicted))) << table;
+    }
+}
