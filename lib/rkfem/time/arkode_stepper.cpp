@@ -344,22 +344,28 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     im.check(ERKStepSetFixedStep(im.mem, dt), "ERKStepSetFixedStep");
     realtype tret = t;
     im.check(ERKStepEvolve(im.mem, t + dt, im.y, &tret, ARK_ONE_STEP), "ERKStepEvolve");
-    // the last evaluation was f(y(n+1)): nodes hold u(n+1), a(n+1) and the trial state of the step
-    std::copy(im.state.begin(), im.state.begin() + im.n3, n.u.begin());
+    // the last evaluation was f(y(n+1)): nodes already hold u(n+1), x(n+1), a(n+1) and the trial
+    // state of the step; only the velocity is the kicked one, replaced by the full-step value
     if (mode_ == Mode::CentralDifference)
-        std::copy(im.v_full.begin(), im.v_full.end(), n.v.begin());
+        std::swap(n.v, im.v_full);
     else
         std::copy(im.state.begin() + im.n3, im.state.end(), n.v.begin());
-    model.update_coordinates();
     model.impose_velocity(tret, dt, false);
-    for (index_t j = 0; j < im.n3; ++j)
-        if (!std::isfinite(n.u[j]) || !std::isfinite(n.a[j]))
-        {
-            std::ostringstream os;
-            os << "non-finite acceleration or displacement at node " << j / 3 << " (part '"
-               << model.parts[n.part[j / 3]].name << "') at t = " << tret << " s, step " << step_index;
-            throw InstabilityError(os.str());
-        }
+    const real_t bad = parallel_reduce_min("rkfem::arkode::check", im.n3,
+                                           [&](index_t j)
+                                           {
+                                               return std::isfinite(n.u[j]) && std::isfinite(n.a[j])
+                                                          ? 1e300
+                                                          : static_cast<real_t>(j);
+                                           });
+    if (bad < 1e299)
+    {
+        const index_t j = static_cast<index_t>(bad);
+        std::ostringstream os;
+        os << "non-finite acceleration or displacement at node " << j / 3 << " (part '"
+           << model.parts[n.part[j / 3]].name << "') at t = " << tret << " s, step " << step_index;
+        throw InstabilityError(os.str());
+    }
     model.commit();
     model.update_energies(im.u_prev, dt);
     StepReport r;
