@@ -1,11 +1,12 @@
 #pragma once
 /// @file elastic.hpp
 /// Linear (hypo)elastic material with the Jaumann objective stress rate: a pointwise value type.
-/// The update is rate form: sigma_new = sigma + dt (W sigma - sigma W) + dt (lambda tr(D) I + 2 mu D),
-/// so the same material serves Gauss points and nodal integration points.
+/// The update is rate form: sigma_new = R sigma R^T + dt (lambda tr(D) I + 2 mu D) with the
+/// Hughes-Winget rotation R, so the same material serves Gauss points and nodal integration points.
 #include <cmath>
 
 #include "rkfem/core/types.hpp"
+#include "rkfem/materials/objective_rate.hpp"
 
 namespace rkfem
 {
@@ -31,28 +32,20 @@ struct ElasticParams
 
 /// Elastic update of one point. `s` is Voigt stress (xx yy zz xy yz zx) updated in place;
 /// d is the rate of deformation (Voigt, tensor shear components); w = (W_xy, W_yz, W_zx) are the
-/// independent spin components, W = (L - L^T)/2.
+/// independent spin components, W = (L - L^T)/2. The Jaumann rotation is integrated by the
+/// Hughes-Winget rule (objective_rate.hpp), then the elastic increment is added.
 inline void elastic_update(const ElasticParams& p, const real_t d[6], const real_t w[3], real_t dt,
                            real_t s[6])
 {
-    // Jaumann rotation term R = W s - s W for symmetric s and skew W.
-    const real_t wxy = w[0], wyz = w[1], wzx = w[2];
-    // W = [[0, wxy, -wzx], [-wxy, 0, wyz], [wzx, -wyz, 0]]
-    const real_t sxx = s[0], syy = s[1], szz = s[2], sxy = s[3], syz = s[4], szx = s[5];
-    const real_t rxx = 2.0 * (wxy * sxy - wzx * szx);
-    const real_t ryy = 2.0 * (-wxy * sxy + wyz * syz);
-    const real_t rzz = 2.0 * (wzx * szx - wyz * syz);
-    const real_t rxy = wxy * (syy - sxx) + wyz * szx - wzx * syz;
-    const real_t ryz = wyz * (szz - syy) - wxy * szx + wzx * sxy;
-    const real_t rzx = wzx * (sxx - szz) + wxy * syz - wyz * sxy;
+    rotate_stress(w, dt, s);
     const real_t tr = d[0] + d[1] + d[2];
     const real_t l = p.lambda * tr;
     const real_t m2 = 2.0 * p.mu;
-    s[0] = sxx + dt * (rxx + l + m2 * d[0]);
-    s[1] = syy + dt * (ryy + l + m2 * d[1]);
-    s[2] = szz + dt * (rzz + l + m2 * d[2]);
-    s[3] = sxy + dt * (rxy + m2 * d[3]);
-    s[4] = syz + dt * (ryz + m2 * d[4]);
-    s[5] = szx + dt * (rzx + m2 * d[5]);
+    s[0] += dt * (l + m2 * d[0]);
+    s[1] += dt * (l + m2 * d[1]);
+    s[2] += dt * (l + m2 * d[2]);
+    s[3] += dt * m2 * d[3];
+    s[4] += dt * m2 * d[4];
+    s[5] += dt * m2 * d[5];
 }
 } // namespace rkfem

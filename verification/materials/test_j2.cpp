@@ -1,0 +1,194 @@
+// Materials as pointwise value types: the Hughes-Winget rotation is exactly orthogonal (a rigid
+// spin leaves invariants unchanged), the elastic update reproduces Hooke's law, and the J2 model
+// (MAT_024 analog): uniaxial-stress bilinear response exact at every step, the yield condition
+// after the return, Cowper-Symonds scaling, failure at the stated plastic strain.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <random>
+
+#include "rkfem/materials/j2_plasticity.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+const real_t E = 200e9, nu = 0.3;
+const ElasticParams el = ElasticParams::from_E_nu(7850, E, nu);
+
+real_t von_mises(const real_t s[6])
+{
+    const real_t p = (s[0] + s[1] + s[2]) / 3.0;
+    const real_t d0 = s[0] - p, d1 = s[1] - p, d2 = s[2] - p;
+    return std::sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5])));
+}
+
+/// Uniaxial stress in x at strain rate `rate`: lateral strain rates found by Newton on the lateral
+/// stresses (elastic compliance as the Jacobian), from the committed state each iteration.
+template <class Update> void uniaxial_step(Update&& update, real_t rate, real_t dt, real_t s[6], real_t& lat)
+{
+    for (int it = 0; it < 50; ++it)
+    {
+        real_t trial[6];
+        std::copy(s, s + 6, trial);
+        const real_t d[6] = {rate, lat, lat, 0, 0, 0};
+        update(d, dt, trial, false);
+        const real_t r = 0.5 * (trial[1] + trial[2]);
+        if (std::abs(r) < 1e-9 * (std::abs(trial[0]) + 1.0))
+            break;
+        // d sigma_lat / d lat ~ 2 (lambda + mu) dt (lateral pair, elastic)
+        lat -= r / (2.0 * (el.lambda + el.mu) * dt);
+    }
+    const real_t d[6] = {rate, lat, lat, 0, 0, 0};
+    update(d, dt, s, true);
+}
+} // namespace
+
+TEST(ObjectiveRate, RigidSpinKeepsInvariants)
+{
+    real_t s[6] = {3e8, -1e8, 5e7, 8e7, -2e7, 4e7};
+    const real_t w[3] = {1e4, -3e3, 7e3}; // rad/s
+    const real_t vm0 = von_mises(s), tr0 = s[0] + s[1] + s[2];
+    for (int k = 0; k < 100000; ++k)
+        rotate_stress(w, 1e-7, s);
+    std::printf("after 100000 spin steps: von Mises drift %.2e, trace drift %.2e (relative)\n", von_mises(s) / vm0 - 1,
+                (s[0] + s[1] + s[2]) / tr0 - 1);
+    EXPECT_NEAR(von_mises(s) / vm0, 1.0, 1e-10);
+    EXPECT_NEAR((s[0] + s[1] + s[2]) / tr0, 1.0, 1e-10);
+    // and it rotates: a quarter turn about z maps sigma_xx to sigma_yy
+    real_t q[6] = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    const real_t wz[3] = {-1.0, 0.0, 0.0}; // W_xy = -omega_z for a spin omega_z about +z
+    const int n = 20000;
+    for (int k = 0; k < n; ++k)
+        rotate_stress(wz, 0.5 * M_PI / n, q);
+    EXPECT_NEAR(q[0], 0.0, 1e-8);
+    EXPECT_NEAR(q[1], 1.0, 1e-8);
+}
+
+TEST(J2Plasticity, UniaxialBilinearResponseIsExactAtEveryStep)
+{
+    const real_t sigy = 400e6, etan = 2e9;
+    const J2Params p = J2Params::bilinear(el, E, sigy, etan);
+    real_t s[6] = {}, ep = 0, failed = 0, lat = -nu * 1e-3, eps = 0.0;
+    const real_t rate = 1e-3, dt = 1.0; // 0.1 % strain per step
+    real_t worst = 0.0;
+    for (int k = 0; k < 40; ++k)
+    {
+        uniaxial_step(
+            [&](const real_t* d, real_t h, real_t* st, bool commit)
+            {
+                real_t e = ep, f = failed;
+                const real_t w[3] = {0, 0, 0};
+                j2_update(p, d, w, h, st, e, f);
+                if (commit)
+                    ep = e, failed = f;
+            },
+            rate, dt, s, lat);
+        eps += rate * dt;
+        const real_t expect = eps <= sigy / E ? E * eps : sigy + etan * (eps - sigy / E);
+        worst = std::max(worst, std::abs(s[0] - expect) / expect);
+    }
+    std::printf("bilinear uniaxial stress to 4 %% strain: worst relative error %.2e, eps_p = %.5f\n", worst, ep);
+    EXPECT_LT(worst, 1e-8);
+    // unloading is elastic with slope E
+    const real_t s_before = s[0];
+    uniaxial_step(
+        [&](const real_t* d, real_t h, real_t* st, bool commit)
+        {
+            real_t e = ep, f = failed;
+            const real_t w[3] = {0, 0, 0};
+            j2_update(p, d, w, h, st, e, f);
+            if (commit)
+                ep = e, failed = f;
+        },
+        -rate, 0.1, s, lat);
+    EXPECT_NEAR(s[0], s_before - E * rate * 0.1, 1e-8 * s_before);
+}
+
+TEST(J2Plasticity, YieldConditionHoldsAfterTheReturnOnRandomPaths)
+{
+    J2Params p;
+    p.elastic = el;
+    p.curve = {{0.0, 792e6}, {0.01, 946e6}, {0.05, 1026e6}, {0.10, 1072e6}, {0.20, 1128e6}, {0.50, 1218e6}, {1.0, 1302e6}};
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<real_t> u(-1.0, 1.0);
+    real_t s[6] = {}, ep = 0, failed = 0, worst = 0.0;
+    int plastic = 0;
+    for (int k = 0; k < 2000; ++k)
+    {
+        const real_t d[6] = {u(gen), u(gen), u(gen), u(gen), u(gen), u(gen)};
+        const real_t w[3] = {u(gen), u(gen), u(gen)};
+        const real_t dep = j2_update(p, d, w, 2e-3, s, ep, failed);
+        if (dep > 0)
+        {
+            ++plastic;
+            real_t sy, h;
+            p.yield(ep, sy, h);
+            worst = std::max(worst, std::abs(von_mises(s) - sy) / sy);
+        }
+    }
+    std::printf("%d plastic steps, eps_p = %.3f: |q - sigma_y(eps_p)| / sigma_y <= %.2e\n", plastic, ep, worst);
+    EXPECT_GT(plastic, 100);
+    EXPECT_LT(worst, 1e-10);
+}
+
+TEST(J2Plasticity, CowperSymondsScalesTheYieldStress)
+{
+    // perfectly plastic, C = 40.4 /s, P = 5 (mild steel): at a strain rate of 100 /s the flow
+    // stress is (1 + (100 / 40.4)^(1/5)) sigy; the rate is sqrt(d:d) of the uniaxial-stress path
+    J2Params p = J2Params::bilinear(el, E, 250e6, 0.0);
+    p.cs_c = 40.4;
+    p.cs_p = 5.0;
+    real_t s[6] = {}, ep = 0, failed = 0, lat = -nu * 100.0;
+    const real_t rate = 100.0, dt = 1e-6;
+    real_t dd = 0.0;
+    for (int k = 0; k < 100; ++k) // 1 % strain
+        uniaxial_step(
+            [&](const real_t* d, real_t h, real_t* st, bool commit)
+            {
+                real_t e = ep, f = failed;
+                const real_t w[3] = {0, 0, 0};
+                j2_update(p, d, w, h, st, e, f);
+                if (commit)
+                {
+                    ep = e, failed = f;
+                    dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                }
+            },
+            rate, dt, s, lat);
+    const real_t beta = 1.0 + std::pow(std::sqrt(dd) / 40.4, 0.2);
+    std::printf("Cowper-Symonds: sigma / sigy = %.6f, beta(sqrt(d:d) = %.2f /s) = %.6f\n", s[0] / 250e6, std::sqrt(dd), beta);
+    EXPECT_NEAR(s[0], beta * 250e6, 1e-6 * 250e6);
+}
+
+TEST(J2Plasticity, FailsAtTheStatedPlasticStrain)
+{
+    J2Params p = J2Params::bilinear(el, E, 400e6, 2e9);
+    p.fail = 0.02;
+    real_t s[6] = {}, ep = 0, failed = 0, lat = -nu * 1e-3;
+    real_t ep_at_failure = -1.0;
+    for (int k = 0; k < 60 && failed == 0; ++k)
+        uniaxial_step(
+            [&](const real_t* d, real_t h, real_t* st, bool commit)
+            {
+                real_t e = ep, f = failed;
+                const real_t w[3] = {0, 0, 0};
+                j2_update(p, d, w, h, st, e, f);
+                if (commit)
+                {
+                    ep = e, failed = f;
+                    if (f != 0 && ep_at_failure < 0)
+                        ep_at_failure = e;
+                }
+            },
+            1e-3, 1.0, s, lat);
+    std::printf("failed at eps_p = %.5f (FAIL = 0.02, steps of 0.1 %% strain)\n", ep_at_failure);
+    ASSERT_NE(failed, 0.0);
+    EXPECT_GE(ep_at_failure, 0.02);
+    EXPECT_LT(ep_at_failure, 0.02 + 1e-3); // within one step's plastic increment
+    // a failed point carries neither deviatoric stress nor tension
+    const real_t d[6] = {1e-3, 0, 0, 5e-4, 0, 0}, w[3] = {0, 0, 0};
+    j2_update(p, d, w, 1.0, s, ep, failed);
+    EXPECT_EQ(von_mises(s), 0.0);
+    EXPECT_LE(s[0], 0.0);
+}
