@@ -409,9 +409,12 @@ MaterialSpec read_material(const Section& part)
     const YAML::Node mn = part.node("material");
     std::string model = mn.IsMap() && mn["model"].IsDefined() ? mn["model"].Scalar() : "";
     MaterialSpec m;
-    if (model == "elastic")
+    if (model == "elastic" || model == "j2")
     {
-        Section s(part.ctx(), mn, part.path("material"), {"model", "rho", "E", "nu"});
+        Section s(part.ctx(), mn, part.path("material"),
+                  model == "elastic" ? std::vector<std::string>{"model", "rho", "E", "nu"}
+                                     : std::vector<std::string>{"model", "rho", "E", "nu", "sigy", "etan", "curve",
+                                                                "cowper_symonds", "fail"});
         m.model = model;
         m.rho = s.quantity("rho", dim::density);
         if (!(m.rho > 0))
@@ -423,6 +426,49 @@ MaterialSpec read_material(const Section& part)
         if (!(m.nu > -1.0 && m.nu < 0.5))
             s.fail("nu", "Poisson's ratio " + s.scalar_text("nu", "") + " is out of range",
                    "expected -1 < nu < 0.5");
+        if (model == "j2")
+        {
+            if (s.has("curve"))
+            {
+                const YAML::Node c = s.node("curve");
+                if (!c.IsSequence() || c.size() < 2)
+                    s.fail("curve", "needs at least two points", "expected [[0, sigy], [eps_p1, sigma_1], ...]");
+                for (std::size_t i = 0; i < c.size(); ++i)
+                {
+                    const std::string pi = s.path("curve") + "." + std::to_string(i);
+                    if (!c[i].IsSequence() || c[i].size() != 2)
+                        throw DeckError(locate(s.ctx(), c[i], pi), "is not an [eps_p, yield stress] pair",
+                                        "expected [plastic strain, stress]");
+                    const real_t e = s.quantity_of(c[i][0], pi + ".0", dim::none);
+                    const real_t y = s.quantity_of(c[i][1], pi + ".1", dim::pressure);
+                    if ((i == 0 && e != 0.0) || (i > 0 && !(e > m.curve.back().first)) || !(y > 0))
+                        throw DeckError(locate(s.ctx(), c[i], pi), "is not a valid curve point",
+                                        "expected eps_p starting at 0 and increasing, yield stress > 0");
+                    m.curve.emplace_back(e, y);
+                }
+                m.sigy = m.curve.front().second;
+            }
+            else
+            {
+                m.sigy = s.quantity("sigy", dim::pressure);
+                if (!(m.sigy > 0))
+                    s.fail("sigy", "must be positive", "expected a yield stress > 0 (e.g. 792 MPa)");
+                m.etan = s.quantity("etan", dim::pressure, 0.0);
+                if (!(m.etan >= 0 && m.etan < m.E))
+                    s.fail("etan", "is out of range", "expected 0 <= etan < E");
+            }
+            if (s.has("cowper_symonds"))
+            {
+                Section cs(s.ctx(), s.node("cowper_symonds"), s.path("cowper_symonds"), {"C", "P"});
+                m.cs_c = cs.quantity("C", Dimension{0, 0, -1});
+                m.cs_p = cs.quantity("P", dim::none);
+                if (!(m.cs_c > 0 && m.cs_p > 0))
+                    cs.fail(m.cs_c > 0 ? "P" : "C", "must be positive", "expected C > 0 [1/s] and P > 0");
+            }
+            m.fail = s.quantity("fail", dim::none, 0.0);
+            if (m.fail < 0)
+                s.fail("fail", "is negative", "expected a failure plastic strain > 0, or 0 for none");
+        }
         m.loc = s.loc();
         return m;
     }
@@ -430,7 +476,7 @@ MaterialSpec read_material(const Section& part)
     throw DeckError(mn.IsMap() && mn["model"].IsDefined() ? locate(part.ctx(), mn["model"], p)
                                                           : locate(part.ctx(), mn, p),
                     model.empty() ? "missing material model" : "unknown material model '" + model + "'",
-                    "expected model: elastic");
+                    "expected model: elastic | j2");
 }
 
 PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n,

@@ -29,13 +29,20 @@ class DeckError : public std::runtime_error
     const SourceLocation location;
 };
 
-/// Linear elastic (hypoelastic, Jaumann rate). Further models extend MaterialSpec::model.
+/// Material of a part: `elastic` (hypoelastic, Jaumann rate) or `j2` (piecewise-linear J2
+/// plasticity with Cowper-Symonds rate scaling and failure, LS-DYNA MAT_024 analog).
 struct MaterialSpec
 {
     std::string model = "elastic";
     real_t rho = 0.0; ///< density [kg/m^3]
     real_t E = 0.0;   ///< Young's modulus [Pa]
     real_t nu = 0.0;  ///< Poisson's ratio [-]
+    // j2
+    real_t sigy = 0.0; ///< initial yield stress [Pa]
+    real_t etan = 0.0; ///< tangent modulus of the total-strain curve [Pa] (bilinear)
+    std::vector<std::pair<real_t, real_t>> curve; ///< (eps_p, sigma_y [Pa]); overrides sigy/etan
+    real_t cs_c = 0.0, cs_p = 0.0; ///< Cowper-Symonds C [1/s], P
+    real_t fail = 0.0;             ///< failure plastic strain (0: none)
     SourceLocation loc;
 };
 

@@ -150,7 +150,23 @@ std::string to_yaml(const Deck& d)
         }
         os << "}\n";
         os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho
-           << ", E: " << p.material.E << ", nu: " << p.material.nu << "}\n";
+           << ", E: " << p.material.E << ", nu: " << p.material.nu;
+        if (p.material.model == "j2")
+        {
+            if (!p.material.curve.empty())
+            {
+                os << ", curve: [";
+                for (std::size_t i = 0; i < p.material.curve.size(); ++i)
+                    os << (i ? ", " : "") << "[" << p.material.curve[i].first << ", " << p.material.curve[i].second << "]";
+                os << "]";
+            }
+            else
+                os << ", sigy: " << p.material.sigy << ", etan: " << p.material.etan;
+            if (p.material.cs_c > 0)
+                os << ", cowper_symonds: {C: " << p.material.cs_c << ", P: " << p.material.cs_p << "}";
+            os << ", fail: " << p.material.fail;
+        }
+        os << "}\n";
         os << "    formulation: "
            << (p.formulation == Formulation::Fem1pt     ? "fem-1pt"
                : p.formulation == Formulation::Fem2x2x2 ? "fem-2x2x2"

@@ -111,6 +111,7 @@ void ResultsWriter::write_step(const Model& model, real_t time)
                 stress[6 * e_global + k] = s[k];
             pressure[e_global] = -(s[0] + s[1] + s[2]) / 3.0;
             volume[e_global] = model.blocks[b].volume[e];
+            eps[e_global] = model.element_plastic_strain(static_cast<index_t>(b), e);
         }
     write_dataset(g, "stress", stress.data(), n_elements_, 6);
     write_dataset(g, "pressure", pressure.data(), n_elements_, 1);

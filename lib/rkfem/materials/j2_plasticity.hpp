@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "rkfem/config/deck.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/objective_rate.hpp"
 
@@ -124,4 +125,55 @@ inline real_t j2_update(const J2Params& p, const real_t d[6], const real_t w[3],
         s[k] = dev[k];
     return dep;
 }
+/// J2 parameters of a deck material (empty curve, i.e. inactive, for model elastic).
+inline J2Params j2_params(const MaterialSpec& m)
+{
+    J2Params p;
+    if (m.model != "j2")
+        return p;
+    const ElasticParams el = ElasticParams::from_E_nu(m.rho, m.E, m.nu);
+    if (!m.curve.empty())
+    {
+        p.elastic = el;
+        p.curve = m.curve;
+        if (p.curve.size() == 1)
+            p.curve.emplace_back(1.0, p.curve[0].second);
+    }
+    else
+        p = J2Params::bilinear(el, m.E, m.sigy, m.etan);
+    p.cs_c = m.cs_c;
+    p.cs_p = m.cs_p;
+    p.fail = m.fail;
+    return p;
+}
+
+/// The J2 model of a block and its per-point history (effective plastic strain, failed flag),
+/// committed/trial like the stress. Inactive (elastic block) when the curve is empty.
+struct PlasticPoints
+{
+    J2Params params;
+    std::vector<real_t> eps_p, eps_p_trial, failed, failed_trial;
+
+    bool active() const { return !params.curve.empty(); }
+    void resize(std::size_t n)
+    {
+        eps_p.assign(n, 0.0);
+        eps_p_trial.assign(n, 0.0);
+        failed.assign(n, 0.0);
+        failed_trial.assign(n, 0.0);
+    }
+    void commit()
+    {
+        eps_p.swap(eps_p_trial);
+        failed.swap(failed_trial);
+    }
+    /// Updates point p from its committed history into the trial arrays.
+    void update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
+    {
+        real_t e = eps_p[p], f = failed[p];
+        j2_update(params, d, w, dt, s, e, f);
+        eps_p_trial[p] = e;
+        failed_trial[p] = f;
+    }
+};
 } // namespace rkfem

@@ -144,6 +144,7 @@ Model Model::build(const Deck& deck)
         blk.hourglass = ps.hourglass;
         blk.bulk_viscosity = ps.bulk_viscosity;
         blk.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
+        blk.plastic.params = j2_params(ps.material);
         blk.conn = mesh.conn;
         for (auto& c : blk.conn)
             c += offset;
@@ -709,6 +710,33 @@ void Model::physical_field(const std::vector<real_t>& field, std::vector<real_t>
     out = field;
     for (const auto& nb : nodal_blocks)
         physical_values(nb, field, out);
+}
+
+real_t Model::element_plastic_strain(index_t b, index_t e) const
+{
+    if (part_nodal[b] >= 0)
+    {
+        const NodalBlock& nb = nodal_blocks[part_nodal[b]];
+        if (!nb.plastic.active())
+            return 0.0;
+        real_t s = 0.0;
+        int count = 0;
+        for (int I = 0; I < 8; ++I)
+        {
+            const index_t i = blocks[b].conn[8 * static_cast<std::size_t>(e) + I] - nb.node_begin;
+            for (index_t k = nb.owner_offsets[i]; k < nb.owner_offsets[i + 1]; ++k, ++count)
+                s += nb.plastic.eps_p[nb.owner_points[k]];
+        }
+        return count ? s / count : 0.0;
+    }
+    const HexBlock& blk = blocks[b];
+    if (!blk.plastic.active())
+        return 0.0;
+    const index_t npe = blk.points_per_element();
+    real_t s = 0.0;
+    for (index_t g = 0; g < npe; ++g)
+        s += blk.plastic.eps_p[static_cast<std::size_t>(e) * npe + g];
+    return s / npe;
 }
 
 Sym6 Model::element_stress(index_t b, index_t e) const

@@ -121,6 +121,9 @@ class Model
 
     /// Nodal stress (average of adjacent points) at node i, Voigt.
     Sym6 nodal_stress(index_t node) const;
+    /// Effective plastic strain of an element (average over its points; nodal parts: over the
+    /// element's nodes), 0 for elastic parts.
+    real_t element_plastic_strain(index_t block, index_t e) const;
     /// Element stress (average over its points), Voigt.
     Sym6 element_stress(index_t block, index_t e) const;
 

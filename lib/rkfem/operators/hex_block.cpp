@@ -49,7 +49,7 @@ inline real_t max_face_area_sq(const real_t (&xe)[8][3][W], int l)
     return amax;
 }
 
-template <HourglassType HG>
+template <HourglassType HG, bool PLASTIC>
 void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt)
 {
     const auto& tab = hex8_volume_gradient_table();
@@ -145,7 +145,13 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
         real_t s_old[6], s[6];
         for (int k = 0; k < 6; ++k)
             s_old[k] = s[k] = s_in[k * np + e];
-        elastic_update(mat, d, w, dt, s);
+        if constexpr (PLASTIC)
+        {
+            if (l < nl)
+                blk.plastic.update(e, d, w, dt, s);
+        }
+        else
+            elastic_update(mat, d, w, dt, s);
         if (l < nl)
             for (int k = 0; k < 6; ++k)
                 s_out[k * np + e] = s[k];
@@ -333,7 +339,10 @@ void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t 
         real_t s_old[6];
         for (int k = 0; k < 6; ++k)
             s_old[k] = s_new[gp][k] = blk.stress[k * np + p];
-        elastic_update(mat, d, w, dt, s_new[gp]);
+        if (blk.plastic.active())
+            blk.plastic.update(p, d, w, dt, s_new[gp]);
+        else
+            elastic_update(mat, d, w, dt, s_new[gp]);
         for (int k = 0; k < 6; ++k)
             blk.stress_trial[k * np + p] = s_new[gp][k];
         real_t power = 0.0;
@@ -388,6 +397,8 @@ void HexBlock::initialize(const NodeSet& nodes)
     const std::size_t np = static_cast<std::size_t>(n_points());
     stress.assign(6 * np, 0.0);
     stress_trial.assign(6 * np, 0.0);
+    if (plastic.active())
+        plastic.resize(np);
     hg_force.assign(12 * static_cast<std::size_t>(ne), 0.0);
     hg_force_trial.assign(12 * static_cast<std::size_t>(ne), 0.0);
     elem_force.assign(24 * static_cast<std::size_t>(ne), 0.0);
@@ -428,20 +439,36 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
         switch (blk.hourglass.type)
         {
         case HourglassType::None:
-            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                         { force_1pt_batch<HourglassType::None>(blk, nodes, b, dt); });
+            if (blk.plastic.active())
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::None, true>(blk, nodes, b, dt); });
+            else
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::None, false>(blk, nodes, b, dt); });
             break;
         case HourglassType::Viscous:
-            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                         { force_1pt_batch<HourglassType::Viscous>(blk, nodes, b, dt); });
+            if (blk.plastic.active())
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::Viscous, true>(blk, nodes, b, dt); });
+            else
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::Viscous, false>(blk, nodes, b, dt); });
             break;
         case HourglassType::Stiffness:
-            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                         { force_1pt_batch<HourglassType::Stiffness>(blk, nodes, b, dt); });
+            if (blk.plastic.active())
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::Stiffness, true>(blk, nodes, b, dt); });
+            else
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::Stiffness, false>(blk, nodes, b, dt); });
             break;
         case HourglassType::ViscousPlain:
-            parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                         { force_1pt_batch<HourglassType::ViscousPlain>(blk, nodes, b, dt); });
+            if (blk.plastic.active())
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::ViscousPlain, true>(blk, nodes, b, dt); });
+            else
+                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
+                             { force_1pt_batch<HourglassType::ViscousPlain, false>(blk, nodes, b, dt); });
             break;
         }
     }

@@ -165,6 +165,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
 {
     NodalBlock nb;
     nb.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
+    nb.plastic.params = j2_params(ps.material);
     nb.node_begin = offset;
     nb.node_end = offset + mesh.n_nodes();
     nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);
@@ -286,6 +287,8 @@ void NodalBlock::initialize()
     }
 
     stress.assign(6 * static_cast<std::size_t>(np), 0.0);
+    if (plastic.active())
+        plastic.resize(static_cast<std::size_t>(np));
     stress_trial = stress;
     stab_stress.assign(6 * static_cast<std::size_t>(ns), 0.0);
     stab_stress_trial = stab_stress;
@@ -345,7 +348,10 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                      real_t s_old[6], s[6];
                      for (int k = 0; k < 6; ++k)
                          s_old[k] = s[k] = blk.stress[k * snp + p];
-                     elastic_update(mat, d, w, dt, s);
+                     if (blk.plastic.active())
+                         blk.plastic.update(p, d, w, dt, s);
+                     else
+                         elastic_update(mat, d, w, dt, s);
                      for (int k = 0; k < 6; ++k)
                          blk.stress_trial[k * snp + p] = s[k];
                      real_t power = 0.0;
