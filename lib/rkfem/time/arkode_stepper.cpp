@@ -87,9 +87,7 @@ void install_project_ops(N_Vector v)
     v->ops->nvscaleaddmulti = op_scale_add_multi;
 }
 
-/// A no-op error-weight function: fixed-step mode never uses the weights, and Debian's default
-/// (N_VConst(DBL_MIN)) makes the per-step WRMS norm run on denormals.
-int noop_ewt(N_Vector, N_Vector, void*) { return 0; }
+
 } // namespace
 
 void* make_erk_table(const std::string& name, int* stages, int* order)
@@ -179,6 +177,20 @@ struct ArkodeStepper::Impl
         }
     }
 
+    /// Error weights for fixed-step mode: ARKODE only uses them in its per-step "too much
+    /// accuracy" check (unit roundoff x WRMS norm of y). Debian's default, N_VConst(DBL_MIN),
+    /// makes that norm run on denormals; here the weights are set to 1 once (the vector persists).
+    static int unit_ewt(N_Vector, N_Vector ewt, void* user)
+    {
+        auto* im = static_cast<Impl*>(user);
+        if (!im->ewt_set)
+        {
+            N_VConst(1.0, ewt);
+            im->ewt_set = true;
+        }
+        return 0;
+    }
+
     static int postprocess(realtype, N_Vector, void* user)
     {
         auto* im = static_cast<Impl*>(user);
@@ -251,6 +263,8 @@ struct ArkodeStepper::Impl
         }
     }
 
+    bool ewt_set = false;
+
     void check(int flag, const char* what)
     {
         if (error)
@@ -309,7 +323,7 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     im.table = static_cast<ARKodeButcherTable>(
         make_erk_table(mode_ == Mode::CentralDifference ? "FORWARD_EULER" : ts_.erk_table));
     im.check(ERKStepSetTable(im.mem, im.table), "ERKStepSetTable");
-    im.check(ERKStepWFtolerances(im.mem, noop_ewt), "ERKStepWFtolerances");
+    im.check(ERKStepWFtolerances(im.mem, Impl::unit_ewt), "ERKStepWFtolerances");
     if (fsal_workaround_ || mode_ == Mode::CentralDifference)
         im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess), "ERKStepSetPostprocessStepFn");
     im.check(ERKStepSetMaxNumSteps(im.mem, 1), "ERKStepSetMaxNumSteps");
@@ -340,6 +354,7 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
         im.forced_h = dt;
         im.state_committed = true;
         im.check(ERKStepReset(im.mem, t, im.y), "ERKStepReset");
+        im.ewt_set = false;
     }
     im.check(ERKStepSetFixedStep(im.mem, dt), "ERKStepSetFixedStep");
     realtype tret = t;
