@@ -352,3 +352,47 @@ TEST(ArkodeEnergy, UndampedOscillatorOverAThousandPeriods)
         EXPECT_NEAR(std::log(r.energy_ratio), std::log(predicted), 0.02 * std::abs(std::log(predicted))) << table;
     }
 }
+
+TEST(ArkodeHistory, PlasticStrainIsNotCountedPerStage)
+{
+    // A J2 bar pulled at its end to ~1 % strain: the plastic strain reached with the 3-stage SSPRK3
+    // converges to the small-step reference; committing stage states would triple it.
+    const char* deck = R"(
+title: plastic bar
+time: {end: 1 s}
+parts:
+  bar:
+    generator: {type: box, size: [1 mm, 1 mm, 10 mm], divisions: [1, 1, 10]}
+    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 400 MPa, etan: 2 GPa}
+    formulation: fem-2x2x2
+    bulk_viscosity: {linear: 0, quadratic: 0}
+node_sets:
+  all: {select: {type: named, name: all}}
+  base: {select: {type: named, name: bottom}}
+  top: {select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: all, fixed: [x, y]}
+  - {node_set: base, fixed: [z]}
+  - {node_set: top, velocity: {z: {curve: [[0, 0], [4 us, 40 m/s], [1 s, 40 m/s]]}}}
+)";
+    auto plastic_strain = [&](std::unique_ptr<TimeStepper> st, real_t dt, int steps)
+    {
+        Model m = test::model_from(deck);
+        run(m, *st, steps, [&](int, real_t) { return dt; });
+        real_t s = 0.0;
+        for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+            s += m.element_plastic_strain(0, e);
+        return s / m.blocks[0].n_elements();
+    };
+    const real_t dt0 = 0.05 * 1e-3 / 5856.4; // 0.05 of the element transit time
+    const int steps0 = 400;                  // about 3.4 us
+    const real_t ref = plastic_strain(std::make_unique<CentralDifference>(), dt0 / 16, steps0 * 16);
+    const real_t e1 = plastic_strain(std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")), dt0, steps0);
+    const real_t e2 =
+        plastic_strain(std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")), dt0 / 2, 2 * steps0);
+    std::printf("mean eps_p: reference (CD, dt/16) %.6e; SSPRK3 dt %.6e (rel. %.2e), dt/2 %.6e (rel. %.2e)\n", ref, e1,
+                std::abs(e1 / ref - 1), e2, std::abs(e2 / ref - 1));
+    ASSERT_GT(ref, 1e-4); // the bar yielded
+    EXPECT_LT(std::abs(e1 / ref - 1), 1e-2);
+    EXPECT_LT(std::abs(e2 - ref), std::abs(e1 - ref)); // converging to the reference
+}
