@@ -1,0 +1,60 @@
+// Material point updates, ns per update, 1 thread: elastic and J2 (elastic steps, plastic
+// hardening steps, failed points). Each iteration updates a batch of 4096 independent points.
+//   build/release/bin/bench_materials --benchmark_counters_tabular=true
+#include <benchmark/benchmark.h>
+#include <vector>
+
+#include "rkfem/materials/j2_plasticity.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+constexpr int n = 4096;
+
+void BM_Elastic(benchmark::State& state)
+{
+    const ElasticParams el = ElasticParams::from_E_nu(7850, 200e9, 0.3);
+    std::vector<real_t> s(6 * n, 1e6);
+    const real_t d[6] = {1e-3, -3e-4, -3e-4, 1e-4, 0, 2e-4}, w[3] = {1e-4, 0, -1e-4};
+    for (auto _ : state)
+    {
+        for (int p = 0; p < n; ++p)
+            elastic_update(el, d, w, 1e-6, &s[6 * p]);
+        benchmark::ClobberMemory();
+    }
+    state.counters["ns_per_update"] =
+        benchmark::Counter(n * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
+/// mode 0: elastic steps below yield, 1: plastic (every update returns to the surface), 2: failed
+void BM_J2(benchmark::State& state)
+{
+    const ElasticParams el = ElasticParams::from_E_nu(7850, 200e9, 0.3);
+    J2Params p;
+    p.elastic = el;
+    p.curve = {{0.0, 792e6}, {0.01, 946e6}, {0.05, 1026e6}, {0.10, 1072e6}, {0.20, 1128e6}, {0.50, 1218e6}, {1.0, 1302e6}};
+    const int mode = static_cast<int>(state.range(0));
+    std::vector<real_t> s(6 * n, 0.0), ep(n, 0.0), failed(n, mode == 2 ? 1.0 : 0.0);
+    const real_t d[6] = {1.0, -0.5, -0.5, 0.2, 0, 0.1}, w[3] = {0.1, 0, -0.1};
+    const real_t dt = mode == 0 ? 1e-9 : 1e-5;
+    for (auto _ : state)
+    {
+        for (int q = 0; q < n; ++q)
+        {
+            if (mode == 0)
+                for (int k = 0; k < 6; ++k)
+                    s[6 * q + k] = 0.0; // stays elastic
+            j2_update(p, d, w, dt, &s[6 * q], ep[q], failed[q]);
+        }
+        benchmark::ClobberMemory();
+    }
+    state.counters["ns_per_update"] =
+        benchmark::Counter(n * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.SetLabel(mode == 0 ? "elastic" : mode == 1 ? "plastic" : "failed");
+}
+} // namespace
+
+BENCHMARK(BM_Elastic);
+BENCHMARK(BM_J2)->Arg(0)->Arg(1)->Arg(2);
+BENCHMARK_MAIN();
