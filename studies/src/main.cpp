@@ -2,6 +2,7 @@
 //   rkfem check DECK [--set key.path=value ...]      validate, print the resolved deck in SI
 //   rkfem run DECK --out DIR [--set ...] [--quiet]   run, write DIR/results.h5 + .xdmf, history, summary
 //   rkfem convergence SWEEP --out DIR [--quiet]      manufactured-solution sweep -> DIR/convergence.{csv,h5}
+//   rkfem material-point DECK --out DIR [--quiet]    one material along a strain path -> DIR/stress_strain.csv
 // Exit codes: 0 success, 2 bad input (one line naming deck, line and key), 3 run went unstable
 // (output so far kept), 1 other failure.
 #include <cstdio>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "rkfem/analysis/convergence_study.hpp"
+#include "rkfem/analysis/material_point.hpp"
 #include "rkfem/config/deck.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
@@ -25,7 +27,8 @@ int usage()
     std::fprintf(stderr,
                  "usage: rkfem check DECK [--set key.path=value ...]\n"
                  "       rkfem run DECK --out DIR [--set key.path=value ...] [--quiet]\n"
-                 "       rkfem convergence SWEEP --out DIR [--quiet]\n");
+                 "       rkfem convergence SWEEP --out DIR [--quiet]\n"
+                 "       rkfem material-point DECK --out DIR [--quiet]\n");
     return 2;
 }
 } // namespace
@@ -56,8 +59,36 @@ int main(int argc, char** argv)
             return usage();
         }
     }
-    if (command != "check" && command != "run" && command != "convergence")
+    if (command != "check" && command != "run" && command != "convergence" && command != "material-point")
         return usage();
+    if (command == "material-point")
+    {
+        if (out_dir.empty())
+        {
+            std::fprintf(stderr, "rkfem: material-point needs --out DIR\n");
+            return 2;
+        }
+        try
+        {
+            const rkfem::MaterialPointDeck d = rkfem::read_material_point_deck(deck_path);
+            const auto h = rkfem::run_material_point(d);
+            rkfem::write_material_point(h, out_dir);
+            if (!quiet)
+                std::printf("rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
+                            h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
+            return 0;
+        }
+        catch (const rkfem::DeckError& e)
+        {
+            std::fprintf(stderr, "%s\n", e.what());
+            return 2;
+        }
+        catch (const std::exception& e)
+        {
+            std::fprintf(stderr, "rkfem: error: %s\n", e.what());
+            return 1;
+        }
+    }
     if (command == "convergence")
     {
         if (out_dir.empty())

@@ -41,3 +41,13 @@ TEST(Units, RejectsUnknownAndMismatchedUnits)
         EXPECT_NE(std::string(e.what()).find("length"), std::string::npos);
     }
 }
+
+TEST(Units, ReciprocalUnitsForRates)
+{
+    const Dimension per_second{0, 0, -1};
+    EXPECT_DOUBLE_EQ(parse_quantity("1000 1/s", per_second).value_si, 1000.0);
+    EXPECT_DOUBLE_EQ(parse_quantity("1000 /s", per_second).value_si, 1000.0);
+    EXPECT_DOUBLE_EQ(parse_quantity("2 1/ms", per_second).value_si, 2000.0);
+    EXPECT_DOUBLE_EQ(parse_quantity("3 s^-1", per_second).value_si, 3.0);
+    EXPECT_THROW(parse_quantity("3 1/m", per_second), Error);
+}

@@ -956,6 +956,51 @@ Deck parse_deck(const std::string& text, const std::string& name,
     return build(root, ctx);
 }
 
+MaterialPointDeck read_material_point_deck(const std::string& path)
+{
+    std::ifstream in(path);
+    if (!in)
+        throw DeckError({path, ""}, "cannot be opened", "expected a readable YAML material-point deck");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    Context ctx{path, {}};
+    YAML::Node root;
+    try
+    {
+        root = YAML::Load(ss.str());
+    }
+    catch (const YAML::Exception& e)
+    {
+        throw DeckError({path + ":" + std::to_string(e.mark.line + 1), ""}, "YAML syntax error: " + e.msg,
+                        "expected a valid YAML document");
+    }
+    if (!root.IsMap())
+        throw DeckError({path, ""}, "is not a YAML mapping", "expected top-level keys title, material, path");
+    Section top(ctx, root, "", {"title", "material", "path"});
+    MaterialPointDeck d;
+    d.path = path;
+    d.title = top.text("title", "");
+    d.material = read_material(top);
+    top.require("path", "a mapping with type, strain, rate, steps");
+    Section p(ctx, top.node("path"), "path", {"type", "strain", "rate", "confinement", "angle", "steps"});
+    MaterialPathSpec& lp = d.load_path;
+    lp.type = p.choice("type", {"uniaxial-stress", "uniaxial-strain", "hydrostatic", "pure-shear", "triaxial", "rotation"},
+                       "");
+    lp.strain = p.quantity("strain", dim::none);
+    if (lp.strain == 0.0)
+        p.fail("strain", "is zero", "expected a nonzero final strain (negative for compression)");
+    lp.rate = p.positive("rate", Dimension{0, 0, -1});
+    lp.confinement = p.quantity("confinement", dim::pressure, 0.0);
+    if (lp.confinement < 0)
+        p.fail("confinement", "is negative", "expected a lateral pressure >= 0");
+    lp.angle = p.quantity("angle", dim::none, 0.0);
+    lp.steps = static_cast<int>(p.integer("steps", 1000));
+    if (lp.steps < 1)
+        p.fail("steps", "is below 1", "expected a positive number of steps");
+    lp.loc = p.loc();
+    return d;
+}
+
 Deck read_deck(const std::string& path, const std::vector<std::string>& overrides)
 {
     std::ifstream in(path);

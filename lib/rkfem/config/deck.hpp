@@ -234,6 +234,29 @@ struct Deck
     SourceLocation time_loc;
 };
 
+/// A material-point deck (rkfem material-point): one material driven along a strain path.
+struct MaterialPathSpec
+{
+    std::string type = "uniaxial-stress"; ///< uniaxial-stress | uniaxial-strain | hydrostatic | pure-shear | triaxial | rotation
+    real_t strain = 0.0;      ///< final axial (volumetric, engineering shear) strain; < 0 compression
+    real_t rate = 1.0;        ///< strain rate magnitude [1/s]
+    real_t confinement = 0.0; ///< triaxial: lateral pressure [Pa]
+    real_t angle = 0.0;       ///< rotation: rigid rotation about z after the strain [rad]
+    int steps = 1000;
+    SourceLocation loc;
+};
+
+struct MaterialPointDeck
+{
+    std::string path;
+    std::string title;
+    MaterialSpec material;
+    MaterialPathSpec load_path;
+};
+
+/// Reads a material-point deck (keys title, material, path). Throws DeckError.
+MaterialPointDeck read_material_point_deck(const std::string& path);
+
 /// Reads and validates a deck. `overrides` are "key.path=value" strings applied to the YAML tree
 /// before validation (sequence entries by index: loads.0.pressure=...). Throws DeckError.
 Deck read_deck(const std::string& path, const std::vector<std::string>& overrides = {});

@@ -159,12 +159,20 @@ std::optional<Unit> parse_unit(std::string_view text, std::string* error)
     int sign = +1; // +1 multiplying, -1 dividing
     std::size_t i = 0;
     bool expect_term = true;
+    bool any_term = false;
     while (i < text.size())
     {
         const char c = text[i];
         if (std::isspace(static_cast<unsigned char>(c)))
         {
             ++i;
+            continue;
+        }
+        // a leading reciprocal: "1/s", "/s"
+        if (!any_term && sign > 0 && (c == '/' || (c == '1' && i + 1 < text.size() && text[i + 1] == '/')))
+        {
+            sign = -1;
+            i += c == '/' ? 1 : 2;
             continue;
         }
         if (c == '*' || c == '.')
@@ -227,6 +235,7 @@ std::optional<Unit> parse_unit(std::string_view text, std::string* error)
             ++i;
         }
         power *= sign;
+        any_term = true;
         unit.scale *= std::pow(entry->scale, power);
         unit.dimension = added(unit.dimension, scaled(entry->dimension, power));
         expect_term = false;
