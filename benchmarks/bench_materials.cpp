@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/materials/kcc_concrete.hpp"
 
 using namespace rkfem;
 
@@ -53,8 +54,44 @@ void BM_J2(benchmark::State& state)
         benchmark::Counter(n * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
     state.SetLabel(mode == 0 ? "elastic" : mode == 1 ? "plastic" : "failed");
 }
+/// mode 0: elastic steps (below the yield surface), 1: softening (past the peak, every update
+/// returns to the current surface)
+void BM_KCC(benchmark::State& state)
+{
+    const KccModel m = KccModel::from_fc(45.6e6, 2400);
+    const int mode = static_cast<int>(state.range(0));
+    std::vector<real_t> s(6 * n, 0.0);
+    std::vector<KccState> st(n);
+    const real_t d[6] = {-1.0, 0.2, 0.2, 0.1, 0, 0}, w[3] = {0.1, 0, -0.1};
+    // prepare: drive every point past the peak for the softening case
+    if (mode == 1)
+        for (int q = 0; q < n; ++q)
+            for (int k = 0; k < 300; ++k)
+                kcc_update(m, d, w, 1e-5, &s[6 * q], st[q]);
+    const std::vector<real_t> s0 = s;
+    const std::vector<KccState> st0 = st;
+    const real_t dt = mode == 0 ? 1e-8 : 1e-6;
+    for (auto _ : state)
+    {
+        for (int q = 0; q < n; ++q)
+        {
+            if (mode == 0)
+            {
+                for (int k = 0; k < 6; ++k)
+                    s[6 * q + k] = 0.0;
+                st[q] = KccState{};
+            }
+            kcc_update(m, d, w, dt, &s[6 * q], st[q]);
+        }
+        benchmark::ClobberMemory();
+    }
+    state.counters["ns_per_update"] =
+        benchmark::Counter(n * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.SetLabel(mode == 0 ? "elastic" : "softening");
+}
 } // namespace
 
 BENCHMARK(BM_Elastic);
+BENCHMARK(BM_KCC)->Arg(0)->Arg(1);
 BENCHMARK(BM_J2)->Arg(0)->Arg(1)->Arg(2);
 BENCHMARK_MAIN();

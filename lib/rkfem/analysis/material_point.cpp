@@ -6,6 +6,7 @@
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/materials/kcc_concrete.hpp"
 
 namespace rkfem
 {
@@ -16,9 +17,14 @@ struct PointMaterial
     ElasticParams elastic;
     J2Params j2;
     bool plastic = false;
+    bool kcc = false;
+    KccModel kcc_model;
     // committed state
     real_t s[6] = {};
     real_t ep = 0.0, failed = 0.0;
+    KccState kcc_state;
+    mutable KccState kcc_trial;
+    mutable real_t work_trial = 0.0;
 
     /// Trial update from the committed state; commit = true keeps it.
     void update(const real_t d[6], const real_t w[3], real_t dt, real_t out[6], real_t& ep_out, real_t& f_out) const
@@ -26,7 +32,14 @@ struct PointMaterial
         std::copy(s, s + 6, out);
         ep_out = ep;
         f_out = failed;
-        if (plastic)
+        if (kcc)
+        {
+            kcc_trial = kcc_state;
+            work_trial = kcc_update(kcc_model, d, w, dt, out, kcc_trial);
+            ep_out = kcc_trial.eps_p;
+            f_out = kcc_trial.lambda; // the damage function in the `failed` column for kcc
+        }
+        else if (plastic)
             j2_update(j2, d, w, dt, out, ep_out, f_out);
         else
             elastic_update(elastic, d, w, dt, out);
@@ -41,12 +54,21 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
     pm.elastic = ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu);
     pm.j2 = j2_params(ms);
     pm.plastic = pm.j2.curve.size() > 0;
+    if (ms.model == "kcc")
+    {
+        pm.kcc = true;
+        pm.kcc_model = KccModel::from_fc(ms.fc, ms.rho, ms.nu, ms.E);
+        pm.kcc_model.rate_effects = ms.rate_effects;
+        // the lateral Newton uses the elastic constants of the model
+        pm.elastic.mu = pm.kcc_model.shear;
+        pm.elastic.lambda = pm.kcc_model.bulk - 2.0 * pm.kcc_model.shear / 3.0;
+    }
     const MaterialPathSpec& lp = deck.load_path;
     const real_t T = std::abs(lp.strain) / lp.rate;
     const int n = lp.steps;
     const real_t sign = lp.strain < 0 ? -1.0 : 1.0;
-    const real_t k_lat = 2.0 * (pm.elastic.lambda + pm.elastic.mu); // d(sigma_yy + sigma_zz)/2 / d(lateral rate dt)
-    const real_t k_iso = 3.0 * pm.elastic.bulk_modulus();
+    real_t k_lat = 2.0 * (pm.elastic.lambda + pm.elastic.mu); // d(sigma_yy + sigma_zz)/2 / d(lateral rate dt)
+    real_t k_iso = 3.0 * pm.elastic.bulk_modulus();
     std::vector<MaterialPointRecord> h;
     MaterialPointRecord rec;
     h.push_back(rec);
@@ -109,6 +131,11 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
         std::copy(trial, trial + 6, pm.s);
         pm.ep = ep;
         pm.failed = f;
+        if (pm.kcc)
+        {
+            pm.kcc_state = pm.kcc_trial;
+            rec.work += pm.work_trial;
+        }
         t += dt;
         rec.time = t;
         for (int c = 0; c < 6; ++c)

@@ -409,6 +409,22 @@ MaterialSpec read_material(const Section& part)
     const YAML::Node mn = part.node("material");
     std::string model = mn.IsMap() && mn["model"].IsDefined() ? mn["model"].Scalar() : "";
     MaterialSpec m;
+    if (model == "kcc")
+    {
+        Section s(part.ctx(), mn, part.path("material"), {"model", "rho", "fc", "E", "nu", "rate_effects"});
+        m.model = model;
+        m.rho = s.quantity("rho", dim::density);
+        if (!(m.rho > 0))
+            s.fail("rho", "density must be positive", "expected rho > 0 (e.g. 2400 kg/m^3)");
+        m.fc = s.positive("fc", dim::pressure);
+        m.nu = s.quantity("nu", dim::none, 0.19);
+        if (!(m.nu > -1.0 && m.nu < 0.5))
+            s.fail("nu", "is out of range", "expected -1 < nu < 0.5 (default 0.19)");
+        m.E = s.quantity("E", dim::pressure, 4700.0 * std::sqrt(m.fc / 1e6) * 1e6);
+        m.rate_effects = s.has("rate_effects") && s.choice("rate_effects", {"true", "false"}, "false") == "true";
+        m.loc = s.loc();
+        return m;
+    }
     if (model == "elastic" || model == "j2")
     {
         Section s(part.ctx(), mn, part.path("material"),
@@ -476,7 +492,7 @@ MaterialSpec read_material(const Section& part)
     throw DeckError(mn.IsMap() && mn["model"].IsDefined() ? locate(part.ctx(), mn["model"], p)
                                                           : locate(part.ctx(), mn, p),
                     model.empty() ? "missing material model" : "unknown material model '" + model + "'",
-                    "expected model: elastic | j2");
+                    "expected model: elastic | j2 | kcc");
 }
 
 PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n,

@@ -29,8 +29,9 @@ class DeckError : public std::runtime_error
     const SourceLocation location;
 };
 
-/// Material of a part: `elastic` (hypoelastic, Jaumann rate) or `j2` (piecewise-linear J2
-/// plasticity with Cowper-Symonds rate scaling and failure, LS-DYNA MAT_024 analog).
+/// Material of a part: `elastic` (hypoelastic, Jaumann rate), `j2` (piecewise-linear J2
+/// plasticity with Cowper-Symonds rate scaling and failure, LS-DYNA MAT_024 analog) or `kcc`
+/// (K&C concrete Release III from f'c; material-point driver only so far).
 struct MaterialSpec
 {
     std::string model = "elastic";
@@ -43,6 +44,9 @@ struct MaterialSpec
     std::vector<std::pair<real_t, real_t>> curve; ///< (eps_p, sigma_y [Pa]); overrides sigy/etan
     real_t cs_c = 0.0, cs_p = 0.0; ///< Cowper-Symonds C [1/s], P
     real_t fail = 0.0;             ///< failure plastic strain (0: none)
+    // kcc (K&C concrete, parameters generated from f'c; E and nu optional)
+    real_t fc = 0.0;
+    bool rate_effects = false;
     SourceLocation loc;
 };
 

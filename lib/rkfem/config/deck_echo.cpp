@@ -166,6 +166,8 @@ std::string to_yaml(const Deck& d)
                 os << ", cowper_symonds: {C: " << p.material.cs_c << ", P: " << p.material.cs_p << "}";
             os << ", fail: " << p.material.fail;
         }
+        if (p.material.model == "kcc")
+            os << ", fc: " << p.material.fc << ", rate_effects: " << (p.material.rate_effects ? "true" : "false");
         os << "}\n";
         os << "    formulation: "
            << (p.formulation == Formulation::Fem1pt     ? "fem-1pt"

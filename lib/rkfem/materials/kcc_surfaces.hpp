@@ -29,6 +29,8 @@ struct KccParameters
     real_t lambda_m = 5.6e-5;  ///< first lambda where eta = 1
     real_t lambda_z = 5.7e-4;  ///< first lambda after the peak where eta returns to 0
     real_t alpha_biaxial = 1.15; ///< f_bc / f'c
+    real_t fyc = 0.0;        ///< uniaxial compressive yield strength (from the yield hyperbola)
+    real_t psi_biaxial = 0.0; ///< psi at p = 2 alpha f'c / 3
 
     /// The generic parameter set scaled from the 45.4 MPa reference concrete (section 1.9 a-c):
     /// a0, a0y proportional to f'c; a2, a2y, a2f inversely proportional; a1, a1y, a1f fixed;

@@ -1,0 +1,186 @@
+#include "rkfem/materials/kcc_concrete.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "rkfem/core/error.hpp"
+
+namespace rkfem
+{
+KccModel KccModel::from_fc(real_t fc_pa, real_t rho, real_t nu, real_t E)
+{
+    KccModel m;
+    m.surfaces = KccParameters::from_fc(fc_pa);
+    m.rho = rho;
+    if (!(E > 0))
+        E = 4700.0 * std::sqrt(fc_pa / 1e6) * 1e6;
+    m.bulk = E / (3.0 * (1.0 - 2.0 * nu));
+    m.shear = 3.0 * m.bulk * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu));
+    m.eos_strain = {0, -0.0015, -0.0043, -0.0101, -0.0305, -0.0513, -0.0726, -0.0943, -0.174, -0.208};
+    const real_t p_shape[10] = {0, 0.0015, 0.003270, 0.005250, 0.009975, 0.015045, 0.021345, 0.032655, 0.19065, 0.29160};
+    const real_t k_shape[10] = {1, 1, 1.014, 1.065, 1.267, 1.470, 1.672, 1.825, 4.106, 5.000};
+    for (int i = 0; i < 10; ++i)
+    {
+        m.eos_pressure[i] = p_shape[i] * m.bulk;
+        m.eos_unload[i] = k_shape[i] * m.bulk;
+    }
+    return m;
+}
+
+namespace
+{
+/// Piecewise-linear interpolation over the (decreasing) EOS strains, extrapolated with the last
+/// segment beyond the table.
+real_t interp(const std::array<real_t, 10>& x, const std::array<real_t, 10>& y, real_t v)
+{
+    if (v >= x[0])
+        return y[0] + (v - x[0]) * (y[1] - y[0]) / (x[1] - x[0]);
+    for (int i = 1; i < 10; ++i)
+        if (v >= x[i])
+            return y[i - 1] + (v - x[i - 1]) * (y[i] - y[i - 1]) / (x[i] - x[i - 1]);
+    return y[9] + (v - x[9]) * (y[9] - y[8]) / (x[9] - x[8]);
+}
+} // namespace
+
+real_t KccModel::eos(real_t ev, real_t& ev_min) const
+{
+    if (ev <= ev_min)
+    {
+        ev_min = ev;
+        return ev >= 0.0 ? bulk * (-ev) : interp(eos_strain, eos_pressure, ev);
+    }
+    // unloading / reloading from the most compressive state on the K(ev_min) line
+    const real_t pmin = ev_min >= 0.0 ? 0.0 : interp(eos_strain, eos_pressure, ev_min);
+    const real_t k = ev_min >= 0.0 ? bulk : interp(eos_strain, eos_unload, ev_min);
+    return pmin + k * (ev_min - ev);
+}
+
+real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_t dt, real_t s[6], KccState& st)
+{
+    const KccParameters& k = m.surfaces;
+    rotate_stress(w, dt, s);
+    const real_t G = m.shear;
+    const real_t tr = d[0] + d[1] + d[2];
+    st.ev += tr * dt;
+    // pressure (compression positive) from the EOS on the elastic part of the volumetric strain
+    const real_t ev_eos = st.ev - st.ev_plastic;
+    real_t p = m.eos(ev_eos, st.ev_min);
+    const real_t eta_now = st.lambda <= k.lambda_m ? 1.0 : k.eta(st.lambda);
+    p = std::max(p, -k.ft * eta_now); // tensile cutoff moves with eta after the peak [U]
+
+    // trial deviator
+    const real_t mean = (s[0] + s[1] + s[2]) / 3.0;
+    real_t dev[6];
+    for (int c = 0; c < 3; ++c)
+        dev[c] = s[c] - mean + 2.0 * G * (d[c] - tr / 3.0) * dt;
+    for (int c = 3; c < 6; ++c)
+        dev[c] = s[c] + 2.0 * G * d[c] * dt;
+    const real_t J2 = 0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]) + dev[3] * dev[3] + dev[4] * dev[4] +
+                      dev[5] * dev[5];
+    const real_t q = std::sqrt(3.0 * J2);
+    real_t work = 0.0;
+    if (q > 0.0)
+    {
+        // Lode angle from the tensile meridian: cos 3 theta = (3 sqrt 3 / 2) J3 / J2^(3/2)
+        const real_t J3 = dev[0] * (dev[1] * dev[2] - dev[4] * dev[4]) - dev[3] * (dev[3] * dev[2] - dev[4] * dev[5]) +
+                          dev[5] * (dev[3] * dev[4] - dev[1] * dev[5]);
+        const real_t c3 = std::clamp(1.5 * std::sqrt(3.0) * J3 / std::pow(J2, 1.5), -1.0, 1.0);
+        const real_t theta = std::acos(c3) / 3.0;
+        const real_t wlode = willam_warnke(theta, k.psi(p));
+        // rate enhancement: radial scaling Delta sigma_e(p) = r_f Delta sigma(p / r_f)
+        real_t rf = 1.0;
+        if (m.rate_effects)
+        {
+            real_t dd = 0.0;
+            for (int c = 0; c < 3; ++c)
+                dd += (d[c] - tr / 3.0) * (d[c] - tr / 3.0) + 2.0 * d[c + 3] * d[c + 3];
+            const real_t rate = std::sqrt(2.0 / 3.0 * dd);
+            rf = p >= 0.0 ? dif_compression_ceb(rate, k.fc) : dif_tension_malvar_ross(rate, k.fc);
+        }
+        auto surface = [&](real_t lambda)
+        {
+            const real_t ps = p / rf;
+            const real_t dm = k.max_surface(ps);
+            real_t ds;
+            if (lambda <= k.lambda_m)
+            {
+                const real_t dy = k.yield_surface(ps);
+                ds = k.eta(lambda) * (dm - dy) + dy;
+            }
+            else
+            {
+                const real_t dr = k.residual_surface(ps);
+                ds = k.eta(lambda) * (dm - dr) + dr;
+            }
+            return wlode * rf * std::max(ds, 0.0);
+        };
+        const real_t pd = std::max(p / rf, -0.999 * k.ft); // keep 1 + p/(r_f f_t) > 0
+        const real_t bexp = p >= 0.0 ? k.b1 : k.b2;
+        const real_t dlam_per_ep = 1.0 / (rf * std::pow(1.0 + pd / k.ft, bexp)); // d lambda / d eps_p
+        if (q > surface(st.lambda))
+        {
+            // g(x) = q - 3 G x - H(lambda_n + x c) = 0 with c = d lambda / d eps_p. H is linear in
+            // eta and eta is piecewise linear in lambda, so g is piecewise linear in x: walk the
+            // eta-table segments from lambda_n and solve exactly in the one where g changes sign.
+            const real_t ps = p / rf;
+            const real_t A = wlode * rf;
+            const real_t dm = k.max_surface(ps), dy = k.yield_surface(ps), dr = k.residual_surface(ps);
+            auto H = [&](real_t lam, real_t eta)
+            { return A * std::max(eta * (dm - (lam <= k.lambda_m ? dy : dr)) + (lam <= k.lambda_m ? dy : dr), 0.0); };
+            const auto& tab = k.eta_table;
+            real_t x = 0.0, lam = st.lambda;
+            real_t dep = q / (3.0 * G); // fallback: full return (surface collapsed)
+            std::size_t i = 0;
+            while (i + 1 < tab.size() && tab[i + 1].first <= lam)
+                ++i;
+            for (; i + 1 < tab.size(); ++i)
+            {
+                // segment [tab[i], tab[i+1]] (split at lambda_m where the branch changes)
+                real_t l1 = tab[i + 1].first;
+                const real_t slope_eta = (tab[i + 1].second - tab[i].second) / (tab[i + 1].first - tab[i].first);
+                const real_t eta0 = tab[i].second + slope_eta * (lam - tab[i].first);
+                if (lam < k.lambda_m && l1 > k.lambda_m)
+                    l1 = k.lambda_m;
+                const real_t g0 = q - 3.0 * G * x - H(lam, eta0);
+                const real_t eta1 = tab[i].second + slope_eta * (l1 - tab[i].first);
+                const real_t x1 = x + (l1 - lam) / dlam_per_ep;
+                const real_t g1 = q - 3.0 * G * x1 - H(l1, eta1);
+                if (g1 <= 0.0)
+                {
+                    // g linear on the segment (unless the surface clamps at 0; then still monotone)
+                    dep = x + (x1 - x) * g0 / (g0 - g1);
+                    break;
+                }
+                x = x1;
+                lam = l1;
+                if (l1 < tab[i + 1].first)
+                    --i; // continue on the same table segment past lambda_m
+            }
+            const real_t scale = std::max(0.0, 1.0 - 3.0 * G * dep / q);
+            // plastic work density of the return: s : d eps_p = q_new dep
+            work = scale * q * dep;
+            for (auto& x : dev)
+                x *= scale;
+            st.lambda += dep * dlam_per_ep;
+            st.eps_p += dep;
+            // partially associated dilatancy: d ev_p = omega dep d(w Delta sigma)/dp
+            const real_t h = 1e-6 * std::max(std::abs(p), k.fc);
+            auto surf_at = [&](real_t pp)
+            {
+                const real_t dm = k.max_surface(pp / rf);
+                const real_t e = k.eta(st.lambda);
+                const real_t other = st.lambda <= k.lambda_m ? k.yield_surface(pp / rf) : k.residual_surface(pp / rf);
+                return wlode * rf * std::max(e * (dm - other) + other, 0.0);
+            };
+            const real_t dsdp = (surf_at(p + h) - surf_at(p - h)) / (2.0 * h);
+            // acts on the pressure from the next update on (explicit, one step lag)
+            st.ev_plastic += k.omega * dep * dsdp;
+        }
+    }
+    for (int c = 0; c < 3; ++c)
+        s[c] = dev[c] - p;
+    for (int c = 3; c < 6; ++c)
+        s[c] = dev[c];
+    return work;
+}
+} // namespace rkfem

@@ -1,0 +1,49 @@
+#pragma once
+/// @file kcc_concrete.hpp
+/// K&C concrete, Release III (MAT_072R3 analog) stress update at one material point, following
+/// the per-point algorithm of ../shared/reference/materials.md section 1.12: pressure from the
+/// tabulated-compaction EOS (generic shape scaled by K_1, section 1.7) with unloading history and
+/// a tensile cutoff, trial deviator, Willam-Warnke Lode scaling, current surface interpolated by
+/// eta(lambda) between yield/maximum (hardening) and maximum/residual (softening), radial return
+/// in the deviatoric plane solved by bisection on the plastic strain increment, damage lambda
+/// with b1 (compression) / b2 (tension), partially associated dilatancy omega, radial rate
+/// scaling by the dynamic increase factor. Choices where the reference is uncertain are marked
+/// [U]: K_1 from E = 4700 sqrt(f'c [MPa]) and nu = 0.19 when not given; the tensile cutoff
+/// follows eta after the peak; no b3 volumetric damage and no element-size scaling of b2 yet.
+#include "rkfem/materials/kcc_surfaces.hpp"
+#include "rkfem/materials/objective_rate.hpp"
+
+namespace rkfem
+{
+struct KccModel
+{
+    KccParameters surfaces;
+    real_t rho = 2400.0;
+    real_t bulk = 0.0;  ///< K_1, initial (elastic) bulk modulus [Pa]
+    real_t shear = 0.0; ///< G from K_1 and nu [Pa]
+    bool rate_effects = false;
+    std::array<real_t, 10> eos_strain{}; ///< volumetric strain ln(V/V0) (<= 0, decreasing)
+    std::array<real_t, 10> eos_pressure{};
+    std::array<real_t, 10> eos_unload{}; ///< unloading bulk modulus
+
+    /// Generic model from f'c [Pa]; nu and E default to 0.19 and 4700 sqrt(f'c [MPa]) MPa [U].
+    static KccModel from_fc(real_t fc_pa, real_t rho, real_t nu = 0.19, real_t E = 0.0);
+
+    /// EOS pressure at volumetric strain ev with history ev_min (updated on new compaction).
+    real_t eos(real_t ev, real_t& ev_min) const;
+};
+
+/// History of one KCC point.
+struct KccState
+{
+    real_t lambda = 0.0;  ///< damage function
+    real_t ev = 0.0;      ///< total volumetric strain (sum of tr(D) dt)
+    real_t ev_min = 0.0;  ///< most compressive EOS strain reached
+    real_t ev_plastic = 0.0; ///< dilatant volumetric plastic strain (expansion positive)
+    real_t eps_p = 0.0;   ///< effective plastic strain
+};
+
+/// Updates stress s (Voigt, tension positive) and state over dt; returns the plastic work
+/// density increment (>= 0).
+real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_t dt, real_t s[6], KccState& st);
+} // namespace rkfem
