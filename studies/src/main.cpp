@@ -22,6 +22,26 @@
 
 namespace
 {
+/// Runs a subcommand body: 0 when it returns, 2 for bad input (the one-line DeckError), 1 otherwise.
+template <class Body> int run_guarded(Body&& body)
+{
+    try
+    {
+        body();
+        return 0;
+    }
+    catch (const rkfem::DeckError& e)
+    {
+        std::fprintf(stderr, "%s\n", e.what());
+        return 2;
+    }
+    catch (const std::exception& e)
+    {
+        std::fprintf(stderr, "rkfem: error: %s\n", e.what());
+        return 1;
+    }
+}
+
 int usage()
 {
     std::fprintf(stderr,
@@ -68,26 +88,16 @@ int main(int argc, char** argv)
             std::fprintf(stderr, "rkfem: material-point needs --out DIR\n");
             return 2;
         }
-        try
-        {
-            const rkfem::MaterialPointDeck d = rkfem::read_material_point_deck(deck_path);
-            const auto h = rkfem::run_material_point(d);
-            rkfem::write_material_point(h, out_dir);
-            if (!quiet)
-                std::printf("rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
-                            h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
-            return 0;
-        }
-        catch (const rkfem::DeckError& e)
-        {
-            std::fprintf(stderr, "%s\n", e.what());
-            return 2;
-        }
-        catch (const std::exception& e)
-        {
-            std::fprintf(stderr, "rkfem: error: %s\n", e.what());
-            return 1;
-        }
+        return run_guarded(
+            [&]
+            {
+                const rkfem::MaterialPointDeck d = rkfem::read_material_point_deck(deck_path);
+                const auto h = rkfem::run_material_point(d);
+                rkfem::write_material_point(h, out_dir);
+                if (!quiet)
+                    std::printf("rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
+                                h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
+            });
     }
     if (command == "convergence")
     {
@@ -96,22 +106,7 @@ int main(int argc, char** argv)
             std::fprintf(stderr, "rkfem: convergence needs --out DIR\n");
             return 2;
         }
-        try
-        {
-            const rkfem::ConvergenceSweep sweep = rkfem::read_sweep(deck_path);
-            rkfem::run_sweep(sweep, out_dir, quiet);
-            return 0;
-        }
-        catch (const rkfem::DeckError& e)
-        {
-            std::fprintf(stderr, "%s\n", e.what());
-            return 2;
-        }
-        catch (const std::exception& e)
-        {
-            std::fprintf(stderr, "rkfem: error: %s\n", e.what());
-            return 1;
-        }
+        return run_guarded([&] { rkfem::run_sweep(rkfem::read_sweep(deck_path), out_dir, quiet); });
     }
     if (command == "run" && out_dir.empty())
     {

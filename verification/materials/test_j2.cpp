@@ -42,6 +42,25 @@ template <class Update> void uniaxial_step(Update&& update, real_t rate, real_t 
     const real_t d[6] = {rate, lat, lat, 0, 0, 0};
     update(d, dt, s, true);
 }
+/// One uniaxial-stress step of a J2 point; returns sqrt(d:d) of the converged rate.
+real_t j2_uniaxial(const J2Params& p, real_t rate, real_t dt, real_t s[6], real_t& ep, real_t& failed, real_t& lat)
+{
+    real_t dd = 0.0;
+    uniaxial_step(
+        [&](const real_t* d, real_t h, real_t* st, bool commit)
+        {
+            real_t e = ep, f = failed;
+            const real_t w[3] = {0, 0, 0};
+            j2_update(p, d, w, h, st, e, f);
+            if (commit)
+            {
+                ep = e, failed = f;
+                dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            }
+        },
+        rate, dt, s, lat);
+    return std::sqrt(dd);
+}
 } // namespace
 
 TEST(ObjectiveRate, RigidSpinKeepsInvariants)
@@ -74,16 +93,7 @@ TEST(J2Plasticity, UniaxialBilinearResponseIsExactAtEveryStep)
     real_t worst = 0.0;
     for (int k = 0; k < 40; ++k)
     {
-        uniaxial_step(
-            [&](const real_t* d, real_t h, real_t* st, bool commit)
-            {
-                real_t e = ep, f = failed;
-                const real_t w[3] = {0, 0, 0};
-                j2_update(p, d, w, h, st, e, f);
-                if (commit)
-                    ep = e, failed = f;
-            },
-            rate, dt, s, lat);
+        j2_uniaxial(p, rate, dt, s, ep, failed, lat);
         eps += rate * dt;
         const real_t expect = eps <= sigy / E ? E * eps : sigy + etan * (eps - sigy / E);
         worst = std::max(worst, std::abs(s[0] - expect) / expect);
@@ -92,16 +102,7 @@ TEST(J2Plasticity, UniaxialBilinearResponseIsExactAtEveryStep)
     EXPECT_LT(worst, 1e-8);
     // unloading is elastic with slope E
     const real_t s_before = s[0];
-    uniaxial_step(
-        [&](const real_t* d, real_t h, real_t* st, bool commit)
-        {
-            real_t e = ep, f = failed;
-            const real_t w[3] = {0, 0, 0};
-            j2_update(p, d, w, h, st, e, f);
-            if (commit)
-                ep = e, failed = f;
-        },
-        -rate, 0.1, s, lat);
+    j2_uniaxial(p, -rate, 0.1, s, ep, failed, lat);
     EXPECT_NEAR(s[0], s_before - E * rate * 0.1, 1e-8 * s_before);
 }
 
@@ -141,23 +142,11 @@ TEST(J2Plasticity, CowperSymondsScalesTheYieldStress)
     p.cs_p = 5.0;
     real_t s[6] = {}, ep = 0, failed = 0, lat = -nu * 100.0;
     const real_t rate = 100.0, dt = 1e-6;
-    real_t dd = 0.0;
+    real_t rate_eff = 0.0;
     for (int k = 0; k < 100; ++k) // 1 % strain
-        uniaxial_step(
-            [&](const real_t* d, real_t h, real_t* st, bool commit)
-            {
-                real_t e = ep, f = failed;
-                const real_t w[3] = {0, 0, 0};
-                j2_update(p, d, w, h, st, e, f);
-                if (commit)
-                {
-                    ep = e, failed = f;
-                    dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                }
-            },
-            rate, dt, s, lat);
-    const real_t beta = 1.0 + std::pow(std::sqrt(dd) / 40.4, 0.2);
-    std::printf("Cowper-Symonds: sigma / sigy = %.6f, beta(sqrt(d:d) = %.2f /s) = %.6f\n", s[0] / 250e6, std::sqrt(dd), beta);
+        rate_eff = j2_uniaxial(p, rate, dt, s, ep, failed, lat);
+    const real_t beta = 1.0 + std::pow(rate_eff / 40.4, 0.2);
+    std::printf("Cowper-Symonds: sigma / sigy = %.6f, beta(sqrt(d:d) = %.2f /s) = %.6f\n", s[0] / 250e6, rate_eff, beta);
     EXPECT_NEAR(s[0], beta * 250e6, 1e-6 * 250e6);
 }
 
@@ -168,20 +157,11 @@ TEST(J2Plasticity, FailsAtTheStatedPlasticStrain)
     real_t s[6] = {}, ep = 0, failed = 0, lat = -nu * 1e-3;
     real_t ep_at_failure = -1.0;
     for (int k = 0; k < 60 && failed == 0; ++k)
-        uniaxial_step(
-            [&](const real_t* d, real_t h, real_t* st, bool commit)
-            {
-                real_t e = ep, f = failed;
-                const real_t w[3] = {0, 0, 0};
-                j2_update(p, d, w, h, st, e, f);
-                if (commit)
-                {
-                    ep = e, failed = f;
-                    if (f != 0 && ep_at_failure < 0)
-                        ep_at_failure = e;
-                }
-            },
-            1e-3, 1.0, s, lat);
+    {
+        j2_uniaxial(p, 1e-3, 1.0, s, ep, failed, lat);
+        if (failed != 0 && ep_at_failure < 0)
+            ep_at_failure = ep;
+    }
     std::printf("failed at eps_p = %.5f (FAIL = 0.02, steps of 0.1 %% strain)\n", ep_at_failure);
     ASSERT_NE(failed, 0.0);
     EXPECT_GE(ep_at_failure, 0.02);

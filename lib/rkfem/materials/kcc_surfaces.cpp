@@ -11,6 +11,17 @@ namespace
 {
 constexpr real_t MPa = 1e6;
 constexpr real_t psi_pa = 6894.757293168361; // Pa per psi
+
+/// Linear interpolation through (x, y) points with increasing x, constant beyond the ends.
+real_t piecewise_linear(const std::pair<real_t, real_t>* pts, std::size_t n, real_t x)
+{
+    if (x <= pts[0].first)
+        return pts[0].second;
+    for (std::size_t i = 1; i < n; ++i)
+        if (x <= pts[i].first)
+            return pts[i - 1].second + (x - pts[i - 1].first) / (pts[i].first - pts[i - 1].first) * (pts[i].second - pts[i - 1].second);
+    return pts[n - 1].second;
+}
 } // namespace
 
 KccParameters KccParameters::from_fc(real_t fc_pa)
@@ -71,29 +82,12 @@ real_t KccParameters::psi(real_t p) const
                                                            {pb, psi_biaxial},
                                                            {3.0 * fc, 0.753},
                                                            {8.45 * fc, 1.0}}};
-    if (p <= pts.front().first)
-        return pts.front().second;
-    for (std::size_t i = 1; i < pts.size(); ++i)
-        if (p <= pts[i].first)
-        {
-            const real_t t = (p - pts[i - 1].first) / (pts[i].first - pts[i - 1].first);
-            return pts[i - 1].second + t * (pts[i].second - pts[i - 1].second);
-        }
-    return pts.back().second;
+    return piecewise_linear(pts.data(), pts.size(), p);
 }
 
 real_t KccParameters::eta(real_t lambda) const
 {
-    if (lambda <= eta_table.front().first)
-        return eta_table.front().second;
-    for (std::size_t i = 1; i < eta_table.size(); ++i)
-        if (lambda <= eta_table[i].first)
-        {
-            const auto& [l0, e0] = eta_table[i - 1];
-            const auto& [l1, e1] = eta_table[i];
-            return e0 + (lambda - l0) / (l1 - l0) * (e1 - e0);
-        }
-    return eta_table.back().second;
+    return piecewise_linear(eta_table.data(), eta_table.size(), lambda);
 }
 
 real_t willam_warnke(real_t theta, real_t psi)

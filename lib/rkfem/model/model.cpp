@@ -345,13 +345,7 @@ Model Model::build(const Deck& deck)
                 for (auto& c : mesh.conn)
                     c -= pi.node_begin;
                 std::vector<real_t> a = nodal_spacing(mesh);
-                RkParams rp;
-                rp.order = d.parts[ip].rk.order;
-                rp.kernel = d.parts[ip].rk.kernel == "quintic-bspline" ? KernelType::QuinticBSpline
-                            : d.parts[ip].rk.kernel == "gaussian"      ? KernelType::Gaussian
-                                                                       : KernelType::CubicBSpline;
-                rp.support = d.parts[ip].rk.support == "sphere" ? SupportShape::Sphere : SupportShape::Box;
-                rp.normalized_support = d.parts[ip].rk.normalized_support;
+                const RkParams rp = rk_params(d.parts[ip].rk);
                 for (auto& v : a)
                     v *= rp.normalized_support;
                 rk = std::make_unique<RkShapeFunctions>(mesh.x, a, rp);
@@ -557,6 +551,18 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
     ForceReport rep;
     pending_int_ = pending_hg_ = pending_bv_ = 0.0;
     index_t offset = 0;
+    // energy increments and the controlling stable step of one block's pass
+    auto book = [&](const ForcePassResult& r, index_t dt_element)
+    {
+        pending_int_ += r.d_internal;
+        pending_hg_ += r.d_hourglass;
+        pending_bv_ += r.d_bulk_viscosity;
+        if (r.dt_stable < rep.dt_stable)
+        {
+            rep.dt_stable = r.dt_stable;
+            rep.dt_element = dt_element;
+        }
+    };
     for (std::size_t ib = 0; ib < blocks.size(); ++ib)
     {
         HexBlock& blk = blocks[ib];
@@ -572,14 +578,7 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
                    << nb.jacobian[r.bad_element] << " at t = " << t << " s, step " << step;
                 throw InstabilityError(os.str());
             }
-            pending_int_ += r.d_internal;
-            pending_hg_ += r.d_hourglass;
-            pending_bv_ += r.d_bulk_viscosity;
-            if (r.dt_stable < rep.dt_stable)
-            {
-                rep.dt_stable = r.dt_stable;
-                rep.dt_element = offset; // first element of the part; nodal points are not elements
-            }
+            book(r, offset); // first element of the part; nodal points are not elements
             assemble_nodal_forces(nb, nodes);
             offset += blk.n_elements();
             continue;
@@ -593,14 +592,7 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
                << blk.volume[r.bad_element] << " m^3 at t = " << t << " s, step " << step;
             throw InstabilityError(os.str());
         }
-        pending_int_ += r.d_internal;
-        pending_hg_ += r.d_hourglass;
-        pending_bv_ += r.d_bulk_viscosity;
-        if (r.dt_stable < rep.dt_stable)
-        {
-            rep.dt_stable = r.dt_stable;
-            rep.dt_element = offset + r.dt_element;
-        }
+        book(r, offset + r.dt_element);
         assemble_block_forces(blk, nodes);
         offset += blk.n_elements();
     }

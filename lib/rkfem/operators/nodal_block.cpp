@@ -161,6 +161,18 @@ real_t default_dt_factor(const PartSpec& ps)
 
 } // namespace
 
+RkParams rk_params(const RkSpec& spec)
+{
+    RkParams rp;
+    rp.order = spec.order;
+    rp.kernel = spec.kernel == "quintic-bspline" ? KernelType::QuinticBSpline
+                : spec.kernel == "gaussian"      ? KernelType::Gaussian
+                                                 : KernelType::CubicBSpline;
+    rp.support = spec.support == "sphere" ? SupportShape::Sphere : SupportShape::Box;
+    rp.normalized_support = spec.normalized_support;
+    return rp;
+}
+
 NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
 {
     NodalBlock nb;
@@ -177,13 +189,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     std::unique_ptr<ShapeEvaluator> shapes;
     if (ps.formulation == Formulation::Rkpm)
     {
-        RkParams rp;
-        rp.order = ps.rk.order;
-        rp.kernel = ps.rk.kernel == "quintic-bspline" ? KernelType::QuinticBSpline
-                    : ps.rk.kernel == "gaussian"      ? KernelType::Gaussian
-                                                      : KernelType::CubicBSpline;
-        rp.support = ps.rk.support == "sphere" ? SupportShape::Sphere : SupportShape::Box;
-        rp.normalized_support = ps.rk.normalized_support;
+        const RkParams rp = rk_params(ps.rk);
         std::vector<real_t> a = nodal_spacing(mesh);
         for (auto& v : a)
             v *= rp.normalized_support;

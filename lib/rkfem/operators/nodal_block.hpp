@@ -16,6 +16,7 @@
 /// generalized coefficients; `interpolation` (Psi_J(X_I) per node) gives physical values.
 #include <vector>
 
+#include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/discretization/node_set.hpp"
@@ -75,6 +76,9 @@ struct NodalBlock
             plastic.commit();
     }
 };
+
+/// The RK approximation settings of a deck's `rk` section.
+RkParams rk_params(const RkSpec& spec);
 
 /// Builds the block of a fem-nodal or rkpm part from its mesh (local numbering; node ids are
 /// shifted by `offset`): approximation, nodal integration, stabilization, RK interpolation at

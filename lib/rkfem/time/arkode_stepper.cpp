@@ -9,6 +9,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/time/central_difference.hpp"
 
 namespace rkfem
 {
@@ -292,16 +293,8 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     im.model = &model;
     NodeSet& n = model.nodes;
     im.n3 = 3 * n.size();
-    // the same start as the hand-written central difference: forces at t with the initial
-    // velocities, committed state, energies
-    model.impose_velocity(t, 0.0, false);
-    model.update_coordinates();
-    const ForceReport fr = model.compute_forces(t, 0.0, 0);
-    model.compute_accelerations();
-    model.commit();
-    model.update_energies(model.nodes.u, 0.0);
-    model.energy.kinetic0 = model.energy.kinetic + model.energy.kinetic_correction;
-    model.energy.internal0 = model.energy.internal;
+    // the same start as the hand-written central difference
+    const StepReport start = start_model(model, t);
 
     im.state.resize(2 * static_cast<std::size_t>(im.n3));
     std::copy(n.u.begin(), n.u.end(), im.state.begin());
@@ -327,11 +320,7 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     if (fsal_workaround_ || mode_ == Mode::CentralDifference)
         im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess), "ERKStepSetPostprocessStepFn");
     im.check(ERKStepSetMaxNumSteps(im.mem, 1), "ERKStepSetMaxNumSteps");
-    StepReport r;
-    r.t = t;
-    r.dt_stable = fr.dt_stable;
-    r.dt_element = fr.dt_element;
-    return r;
+    return start;
 }
 
 StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t step_index)

@@ -47,7 +47,7 @@ void check_finite(const Model& m, real_t t, std::int64_t step)
 }
 } // namespace
 
-StepReport CentralDifference::initialize(Model& model, real_t t)
+StepReport start_model(Model& model, real_t t)
 {
     model.impose_velocity(t, 0.0, false);
     model.update_coordinates();
@@ -64,6 +64,9 @@ StepReport CentralDifference::initialize(Model& model, real_t t)
     r.dt_element = fr.dt_element;
     return r;
 }
+
+StepReport CentralDifference::initialize(Model& model, real_t t) { return start_model(model, t); }
+
 
 StepReport CentralDifference::step(Model& model, real_t t, real_t dt, std::int64_t step_index)
 {

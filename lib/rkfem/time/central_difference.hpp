@@ -11,6 +11,11 @@
 namespace rkfem
 {
 struct NodeSet;
+class Model;
+
+/// The common start of every stepper: prescribed velocities at t, forces and accelerations with
+/// no material increment, committed state, initial energies; reports the stable step.
+StepReport start_model(Model& model, real_t t);
 
 /// v += h a over all nodes (one half kick).
 void central_difference_kick(NodeSet& nodes, real_t h);
