@@ -31,7 +31,7 @@ class DeckError : public std::runtime_error
 
 /// Material of a part: `elastic` (hypoelastic, Jaumann rate), `j2` (piecewise-linear J2
 /// plasticity with Cowper-Symonds rate scaling and failure, LS-DYNA MAT_024 analog) or `kcc`
-/// (K&C concrete Release III from f'c; material-point driver only so far).
+/// (K&C concrete Release III with every parameter generated from f'c).
 struct MaterialSpec
 {
     std::string model = "elastic";

@@ -147,33 +147,4 @@ inline J2Params j2_params(const MaterialSpec& m)
     return p;
 }
 
-/// The J2 model of a block and its per-point history (effective plastic strain, failed flag),
-/// committed/trial like the stress. Inactive (elastic block) when the curve is empty.
-struct PlasticPoints
-{
-    J2Params params;
-    std::vector<real_t> eps_p, eps_p_trial, failed, failed_trial;
-
-    bool active() const { return !params.curve.empty(); }
-    void resize(std::size_t n)
-    {
-        eps_p.assign(n, 0.0);
-        eps_p_trial.assign(n, 0.0);
-        failed.assign(n, 0.0);
-        failed_trial.assign(n, 0.0);
-    }
-    void commit()
-    {
-        eps_p.swap(eps_p_trial);
-        failed.swap(failed_trial);
-    }
-    /// Updates point p from its committed history into the trial arrays.
-    void update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
-    {
-        real_t e = eps_p[p], f = failed[p];
-        j2_update(params, d, w, dt, s, e, f);
-        eps_p_trial[p] = e;
-        failed_trial[p] = f;
-    }
-};
 } // namespace rkfem

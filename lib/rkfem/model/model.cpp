@@ -144,7 +144,7 @@ Model Model::build(const Deck& deck)
         blk.hourglass = ps.hourglass;
         blk.bulk_viscosity = ps.bulk_viscosity;
         blk.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
-        blk.plastic.params = j2_params(ps.material);
+        blk.plastic.configure(ps.material);
         blk.conn = mesh.conn;
         for (auto& c : blk.conn)
             c += offset;

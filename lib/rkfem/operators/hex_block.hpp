@@ -13,7 +13,7 @@
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/materials/elastic.hpp"
-#include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/materials/point_history.hpp"
 
 namespace rkfem
 {
@@ -24,7 +24,7 @@ struct HexBlock
     HourglassSpec hourglass;
     BulkViscositySpec bulk_viscosity;
     ElasticParams material;
-    PlasticPoints plastic; ///< J2 history per point (inactive for elastic blocks)
+    PlasticPoints plastic; ///< J2 / K&C history per point (inactive for elastic blocks)
 
     std::vector<index_t> conn; ///< n_elements x 8, global node ids
     index_t node_begin = 0;    ///< this block's nodes are [node_begin, node_end)

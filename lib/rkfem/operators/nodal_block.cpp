@@ -177,7 +177,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
 {
     NodalBlock nb;
     nb.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
-    nb.plastic.params = j2_params(ps.material);
+    nb.plastic.configure(ps.material);
     nb.node_begin = offset;
     nb.node_end = offset + mesh.n_nodes();
     nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);

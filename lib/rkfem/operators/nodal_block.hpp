@@ -22,7 +22,7 @@
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/integration/integration_operator.hpp"
 #include "rkfem/materials/elastic.hpp"
-#include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/materials/point_history.hpp"
 #include "rkfem/operators/hex_block.hpp"
 
 namespace rkfem
@@ -31,7 +31,7 @@ struct NodalBlock
 {
     index_t part = 0;
     ElasticParams material;
-    PlasticPoints plastic; ///< J2 history per stress point (inactive for elastic blocks)
+    PlasticPoints plastic; ///< J2 / K&C history per stress point (inactive for elastic blocks)
     real_t stabilization_coefficient = 0.0; ///< c_s (MSCNI), 0: none
     BulkViscositySpec bulk_viscosity; ///< q = rho l (Q1 l trD^2 - Q2 c trD) for trD < 0, l = J^(1/3) l0
     real_t dt_factor = 1.0; ///< alpha in dt = alpha J^(1/3) l0 / c

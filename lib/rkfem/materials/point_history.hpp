@@ -1,0 +1,81 @@
+#pragma once
+/// @file point_history.hpp
+/// The inelastic model of a block and its per-point history beyond the stress, committed/trial
+/// like the stress: J2 (effective plastic strain, failed flag) or K&C concrete (damage function,
+/// volumetric strains, plastic strain). Elastic blocks have none (active() is false). The
+/// kernels call update() per point; the branch on the kind is uniform over a block.
+#include <vector>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/materials/kcc_concrete.hpp"
+
+namespace rkfem
+{
+struct PlasticPoints
+{
+    enum class Kind
+    {
+        None,
+        J2,
+        Kcc,
+    };
+    Kind kind = Kind::None;
+    J2Params params;
+    KccModel kcc;
+    std::vector<real_t> eps_p, eps_p_trial, failed, failed_trial; ///< J2; eps_p also for output (Kcc)
+    std::vector<KccState> kcc_state, kcc_trial;
+
+    /// From a deck material (J2 or K&C; None for elastic).
+    void configure(const MaterialSpec& m)
+    {
+        if (m.model == "j2")
+        {
+            kind = Kind::J2;
+            params = j2_params(m);
+        }
+        else if (m.model == "kcc")
+        {
+            kind = Kind::Kcc;
+            kcc = KccModel::from_fc(m.fc, m.rho, m.nu, m.E);
+            kcc.rate_effects = m.rate_effects;
+        }
+    }
+    bool active() const { return kind != Kind::None; }
+    void resize(std::size_t n)
+    {
+        eps_p.assign(n, 0.0);
+        eps_p_trial.assign(n, 0.0);
+        failed.assign(n, 0.0);
+        failed_trial.assign(n, 0.0);
+        if (kind == Kind::Kcc)
+        {
+            kcc_state.assign(n, KccState{});
+            kcc_trial.assign(n, KccState{});
+        }
+    }
+    void commit()
+    {
+        eps_p.swap(eps_p_trial);
+        failed.swap(failed_trial);
+        kcc_state.swap(kcc_trial);
+    }
+    /// Updates point p from its committed history into the trial arrays.
+    void update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
+    {
+        if (kind == Kind::Kcc)
+        {
+            KccState st = kcc_state[p];
+            kcc_update(kcc, d, w, dt, s, st);
+            kcc_trial[p] = st;
+            eps_p_trial[p] = st.eps_p;
+            failed_trial[p] = st.lambda; // damage function (0 intact) [output]
+            return;
+        }
+        real_t e = eps_p[p], f = failed[p];
+        j2_update(params, d, w, dt, s, e, f);
+        eps_p_trial[p] = e;
+        failed_trial[p] = f;
+    }
+};
+} // namespace rkfem
