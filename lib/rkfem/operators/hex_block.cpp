@@ -87,15 +87,24 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
             cr[p][2][l] = xe[k][0][l] * xe[m][1][l] - xe[k][1][l] * xe[m][0][l];
         }
     }
-    alignas(64) real_t b[8][3][W] = {};
-    for (int t = 0; t < tab.n_terms; ++t)
+    // node by node, accumulating in registers (one 8-lane vector per component)
+    alignas(64) real_t b[8][3][W];
+    for (int I = 0; I < 8; ++I)
     {
-        const int I = tab.term_node[t], p = tab.term_pair[t];
-        const real_t c = tab.term_coef[t];
+        alignas(64) real_t acc[3][W] = {};
+        for (int t = tab.node_offsets[I]; t < tab.node_offsets[I + 1]; ++t)
+        {
+            const int p = tab.term_pair[t];
+            const real_t c = tab.term_coef[t];
+            for (int d = 0; d < 3; ++d)
+#pragma omp simd
+                for (int l = 0; l < W; ++l)
+                    acc[d][l] += c * cr[p][d][l];
+        }
         for (int d = 0; d < 3; ++d)
 #pragma omp simd
             for (int l = 0; l < W; ++l)
-                b[I][d][l] += c * cr[p][d][l];
+                b[I][d][l] = acc[d][l];
     }
     alignas(64) real_t vol[W], inv_v[W];
 #pragma omp simd

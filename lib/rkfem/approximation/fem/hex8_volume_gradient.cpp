@@ -1,5 +1,6 @@
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
@@ -56,6 +57,11 @@ Hex8VolumeGradientTable build_table()
                 t.term_coef[t.n_terms] = coef;
                 ++t.n_terms;
             }
+    // terms are generated node by node
+    for (int k = 0; k < t.n_terms; ++k)
+        t.node_offsets[t.term_node[k] + 1] = k + 1;
+    for (int P = 1; P <= 8; ++P)
+        t.node_offsets[P] = std::max(t.node_offsets[P], t.node_offsets[P - 1]);
     return t;
 }
 } // namespace

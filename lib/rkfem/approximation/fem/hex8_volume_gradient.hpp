@@ -22,6 +22,7 @@ struct Hex8VolumeGradientTable
     std::array<int, max_terms> term_node{}; ///< I
     std::array<int, max_terms> term_pair{}; ///< p
     std::array<real_t, max_terms> term_coef{};
+    std::array<int, 9> node_offsets{}; ///< terms of node I are [node_offsets[I], node_offsets[I + 1])
 };
 
 /// The table (built on first use, thread-safe).
