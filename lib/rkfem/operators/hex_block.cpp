@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
@@ -308,6 +309,7 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
 }
 
 /// Fully integrated hex: 8 Gauss points, stress per point, bulk viscosity from the mean tr D.
+template <bool PLASTIC>
 void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, real_t out[4],
                          index_t& bad)
 {
@@ -348,7 +350,7 @@ void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t 
         real_t s_old[6];
         for (int k = 0; k < 6; ++k)
             s_old[k] = s_new[gp][k] = blk.stress[k * np + p];
-        if (blk.plastic.active())
+        if constexpr (PLASTIC)
             blk.plastic.update(p, d, w, dt, s_new[gp]);
         else
             elastic_update(mat, d, w, dt, s_new[gp]);
@@ -484,17 +486,24 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
     else
     {
         nb = ne;
-        parallel_for("rkfem::hex2x2x2", ne,
-                     [&](index_t e)
-                     {
-                         real_t out[4];
-                         index_t bad = -1;
-                         force_2x2x2_element(blk, nodes, e, dt, out, bad);
-                         for (int k = 0; k < 4; ++k)
-                             blk.batch_sums[4 * e + k] = out[k];
-                         blk.batch_idx[2 * e] = e;
-                         blk.batch_idx[2 * e + 1] = bad;
-                     });
+        auto run = [&](auto plastic)
+        {
+            parallel_for("rkfem::hex2x2x2", ne,
+                         [&](index_t e)
+                         {
+                             real_t out[4];
+                             index_t bad = -1;
+                             force_2x2x2_element<decltype(plastic)::value>(blk, nodes, e, dt, out, bad);
+                             for (int k = 0; k < 4; ++k)
+                                 blk.batch_sums[4 * e + k] = out[k];
+                             blk.batch_idx[2 * e] = e;
+                             blk.batch_idx[2 * e + 1] = bad;
+                         });
+        };
+        if (blk.plastic.active())
+            run(std::true_type{});
+        else
+            run(std::false_type{});
     }
     r.d_internal = parallel_reduce_sum("rkfem::hex_energy", nb,
                                        [&](index_t b) { return blk.batch_sums[4 * b]; });
