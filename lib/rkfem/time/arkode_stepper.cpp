@@ -335,7 +335,9 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
         im.t_n = t;
         im.u_n.assign(im.state.begin(), im.state.begin() + im.n3);
     }
-    if (mode_ == Mode::CentralDifference && im.h_next > 0 && dt != im.h_next)
+    if (mode_ == Mode::CentralDifference && im.h_next == 0.0)
+        im.forced_h = dt; // first step after initialize(): the first evaluation kicks with dt
+    else if (mode_ == Mode::CentralDifference && dt != im.h_next)
     {
         // The caller takes a step other than the one the last kick was formed with (a dt
         // schedule of its own): re-evaluate f(y(n)) with this step and no material increment
