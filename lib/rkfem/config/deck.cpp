@@ -411,7 +411,8 @@ MaterialSpec read_material(const Section& part)
     MaterialSpec m;
     if (model == "kcc")
     {
-        Section s(part.ctx(), mn, part.path("material"), {"model", "rho", "fc", "E", "nu", "rate_effects"});
+        Section s(part.ctx(), mn, part.path("material"),
+                  {"model", "rho", "fc", "E", "nu", "rate_effects", "fracture_energy"});
         m.model = model;
         m.rho = s.quantity("rho", dim::density);
         if (!(m.rho > 0))
@@ -422,6 +423,17 @@ MaterialSpec read_material(const Section& part)
             s.fail("nu", "is out of range", "expected -1 < nu < 0.5 (default 0.19)");
         m.E = s.quantity("E", dim::pressure, 4700.0 * std::sqrt(m.fc / 1e6) * 1e6);
         m.rate_effects = s.has("rate_effects") && s.choice("rate_effects", {"true", "false"}, "false") == "true";
+        if (s.has("fracture_energy"))
+        {
+            if (s.scalar_text("fracture_energy", "") == "auto")
+                m.fracture_energy = -1.0;
+            else
+            {
+                m.fracture_energy = s.quantity("fracture_energy", Dimension{1, 0, -2});
+                if (m.fracture_energy < 0)
+                    s.fail("fracture_energy", "is negative", "expected G_f >= 0 [J/m^2], auto (CEB-FIP) or 0 (none)");
+            }
+        }
         m.loc = s.loc();
         return m;
     }

@@ -47,6 +47,7 @@ struct MaterialSpec
     // kcc (K&C concrete, parameters generated from f'c; E and nu optional)
     real_t fc = 0.0;
     bool rate_effects = false;
+    real_t fracture_energy = 0.0; ///< G_f [J/m^2] for the crack-band scaling of b2; < 0: CEB-FIP (auto); 0: none
     SourceLocation loc;
 };
 

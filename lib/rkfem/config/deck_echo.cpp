@@ -167,7 +167,13 @@ std::string to_yaml(const Deck& d)
             os << ", fail: " << p.material.fail;
         }
         if (p.material.model == "kcc")
+        {
             os << ", fc: " << p.material.fc << ", rate_effects: " << (p.material.rate_effects ? "true" : "false");
+            if (p.material.fracture_energy < 0)
+                os << ", fracture_energy: auto";
+            else
+                os << ", fracture_energy: " << p.material.fracture_energy;
+        }
         os << "}\n";
         os << "    formulation: "
            << (p.formulation == Formulation::Fem1pt     ? "fem-1pt"

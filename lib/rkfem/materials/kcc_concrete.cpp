@@ -115,7 +115,7 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
             return wlode * rf * std::max(ds, 0.0);
         };
         const real_t pd = std::max(p / rf, -0.999 * k.ft); // keep 1 + p/(r_f f_t) > 0
-        const real_t bexp = p >= 0.0 ? k.b1 : k.b2;
+        const real_t bexp = p >= 0.0 ? k.b1 : (std::isnan(st.b2) ? k.b2 : st.b2);
         const real_t dlam_per_ep = 1.0 / (rf * std::pow(1.0 + pd / k.ft, bexp)); // d lambda / d eps_p
         if (q > surface(st.lambda))
         {
@@ -182,5 +182,64 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
     for (int c = 3; c < 6; ++c)
         s[c] = dev[c];
     return work;
+}
+real_t ceb_fracture_energy(real_t fc_pa)
+{
+    const real_t fcm = fc_pa / 1e6 + 8.0;
+    return 0.030e3 * std::pow(fcm / 10.0, 0.7); // N/mm -> J/m^2 (x 1e3)
+}
+
+real_t kcc_tension_work(const KccModel& m, real_t b2)
+{
+    // uniaxial stress tension, lateral stress held at zero by Newton on the lateral strain rate
+    KccState st;
+    st.b2 = b2;
+    real_t s[6] = {};
+    const real_t ft = m.surfaces.ft;
+    const real_t E = 9.0 * m.bulk * m.shear / (3.0 * m.bulk + m.shear);
+    const real_t nu = (3.0 * m.bulk - 2.0 * m.shear) / (2.0 * (3.0 * m.bulk + m.shear));
+    const real_t de = 0.02 * ft / E; // 50 steps to the peak
+    const real_t k_lat = 2.0 * (m.bulk + m.shear / 3.0);
+    real_t lat = -nu, work = 0.0, peak = 0.0;
+    const real_t w[3] = {0, 0, 0};
+    for (int step = 0; step < 200000; ++step)
+    {
+        real_t trial[6];
+        KccState ts;
+        for (int it = 0; it < 60; ++it)
+        {
+            std::copy(s, s + 6, trial);
+            ts = st;
+            const real_t d[6] = {1.0, lat, lat, 0, 0, 0};
+            kcc_update(m, d, w, de, trial, ts);
+            const real_t r = 0.5 * (trial[1] + trial[2]);
+            if (std::abs(r) <= 1e-9 * ft)
+                break;
+            lat -= r / (k_lat * de);
+        }
+        work += 0.5 * (s[0] + trial[0]) * de;
+        std::copy(trial, trial + 6, s);
+        st = ts;
+        peak = std::max(peak, s[0]);
+        if (peak > 0.5 * ft && s[0] < 1e-3 * ft)
+            break;
+    }
+    return work;
+}
+
+real_t kcc_b2_for_length(const KccModel& m, real_t h)
+{
+    const real_t target = m.fracture_energy / h;
+    real_t lo = -5.0, hi = 50.0; // work decreases as b2 grows
+    if (kcc_tension_work(m, lo) <= target)
+        return lo;
+    if (kcc_tension_work(m, hi) >= target)
+        return hi;
+    for (int it = 0; it < 40; ++it)
+    {
+        const real_t mid = 0.5 * (lo + hi);
+        (kcc_tension_work(m, mid) > target ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
 }
 } // namespace rkfem

@@ -9,7 +9,10 @@
 /// with b1 (compression) / b2 (tension), partially associated dilatancy omega, radial rate
 /// scaling by the dynamic increase factor. Choices where the reference is uncertain are marked
 /// [U]: K_1 from E = 4700 sqrt(f'c [MPa]) and nu = 0.19 when not given; the tensile cutoff
-/// follows eta after the peak; no b3 volumetric damage and no element-size scaling of b2 yet.
+/// follows eta after the peak; no b3 volumetric damage; b2 is scaled per point with its length
+/// (crack band) when a fracture energy is given.
+#include <limits>
+
 #include "rkfem/materials/kcc_surfaces.hpp"
 #include "rkfem/materials/objective_rate.hpp"
 
@@ -22,6 +25,8 @@ struct KccModel
     real_t bulk = 0.0;  ///< K_1, initial (elastic) bulk modulus [Pa]
     real_t shear = 0.0; ///< G from K_1 and nu [Pa]
     bool rate_effects = false;
+    /// Fracture energy G_f [J/m^2] for the crack-band scaling of b2 (0: no regularisation).
+    real_t fracture_energy = 0.0;
     std::array<real_t, 10> eos_strain{}; ///< volumetric strain ln(V/V0) (<= 0, decreasing)
     std::array<real_t, 10> eos_pressure{};
     std::array<real_t, 10> eos_unload{}; ///< unloading bulk modulus
@@ -41,7 +46,20 @@ struct KccState
     real_t ev_min = 0.0;  ///< most compressive EOS strain reached
     real_t ev_plastic = 0.0; ///< dilatant volumetric plastic strain (expansion positive)
     real_t eps_p = 0.0;   ///< effective plastic strain
+    real_t b2 = std::numeric_limits<real_t>::quiet_NaN(); ///< regularised tensile damage exponent (NaN: the model's)
 };
+
+/// CEB-FIP 1990 fracture energy G_f = G_f0 (f_cm / 10 MPa)^0.7, f_cm = f'c + 8 MPa, G_f0 = 0.030
+/// N/mm (maximum aggregate 16 mm) [K; the aggregate size is a default, U].
+real_t ceb_fracture_energy(real_t fc_pa);
+
+/// Work density to full separation in uniaxial tension (stress driven to 1e-3 f_t) with tensile
+/// damage exponent b2 [J/m^3].
+real_t kcc_tension_work(const KccModel& m, real_t b2);
+
+/// b2 such that h x kcc_tension_work(b2) = G_f (crack band of width h, the element or nodal
+/// length); clamped to [-5, 50] where no b2 reaches the target.
+real_t kcc_b2_for_length(const KccModel& m, real_t h);
 
 /// Updates stress s (Voigt, tension positive) and state over dt; returns the plastic work
 /// density increment (>= 0).

@@ -4,6 +4,8 @@
 /// like the stress: J2 (effective plastic strain, failed flag) or K&C concrete (damage function,
 /// volumetric strains, plastic strain). Elastic blocks have none (active() is false). The
 /// kernels call update() per point; the branch on the kind is uniform over a block.
+#include <cmath>
+#include <map>
 #include <vector>
 
 #include "rkfem/config/deck.hpp"
@@ -39,6 +41,7 @@ struct PlasticPoints
             kind = Kind::Kcc;
             kcc = KccModel::from_fc(m.fc, m.rho, m.nu, m.E);
             kcc.rate_effects = m.rate_effects;
+            kcc.fracture_energy = m.fracture_energy < 0 ? ceb_fracture_energy(m.fc) : m.fracture_energy;
         }
     }
     bool active() const { return kind != Kind::None; }
@@ -52,6 +55,22 @@ struct PlasticPoints
         {
             kcc_state.assign(n, KccState{});
             kcc_trial.assign(n, KccState{});
+        }
+    }
+    /// Crack-band lengths per point (element size, nodal spacing): with a fracture energy, each
+    /// K&C point gets the b2 that dissipates G_f over its length (one solve per distinct length).
+    void set_lengths(const std::vector<real_t>& h)
+    {
+        if (kind != Kind::Kcc || !(kcc.fracture_energy > 0))
+            return;
+        std::map<long long, real_t> cache; // length in units of 1e-9 m -> b2
+        for (std::size_t p = 0; p < h.size() && p < kcc_state.size(); ++p)
+        {
+            const long long key = std::llround(h[p] * 1e9);
+            auto it = cache.find(key);
+            if (it == cache.end())
+                it = cache.emplace(key, kcc_b2_for_length(kcc, h[p])).first;
+            kcc_state[p].b2 = kcc_trial[p].b2 = it->second;
         }
     }
     void commit()

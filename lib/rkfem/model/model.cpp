@@ -151,6 +151,13 @@ Model Model::build(const Deck& deck)
         blk.node_begin = info.node_begin;
         blk.node_end = info.node_end;
         blk.initialize(m.nodes);
+        {
+            // crack-band length per point: the element's V^(1/3)
+            std::vector<real_t> h(static_cast<std::size_t>(blk.n_points()));
+            for (index_t q = 0; q < blk.n_points(); ++q)
+                h[q] = std::cbrt(blk.volume0[q / blk.points_per_element()]);
+            blk.plastic.set_lengths(h);
+        }
         m.part_nodal.push_back(-1);
         if (is_nodal(ps.formulation))
         {

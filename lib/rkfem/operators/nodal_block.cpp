@@ -241,6 +241,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     for (index_t p = 0; p < nb.points.n_points(); ++p)
         nb.length0[p] = l0[nb.points.owner[p] - offset];
     nb.initialize();
+    nb.plastic.set_lengths(nb.length0); // crack-band length: the shortest mesh edge at the node
     return nb;
 }
 
