@@ -24,6 +24,8 @@ struct PointMaterial
     real_t ep = 0.0, failed = 0.0;
     KccState kcc_state;
     mutable KccState kcc_trial;
+    real_t ev = 0.0, energy = 0.0; ///< J2 with an EOS
+    mutable real_t ev_trial = 0.0, energy_trial = 0.0;
     mutable real_t work_trial = 0.0;
 
     /// Trial update from the committed state; commit = true keeps it.
@@ -40,7 +42,11 @@ struct PointMaterial
             f_out = kcc_trial.lambda; // the damage function in the `failed` column for kcc
         }
         else if (plastic)
-            j2_update(j2, d, w, dt, out, ep_out, f_out);
+        {
+            ev_trial = ev;
+            energy_trial = energy;
+            j2_update(j2, d, w, dt, out, ep_out, f_out, &ev_trial, &energy_trial);
+        }
         else
             elastic_update(elastic, d, w, dt, out);
     }
@@ -135,6 +141,11 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
         {
             pm.kcc_state = pm.kcc_trial;
             rec.work += pm.work_trial;
+        }
+        else if (pm.plastic)
+        {
+            pm.ev = pm.ev_trial;
+            pm.energy = pm.energy_trial;
         }
         t += dt;
         rec.time = t;

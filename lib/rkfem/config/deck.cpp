@@ -442,7 +442,7 @@ MaterialSpec read_material(const Section& part)
         Section s(part.ctx(), mn, part.path("material"),
                   model == "elastic" ? std::vector<std::string>{"model", "rho", "E", "nu"}
                                      : std::vector<std::string>{"model", "rho", "E", "nu", "sigy", "etan", "curve",
-                                                                "cowper_symonds", "fail"});
+                                                                "cowper_symonds", "fail", "eos"});
         m.model = model;
         m.rho = s.quantity("rho", dim::density);
         if (!(m.rho > 0))
@@ -496,6 +496,29 @@ MaterialSpec read_material(const Section& part)
             m.fail = s.quantity("fail", dim::none, 0.0);
             if (m.fail < 0)
                 s.fail("fail", "is negative", "expected a failure plastic strain > 0, or 0 for none");
+            if (s.has("eos"))
+            {
+                const YAML::Node en = s.node("eos");
+                const std::string t = en.IsMap() && en["type"].IsDefined() ? en["type"].Scalar() : "";
+                if (t == "linear")
+                {
+                    Section e(s.ctx(), en, s.path("eos"), {"type"});
+                    m.eos_type = t;
+                }
+                else if (t == "gruneisen")
+                {
+                    Section e(s.ctx(), en, s.path("eos"), {"type", "c0", "s", "gamma0", "a"});
+                    m.eos_type = t;
+                    m.eos_c0 = e.positive("c0", dim::velocity);
+                    m.eos_s = e.quantity("s", dim::none);
+                    m.eos_gamma0 = e.quantity("gamma0", dim::none);
+                    m.eos_a = e.quantity("a", dim::none, 0.0);
+                }
+                else
+                    throw DeckError(locate(s.ctx(), en.IsMap() && en["type"].IsDefined() ? en["type"] : en, s.path("eos") + ".type"),
+                                    t.empty() ? "missing EOS type" : "unknown EOS type '" + t + "'",
+                                    "expected type: linear | gruneisen");
+            }
         }
         m.loc = s.loc();
         return m;

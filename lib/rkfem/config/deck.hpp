@@ -44,6 +44,8 @@ struct MaterialSpec
     std::vector<std::pair<real_t, real_t>> curve; ///< (eps_p, sigma_y [Pa]); overrides sigy/etan
     real_t cs_c = 0.0, cs_p = 0.0; ///< Cowper-Symonds C [1/s], P
     real_t fail = 0.0;             ///< failure plastic strain (0: none)
+    std::string eos_type;          ///< j2: "" (incremental bulk), linear, gruneisen
+    real_t eos_c0 = 0.0, eos_s = 0.0, eos_gamma0 = 0.0, eos_a = 0.0; ///< gruneisen
     // kcc (K&C concrete, parameters generated from f'c; E and nu optional)
     real_t fc = 0.0;
     bool rate_effects = false;

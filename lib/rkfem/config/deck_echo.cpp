@@ -165,6 +165,11 @@ std::string to_yaml(const Deck& d)
             if (p.material.cs_c > 0)
                 os << ", cowper_symonds: {C: " << p.material.cs_c << ", P: " << p.material.cs_p << "}";
             os << ", fail: " << p.material.fail;
+            if (p.material.eos_type == "linear")
+                os << ", eos: {type: linear}";
+            else if (p.material.eos_type == "gruneisen")
+                os << ", eos: {type: gruneisen, c0: " << p.material.eos_c0 << ", s: " << p.material.eos_s
+                   << ", gamma0: " << p.material.eos_gamma0 << ", a: " << p.material.eos_a << "}";
         }
         if (p.material.model == "kcc")
         {

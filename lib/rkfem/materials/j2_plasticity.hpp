@@ -13,6 +13,7 @@
 
 #include "rkfem/config/deck.hpp"
 #include "rkfem/materials/elastic.hpp"
+#include "rkfem/materials/eos.hpp"
 #include "rkfem/materials/objective_rate.hpp"
 
 namespace rkfem
@@ -24,6 +25,7 @@ struct J2Params
     std::vector<std::pair<real_t, real_t>> curve;
     real_t cs_c = 0.0, cs_p = 0.0; ///< Cowper-Symonds C [1/s] and P; C = 0: no rate effect
     real_t fail = 0.0;             ///< failure plastic strain; 0: none
+    Eos eos;                       ///< pressure from an EOS (kind None: incremental K tr(D) dt)
 
     /// Bilinear: yield stress sigy, tangent modulus etan of the total-strain curve.
     static J2Params bilinear(ElasticParams el, real_t E, real_t sigy, real_t etan)
@@ -51,13 +53,29 @@ struct J2Params
 
 /// One update over dt with rate of deformation d (tensor shear) and spin w; s is the Voigt
 /// stress, eps_p the effective plastic strain, failed 0/1. Returns the plastic strain increment.
+/// With an EOS, ev (ln V/V0, accumulated tr(D) dt) and e (internal energy per reference volume,
+/// accumulated from the stress power) are the point's volumetric history; the mean stress is
+/// -p(ev, e) instead of the incremental bulk response.
 inline real_t j2_update(const J2Params& p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6],
-                        real_t& eps_p, real_t& failed)
+                        real_t& eps_p, real_t& failed, real_t* ev = nullptr, real_t* e = nullptr)
 {
+    const bool with_eos = p.eos.kind != Eos::Kind::None && ev && e;
+    real_t s_start[6];
+    for (int k = 0; k < 6; ++k)
+        s_start[k] = s[k];
     rotate_stress(w, dt, s);
     const real_t G = p.elastic.mu, K = p.elastic.bulk_modulus();
     const real_t tr = d[0] + d[1] + d[2];
     real_t pm = (s[0] + s[1] + s[2]) / 3.0 + K * tr * dt; // mean stress
+    if (with_eos)
+    {
+        // volumetric strain, then the EOS at an energy predicted with the old stress power
+        *ev += tr * dt;
+        real_t power_old = 0.0;
+        for (int k = 0; k < 3; ++k)
+            power_old += s_start[k] * d[k] + 2.0 * s_start[k + 3] * d[k + 3];
+        pm = -p.eos.pressure(*ev, *e + power_old * dt * std::exp(*ev));
+    }
     real_t dev[6];
     for (int k = 0; k < 3; ++k)
         dev[k] = s[k] - (s[0] + s[1] + s[2]) / 3.0 + 2.0 * G * (d[k] - tr / 3.0) * dt;
@@ -123,6 +141,13 @@ inline real_t j2_update(const J2Params& p, const real_t d[6], const real_t w[3],
         s[k] = dev[k] + pm;
     for (int k = 3; k < 6; ++k)
         s[k] = dev[k];
+    if (with_eos) // internal energy per reference volume: trapezoid of the stress power, times J
+    {
+        real_t power = 0.0;
+        for (int k = 0; k < 3; ++k)
+            power += 0.5 * (s_start[k] + s[k]) * d[k] + (s_start[k + 3] + s[k + 3]) * d[k + 3];
+        *e += power * dt * std::exp(*ev);
+    }
     return dep;
 }
 /// J2 parameters of a deck material (empty curve, i.e. inactive, for model elastic).
@@ -144,6 +169,20 @@ inline J2Params j2_params(const MaterialSpec& m)
     p.cs_c = m.cs_c;
     p.cs_p = m.cs_p;
     p.fail = m.fail;
+    if (m.eos_type == "linear")
+    {
+        p.eos.kind = Eos::Kind::Linear;
+        p.eos.bulk = el.bulk_modulus();
+    }
+    else if (m.eos_type == "gruneisen")
+    {
+        p.eos.kind = Eos::Kind::Gruneisen;
+        p.eos.rho0 = m.rho;
+        p.eos.c0 = m.eos_c0;
+        p.eos.s = m.eos_s;
+        p.eos.gamma0 = m.eos_gamma0;
+        p.eos.a = m.eos_a;
+    }
     return p;
 }
 

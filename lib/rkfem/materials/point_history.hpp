@@ -27,6 +27,7 @@ struct PlasticPoints
     KccModel kcc;
     std::vector<real_t> eps_p, eps_p_trial, failed, failed_trial; ///< J2; eps_p also for output (Kcc)
     std::vector<KccState> kcc_state, kcc_trial;
+    std::vector<real_t> ev, ev_trial, energy, energy_trial; ///< J2 with an EOS: ln(V/V0), E [J/m^3]
 
     /// From a deck material (J2 or K&C; None for elastic).
     void configure(const MaterialSpec& m)
@@ -56,6 +57,13 @@ struct PlasticPoints
             kcc_state.assign(n, KccState{});
             kcc_trial.assign(n, KccState{});
         }
+        if (kind == Kind::J2 && params.eos.kind != Eos::Kind::None)
+        {
+            ev.assign(n, 0.0);
+            ev_trial.assign(n, 0.0);
+            energy.assign(n, 0.0);
+            energy_trial.assign(n, 0.0);
+        }
     }
     /// Crack-band lengths per point (element size, nodal spacing): with a fracture energy, each
     /// K&C point gets the b2 that dissipates G_f over its length (one solve per distinct length).
@@ -78,6 +86,8 @@ struct PlasticPoints
         eps_p.swap(eps_p_trial);
         failed.swap(failed_trial);
         kcc_state.swap(kcc_trial);
+        ev.swap(ev_trial);
+        energy.swap(energy_trial);
     }
     /// Updates point p from its committed history into the trial arrays.
     void update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
@@ -92,7 +102,15 @@ struct PlasticPoints
             return;
         }
         real_t e = eps_p[p], f = failed[p];
-        j2_update(params, d, w, dt, s, e, f);
+        if (!ev.empty())
+        {
+            real_t v = ev[p], en = energy[p];
+            j2_update(params, d, w, dt, s, e, f, &v, &en);
+            ev_trial[p] = v;
+            energy_trial[p] = en;
+        }
+        else
+            j2_update(params, d, w, dt, s, e, f);
         eps_p_trial[p] = e;
         failed_trial[p] = f;
     }
