@@ -439,6 +439,15 @@ void HexBlock::initialize(const NodeSet& nodes)
         node_elem_slots[fill[conn[s] - node_begin]++] = s;
 }
 
+/// All batches of a 1-point block, with the material kind chosen once for the block.
+template <HourglassType HG> void run_1pt(HexBlock& blk, const NodeSet& nodes, index_t nb, real_t dt)
+{
+    if (blk.plastic.active())
+        parallel_for("rkfem::hex1pt", nb, [&](index_t b) { force_1pt_batch<HG, true>(blk, nodes, b, dt); });
+    else
+        parallel_for("rkfem::hex1pt", nb, [&](index_t b) { force_1pt_batch<HG, false>(blk, nodes, b, dt); });
+}
+
 ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t dt)
 {
     ForcePassResult r;
@@ -450,36 +459,16 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
         switch (blk.hourglass.type)
         {
         case HourglassType::None:
-            if (blk.plastic.active())
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::None, true>(blk, nodes, b, dt); });
-            else
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::None, false>(blk, nodes, b, dt); });
+            run_1pt<HourglassType::None>(blk, nodes, nb, dt);
             break;
         case HourglassType::Viscous:
-            if (blk.plastic.active())
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::Viscous, true>(blk, nodes, b, dt); });
-            else
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::Viscous, false>(blk, nodes, b, dt); });
+            run_1pt<HourglassType::Viscous>(blk, nodes, nb, dt);
             break;
         case HourglassType::Stiffness:
-            if (blk.plastic.active())
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::Stiffness, true>(blk, nodes, b, dt); });
-            else
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::Stiffness, false>(blk, nodes, b, dt); });
+            run_1pt<HourglassType::Stiffness>(blk, nodes, nb, dt);
             break;
         case HourglassType::ViscousPlain:
-            if (blk.plastic.active())
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::ViscousPlain, true>(blk, nodes, b, dt); });
-            else
-                parallel_for("rkfem::hex1pt", nb, [&](index_t b)
-                             { force_1pt_batch<HourglassType::ViscousPlain, false>(blk, nodes, b, dt); });
+            run_1pt<HourglassType::ViscousPlain>(blk, nodes, nb, dt);
             break;
         }
     }
