@@ -54,7 +54,10 @@ void BM_NodalInternalForce(benchmark::State& state)
     const HexMesh mesh = lattice(state.range(0));
     PartSpec ps;
     ps.formulation = Formulation::Rkpm;
-    ps.material = {"elastic", 2400.0, 30e9, 0.2, {}};
+    ps.material.model = "elastic";
+    ps.material.rho = 2400.0;
+    ps.material.E = 30e9;
+    ps.material.nu = 0.2;
     ps.rk.normalized_support = state.range(1) / 100.0;
     ps.nodal.stabilization = state.range(2) ? "mscni" : "none";
     NodalBlock blk = build_nodal_block(ps, mesh, 0);
