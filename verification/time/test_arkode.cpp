@@ -1,3 +1,7 @@
+// GCC 12 reports a false "may be used uninitialized" inside Eigen's AVX-512 kernels (dense LU and
+// SparseLU here); every value is initialised.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
 // Time integration through SUNDIALS ARKODE: arkode-cd reproduces the hand-written central
 // difference to round-off on a nonlinear problem (bulk viscosity, large-ish strain) over 1,000
 // steps with the step changing mid-run; temporal convergence orders of central difference,

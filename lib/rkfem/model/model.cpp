@@ -1,3 +1,7 @@
+// GCC 12 reports a false "may be used uninitialized" inside Eigen's AVX-512 kernels (dense LU and
+// SparseLU here); every value is initialised.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
 #include "rkfem/model/model.hpp"
 
 #include <algorithm>
