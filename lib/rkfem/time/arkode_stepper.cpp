@@ -355,7 +355,12 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     if (mode_ == Mode::CentralDifference)
         std::swap(n.v, im.v_full);
     else
+    {
+        // without the FSAL workaround the last evaluation may sit at a stage point: take y(n+1)
+        std::copy(im.state.begin(), im.state.begin() + im.n3, n.u.begin());
         std::copy(im.state.begin() + im.n3, im.state.end(), n.v.begin());
+        model.update_coordinates();
+    }
     model.impose_velocity(tret, dt, false);
     const real_t bad = parallel_reduce_min("rkfem::arkode::check", im.n3,
                                            [&](index_t j)
