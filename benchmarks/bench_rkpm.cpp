@@ -27,10 +27,7 @@ void BM_RkShapeFunctions(benchmark::State& state)
 {
     const HexMesh mesh = lattice(state.range(0));
     const real_t c = state.range(1) / 100.0;
-    std::vector<real_t> a = nodal_spacing(mesh);
-    for (auto& v : a)
-        v *= c;
-    const RkShapeFunctions rk(mesh.x, a, {1, KernelType::CubicBSpline, SupportShape::Box, c});
+    const RkShapeFunctions rk = rk_on_mesh(mesh, {1, KernelType::CubicBSpline, SupportShape::Box, c});
     RkSample s;
     std::size_t nbrs = 0;
     for (auto _ : state)

@@ -24,10 +24,7 @@ struct Cloud
 Cloud make_cloud(int n, real_t h, real_t jitter, RkParams p)
 {
     Cloud c{test::distorted_box(n, h, jitter), {}};
-    std::vector<real_t> a = nodal_spacing(c.mesh);
-    for (auto& v : a)
-        v *= p.normalized_support;
-    c.rk = RkShapeFunctions(c.mesh.x, a, p);
+    c.rk = rk_on_mesh(c.mesh, p);
     return c;
 }
 

@@ -9,13 +9,8 @@
 
 namespace rkfem::test
 {
-inline RkShapeFunctions rk_on_mesh(const HexMesh& mesh, RkParams p = {})
-{
-    std::vector<real_t> a = nodal_spacing(mesh);
-    for (auto& v : a)
-        v *= p.normalized_support;
-    return RkShapeFunctions(mesh.x, a, p);
-}
+/// RK functions with the default parameters over a mesh's nodes.
+inline RkShapeFunctions rk_on_mesh(const HexMesh& mesh) { return rkfem::rk_on_mesh(mesh, RkParams{}); }
 
 enum class Scheme
 {

@@ -33,11 +33,7 @@ real_t tip_deflection(Formulation form, int nx, int ny, real_t stab)
     const index_t nn = mesh.n_nodes();
     const real_t E3 = E * (1 + 2 * nu) / ((1 + nu) * (1 + nu)), nu3 = nu / (1 + nu);
     const ElasticParams mat = ElasticParams::from_E_nu(1.0, E3, nu3);
-    std::vector<real_t> a = nodal_spacing(mesh);
-    RkParams rp;
-    for (auto& v : a)
-        v *= rp.normalized_support;
-    const RkShapeFunctions rk(mesh.x, a, rp);
+    const RkShapeFunctions rk = rk_on_mesh(mesh, RkParams{});
     const RkShapes rks(rk);
     const FemShapes fes(mesh);
     const bool is_rk = form == Formulation::Rkpm;

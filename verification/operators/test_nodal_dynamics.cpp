@@ -7,6 +7,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <cstdio>
+#include <memory>
 #include <random>
 
 #include "rkfem/integration/nodal/nodal_integration.hpp"
@@ -120,19 +121,18 @@ void run_steps(Fixture& fx, int steps, real_t dt, const std::vector<char>& drive
     }
 }
 
-/// Nodes whose shape function is non-zero somewhere on the boundary.
-std::vector<char> touching_boundary(const PartSpec& ps, const HexMesh& mesh)
+/// Nodes whose shape function (the block's own: RK or FE) is non-zero somewhere on the boundary.
+std::vector<char> touching_boundary(const Fixture& fx)
 {
+    const HexMesh& mesh = fx.mesh;
     std::vector<char> touch(static_cast<std::size_t>(mesh.n_nodes()), 0);
     std::vector<index_t> nodes;
     std::vector<real_t> psi;
-    std::vector<real_t> a = nodal_spacing(mesh);
-    for (auto& v : a)
-        v *= ps.rk.normalized_support;
-    const RkShapeFunctions rk(mesh.x, a, RkParams{});
-    const RkShapes rks(rk);
     const FemShapes fes(mesh);
-    const ShapeEvaluator& sh = ps.formulation == Formulation::Rkpm ? static_cast<const ShapeEvaluator&>(rks) : fes;
+    std::unique_ptr<RkShapes> rks;
+    if (fx.blk.rk)
+        rks = std::make_unique<RkShapes>(*fx.blk.rk);
+    const ShapeEvaluator& sh = rks ? static_cast<const ShapeEvaluator&>(*rks) : fes;
     for (const BoundaryPoint& b : boundary_quadrature(mesh))
     {
         sh.values(b.element, b.point.xi, b.point.x, nodes, psi);
@@ -154,7 +154,7 @@ TEST_P(DynamicPatch, LinearVelocityFieldGivesUniformRateAndNoInteriorForce)
     Fixture fx(ps, 6, 0.01, 0.3);
     Mat3 L0;
     L0 << 20.0, -5.0, 3.0, 8.0, -10.0, 4.0, -6.0, 2.0, 5.0; // [1/s]
-    const std::vector<char> driven = touching_boundary(ps, fx.mesh);
+    const std::vector<char> driven = touching_boundary(fx);
     index_t n_free = 0;
     for (index_t i = 0; i < fx.mesh.n_nodes(); ++i)
     {

@@ -132,10 +132,7 @@ MmsResult solve_mms(const MmsCase& c)
     const ElasticParams mat = ElasticParams::from_E_nu(1.0, c.E, c.nu);
     const Exact ex{mat.lambda, mat.mu};
 
-    std::vector<real_t> a = nodal_spacing(mesh);
-    for (auto& v : a)
-        v *= c.rk.normalized_support;
-    const RkShapeFunctions rk(mesh.x, a, c.rk);
+    const RkShapeFunctions rk = rk_on_mesh(mesh, c.rk);
     const RkShapes rks(rk);
     const FemShapes fes(mesh);
     const bool is_rk = c.formulation == Formulation::Rkpm;

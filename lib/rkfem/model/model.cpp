@@ -333,8 +333,6 @@ Model Model::build(const Deck& deck)
     {
         RkFaceLoads rl;
         rl.point_offsets.assign(1, 0);
-        std::unique_ptr<RkShapeFunctions> rk;
-        index_t rk_part = -1;
         RkSample smp;
         for (const Quad& q : *faces)
         {
@@ -347,21 +345,7 @@ Model Model::build(const Deck& deck)
                     rl.point_offsets.push_back(rl.point_offsets.back());
                 continue;
             }
-            if (rk_part != ip)
-            {
-                const PartInfo& pi = m.parts[ip];
-                HexMesh mesh;
-                mesh.x.assign(m.nodes.x0.begin() + 3 * pi.node_begin, m.nodes.x0.begin() + 3 * pi.node_end);
-                mesh.conn = m.blocks[ip].conn;
-                for (auto& c : mesh.conn)
-                    c -= pi.node_begin;
-                std::vector<real_t> a = nodal_spacing(mesh);
-                const RkParams rp = rk_params(d.parts[ip].rk);
-                for (auto& v : a)
-                    v *= rp.normalized_support;
-                rk = std::make_unique<RkShapeFunctions>(mesh.x, a, rp);
-                rk_part = ip;
-            }
+            const RkShapeFunctions& rk = *m.nodal_blocks[m.part_nodal[ip]].rk; // local numbering
             const real_t g = 1.0 / std::sqrt(3.0);
             Vec3 xc[4];
             for (int c = 0; c < 4; ++c)
@@ -371,7 +355,7 @@ Model Model::build(const Deck& deck)
                 const real_t r = gp % 2 ? g : -g, s = gp / 2 ? g : -g;
                 const Vec3 X = 0.25 * ((1 - r) * (1 - s) * xc[0] + (1 + r) * (1 - s) * xc[1] + (1 + r) * (1 + s) * xc[2] +
                                        (1 - r) * (1 + s) * xc[3]);
-                rk->evaluate(X, false, smp);
+                rk.evaluate(X, false, smp);
                 for (index_t k = 0; k < smp.size(); ++k)
                 {
                     rl.nodes.push_back(smp.nodes[k] + m.parts[ip].node_begin);

@@ -185,16 +185,13 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     const NodalScheme scheme = ps.nodal.scheme == "dni"       ? NodalScheme::Dni
                                : ps.nodal.scheme == "sd-scni" ? NodalScheme::SdScni
                                                               : NodalScheme::Scni;
-    std::unique_ptr<RkShapeFunctions> rk;
+    std::shared_ptr<const RkShapeFunctions> rk;
     std::unique_ptr<ShapeEvaluator> shapes;
     if (ps.formulation == Formulation::Rkpm)
     {
-        const RkParams rp = rk_params(ps.rk);
-        std::vector<real_t> a = nodal_spacing(mesh);
-        for (auto& v : a)
-            v *= rp.normalized_support;
-        rk = std::make_unique<RkShapeFunctions>(mesh.x, a, rp);
+        rk = std::make_shared<const RkShapeFunctions>(rk_on_mesh(mesh, rk_params(ps.rk)));
         shapes = std::make_unique<RkShapes>(*rk);
+        nb.rk = rk;
     }
     else
         shapes = std::make_unique<FemShapes>(mesh);

@@ -14,6 +14,7 @@
 /// Nodal forces are gathered through the node -> entry transpose of both operators, in a fixed
 /// order, so results do not depend on the thread count. For RK parts the node unknowns are
 /// generalized coefficients; `interpolation` (Psi_J(X_I) per node) gives physical values.
+#include <memory>
 #include <vector>
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
@@ -41,6 +42,9 @@ struct NodalBlock
     /// RK parts: physical value at node I = sum over k in [interp_offsets[i], interp_offsets[i+1])
     /// of interp_values[k] * coefficient[interp_nodes[k]] (local node i); empty for FE parts.
     std::vector<index_t> interp_offsets, interp_nodes;
+    /// RK parts: the shape functions (local node numbering, reference configuration), kept for
+    /// set-up work that samples them (pressure faces); null for FE parts.
+    std::shared_ptr<const RkShapeFunctions> rk;
     std::vector<real_t> interp_values;
     /// point -> owner node CSR (local node i: points [owner_offsets[i], owner_offsets[i+1]))
     std::vector<index_t> owner_offsets, owner_points;

@@ -154,6 +154,14 @@ void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) co
         solve_and_fill<10>(out, s, gradients, singular);
 }
 
+RkShapeFunctions rk_on_mesh(const HexMesh& mesh, const RkParams& params)
+{
+    std::vector<real_t> a = nodal_spacing(mesh);
+    for (auto& v : a)
+        v *= params.normalized_support;
+    return RkShapeFunctions(mesh.x, std::move(a), params);
+}
+
 std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest)
 {
     static constexpr int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},

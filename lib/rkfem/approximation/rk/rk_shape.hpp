@@ -81,4 +81,7 @@ class RkShapeFunctions
 /// h_I = the longest (or, with longest = false, the shortest) mesh edge incident to node I, per
 /// node, in the mesh's configuration.
 std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest = true);
+
+/// RK functions over the nodes of a mesh, support a_I = params.normalized_support x h_I.
+RkShapeFunctions rk_on_mesh(const HexMesh& mesh, const RkParams& params);
 } // namespace rkfem
