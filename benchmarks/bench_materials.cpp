@@ -1,9 +1,11 @@
-// Material point updates, ns per update, 1 thread: elastic and J2 (elastic steps, plastic
-// hardening steps, failed points). Each iteration updates a batch of 4096 independent points.
+// Material point updates, ns per update, 1 thread: elastic, J2 (elastic steps, plastic
+// hardening steps, failed points), K&C concrete and the CSCM cap model (elastic, softening, cap
+// compaction). Each iteration updates a batch of 4096 independent points.
 //   build/release/bin/bench_materials --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 #include <vector>
 
+#include "rkfem/materials/cscm_concrete.hpp"
 #include "rkfem/materials/j2_plasticity.hpp"
 #include "rkfem/materials/kcc_concrete.hpp"
 
@@ -89,9 +91,42 @@ void BM_KCC(benchmark::State& state)
         benchmark::Counter(n * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
     state.SetLabel(mode == 0 ? "elastic" : "softening");
 }
+
+/// mode 0: elastic steps, 1: softening (uniaxial compression past the peak: return + damage),
+/// 2: cap compaction (hydrostatic compression on the hardening cap)
+void BM_CSCM(benchmark::State& state)
+{
+    const CscmModel m = CscmModel::from_fc(30e6, 2400);
+    const int mode = static_cast<int>(state.range(0));
+    std::vector<real_t> s(6 * n, 0.0);
+    std::vector<CscmState> st(n);
+    const real_t w[3] = {0.1, 0, -0.1};
+    const real_t duc[6] = {-1.0, 0.25, 0.25, 0.0, 0, 0}, dhyd[6] = {-1.0, -1.0, -1.0, 0, 0, 0};
+    const real_t* d = mode == 2 ? dhyd : duc;
+    if (mode >= 1)
+        for (int q = 0; q < n; ++q)
+            for (int k = 0; k < 300; ++k)
+                cscm_update(m, d, w, mode == 1 ? 1e-5 : 4e-5, &s[6 * q], st[q]);
+    const real_t dt = mode == 0 ? 1e-8 : 1e-6;
+    for (auto _ : state)
+    {
+        for (int q = 0; q < n; ++q)
+        {
+            if (mode == 0)
+                st[q] = CscmState{};
+            cscm_update(m, d, w, dt, &s[6 * q], st[q]);
+        }
+        benchmark::ClobberMemory();
+    }
+    state.counters["ns_per_update"] =
+        benchmark::Counter(n * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.counters["damage"] = st[0].d;
+    state.SetLabel(mode == 0 ? "elastic" : mode == 1 ? "softening" : "cap");
+}
 } // namespace
 
 BENCHMARK(BM_Elastic);
 BENCHMARK(BM_KCC)->Arg(0)->Arg(1);
 BENCHMARK(BM_J2)->Arg(0)->Arg(1)->Arg(2);
+BENCHMARK(BM_CSCM)->Arg(0)->Arg(1)->Arg(2);
 BENCHMARK_MAIN();

@@ -132,6 +132,32 @@ TEST(Decks, NonPositiveDensity)
                     ":7: parts.col.material.rho", "expected rho > 0");
 }
 
+TEST(Decks, CapModelStrengthOutsideTheFitsIsRejected)
+{
+    expect_rejected("cscm_fc.yaml",
+                    replace(good, "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}",
+                            "{model: cscm, rho: 2400 kg/m^3, fc: 12 ksi}"),
+                    ":7: parts.col.material.fc", "expected 20 MPa <= fc <= 58 MPa");
+    expect_rejected("cscm_d1.yaml",
+                    replace(good, "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}",
+                            "{model: cscm, rho: 2400 kg/m^3, fc: 30 MPa, D1: 2.5e-4 MPa}"),
+                    ":7: parts.col.material.D1", "not a reciprocal pressure (e.g. 2.5e-4 1/MPa)");
+}
+
+TEST(Decks, CapModelOverridesResolveToSI)
+{
+    const Result r = run("check " + write_deck("cscm_over.yaml",
+                                               replace(good, "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}",
+                                                       "{model: cscm, rho: 2400 kg/m^3, fc: 30 MPa, X0: 95 MPa, "
+                                                       "D1: 2.5e-4 1/MPa, D2: 3.5e-7 1/MPa^2}")));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("X0: 95000000"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("D1: 2.5e-10"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("D2: 3.5e-19"), std::string::npos) << r.output;
+    // E from CEB-FIP at 30 MPa: 21.5 GPa x 3^(1/3) = 31.0 GPa
+    EXPECT_NE(r.output.find("E: 3.1008"), std::string::npos) << r.output;
+}
+
 TEST(Decks, IntegerRkSupportIsRejected)
 {
     expect_rejected("rk_integer.yaml",

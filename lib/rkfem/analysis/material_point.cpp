@@ -5,50 +5,34 @@
 #include <fstream>
 
 #include "rkfem/core/error.hpp"
-#include "rkfem/materials/j2_plasticity.hpp"
-#include "rkfem/materials/kcc_concrete.hpp"
+#include "rkfem/materials/point_history.hpp"
 
 namespace rkfem
 {
 namespace
 {
+/// One point of the deck's material: elastic, or the block models' PlasticPoints with one point
+/// (so the driver exercises exactly the update the force loops call).
 struct PointMaterial
 {
     ElasticParams elastic;
-    J2Params j2;
-    bool plastic = false;
-    bool kcc = false;
-    KccModel kcc_model;
-    // committed state
-    real_t s[6] = {};
-    real_t ep = 0.0, failed = 0.0;
-    KccState kcc_state;
-    mutable KccState kcc_trial;
-    real_t ev = 0.0, energy = 0.0; ///< J2 with an EOS
-    mutable real_t ev_trial = 0.0, energy_trial = 0.0;
-    mutable real_t work_trial = 0.0;
+    PlasticPoints plastic;
+    real_t s[6] = {}; ///< committed stress
+    real_t work_trial = 0.0;
 
-    /// Trial update from the committed state; commit = true keeps it.
-    void update(const real_t d[6], const real_t w[3], real_t dt, real_t out[6], real_t& ep_out, real_t& f_out) const
+    /// Trial update from the committed state into out (and the plastic trial arrays).
+    void update(const real_t d[6], const real_t w[3], real_t dt, real_t out[6], real_t& ep_out, real_t& f_out)
     {
         std::copy(s, s + 6, out);
-        ep_out = ep;
-        f_out = failed;
-        if (kcc)
+        ep_out = f_out = 0.0;
+        if (!plastic.active())
         {
-            kcc_trial = kcc_state;
-            work_trial = kcc_update(kcc_model, d, w, dt, out, kcc_trial);
-            ep_out = kcc_trial.eps_p;
-            f_out = kcc_trial.lambda; // the damage function in the `failed` column for kcc
-        }
-        else if (plastic)
-        {
-            ev_trial = ev;
-            energy_trial = energy;
-            j2_update(j2, d, w, dt, out, ep_out, f_out, &ev_trial, &energy_trial);
-        }
-        else
             elastic_update(elastic, d, w, dt, out);
+            return;
+        }
+        work_trial = plastic.update(0, d, w, dt, out);
+        ep_out = plastic.eps_p_trial[0];
+        f_out = plastic.failed_trial[0];
     }
 };
 } // namespace
@@ -58,16 +42,15 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
     const MaterialSpec& ms = deck.material;
     PointMaterial pm;
     pm.elastic = ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu);
-    pm.j2 = j2_params(ms);
-    pm.plastic = pm.j2.curve.size() > 0;
-    if (ms.model == "kcc")
+    pm.plastic.configure(ms);
+    pm.plastic.resize(1);
+    if (deck.load_path.length > 0)
+        pm.plastic.set_lengths({deck.load_path.length});
+    if (pm.plastic.kind == PlasticPoints::Kind::Kcc)
     {
-        pm.kcc = true;
-        pm.kcc_model = KccModel::from_fc(ms.fc, ms.rho, ms.nu, ms.E);
-        pm.kcc_model.rate_effects = ms.rate_effects;
         // the lateral Newton uses the elastic constants of the model
-        pm.elastic.mu = pm.kcc_model.shear;
-        pm.elastic.lambda = pm.kcc_model.bulk - 2.0 * pm.kcc_model.shear / 3.0;
+        pm.elastic.mu = pm.plastic.kcc.shear;
+        pm.elastic.lambda = pm.plastic.kcc.bulk - 2.0 * pm.plastic.kcc.shear / 3.0;
     }
     const MaterialPathSpec& lp = deck.load_path;
     const real_t T = std::abs(lp.strain) / lp.rate;
@@ -135,17 +118,10 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
             throw Error("material point: unknown path type '" + lp.type + "'");
         pm.update(d, w, dt, trial, ep, f);
         std::copy(trial, trial + 6, pm.s);
-        pm.ep = ep;
-        pm.failed = f;
-        if (pm.kcc)
+        if (pm.plastic.active())
         {
-            pm.kcc_state = pm.kcc_trial;
+            pm.plastic.commit();
             rec.work += pm.work_trial;
-        }
-        else if (pm.plastic)
-        {
-            pm.ev = pm.ev_trial;
-            pm.energy = pm.energy_trial;
         }
         t += dt;
         rec.time = t;
@@ -154,8 +130,8 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
             rec.strain[c] += d[c] * dt;
             rec.stress[c] = pm.s[c];
         }
-        rec.plastic_strain = pm.ep;
-        rec.failed = pm.failed;
+        rec.plastic_strain = ep;
+        rec.failed = f;
         h.push_back(rec);
     }
     return h;

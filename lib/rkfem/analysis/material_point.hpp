@@ -24,8 +24,8 @@ struct MaterialPointRecord
     real_t strain[6] = {}; ///< accumulated d dt (tensor shear)
     real_t stress[6] = {};
     real_t plastic_strain = 0.0;
-    real_t failed = 0.0; ///< failed flag (j2); damage function lambda (kcc)
-    real_t work = 0.0;   ///< accumulated plastic work density (kcc) [J/m^3]
+    real_t failed = 0.0; ///< failed flag (j2); damage function lambda (kcc); damage d (cscm)
+    real_t work = 0.0;   ///< accumulated plastic work density (kcc, cscm) [J/m^3]
 };
 
 std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& deck);

@@ -409,19 +409,46 @@ MaterialSpec read_material(const Section& part)
     const YAML::Node mn = part.node("material");
     std::string model = mn.IsMap() && mn["model"].IsDefined() ? mn["model"].Scalar() : "";
     MaterialSpec m;
-    if (model == "kcc")
+    if (model == "kcc" || model == "cscm")
     {
-        Section s(part.ctx(), mn, part.path("material"),
-                  {"model", "rho", "fc", "E", "nu", "rate_effects", "fracture_energy"});
+        // cscm: every generated parameter can be overridden by name (SI after units)
+        static const std::vector<std::pair<std::string, Dimension>> cscm_keys = {
+            {"alpha", dim::pressure}, {"theta", dim::none},  {"lambda", dim::pressure},
+            {"beta", Dimension{-1, 1, 2}}, {"R", dim::none}, {"X0", dim::pressure},
+            {"W", dim::none},          {"D1", Dimension{-1, 1, 2}}, {"D2", Dimension{-2, 2, 4}},
+            {"B", dim::none},          {"D", dim::none},     {"Gfc", Dimension{1, 0, -2}},
+            {"length", dim::length}};
+        std::vector<std::string> keys = {"model", "rho", "fc", "E", "nu", "rate_effects", "fracture_energy"};
+        if (model == "cscm")
+            for (const auto& k : cscm_keys)
+                keys.push_back(k.first);
+        Section s(part.ctx(), mn, part.path("material"), keys);
         m.model = model;
         m.rho = s.quantity("rho", dim::density);
         if (!(m.rho > 0))
             s.fail("rho", "density must be positive", "expected rho > 0 (e.g. 2400 kg/m^3)");
         m.fc = s.positive("fc", dim::pressure);
-        m.nu = s.quantity("nu", dim::none, 0.19);
+        const bool cscm = model == "cscm";
+        m.nu = s.quantity("nu", dim::none, cscm ? 0.2 : 0.19);
         if (!(m.nu > -1.0 && m.nu < 0.5))
-            s.fail("nu", "is out of range", "expected -1 < nu < 0.5 (default 0.19)");
-        m.E = s.quantity("E", dim::pressure, 4700.0 * std::sqrt(m.fc / 1e6) * 1e6);
+            s.fail("nu", "is out of range", cscm ? "expected -1 < nu < 0.5 (default 0.2)" : "expected -1 < nu < 0.5 (default 0.19)");
+        // defaults: K&C E = 4700 sqrt(f'c [MPa]) MPa (ACI); CSCM E = 21.5 GPa (f'c / 10 MPa)^(1/3) (CEB-FIP)
+        m.E = s.quantity("E", dim::pressure,
+                         cscm ? 21.5e9 * std::cbrt(m.fc / 10e6) : 4700.0 * std::sqrt(m.fc / 1e6) * 1e6);
+        if (cscm)
+        {
+            if (m.fc < 20e6 || m.fc > 58e6)
+                s.fail("fc", "is outside the range of Murray's fits",
+                       "expected 20 MPa <= fc <= 58 MPa for the generated CSCM parameters");
+            for (const auto& [k, dimension] : cscm_keys)
+                if (s.has(k))
+                {
+                    const real_t v = s.quantity(k, dimension);
+                    if (!(v > 0) && k != "theta")
+                        s.fail(k, "must be positive", "expected a positive " + k);
+                    m.overrides.emplace_back(k, v);
+                }
+        }
         m.rate_effects = s.has("rate_effects") && s.choice("rate_effects", {"true", "false"}, "false") == "true";
         if (s.has("fracture_energy"))
         {
@@ -527,7 +554,7 @@ MaterialSpec read_material(const Section& part)
     throw DeckError(mn.IsMap() && mn["model"].IsDefined() ? locate(part.ctx(), mn["model"], p)
                                                           : locate(part.ctx(), mn, p),
                     model.empty() ? "missing material model" : "unknown material model '" + model + "'",
-                    "expected model: elastic | j2 | kcc");
+                    "expected model: elastic | j2 | kcc | cscm");
 }
 
 PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n,
@@ -1033,7 +1060,7 @@ MaterialPointDeck read_material_point_deck(const std::string& path)
     d.title = top.text("title", "");
     d.material = read_material(top);
     top.require("path", "a mapping with type, strain, rate, steps");
-    Section p(ctx, top.node("path"), "path", {"type", "strain", "rate", "confinement", "angle", "steps"});
+    Section p(ctx, top.node("path"), "path", {"type", "strain", "rate", "confinement", "angle", "length", "steps"});
     MaterialPathSpec& lp = d.load_path;
     lp.type = p.choice("type", {"uniaxial-stress", "uniaxial-strain", "hydrostatic", "pure-shear", "triaxial", "rotation"},
                        "");
@@ -1045,6 +1072,9 @@ MaterialPointDeck read_material_point_deck(const std::string& path)
     if (lp.confinement < 0)
         p.fail("confinement", "is negative", "expected a lateral pressure >= 0");
     lp.angle = p.quantity("angle", dim::none, 0.0);
+    lp.length = p.quantity("length", dim::length, 0.0);
+    if (lp.length < 0)
+        p.fail("length", "is negative", "expected a crack-band length > 0 (or omit it for the model default)");
     lp.steps = static_cast<int>(p.integer("steps", 1000));
     if (lp.steps < 1)
         p.fail("steps", "is below 1", "expected a positive number of steps");

@@ -46,10 +46,13 @@ struct MaterialSpec
     real_t fail = 0.0;             ///< failure plastic strain (0: none)
     std::string eos_type;          ///< j2: "" (incremental bulk), linear, gruneisen
     real_t eos_c0 = 0.0, eos_s = 0.0, eos_gamma0 = 0.0, eos_a = 0.0; ///< gruneisen
-    // kcc (K&C concrete, parameters generated from f'c; E and nu optional)
+    // kcc (K&C concrete) and cscm (cap model): parameters generated from f'c; E and nu optional
     real_t fc = 0.0;
     bool rate_effects = false;
     real_t fracture_energy = 0.0; ///< G_f [J/m^2] for the crack-band scaling of b2; < 0: CEB-FIP (auto); 0: none
+    /// cscm: named parameter overrides of the generated set (alpha, theta, lambda, beta, R, X0, W,
+    /// D1, D2, B, D, Gfc, length), SI
+    std::vector<std::pair<std::string, real_t>> overrides;
     SourceLocation loc;
 };
 
@@ -249,6 +252,7 @@ struct MaterialPathSpec
     real_t rate = 1.0;        ///< strain rate magnitude [1/s]
     real_t confinement = 0.0; ///< triaxial: lateral pressure [Pa]
     real_t angle = 0.0;       ///< rotation: rigid rotation about z after the strain [rad]
+    real_t length = 0.0;      ///< crack-band length of the point (K&C b2, CSCM softening); 0: model default
     int steps = 1000;
     SourceLocation loc;
 };

@@ -171,13 +171,15 @@ std::string to_yaml(const Deck& d)
                 os << ", eos: {type: gruneisen, c0: " << p.material.eos_c0 << ", s: " << p.material.eos_s
                    << ", gamma0: " << p.material.eos_gamma0 << ", a: " << p.material.eos_a << "}";
         }
-        if (p.material.model == "kcc")
+        if (p.material.model == "kcc" || p.material.model == "cscm")
         {
             os << ", fc: " << p.material.fc << ", rate_effects: " << (p.material.rate_effects ? "true" : "false");
             if (p.material.fracture_energy < 0)
                 os << ", fracture_energy: auto";
             else
                 os << ", fracture_energy: " << p.material.fracture_energy;
+            for (const auto& [k, v] : p.material.overrides)
+                os << ", " << k << ": " << v;
         }
         os << "}\n";
         os << "    formulation: "

@@ -132,6 +132,14 @@ std::string describe(Dimension d)
         return "a density (e.g. 7850 kg/m^3)";
     if (d == dim::energy)
         return "an energy (e.g. 1 kJ)";
+    if (d == Dimension{-1, 1, 2})
+        return "a reciprocal pressure (e.g. 2.5e-4 1/MPa)";
+    if (d == Dimension{-2, 2, 4})
+        return "a reciprocal pressure squared (e.g. 3.5e-7 1/MPa^2)";
+    if (d == Dimension{1, 0, -2})
+        return "an energy per area (e.g. 100 J/m^2, 0.1 N/mm)";
+    if (d == Dimension{0, 0, -1})
+        return "a rate (e.g. 100 1/s)";
     std::ostringstream os;
     os << "a quantity of dimension kg^" << d.mass << " m^" << d.length << " s^" << d.time;
     return os.str();

@@ -1,19 +1,49 @@
 #pragma once
 /// @file point_history.hpp
 /// The inelastic model of a block and its per-point history beyond the stress, committed/trial
-/// like the stress: J2 (effective plastic strain, failed flag) or K&C concrete (damage function,
-/// volumetric strains, plastic strain). Elastic blocks have none (active() is false). The
-/// kernels call update() per point; the branch on the kind is uniform over a block.
+/// like the stress: J2 (effective plastic strain, failed flag), K&C concrete (damage function,
+/// volumetric strains, plastic strain) or the continuous surface cap model (undamaged stress,
+/// strain, cap, damage). Elastic blocks have none (active() is false). The kernels call update()
+/// per point; the branch on the kind is uniform over a block.
 #include <cmath>
 #include <map>
 #include <vector>
 
 #include "rkfem/config/deck.hpp"
+#include "rkfem/materials/cscm_concrete.hpp"
 #include "rkfem/materials/j2_plasticity.hpp"
 #include "rkfem/materials/kcc_concrete.hpp"
 
 namespace rkfem
 {
+/// The CSCM of a deck material: Murray's fits from f'c, then the deck's overrides by name.
+inline CscmModel cscm_model(const MaterialSpec& m)
+{
+    CscmModel c = CscmModel::from_fc(m.fc, m.rho, m.nu, m.E, m.fracture_energy > 0 ? m.fracture_energy : 0.0);
+    c.rate_effects = m.rate_effects;
+    for (const auto& [name, v] : m.overrides)
+    {
+        real_t* field = name == "alpha"    ? &c.alpha
+                        : name == "theta"  ? &c.theta
+                        : name == "lambda" ? &c.lambda
+                        : name == "beta"   ? &c.beta
+                        : name == "R"      ? &c.R
+                        : name == "X0"     ? &c.X0
+                        : name == "W"      ? &c.W
+                        : name == "D1"     ? &c.D1
+                        : name == "D2"     ? &c.D2
+                        : name == "B"      ? &c.B
+                        : name == "D"      ? &c.D
+                        : name == "Gfc"    ? &c.Gfc
+                        : name == "length" ? &c.default_length
+                                           : nullptr;
+        if (field)
+            *field = v;
+    }
+    c.finish();
+    return c;
+}
+
 struct PlasticPoints
 {
     enum class Kind
@@ -21,12 +51,15 @@ struct PlasticPoints
         None,
         J2,
         Kcc,
+        Cscm,
     };
     Kind kind = Kind::None;
     J2Params params;
     KccModel kcc;
     std::vector<real_t> eps_p, eps_p_trial, failed, failed_trial; ///< J2; eps_p also for output (Kcc)
     std::vector<KccState> kcc_state, kcc_trial;
+    CscmModel cscm;
+    std::vector<CscmState> cscm_state, cscm_trial;
     std::vector<real_t> ev, ev_trial, energy, energy_trial; ///< J2 with an EOS: ln(V/V0), E [J/m^3]
 
     /// From a deck material (J2 or K&C; None for elastic).
@@ -44,6 +77,11 @@ struct PlasticPoints
             kcc.rate_effects = m.rate_effects;
             kcc.fracture_energy = m.fracture_energy < 0 ? ceb_fracture_energy(m.fc) : m.fracture_energy;
         }
+        else if (m.model == "cscm")
+        {
+            kind = Kind::Cscm;
+            cscm = cscm_model(m);
+        }
     }
     bool active() const { return kind != Kind::None; }
     void resize(std::size_t n)
@@ -57,6 +95,11 @@ struct PlasticPoints
             kcc_state.assign(n, KccState{});
             kcc_trial.assign(n, KccState{});
         }
+        if (kind == Kind::Cscm)
+        {
+            cscm_state.assign(n, CscmState{});
+            cscm_trial.assign(n, CscmState{});
+        }
         if (kind == Kind::J2 && params.eos.kind != Eos::Kind::None)
         {
             ev.assign(n, 0.0);
@@ -66,9 +109,20 @@ struct PlasticPoints
         }
     }
     /// Crack-band lengths per point (element size, nodal spacing): with a fracture energy, each
-    /// K&C point gets the b2 that dissipates G_f over its length (one solve per distinct length).
+    /// K&C point gets the b2 that dissipates G_f over its length (one solve per distinct length);
+    /// each CSCM point gets the softening A, C of its length.
     void set_lengths(const std::vector<real_t>& h)
     {
+        if (kind == Kind::Cscm)
+        {
+            for (std::size_t p = 0; p < h.size() && p < cscm_state.size(); ++p)
+            {
+                const CscmModel::Softening sf = cscm.softening(h[p]);
+                cscm_state[p].A = cscm_trial[p].A = sf.A;
+                cscm_state[p].C = cscm_trial[p].C = sf.C;
+            }
+            return;
+        }
         if (kind != Kind::Kcc || !(kcc.fracture_energy > 0))
             return;
         std::map<long long, real_t> cache; // length in units of 1e-9 m -> b2
@@ -86,20 +140,31 @@ struct PlasticPoints
         eps_p.swap(eps_p_trial);
         failed.swap(failed_trial);
         kcc_state.swap(kcc_trial);
+        cscm_state.swap(cscm_trial);
         ev.swap(ev_trial);
         energy.swap(energy_trial);
     }
-    /// Updates point p from its committed history into the trial arrays.
-    void update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
+    /// Updates point p from its committed history into the trial arrays; returns the plastic
+    /// work density increment (K&C and CSCM; 0 for J2).
+    real_t update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
     {
         if (kind == Kind::Kcc)
         {
             KccState st = kcc_state[p];
-            kcc_update(kcc, d, w, dt, s, st);
+            const real_t work = kcc_update(kcc, d, w, dt, s, st);
             kcc_trial[p] = st;
             eps_p_trial[p] = st.eps_p;
             failed_trial[p] = st.lambda; // damage function (0 intact) [output]
-            return;
+            return work;
+        }
+        if (kind == Kind::Cscm)
+        {
+            CscmState st = cscm_state[p];
+            const real_t work = cscm_update(cscm, d, w, dt, s, st);
+            cscm_trial[p] = st;
+            eps_p_trial[p] = st.eps_p;
+            failed_trial[p] = st.d; // damage 0..1 [output]
+            return work;
         }
         real_t e = eps_p[p], f = failed[p];
         if (!ev.empty())
@@ -113,6 +178,7 @@ struct PlasticPoints
             j2_update(params, d, w, dt, s, e, f);
         eps_p_trial[p] = e;
         failed_trial[p] = f;
+        return 0.0;
     }
 };
 } // namespace rkfem
