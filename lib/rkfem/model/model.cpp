@@ -488,6 +488,18 @@ void Model::update_coordinates()
     parallel_for("rkfem::coordinates", n3, [&](index_t i) { nodes.x[i] = nodes.x0[i] + nodes.u[i]; });
 }
 
+void Model::set_state(const real_t* u, const real_t* v)
+{
+    const index_t n3 = 3 * nodes.size();
+    parallel_for("rkfem::set_state", n3,
+                 [&](index_t i)
+                 {
+                     nodes.u[i] = u[i];
+                     nodes.v[i] = v[i];
+                     nodes.x[i] = nodes.x0[i] + u[i];
+                 });
+}
+
 void Model::apply_external_forces(real_t t)
 {
     std::fill(nodes.f_ext.begin(), nodes.f_ext.end(), 0.0);

@@ -102,6 +102,8 @@ class Model
     void impose_velocity(real_t t, real_t dt, bool half_step);
     /// x = x0 + u.
     void update_coordinates();
+    /// Nodal state from a stepper's vector: u, v (3 n each), then x = x0 + u, in one pass.
+    void set_state(const real_t* u, const real_t* v);
     /// Internal forces (all blocks, assembled) and external forces at time t; stress trial state.
     /// Throws InstabilityError on a non-positive element volume.
     ForceReport compute_forces(real_t t, real_t dt, std::int64_t step);

@@ -1,10 +1,13 @@
 #include "rkfem/time/arkode_stepper.hpp"
 
 #include <arkode/arkode_erkstep.h>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <exception>
 #include <nvector/nvector_serial.h>
 #include <sstream>
+#include <vector>
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
@@ -36,9 +39,34 @@ void op_scale(realtype c, N_Vector x, N_Vector z)
     real_t* pz = data(z);
     parallel_for("rkfem::nv::scale", len(z), [&](index_t i) { pz[i] = c * px[i]; });
 }
+// Weight vectors known to hold only ones (the unit error weights of the fixed-step steppers, set
+// once by unit_ewt): the weighted sum of squares then reads x alone. A few slots suffice (one
+// per live stepper); a vector not found here takes the general loop.
+std::array<std::atomic<N_Vector>, 16> g_unit_weights{};
+
+void register_unit_weights(N_Vector w, bool on)
+{
+    for (auto& slot : g_unit_weights)
+    {
+        N_Vector expected = on ? nullptr : w;
+        if (slot.compare_exchange_strong(expected, on ? w : nullptr))
+            return;
+    }
+}
+
+bool is_unit_weights(N_Vector w)
+{
+    for (const auto& slot : g_unit_weights)
+        if (slot.load(std::memory_order_relaxed) == w)
+            return true;
+    return false;
+}
+
 realtype op_wsqrsum_local(N_Vector x, N_Vector w)
 {
     const real_t *px = data(x), *pw = data(w);
+    if (is_unit_weights(w))
+        return parallel_reduce_sum("rkfem::nv::sqrsum", len(x), [&](index_t i) { return px[i] * px[i]; });
     return parallel_reduce_sum("rkfem::nv::wsqrsum", len(x),
                                [&](index_t i)
                                {
@@ -51,14 +79,31 @@ int op_linear_combination(int nv, realtype* c, N_Vector* X, N_Vector z)
 {
     real_t* pz = data(z);
     const index_t n = len(z);
-    // z may alias X[0] (ARKODE's accumulate form)
-    const bool alias = X[0] == z;
+    // z may alias X[0] (ARKODE's accumulate form); the one- and two-term forms (forward Euler's
+    // y + h f every step) get their own vectorized loops with the data pointers hoisted
+    if (nv == 1)
+    {
+        const real_t* x0 = data(X[0]);
+        const real_t c0 = c[0];
+        parallel_for("rkfem::nv::linear_combination1", n, [&](index_t i) { pz[i] = c0 * x0[i]; });
+        return 0;
+    }
+    if (nv == 2)
+    {
+        const real_t *x0 = data(X[0]), *x1 = data(X[1]);
+        const real_t c0 = c[0], c1 = c[1];
+        parallel_for("rkfem::nv::linear_combination2", n, [&](index_t i) { pz[i] = c0 * x0[i] + c1 * x1[i]; });
+        return 0;
+    }
+    std::vector<const real_t*> px(static_cast<std::size_t>(nv));
+    for (int k = 0; k < nv; ++k)
+        px[k] = data(X[k]);
     parallel_for("rkfem::nv::linear_combination", n,
                  [&](index_t i)
                  {
-                     real_t s = alias ? c[0] * pz[i] : c[0] * data(X[0])[i];
+                     real_t s = c[0] * px[0][i];
                      for (int k = 1; k < nv; ++k)
-                         s += c[k] * data(X[k])[i];
+                         s += c[k] * px[k][i];
                      pz[i] = s;
                  });
     return 0;
@@ -152,6 +197,8 @@ struct ArkodeStepper::Impl
 
     ~Impl()
     {
+        if (unit_w)
+            register_unit_weights(unit_w, false);
         if (mem)
             ERKStepFree(&mem);
         if (table)
@@ -188,6 +235,13 @@ struct ArkodeStepper::Impl
         {
             N_VConst(1.0, ewt);
             im->ewt_set = true;
+            if (im->unit_w != ewt)
+            {
+                if (im->unit_w)
+                    register_unit_weights(im->unit_w, false);
+                register_unit_weights(ewt, true);
+                im->unit_w = ewt;
+            }
         }
         return 0;
     }
@@ -208,9 +262,7 @@ struct ArkodeStepper::Impl
         const real_t* v = y + n3;
         if (self->mode_ == Mode::CentralDifference)
         {
-            std::copy(u, u + n3, nodes.u.begin());
-            std::copy(v, v + n3, nodes.v.begin());
-            m.update_coordinates();
+            m.set_state(u, v);
             force = m.compute_forces(t, state_committed ? 0.0 : h_prev, step_index);
             state_committed = false;
             m.compute_accelerations();
@@ -219,21 +271,26 @@ struct ArkodeStepper::Impl
                 h = h_prev > 0 ? h_prev : force.dt_stable; // at the end time: any positive step
             h_next = h;
             const real_t* a = nodes.a.data();
-            // v(n) = v(n-1/2) + h_prev/2 a(n);  v(n+1/2) = v(n) + h/2 a(n); then prescribed motion
+            // v(n) = v(n-1/2) + h_prev/2 a(n);  v(n+1/2) = v(n) + h/2 a(n);  u' = v(n+1/2),
+            // v' = (v(n+1/2) - v(n-1/2)) / h: one pass; then the prescribed motion, which changes
+            // only the conditions' dofs, and their entries of ydot
+            const real_t inv_h = 1.0 / h;
             parallel_for("rkfem::arkode_cd::kick", n3,
                          [&](index_t j)
                          {
-                             v_full[j] = v[j] + 0.5 * h_prev * a[j];
-                             nodes.v[j] = v_full[j] + 0.5 * h * a[j];
+                             const real_t vf = v[j] + 0.5 * h_prev * a[j];
+                             const real_t vk = vf + 0.5 * h * a[j];
+                             v_full[j] = vf;
+                             nodes.v[j] = vk;
+                             ydot[j] = vk;
+                             ydot[n3 + j] = (vk - v[j]) * inv_h;
                          });
             m.impose_velocity(t, h, true);
-            const real_t inv_h = 1.0 / h;
-            parallel_for("rkfem::arkode_cd::rhs", n3,
-                         [&](index_t j)
-                         {
-                             ydot[j] = nodes.v[j];
-                             ydot[n3 + j] = (nodes.v[j] - v[j]) * inv_h;
-                         });
+            for (const DofCondition& c : m.conditions)
+            {
+                ydot[c.dof] = nodes.v[c.dof];
+                ydot[n3 + c.dof] = (nodes.v[c.dof] - v[c.dof]) * inv_h;
+            }
             return;
         }
         // Runge-Kutta: kernels see the displacement increment from the committed state
@@ -265,6 +322,7 @@ struct ArkodeStepper::Impl
     }
 
     bool ewt_set = false;
+    N_Vector unit_w = nullptr; ///< the error-weight vector registered as all ones
 
     void check(int flag, const char* what)
     {
@@ -320,6 +378,11 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     if (fsal_workaround_ || mode_ == Mode::CentralDifference)
         im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess), "ERKStepSetPostprocessStepFn");
     im.check(ERKStepSetMaxNumSteps(im.mem, 1), "ERKStepSetMaxNumSteps");
+    // ARK_ONE_STEP never interpolates, but 6.4.1 updates the interpolant every step: the
+    // Hermite module copies y and f (two full-state copies); Lagrange of degree 0 copies y once
+    // (the module cannot be switched off before SUNDIALS 7.1)
+    im.check(ERKStepSetInterpolantType(im.mem, ARK_INTERP_LAGRANGE), "ERKStepSetInterpolantType");
+    im.check(ERKStepSetInterpolantDegree(im.mem, 0), "ERKStepSetInterpolantDegree");
     return start;
 }
 
