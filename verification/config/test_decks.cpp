@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <gtest/gtest.h>
+#include <hdf5.h>
 #include <regex>
 #include <string>
 #include <sys/wait.h>
@@ -252,4 +253,51 @@ TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
     std::ifstream summary(out / "summary.json");
     std::string text((std::istreambuf_iterator<char>(summary)), std::istreambuf_iterator<char>());
     EXPECT_NE(text.find("\"status\": \"unstable\""), std::string::npos) << text;
+}
+
+TEST(Decks, ConcreteRunsWriteDamageFields)
+{
+    // the struck K&C bar crushes its end: the 0..1 damage index and the K&C delta (0..2) are
+    // written per element, within their ranges, and some elements are past the peak (delta > 1)
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_kcc_damage";
+    fs::remove_all(out);
+    const Result r = run("run " + (fs::path(RKFEM_SOURCE_DIR) / "studies/decks/concrete_bar_kcc.yaml").string() +
+                         " --out " + out.string() + " --quiet");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const hid_t f = H5Fopen((out / "results.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    hsize_t n_steps = 0;
+    const hid_t steps = H5Gopen2(f, "steps", H5P_DEFAULT);
+    H5Gget_num_objs(steps, &n_steps);
+    H5Gclose(steps);
+    char name[64];
+    std::snprintf(name, sizeof name, "steps/%06d", static_cast<int>(n_steps) - 1);
+    auto read = [&](const char* field)
+    {
+        const hid_t d = H5Dopen2(f, (std::string(name) + "/" + field).c_str(), H5P_DEFAULT);
+        const hid_t s = H5Dget_space(d);
+        std::vector<double> v(static_cast<std::size_t>(H5Sget_simple_extent_npoints(s)));
+        H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
+        H5Sclose(s);
+        H5Dclose(d);
+        return v;
+    };
+    const auto damage = read("damage"), delta = read("kcc_scaled_damage");
+    H5Fclose(f);
+    ASSERT_EQ(damage.size(), delta.size());
+    int past_peak = 0;
+    for (std::size_t e = 0; e < damage.size(); ++e)
+    {
+        EXPECT_GE(delta[e], 0.0);
+        EXPECT_LT(delta[e], 2.0);
+        EXPECT_GE(damage[e], 0.0);
+        EXPECT_LE(damage[e], 1.0);
+        past_peak += delta[e] > 1.0;
+    }
+    std::printf("%d of %zu elements past the peak (delta > 1)\n", past_peak, delta.size());
+    EXPECT_GT(past_peak, 0);
+    std::ifstream xdmf(out / "results.xdmf");
+    const std::string text((std::istreambuf_iterator<char>(xdmf)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("Name=\"damage\""), std::string::npos);
+    EXPECT_NE(text.find("Name=\"kcc_scaled_damage\""), std::string::npos);
 }

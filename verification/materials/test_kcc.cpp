@@ -8,6 +8,7 @@
 
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/materials/kcc_concrete.hpp"
+#include "rkfem/materials/point_history.hpp"
 
 using namespace rkfem;
 
@@ -129,30 +130,76 @@ TEST(KccConcrete, RigidRotationKeepsInvariants)
     EXPECT_NEAR(vm1 / vm0, 1.0, 1e-10);
 }
 
-TEST(KccConcrete, CrackBandScalingOfTheTensileDamageExponent)
+TEST(KccConcrete, CrackBandScalingOfTheTensileDamage)
 {
     KccModel m = KccModel::from_fc(45.6 * MPa, 2400);
     m.fracture_energy = ceb_fracture_energy(45.6 * MPa);
     std::printf("G_f (CEB-FIP, f'c 45.6 MPa, 16 mm aggregate) = %.2f J/m^2\n", m.fracture_energy);
     EXPECT_NEAR(m.fracture_energy, 0.030e3 * std::pow(5.36, 0.7), 1e-9);
-    // faster tensile damage (larger b2) dissipates less work
+    // faster tensile damage (larger scale) dissipates less work
     real_t prev = 1e300;
-    for (real_t b2 : {-2.0, 0.0, 1.35, 3.0, 5.0})
+    for (real_t scale : {0.1, 0.3, 1.0, 3.0, 10.0})
     {
-        const real_t w = kcc_tension_work(m, b2);
-        std::printf("b2 %5.2f: tension work %.4e J/m^3\n", b2, w);
-        EXPECT_LT(w, prev) << b2;
+        const real_t w = kcc_tension_work(m, scale);
+        std::printf("tensile damage scale %5.2f: tension work %.4e J/m^3\n", scale, w);
+        EXPECT_LT(w, prev) << scale;
         prev = w;
     }
-    // where the target is reachable, the band dissipates G_f
-    for (real_t h : {0.05, 0.08})
+    // every crack band from 2.5 mm to 200 mm dissipates G_f (b2 alone could not below ~20 mm)
+    for (real_t h : {0.0025, 0.005, 0.02, 0.05, 0.2})
     {
-        const real_t b2 = kcc_b2_for_length(m, h);
-        const real_t gf = h * kcc_tension_work(m, b2);
-        std::printf("h = %.0f mm: b2 = %.4f, h x work = %.2f J/m^2\n", h * 1e3, b2, gf);
+        const real_t s = kcc_tension_scale_for_length(m, h);
+        const real_t gf = h * kcc_tension_work(m, s);
+        std::printf("h = %5.1f mm: scale = %.4f, h x work = %.2f J/m^2\n", h * 1e3, s, gf);
         EXPECT_NEAR(gf, m.fracture_energy, 0.01 * m.fracture_energy) << h;
     }
-    // finding: with the generic eta table, b2 alone cannot reach G_f below about 20 mm (the
-    // clamp engages); LS-DYNA also stretches the damage function there [U]
-    EXPECT_EQ(kcc_b2_for_length(m, 0.005), -5.0);
+}
+
+TEST(KccConcrete, VolumetricDamageB3InHydrostaticTension)
+{
+    // equal tensile strain rates: once the pressure reaches the cutoff -f_t, lambda grows by
+    // b3 d eps_v (f_d = 1 at J2 = 0, k_d = 1) and the pressure follows -f_t eta(lambda)
+    auto d = kcc_deck("hydrostatic", 0.003, 0.0, 3000);
+    const auto h = run_material_point(d);
+    const KccParameters k = KccParameters::from_fc(45.6 * MPa);
+    real_t worst_slope = 0.0, worst_p = 0.0, lambda_end = 0.0;
+    int on_cutoff = 0;
+    for (std::size_t n = 2; n < h.size(); ++n)
+    {
+        const real_t p = -(h[n].stress[0] + h[n].stress[1] + h[n].stress[2]) / 3.0;
+        const real_t lam = h[n].failed, lam0 = h[n - 1].failed;
+        // steps wholly past the first yield, while the cutoff is still open (eta > 0)
+        if (h[n - 2].failed > 0.0 && lam0 < k.lambda_z)
+        {
+            ++on_cutoff;
+            const real_t dev = (h[n].strain[0] + h[n].strain[1] + h[n].strain[2]) -
+                               (h[n - 1].strain[0] + h[n - 1].strain[1] + h[n - 1].strain[2]);
+            worst_slope = std::max(worst_slope, std::abs((lam - lam0) / dev - k.b3));
+            // the cutoff of this step used lambda before the step
+            const real_t eta = lam0 <= k.lambda_m ? 1.0 : k.eta(lam0);
+            worst_p = std::max(worst_p, std::abs(p + k.ft * eta) / k.ft);
+        }
+        lambda_end = lam;
+    }
+    std::printf("%d steps on the cutoff; lambda %.3e at eps_v 3e-3; |d lambda / d eps_v - b3| <= %.2e; "
+                "|p + f_t eta| <= %.2e f_t\n", on_cutoff, lambda_end, worst_slope, worst_p);
+    EXPECT_GT(on_cutoff, 100);
+    EXPECT_GT(lambda_end, k.lambda_z); // softened to zero tensile strength
+    EXPECT_LT(worst_slope, 1e-9);
+    EXPECT_LT(worst_p, 1e-9);
+}
+
+TEST(KccConcrete, GeneratedParametersCanBeOverridden)
+{
+    MaterialSpec ms = kcc_deck("uniaxial-stress", -0.004).material;
+    ms.overrides = {{"a0", 15 * MPa}, {"b1", 1.2}, {"ft", 4 * MPa}};
+    PlasticPoints pp;
+    pp.configure(ms);
+    const KccParameters& k = pp.kcc.surfaces;
+    EXPECT_EQ(k.a0, 15 * MPa);
+    EXPECT_EQ(k.b1, 1.2);
+    EXPECT_EQ(k.ft, 4 * MPa);
+    EXPECT_EQ(k.a1, KccParameters::from_fc(45.6 * MPa).a1); // the others stay generated
+    // derived quantities follow the overrides: the yield hyperbola through (f_yc/3, f_yc)
+    EXPECT_NEAR(k.yield_surface(k.fyc / 3.0), k.fyc, 1e-9 * k.fyc);
 }

@@ -1,5 +1,6 @@
 // The material-point driver: each path against its analytic answer, and the command line.
 #include <gtest/gtest.h>
+#include <hdf5.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -103,6 +104,23 @@ TEST(MaterialPoint, CommandLineWritesTheHistoryAndRejectsBadDecks)
         v.push_back(std::stod(cell));
     const real_t ep = v[13], sy = 1026e6 + (1072e6 - 1026e6) * (ep - 0.05) / 0.05;
     EXPECT_NEAR(v[7], sy, 1e-8 * sy);
+    // the HDF5 copy holds the same final stress
+    {
+        const hid_t f = H5Fopen((out / "stress_strain.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+        ASSERT_GE(f, 0);
+        const hid_t d = H5Dopen2(f, "stress", H5P_DEFAULT);
+        const hid_t s = H5Dget_space(d);
+        hsize_t dims[2] = {0, 0};
+        H5Sget_simple_extent_dims(s, dims, nullptr);
+        std::vector<double> stress(dims[0] * dims[1]);
+        H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, stress.data());
+        H5Sclose(s);
+        H5Dclose(d);
+        H5Fclose(f);
+        EXPECT_EQ(dims[0], 2001u);
+        EXPECT_EQ(dims[1], 6u);
+        EXPECT_NEAR(stress[6 * (dims[0] - 1)], v[7], 1e-4 * sy); // CSV holds 12 digits
+    }
     // a bad deck: exit code 2, the key named
     const fs::path bad = fs::temp_directory_path() / "rkfem_mp_bad.yaml";
     std::ofstream(bad) << "material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 400 MPa}\n"

@@ -9,6 +9,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/io/hdf5_dataset.hpp"
 
 namespace rkfem
 {
@@ -49,15 +50,6 @@ real_t number(const std::string& file, const YAML::Node& m, const std::string& k
     }
 }
 
-void write_column(hid_t g, const char* name, const std::vector<real_t>& v)
-{
-    const hsize_t n = v.size();
-    const hid_t space = H5Screate_simple(1, &n, nullptr);
-    const hid_t set = H5Dcreate2(g, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
-    H5Dclose(set);
-    H5Sclose(space);
-}
 } // namespace
 
 ConvergenceSweep read_sweep(const std::string& path)
@@ -181,7 +173,7 @@ std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const s
         const hid_t g = H5Gcreate2(f, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
         const char* names[8] = {"n", "h", "dofs", "l2", "h1", "l2_rate", "h1_rate", "seconds"};
         for (int k = 0; k < 8; ++k)
-            write_column(g, names[k], col[k]);
+            write_dataset(g, names[k], col[k].data(), col[k].size());
         H5Gclose(g);
         all.push_back(std::move(rs));
     }

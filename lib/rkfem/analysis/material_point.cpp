@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/materials/point_history.hpp"
 
 namespace rkfem
@@ -140,10 +141,37 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
 void write_material_point(const std::vector<MaterialPointRecord>& h, const std::string& out_dir)
 {
     std::filesystem::create_directories(out_dir);
+    {
+        // the same history in HDF5: time, strain (n x 6), stress (n x 6), plastic_strain, failed, work
+        const std::size_t n = h.size();
+        std::vector<real_t> time(n), strain(6 * n), stress(6 * n), ep(n), failed(n), work(n);
+        for (std::size_t k = 0; k < n; ++k)
+        {
+            time[k] = h[k].time;
+            ep[k] = h[k].plastic_strain;
+            failed[k] = h[k].failed;
+            work[k] = h[k].work;
+            for (int c = 0; c < 6; ++c)
+            {
+                strain[6 * k + c] = h[k].strain[c];
+                stress[6 * k + c] = h[k].stress[c];
+            }
+        }
+        const hid_t f = H5Fcreate((out_dir + "/stress_strain.h5").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+        RKFEM_REQUIRE(f >= 0, "cannot write " << out_dir << "/stress_strain.h5");
+        write_dataset(f, "time", time.data(), n);
+        write_dataset(f, "strain", strain.data(), n, 6);
+        write_dataset(f, "stress", stress.data(), n, 6);
+        write_dataset(f, "plastic_strain", ep.data(), n);
+        write_dataset(f, "failed", failed.data(), n);
+        write_dataset(f, "work", work.data(), n);
+        H5Fclose(f);
+    }
+    std::filesystem::create_directories(out_dir);
     std::ofstream o(out_dir + "/stress_strain.csv");
     RKFEM_REQUIRE(o, "cannot write " << out_dir << "/stress_strain.csv");
     o.precision(12);
-    o << "time,eps_xx,eps_yy,eps_zz,eps_xy,eps_yz,eps_zx,sig_xx,sig_yy,sig_zz,sig_xy,sig_yz,sig_zx,plastic_strain,failed\n";
+    o << "time,eps_xx,eps_yy,eps_zz,eps_xy,eps_yz,eps_zx,sig_xx,sig_yy,sig_zz,sig_xy,sig_yz,sig_zx,plastic_strain,failed,work\n";
     for (const auto& r : h)
     {
         o << r.time;
@@ -151,7 +179,7 @@ void write_material_point(const std::vector<MaterialPointRecord>& h, const std::
             o << ',' << v;
         for (real_t v : r.stress)
             o << ',' << v;
-        o << ',' << r.plastic_strain << ',' << r.failed << '\n';
+        o << ',' << r.plastic_strain << ',' << r.failed << ',' << r.work << '\n';
     }
 }
 } // namespace rkfem

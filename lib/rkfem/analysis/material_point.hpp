@@ -30,6 +30,7 @@ struct MaterialPointRecord
 
 std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& deck);
 
-/// Writes DIR/stress_strain.csv.
+/// Writes DIR/stress_strain.csv and the same columns in DIR/stress_strain.h5 (time, strain n x 6,
+/// stress n x 6, plastic_strain, failed, work).
 void write_material_point(const std::vector<MaterialPointRecord>& h, const std::string& out_dir);
 } // namespace rkfem

@@ -418,10 +418,16 @@ MaterialSpec read_material(const Section& part)
             {"W", dim::none},          {"D1", Dimension{-1, 1, 2}}, {"D2", Dimension{-2, 2, 4}},
             {"B", dim::none},          {"D", dim::none},     {"Gfc", Dimension{1, 0, -2}},
             {"length", dim::length}};
+        // kcc: the generated Release III coefficients (materials.md 1.9), likewise
+        static const std::vector<std::pair<std::string, Dimension>> kcc_keys = {
+            {"a0", dim::pressure}, {"a1", dim::none}, {"a2", Dimension{-1, 1, 2}},
+            {"a0y", dim::pressure}, {"a1y", dim::none}, {"a2y", Dimension{-1, 1, 2}},
+            {"a1f", dim::none}, {"a2f", Dimension{-1, 1, 2}}, {"b1", dim::none}, {"b2", dim::none},
+            {"b3", dim::none}, {"omega", dim::none}, {"ft", dim::pressure}};
+        const auto& override_keys = model == "cscm" ? cscm_keys : kcc_keys;
         std::vector<std::string> keys = {"model", "rho", "fc", "E", "nu", "rate_effects", "fracture_energy"};
-        if (model == "cscm")
-            for (const auto& k : cscm_keys)
-                keys.push_back(k.first);
+        for (const auto& k : override_keys)
+            keys.push_back(k.first);
         Section s(part.ctx(), mn, part.path("material"), keys);
         m.model = model;
         m.rho = s.quantity("rho", dim::density);
@@ -435,20 +441,19 @@ MaterialSpec read_material(const Section& part)
         // defaults: K&C E = 4700 sqrt(f'c [MPa]) MPa (ACI); CSCM E = 21.5 GPa (f'c / 10 MPa)^(1/3) (CEB-FIP)
         m.E = s.quantity("E", dim::pressure,
                          cscm ? 21.5e9 * std::cbrt(m.fc / 10e6) : 4700.0 * std::sqrt(m.fc / 1e6) * 1e6);
-        if (cscm)
-        {
-            if (m.fc < 20e6 || m.fc > 58e6)
-                s.fail("fc", "is outside the range of Murray's fits",
-                       "expected 20 MPa <= fc <= 58 MPa for the generated CSCM parameters");
-            for (const auto& [k, dimension] : cscm_keys)
-                if (s.has(k))
-                {
-                    const real_t v = s.quantity(k, dimension);
-                    if (!(v > 0) && k != "theta")
-                        s.fail(k, "must be positive", "expected a positive " + k);
-                    m.overrides.emplace_back(k, v);
-                }
-        }
+        if (cscm && (m.fc < 20e6 || m.fc > 58e6))
+            s.fail("fc", "is outside the range of Murray's fits",
+                   "expected 20 MPa <= fc <= 58 MPa for the generated CSCM parameters");
+        for (const auto& [k, dimension] : override_keys)
+            if (s.has(k))
+            {
+                const real_t v = s.quantity(k, dimension);
+                // exponents and shape factors may be any sign; strengths and scales must be positive
+                const bool any_sign = k == "theta" || k == "b1" || k == "b2" || k == "b3";
+                if (!(v > 0) && !any_sign)
+                    s.fail(k, "must be positive", "expected a positive " + k);
+                m.overrides.emplace_back(k, v);
+            }
         m.rate_effects = s.has("rate_effects") && s.choice("rate_effects", {"true", "false"}, "false") == "true";
         if (s.has("fracture_energy"))
         {

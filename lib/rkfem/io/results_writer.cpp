@@ -8,34 +8,13 @@
 #include <sstream>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/model/model.hpp"
 
 namespace rkfem
 {
 namespace
 {
-void write_dataset(hid_t loc, const char* name, const real_t* data, hsize_t rows, hsize_t cols)
-{
-    const hsize_t dims[2] = {rows, cols};
-    const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
-    const hid_t set = H5Dcreate2(loc, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    if (set < 0)
-        throw Error(std::string("HDF5: cannot create dataset ") + name);
-    H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
-    H5Dclose(set);
-    H5Sclose(space);
-}
-
-void write_dataset_int(hid_t loc, const char* name, const index_t* data, hsize_t rows, hsize_t cols)
-{
-    const hsize_t dims[2] = {rows, cols};
-    const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
-    const hid_t set = H5Dcreate2(loc, name, H5T_STD_I32LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    H5Dwrite(set, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
-    H5Dclose(set);
-    H5Sclose(space);
-}
-
 std::string step_name(int i)
 {
     std::ostringstream os;
@@ -101,7 +80,7 @@ void ResultsWriter::write_step(const Model& model, real_t time)
     write_dataset(g, "displacement", u.data(), n_nodes_, 3);
     write_dataset(g, "velocity", v.data(), n_nodes_, 3);
     std::vector<real_t> stress(6 * n_elements_), pressure(n_elements_), eps(n_elements_, 0.0),
-        volume(n_elements_);
+        volume(n_elements_), damage(n_elements_, 0.0), delta(n_elements_, 0.0);
     std::size_t e_global = 0;
     for (std::size_t b = 0; b < model.blocks.size(); ++b)
         for (index_t e = 0; e < model.blocks[b].n_elements(); ++e, ++e_global)
@@ -112,11 +91,15 @@ void ResultsWriter::write_step(const Model& model, real_t time)
             pressure[e_global] = -(s[0] + s[1] + s[2]) / 3.0;
             volume[e_global] = model.blocks[b].volume[e];
             eps[e_global] = model.element_plastic_strain(static_cast<index_t>(b), e);
+            damage[e_global] = model.element_history(static_cast<index_t>(b), e, Model::History::Damage);
+            delta[e_global] = model.element_history(static_cast<index_t>(b), e, Model::History::KccDelta);
         }
     write_dataset(g, "stress", stress.data(), n_elements_, 6);
     write_dataset(g, "pressure", pressure.data(), n_elements_, 1);
     write_dataset(g, "effective_plastic_strain", eps.data(), n_elements_, 1);
     write_dataset(g, "volume", volume.data(), n_elements_, 1);
+    write_dataset(g, "damage", damage.data(), n_elements_, 1);
+    write_dataset(g, "kcc_scaled_damage", delta.data(), n_elements_, 1);
     H5Gclose(g);
     H5Fflush(f, H5F_SCOPE_GLOBAL);
     times_.push_back(time);
@@ -177,7 +160,7 @@ void ResultsWriter::write_xdmf() const
                   << item((g + "/" + v).c_str(), n_nodes_, 3) << "</Attribute>\n";
             x << "  <Attribute Name=\"stress\" AttributeType=\"Tensor6\" Center=\"Cell\">"
               << item((g + "/stress").c_str(), n_elements_, 6) << "</Attribute>\n";
-            for (const char* v : {"pressure", "effective_plastic_strain", "volume"})
+            for (const char* v : {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Scalar\" Center=\"Cell\">"
                   << item((g + "/" + v).c_str(), n_elements_, 1) << "</Attribute>\n";
             x << "  <Attribute Name=\"part\" AttributeType=\"Scalar\" Center=\"Cell\">"

@@ -64,9 +64,25 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
     st.ev += tr * dt;
     // pressure (compression positive) from the EOS on the elastic part of the volumetric strain
     const real_t ev_eos = st.ev - st.ev_plastic;
+    const real_t ev_min0 = st.ev_min;
     real_t p = m.eos(ev_eos, st.ev_min);
     const real_t eta_now = st.lambda <= k.lambda_m ? 1.0 : k.eta(st.lambda);
-    p = std::max(p, -k.ft * eta_now); // tensile cutoff moves with eta after the peak [U]
+    const real_t cutoff = -k.ft * eta_now; // tensile cutoff moves with eta after the peak [U]
+    real_t dev_cut = 0.0;                  // volumetric strain past the cutoff this step
+    if (p < cutoff)
+    {
+        // the excess opening is plastic: the pressure unloads from the cutoff, not from the EOS
+        // line far past it (tangent of the current tensile branch, linear there)
+        real_t hist = ev_min0;
+        const real_t dv = 1e-9;
+        const real_t kt = (m.eos(ev_eos - dv, hist) - p) / dv;
+        if (kt > 0.0)
+        {
+            dev_cut = (cutoff - p) / kt;
+            st.ev_plastic += dev_cut;
+        }
+        p = cutoff;
+    }
 
     // trial deviator
     const real_t mean = (s[0] + s[1] + s[2]) / 3.0;
@@ -115,8 +131,8 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
             return wlode * rf * std::max(ds, 0.0);
         };
         const real_t pd = std::max(p / rf, -0.999 * k.ft); // keep 1 + p/(r_f f_t) > 0
-        const real_t bexp = p >= 0.0 ? k.b1 : (std::isnan(st.b2) ? k.b2 : st.b2);
-        const real_t dlam_per_ep = 1.0 / (rf * std::pow(1.0 + pd / k.ft, bexp)); // d lambda / d eps_p
+        const real_t bexp = p >= 0.0 ? k.b1 : k.b2;
+        const real_t dlam_per_ep = (p >= 0.0 ? 1.0 : st.tension_scale) / (rf * std::pow(1.0 + pd / k.ft, bexp));
         if (q > surface(st.lambda))
         {
             // g(x) = q - 3 G x - H(lambda_n + x c) = 0 with c = d lambda / d eps_p. H is linear in
@@ -177,6 +193,16 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
             st.ev_plastic += k.omega * dep * dsdp;
         }
     }
+    // b3 volumetric damage in near-hydrostatic tension past the cutoff (materials.md 1.5):
+    // d lambda += b3 f_d k_d d eps_v, f_d = 1 - (sqrt(3 J2) / |p|) / 0.1, k_d = 1 [U]
+    if (dev_cut > 0.0 && tr > 0.0)
+    {
+        const real_t J2n = 0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]) + dev[3] * dev[3] +
+                           dev[4] * dev[4] + dev[5] * dev[5];
+        const real_t ratio = std::abs(p) > 0.0 ? std::sqrt(3.0 * J2n) / std::abs(p) : 1.0;
+        const real_t fd = ratio < 0.1 ? 1.0 - ratio / 0.1 : 0.0;
+        st.lambda += k.b3 * fd * st.tension_scale * tr * dt;
+    }
     for (int c = 0; c < 3; ++c)
         s[c] = dev[c] - p;
     for (int c = 3; c < 6; ++c)
@@ -189,11 +215,11 @@ real_t ceb_fracture_energy(real_t fc_pa)
     return 0.030e3 * std::pow(fcm / 10.0, 0.7); // N/mm -> J/m^2 (x 1e3)
 }
 
-real_t kcc_tension_work(const KccModel& m, real_t b2)
+real_t kcc_tension_work(const KccModel& m, real_t scale)
 {
     // uniaxial stress tension, lateral stress held at zero by Newton on the lateral strain rate
     KccState st;
-    st.b2 = b2;
+    st.tension_scale = scale;
     real_t s[6] = {};
     const real_t ft = m.surfaces.ft;
     const real_t E = 9.0 * m.bulk * m.shear / (3.0 * m.bulk + m.shear);
@@ -227,19 +253,19 @@ real_t kcc_tension_work(const KccModel& m, real_t b2)
     return work;
 }
 
-real_t kcc_b2_for_length(const KccModel& m, real_t h)
+real_t kcc_tension_scale_for_length(const KccModel& m, real_t h)
 {
     const real_t target = m.fracture_energy / h;
-    real_t lo = -5.0, hi = 50.0; // work decreases as b2 grows
-    if (kcc_tension_work(m, lo) <= target)
-        return lo;
-    if (kcc_tension_work(m, hi) >= target)
-        return hi;
+    real_t lo = std::log(1e-4), hi = std::log(1e4); // work decreases as the scale grows
+    if (kcc_tension_work(m, std::exp(lo)) <= target)
+        return std::exp(lo);
+    if (kcc_tension_work(m, std::exp(hi)) >= target)
+        return std::exp(hi);
     for (int it = 0; it < 40; ++it)
     {
         const real_t mid = 0.5 * (lo + hi);
-        (kcc_tension_work(m, mid) > target ? lo : hi) = mid;
+        (kcc_tension_work(m, std::exp(mid)) > target ? lo : hi) = mid;
     }
-    return 0.5 * (lo + hi);
+    return std::exp(0.5 * (lo + hi));
 }
 } // namespace rkfem

@@ -9,8 +9,11 @@
 /// with b1 (compression) / b2 (tension), partially associated dilatancy omega, radial rate
 /// scaling by the dynamic increase factor. Choices where the reference is uncertain are marked
 /// [U]: K_1 from E = 4700 sqrt(f'c [MPa]) and nu = 0.19 when not given; the tensile cutoff
-/// follows eta after the peak; no b3 volumetric damage; b2 is scaled per point with its length
-/// (crack band) when a fracture energy is given.
+/// follows eta after the peak, and volumetric strain past it is plastic (the pressure unloads
+/// from the cutoff); b3 volumetric damage with k_d = 1; with a fracture energy, the tensile damage
+/// rate (p < 0, including the b3 part) is scaled per point by s(h) so that the crack band h
+/// dissipates G_f in uniaxial tension ("LS-DYNA regularises by internally scaling the damage
+/// function"; b2 alone cannot reach G_f below h ~ 20 mm with the generic eta table).
 #include <limits>
 
 #include "rkfem/materials/kcc_surfaces.hpp"
@@ -25,7 +28,7 @@ struct KccModel
     real_t bulk = 0.0;  ///< K_1, initial (elastic) bulk modulus [Pa]
     real_t shear = 0.0; ///< G from K_1 and nu [Pa]
     bool rate_effects = false;
-    /// Fracture energy G_f [J/m^2] for the crack-band scaling of b2 (0: no regularisation).
+    /// Fracture energy G_f [J/m^2] for the crack-band scaling of the tensile damage (0: none).
     real_t fracture_energy = 0.0;
     std::array<real_t, 10> eos_strain{}; ///< volumetric strain ln(V/V0) (<= 0, decreasing)
     std::array<real_t, 10> eos_pressure{};
@@ -46,20 +49,20 @@ struct KccState
     real_t ev_min = 0.0;  ///< most compressive EOS strain reached
     real_t ev_plastic = 0.0; ///< dilatant volumetric plastic strain (expansion positive)
     real_t eps_p = 0.0;   ///< effective plastic strain
-    real_t b2 = std::numeric_limits<real_t>::quiet_NaN(); ///< regularised tensile damage exponent (NaN: the model's)
+    real_t tension_scale = 1.0; ///< crack-band factor on the tensile damage rate (1: none)
 };
 
 /// CEB-FIP 1990 fracture energy G_f = G_f0 (f_cm / 10 MPa)^0.7, f_cm = f'c + 8 MPa, G_f0 = 0.030
 /// N/mm (maximum aggregate 16 mm) [K; the aggregate size is a default, U].
 real_t ceb_fracture_energy(real_t fc_pa);
 
-/// Work density to full separation in uniaxial tension (stress driven to 1e-3 f_t) with tensile
-/// damage exponent b2 [J/m^3].
-real_t kcc_tension_work(const KccModel& m, real_t b2);
+/// Work density to full separation in uniaxial tension (stress driven to 1e-3 f_t) with the
+/// tensile damage rate scaled by `scale` [J/m^3].
+real_t kcc_tension_work(const KccModel& m, real_t scale);
 
-/// b2 such that h x kcc_tension_work(b2) = G_f (crack band of width h, the element or nodal
-/// length); clamped to [-5, 50] where no b2 reaches the target.
-real_t kcc_b2_for_length(const KccModel& m, real_t h);
+/// The tensile damage scale s such that h x kcc_tension_work(s) = G_f (crack band of width h,
+/// the element or nodal length); bisection in log s over [1e-4, 1e4].
+real_t kcc_tension_scale_for_length(const KccModel& m, real_t h);
 
 /// Updates stress s (Voigt, tension positive) and state over dt; returns the plastic work
 /// density increment (>= 0).

@@ -42,13 +42,18 @@ KccParameters KccParameters::from_fc(real_t fc_pa)
     k.eta_table = {{0, 0},          {8.0e-6, 0.85}, {2.4e-5, 0.97}, {4.0e-5, 0.99}, {5.6e-5, 1.00},
                    {7.2e-5, 0.99},  {8.8e-5, 0.97}, {3.2e-4, 0.50}, {5.2e-4, 0.10}, {5.7e-4, 0},
                    {1.0, 0},        {10.0, 0},      {1.0e10, 0}};
-    // f_yc solves s = a0y + (s/3) / (a1y + a2y s/3) (a contraction: fixed-point iteration)
-    k.fyc = k.a0y;
-    for (int it = 0; it < 200; ++it)
-        k.fyc = k.a0y + (k.fyc / 3.0) / (k.a1y + k.a2y * k.fyc / 3.0);
-    const real_t pb = 2.0 * k.alpha_biaxial * fc_pa / 3.0;
-    k.psi_biaxial = k.alpha_biaxial * fc_pa / k.max_surface(pb);
+    k.update_derived();
     return k;
+}
+
+void KccParameters::update_derived()
+{
+    // f_yc solves s = a0y + (s/3) / (a1y + a2y s/3) (a contraction: fixed-point iteration)
+    fyc = a0y;
+    for (int it = 0; it < 200; ++it)
+        fyc = a0y + (fyc / 3.0) / (a1y + a2y * fyc / 3.0);
+    const real_t pb = 2.0 * alpha_biaxial * fc / 3.0;
+    psi_biaxial = alpha_biaxial * fc / max_surface(pb);
 }
 
 real_t KccParameters::max_surface(real_t p) const

@@ -5,6 +5,7 @@
 /// volumetric strains, plastic strain) or the continuous surface cap model (undamaged stress,
 /// strain, cap, damage). Elastic blocks have none (active() is false). The kernels call update()
 /// per point; the branch on the kind is uniform over a block.
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <vector>
@@ -75,6 +76,27 @@ struct PlasticPoints
             kind = Kind::Kcc;
             kcc = KccModel::from_fc(m.fc, m.rho, m.nu, m.E);
             kcc.rate_effects = m.rate_effects;
+            KccParameters& k = kcc.surfaces;
+            for (const auto& [name, v] : m.overrides)
+            {
+                real_t* field = name == "a0"      ? &k.a0
+                                : name == "a1"    ? &k.a1
+                                : name == "a2"    ? &k.a2
+                                : name == "a0y"   ? &k.a0y
+                                : name == "a1y"   ? &k.a1y
+                                : name == "a2y"   ? &k.a2y
+                                : name == "a1f"   ? &k.a1f
+                                : name == "a2f"   ? &k.a2f
+                                : name == "b1"    ? &k.b1
+                                : name == "b2"    ? &k.b2
+                                : name == "b3"    ? &k.b3
+                                : name == "omega" ? &k.omega
+                                : name == "ft"    ? &k.ft
+                                                  : nullptr;
+                if (field)
+                    *field = v;
+            }
+            k.update_derived();
             kcc.fracture_energy = m.fracture_energy < 0 ? ceb_fracture_energy(m.fc) : m.fracture_energy;
         }
         else if (m.model == "cscm")
@@ -84,6 +106,19 @@ struct PlasticPoints
         }
     }
     bool active() const { return kind != Kind::None; }
+    /// Committed 0..1 damage index of point p: J2 the failed flag; K&C D = clamp(delta - 1, 0, 1)
+    /// (0 at the peak, 1 on the residual surface; materials.md 1.6); CSCM its damage d.
+    real_t damage(std::size_t p) const
+    {
+        if (kind == Kind::Kcc)
+            return std::clamp(kcc_delta(p) - 1.0, 0.0, 1.0);
+        return kind == Kind::None ? 0.0 : failed[p];
+    }
+    /// K&C scaled damage delta = 2 lambda / (lambda + lambda_m) (0..2), 0 for other models.
+    real_t kcc_delta(std::size_t p) const
+    {
+        return kind == Kind::Kcc ? kcc.surfaces.scaled_damage(failed[p]) : 0.0;
+    }
     void resize(std::size_t n)
     {
         eps_p.assign(n, 0.0);
@@ -109,7 +144,8 @@ struct PlasticPoints
         }
     }
     /// Crack-band lengths per point (element size, nodal spacing): with a fracture energy, each
-    /// K&C point gets the b2 that dissipates G_f over its length (one solve per distinct length);
+    /// K&C point gets the tensile damage scale that dissipates G_f over its length (one solve
+    /// per distinct length);
     /// each CSCM point gets the softening A, C of its length.
     void set_lengths(const std::vector<real_t>& h)
     {
@@ -125,14 +161,14 @@ struct PlasticPoints
         }
         if (kind != Kind::Kcc || !(kcc.fracture_energy > 0))
             return;
-        std::map<long long, real_t> cache; // length in units of 1e-9 m -> b2
+        std::map<long long, real_t> cache; // length in units of 1e-9 m -> tensile damage scale
         for (std::size_t p = 0; p < h.size() && p < kcc_state.size(); ++p)
         {
             const long long key = std::llround(h[p] * 1e9);
             auto it = cache.find(key);
             if (it == cache.end())
-                it = cache.emplace(key, kcc_b2_for_length(kcc, h[p])).first;
-            kcc_state[p].b2 = kcc_trial[p].b2 = it->second;
+                it = cache.emplace(key, kcc_tension_scale_for_length(kcc, h[p])).first;
+            kcc_state[p].tension_scale = kcc_trial[p].tension_scale = it->second;
         }
     }
     void commit()

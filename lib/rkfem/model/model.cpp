@@ -711,8 +711,21 @@ void Model::physical_field(const std::vector<real_t>& field, std::vector<real_t>
         physical_values(nb, field, out);
 }
 
-real_t Model::element_plastic_strain(index_t b, index_t e) const
+real_t Model::element_history(index_t b, index_t e, History h) const
 {
+    auto value = [h](const PlasticPoints& pp, std::size_t p)
+    {
+        switch (h)
+        {
+        case History::PlasticStrain:
+            return pp.eps_p[p];
+        case History::Damage:
+            return pp.damage(p);
+        case History::KccDelta:
+            return pp.kcc_delta(p);
+        }
+        return 0.0;
+    };
     if (part_nodal[b] >= 0)
     {
         const NodalBlock& nb = nodal_blocks[part_nodal[b]];
@@ -724,7 +737,7 @@ real_t Model::element_plastic_strain(index_t b, index_t e) const
         {
             const index_t i = blocks[b].conn[8 * static_cast<std::size_t>(e) + I] - nb.node_begin;
             for (index_t k = nb.owner_offsets[i]; k < nb.owner_offsets[i + 1]; ++k, ++count)
-                s += nb.plastic.eps_p[nb.owner_points[k]];
+                s += value(nb.plastic, static_cast<std::size_t>(nb.owner_points[k]));
         }
         return count ? s / count : 0.0;
     }
@@ -734,7 +747,7 @@ real_t Model::element_plastic_strain(index_t b, index_t e) const
     const index_t npe = blk.points_per_element();
     real_t s = 0.0;
     for (index_t g = 0; g < npe; ++g)
-        s += blk.plastic.eps_p[static_cast<std::size_t>(e) * npe + g];
+        s += value(blk.plastic, static_cast<std::size_t>(e) * npe + g);
     return s / npe;
 }
 

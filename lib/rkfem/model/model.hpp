@@ -123,9 +123,16 @@ class Model
 
     /// Nodal stress (average of adjacent points) at node i, Voigt.
     Sym6 nodal_stress(index_t node) const;
-    /// Effective plastic strain of an element (average over its points; nodal parts: over the
-    /// element's nodes), 0 for elastic parts.
-    real_t element_plastic_strain(index_t block, index_t e) const;
+    /// A point history value averaged over an element (its points; nodal parts: the points of
+    /// the element's nodes), 0 for elastic parts.
+    enum class History
+    {
+        PlasticStrain, ///< effective plastic strain
+        Damage,        ///< 0..1 damage index (PlasticPoints::damage)
+        KccDelta,      ///< K&C scaled damage delta, 0..2 (0 for other models)
+    };
+    real_t element_history(index_t block, index_t e, History h) const;
+    real_t element_plastic_strain(index_t block, index_t e) const { return element_history(block, e, History::PlasticStrain); }
     /// Element stress (average over its points), Voigt.
     Sym6 element_stress(index_t block, index_t e) const;
 

@@ -1,0 +1,42 @@
+#pragma once
+/// @file hdf5_dataset.hpp
+/// Writing one dataset into an open HDF5 file or group (the writers' common step): real arrays
+/// as IEEE 64-bit little-endian, index arrays as 32-bit integers; rows x cols, 1-D when cols = 1.
+#include <hdf5.h>
+#include <string>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+inline void write_dataset(hid_t loc, const char* name, const real_t* data, hsize_t rows, hsize_t cols = 1)
+{
+    const hsize_t dims[2] = {rows, cols};
+    const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
+    const hid_t set = H5Dcreate2(loc, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (set < 0)
+    {
+        H5Sclose(space);
+        throw Error(std::string("HDF5: cannot create dataset ") + name);
+    }
+    H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+    H5Dclose(set);
+    H5Sclose(space);
+}
+
+inline void write_dataset_int(hid_t loc, const char* name, const index_t* data, hsize_t rows, hsize_t cols = 1)
+{
+    const hsize_t dims[2] = {rows, cols};
+    const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
+    const hid_t set = H5Dcreate2(loc, name, H5T_STD_I32LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (set < 0)
+    {
+        H5Sclose(space);
+        throw Error(std::string("HDF5: cannot create dataset ") + name);
+    }
+    H5Dwrite(set, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+    H5Dclose(set);
+    H5Sclose(space);
+}
+} // namespace rkfem
