@@ -81,6 +81,26 @@ TEST(MaterialPoint, PathsAgainstAnalyticAnswers)
         EXPECT_NEAR(after.stress[0] + after.stress[1] + after.stress[2],
                     before.stress[0] + before.stress[1] + before.stress[2], 1e-12 * before.stress[0]);
     }
+    // the same for a yielded J2 point (uniaxial strain 1 % is past yield): invariants and the
+    // plastic strain unchanged by the rotation
+    {
+        const auto h = run_material_point(deck("j2", "rotation", 0.01, 0.0, 0.3 * M_PI));
+        const MaterialPointRecord& before = h[400];
+        const MaterialPointRecord& after = h.back();
+        auto invariants = [](const real_t* s)
+        {
+            const real_t I1 = s[0] + s[1] + s[2];
+            const real_t J2 = ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) +
+                               (s[2] - s[0]) * (s[2] - s[0])) / 6.0 + s[3] * s[3] + s[4] * s[4] + s[5] * s[5];
+            return std::pair{I1, J2};
+        };
+        const auto [i1a, j2a] = invariants(before.stress);
+        const auto [i1b, j2b] = invariants(after.stress);
+        EXPECT_GT(before.plastic_strain, 0.0);
+        EXPECT_NEAR(after.plastic_strain, before.plastic_strain, 1e-12 * before.plastic_strain); // round-off returns
+        EXPECT_NEAR(i1b, i1a, 1e-10 * std::abs(i1a));
+        EXPECT_NEAR(j2b, j2a, 1e-10 * j2a);
+    }
 }
 
 TEST(MaterialPoint, CommandLineWritesTheHistoryAndRejectsBadDecks)
