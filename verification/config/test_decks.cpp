@@ -145,6 +145,31 @@ TEST(Decks, CapModelStrengthOutsideTheFitsIsRejected)
                     ":7: parts.col.material.D1", "not a reciprocal pressure (e.g. 2.5e-4 1/MPa)");
 }
 
+TEST(Decks, KccTablesRoundTrip)
+{
+    const std::string fixed = write_deck(
+        "kcc_tables2.yaml",
+        replace(good, "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}",
+                "{model: kcc, rho: 2400 kg/m^3, fc: 45.6 MPa, a0: 14 MPa, eta: [[0, 0], [1e-4, 1], [3e-4, 0]], "
+                "eos: {strain: [0, -0.0015, -0.0043, -0.0101, -0.0305, -0.0513, -0.0726, -0.0943, -0.174, -0.208], "
+                "pressure: [0 MPa, 33 MPa, 72 MPa, 116 MPa, 220 MPa, 332 MPa, 471 MPa, 721 MPa, 4210 MPa, 6440 MPa], "
+                "unload_bulk: [22 GPa, 22 GPa, 22.3 GPa, 23.4 GPa, 27.9 GPa, 32.4 GPa, 36.8 GPa, 40.2 GPa, 90.4 GPa, "
+                "110 GPa]}}"));
+    const Result first = run("check " + fixed);
+    ASSERT_EQ(first.code, 0) << first.output;
+    EXPECT_NE(first.output.find("a0: 14000000"), std::string::npos) << first.output;
+    EXPECT_NE(first.output.find("eta: [[0, 0], [0.0001, 1], [0.0003, 0]]"), std::string::npos) << first.output;
+    EXPECT_NE(first.output.find("pressure: [0, 33000000, 72000000"), std::string::npos) << first.output;
+    const Result second = run("check " + write_deck("kcc_tables3.yaml", first.output));
+    ASSERT_EQ(second.code, 0) << second.output;
+    EXPECT_EQ(first.output, second.output);
+    // a table that never reaches eta = 1 is rejected with its key
+    expect_rejected("kcc_eta.yaml",
+                    replace(good, "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}",
+                            "{model: kcc, rho: 2400 kg/m^3, fc: 45.6 MPa, eta: [[0, 0], [1e-4, 0.9], [3e-4, 0]]}"),
+                    ":7: parts.col.material.eta", "expected eta = 1 at the peak");
+}
+
 TEST(Decks, CapModelOverridesResolveToSI)
 {
     const Result r = run("check " + write_deck("cscm_over.yaml",

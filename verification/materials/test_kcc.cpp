@@ -203,3 +203,45 @@ TEST(KccConcrete, GeneratedParametersCanBeOverridden)
     // derived quantities follow the overrides: the yield hyperbola through (f_yc/3, f_yc)
     EXPECT_NEAR(k.yield_surface(k.fyc / 3.0), k.fyc, 1e-9 * k.fyc);
 }
+
+TEST(KccConcrete, DamageAndEosTablesCanBeReplaced)
+{
+    // a user eta(lambda) table moves lambda_m and lambda_z; uniaxial compression still peaks on
+    // the maximum surface (at lambda_m); a user EOS table is followed in hydrostatic compression
+    auto d = kcc_deck("uniaxial-stress", -0.006, 0.0, 3000);
+    d.material.kcc_eta = {{0, 0}, {2e-5, 0.9}, {1e-4, 1.0}, {2e-4, 0.5}, {4e-4, 0.0}};
+    PlasticPoints pp;
+    pp.configure(d.material);
+    EXPECT_EQ(pp.kcc.surfaces.lambda_m, 1e-4);
+    EXPECT_EQ(pp.kcc.surfaces.lambda_z, 4e-4);
+    EXPECT_NEAR(pp.kcc.surfaces.eta(3e-4), 0.25, 1e-15);
+    const auto h = run_material_point(d);
+    real_t at = 0.0;
+    const real_t peak = peak_compression(h, at);
+    std::printf("user eta table: UC peak %.3f MPa (f'c 45.6)\n", peak / MPa);
+    EXPECT_NEAR(peak / (45.6 * MPa), 1.0, 2e-3);
+
+    auto hyd = kcc_deck("hydrostatic", -0.02, 0.0, 2000);
+    const KccModel gen = KccModel::from_fc(45.6 * MPa, 2400, 0.19, 4700.0 * std::sqrt(45.6) * MPa);
+    for (int i = 0; i < 10; ++i)
+    {
+        hyd.material.kcc_eos_strain.push_back(gen.eos_strain[i]);
+        hyd.material.kcc_eos_pressure.push_back(1.5 * gen.eos_pressure[i]);
+        hyd.material.kcc_eos_unload.push_back(1.5 * gen.eos_unload[i]);
+    }
+    const auto hh = run_material_point(hyd);
+    // at eps_v = -0.0101 (table point 3) the pressure is 1.5 x the generated one
+    real_t worst = 0.0;
+    for (const auto& r : hh)
+    {
+        const real_t ev = r.strain[0] + r.strain[1] + r.strain[2];
+        if (std::abs(ev - gen.eos_strain[3]) < 1e-12)
+        {
+            const real_t p = -(r.stress[0] + r.stress[1] + r.stress[2]) / 3.0;
+            worst = std::max(worst, std::abs(p / (1.5 * gen.eos_pressure[3]) - 1.0));
+            std::printf("user EOS table: p(%.4f) = %.3f MPa (1.5 x generated %.3f)\n", ev, p / MPa,
+                        gen.eos_pressure[3] / MPa);
+        }
+    }
+    EXPECT_LT(worst, 1e-9);
+}

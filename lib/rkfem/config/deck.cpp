@@ -428,6 +428,11 @@ MaterialSpec read_material(const Section& part)
         std::vector<std::string> keys = {"model", "rho", "fc", "E", "nu", "rate_effects", "fracture_energy"};
         for (const auto& k : override_keys)
             keys.push_back(k.first);
+        if (model == "kcc")
+        {
+            keys.push_back("eta");
+            keys.push_back("eos");
+        }
         Section s(part.ctx(), mn, part.path("material"), keys);
         m.model = model;
         m.rho = s.quantity("rho", dim::density);
@@ -444,6 +449,52 @@ MaterialSpec read_material(const Section& part)
         if (cscm && (m.fc < 20e6 || m.fc > 58e6))
             s.fail("fc", "is outside the range of Murray's fits",
                    "expected 20 MPa <= fc <= 58 MPa for the generated CSCM parameters");
+        if (s.has("eta"))
+        {
+            const YAML::Node c = s.node("eta");
+            if (!c.IsSequence() || c.size() < 3)
+                s.fail("eta", "needs at least three points",
+                       "expected [[lambda0, eta0], [lambda1, eta1], ...], lambda increasing from 0, eta in [0, 1] "
+                       "reaching 1 once");
+            for (std::size_t i = 0; i < c.size(); ++i)
+            {
+                const std::string pi = s.path("eta") + "." + std::to_string(i);
+                if (!c[i].IsSequence() || c[i].size() != 2)
+                    throw DeckError(locate(s.ctx(), c[i], pi), "is not a [lambda, eta] pair", "expected [lambda, eta]");
+                const real_t lam = s.quantity_of(c[i][0], pi + ".0", dim::none);
+                const real_t eta = s.quantity_of(c[i][1], pi + ".1", dim::none);
+                if ((i == 0 && lam != 0.0) || (i > 0 && !(lam > m.kcc_eta.back().first)) || eta < 0.0 || eta > 1.0)
+                    throw DeckError(locate(s.ctx(), c[i], pi), "is out of order or range",
+                                    "expected lambda from 0, strictly increasing, and 0 <= eta <= 1");
+                m.kcc_eta.emplace_back(lam, eta);
+            }
+            bool peak = false;
+            for (const auto& e : m.kcc_eta)
+                peak = peak || e.second == 1.0;
+            if (!peak)
+                s.fail("eta", "never reaches 1", "expected eta = 1 at the peak (lambda_m)");
+        }
+        if (s.has("eos"))
+        {
+            Section e(s.ctx(), s.node("eos"), s.path("eos"), {"strain", "pressure", "unload_bulk"});
+            auto list = [&](const char* key, Dimension dm, std::vector<real_t>& out)
+            {
+                e.require(key, "a list of 10 values");
+                const YAML::Node c = e.node(key);
+                if (!c.IsSequence() || c.size() != 10)
+                    e.fail(key, "does not have 10 entries", "expected the 10 points of an EOS_8 table");
+                for (std::size_t i = 0; i < 10; ++i)
+                    out.push_back(e.quantity_of(c[i], e.path(key) + "." + std::to_string(i), dm));
+            };
+            list("strain", dim::none, m.kcc_eos_strain);
+            list("pressure", dim::pressure, m.kcc_eos_pressure);
+            list("unload_bulk", dim::pressure, m.kcc_eos_unload);
+            for (std::size_t i = 0; i < 10; ++i)
+                if ((i == 0 && m.kcc_eos_strain[0] != 0.0) || (i > 0 && !(m.kcc_eos_strain[i] < m.kcc_eos_strain[i - 1])) ||
+                    (i > 0 && !(m.kcc_eos_pressure[i] > m.kcc_eos_pressure[i - 1])) || !(m.kcc_eos_unload[i] > 0.0))
+                    e.fail("strain", "is not an EOS_8 table",
+                           "expected volumetric strains from 0 decreasing, pressures increasing, unloading moduli > 0");
+        }
         for (const auto& [k, dimension] : override_keys)
             if (s.has(k))
             {

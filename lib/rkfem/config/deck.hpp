@@ -50,6 +50,10 @@ struct MaterialSpec
     real_t fc = 0.0;
     bool rate_effects = false;
     real_t fracture_energy = 0.0; ///< G_f [J/m^2] for the crack-band scaling of b2; < 0: CEB-FIP (auto); 0: none
+    /// kcc: the damage table (lambda, eta) and the EOS_8 table (10 strains <= 0, decreasing;
+    /// pressures; unloading bulk moduli) in place of the generated ones (empty: generated)
+    std::vector<std::pair<real_t, real_t>> kcc_eta;
+    std::vector<real_t> kcc_eos_strain, kcc_eos_pressure, kcc_eos_unload;
     /// cscm: named parameter overrides of the generated set (alpha, theta, lambda, beta, R, X0, W,
     /// D1, D2, B, D, Gfc, length), SI
     std::vector<std::pair<std::string, real_t>> overrides;

@@ -180,6 +180,30 @@ std::string to_yaml(const Deck& d)
                 os << ", fracture_energy: " << p.material.fracture_energy;
             for (const auto& [k, v] : p.material.overrides)
                 os << ", " << k << ": " << v;
+            if (!p.material.kcc_eta.empty())
+            {
+                os << ", eta: [";
+                for (std::size_t i = 0; i < p.material.kcc_eta.size(); ++i)
+                    os << (i ? ", " : "") << "[" << p.material.kcc_eta[i].first << ", " << p.material.kcc_eta[i].second << "]";
+                os << "]";
+            }
+            if (!p.material.kcc_eos_strain.empty())
+            {
+                auto list = [&](const std::vector<real_t>& v)
+                {
+                    os << "[";
+                    for (std::size_t i = 0; i < v.size(); ++i)
+                        os << (i ? ", " : "") << v[i];
+                    os << "]";
+                };
+                os << ", eos: {strain: ";
+                list(p.material.kcc_eos_strain);
+                os << ", pressure: ";
+                list(p.material.kcc_eos_pressure);
+                os << ", unload_bulk: ";
+                list(p.material.kcc_eos_unload);
+                os << "}";
+            }
         }
         os << "}\n";
         os << "    formulation: "

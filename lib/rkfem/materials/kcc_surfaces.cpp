@@ -48,6 +48,20 @@ KccParameters KccParameters::from_fc(real_t fc_pa)
 
 void KccParameters::update_derived()
 {
+    // lambda_m: first lambda where eta = 1; lambda_z: first lambda after it where eta = 0
+    for (std::size_t i = 0; i < eta_table.size(); ++i)
+        if (eta_table[i].second == 1.0)
+        {
+            lambda_m = eta_table[i].first;
+            lambda_z = eta_table.back().first;
+            for (std::size_t j = i + 1; j < eta_table.size(); ++j)
+                if (eta_table[j].second == 0.0)
+                {
+                    lambda_z = eta_table[j].first;
+                    break;
+                }
+            break;
+        }
     // f_yc solves s = a0y + (s/3) / (a1y + a2y s/3) (a contraction: fixed-point iteration)
     fyc = a0y;
     for (int it = 0; it < 200; ++it)

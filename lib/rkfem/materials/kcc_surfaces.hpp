@@ -37,7 +37,8 @@ struct KccParameters
     /// f_t = 1.58 (f'c^2)^(1/3) in psi. [K/U: that LS-DYNA scales exactly linearly]
     static KccParameters from_fc(real_t fc_pa);
 
-    /// f_yc and psi at the biaxial point from the coefficients (after overrides).
+    /// lambda_m, lambda_z from the eta table, f_yc and psi at the biaxial point from the
+    /// coefficients (after overrides).
     void update_derived();
 
     /// Compressive-meridian stress differences of the three surfaces at pressure p.

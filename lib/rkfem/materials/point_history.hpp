@@ -96,6 +96,19 @@ struct PlasticPoints
                 if (field)
                     *field = v;
             }
+            if (!m.kcc_eta.empty())
+            {
+                k.eta_table = m.kcc_eta;
+                if (k.eta_table.back().first < 1e10) // the return walks the table to large lambda
+                    k.eta_table.emplace_back(1e10, k.eta_table.back().second);
+            }
+            if (!m.kcc_eos_strain.empty())
+                for (int i = 0; i < 10; ++i)
+                {
+                    kcc.eos_strain[i] = m.kcc_eos_strain[i];
+                    kcc.eos_pressure[i] = m.kcc_eos_pressure[i];
+                    kcc.eos_unload[i] = m.kcc_eos_unload[i];
+                }
             k.update_derived();
             kcc.fracture_energy = m.fracture_energy < 0 ? ceb_fracture_energy(m.fc) : m.fracture_energy;
         }
