@@ -112,7 +112,7 @@ real_t CscmModel::Q2(real_t P) const
     return std::min(Q1(P), alpha2 - lambda2 * std::exp(-beta2 * P) + theta2 * P);
 }
 
-real_t CscmModel::rubin(real_t P, real_t bh) const
+real_t CscmModel::rubin_cs(real_t P, real_t c, real_t s) const
 {
     const real_t q1 = Q1(P), q2 = Q2(P);
     const real_t a0 = 2.0 * q1 * q1 * (q2 - 1.0);
@@ -120,18 +120,20 @@ real_t CscmModel::rubin(real_t P, real_t bh) const
     const real_t a2 = q2;
     const real_t a = (-a1 + std::sqrt(a1 * a1 - 4.0 * a2 * a0)) / (2.0 * a2);
     const real_t b = (2.0 * q1 + a) * (2.0 * q1 + a) - 3.0;
-    const real_t c = std::cos(bh), s = std::sin(bh);
     const real_t b0 = -(3.0 + b - a * a) / 4.0;
     const real_t b1 = a * (c - a * s);
     const real_t b2 = (c - a * s) * (c - a * s) + b * s * s;
     return (-b1 + std::sqrt(b1 * b1 - 4.0 * b2 * b0)) / (2.0 * b2);
 }
 
-real_t CscmModel::kappa_of_X(real_t X) const
+real_t CscmModel::kappa_of_X(real_t X, real_t guess) const
 {
-    // kappa + R Ff(kappa) = X: increasing and concave, so Newton from the left converges
-    // monotonically; start at the apex where Ff = 0.
-    real_t k = std::min(p_apex, X);
+    // kappa + R Ff(kappa) = X: increasing and concave, so Newton converges monotonically from
+    // the left, and from the right after one step that lands left; default start: the apex
+    // where Ff = 0
+    if (X == X0 && kappa0 > p_apex)
+        return kappa0;
+    real_t k = std::isnan(guess) ? std::min(p_apex, X) : guess;
     for (int it = 0; it < 100; ++it)
     {
         const real_t g = cap_X(k) - X;
@@ -167,10 +169,10 @@ real_t CscmModel::Fc(real_t P, real_t kappa) const
     return 1.0 - t * t;
 }
 
-real_t CscmModel::yield(real_t P, real_t J2, real_t bh, real_t kappa) const
+real_t CscmModel::yield_cs(real_t P, real_t J2, real_t cb, real_t sb, real_t kappa) const
 {
     const real_t F = std::max(Ff(P), 0.0);
-    const real_t r = rubin(P, bh);
+    const real_t r = rubin_cs(P, cb, sb);
     return J2 - r * r * F * F * Fc(P, kappa);
 }
 
@@ -233,7 +235,7 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
     {
         const real_t J3 = dev[0] * (dev[1] * dev[2] - dev[4] * dev[4]) - dev[3] * (dev[3] * dev[2] - dev[4] * dev[5]) +
                           dev[5] * (dev[3] * dev[4] - dev[1] * dev[5]);
-        real_t s3 = std::clamp(-1.5 * std::sqrt(3.0) * J3 / std::pow(J2T, 1.5), -1.0, 1.0);
+        real_t s3 = std::clamp(-1.5 * std::sqrt(3.0) * J3 / (J2T * std::sqrt(J2T)), -1.0, 1.0);
         // states within rounding of a meridian are put on it: Rubin's section has a corner there
         // and asin amplifies a 1e-15 error in s3 to 1e-8 rad
         if (std::abs(s3) > 1.0 - 1e-12)
@@ -241,6 +243,8 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
         bh = std::asin(s3) / 3.0;
     }
     const real_t kappa_n = std::isnan(st.kappa) ? m.kappa0 : st.kappa;
+    const real_t cb = std::cos(bh), sb = std::sin(bh);
+    auto yield = [&](real_t P, real_t J2, real_t kappa) { return m.yield_cs(P, J2, cb, sb, kappa); };
 
     // inviscid return (cutting plane in P, deviator scale sc, compaction evp)
     const real_t evp_n = st.evp;
@@ -255,28 +259,37 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
         sc = 0.0;
         plastic = true;
     }
-    else if (m.yield(PT, J2T, bh, kap) > tol)
+    else if (yield(PT, J2T, kap) > tol)
     {
         plastic = true;
         for (int it = 0; it < 100; ++it)
         {
+            // f = J2 - Rb^2 F^2 Fc with Rb the Rubin scale, F = Ff(P), Fc the cap function
             const real_t J2 = sc * sc * J2T;
-            const real_t f = m.yield(P, J2, bh, kap);
+            const real_t F = std::max(m.Ff(P), 0.0), dF = F > 0.0 ? m.dFf(P) : 0.0;
+            const real_t Rb = m.rubin_cs(P, cb, sb);
+            const real_t L = std::max(kap, m.kappa0);
+            const real_t FfL = m.Ff(L), XL = m.R * FfL; // X - L
+            const real_t t = P > L ? (P - L) / XL : 0.0;
+            const real_t Fcap = 1.0 - t * t;
+            const real_t f = J2 - Rb * Rb * F * F * Fcap;
             if (f <= 1e-8 * std::max(J2, 1e-6 * m.fc * m.fc))
                 break;
+            // d f / d P: the Rubin scale's dependence on P (through Q1, Q2) by a forward difference,
+            // the rest analytic
             const real_t hP = 1e-6 * std::max(std::abs(P), m.fc);
-            const real_t fP = (m.yield(P + hP, J2, bh, kap) - m.yield(P - hP, J2, bh, kap)) / (2.0 * hP);
+            const real_t dRb = (m.rubin_cs(P + hP, cb, sb) - Rb) / hP;
+            const real_t dFcap = P > L ? -2.0 * t / XL : 0.0;
+            const real_t fP = -(2.0 * Rb * dRb * F * F * Fcap + 2.0 * Rb * Rb * F * dF * Fcap + Rb * Rb * F * F * dFcap);
             real_t fk_kp = 0.0; // (d f / d kappa) (d kappa / d evp)
-            if (evp > 0.0 || fP > 0.0)
+            if (P > L && (evp > 0.0 || fP > 0.0))
             {
-                const real_t hk = 1e-6 * m.fc;
-                const real_t fk = (m.yield(P, J2, bh, kap + hk) - f) / hk;
-                if (fk != 0.0)
-                {
-                    const real_t z = m.X_of_compaction(std::max(evp, 0.0)) - m.X0;
-                    const real_t devp_dX = m.W * (m.D1 + 2.0 * m.D2 * z) * std::exp(-m.D1 * z - m.D2 * z * z);
-                    fk_kp = fk / (devp_dX * (1.0 + m.R * m.dFf(kap)));
-                }
+                // t = (P - kappa) / (R Ff(kappa)): dt/dkappa = -(1 + t R Ff'(kappa)) / (R Ff(kappa))
+                const real_t dt = -(1.0 + t * m.R * m.dFf(L)) / XL;
+                const real_t fk = Rb * Rb * F * F * 2.0 * t * dt; // -Rb^2 F^2 dFcap/dkappa, dFcap = -2 t dt
+                const real_t z = m.X_of_compaction(std::max(evp, 0.0)) - m.X0;
+                const real_t devp_dX = m.W * (m.D1 + 2.0 * m.D2 * z) * std::exp(-m.D1 * z - m.D2 * z * z);
+                fk_kp = fk / (devp_dX * (1.0 + m.R * m.dFf(L)));
             }
             const real_t denom = 9.0 * K * fP * fP + 4.0 * G * J2 - 3.0 * fk_kp * fP;
             if (!(denom > 0.0))
@@ -286,7 +299,7 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
             P -= 9.0 * K * dl * fP;
             sc /= 1.0 + 2.0 * G * dl;
             evp += 3.0 * dl * fP;
-            kap = m.kappa_of_X(m.X_of_compaction(evp));
+            kap = evp > 0.0 ? m.kappa_of_X(m.X_of_compaction(evp), kap) : m.kappa0;
             if (P <= m.p_apex)
             {
                 P = m.p_apex;

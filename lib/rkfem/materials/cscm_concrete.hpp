@@ -81,15 +81,22 @@ struct CscmModel
     real_t dFf(real_t P) const { return lambda * beta * std::exp(-beta * P) + theta; }
     real_t Q1(real_t P) const;
     real_t Q2(real_t P) const;
-    /// Rubin scale at pressure P and Lode angle beta_hat in [-pi/6, pi/6] (pi/6: TXC -> 1).
-    real_t rubin(real_t P, real_t beta_hat) const;
+    /// Rubin scale at pressure P and Lode angle beta_hat in [-pi/6, pi/6] (pi/6: TXC -> 1);
+    /// the second form takes cos and sin of beta_hat.
+    real_t rubin(real_t P, real_t beta_hat) const { return rubin_cs(P, std::cos(beta_hat), std::sin(beta_hat)); }
+    real_t rubin_cs(real_t P, real_t cb, real_t sb) const;
     real_t cap_X(real_t kappa) const { return kappa + R * Ff(kappa); }
-    real_t kappa_of_X(real_t X) const;
+    real_t kappa_of_X(real_t X, real_t guess = std::numeric_limits<real_t>::quiet_NaN()) const;
     real_t X_of_compaction(real_t evp) const;
     real_t compaction_of_X(real_t X) const;
     real_t Fc(real_t P, real_t kappa) const;
-    /// Yield function f = J2 - Rubin^2 Ff^2 Fc (Ff clipped at 0 past the apex).
-    real_t yield(real_t P, real_t J2, real_t beta_hat, real_t kappa) const;
+    /// Yield function f = J2 - Rubin^2 Ff^2 Fc (Ff clipped at 0 past the apex); the second form
+    /// takes cos and sin of the Lode angle.
+    real_t yield(real_t P, real_t J2, real_t beta_hat, real_t kappa) const
+    {
+        return yield_cs(P, J2, std::cos(beta_hat), std::sin(beta_hat), kappa);
+    }
+    real_t yield_cs(real_t P, real_t J2, real_t cb, real_t sb, real_t kappa) const;
 
     /// Damage softening for a crack band of length h: C from G_ft (brittle, uniaxial tension),
     /// A from G_fc (ductile, uniaxial compression), each for a perfectly plastic post-peak:

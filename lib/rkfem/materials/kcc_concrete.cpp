@@ -100,7 +100,7 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
         // Lode angle from the tensile meridian: cos 3 theta = (3 sqrt 3 / 2) J3 / J2^(3/2)
         const real_t J3 = dev[0] * (dev[1] * dev[2] - dev[4] * dev[4]) - dev[3] * (dev[3] * dev[2] - dev[4] * dev[5]) +
                           dev[5] * (dev[3] * dev[4] - dev[1] * dev[5]);
-        const real_t c3 = std::clamp(1.5 * std::sqrt(3.0) * J3 / std::pow(J2, 1.5), -1.0, 1.0);
+        const real_t c3 = std::clamp(1.5 * std::sqrt(3.0) * J3 / (J2 * std::sqrt(J2)), -1.0, 1.0);
         const real_t theta = std::acos(c3) / 3.0;
         const real_t wlode = willam_warnke(theta, k.psi(p));
         // rate enhancement: radial scaling Delta sigma_e(p) = r_f Delta sigma(p / r_f)
