@@ -86,8 +86,11 @@ void ResultsWriter::write_step(const Model& model, real_t time)
         for (index_t e = 0; e < model.blocks[b].n_elements(); ++e, ++e_global)
         {
             const Sym6 s = model.element_stress(static_cast<index_t>(b), e);
+            // XDMF's Tensor6 order (xx, xy, xz, yy, yz, zz), which ParaView expands to the full
+            // symmetric tensor; not the solver's Voigt order (xx, yy, zz, xy, yz, zx)
+            constexpr int xdmf_order[6] = {XX, XY, ZX, YY, YZ, ZZ};
             for (int k = 0; k < 6; ++k)
-                stress[6 * e_global + k] = s[k];
+                stress[6 * e_global + k] = s[xdmf_order[k]];
             pressure[e_global] = -(s[0] + s[1] + s[2]) / 3.0;
             volume[e_global] = model.blocks[b].volume[e];
             eps[e_global] = model.element_plastic_strain(static_cast<index_t>(b), e);
