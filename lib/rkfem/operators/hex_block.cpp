@@ -17,53 +17,41 @@ constexpr int W = 8; // lanes per batch (one AVX-512 register of doubles)
 
 index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 
+// Both written without branches (min and a 0/1 factor instead of "trD < 0 ? ... : 0") so that
+// the lane loops vectorize: GCC keeps a conditional floating-point expression as control flow.
+
 /// Bulk viscosity pressure (LS-DYNA form): q = rho l (Q1 l trD^2 - Q2 c trD) when trD < 0.
 inline real_t bulk_q(real_t rho, real_t c, real_t l, real_t trd, real_t q1, real_t q2)
 {
-    return trd < 0.0 ? rho * l * (q1 * l * trd * trd - q2 * c * trd) : 0.0;
+    const real_t neg = std::min(trd, 0.0);
+    return rho * l * (q1 * l * neg * neg - q2 * c * neg);
 }
 
 /// Stable time step of an element: l / (Q + sqrt(Q^2 + c^2)), Q = Q1 l |trD| + Q2 c when trD < 0.
 inline real_t element_dt(real_t c, real_t l, real_t trd, real_t q1, real_t q2)
 {
-    const real_t Q = trd < 0.0 ? q1 * l * (-trd) + q2 * c : 0.0;
+    const real_t neg = std::min(trd, 0.0);
+    const real_t Q = -q1 * l * neg + q2 * c * static_cast<real_t>(trd < 0.0);
     return l / (Q + std::sqrt(Q * Q + c * c));
 }
 
-/// Largest face area of a hex given lane coordinates.
-inline real_t max_face_area_sq(const real_t (&xe)[8][3][W], int l)
-{
-    real_t amax = 0.0;
-    for (const auto& f : hex_faces)
-    {
-        real_t d1[3], d2[3];
-        for (int d = 0; d < 3; ++d)
-        {
-            d1[d] = xe[f[2]][d][l] - xe[f[0]][d][l];
-            d2[d] = xe[f[3]][d][l] - xe[f[1]][d][l];
-        }
-        const real_t cx = d1[1] * d2[2] - d1[2] * d2[1];
-        const real_t cy = d1[2] * d2[0] - d1[0] * d2[2];
-        const real_t cz = d1[0] * d2[1] - d1[1] * d2[0];
-        amax = std::max(amax, 0.25 * (cx * cx + cy * cy + cz * cz));
-    }
-    return amax;
-}
-
-template <HourglassType HG, bool PLASTIC>
+/// One batch of W elements. FULL: all W lanes are elements (every batch but a partial last one),
+/// so the lane loops carry no lane test and the material/bulk-viscosity loop vectorizes.
+template <HourglassType HG, bool PLASTIC, bool FULL>
 void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt)
 {
-    const auto& tab = hex8_volume_gradient_table();
     const index_t ne = blk.n_elements();
     const index_t e0 = batch * W;
-    const int nl = static_cast<int>(std::min<index_t>(W, ne - e0));
+    const int nl = FULL ? W : static_cast<int>(std::min<index_t>(W, ne - e0));
+    auto lane_element = [&](int l) { return static_cast<std::size_t>(e0 + (FULL || l < nl ? l : 0)); };
+    auto active = [&](int l) { return FULL || l < nl; };
 
     alignas(64) real_t xe[8][3][W];
     alignas(64) real_t ve[8][3][W];
     for (int l = 0; l < W; ++l)
     {
-        const index_t e = e0 + (l < nl ? l : 0);
-        const index_t* c = &blk.conn[8 * static_cast<std::size_t>(e)];
+        const std::size_t e = lane_element(l);
+        const index_t* c = &blk.conn[8 * e];
         for (int I = 0; I < 8; ++I)
         {
             const std::size_t n = 3 * static_cast<std::size_t>(c[I]);
@@ -75,11 +63,14 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
         }
     }
 
-    // b_I = dV/dx_I (Flanagan-Belytschko, exact volume integration)
-    alignas(64) real_t cr[Hex8VolumeGradientTable::max_pairs][3][W];
-    for (int p = 0; p < tab.n_pairs; ++p)
+    // b_I = dV/dx_I (Flanagan-Belytschko, exact volume integration), from the compile-time
+    // table: 24 pair cross products, then nine +-1/12 terms per node (unrolled)
+    using VG = Hex8VolumeGradientFixed;
+    alignas(64) real_t cr[VG::n_pairs][3][W];
+#pragma GCC unroll 24
+    for (int p = 0; p < VG::n_pairs; ++p)
     {
-        const int k = tab.pair_k[p], m = tab.pair_l[p];
+        const int k = VG::pairs[p][0], m = VG::pairs[p][1];
 #pragma omp simd
         for (int l = 0; l < W; ++l)
         {
@@ -88,25 +79,19 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
             cr[p][2][l] = xe[k][0][l] * xe[m][1][l] - xe[k][1][l] * xe[m][0][l];
         }
     }
-    // node by node, accumulating in registers (one 8-lane vector per component)
     alignas(64) real_t b[8][3][W];
+#pragma GCC unroll 8
     for (int I = 0; I < 8; ++I)
-    {
-        alignas(64) real_t acc[3][W] = {};
-        for (int t = tab.node_offsets[I]; t < tab.node_offsets[I + 1]; ++t)
-        {
-            const int p = tab.term_pair[t];
-            const real_t c = tab.term_coef[t];
-            for (int d = 0; d < 3; ++d)
-#pragma omp simd
-                for (int l = 0; l < W; ++l)
-                    acc[d][l] += c * cr[p][d][l];
-        }
         for (int d = 0; d < 3; ++d)
 #pragma omp simd
             for (int l = 0; l < W; ++l)
-                b[I][d][l] = acc[d][l];
-    }
+            {
+                real_t s = 0.0;
+#pragma GCC unroll 9
+                for (int t = 0; t < 9; ++t)
+                    s += VG::terms[I][t][1] * cr[VG::terms[I][t][0]][d][l];
+                b[I][d][l] = s * (1.0 / 12.0);
+            }
     alignas(64) real_t vol[W], inv_v[W];
 #pragma omp simd
     for (int l = 0; l < W; ++l)
@@ -140,46 +125,107 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
 
     alignas(64) real_t sig[6][W]; // effective stress for the force (incl. bulk viscosity)
     alignas(64) real_t lc[W], dt_e[W], de_int[W], de_bv[W];
+    // characteristic length from the largest face (staged over lanes so each loop vectorizes)
+    alignas(64) real_t amax2[W];
 #pragma omp simd
     for (int l = 0; l < W; ++l)
+        amax2[l] = 0.0;
+#pragma GCC unroll 6
+    for (int fi = 0; fi < 6; ++fi)
     {
-        const std::size_t e = static_cast<std::size_t>(e0 + (l < nl ? l : 0));
-        const real_t d[6] = {L[0][0][l],
-                             L[1][1][l],
-                             L[2][2][l],
-                             0.5 * (L[0][1][l] + L[1][0][l]),
-                             0.5 * (L[1][2][l] + L[2][1][l]),
-                             0.5 * (L[2][0][l] + L[0][2][l])};
-        const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
-                             0.5 * (L[2][0][l] - L[0][2][l])};
-        real_t s_old[6], s[6];
-        for (int k = 0; k < 6; ++k)
-            s_old[k] = s[k] = s_in[k * np + e];
-        if constexpr (PLASTIC)
+        const auto& f = hex_faces[fi];
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
         {
-            if (l < nl)
-                blk.plastic.update(e, d, w, dt, s);
+            const real_t a0 = xe[f[2]][0][l] - xe[f[0]][0][l], a1 = xe[f[2]][1][l] - xe[f[0]][1][l],
+                         a2 = xe[f[2]][2][l] - xe[f[0]][2][l];
+            const real_t b0 = xe[f[3]][0][l] - xe[f[1]][0][l], b1 = xe[f[3]][1][l] - xe[f[1]][1][l],
+                         b2 = xe[f[3]][2][l] - xe[f[1]][2][l];
+            const real_t cx = a1 * b2 - a2 * b1, cy = a2 * b0 - a0 * b2, cz = a0 * b1 - a1 * b0;
+            const real_t a = 0.25 * (cx * cx + cy * cy + cz * cz);
+            amax2[l] = a > amax2[l] ? a : amax2[l];
         }
-        else
+    }
+    if constexpr (FULL && !PLASTIC)
+    {
+        // straight-line lane loop: stress update, bulk viscosity, time step, energies
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            const std::size_t e = static_cast<std::size_t>(e0) + l;
+            const real_t d0 = L[0][0][l], d1 = L[1][1][l], d2 = L[2][2][l];
+            const real_t d3 = 0.5 * (L[0][1][l] + L[1][0][l]), d4 = 0.5 * (L[1][2][l] + L[2][1][l]),
+                         d5 = 0.5 * (L[2][0][l] + L[0][2][l]);
+            const real_t d[6] = {d0, d1, d2, d3, d4, d5};
+            const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
+                                 0.5 * (L[2][0][l] - L[0][2][l])};
+            real_t s[6] = {s_in[e], s_in[np + e], s_in[2 * np + e], s_in[3 * np + e], s_in[4 * np + e], s_in[5 * np + e]};
+            const real_t s_old0 = s[0], s_old1 = s[1], s_old2 = s[2], s_old3 = s[3], s_old4 = s[4], s_old5 = s[5];
             elastic_update(mat, d, w, dt, s);
-        if (l < nl)
+            s_out[e] = s[0];
+            s_out[np + e] = s[1];
+            s_out[2 * np + e] = s[2];
+            s_out[3 * np + e] = s[3];
+            s_out[4 * np + e] = s[4];
+            s_out[5 * np + e] = s[5];
+            const real_t trd = d0 + d1 + d2;
+            lc[l] = vol[l] / std::sqrt(amax2[l]);
+            const real_t rho = mat.rho * blk.volume0[e] / vol[l];
+            const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
+            dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
+            const real_t power = 0.5 * ((s_old0 + s[0]) * d0 + (s_old1 + s[1]) * d1 + (s_old2 + s[2]) * d2) +
+                                 (s_old3 + s[3]) * d3 + (s_old4 + s[4]) * d4 + (s_old5 + s[5]) * d5;
+            de_int[l] = dt * vol[l] * power;
+            de_bv[l] = -dt * vol[l] * q * trd;
+            sig[0][l] = s[0] - q;
+            sig[1][l] = s[1] - q;
+            sig[2][l] = s[2] - q;
+            sig[3][l] = s[3];
+            sig[4][l] = s[4];
+            sig[5][l] = s[5];
+        }
+    }
+    else
+    {
+        for (int l = 0; l < W; ++l)
+        {
+            const std::size_t e = lane_element(l);
+            const real_t d[6] = {L[0][0][l],
+                                 L[1][1][l],
+                                 L[2][2][l],
+                                 0.5 * (L[0][1][l] + L[1][0][l]),
+                                 0.5 * (L[1][2][l] + L[2][1][l]),
+                                 0.5 * (L[2][0][l] + L[0][2][l])};
+            const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
+                                 0.5 * (L[2][0][l] - L[0][2][l])};
+            real_t s_old[6], s[6];
             for (int k = 0; k < 6; ++k)
-                s_out[k * np + e] = s[k];
-        const real_t trd = d[0] + d[1] + d[2];
-        const real_t amax2 = max_face_area_sq(xe, l);
-        lc[l] = vol[l] / std::sqrt(amax2);
-        const real_t rho = mat.rho * blk.volume0[e] / vol[l];
-        const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
-        dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
-        real_t power = 0.0;
-        for (int k = 0; k < 3; ++k)
-            power += 0.5 * (s_old[k] + s[k]) * d[k] + (s_old[k + 3] + s[k + 3]) * d[k + 3];
-        de_int[l] = dt * vol[l] * power;
-        de_bv[l] = -dt * vol[l] * q * trd;
-        for (int k = 0; k < 3; ++k)
-            sig[k][l] = s[k] - q;
-        for (int k = 3; k < 6; ++k)
-            sig[k][l] = s[k];
+                s_old[k] = s[k] = s_in[k * np + e];
+            if constexpr (PLASTIC)
+            {
+                if (active(l))
+                    blk.plastic.update(e, d, w, dt, s);
+            }
+            else
+                elastic_update(mat, d, w, dt, s);
+            if (active(l))
+                for (int k = 0; k < 6; ++k)
+                    s_out[k * np + e] = s[k];
+            const real_t trd = d[0] + d[1] + d[2];
+            lc[l] = vol[l] / std::sqrt(amax2[l]);
+            const real_t rho = mat.rho * blk.volume0[e] / vol[l];
+            const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
+            dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
+            real_t power = 0.0;
+            for (int k = 0; k < 3; ++k)
+                power += 0.5 * (s_old[k] + s[k]) * d[k] + (s_old[k + 3] + s[k + 3]) * d[k + 3];
+            de_int[l] = dt * vol[l] * power;
+            de_bv[l] = -dt * vol[l] * q * trd;
+            for (int k = 0; k < 3; ++k)
+                sig[k][l] = s[k] - q;
+            for (int k = 3; k < 6; ++k)
+                sig[k][l] = s[k];
+        }
     }
 
     // internal force f_iI = sigma_ij b_jI
@@ -255,11 +301,10 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
                     if constexpr (HG == HourglassType::Stiffness)
                     {
                         const real_t k = coef[l];
-                        const std::size_t e = static_cast<std::size_t>(e0 + (l < nl ? l : 0));
-                        const std::size_t slot = static_cast<std::size_t>(3 * a + d) * np + e;
+                        const std::size_t slot = static_cast<std::size_t>(3 * a + d) * np + lane_element(l);
                         const real_t Qold = blk.hg_force[slot];
                         const real_t Qnew = Qold + k * dt * qd;
-                        if (l < nl)
+                        if (active(l))
                             blk.hg_force_trial[slot] = Qnew;
                         Q[d][l] = Qnew;
                         de_hg[l] += 0.5 * (Qold + Qnew) * qd * dt;
@@ -442,10 +487,22 @@ void HexBlock::initialize(const NodeSet& nodes)
 /// All batches of a 1-point block, with the material kind chosen once for the block.
 template <HourglassType HG> void run_1pt(HexBlock& blk, const NodeSet& nodes, index_t nb, real_t dt)
 {
+    const bool partial_last = blk.n_elements() % W != 0;
+    auto run = [&]<bool PLASTIC>()
+    {
+        parallel_for("rkfem::hex1pt", nb,
+                     [&](index_t b)
+                     {
+                         if (partial_last && b == nb - 1)
+                             force_1pt_batch<HG, PLASTIC, false>(blk, nodes, b, dt);
+                         else
+                             force_1pt_batch<HG, PLASTIC, true>(blk, nodes, b, dt);
+                     });
+    };
     if (blk.plastic.active())
-        parallel_for("rkfem::hex1pt", nb, [&](index_t b) { force_1pt_batch<HG, true>(blk, nodes, b, dt); });
+        run.template operator()<true>();
     else
-        parallel_for("rkfem::hex1pt", nb, [&](index_t b) { force_1pt_batch<HG, false>(blk, nodes, b, dt); });
+        run.template operator()<false>();
 }
 
 ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t dt)
