@@ -148,41 +148,54 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
     }
     if constexpr (FULL && !PLASTIC)
     {
-        // straight-line lane loop: stress update, bulk viscosity, time step, energies
+        // straight-line lane loops: stress update; then bulk viscosity, time step, energies
+        alignas(64) real_t dl[6][W], so[6][W], sn[6][W];
 #pragma omp simd
         for (int l = 0; l < W; ++l)
         {
             const std::size_t e = static_cast<std::size_t>(e0) + l;
-            const real_t d0 = L[0][0][l], d1 = L[1][1][l], d2 = L[2][2][l];
-            const real_t d3 = 0.5 * (L[0][1][l] + L[1][0][l]), d4 = 0.5 * (L[1][2][l] + L[2][1][l]),
-                         d5 = 0.5 * (L[2][0][l] + L[0][2][l]);
-            const real_t d[6] = {d0, d1, d2, d3, d4, d5};
+            const real_t d[6] = {L[0][0][l],
+                                 L[1][1][l],
+                                 L[2][2][l],
+                                 0.5 * (L[0][1][l] + L[1][0][l]),
+                                 0.5 * (L[1][2][l] + L[2][1][l]),
+                                 0.5 * (L[2][0][l] + L[0][2][l])};
             const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
                                  0.5 * (L[2][0][l] - L[0][2][l])};
-            real_t s[6] = {s_in[e], s_in[np + e], s_in[2 * np + e], s_in[3 * np + e], s_in[4 * np + e], s_in[5 * np + e]};
-            const real_t s_old0 = s[0], s_old1 = s[1], s_old2 = s[2], s_old3 = s[3], s_old4 = s[4], s_old5 = s[5];
+            real_t s[6];
+            for (int k = 0; k < 6; ++k)
+            {
+                s[k] = s_in[k * np + e];
+                so[k][l] = s[k];
+                dl[k][l] = d[k];
+            }
             elastic_update(mat, d, w, dt, s);
-            s_out[e] = s[0];
-            s_out[np + e] = s[1];
-            s_out[2 * np + e] = s[2];
-            s_out[3 * np + e] = s[3];
-            s_out[4 * np + e] = s[4];
-            s_out[5 * np + e] = s[5];
-            const real_t trd = d0 + d1 + d2;
+            for (int k = 0; k < 6; ++k)
+            {
+                s_out[k * np + e] = s[k];
+                sn[k][l] = s[k];
+            }
+        }
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
             lc[l] = vol[l] / std::sqrt(amax2[l]);
-            const real_t rho = mat.rho * blk.volume0[e] / vol[l];
+            const real_t rho = mat.rho * blk.volume0[static_cast<std::size_t>(e0) + l] / vol[l];
             const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
             dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
-            const real_t power = 0.5 * ((s_old0 + s[0]) * d0 + (s_old1 + s[1]) * d1 + (s_old2 + s[2]) * d2) +
-                                 (s_old3 + s[3]) * d3 + (s_old4 + s[4]) * d4 + (s_old5 + s[5]) * d5;
+            const real_t power = 0.5 * ((so[0][l] + sn[0][l]) * dl[0][l] + (so[1][l] + sn[1][l]) * dl[1][l] +
+                                        (so[2][l] + sn[2][l]) * dl[2][l]) +
+                                 (so[3][l] + sn[3][l]) * dl[3][l] + (so[4][l] + sn[4][l]) * dl[4][l] +
+                                 (so[5][l] + sn[5][l]) * dl[5][l];
             de_int[l] = dt * vol[l] * power;
             de_bv[l] = -dt * vol[l] * q * trd;
-            sig[0][l] = s[0] - q;
-            sig[1][l] = s[1] - q;
-            sig[2][l] = s[2] - q;
-            sig[3][l] = s[3];
-            sig[4][l] = s[4];
-            sig[5][l] = s[5];
+            sig[0][l] = sn[0][l] - q;
+            sig[1][l] = sn[1][l] - q;
+            sig[2][l] = sn[2][l] - q;
+            sig[3][l] = sn[3][l];
+            sig[4][l] = sn[4][l];
+            sig[5][l] = sn[5][l];
         }
     }
     else
