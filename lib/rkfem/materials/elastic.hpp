@@ -34,18 +34,24 @@ struct ElasticParams
 /// d is the rate of deformation (Voigt, tensor shear components); w = (W_xy, W_yz, W_zx) are the
 /// independent spin components, W = (L - L^T)/2. The Jaumann rotation is integrated by the
 /// Hughes-Winget rule (objective_rate.hpp), then the elastic increment is added.
-inline void elastic_update(const ElasticParams& p, const real_t d[6], const real_t w[3], real_t dt,
-                           real_t s[6])
+/// The update on scalars (the element kernels' lane loops vectorize over this form).
+inline void elastic_update(const ElasticParams& p, real_t d0, real_t d1, real_t d2, real_t d3, real_t d4, real_t d5,
+                           real_t w0, real_t w1, real_t w2, real_t dt, real_t& s0, real_t& s1, real_t& s2,
+                           real_t& s3, real_t& s4, real_t& s5)
 {
-    rotate_stress(w, dt, s);
-    const real_t tr = d[0] + d[1] + d[2];
-    const real_t l = p.lambda * tr;
+    rotate_stress(w0, w1, w2, dt, s0, s1, s2, s3, s4, s5);
+    const real_t l = p.lambda * (d0 + d1 + d2);
     const real_t m2 = 2.0 * p.mu;
-    s[0] += dt * (l + m2 * d[0]);
-    s[1] += dt * (l + m2 * d[1]);
-    s[2] += dt * (l + m2 * d[2]);
-    s[3] += dt * m2 * d[3];
-    s[4] += dt * m2 * d[4];
-    s[5] += dt * m2 * d[5];
+    s0 += dt * (l + m2 * d0);
+    s1 += dt * (l + m2 * d1);
+    s2 += dt * (l + m2 * d2);
+    s3 += dt * m2 * d3;
+    s4 += dt * m2 * d4;
+    s5 += dt * m2 * d5;
+}
+
+inline void elastic_update(const ElasticParams& p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
+{
+    elastic_update(p, d[0], d[1], d[2], d[3], d[4], d[5], w[0], w[1], w[2], dt, s[0], s[1], s[2], s[3], s[4], s[5]);
 }
 } // namespace rkfem

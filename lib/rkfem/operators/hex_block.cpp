@@ -154,27 +154,18 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
         for (int l = 0; l < W; ++l)
         {
             const std::size_t e = static_cast<std::size_t>(e0) + l;
-            const real_t d[6] = {L[0][0][l],
-                                 L[1][1][l],
-                                 L[2][2][l],
-                                 0.5 * (L[0][1][l] + L[1][0][l]),
-                                 0.5 * (L[1][2][l] + L[2][1][l]),
-                                 0.5 * (L[2][0][l] + L[0][2][l])};
-            const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
-                                 0.5 * (L[2][0][l] - L[0][2][l])};
-            real_t s[6];
-            for (int k = 0; k < 6; ++k)
-            {
-                s[k] = s_in[k * np + e];
-                so[k][l] = s[k];
-                dl[k][l] = d[k];
-            }
-            elastic_update(mat, d, w, dt, s);
-            for (int k = 0; k < 6; ++k)
-            {
-                s_out[k * np + e] = s[k];
-                sn[k][l] = s[k];
-            }
+            const real_t d0 = L[0][0][l], d1 = L[1][1][l], d2 = L[2][2][l];
+            const real_t d3 = 0.5 * (L[0][1][l] + L[1][0][l]), d4 = 0.5 * (L[1][2][l] + L[2][1][l]),
+                         d5 = 0.5 * (L[2][0][l] + L[0][2][l]);
+            real_t s0 = s_in[e], s1 = s_in[np + e], s2 = s_in[2 * np + e], s3 = s_in[3 * np + e],
+                   s4 = s_in[4 * np + e], s5 = s_in[5 * np + e];
+            so[0][l] = s0, so[1][l] = s1, so[2][l] = s2, so[3][l] = s3, so[4][l] = s4, so[5][l] = s5;
+            dl[0][l] = d0, dl[1][l] = d1, dl[2][l] = d2, dl[3][l] = d3, dl[4][l] = d4, dl[5][l] = d5;
+            elastic_update(mat, d0, d1, d2, d3, d4, d5, 0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
+                           0.5 * (L[2][0][l] - L[0][2][l]), dt, s0, s1, s2, s3, s4, s5);
+            s_out[e] = s0, s_out[np + e] = s1, s_out[2 * np + e] = s2;
+            s_out[3 * np + e] = s3, s_out[4 * np + e] = s4, s_out[5 * np + e] = s5;
+            sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
         }
 #pragma omp simd
         for (int l = 0; l < W; ++l)
