@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
 
 namespace rkfem
 {
@@ -46,5 +47,82 @@ CellList::CellList(const std::vector<real_t>& x, real_t cell_size) : h_(cell_siz
     std::vector<index_t> fill(offsets_.begin(), offsets_.end() - 1);
     for (index_t i = 0; i < n; ++i)
         ids_[fill[bin[i]]++] = i;
+}
+
+NeighbourList::NeighbourList(real_t radius, real_t skin) : radius_(radius), skin_(skin)
+{
+    RKFEM_REQUIRE(radius > 0.0 && skin >= 0.0,
+                  "neighbour list: radius must be positive and skin non-negative, got " << radius << ", " << skin);
+}
+
+real_t NeighbourList::max_displacement(const std::vector<real_t>& x) const
+{
+    const index_t n = static_cast<index_t>(x.size() / 3);
+    const real_t d2 = -parallel_reduce_min("rkfem::neighbours::displacement", n,
+                                           [&](index_t i)
+                                           {
+                                               real_t s = 0.0;
+                                               for (int d = 0; d < 3; ++d)
+                                               {
+                                                   const real_t u = x[3 * i + d] - x_built_[3 * i + d];
+                                                   s += u * u;
+                                               }
+                                               return -s;
+                                           });
+    return n > 0 ? std::sqrt(d2) : 0.0;
+}
+
+bool NeighbourList::update(const std::vector<real_t>& x)
+{
+    if (rebuilds_ > 0 && x.size() == x_built_.size() && max_displacement(x) <= 0.5 * skin_)
+        return false;
+    build(x);
+    return true;
+}
+
+void NeighbourList::build(const std::vector<real_t>& x)
+{
+    const index_t n = static_cast<index_t>(x.size() / 3);
+    const real_t r = radius_ + skin_, r2 = r * r;
+    const CellList cells(x, r);
+    // count, then fill: each point's candidates come in the cell list's fixed order, sorted after
+    std::vector<index_t> count(static_cast<std::size_t>(n) + 1, 0);
+    auto within = [&](index_t i, index_t j)
+    {
+        real_t s = 0.0;
+        for (int d = 0; d < 3; ++d)
+        {
+            const real_t u = x[3 * j + d] - x[3 * i + d];
+            s += u * u;
+        }
+        return s < r2;
+    };
+    parallel_for("rkfem::neighbours::count", n,
+                 [&](index_t i)
+                 {
+                     const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                     index_t c = 0;
+                     cells.for_each_candidate(p, [&](index_t j) { c += within(i, j); });
+                     count[i + 1] = c;
+                 });
+    offsets_.assign(count.begin(), count.end());
+    for (index_t i = 0; i < n; ++i)
+        offsets_[i + 1] += offsets_[i];
+    ids_.resize(static_cast<std::size_t>(offsets_[n]));
+    parallel_for("rkfem::neighbours::fill", n,
+                 [&](index_t i)
+                 {
+                     const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                     index_t k = offsets_[i];
+                     cells.for_each_candidate(p,
+                                              [&](index_t j)
+                                              {
+                                                  if (within(i, j))
+                                                      ids_[k++] = j;
+                                              });
+                     std::sort(ids_.begin() + offsets_[i], ids_.begin() + offsets_[i + 1]);
+                 });
+    x_built_ = x;
+    ++rebuilds_;
 }
 } // namespace rkfem

@@ -61,4 +61,37 @@ class CellList
     int dims_[3] = {0, 0, 0};
     std::vector<index_t> offsets_, ids_;
 };
+
+/// Neighbour lists with a skin (Verlet lists) for clouds that move: the pairs within
+/// radius + skin of the positions at the last build stay a superset of the pairs within `radius`
+/// until some point has moved more than skin / 2 since that build (two points then approach by
+/// at most skin). update() rebuilds only then, so a Lagrangian or slowly moving cloud searches
+/// once and a semi-Lagrangian one every few steps.
+class NeighbourList
+{
+  public:
+    NeighbourList(real_t radius, real_t skin);
+
+    /// Brings the lists up to date for positions x (n x 3): rebuilds on the first call, when
+    /// the number of points changes, or when a point has moved more than skin / 2 since the
+    /// last build. Returns whether it rebuilt.
+    bool update(const std::vector<real_t>& x);
+
+    /// Largest displacement of a point since the last build.
+    real_t max_displacement(const std::vector<real_t>& x) const;
+
+    /// Neighbours of point i (itself included), ascending: ids()[offsets()[i] .. offsets()[i+1]).
+    const std::vector<index_t>& offsets() const { return offsets_; }
+    const std::vector<index_t>& ids() const { return ids_; }
+    index_t rebuilds() const { return rebuilds_; }
+    real_t radius() const { return radius_; }
+    real_t skin() const { return skin_; }
+
+  private:
+    void build(const std::vector<real_t>& x);
+    real_t radius_, skin_;
+    std::vector<real_t> x_built_;
+    std::vector<index_t> offsets_{0}, ids_;
+    index_t rebuilds_ = 0;
+};
 } // namespace rkfem
