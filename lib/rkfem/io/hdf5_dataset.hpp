@@ -10,33 +10,31 @@
 
 namespace rkfem
 {
-inline void write_dataset(hid_t loc, const char* name, const real_t* data, hsize_t rows, hsize_t cols = 1)
+/// One dataset of `rows` x `cols` values of C++ type T stored as `file_type`.
+template <class T>
+void write_dataset_as(hid_t loc, const char* name, const T* data, hsize_t rows, hsize_t cols, hid_t file_type,
+                      hid_t memory_type)
 {
     const hsize_t dims[2] = {rows, cols};
     const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
-    const hid_t set = H5Dcreate2(loc, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t set = H5Dcreate2(loc, name, file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     if (set < 0)
     {
         H5Sclose(space);
         throw Error(std::string("HDF5: cannot create dataset ") + name);
     }
-    H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+    H5Dwrite(set, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
     H5Dclose(set);
     H5Sclose(space);
 }
 
+inline void write_dataset(hid_t loc, const char* name, const real_t* data, hsize_t rows, hsize_t cols = 1)
+{
+    write_dataset_as(loc, name, data, rows, cols, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE);
+}
+
 inline void write_dataset_int(hid_t loc, const char* name, const index_t* data, hsize_t rows, hsize_t cols = 1)
 {
-    const hsize_t dims[2] = {rows, cols};
-    const hid_t space = H5Screate_simple(cols > 1 ? 2 : 1, dims, nullptr);
-    const hid_t set = H5Dcreate2(loc, name, H5T_STD_I32LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    if (set < 0)
-    {
-        H5Sclose(space);
-        throw Error(std::string("HDF5: cannot create dataset ") + name);
-    }
-    H5Dwrite(set, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
-    H5Dclose(set);
-    H5Sclose(space);
+    write_dataset_as(loc, name, data, rows, cols, H5T_STD_I32LE, H5T_NATIVE_INT32);
 }
 } // namespace rkfem

@@ -7,7 +7,9 @@
 /// per point; the branch on the kind is uniform over a block.
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <map>
+#include <string_view>
 #include <vector>
 
 #include "rkfem/config/deck.hpp"
@@ -17,30 +19,24 @@
 
 namespace rkfem
 {
+/// Sets the named fields a deck material overrides (names the deck reader accepted).
+inline void apply_overrides(const std::vector<std::pair<std::string, real_t>>& overrides,
+                            std::initializer_list<std::pair<std::string_view, real_t*>> fields)
+{
+    for (const auto& [name, v] : overrides)
+        for (const auto& [key, field] : fields)
+            if (name == key)
+                *field = v;
+}
+
 /// The CSCM of a deck material: Murray's fits from f'c, then the deck's overrides by name.
 inline CscmModel cscm_model(const MaterialSpec& m)
 {
     CscmModel c = CscmModel::from_fc(m.fc, m.rho, m.nu, m.E, m.fracture_energy > 0 ? m.fracture_energy : 0.0);
     c.rate_effects = m.rate_effects;
-    for (const auto& [name, v] : m.overrides)
-    {
-        real_t* field = name == "alpha"    ? &c.alpha
-                        : name == "theta"  ? &c.theta
-                        : name == "lambda" ? &c.lambda
-                        : name == "beta"   ? &c.beta
-                        : name == "R"      ? &c.R
-                        : name == "X0"     ? &c.X0
-                        : name == "W"      ? &c.W
-                        : name == "D1"     ? &c.D1
-                        : name == "D2"     ? &c.D2
-                        : name == "B"      ? &c.B
-                        : name == "D"      ? &c.D
-                        : name == "Gfc"    ? &c.Gfc
-                        : name == "length" ? &c.default_length
-                                           : nullptr;
-        if (field)
-            *field = v;
-    }
+    apply_overrides(m.overrides, {{"alpha", &c.alpha}, {"theta", &c.theta}, {"lambda", &c.lambda}, {"beta", &c.beta},
+                                  {"R", &c.R}, {"X0", &c.X0}, {"W", &c.W}, {"D1", &c.D1}, {"D2", &c.D2}, {"B", &c.B},
+                                  {"D", &c.D}, {"Gfc", &c.Gfc}, {"length", &c.default_length}});
     c.finish();
     return c;
 }
@@ -77,25 +73,9 @@ struct PlasticPoints
             kcc = KccModel::from_fc(m.fc, m.rho, m.nu, m.E);
             kcc.rate_effects = m.rate_effects;
             KccParameters& k = kcc.surfaces;
-            for (const auto& [name, v] : m.overrides)
-            {
-                real_t* field = name == "a0"      ? &k.a0
-                                : name == "a1"    ? &k.a1
-                                : name == "a2"    ? &k.a2
-                                : name == "a0y"   ? &k.a0y
-                                : name == "a1y"   ? &k.a1y
-                                : name == "a2y"   ? &k.a2y
-                                : name == "a1f"   ? &k.a1f
-                                : name == "a2f"   ? &k.a2f
-                                : name == "b1"    ? &k.b1
-                                : name == "b2"    ? &k.b2
-                                : name == "b3"    ? &k.b3
-                                : name == "omega" ? &k.omega
-                                : name == "ft"    ? &k.ft
-                                                  : nullptr;
-                if (field)
-                    *field = v;
-            }
+            apply_overrides(m.overrides, {{"a0", &k.a0}, {"a1", &k.a1}, {"a2", &k.a2}, {"a0y", &k.a0y}, {"a1y", &k.a1y},
+                                          {"a2y", &k.a2y}, {"a1f", &k.a1f}, {"a2f", &k.a2f}, {"b1", &k.b1}, {"b2", &k.b2},
+                                          {"b3", &k.b3}, {"omega", &k.omega}, {"ft", &k.ft}});
             if (!m.kcc_eta.empty())
             {
                 k.eta_table = m.kcc_eta;
