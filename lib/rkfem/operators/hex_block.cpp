@@ -146,10 +146,11 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
             amax2[l] = a > amax2[l] ? a : amax2[l];
         }
     }
+    // stress update per lane (strain rate d, old and new stress kept for the stress power)
+    alignas(64) real_t dl[6][W], so[6][W], sn[6][W];
     if constexpr (FULL && !PLASTIC)
     {
-        // straight-line lane loops: stress update; then bulk viscosity, time step, energies
-        alignas(64) real_t dl[6][W], so[6][W], sn[6][W];
+        // straight-line over lanes: vectorizes
 #pragma omp simd
         for (int l = 0; l < W; ++l)
         {
@@ -167,30 +168,11 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
             s_out[3 * np + e] = s3, s_out[4 * np + e] = s4, s_out[5 * np + e] = s5;
             sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
         }
-#pragma omp simd
-        for (int l = 0; l < W; ++l)
-        {
-            const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
-            lc[l] = vol[l] / std::sqrt(amax2[l]);
-            const real_t rho = mat.rho * blk.volume0[static_cast<std::size_t>(e0) + l] / vol[l];
-            const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
-            dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
-            const real_t power = 0.5 * ((so[0][l] + sn[0][l]) * dl[0][l] + (so[1][l] + sn[1][l]) * dl[1][l] +
-                                        (so[2][l] + sn[2][l]) * dl[2][l]) +
-                                 (so[3][l] + sn[3][l]) * dl[3][l] + (so[4][l] + sn[4][l]) * dl[4][l] +
-                                 (so[5][l] + sn[5][l]) * dl[5][l];
-            de_int[l] = dt * vol[l] * power;
-            de_bv[l] = -dt * vol[l] * q * trd;
-            sig[0][l] = sn[0][l] - q;
-            sig[1][l] = sn[1][l] - q;
-            sig[2][l] = sn[2][l] - q;
-            sig[3][l] = sn[3][l];
-            sig[4][l] = sn[4][l];
-            sig[5][l] = sn[5][l];
-        }
     }
     else
     {
+        // a partial batch (lanes past the block's end repeat its first element, unstored) or an
+        // inelastic block (the point's model update per lane)
         for (int l = 0; l < W; ++l)
         {
             const std::size_t e = lane_element(l);
@@ -202,9 +184,9 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
                                  0.5 * (L[2][0][l] + L[0][2][l])};
             const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
                                  0.5 * (L[2][0][l] - L[0][2][l])};
-            real_t s_old[6], s[6];
+            real_t s[6];
             for (int k = 0; k < 6; ++k)
-                s_old[k] = s[k] = s_in[k * np + e];
+                so[k][l] = s[k] = s_in[k * np + e];
             if constexpr (PLASTIC)
             {
                 if (active(l))
@@ -212,24 +194,36 @@ void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t 
             }
             else
                 elastic_update(mat, d, w, dt, s);
-            if (active(l))
-                for (int k = 0; k < 6; ++k)
+            for (int k = 0; k < 6; ++k)
+            {
+                dl[k][l] = d[k];
+                sn[k][l] = s[k];
+                if (active(l))
                     s_out[k * np + e] = s[k];
-            const real_t trd = d[0] + d[1] + d[2];
-            lc[l] = vol[l] / std::sqrt(amax2[l]);
-            const real_t rho = mat.rho * blk.volume0[e] / vol[l];
-            const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
-            dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
-            real_t power = 0.0;
-            for (int k = 0; k < 3; ++k)
-                power += 0.5 * (s_old[k] + s[k]) * d[k] + (s_old[k + 3] + s[k + 3]) * d[k + 3];
-            de_int[l] = dt * vol[l] * power;
-            de_bv[l] = -dt * vol[l] * q * trd;
-            for (int k = 0; k < 3; ++k)
-                sig[k][l] = s[k] - q;
-            for (int k = 3; k < 6; ++k)
-                sig[k][l] = s[k];
+            }
         }
+    }
+    // bulk viscosity, time step, energies, effective stress
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
+        lc[l] = vol[l] / std::sqrt(amax2[l]);
+        const real_t rho = mat.rho * blk.volume0[lane_element(l)] / vol[l];
+        const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
+        dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
+        const real_t power = 0.5 * ((so[0][l] + sn[0][l]) * dl[0][l] + (so[1][l] + sn[1][l]) * dl[1][l] +
+                                    (so[2][l] + sn[2][l]) * dl[2][l]) +
+                             (so[3][l] + sn[3][l]) * dl[3][l] + (so[4][l] + sn[4][l]) * dl[4][l] +
+                             (so[5][l] + sn[5][l]) * dl[5][l];
+        de_int[l] = dt * vol[l] * power;
+        de_bv[l] = -dt * vol[l] * q * trd;
+        sig[0][l] = sn[0][l] - q;
+        sig[1][l] = sn[1][l] - q;
+        sig[2][l] = sn[2][l] - q;
+        sig[3][l] = sn[3][l];
+        sig[4][l] = sn[4][l];
+        sig[5][l] = sn[5][l];
     }
 
     // internal force f_iI = sigma_ij b_jI
