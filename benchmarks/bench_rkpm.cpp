@@ -5,11 +5,15 @@
 // Fdot, elastic update, V0 P, plus MSCNI stabilization when on) and the transpose assembly, in
 // ns per particle-step. Arguments: {particles (approximate cube), 100 a/h, stabilization 0/1,
 // threads}. `entries` is the gradient stencil per stress point.
+// BM_NeighbourListBuild: cell-list neighbour lists with a skin (radius 1.51 h + skin 0.3 h) for a
+// lattice, ns per particle per build; BM_NeighbourListCheck: the per-step "moved more than
+// skin / 2?" test that decides whether to rebuild, ns per particle.
 #include <benchmark/benchmark.h>
 #include <cmath>
 #include <omp.h>
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
+#include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/operators/nodal_block.hpp"
 
@@ -88,4 +92,40 @@ BENCHMARK(BM_NodalInternalForce)
     ->ArgsProduct({{10000, 300000}, {125, 151}, {0, 1}, {1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+namespace
+{
+void BM_NeighbourListBuild(benchmark::State& state)
+{
+    const HexMesh mesh = lattice(state.range(0));
+    for (auto _ : state)
+    {
+        NeighbourList nl(1.51e-3, 0.3e-3);
+        nl.update(mesh.x);
+        benchmark::DoNotOptimize(nl.ids().data());
+        state.counters["per_particle"] = static_cast<double>(nl.offsets().back()) / mesh.n_nodes();
+    }
+    state.counters["ns_per_particle"] = benchmark::Counter(static_cast<double>(mesh.n_nodes()) * 1e-9,
+                                                           benchmark::Counter::kIsIterationInvariantRate |
+                                                               benchmark::Counter::kInvert);
+}
+
+void BM_NeighbourListCheck(benchmark::State& state)
+{
+    const HexMesh mesh = lattice(state.range(0));
+    NeighbourList nl(1.51e-3, 0.3e-3);
+    nl.update(mesh.x);
+    std::vector<real_t> x = mesh.x;
+    for (auto& c : x)
+        c += 1e-6; // moved, but well within the skin: no rebuild
+    for (auto _ : state)
+        benchmark::DoNotOptimize(nl.update(x));
+    state.counters["ns_per_particle"] = benchmark::Counter(static_cast<double>(mesh.n_nodes()) * 1e-9,
+                                                           benchmark::Counter::kIsIterationInvariantRate |
+                                                               benchmark::Counter::kInvert);
+}
+} // namespace
+
+BENCHMARK(BM_NeighbourListBuild)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_NeighbourListCheck)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();
