@@ -116,3 +116,27 @@ TEST(Hex8VolumeGradient, EqualsExactIntegralOfShapeGradients)
         }
     }
 }
+
+TEST(Hex8VolumeGradient, CompileTimeTableEqualsTheComputedOne)
+{
+    // the kernels' constant table (Hex8VolumeGradientFixed) is the computed table term by term:
+    // same pairs, and for each node the same nine (pair, coefficient) terms, coefficients +-1/12
+    const auto& tab = hex8_volume_gradient_table();
+    using VG = Hex8VolumeGradientFixed;
+    ASSERT_EQ(tab.n_pairs, VG::n_pairs);
+    for (int p = 0; p < VG::n_pairs; ++p)
+    {
+        EXPECT_EQ(tab.pair_k[p], VG::pairs[p][0]) << p;
+        EXPECT_EQ(tab.pair_l[p], VG::pairs[p][1]) << p;
+    }
+    for (int I = 0; I < 8; ++I)
+    {
+        ASSERT_EQ(tab.node_offsets[I + 1] - tab.node_offsets[I], 9) << I;
+        for (int t = 0; t < 9; ++t)
+        {
+            const int k = tab.node_offsets[I] + t;
+            EXPECT_EQ(tab.term_pair[k], VG::terms[I][t][0]) << I << " " << t;
+            EXPECT_EQ(tab.term_coef[k], VG::terms[I][t][1] / 12.0) << I << " " << t;
+        }
+    }
+}
