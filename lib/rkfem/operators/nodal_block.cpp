@@ -125,17 +125,18 @@ inline void gather_velocity_gradient(const IntegrationOperator& op, index_t p, c
 inline void gather_forces(const NodalBlock& blk, index_t i, real_t f[3])
 {
 #if defined(__AVX2__) && defined(__FMA__)
-    __m256d acc = _mm256_setzero_pd();
+    // three accumulators (one per gradient component): three independent FMA chains
+    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd();
     for (index_t q = blk.node_entry_offsets[i]; q < blk.node_entry_offsets[i + 1]; ++q)
     {
         const real_t* g = &blk.node_grad[3 * static_cast<std::size_t>(q)];
         const real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(blk.node_point[q])];
-        acc = _mm256_fmadd_pd(_mm256_maskload_pd(P, lanes3), _mm256_broadcast_sd(g), acc);
-        acc = _mm256_fmadd_pd(_mm256_maskload_pd(P + 3, lanes3), _mm256_broadcast_sd(g + 1), acc);
-        acc = _mm256_fmadd_pd(_mm256_maskload_pd(P + 6, lanes3), _mm256_broadcast_sd(g + 2), acc);
+        a0 = _mm256_fmadd_pd(_mm256_maskload_pd(P, lanes3), _mm256_broadcast_sd(g), a0);
+        a1 = _mm256_fmadd_pd(_mm256_maskload_pd(P + 3, lanes3), _mm256_broadcast_sd(g + 1), a1);
+        a2 = _mm256_fmadd_pd(_mm256_maskload_pd(P + 6, lanes3), _mm256_broadcast_sd(g + 2), a2);
     }
     alignas(32) real_t c[4];
-    _mm256_store_pd(c, acc);
+    _mm256_store_pd(c, _mm256_add_pd(_mm256_add_pd(a0, a1), a2));
     f[0] = c[0], f[1] = c[1], f[2] = c[2];
 #else
     f[0] = f[1] = f[2] = 0.0;
@@ -147,6 +148,197 @@ inline void gather_forces(const NodalBlock& blk, index_t i, real_t f[3])
             f[a] += P[a] * g[0] + P[3 + a] * g[1] + P[6 + a] * g[2];
     }
 #endif
+}
+
+constexpr int kPointLanes = 8; // stress points per batch (one AVX-512 register of doubles)
+
+/// One batch of kPointLanes stress points: the stencil sums per point (gather_gradients), then
+/// the per-point algebra as lane loops over structure-of-arrays scratch (F^-1, L, stress
+/// update, bulk viscosity, stable step, V0 P), which the compiler vectorizes across points. The
+/// loops are written without branches (min, 0/1 factors); a point with J <= 0 gets NaN or inf
+/// in its lane and is flagged after the loops. FULL: all lanes are points; otherwise lanes past
+/// the block's end repeat its first point and nothing of theirs is stored.
+template <bool PLASTIC, bool FULL>
+[[gnu::noinline]] void nodal_points_batch(NodalBlock& blk, const real_t* u, const real_t* v, index_t batch, real_t dt)
+{
+    constexpr int W = kPointLanes;
+    const IntegrationOperator& op = blk.points;
+    const index_t np = blk.n_points();
+    const std::size_t snp = static_cast<std::size_t>(np);
+    const index_t p0 = batch * W;
+    const int nl = FULL ? W : static_cast<int>(std::min<index_t>(W, np - p0));
+    auto lane_point = [&](int l) { return static_cast<std::size_t>(p0 + (FULL || l < nl ? l : 0)); };
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const real_t alpha = blk.dt_factor;
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+
+    alignas(64) real_t F[3][3][W], Fd[3][3][W];
+    for (int l = 0; l < W; ++l)
+    {
+        real_t f[3][3], fd[3][3];
+        gather_gradients(op, static_cast<index_t>(lane_point(l)), u, v, f, fd);
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                F[i][j][l] = f[i][j], Fd[i][j][l] = fd[i][j];
+    }
+
+    alignas(64) real_t Jl[W], Fi[3][3][W], dl[6][W], wl[3][W], so[6][W], sn[6][W];
+    const real_t* __restrict s_in = blk.stress.data();
+    real_t* __restrict s_out = blk.stress_trial.data();
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        const real_t J = F[0][0][l] * (F[1][1][l] * F[2][2][l] - F[1][2][l] * F[2][1][l]) -
+                         F[0][1][l] * (F[1][0][l] * F[2][2][l] - F[1][2][l] * F[2][0][l]) +
+                         F[0][2][l] * (F[1][0][l] * F[2][1][l] - F[1][1][l] * F[2][0][l]);
+        Jl[l] = J;
+        const real_t iJ = 1.0 / J;
+        Fi[0][0][l] = (F[1][1][l] * F[2][2][l] - F[1][2][l] * F[2][1][l]) * iJ;
+        Fi[0][1][l] = (F[0][2][l] * F[2][1][l] - F[0][1][l] * F[2][2][l]) * iJ;
+        Fi[0][2][l] = (F[0][1][l] * F[1][2][l] - F[0][2][l] * F[1][1][l]) * iJ;
+        Fi[1][0][l] = (F[1][2][l] * F[2][0][l] - F[1][0][l] * F[2][2][l]) * iJ;
+        Fi[1][1][l] = (F[0][0][l] * F[2][2][l] - F[0][2][l] * F[2][0][l]) * iJ;
+        Fi[1][2][l] = (F[0][2][l] * F[1][0][l] - F[0][0][l] * F[1][2][l]) * iJ;
+        Fi[2][0][l] = (F[1][0][l] * F[2][1][l] - F[1][1][l] * F[2][0][l]) * iJ;
+        Fi[2][1][l] = (F[0][1][l] * F[2][0][l] - F[0][0][l] * F[2][1][l]) * iJ;
+        Fi[2][2][l] = (F[0][0][l] * F[1][1][l] - F[0][1][l] * F[1][0][l]) * iJ;
+        real_t L[3][3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                L[i][j] = Fd[i][0][l] * Fi[0][j][l] + Fd[i][1][l] * Fi[1][j][l] + Fd[i][2][l] * Fi[2][j][l];
+        dl[0][l] = L[0][0];
+        dl[1][l] = L[1][1];
+        dl[2][l] = L[2][2];
+        dl[3][l] = 0.5 * (L[0][1] + L[1][0]);
+        dl[4][l] = 0.5 * (L[1][2] + L[2][1]);
+        dl[5][l] = 0.5 * (L[2][0] + L[0][2]);
+        wl[0][l] = 0.5 * (L[0][1] - L[1][0]);
+        wl[1][l] = 0.5 * (L[1][2] - L[2][1]);
+        wl[2][l] = 0.5 * (L[2][0] - L[0][2]);
+    }
+    if constexpr (!PLASTIC && FULL)
+    {
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            const std::size_t p = static_cast<std::size_t>(p0 + l);
+            real_t s0 = s_in[p], s1 = s_in[snp + p], s2 = s_in[2 * snp + p], s3 = s_in[3 * snp + p],
+                   s4 = s_in[4 * snp + p], s5 = s_in[5 * snp + p];
+            so[0][l] = s0, so[1][l] = s1, so[2][l] = s2, so[3][l] = s3, so[4][l] = s4, so[5][l] = s5;
+            elastic_update(mat, dl[0][l], dl[1][l], dl[2][l], dl[3][l], dl[4][l], dl[5][l], wl[0][l], wl[1][l],
+                           wl[2][l], dt, s0, s1, s2, s3, s4, s5);
+            s_out[p] = s0, s_out[snp + p] = s1, s_out[2 * snp + p] = s2;
+            s_out[3 * snp + p] = s3, s_out[4 * snp + p] = s4, s_out[5 * snp + p] = s5;
+            sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
+        }
+    }
+    else
+    {
+        // a partial batch or an inelastic block: the point's model update per lane
+        for (int l = 0; l < W; ++l)
+        {
+            const std::size_t p = lane_point(l);
+            const bool active = FULL || l < nl;
+            const real_t d[6] = {dl[0][l], dl[1][l], dl[2][l], dl[3][l], dl[4][l], dl[5][l]};
+            const real_t w[3] = {wl[0][l], wl[1][l], wl[2][l]};
+            real_t s[6];
+            for (int k = 0; k < 6; ++k)
+                so[k][l] = s[k] = s_in[k * snp + p];
+            if constexpr (PLASTIC)
+            {
+                if (active && Jl[l] > 0.0)
+                    blk.plastic.update(static_cast<index_t>(p), d, w, dt, s);
+            }
+            else
+                elastic_update(mat, d, w, dt, s);
+            for (int k = 0; k < 6; ++k)
+            {
+                sn[k][l] = s[k];
+                if (active)
+                    s_out[k * snp + p] = s[k];
+            }
+        }
+    }
+
+    // bulk viscosity (LS-DYNA form) with l = alpha J^(1/3) l0, the length of the stable-step
+    // estimate; J^(1/3) by two Newton steps from 1 + (J - 1)/3 (fixed up below where |J - 1|
+    // >= 0.25), energies, V0 P = V0 J (sigma - q 1) F^-T
+    alignas(64) real_t P[9][W], e_int[W], e_bv[W], dtl[W];
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        const std::size_t p = lane_point(l);
+        const real_t J = Jl[l];
+        real_t r = 1.0 + (J - 1.0) / 3.0;
+        r -= (r * r * r - J) / (3.0 * r * r);
+        r -= (r * r * r - J) / (3.0 * r * r);
+        const real_t len = alpha * r * blk.length0[p];
+        const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
+        const real_t neg = std::min(trd, 0.0);
+        const real_t q = mat.rho / J * len * (q1 * len * neg * neg - q2 * c * neg);
+        const real_t Q = -q1 * len * neg + q2 * c * static_cast<real_t>(trd < 0.0);
+        dtl[l] = len / (Q + std::sqrt(Q * Q + c * c));
+        const real_t power = 0.5 * ((so[0][l] + sn[0][l]) * dl[0][l] + (so[1][l] + sn[1][l]) * dl[1][l] +
+                                    (so[2][l] + sn[2][l]) * dl[2][l]) +
+                             (so[3][l] + sn[3][l]) * dl[3][l] + (so[4][l] + sn[4][l]) * dl[4][l] +
+                             (so[5][l] + sn[5][l]) * dl[5][l];
+        const real_t VJ = op.weight[p] * J;
+        e_int[l] = dt * VJ * power;
+        e_bv[l] = -dt * VJ * q * trd;
+        const real_t S[3][3] = {{sn[0][l] - q, sn[3][l], sn[5][l]},
+                                {sn[3][l], sn[1][l] - q, sn[4][l]},
+                                {sn[5][l], sn[4][l], sn[2][l] - q}};
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
+    }
+
+    const bool stabilized = blk.n_stab() > 0; // the stabilization of this point's sub-cells needs F^-1 and W
+    for (int l = 0; l < nl; ++l)
+    {
+        const std::size_t p = static_cast<std::size_t>(p0 + l);
+        const real_t J = Jl[l];
+        blk.jacobian[p] = J;
+        if (!(J > 0.0))
+        {
+            blk.point_dt[p] = -1.0; // flags the bad point
+            continue;
+        }
+        if (!(std::abs(J - 1.0) < 0.25)) // far from J = 1: the exact cube root
+        {
+            const real_t len = alpha * std::cbrt(J) * blk.length0[p];
+            const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
+            const real_t Q = trd < 0.0 ? q1 * len * (-trd) + q2 * c : 0.0;
+            const real_t q = trd < 0.0 ? mat.rho / J * len * (q1 * len * trd * trd - q2 * c * trd) : 0.0;
+            dtl[l] = len / (Q + std::sqrt(Q * Q + c * c));
+            const real_t VJ = op.weight[p] * J;
+            e_bv[l] = -dt * VJ * q * trd;
+            const real_t S[3][3] = {{sn[0][l] - q, sn[3][l], sn[5][l]},
+                                    {sn[3][l], sn[1][l] - q, sn[4][l]},
+                                    {sn[5][l], sn[4][l], sn[2][l] - q}};
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
+        }
+        blk.point_dt[p] = dtl[l];
+        real_t* e = &blk.point_energy[3 * p];
+        e[0] = e_int[l];
+        e[1] = 0.0;
+        e[2] = e_bv[l];
+        real_t* Pp = &blk.point_tensor[9 * p];
+        for (int k = 0; k < 9; ++k)
+            Pp[k] = P[k][l];
+        if (stabilized)
+        {
+            real_t* fi = &blk.finv[9 * p];
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    fi[3 * i + j] = Fi[i][j][l];
+            for (int k = 0; k < 3; ++k)
+                blk.spin[3 * p + k] = wl[k][l];
+        }
+    }
 }
 
 /// Default dt factor alpha (dt = alpha J^(1/3) l0 / c) per nodal formulation, calibrated from
@@ -306,89 +498,27 @@ void NodalBlock::initialize()
 
 ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt)
 {
-    const IntegrationOperator& op = blk.points;
     const index_t np = blk.n_points(), ns = blk.n_stab();
-    const std::size_t snp = static_cast<std::size_t>(np);
     const ElasticParams mat = blk.material;
-    const real_t c = mat.wave_speed();
-    const real_t alpha = blk.dt_factor;
-    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
     const real_t* u = nodes.u.data();
     const real_t* v = nodes.v.data();
 
-    parallel_for("rkfem::nodal_points", np,
-                 [&](index_t p)
-                 {
-                     real_t F[3][3], Fd[3][3];
-                     gather_gradients(op, p, u, v, F, Fd);
-                     const real_t J = F[0][0] * (F[1][1] * F[2][2] - F[1][2] * F[2][1]) -
-                                      F[0][1] * (F[1][0] * F[2][2] - F[1][2] * F[2][0]) +
-                                      F[0][2] * (F[1][0] * F[2][1] - F[1][1] * F[2][0]);
-                     blk.jacobian[p] = J;
-                     if (!(J > 0.0))
+    const index_t nb = (np + kPointLanes - 1) / kPointLanes;
+    auto run = [&]<bool PLASTIC>()
+    {
+        parallel_for("rkfem::nodal_points", nb,
+                     [&](index_t b)
                      {
-                         blk.point_dt[p] = -1.0; // flags the bad point
-                         return;
-                     }
-                     const real_t iJ = 1.0 / J;
-                     real_t Fi[3][3];
-                     Fi[0][0] = (F[1][1] * F[2][2] - F[1][2] * F[2][1]) * iJ;
-                     Fi[0][1] = (F[0][2] * F[2][1] - F[0][1] * F[2][2]) * iJ;
-                     Fi[0][2] = (F[0][1] * F[1][2] - F[0][2] * F[1][1]) * iJ;
-                     Fi[1][0] = (F[1][2] * F[2][0] - F[1][0] * F[2][2]) * iJ;
-                     Fi[1][1] = (F[0][0] * F[2][2] - F[0][2] * F[2][0]) * iJ;
-                     Fi[1][2] = (F[0][2] * F[1][0] - F[0][0] * F[1][2]) * iJ;
-                     Fi[2][0] = (F[1][0] * F[2][1] - F[1][1] * F[2][0]) * iJ;
-                     Fi[2][1] = (F[0][1] * F[2][0] - F[0][0] * F[2][1]) * iJ;
-                     Fi[2][2] = (F[0][0] * F[1][1] - F[0][1] * F[1][0]) * iJ;
-                     real_t L[3][3];
-                     for (int i = 0; i < 3; ++i)
-                         for (int j = 0; j < 3; ++j)
-                             L[i][j] = Fd[i][0] * Fi[0][j] + Fd[i][1] * Fi[1][j] + Fd[i][2] * Fi[2][j];
-                     const real_t d[6] = {L[0][0], L[1][1], L[2][2], 0.5 * (L[0][1] + L[1][0]),
-                                          0.5 * (L[1][2] + L[2][1]), 0.5 * (L[2][0] + L[0][2])};
-                     const real_t w[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]),
-                                          0.5 * (L[2][0] - L[0][2])};
-                     real_t s_old[6], s[6];
-                     for (int k = 0; k < 6; ++k)
-                         s_old[k] = s[k] = blk.stress[k * snp + p];
-                     if (blk.plastic.active())
-                         blk.plastic.update(p, d, w, dt, s);
-                     else
-                         elastic_update(mat, d, w, dt, s);
-                     for (int k = 0; k < 6; ++k)
-                         blk.stress_trial[k * snp + p] = s[k];
-                     real_t power = 0.0;
-                     for (int k = 0; k < 3; ++k)
-                         power += 0.5 * (s_old[k] + s[k]) * d[k] + (s_old[k + 3] + s[k + 3]) * d[k + 3];
-                     const real_t V0 = op.weight[p];
-                     // bulk viscosity (LS-DYNA form) with l = alpha J^(1/3) l0, the length of the
-                     // stable-step estimate
-                     const real_t l = alpha * cube_root_near_one(J) * blk.length0[p];
-                     const real_t trd = d[0] + d[1] + d[2];
-                     const real_t q = trd < 0.0 ? mat.rho / J * l * (q1 * l * trd * trd - q2 * c * trd) : 0.0;
-                     const real_t Q = trd < 0.0 ? q1 * l * (-trd) + q2 * c : 0.0;
-                     const std::size_t e3 = 3 * static_cast<std::size_t>(p);
-                     blk.point_energy[e3] = dt * V0 * J * power;
-                     blk.point_energy[e3 + 1] = 0.0;
-                     blk.point_energy[e3 + 2] = -dt * V0 * J * q * trd;
-                     blk.point_dt[p] = l / (Q + std::sqrt(Q * Q + c * c));
-                     // V0 P = V0 J (sigma - q 1) F^-T: (V0 P)_ij = V0 J sigma_ik Fi_jk
-                     const real_t S[3][3] = {{s[0] - q, s[3], s[5]}, {s[3], s[1] - q, s[4]}, {s[5], s[4], s[2] - q}};
-                     real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(p)];
-                     for (int i = 0; i < 3; ++i)
-                         for (int j = 0; j < 3; ++j)
-                             P[3 * j + i] = V0 * J * (S[i][0] * Fi[j][0] + S[i][1] * Fi[j][1] + S[i][2] * Fi[j][2]);
-                     if (ns > 0) // the stabilization of this point's sub-cells needs F^-1 and W
-                     {
-                         real_t* fi = &blk.finv[9 * static_cast<std::size_t>(p)];
-                         for (int i = 0; i < 3; ++i)
-                             for (int j = 0; j < 3; ++j)
-                                 fi[3 * i + j] = Fi[i][j];
-                         for (int k = 0; k < 3; ++k)
-                             blk.spin[3 * static_cast<std::size_t>(p) + k] = w[k];
-                     }
-                 });
+                         if ((b + 1) * kPointLanes <= np)
+                             nodal_points_batch<PLASTIC, true>(blk, u, v, b, dt);
+                         else
+                             nodal_points_batch<PLASTIC, false>(blk, u, v, b, dt);
+                     });
+    };
+    if (blk.plastic.active())
+        run.template operator()<true>();
+    else
+        run.template operator()<false>();
 
     ForcePassResult r;
     for (index_t p = 0; p < np; ++p)

@@ -65,13 +65,19 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
     {
         std::vector<index_t> nodes;
         std::vector<real_t> psi;
+        // the raw facet contributions (every facet point times every node of its support,
+        // tens of times the merged count) go to one scratch list per thread; each point keeps
+        // an exactly sized copy of its merged entries
+        Entries scratch;
 #pragma omp for schedule(dynamic, 64)
         for (index_t p = 0; p < n_points; ++p)
         {
             try
             {
                 Vec3 pos;
-                fn(p, entries[p], weight[p], pos, owner[p], nodes, psi);
+                scratch.clear();
+                fn(p, scratch, weight[p], pos, owner[p], nodes, psi);
+                entries[p].assign(scratch.begin(), scratch.end());
                 for (int d = 0; d < 3; ++d)
                     position[3 * p + d] = pos[d];
             }
