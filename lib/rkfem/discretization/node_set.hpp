@@ -4,6 +4,7 @@
 /// Vector arrays are n_nodes x 3, node-major: component d of node i is at [3 i + d].
 #include <vector>
 
+#include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
@@ -26,7 +27,10 @@ struct NodeSet
     {
         const std::size_t n3 = 3 * static_cast<std::size_t>(n);
         for (auto* arr : {&x0, &x, &u, &v, &a, &f_int, &f_ext})
+        {
             arr->assign(n3, 0.0);
+            use_huge_pages(*arr);
+        }
         mass.assign(static_cast<std::size_t>(n), 0.0);
         part.assign(static_cast<std::size_t>(n), 0);
     }

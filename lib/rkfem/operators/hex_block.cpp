@@ -6,6 +6,7 @@
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
+#include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 
@@ -480,6 +481,10 @@ void HexBlock::initialize(const NodeSet& nodes)
     std::vector<index_t> fill(node_elem_offsets.begin(), node_elem_offsets.end() - 1);
     for (index_t s = 0; s < 8 * ne; ++s)
         node_elem_slots[fill[conn[s] - node_begin]++] = s;
+    for (auto* a : {&stress, &stress_trial, &hg_force, &hg_force_trial, &elem_force, &volume0, &volume})
+        use_huge_pages(*a);
+    use_huge_pages(conn);
+    use_huge_pages(node_elem_slots);
 }
 
 /// All batches of a 1-point block, with the material kind chosen once for the block.

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
@@ -150,6 +151,35 @@ inline void gather_forces(const NodalBlock& blk, index_t i, real_t f[3])
 #endif
 }
 
+/// buf[4 (n - lo) + a] += sum_j P_aj g_j for every entry (n, g) of point p of op; P by columns.
+inline void scatter_point(const IntegrationOperator& op, index_t p, const real_t P[9], real_t* buf, index_t lo)
+{
+#if defined(__AVX2__) && defined(__FMA__)
+    const __m256d c0 = _mm256_setr_pd(P[0], P[1], P[2], 0.0), c1 = _mm256_setr_pd(P[3], P[4], P[5], 0.0),
+                  c2 = _mm256_setr_pd(P[6], P[7], P[8], 0.0);
+    const index_t* nodes = op.nodes.data();
+    const real_t* grad = op.grad.data();
+    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    {
+        real_t* f = buf + 4 * static_cast<std::size_t>(nodes[k] - lo);
+        const real_t* g = grad + 3 * static_cast<std::size_t>(k);
+        __m256d acc = _mm256_loadu_pd(f);
+        acc = _mm256_fmadd_pd(c0, _mm256_broadcast_sd(g), acc);
+        acc = _mm256_fmadd_pd(c1, _mm256_broadcast_sd(g + 1), acc);
+        acc = _mm256_fmadd_pd(c2, _mm256_broadcast_sd(g + 2), acc);
+        _mm256_storeu_pd(f, acc);
+    }
+#else
+    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    {
+        real_t* f = buf + 4 * static_cast<std::size_t>(op.nodes[k] - lo);
+        const real_t* g = &op.grad[3 * static_cast<std::size_t>(k)];
+        for (int a = 0; a < 3; ++a)
+            f[a] += P[a] * g[0] + P[3 + a] * g[1] + P[6 + a] * g[2];
+    }
+#endif
+}
+
 constexpr int kPointLanes = 8; // stress points per batch (one AVX-512 register of doubles)
 
 /// One batch of kPointLanes stress points: the stencil sums per point (gather_gradients), then
@@ -157,9 +187,12 @@ constexpr int kPointLanes = 8; // stress points per batch (one AVX-512 register 
 /// update, bulk viscosity, stable step, V0 P), which the compiler vectorizes across points. The
 /// loops are written without branches (min, 0/1 factors); a point with J <= 0 gets NaN or inf
 /// in its lane and is flagged after the loops. FULL: all lanes are points; otherwise lanes past
-/// the block's end repeat its first point and nothing of theirs is stored.
+/// the block's end repeat its first point and nothing of theirs is stored. With a scatter buffer
+/// (buf != null, chunked assembly) V0 P g goes straight into it; otherwise V0 P is stored for the
+/// transpose gather.
 template <bool PLASTIC, bool FULL>
-[[gnu::noinline]] void nodal_points_batch(NodalBlock& blk, const real_t* u, const real_t* v, index_t batch, real_t dt)
+[[gnu::noinline]] void nodal_points_batch(NodalBlock& blk, const real_t* u, const real_t* v, index_t batch, real_t dt,
+                                          real_t* buf, index_t lo)
 {
     constexpr int W = kPointLanes;
     const IntegrationOperator& op = blk.points;
@@ -173,6 +206,22 @@ template <bool PLASTIC, bool FULL>
     const real_t alpha = blk.dt_factor;
     const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
 
+    // the next batch's stencil (gradients and node ids) is requested now, so that it streams in
+    // while this batch computes: the loads of a stencil otherwise wait on memory latency
+    if constexpr (FULL)
+    {
+        const index_t pn = std::min<index_t>(p0 + 2 * W, np);
+        if (p0 + W < pn)
+        {
+            const std::size_t k0 = static_cast<std::size_t>(op.offsets[p0 + W]), k1 = static_cast<std::size_t>(op.offsets[pn]);
+            const char* g = reinterpret_cast<const char*>(op.grad.data());
+            for (std::size_t b = 24 * k0; b < 24 * k1; b += 64)
+                _mm_prefetch(g + b, _MM_HINT_T0);
+            const char* n = reinterpret_cast<const char*>(op.nodes.data());
+            for (std::size_t b = 4 * k0; b < 4 * k1; b += 64)
+                _mm_prefetch(n + b, _MM_HINT_T0);
+        }
+    }
     alignas(64) real_t F[3][3][W], Fd[3][3][W];
     for (int l = 0; l < W; ++l)
     {
@@ -326,9 +375,13 @@ template <bool PLASTIC, bool FULL>
         e[0] = e_int[l];
         e[1] = 0.0;
         e[2] = e_bv[l];
-        real_t* Pp = &blk.point_tensor[9 * p];
+        real_t Pp[9];
         for (int k = 0; k < 9; ++k)
             Pp[k] = P[k][l];
+        if (buf)
+            scatter_point(op, static_cast<index_t>(p), Pp, buf, lo);
+        else
+            std::copy(Pp, Pp + 9, &blk.point_tensor[9 * p]);
         if (stabilized)
         {
             real_t* fi = &blk.finv[9 * p];
@@ -434,40 +487,115 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     return nb;
 }
 
-void NodalBlock::initialize()
+namespace
+{
+/// Points per chunk of the scatter assembly: a function of the point count only (never of the
+/// thread count), a multiple of the batch width, about 1/16 of the points within [2048, 32768].
+index_t chunk_size(index_t n)
+{
+    const index_t c = std::clamp<index_t>(n / 16, 2048, 32768);
+    return (c + kPointLanes - 1) / kPointLanes * kPointLanes;
+}
+} // namespace
+
+void NodalBlock::initialize(Assembly assembly)
 {
     const index_t np = n_points(), ns = n_stab();
     const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     const index_t nn = node_end - node_begin;
-    std::vector<index_t> entry_point(static_cast<std::size_t>(ne_p + ne_s));
-    for (index_t p = 0; p < np; ++p)
-        for (index_t k = points.offsets[p]; k < points.offsets[p + 1]; ++k)
-            entry_point[k] = p;
-    for (index_t s = 0; s < ns; ++s)
-        for (index_t k = stabilization.offsets[s]; k < stabilization.offsets[s + 1]; ++k)
-            entry_point[ne_p + k] = np + s;
-    node_entry_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
-    auto node_of = [&](index_t k) { return k < ne_p ? points.nodes[k] : stabilization.nodes[k - ne_p]; };
-    for (index_t k = 0; k < ne_p + ne_s; ++k)
+
+    // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
+    // the node range its entries touch
+    chunks.clear();
+    n_point_chunks = 0;
+    std::size_t buffer = 0;
+    bool local = true;
+    for (const IntegrationOperator* op : {&points, &stabilization})
     {
-        const index_t n = node_of(k);
-        RKFEM_REQUIRE(n >= node_begin && n < node_end, "nodal block: entry touches node " << n << " outside the part's range ["
-                                                                                         << node_begin << ", " << node_end << ")");
-        ++node_entry_offsets[n - node_begin + 1];
+        const std::size_t op_begin = buffer;
+        // stabilization chunks cover as many nodes as stress-point chunks (about 8 sub-cells
+        // per node)
+        const index_t n = op->n_points();
+        const index_t size = chunk_size(np) * std::max<index_t>(1, np > 0 ? n / np : 1);
+        for (index_t first = 0; first < n; first += size)
+        {
+            Chunk ch{first, std::min(n, first + size), node_end, node_begin, buffer};
+            for (index_t k = op->offsets[ch.first]; k < op->offsets[ch.last]; ++k)
+            {
+                RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,
+                              "nodal block: entry touches node " << op->nodes[k] << " outside the part's range ["
+                                                                 << node_begin << ", " << node_end << ")");
+                ch.lo = std::min(ch.lo, op->nodes[k]);
+                ch.hi = std::max(ch.hi, op->nodes[k] + 1);
+            }
+            ch.hi = std::max(ch.hi, ch.lo);
+            buffer += 4 * static_cast<std::size_t>(ch.hi - ch.lo);
+            chunks.push_back(ch);
+        }
+        if (op == &points)
+            n_point_chunks = static_cast<index_t>(chunks.size());
+        // a point order without locality (an imported cloud in random order) makes every
+        // chunk's range the whole block: then the transpose gather
+        local = local && buffer - op_begin <= 4 * 3 * static_cast<std::size_t>(nn);
     }
-    for (index_t i = 0; i < nn; ++i)
-        node_entry_offsets[i + 1] += node_entry_offsets[i];
-    node_point.resize(static_cast<std::size_t>(ne_p + ne_s));
-    node_grad.resize(3 * static_cast<std::size_t>(ne_p + ne_s));
-    std::vector<index_t> fill(node_entry_offsets.begin(), node_entry_offsets.end() - 1);
-    for (index_t k = 0; k < ne_p + ne_s; ++k)
+    const bool scatter = assembly == Assembly::Scatter || (assembly == Assembly::Automatic && local);
+    if (scatter)
     {
-        const index_t q = fill[node_of(k) - node_begin]++;
-        node_point[q] = entry_point[k];
-        const real_t* g = k < ne_p ? &points.grad[3 * static_cast<std::size_t>(k)]
-                                   : &stabilization.grad[3 * static_cast<std::size_t>(k - ne_p)];
-        for (int d = 0; d < 3; ++d)
-            node_grad[3 * static_cast<std::size_t>(q) + d] = g[d];
+        node_chunk_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+        for (const Chunk& ch : chunks)
+            for (index_t n = ch.lo; n < ch.hi; ++n)
+                ++node_chunk_offsets[n - node_begin + 1];
+        for (index_t i = 0; i < nn; ++i)
+            node_chunk_offsets[i + 1] += node_chunk_offsets[i];
+        node_chunks.resize(static_cast<std::size_t>(node_chunk_offsets.back()));
+        std::vector<index_t> fill(node_chunk_offsets.begin(), node_chunk_offsets.end() - 1);
+        for (index_t c = 0; c < static_cast<index_t>(chunks.size()); ++c)
+            for (index_t n = chunks[c].lo; n < chunks[c].hi; ++n)
+                node_chunks[fill[n - node_begin]++] = c;
+        scatter_buffer.assign(buffer, 0.0);
+    }
+    else
+    {
+        chunks.clear();
+        n_point_chunks = 0;
+        node_chunk_offsets.clear();
+        node_chunks.clear();
+        scatter_buffer.clear();
+    }
+    // transpose (node -> entries) for the gather assembly
+    node_entry_offsets.clear();
+    node_point.clear();
+    node_grad.clear();
+    if (!scatter)
+    {
+        std::vector<index_t> entry_point(static_cast<std::size_t>(ne_p + ne_s));
+        for (index_t p = 0; p < np; ++p)
+            for (index_t k = points.offsets[p]; k < points.offsets[p + 1]; ++k)
+                entry_point[k] = p;
+        for (index_t s = 0; s < ns; ++s)
+            for (index_t k = stabilization.offsets[s]; k < stabilization.offsets[s + 1]; ++k)
+                entry_point[ne_p + k] = np + s;
+        node_entry_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+        auto node_of = [&](index_t k) { return k < ne_p ? points.nodes[k] : stabilization.nodes[k - ne_p]; };
+        for (index_t k = 0; k < ne_p + ne_s; ++k)
+        {
+            const index_t n = node_of(k);
+            ++node_entry_offsets[n - node_begin + 1];
+        }
+        for (index_t i = 0; i < nn; ++i)
+            node_entry_offsets[i + 1] += node_entry_offsets[i];
+        node_point.resize(static_cast<std::size_t>(ne_p + ne_s));
+        node_grad.resize(3 * static_cast<std::size_t>(ne_p + ne_s));
+        std::vector<index_t> fill(node_entry_offsets.begin(), node_entry_offsets.end() - 1);
+        for (index_t k = 0; k < ne_p + ne_s; ++k)
+        {
+            const index_t q = fill[node_of(k) - node_begin]++;
+            node_point[q] = entry_point[k];
+            const real_t* g = k < ne_p ? &points.grad[3 * static_cast<std::size_t>(k)]
+                                       : &stabilization.grad[3 * static_cast<std::size_t>(k - ne_p)];
+            for (int d = 0; d < 3; ++d)
+                node_grad[3 * static_cast<std::size_t>(q) + d] = g[d];
+        }
     }
 
     owner_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
@@ -489,11 +617,22 @@ void NodalBlock::initialize()
     stab_stress.assign(6 * static_cast<std::size_t>(ns), 0.0);
     stab_stress_trial = stab_stress;
     jacobian.assign(static_cast<std::size_t>(np), 1.0);
-    point_tensor.assign(9 * static_cast<std::size_t>(np + ns), 0.0);
+    point_tensor.assign(scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
     finv.assign(9 * static_cast<std::size_t>(np), 0.0);
     spin.assign(3 * static_cast<std::size_t>(np), 0.0);
     point_energy.assign(3 * static_cast<std::size_t>(np + ns), 0.0);
     point_dt.assign(static_cast<std::size_t>(np), 0.0);
+
+    for (IntegrationOperator* op : {&points, &stabilization})
+    {
+        use_huge_pages(op->nodes);
+        use_huge_pages(op->grad);
+        use_huge_pages(op->weight);
+    }
+    for (auto* a : {&node_grad, &stress, &stress_trial, &stab_stress, &stab_stress_trial, &jacobian, &point_tensor,
+                    &finv, &spin, &point_energy, &point_dt, &scatter_buffer, &length0})
+        use_huge_pages(*a);
+    use_huge_pages(node_point);
 }
 
 ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt)
@@ -503,17 +642,28 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
     const real_t* u = nodes.u.data();
     const real_t* v = nodes.v.data();
 
-    const index_t nb = (np + kPointLanes - 1) / kPointLanes;
+    auto batch = [&]<bool PLASTIC>(index_t b, real_t* buf, index_t lo)
+    {
+        if ((b + 1) * kPointLanes <= np)
+            nodal_points_batch<PLASTIC, true>(blk, u, v, b, dt, buf, lo);
+        else
+            nodal_points_batch<PLASTIC, false>(blk, u, v, b, dt, buf, lo);
+    };
     auto run = [&]<bool PLASTIC>()
     {
-        parallel_for("rkfem::nodal_points", nb,
-                     [&](index_t b)
-                     {
-                         if ((b + 1) * kPointLanes <= np)
-                             nodal_points_batch<PLASTIC, true>(blk, u, v, b, dt);
-                         else
-                             nodal_points_batch<PLASTIC, false>(blk, u, v, b, dt);
-                     });
+        if (blk.scatter_assembly())
+            parallel_for("rkfem::nodal_points", blk.n_point_chunks,
+                         [&](index_t c)
+                         {
+                             const NodalBlock::Chunk& ch = blk.chunks[c];
+                             real_t* buf = blk.scatter_buffer.data() + ch.buffer;
+                             std::fill(buf, buf + 4 * static_cast<std::size_t>(ch.hi - ch.lo), 0.0);
+                             for (index_t b = ch.first / kPointLanes; b * kPointLanes < ch.last; ++b)
+                                 batch.template operator()<PLASTIC>(b, buf, ch.lo);
+                         });
+        else
+            parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
+                         [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
     };
     if (blk.plastic.active())
         run.template operator()<true>();
@@ -535,41 +685,57 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
         ElasticParams smat = mat;
         smat.lambda *= blk.stabilization_coefficient;
         smat.mu *= blk.stabilization_coefficient;
-        parallel_for("rkfem::nodal_stabilization", ns,
-                     [&](index_t s)
-                     {
-                         const index_t L = st.parent[s];
-                         real_t G[3][3];
-                         gather_velocity_gradient(st, s, v, G);
-                         const real_t* Fi = &blk.finv[9 * static_cast<std::size_t>(L)];
-                         real_t Ls[3][3];
-                         for (int i = 0; i < 3; ++i)
-                             for (int j = 0; j < 3; ++j)
-                                 Ls[i][j] = G[i][0] * Fi[j] + G[i][1] * Fi[3 + j] + G[i][2] * Fi[6 + j];
-                         const real_t d[6] = {Ls[0][0], Ls[1][1], Ls[2][2], 0.5 * (Ls[0][1] + Ls[1][0]),
-                                              0.5 * (Ls[1][2] + Ls[2][1]), 0.5 * (Ls[2][0] + Ls[0][2])};
-                         const real_t* w = &blk.spin[3 * static_cast<std::size_t>(L)];
-                         real_t s_old[6], sg[6];
-                         for (int k = 0; k < 6; ++k)
-                             s_old[k] = sg[k] = blk.stab_stress[k * sns + s];
-                         elastic_update(smat, d, w, dt, sg);
-                         for (int k = 0; k < 6; ++k)
-                             blk.stab_stress_trial[k * sns + s] = sg[k];
-                         real_t power = 0.0;
-                         for (int k = 0; k < 3; ++k)
-                             power += 0.5 * (s_old[k] + sg[k]) * d[k] + (s_old[k + 3] + sg[k + 3]) * d[k + 3];
-                         const real_t J = blk.jacobian[L];
-                         const real_t V0 = st.weight[s];
-                         const std::size_t q = static_cast<std::size_t>(np) + s;
-                         blk.point_energy[3 * q] = 0.0;
-                         blk.point_energy[3 * q + 1] = dt * V0 * J * power;
-                         blk.point_energy[3 * q + 2] = 0.0;
-                         const real_t S[3][3] = {{sg[0], sg[3], sg[5]}, {sg[3], sg[1], sg[4]}, {sg[5], sg[4], sg[2]}};
-                         real_t* P = &blk.point_tensor[9 * q];
-                         for (int i = 0; i < 3; ++i)
-                             for (int j = 0; j < 3; ++j)
-                                 P[3 * j + i] = V0 * J * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
-                     });
+        // sub-cell s: stress update and V0 P (by columns)
+        auto sub_cell = [&](index_t s, real_t P[9])
+        {
+            const index_t L = st.parent[s];
+            real_t G[3][3];
+            gather_velocity_gradient(st, s, v, G);
+            const real_t* Fi = &blk.finv[9 * static_cast<std::size_t>(L)];
+            real_t Ls[3][3];
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    Ls[i][j] = G[i][0] * Fi[j] + G[i][1] * Fi[3 + j] + G[i][2] * Fi[6 + j];
+            const real_t d[6] = {Ls[0][0], Ls[1][1], Ls[2][2], 0.5 * (Ls[0][1] + Ls[1][0]),
+                                 0.5 * (Ls[1][2] + Ls[2][1]), 0.5 * (Ls[2][0] + Ls[0][2])};
+            const real_t* w = &blk.spin[3 * static_cast<std::size_t>(L)];
+            real_t s_old[6], sg[6];
+            for (int k = 0; k < 6; ++k)
+                s_old[k] = sg[k] = blk.stab_stress[k * sns + s];
+            elastic_update(smat, d, w, dt, sg);
+            for (int k = 0; k < 6; ++k)
+                blk.stab_stress_trial[k * sns + s] = sg[k];
+            real_t power = 0.0;
+            for (int k = 0; k < 3; ++k)
+                power += 0.5 * (s_old[k] + sg[k]) * d[k] + (s_old[k + 3] + sg[k + 3]) * d[k + 3];
+            const real_t J = blk.jacobian[L];
+            const real_t V0 = st.weight[s];
+            const std::size_t q = static_cast<std::size_t>(np) + s;
+            blk.point_energy[3 * q] = 0.0;
+            blk.point_energy[3 * q + 1] = dt * V0 * J * power;
+            blk.point_energy[3 * q + 2] = 0.0;
+            const real_t S[3][3] = {{sg[0], sg[3], sg[5]}, {sg[3], sg[1], sg[4]}, {sg[5], sg[4], sg[2]}};
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    P[3 * j + i] = V0 * J * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
+        };
+        if (blk.scatter_assembly())
+            parallel_for("rkfem::nodal_stabilization", static_cast<index_t>(blk.chunks.size()) - blk.n_point_chunks,
+                         [&](index_t c)
+                         {
+                             const NodalBlock::Chunk& ch = blk.chunks[blk.n_point_chunks + c];
+                             real_t* buf = blk.scatter_buffer.data() + ch.buffer;
+                             std::fill(buf, buf + 4 * static_cast<std::size_t>(ch.hi - ch.lo), 0.0);
+                             real_t P[9];
+                             for (index_t s = ch.first; s < ch.last; ++s)
+                             {
+                                 sub_cell(s, P);
+                                 scatter_point(st, s, P, buf, ch.lo);
+                             }
+                         });
+        else
+            parallel_for("rkfem::nodal_stabilization", ns,
+                         [&](index_t s) { sub_cell(s, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + s)]); });
     }
 
     const index_t nq = np + ns;
@@ -592,6 +758,25 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
 void assemble_nodal_forces(const NodalBlock& blk, NodeSet& nodes)
 {
     const index_t nn = blk.node_end - blk.node_begin;
+    if (blk.scatter_assembly())
+    {
+        // the node's force: the buffers of the chunks that cover it, in chunk order
+        parallel_for("rkfem::nodal_assemble", nn,
+                     [&](index_t i)
+                     {
+                         const index_t n = blk.node_begin + i;
+                         real_t f[3] = {0.0, 0.0, 0.0};
+                         for (index_t k = blk.node_chunk_offsets[i]; k < blk.node_chunk_offsets[i + 1]; ++k)
+                         {
+                             const NodalBlock::Chunk& ch = blk.chunks[blk.node_chunks[k]];
+                             const real_t* b = &blk.scatter_buffer[ch.buffer + 4 * static_cast<std::size_t>(n - ch.lo)];
+                             f[0] += b[0], f[1] += b[1], f[2] += b[2];
+                         }
+                         for (int a = 0; a < 3; ++a)
+                             nodes.f_int[3 * static_cast<std::size_t>(n) + a] = f[a];
+                     });
+        return;
+    }
     parallel_for("rkfem::nodal_assemble", nn,
                  [&](index_t i)
                  {

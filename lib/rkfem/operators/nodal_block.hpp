@@ -11,8 +11,8 @@
 ///   f_I += V0_s J_L sigma_s F_L^-T g_sI,
 /// which vanishes for linear fields (g_s = b_s - b_L) and so keeps the patch test.
 ///
-/// Nodal forces are gathered through the node -> entry transpose of both operators, in a fixed
-/// order, so results do not depend on the thread count. For RK parts the node unknowns are
+/// Nodal forces are assembled in a fixed order (chunked scatter or transpose gather, see
+/// NodalBlock::Assembly), so results do not depend on the thread count. For RK parts the node unknowns are
 /// generalized coefficients; `interpolation` (Psi_J(X_I) per node) gives physical values.
 #include <memory>
 #include <vector>
@@ -50,6 +50,32 @@ struct NodalBlock
     std::vector<index_t> owner_offsets, owner_points;
     index_t node_begin = 0, node_end = 0;
 
+    /// How nodal forces are assembled; both are deterministic and independent of the thread
+    /// count. Scatter: the points are cut into fixed chunks (a function of the point count
+    /// only); each chunk adds V0 P g of its points, in point order, into a buffer of its own
+    /// over the node range its entries touch, and a node's force is the sum of the buffers that
+    /// cover it, in chunk order. It streams the gradients once per step. Gather: each node sums
+    /// over a transposed copy of its entries (streams them twice); chosen automatically when
+    /// the point order has no locality (the ranges of one operator's chunks would add up to over
+    /// 3 nodes per node).
+    enum class Assembly
+    {
+        Automatic,
+        Scatter,
+        Gather,
+    };
+    struct Chunk
+    {
+        index_t first = 0, last = 0; ///< points [first, last) of the stress or stabilization operator
+        index_t lo = 0, hi = 0;      ///< global nodes its entries touch lie in [lo, hi)
+        std::size_t buffer = 0;      ///< offset of its buffer (4 values per node) in scatter_buffer
+    };
+    std::vector<Chunk> chunks;  ///< stress-point chunks, then stabilization chunks (empty: gather)
+    index_t n_point_chunks = 0; ///< how many of them are stress-point chunks
+    std::vector<index_t> node_chunk_offsets, node_chunks; ///< local node -> covering chunks, in order
+    std::vector<real_t> scatter_buffer;
+    bool scatter_assembly() const { return !chunks.empty(); }
+
     // transpose (node -> entries of points, then of stabilization), built by initialize(): for
     // slot q of local node i in [node_entry_offsets[i], node_entry_offsets[i + 1]), the point
     // (stabilization points numbered after the stress points) and a contiguous copy of its
@@ -63,7 +89,7 @@ struct NodalBlock
     std::vector<real_t> jacobian;                     ///< n_points, det F
 
     // per-step scratch
-    std::vector<real_t> point_tensor; ///< 9 x (n_points + n_stab): V0 P by columns ([9 p + 3 j + a] = P_aj)
+    std::vector<real_t> point_tensor; ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
     std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for stabilization
     std::vector<real_t> spin;         ///< 3 x n_points: W of the point
     std::vector<real_t> point_energy; ///< 3 x (n_points + n_stab): internal, stabilization, bulk viscosity
@@ -71,7 +97,7 @@ struct NodalBlock
 
     index_t n_points() const { return points.n_points(); }
     index_t n_stab() const { return stabilization.n_points(); }
-    void initialize();
+    void initialize(Assembly assembly = Assembly::Automatic);
     void commit()
     {
         stress.swap(stress_trial);
