@@ -31,7 +31,7 @@ def main(run_dir, axial=None):
     grid = servermanager.Fetch(reader)
     last = h5["steps"][steps[-1]]
     n_points = h5["mesh/coordinates"].shape[0]
-    n_cells = h5["mesh/connectivity"].shape[0]
+    n_cells = h5["mesh/part"].shape[0]  # elements, then the vertex cells of cloud particles
     if grid.GetNumberOfPoints() != n_points or grid.GetNumberOfCells() != n_cells:
         problems.append(f"sizes: ParaView {grid.GetNumberOfPoints()} points / {grid.GetNumberOfCells()} cells, "
                         f"results.h5 {n_points} / {n_cells}")
@@ -56,7 +56,8 @@ def main(run_dir, axial=None):
     compare("coordinates (deformed)", grid.GetPoints().GetData(), last["coordinates"][...])
     for name in ("displacement", "velocity"):
         compare(name, grid.GetPointData().GetArray(name), last[name][...])
-    cell_names = [n for n in last.keys() if last[n].shape[0] == n_cells and n not in ("coordinates",)]
+    point_names = ("coordinates", "displacement", "velocity")
+    cell_names = [n for n in last.keys() if last[n].shape[0] == n_cells and n not in point_names]
     for name in sorted(cell_names):
         compare(name, grid.GetCellData().GetArray(name), last[name][...])
     if axial is not None:

@@ -326,3 +326,43 @@ TEST(Decks, ConcreteRunsWriteDamageFields)
     EXPECT_NE(text.find("Name=\"damage\""), std::string::npos);
     EXPECT_NE(text.find("Name=\"kcc_scaled_damage\""), std::string::npos);
 }
+
+namespace
+{
+/// `good` with its box part turned into a cloud part (spacing 1 mm) plus `extra` part keys.
+std::string cloud_deck(const std::string& generator_extra, const std::string& part_extra)
+{
+    return replace(replace(good, "{type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
+                           "{type: cloud, size: [1 mm, 1 mm, 10 mm]" + generator_extra + "}"),
+                   "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                   "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n" + part_extra);
+}
+} // namespace
+
+TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
+{
+    // a good cloud deck runs, with points on the box's faces selected by the plane
+    const std::string ok = write_deck("cloud_ok.yaml", cloud_deck(", spacing: 0.5 mm, jitter: 0.2", "    formulation: rkpm\n"));
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_cloud_ok";
+    fs::remove_all(out);
+    const Result r = run("run " + ok + " --out " + out.string() + " --quiet");
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(out / "results.xdmf"));
+
+    expect_rejected("cloud_fem.yaml", cloud_deck(", spacing: 1 mm", ""), ":6: parts.col.formulation",
+                    "expected formulation: rkpm");
+    expect_rejected("cloud_mscni.yaml",
+                    cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n    nodal_integration: {stabilization: mscni}\n"),
+                    ":9: parts.col.nodal_integration.stabilization", "expected stabilization: none on a cloud part");
+    expect_rejected("cloud_jitter.yaml", cloud_deck(", spacing: 1 mm, jitter: 0.6", "    formulation: rkpm\n"),
+                    ":6: parts.col.generator.jitter", "is outside [0, 0.45]");
+    expect_rejected("cloud_both.yaml", cloud_deck(", spacing: 1 mm, points: p.csv", "    formulation: rkpm\n"),
+                    ":6: parts.col.generator.points", "is given with spacing");
+    expect_rejected("cloud_nofile.yaml", cloud_deck(", points: no_such_file.csv", "    formulation: rkpm\n"),
+                    ":6: parts.col.generator.points", "cannot open");
+    // a file with a point outside the box: named by file line
+    write_deck("outside.csv", "# x, y, z in mm\n0.5, 0.5, 1\n0.5, 0.5, 12\n");
+    expect_rejected("cloud_outside.yaml",
+                    cloud_deck(", points: outside.csv, points_unit: mm", "    formulation: rkpm\n"),
+                    ":6: parts.col.generator.points", "outside.csv:3 lies outside the box body");
+}

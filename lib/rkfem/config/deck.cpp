@@ -1,6 +1,7 @@
 #include "rkfem/config/deck.hpp"
 #include "rkfem/config/erk_table_names.hpp"
 
+#include <filesystem>
 #include <algorithm>
 #include <fstream>
 #include <set>
@@ -332,7 +333,7 @@ void read_components(const Section& s, const std::string& key, Dimension d,
 
 GeneratorSpec read_generator(const Section& part)
 {
-    part.require("generator", "a mapping with type: box | cylinder | projectile");
+    part.require("generator", "a mapping with type: box | cylinder | projectile | cloud");
     const YAML::Node gn = part.node("generator");
     const std::string gp = part.path("generator");
     std::string type;
@@ -392,13 +393,48 @@ GeneratorSpec read_generator(const Section& part)
             g.direction = s.choice("direction", {"-z", "+z"}, "-z") == "-z" ? -1 : +1;
         g.loc = s.loc();
     }
+    else if (type == "cloud")
+    {
+        Section s(part.ctx(), gn, gp, {"type", "origin", "size", "spacing", "jitter", "seed", "points", "points_unit"});
+        g.type = GeneratorSpec::Type::Cloud;
+        g.origin = s.vec3("origin", dim::length, Vec3::Zero());
+        g.size = s.vec3("size", dim::length);
+        for (int i = 0; i < 3; ++i)
+            if (!(g.size[i] > 0))
+                s.fail("size", "has a non-positive edge", "expected three positive lengths (the box body)");
+        if (s.has("points") == s.has("spacing"))
+            s.fail(s.has("points") ? "points" : "spacing", s.has("points") ? "is given with spacing" : "is missing",
+                   "expected either spacing (a jittered lattice) or points (a CSV file of x,y,z)");
+        if (s.has("points"))
+        {
+            const std::filesystem::path file = s.text("points");
+            g.points_file = file.is_absolute() ? file.string()
+                                               : (std::filesystem::path(part.ctx().name).parent_path() / file).string();
+            const std::string unit = s.text("points_unit", "m");
+            std::string err;
+            const std::optional<Unit> u = parse_unit(unit, &err);
+            if (!u || !(u->dimension == dim::length))
+                s.fail("points_unit", "'" + unit + "' is not a length unit" + (err.empty() ? "" : " (" + err + ")"),
+                       "expected one of " + known_units_for(dim::length));
+            g.points_unit = u->scale;
+        }
+        else
+        {
+            g.element_size = s.positive("spacing", dim::length);
+            g.jitter = s.quantity("jitter", dim::none, 0.25);
+            if (!(g.jitter >= 0.0 && g.jitter <= 0.45))
+                s.fail("jitter", "is outside [0, 0.45]", "expected a fraction of the spacing that keeps the lattice order");
+            g.seed = static_cast<int>(s.integer("seed", 1));
+        }
+        g.loc = s.loc();
+    }
     else
     {
         const SourceLocation loc = gn.IsMap() && gn["type"].IsDefined()
                                        ? locate(part.ctx(), gn["type"], gp + ".type")
                                        : locate(part.ctx(), gn, gp + ".type");
         throw DeckError(loc, type.empty() ? "missing generator type" : "unknown generator '" + type + "'",
-                        "expected type: box | cylinder | projectile");
+                        "expected type: box | cylinder | projectile | cloud");
     }
     return g;
 }
@@ -637,7 +673,9 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
-        p.nodal.stabilization = ni.choice("stabilization", {"mscni", "none"}, p.nodal.scheme == "scni" ? "mscni" : "none");
+        const bool cloud = p.generator.type == GeneratorSpec::Type::Cloud;
+        p.nodal.stabilization =
+            ni.choice("stabilization", {"mscni", "none"}, p.nodal.scheme == "scni" && !cloud ? "mscni" : "none");
         if (p.nodal.stabilization == "mscni" && p.nodal.scheme != "scni")
             ni.fail("stabilization", "mscni stabilizes scheme scni only",
                     "expected stabilization: none with scheme " + p.nodal.scheme);
@@ -647,6 +685,24 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.nodal.dt_factor = ni.quantity("dt_factor", dim::none, 0.0);
         if (!(p.nodal.dt_factor >= 0.0 && p.nodal.dt_factor <= 2.0))
             ni.fail("dt_factor", "is outside [0, 2]", "expected alpha in (0, 2], or 0 for the calibrated default");
+    }
+    if (p.generator.type == GeneratorSpec::Type::Cloud)
+    {
+        // a cloud has no elements: RK particles integrated on their Voronoi cells
+        if (p.formulation != Formulation::Rkpm)
+            s.fail("formulation", "'" + f + "' needs elements, and a cloud part has none", "expected formulation: rkpm");
+        if (!s.has("nodal_integration"))
+            p.nodal.stabilization = "none";
+        else if (p.nodal.scheme == "sd-scni" || p.nodal.stabilization == "mscni")
+        {
+            Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
+                       {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
+            const bool sd = p.nodal.scheme == "sd-scni";
+            ni.fail(sd ? "scheme" : "stabilization",
+                    sd ? "sd-scni needs the sub-cells of a hex mesh" : "mscni needs the sub-cells of a hex mesh",
+                    sd ? "expected scheme: scni | dni on a cloud part"
+                       : "expected stabilization: none on a cloud part (sub-cells of Voronoi cells are not built yet)");
+        }
     }
     if (s.has("rk"))
     {

@@ -115,7 +115,8 @@ struct GeneratorSpec
     {
         Box,
         Cylinder,
-        Projectile
+        Projectile,
+        Cloud, ///< particles not from a mesh: a jittered lattice or imported points in a box body
     };
     Type type = Type::Box;
     // box
@@ -127,7 +128,14 @@ struct GeneratorSpec
     real_t height = 0.0; ///< cylinder height / projectile length
     std::string core = "butterfly"; ///< cylinder core: butterfly | ogrid
     int direction = -1;  ///< projectile: nose points to -z (-1) or +z (+1); origin = nose centre
-    real_t element_size = 0.0;
+    real_t element_size = 0.0; ///< cloud: lattice spacing
+    // cloud: the body is the box (origin, size); particles are a lattice of about element_size
+    // spacing with interior coordinates jittered by +-jitter spacing (seeded), or the points of
+    // a CSV file (x,y,z per line, in points_unit)
+    real_t jitter = 0.25;
+    int seed = 1;
+    std::string points_file; ///< resolved against the deck's directory
+    real_t points_unit = 1.0; ///< metres per file unit
     SourceLocation loc;
 };
 

@@ -147,6 +147,13 @@ std::string to_yaml(const Deck& d)
                << ", length: " << g.height << ", element_size: " << g.element_size
                << ", direction: " << (g.direction < 0 ? "-z" : "+z");
             break;
+        case GeneratorSpec::Type::Cloud:
+            os << "type: cloud, origin: " << vec(g.origin) << ", size: " << vec(g.size);
+            if (g.points_file.empty())
+                os << ", spacing: " << g.element_size << ", jitter: " << g.jitter << ", seed: " << g.seed;
+            else
+                os << ", points: " << g.points_file << ", points_unit: " << g.points_unit << " m";
+            break;
         }
         os << "}\n";
         os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
 
 #include "rkfem/core/error.hpp"
 
@@ -192,6 +195,85 @@ HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real
     return m;
 }
 
+HexMesh generate_cloud(const GeneratorSpec& g)
+{
+    HexMesh m;
+    const Vec3 lo = g.origin, hi = g.origin + g.size;
+    const real_t tol = 1e-9 * g.size.norm();
+    const SourceLocation where{g.loc.where, g.loc.path + ".points"};
+    if (!g.points_file.empty())
+    {
+        std::ifstream in(g.points_file);
+        if (!in)
+            throw DeckError(where, "cannot open '" + g.points_file + "'", "expected a CSV file of x,y,z per line");
+        std::string line;
+        for (int ln = 1; std::getline(in, line); ++ln)
+        {
+            if (line.find_first_not_of(" \t\r") == std::string::npos || line[line.find_first_not_of(" \t")] == '#')
+                continue;
+            std::replace(line.begin(), line.end(), ',', ' ');
+            std::istringstream is(line);
+            real_t c[3];
+            std::string rest;
+            if (!(is >> c[0] >> c[1] >> c[2]) || (is >> rest))
+                throw DeckError(where, g.points_file + ":" + std::to_string(ln) + " is not three numbers",
+                                "expected x,y,z per line");
+            for (int d = 0; d < 3; ++d)
+            {
+                c[d] *= g.points_unit;
+                if (!(c[d] >= lo[d] - tol && c[d] <= hi[d] + tol))
+                    throw DeckError(where, g.points_file + ":" + std::to_string(ln) + " lies outside the box body",
+                                    "expected every point within origin .. origin + size");
+                m.x.push_back(std::clamp(c[d], lo[d], hi[d]));
+            }
+        }
+        if (m.n_nodes() < 8)
+            throw DeckError(where, g.points_file + " has " + std::to_string(m.n_nodes()) + " points",
+                            "expected at least 8 points");
+    }
+    else
+    {
+        std::array<int, 3> n;
+        Vec3 h;
+        for (int d = 0; d < 3; ++d)
+        {
+            n[d] = divisions_for(g.size[d], g.element_size);
+            h[d] = g.size[d] / n[d];
+        }
+        std::mt19937 gen(static_cast<unsigned>(g.seed));
+        std::uniform_real_distribution<real_t> jit(-g.jitter, g.jitter);
+        for (int k = 0; k <= n[2]; ++k)
+            for (int j = 0; j <= n[1]; ++j)
+                for (int i = 0; i <= n[0]; ++i)
+                {
+                    const int idx[3] = {i, j, k};
+                    for (int d = 0; d < 3; ++d)
+                    {
+                        const real_t r = jit(gen); // drawn for every coordinate: the cloud depends on the seed only
+                        const bool on_face = idx[d] == 0 || idx[d] == n[d];
+                        m.x.push_back(lo[d] + (idx[d] + (on_face ? 0.0 : r)) * h[d]);
+                    }
+                }
+    }
+    static const char* names[3][2] = {{"xmin", "xmax"}, {"ymin", "ymax"}, {"zmin", "zmax"}};
+    for (index_t i = 0; i < m.n_nodes(); ++i)
+    {
+        bool side = false;
+        for (int d = 0; d < 3; ++d)
+            for (int e = 0; e < 2; ++e)
+                if (std::abs(m.x[3 * i + d] - (e ? hi[d] : lo[d])) <= tol)
+                {
+                    m.named_nodes[names[d][e]].push_back(i);
+                    side = side || d < 2;
+                }
+        if (side)
+            m.named_nodes["side"].push_back(i);
+    }
+    m.named_nodes["top"] = m.named_nodes["zmax"];
+    m.named_nodes["bottom"] = m.named_nodes["zmin"];
+    return m;
+}
+
 HexMesh generate(const GeneratorSpec& g)
 {
     switch (g.type)
@@ -206,6 +288,8 @@ HexMesh generate(const GeneratorSpec& g)
     }
     case GeneratorSpec::Type::Cylinder:
         return generate_cylinder(g.origin, g.radius, g.height, g.element_size, g.core == "ogrid");
+    case GeneratorSpec::Type::Cloud:
+        return generate_cloud(g);
     case GeneratorSpec::Type::Projectile:
     {
         Vec3 base = g.origin;

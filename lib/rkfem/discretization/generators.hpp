@@ -15,6 +15,16 @@ HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int,
 HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t element_size,
                           bool ogrid_core);
 
+/// The particles of a cloud part (`type: cloud`) as a mesh without elements: a lattice of about
+/// `element_size` spacing over the box (origin, size), each coordinate jittered by a uniform
+/// +-jitter spacing (seeded) except where the particle lies on the box's face normal to it, so
+/// that boundary particles stay on the surface; or the points of a CSV file (x,y,z per line,
+/// times points_unit; blank lines and lines starting with # skipped), which must lie in the box.
+/// Named node groups: xmin..zmax, top (= zmax), bottom (= zmin), side (x and y faces).
+/// Throws DeckError naming generator.points for a file that is missing, malformed or has points
+/// outside the box.
+HexMesh generate_cloud(const GeneratorSpec& spec);
+
 /// Builds the mesh a part's generator describes.
 HexMesh generate(const GeneratorSpec& spec);
 } // namespace rkfem

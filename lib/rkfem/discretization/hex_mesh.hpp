@@ -22,6 +22,8 @@ struct HexMesh
     std::vector<index_t> conn;   ///< n_elements x 8
     std::vector<Quad> faces;     ///< boundary faces (each appears in exactly one element)
     std::map<std::string, std::vector<index_t>> named_faces; ///< name -> indices into `faces`
+    /// Node groups of a cloud (no elements, no faces): xmin..zmax, top, bottom, side
+    std::map<std::string, std::vector<index_t>> named_nodes;
 
     index_t n_nodes() const { return static_cast<index_t>(x.size() / 3); }
     index_t n_elements() const { return static_cast<index_t>(conn.size() / 8); }

@@ -40,13 +40,22 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
 {
     const index_t n = static_cast<index_t>(x.size() / 3);
     RKFEM_REQUIRE(n >= 5, "Voronoi cells: need at least 5 points, got " << n);
+    // points may lie on the body's surface (generated clouds keep their boundary particles there)
+    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    for (index_t i = 0; i < n; ++i)
+        for (int d = 0; d < 3; ++d)
+        {
+            lo[d] = std::min(lo[d], x[3 * i + d]);
+            hi[d] = std::max(hi[d], x[3 * i + d]);
+        }
+    const real_t tol = 1e-9 * (hi - lo).norm();
     std::vector<std::pair<K::Point_3, index_t>> pts;
     for (index_t i = 0; i < n; ++i)
     {
         const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
         for (const HalfSpace& h : body)
-            RKFEM_REQUIRE(h.normal.dot(p) < h.offset, "Voronoi cells: point " << i << " (" << p.transpose()
-                                                                             << ") is not inside the body");
+            RKFEM_REQUIRE(h.normal.dot(p) <= h.offset + tol, "Voronoi cells: point " << i << " (" << p.transpose()
+                                                                                    << ") is not inside the body");
         pts.emplace_back(K::Point_3(p[0], p[1], p[2]), i);
     }
     const Delaunay dt(pts.begin(), pts.end());
@@ -82,8 +91,25 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
             owner.push_back(-1);
         }
+        // a point strictly inside the cell: x_i, moved off the body faces it lies on by a small
+        // fraction of its nearest neighbour's distance (the bisectors are half that distance away)
+        Vec3 inward = Vec3::Zero();
+        for (const HalfSpace& h : body)
+            if (h.normal.dot(xi) >= h.offset - tol)
+                inward -= h.normal;
+        Vec3 xin = xi;
+        if (inward.squaredNorm() > 0.0)
+        {
+            real_t dmin = 1e300;
+            for (const auto& v : adj)
+            {
+                const index_t j = v->info();
+                dmin = std::min(dmin, (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm());
+            }
+            xin += 1e-3 * dmin * inward.normalized();
+        }
         Polyhedron P;
-        CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, K::Point_3(xi[0], xi[1], xi[2]));
+        CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, K::Point_3(xin[0], xin[1], xin[2]));
         real_t vol = 0.0;
         for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
         {

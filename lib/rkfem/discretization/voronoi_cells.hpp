@@ -40,6 +40,7 @@ struct VoronoiCells
     index_t size() const { return static_cast<index_t>(volume.size()); }
 };
 
-/// Cells of the points x (n x 3) inside the convex body; throws Error for points outside it.
+/// Cells of the points x (n x 3) in the convex body (on its surface allowed); throws Error for
+/// points outside it or duplicated.
 VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body);
 } // namespace rkfem

@@ -51,7 +51,34 @@ void ResultsWriter::write_mesh(const Model& model)
         part.insert(part.end(), b.n_elements(), b.part);
     }
     write_dataset_int(g, "connectivity", conn.data(), n_elements_, 8);
-    write_dataset_int(g, "part", part.data(), n_elements_, 1);
+    // cloud parts: each particle is a vertex cell; with any, the XDMF topology is mixed
+    // (XDMF cell codes: 9 hexahedron + 8 ids, 1 polyvertex + count 1 + id)
+    n_cells_ = model.n_cells();
+    std::vector<index_t> particles;
+    for (index_t ip = 0; ip < static_cast<index_t>(model.parts.size()); ++ip)
+        if (model.is_cloud(ip))
+            for (index_t i = model.parts[ip].node_begin; i < model.parts[ip].node_end; ++i)
+            {
+                particles.push_back(i);
+                part.push_back(ip);
+            }
+    if (!particles.empty())
+    {
+        std::vector<index_t> topo;
+        topo.reserve(9 * conn.size() / 8 + 3 * particles.size());
+        for (std::size_t e = 0; 8 * e < conn.size(); ++e)
+        {
+            topo.push_back(9);
+            topo.insert(topo.end(), conn.begin() + 8 * static_cast<std::ptrdiff_t>(e),
+                        conn.begin() + 8 * static_cast<std::ptrdiff_t>(e + 1));
+        }
+        for (index_t i : particles)
+            topo.insert(topo.end(), {1, 1, i});
+        topology_size_ = static_cast<long long>(topo.size());
+        write_dataset_int(g, "topology", topo.data(), topology_size_, 1);
+        write_dataset_int(g, "particles", particles.data(), static_cast<long long>(particles.size()), 1);
+    }
+    write_dataset_int(g, "part", part.data(), n_cells_, 1);
     H5Gclose(g);
     const hid_t s = H5Gcreate2(f, "steps", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     H5Gclose(s);
@@ -79,30 +106,50 @@ void ResultsWriter::write_step(const Model& model, real_t time)
     write_dataset(g, "coordinates", x.data(), n_nodes_, 3);
     write_dataset(g, "displacement", u.data(), n_nodes_, 3);
     write_dataset(g, "velocity", v.data(), n_nodes_, 3);
-    std::vector<real_t> stress(6 * n_elements_), pressure(n_elements_), eps(n_elements_, 0.0),
-        volume(n_elements_), damage(n_elements_, 0.0), delta(n_elements_, 0.0);
-    std::size_t e_global = 0;
+    std::vector<real_t> stress(6 * n_cells_), pressure(n_cells_), eps(n_cells_, 0.0), volume(n_cells_),
+        damage(n_cells_, 0.0), delta(n_cells_, 0.0);
+    std::size_t c = 0;
+    auto put_stress = [&](const Sym6& s)
+    {
+        // XDMF's Tensor6 order (xx, xy, xz, yy, yz, zz), which ParaView expands to the full
+        // symmetric tensor; not the solver's Voigt order (xx, yy, zz, xy, yz, zx)
+        constexpr int xdmf_order[6] = {XX, XY, ZX, YY, YZ, ZZ};
+        for (int k = 0; k < 6; ++k)
+            stress[6 * c + k] = s[xdmf_order[k]];
+        pressure[c] = -(s[0] + s[1] + s[2]) / 3.0;
+    };
     for (std::size_t b = 0; b < model.blocks.size(); ++b)
-        for (index_t e = 0; e < model.blocks[b].n_elements(); ++e, ++e_global)
+        for (index_t e = 0; e < model.blocks[b].n_elements(); ++e, ++c)
         {
-            const Sym6 s = model.element_stress(static_cast<index_t>(b), e);
-            // XDMF's Tensor6 order (xx, xy, xz, yy, yz, zz), which ParaView expands to the full
-            // symmetric tensor; not the solver's Voigt order (xx, yy, zz, xy, yz, zx)
-            constexpr int xdmf_order[6] = {XX, XY, ZX, YY, YZ, ZZ};
-            for (int k = 0; k < 6; ++k)
-                stress[6 * e_global + k] = s[xdmf_order[k]];
-            pressure[e_global] = -(s[0] + s[1] + s[2]) / 3.0;
-            volume[e_global] = model.blocks[b].volume[e];
-            eps[e_global] = model.element_plastic_strain(static_cast<index_t>(b), e);
-            damage[e_global] = model.element_history(static_cast<index_t>(b), e, Model::History::Damage);
-            delta[e_global] = model.element_history(static_cast<index_t>(b), e, Model::History::KccDelta);
+            put_stress(model.element_stress(static_cast<index_t>(b), e));
+            volume[c] = model.blocks[b].volume[e];
+            eps[c] = model.element_plastic_strain(static_cast<index_t>(b), e);
+            damage[c] = model.element_history(static_cast<index_t>(b), e, Model::History::Damage);
+            delta[c] = model.element_history(static_cast<index_t>(b), e, Model::History::KccDelta);
         }
-    write_dataset(g, "stress", stress.data(), n_elements_, 6);
-    write_dataset(g, "pressure", pressure.data(), n_elements_, 1);
-    write_dataset(g, "effective_plastic_strain", eps.data(), n_elements_, 1);
-    write_dataset(g, "volume", volume.data(), n_elements_, 1);
-    write_dataset(g, "damage", damage.data(), n_elements_, 1);
-    write_dataset(g, "kcc_scaled_damage", delta.data(), n_elements_, 1);
+    for (index_t ip = 0; ip < static_cast<index_t>(model.parts.size()); ++ip)
+    {
+        if (!model.is_cloud(ip))
+            continue;
+        const NodalBlock& nb = model.nodal_blocks[model.part_nodal[ip]];
+        for (index_t i = model.parts[ip].node_begin; i < model.parts[ip].node_end; ++i, ++c)
+        {
+            put_stress(model.nodal_stress(i));
+            volume[c] = 0.0;
+            const index_t l = i - nb.node_begin;
+            for (index_t k = nb.owner_offsets[l]; k < nb.owner_offsets[l + 1]; ++k)
+                volume[c] += nb.points.weight[nb.owner_points[k]] * nb.jacobian[nb.owner_points[k]];
+            eps[c] = model.nodal_history(i, Model::History::PlasticStrain);
+            damage[c] = model.nodal_history(i, Model::History::Damage);
+            delta[c] = model.nodal_history(i, Model::History::KccDelta);
+        }
+    }
+    write_dataset(g, "stress", stress.data(), n_cells_, 6);
+    write_dataset(g, "pressure", pressure.data(), n_cells_, 1);
+    write_dataset(g, "effective_plastic_strain", eps.data(), n_cells_, 1);
+    write_dataset(g, "volume", volume.data(), n_cells_, 1);
+    write_dataset(g, "damage", damage.data(), n_cells_, 1);
+    write_dataset(g, "kcc_scaled_damage", delta.data(), n_cells_, 1);
     H5Gclose(g);
     H5Fflush(f, H5F_SCOPE_GLOBAL);
     times_.push_back(time);
@@ -154,20 +201,24 @@ void ResultsWriter::write_xdmf() const
             };
             x << " <Grid Name=\"step_" << i << "\" GridType=\"Uniform\">\n"
               << "  <Time Value=\"" << times_[i] << "\"/>\n"
-              << "  <Topology TopologyType=\"Hexahedron\" NumberOfElements=\"" << n_elements_ << "\">"
-              << item("results.h5:/mesh/connectivity", n_elements_, 8, "Int", 4) << "</Topology>\n"
+              << (topology_size_ > 0
+                      ? "  <Topology TopologyType=\"Mixed\" NumberOfElements=\"" + std::to_string(n_cells_) + "\">" +
+                            item("results.h5:/mesh/topology", topology_size_, 1, "Int", 4)
+                      : "  <Topology TopologyType=\"Hexahedron\" NumberOfElements=\"" + std::to_string(n_elements_) +
+                            "\">" + item("results.h5:/mesh/connectivity", n_elements_, 8, "Int", 4))
+              << "</Topology>\n"
               << "  <Geometry GeometryType=\"XYZ\">" << item((g + "/coordinates").c_str(), n_nodes_, 3)
               << "</Geometry>\n";
             for (const char* v : {"displacement", "velocity"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
                   << item((g + "/" + v).c_str(), n_nodes_, 3) << "</Attribute>\n";
             x << "  <Attribute Name=\"stress\" AttributeType=\"Tensor6\" Center=\"Cell\">"
-              << item((g + "/stress").c_str(), n_elements_, 6) << "</Attribute>\n";
+              << item((g + "/stress").c_str(), n_cells_, 6) << "</Attribute>\n";
             for (const char* v : {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Scalar\" Center=\"Cell\">"
-                  << item((g + "/" + v).c_str(), n_elements_, 1) << "</Attribute>\n";
+                  << item((g + "/" + v).c_str(), n_cells_, 1) << "</Attribute>\n";
             x << "  <Attribute Name=\"part\" AttributeType=\"Scalar\" Center=\"Cell\">"
-              << item("results.h5:/mesh/part", n_elements_, 1, "Int", 4) << "</Attribute>\n";
+              << item("results.h5:/mesh/part", n_cells_, 1, "Int", 4) << "</Attribute>\n";
             x << " </Grid>\n";
         }
         x << "</Grid>\n</Domain>\n</Xdmf>\n";

@@ -40,5 +40,7 @@ class ResultsWriter
     long long file_ = -1; // hid_t
     std::vector<real_t> times_;
     long long n_nodes_ = 0, n_elements_ = 0;
+    long long n_cells_ = 0;       ///< elements, then the particles of cloud parts (vertex cells)
+    long long topology_size_ = 0; ///< > 0: a mixed topology (hexahedra and polyvertices) of this length
 };
 } // namespace rkfem

@@ -141,6 +141,9 @@ Model Model::build(const Deck& deck)
         for (const auto& f : mesh.faces)
             info.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset, f[3] + offset});
         info.named_faces = mesh.named_faces;
+        for (const auto& [name, ids] : mesh.named_nodes)
+            for (index_t i : ids)
+                info.named_nodes[name].push_back(i + offset);
 
         HexBlock blk;
         blk.part = static_cast<index_t>(ip);
@@ -165,7 +168,8 @@ Model Model::build(const Deck& deck)
         m.part_nodal.push_back(-1);
         if (is_nodal(ps.formulation))
         {
-            NodalBlock nb = build_nodal_block(ps, mesh, offset);
+            NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(ps, mesh, offset)
+                                                                             : build_nodal_block(ps, mesh, offset);
             nb.part = static_cast<index_t>(ip);
             add_nodal_mass(nb, m.nodes);
             m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
@@ -209,11 +213,18 @@ Model Model::build(const Deck& deck)
                         ids.push_back(i);
                     continue;
                 }
+                if (auto nit = pi.named_nodes.find(s.select.name); nit != pi.named_nodes.end())
+                {
+                    ids.insert(ids.end(), nit->second.begin(), nit->second.end());
+                    continue;
+                }
                 auto it = pi.named_faces.find(s.select.name);
                 if (it == pi.named_faces.end())
                 {
                     std::string names = "all";
                     for (const auto& [n, _] : pi.named_faces)
+                        names += ", " + n;
+                    for (const auto& [n, _] : pi.named_nodes)
                         names += ", " + n;
                     throw DeckError({s.loc.where, s.loc.path + ".select.name"},
                                     "part '" + pi.name + "' has no set named '" + s.select.name + "'",
@@ -749,6 +760,41 @@ real_t Model::element_history(index_t b, index_t e, History h) const
     for (index_t g = 0; g < npe; ++g)
         s += value(blk.plastic, static_cast<std::size_t>(e) * npe + g);
     return s / npe;
+}
+
+real_t Model::nodal_history(index_t node, History h) const
+{
+    const index_t ip = nodes.part[node];
+    if (part_nodal[ip] < 0)
+        return 0.0;
+    const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+    if (!nb.plastic.active())
+        return 0.0;
+    const index_t i = node - nb.node_begin;
+    real_t s = 0.0;
+    const index_t k0 = nb.owner_offsets[i], k1 = nb.owner_offsets[i + 1];
+    for (index_t k = k0; k < k1; ++k)
+    {
+        const std::size_t p = static_cast<std::size_t>(nb.owner_points[k]);
+        s += h == History::PlasticStrain ? nb.plastic.eps_p[p]
+             : h == History::Damage      ? nb.plastic.damage(p)
+                                         : nb.plastic.kcc_delta(p);
+    }
+    return k1 > k0 ? s / static_cast<real_t>(k1 - k0) : 0.0;
+}
+
+bool Model::is_cloud(index_t part) const
+{
+    return deck_.parts[static_cast<std::size_t>(part)].generator.type == GeneratorSpec::Type::Cloud;
+}
+
+index_t Model::n_cells() const
+{
+    index_t n = n_elements();
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+        if (is_cloud(ip))
+            n += parts[ip].node_end - parts[ip].node_begin;
+    return n;
 }
 
 Sym6 Model::element_stress(index_t b, index_t e) const

@@ -23,6 +23,7 @@ struct PartInfo
     index_t element_offset = 0; ///< first global element index of the part's block
     std::vector<Quad> faces;    ///< boundary faces (global node ids)
     std::map<std::string, std::vector<index_t>> named_faces;
+    std::map<std::string, std::vector<index_t>> named_nodes; ///< cloud parts: generator node groups (global ids)
 };
 
 /// Prescribed motion of one degree of freedom (3 node + component).
@@ -132,6 +133,12 @@ class Model
         KccDelta,      ///< K&C scaled damage delta, 0..2 (0 for other models)
     };
     real_t element_history(index_t block, index_t e, History h) const;
+    /// The same averaged over the points a node owns (nodal parts; 0 elsewhere).
+    real_t nodal_history(index_t node, History h) const;
+    /// Cloud parts (generator type cloud) have no elements: their particles are the output cells.
+    bool is_cloud(index_t part) const;
+    /// Output cells: every element, then (per part, in part order) the particles of cloud parts.
+    index_t n_cells() const;
     real_t element_plastic_strain(index_t block, index_t e) const { return element_history(block, e, History::PlasticStrain); }
     /// Element stress (average over its points), Voigt.
     Sym6 element_stress(index_t block, index_t e) const;

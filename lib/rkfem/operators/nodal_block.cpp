@@ -1,6 +1,7 @@
 #include "rkfem/operators/nodal_block.hpp"
 
 #include <algorithm>
+#include <map>
 #include <immintrin.h>
 #include <cmath>
 
@@ -8,6 +9,7 @@
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
+#include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 #include <memory>
 
@@ -418,15 +420,68 @@ RkParams rk_params(const RkSpec& spec)
     return rp;
 }
 
-NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
+namespace
+{
+NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset)
 {
     NodalBlock nb;
     nb.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
     nb.plastic.configure(ps.material);
     nb.node_begin = offset;
-    nb.node_end = offset + mesh.n_nodes();
+    nb.node_end = offset + n_nodes;
     nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);
     nb.bulk_viscosity = ps.bulk_viscosity;
+    return nb;
+}
+
+/// RK interpolation Psi_J(X_I) at the particles, for physical nodal values.
+void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::vector<real_t>& x, index_t offset)
+{
+    RkSample smp;
+    nb.interp_offsets.assign(1, 0);
+    for (std::size_t i = 0; 3 * i < x.size(); ++i)
+    {
+        rk.evaluate(Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]), false, smp);
+        for (index_t k = 0; k < smp.size(); ++k)
+        {
+            nb.interp_nodes.push_back(smp.nodes[k] + offset);
+            nb.interp_values.push_back(smp.psi[k]);
+        }
+        nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
+    }
+}
+
+DeckError singular_support(const PartSpec& ps, const SingularMomentError& e)
+{
+    return DeckError({ps.rk.loc.where.empty() ? ps.loc.where : ps.rk.loc.where, ps.loc.path + ".rk.normalized_support"},
+                     e.what(), "expected a support large enough that every point is covered by 4 particles not in one plane");
+}
+
+/// Operators to global node ids, l0 per point from the owner node, state arrays, crack bands.
+void finish_block(NodalBlock& nb, index_t offset, const std::vector<real_t>& l0, const std::vector<real_t>& band)
+{
+    for (auto* op : {&nb.points, &nb.stabilization})
+    {
+        for (auto& n : op->nodes)
+            n += offset;
+        for (auto& o : op->owner)
+            o += offset;
+    }
+    nb.length0.resize(static_cast<std::size_t>(nb.points.n_points()));
+    std::vector<real_t> lengths(nb.length0.size());
+    for (index_t p = 0; p < nb.points.n_points(); ++p)
+    {
+        nb.length0[p] = l0[nb.points.owner[p] - offset];
+        lengths[p] = band[nb.points.owner[p] - offset];
+    }
+    nb.initialize();
+    nb.plastic.set_lengths(lengths);
+}
+} // namespace
+
+NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
+{
+    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
     const NodalScheme scheme = ps.nodal.scheme == "dni"       ? NodalScheme::Dni
                                : ps.nodal.scheme == "sd-scni" ? NodalScheme::SdScni
                                                               : NodalScheme::Scni;
@@ -449,41 +504,78 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
         if (rk)
-        {
-            // interpolation Psi_J(X_I) for physical nodal values
-            RkSample smp;
-            nb.interp_offsets.assign(1, 0);
-            for (index_t i = 0; i < mesh.n_nodes(); ++i)
-            {
-                rk->evaluate(mesh.node(i), false, smp);
-                for (index_t k = 0; k < smp.size(); ++k)
-                {
-                    nb.interp_nodes.push_back(smp.nodes[k] + offset);
-                    nb.interp_values.push_back(smp.psi[k]);
-                }
-                nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
-            }
-        }
+            add_interpolation(nb, *rk, mesh.x, offset);
     }
     catch (const SingularMomentError& e)
     {
-        throw DeckError({ps.rk.loc.where.empty() ? ps.loc.where : ps.rk.loc.where, ps.loc.path + ".rk.normalized_support"},
-                        e.what(),
-                        "expected a support large enough that every point is covered by 4 particles not in one plane");
+        throw singular_support(ps, e);
     }
-    for (auto* op : {&nb.points, &nb.stabilization})
-    {
-        for (auto& n : op->nodes)
-            n += offset;
-        for (auto& o : op->owner)
-            o += offset;
-    }
+    // stable-step length and crack band: the shortest mesh edge at the node
     const std::vector<real_t> l0 = nodal_spacing(mesh, false);
-    nb.length0.resize(static_cast<std::size_t>(nb.points.n_points()));
-    for (index_t p = 0; p < nb.points.n_points(); ++p)
-        nb.length0[p] = l0[nb.points.owner[p] - offset];
-    nb.initialize();
-    nb.plastic.set_lengths(nb.length0); // crack-band length: the shortest mesh edge at the node
+    finish_block(nb, offset, l0, l0);
+    return nb;
+}
+
+NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t offset)
+{
+    const GeneratorSpec& g = ps.generator;
+    const index_t n = cloud.n_nodes();
+    VoronoiCells cells;
+    try
+    {
+        cells = voronoi_cells(cloud.x, box_halfspaces(g.origin, g.origin + g.size));
+    }
+    catch (const Error& e)
+    {
+        throw DeckError({g.loc.where, ps.loc.path + ".generator"}, e.what(),
+                        "expected distinct particles inside the box body");
+    }
+    // per particle: the facet area shared with each neighbour, the shortest distance to a
+    // neighbour (stable-step length) and the longest distance to a neighbour across a facet of
+    // at least 10% of the cell's largest (support size; jitter adds small facets to diagonal
+    // neighbours, which this leaves out)
+    std::vector<real_t> nearest(static_cast<std::size_t>(n), 1e300), reach(static_cast<std::size_t>(n), 0.0);
+    for (index_t i = 0; i < n; ++i)
+    {
+        std::map<index_t, real_t> area;
+        for (index_t q = cells.offsets[i]; q < cells.offsets[i + 1]; ++q)
+            if (cells.points[q].neighbour >= 0)
+                area[cells.points[q].neighbour] += cells.points[q].nda.norm();
+        real_t amax = 0.0;
+        for (const auto& [j, a] : area)
+            amax = std::max(amax, a);
+        for (const auto& [j, a] : area)
+        {
+            const real_t dist = (cloud.node(i) - cloud.node(j)).norm();
+            nearest[i] = std::min(nearest[i], dist);
+            if (a >= 0.1 * amax)
+                reach[i] = std::max(reach[i], dist);
+        }
+        if (area.empty())
+            throw DeckError({g.loc.where, ps.loc.path + ".generator"}, "particle " + std::to_string(i) + " has no neighbour",
+                            "expected at least 2 particles");
+    }
+    NodalBlock nb = block_frame(ps, n, offset);
+    std::vector<real_t> a = reach;
+    for (auto& v : a)
+        v *= ps.rk.normalized_support;
+    auto rk = std::make_shared<const RkShapeFunctions>(cloud.x, std::move(a), rk_params(ps.rk));
+    nb.rk = rk;
+    try
+    {
+        const RkShapes shapes(*rk);
+        nb.points = ps.nodal.scheme == "dni" ? build_dni_cells(cells.volume, cloud.x, shapes)
+                                             : build_scni_cells(cells, cloud.x, shapes);
+        add_interpolation(nb, *rk, cloud.x, offset);
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    std::vector<real_t> band(cells.volume.size());
+    for (std::size_t i = 0; i < band.size(); ++i)
+        band[i] = std::cbrt(cells.volume[i]); // crack band: the cell's size
+    finish_block(nb, offset, nearest, band);
     return nb;
 }
 

@@ -115,6 +115,13 @@ RkParams rk_params(const RkSpec& spec);
 /// the nodes. A singular RK moment matrix becomes a DeckError naming rk.normalized_support.
 NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
 
+/// Builds the block of a cloud part (generator type cloud; rkpm only): Voronoi cells of the
+/// particles clipped to the box body, RK support a_I = normalized_support x the longest distance
+/// to a neighbour across a facet of at least 10% of the cell's largest, SCNI on the cells (or
+/// DNI with the cell volumes), stable-step length = the nearest neighbour's distance, crack band
+/// = V^(1/3). Throws DeckError for coincident particles or a singular moment matrix.
+NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t offset);
+
 /// Internal force pass (material update into trial state, per-point tensors); assembly is
 /// separate (assemble_nodal_forces). d_hourglass carries the stabilization work.
 ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt);

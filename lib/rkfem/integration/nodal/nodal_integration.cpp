@@ -241,6 +241,24 @@ IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vecto
                     });
 }
 
+IntegrationOperator build_dni_cells(const std::vector<real_t>& volume, const std::vector<real_t>& x,
+                                    const ShapeEvaluator& shapes)
+{
+    return assemble(static_cast<index_t>(volume.size()),
+                    [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
+                        std::vector<real_t>&)
+                    {
+                        std::vector<Vec3> grad;
+                        shapes.gradients_at_node(i, nodes, grad);
+                        for (std::size_t k = 0; k < nodes.size(); ++k)
+                            out.emplace_back(nodes[k], grad[k]);
+                        merge(out, 1.0);
+                        w = volume[i];
+                        pos = Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                        owner = i;
+                    });
+}
+
 IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd)
 {
     IntegrationOperator op;

@@ -36,6 +36,10 @@ IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const S
 IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vector<real_t>& x,
                                      const ShapeEvaluator& shapes);
 
+/// DNI on a cloud: one point per particle with weight volume[i] and gradient grad Psi_I(x_i).
+IntegrationOperator build_dni_cells(const std::vector<real_t>& volume, const std::vector<real_t>& x,
+                                    const ShapeEvaluator& shapes);
+
 /// MSCNI stabilization from an SCNI operator and the SD-SCNI operator of the same mesh.
 IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd);
 
