@@ -148,6 +148,23 @@ std::vector<char> touching_boundary(const Fixture& fx)
     return touch;
 }
 
+/// Linear momentum sum m v, angular momentum sum m (x - dt v) x v (with dt the step: the
+/// leapfrog's invariant x(n) x v(n+1/2)) and the scale sum m |v|.
+void leapfrog_momenta(const Fixture& fx, real_t dt, Vec3& p, Vec3& l, real_t& scale)
+{
+    p.setZero();
+    l.setZero();
+    scale = 0.0;
+    for (index_t i = 0; i < fx.mesh.n_nodes(); ++i)
+    {
+        const Vec3 v(fx.nodes.v[3 * i], fx.nodes.v[3 * i + 1], fx.nodes.v[3 * i + 2]);
+        const Vec3 x(fx.nodes.x[3 * i], fx.nodes.x[3 * i + 1], fx.nodes.x[3 * i + 2]);
+        p += fx.nodes.mass[i] * v;
+        l += fx.nodes.mass[i] * (x - dt * v).cross(v);
+        scale += fx.nodes.mass[i] * v.norm();
+    }
+}
+
 class DynamicPatch : public ::testing::TestWithParam<std::tuple<Formulation, std::string>>
 {
 };
@@ -229,20 +246,7 @@ TEST(NodalMomentum, FreeBlockConservesLinearMomentum)
         std::uniform_real_distribution<real_t> u(-10.0, 10.0);
         for (auto& v : fx.nodes.v)
             v = u(gen);
-        auto momenta = [&](Vec3& p, Vec3& l, real_t& scale)
-        {
-            p.setZero();
-            l.setZero();
-            scale = 0.0;
-            for (index_t i = 0; i < fx.mesh.n_nodes(); ++i)
-            {
-                const Vec3 v(fx.nodes.v[3 * i], fx.nodes.v[3 * i + 1], fx.nodes.v[3 * i + 2]);
-                const Vec3 x(fx.nodes.x[3 * i], fx.nodes.x[3 * i + 1], fx.nodes.x[3 * i + 2]);
-                p += fx.nodes.mass[i] * v;
-                l += fx.nodes.mass[i] * x.cross(v);
-                scale += fx.nodes.mass[i] * v.norm();
-            }
-        };
+        auto momenta = [&](Vec3& p, Vec3& l, real_t& scale) { leapfrog_momenta(fx, 0.0, p, l, scale); };
         const std::vector<char> none(static_cast<std::size_t>(fx.mesh.n_nodes()), 0);
         const real_t dt = 0.5 * 0.01 / fx.blk.material.wave_speed();
         run_steps(fx, 1, dt, none, [](index_t) { return Vec3::Zero(); });
@@ -367,20 +371,7 @@ TEST(NodalMomentum, FreeCloudConservesLinearAndAngularMomentum)
     for (auto& v : fx.nodes.v)
         v = u(gen);
     const real_t dt = 0.5 * 0.005 / fx.blk.material.wave_speed();
-    auto momenta = [&](Vec3& p, Vec3& l, real_t& scale)
-    {
-        p.setZero();
-        l.setZero();
-        scale = 0.0;
-        for (index_t i = 0; i < fx.mesh.n_nodes(); ++i)
-        {
-            const Vec3 v(fx.nodes.v[3 * i], fx.nodes.v[3 * i + 1], fx.nodes.v[3 * i + 2]);
-            const Vec3 x(fx.nodes.x[3 * i], fx.nodes.x[3 * i + 1], fx.nodes.x[3 * i + 2]);
-            p += fx.nodes.mass[i] * v;
-            l += fx.nodes.mass[i] * (x - dt * v).cross(v); // leapfrog: x(n) x v(n+1/2)
-            scale += fx.nodes.mass[i] * v.norm();
-        }
-    };
+    auto momenta = [&](Vec3& p, Vec3& l, real_t& scale) { leapfrog_momenta(fx, dt, p, l, scale); };
     const std::vector<char> none(static_cast<std::size_t>(fx.mesh.n_nodes()), 0);
     run_steps(fx, 1, dt, none, [](index_t) { return Vec3::Zero(); });
     Vec3 p0, l0, p1, l1;

@@ -182,6 +182,19 @@ inline void scatter_point(const IntegrationOperator& op, index_t p, const real_t
 #endif
 }
 
+/// V0 P = V0 J (sigma - q 1) F^-T of lane l, by columns ([3 j + i] = P_ij).
+template <int W>
+inline void first_piola(real_t VJ, real_t q, const real_t (&sn)[6][W], const real_t (&Fi)[3][3][W], int l,
+                        real_t (&P)[9][W])
+{
+    const real_t S[3][3] = {{sn[0][l] - q, sn[3][l], sn[5][l]},
+                            {sn[3][l], sn[1][l] - q, sn[4][l]},
+                            {sn[5][l], sn[4][l], sn[2][l] - q}};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
+}
+
 constexpr int kPointLanes = 8; // stress points per batch (one AVX-512 register of doubles)
 
 /// One batch of kPointLanes stress points: the stencil sums per point (gather_gradients), then
@@ -337,12 +350,7 @@ template <bool PLASTIC, bool FULL>
         const real_t VJ = op.weight[p] * J;
         e_int[l] = dt * VJ * power;
         e_bv[l] = -dt * VJ * q * trd;
-        const real_t S[3][3] = {{sn[0][l] - q, sn[3][l], sn[5][l]},
-                                {sn[3][l], sn[1][l] - q, sn[4][l]},
-                                {sn[5][l], sn[4][l], sn[2][l] - q}};
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-                P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
+        first_piola(VJ, q, sn, Fi, l, P);
     }
 
     const bool stabilized = blk.n_stab() > 0; // the stabilization of this point's sub-cells needs F^-1 and W
@@ -365,12 +373,7 @@ template <bool PLASTIC, bool FULL>
             dtl[l] = len / (Q + std::sqrt(Q * Q + c * c));
             const real_t VJ = op.weight[p] * J;
             e_bv[l] = -dt * VJ * q * trd;
-            const real_t S[3][3] = {{sn[0][l] - q, sn[3][l], sn[5][l]},
-                                    {sn[3][l], sn[1][l] - q, sn[4][l]},
-                                    {sn[5][l], sn[4][l], sn[2][l] - q}};
-            for (int i = 0; i < 3; ++i)
-                for (int j = 0; j < 3; ++j)
-                    P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
+            first_piola(VJ, q, sn, Fi, l, P);
         }
         blk.point_dt[p] = dtl[l];
         real_t* e = &blk.point_energy[3 * p];

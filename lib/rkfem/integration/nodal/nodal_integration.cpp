@@ -128,20 +128,7 @@ std::vector<real_t> nodal_volumes(const HexMesh& mesh)
 
 IntegrationOperator build_dni(const HexMesh& mesh, const ShapeEvaluator& shapes)
 {
-    const std::vector<real_t> vol = nodal_volumes(mesh);
-    return assemble(mesh.n_nodes(),
-                    [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
-                        std::vector<real_t>&)
-                    {
-                        std::vector<Vec3> grad;
-                        shapes.gradients_at_node(i, nodes, grad);
-                        for (std::size_t k = 0; k < nodes.size(); ++k)
-                            out.emplace_back(nodes[k], grad[k]);
-                        merge(out, 1.0);
-                        w = vol[i];
-                        pos = mesh.node(i);
-                        owner = i;
-                    });
+    return build_dni_cells(nodal_volumes(mesh), mesh.x, shapes);
 }
 
 IntegrationOperator build_scni(const HexMesh& mesh, const ShapeEvaluator& shapes)
