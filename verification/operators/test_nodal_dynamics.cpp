@@ -55,11 +55,26 @@ struct Fixture
     }
 };
 
-/// alpha_crit = (2 / omega_max) c / min_p l0_p for a free block.
-real_t critical_dt_factor(const PartSpec& ps, real_t jitter)
+/// A free cloud part: a 5 x 5 x 5 lattice of 10 mm spacing jittered by `jitter` spacing.
+Fixture cloud_fixture(PartSpec ps, real_t jitter, int seed)
 {
-    const real_t h = 0.01;
-    Fixture fx(ps, 5, h, jitter);
+    ps.generator.type = GeneratorSpec::Type::Cloud;
+    ps.generator.size = Vec3(0.05, 0.05, 0.05);
+    ps.generator.element_size = 0.01;
+    ps.generator.jitter = jitter;
+    ps.generator.seed = seed;
+    Fixture fx;
+    fx.mesh = generate_cloud(ps.generator);
+    fx.nodes.resize(fx.mesh.n_nodes());
+    fx.nodes.x0 = fx.nodes.x = fx.mesh.x;
+    fx.blk = build_cloud_block(ps, fx.mesh, 0);
+    add_nodal_mass(fx.blk, fx.nodes);
+    return fx;
+}
+
+/// alpha_crit = (2 / omega_max) c / min_p l0_p for a free block.
+real_t critical_dt_factor(const Fixture& fx)
+{
     SparseMatrix K = assemble_stiffness(fx.blk.points, fx.blk.material, fx.mesh.n_nodes());
     if (fx.blk.n_stab() > 0)
         K += assemble_stiffness(fx.blk.stabilization, fx.blk.material, fx.mesh.n_nodes(), fx.blk.stabilization_coefficient);
@@ -75,6 +90,8 @@ real_t critical_dt_factor(const PartSpec& ps, real_t jitter)
         lmin = std::min(lmin, fx.blk.length0[p]);
     return 2.0 / omega * fx.blk.material.wave_speed() / lmin;
 }
+
+real_t critical_dt_factor(const PartSpec& ps, real_t jitter) { return critical_dt_factor(Fixture(ps, 5, 0.01, jitter)); }
 } // namespace
 
 TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValue)
@@ -96,6 +113,41 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValue)
         std::printf("%-22s alpha_crit regular %.3f, jittered 0.25 h %.3f; default alpha %.3f\n", r.name, a0, a1,
                     fx.blk.dt_factor);
         EXPECT_LT(fx.blk.dt_factor, std::min(a0, a1)) << r.name;
+    }
+}
+
+// Cloud parts measure l0 as the nearest neighbour's distance; the default alpha (rkpm 1.0) must
+// stay below the critical value on regular and jittered clouds.
+TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValueOnClouds)
+{
+    const PartSpec ps = part(Formulation::Rkpm, "scni", "none");
+    for (const real_t jitter : {0.0, 0.25, 0.45})
+        for (const int seed : {1, 2})
+        {
+            const Fixture fx = cloud_fixture(ps, jitter, seed);
+            const real_t a = critical_dt_factor(fx);
+            std::printf("cloud, jitter %.2f, seed %d: alpha_crit %.3f; default alpha %.3f\n", jitter, seed, a,
+                        fx.blk.dt_factor);
+            EXPECT_LT(fx.blk.dt_factor, a) << "jitter " << jitter << ", seed " << seed;
+        }
+    // uniformly random points (an imported cloud with no lattice behind it)
+    for (const int seed : {1, 2})
+    {
+        PartSpec pc = ps;
+        pc.generator.type = GeneratorSpec::Type::Cloud;
+        pc.generator.size = Vec3(0.05, 0.05, 0.05);
+        Fixture fx;
+        std::mt19937 gen(static_cast<unsigned>(seed));
+        std::uniform_real_distribution<real_t> u(0.0, 0.05);
+        for (int i = 0; i < 3 * 216; ++i)
+            fx.mesh.x.push_back(u(gen));
+        fx.nodes.resize(fx.mesh.n_nodes());
+        fx.nodes.x0 = fx.nodes.x = fx.mesh.x;
+        fx.blk = build_cloud_block(pc, fx.mesh, 0);
+        add_nodal_mass(fx.blk, fx.nodes);
+        const real_t a = critical_dt_factor(fx);
+        std::printf("random cloud, seed %d: alpha_crit %.3f; default alpha %.3f\n", seed, a, fx.blk.dt_factor);
+        EXPECT_LT(fx.blk.dt_factor, a) << "random cloud, seed " << seed;
     }
 }
 
@@ -355,17 +407,7 @@ TEST(NodalAssembly, ScatterAndGatherAgreeAndDoNotDependOnThreads)
 // invariants to round-off over 200 steps.
 TEST(NodalMomentum, FreeCloudConservesLinearAndAngularMomentum)
 {
-    PartSpec ps = part(Formulation::Rkpm, "scni", "none");
-    ps.generator.type = GeneratorSpec::Type::Cloud;
-    ps.generator.size = Vec3(0.04, 0.04, 0.04);
-    ps.generator.element_size = 0.01;
-    ps.generator.jitter = 0.3;
-    Fixture fx;
-    fx.mesh = generate_cloud(ps.generator);
-    fx.nodes.resize(fx.mesh.n_nodes());
-    fx.nodes.x0 = fx.nodes.x = fx.mesh.x;
-    fx.blk = build_cloud_block(ps, fx.mesh, 0);
-    add_nodal_mass(fx.blk, fx.nodes);
+    Fixture fx = cloud_fixture(part(Formulation::Rkpm, "scni", "none"), 0.3, 1);
     std::mt19937 gen(9);
     std::uniform_real_distribution<real_t> u(-10.0, 10.0);
     for (auto& v : fx.nodes.v)

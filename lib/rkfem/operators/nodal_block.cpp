@@ -533,11 +533,14 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         throw DeckError({g.loc.where, ps.loc.path + ".generator"}, e.what(),
                         "expected distinct particles inside the box body");
     }
-    // per particle: the facet area shared with each neighbour, the shortest distance to a
-    // neighbour (stable-step length) and the longest distance to a neighbour across a facet of
-    // at least 10% of the cell's largest (support size; jitter adds small facets to diagonal
-    // neighbours, which this leaves out)
-    std::vector<real_t> nearest(static_cast<std::size_t>(n), 1e300), reach(static_cast<std::size_t>(n), 0.0);
+    // per particle: the facet area shared with each neighbour, and the longest distance to a
+    // neighbour across a facet of at least 10% of the cell's largest (jitter adds small facets to
+    // diagonal neighbours, which this leaves out). It sets the support size and the stable-step
+    // length: with it the critical alpha of free clouds is 1.15-1.41 for jitter 0-0.45 and for
+    // random points (NodalTimeStep.DefaultFactorIsBelowTheCriticalValueOnClouds), against 1.175
+    // for the regular lattice; the nearest neighbour's distance gave 2-6 on jittered clouds
+    // (needlessly small steps).
+    std::vector<real_t> reach(static_cast<std::size_t>(n), 0.0);
     for (index_t i = 0; i < n; ++i)
     {
         std::map<index_t, real_t> area;
@@ -549,10 +552,8 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
             amax = std::max(amax, a);
         for (const auto& [j, a] : area)
         {
-            const real_t dist = (cloud.node(i) - cloud.node(j)).norm();
-            nearest[i] = std::min(nearest[i], dist);
             if (a >= 0.1 * amax)
-                reach[i] = std::max(reach[i], dist);
+                reach[i] = std::max(reach[i], (cloud.node(i) - cloud.node(j)).norm());
         }
         if (area.empty())
             throw DeckError({g.loc.where, ps.loc.path + ".generator"}, "particle " + std::to_string(i) + " has no neighbour",
@@ -578,7 +579,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     std::vector<real_t> band(cells.volume.size());
     for (std::size_t i = 0; i < band.size(); ++i)
         band[i] = std::cbrt(cells.volume[i]); // crack band: the cell's size
-    finish_block(nb, offset, nearest, band);
+    finish_block(nb, offset, reach, band);
     return nb;
 }
 
