@@ -156,7 +156,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         };
         observe(false);
         real_t dt_stable = rep.dt_stable;
-        const index_t ne = model.n_elements();
+        const index_t ne = model.n_cells(); // elements, and the particles of cloud parts
         while (t < ts.end * (1 - 1e-12))
         {
             if (ts.max_steps > 0 && step >= ts.max_steps)

@@ -25,7 +25,7 @@ struct RunSummary
     std::int64_t steps = 0;
     real_t end_time = 0.0;
     real_t wall_seconds = 0.0;
-    real_t ns_per_element_cycle = 0.0;
+    real_t ns_per_element_cycle = 0.0; ///< per output cell: elements, and particles of cloud parts
     Energies energy;
     real_t max_balance_error = 0.0;
     int n_outputs = 0;
