@@ -255,6 +255,12 @@ Model Model::build(const Deck& deck)
     // face sets
     for (const auto& s : d.face_sets)
     {
+        bool only_clouds = true;
+        for (index_t ip : part_range(s.part))
+            only_clouds = only_clouds && m.is_cloud(ip);
+        if (only_clouds && !part_range(s.part).empty())
+            throw DeckError({s.loc.where, s.loc.path + ".part"}, "selects only cloud parts, which have no faces",
+                            "expected a part made by a mesh generator (face loads on clouds are not built yet)");
         std::vector<Quad> faces;
         for (index_t ip : part_range(s.part))
         {
