@@ -362,8 +362,8 @@ TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
                     ":6: parts.col.generator.points", "cannot open");
     expect_rejected("cloud_faces.yaml",
                     cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n") +
-                        "face_sets:\n  top: {part: col, select: {type: named, name: top}}\n",
-                    ":14: face_sets.top.part", "selects only cloud parts, which have no faces");
+                        "face_sets:\n  top: {part: col, select: {type: named, name: nose}}\n",
+                    ":14: face_sets.top.select.name", "cloud part 'col' has no face set named 'nose'");
     // a file with a point outside the box: named by file line
     write_deck("outside.csv", "# x, y, z in mm\n0.5, 0.5, 1\n0.5, 0.5, 12\n");
     expect_rejected("cloud_outside.yaml",

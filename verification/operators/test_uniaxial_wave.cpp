@@ -297,3 +297,53 @@ boundary_conditions:
     std::printf("  front %.1f mm vs c t = %.2f mm\n", front * 1e3, c * s.end_time * 1e3);
     EXPECT_NEAR(front, c * s.end_time, 1.5e-3);
 }
+
+// A pressure step on the top of a cloud column (the facets of the Voronoi cells on the body's
+// surface carry -p Psi_I n dA): the load's resultant is -p A to round-off (partition of unity, the
+// facets tile the face), and behind the front the particles carry sigma_zz = -p.
+TEST(UniaxialWave, PressureStepOnACloud)
+{
+    Model m = test::model_from(R"(
+title: cloud pressure wave
+time: {end: 20 us}
+parts:
+  column:
+    generator: {type: cloud, size: [3 mm, 3 mm, 140 mm], spacing: 1 mm, jitter: 0.25, seed: 4}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: rkpm
+node_sets:
+  all: {select: {type: named, name: all}}
+face_sets:
+  loaded: {select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: all, fixed: [x, y]}
+loads:
+  - {type: pressure, face_set: loaded, pressure: 100 MPa}
+)");
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt, {});
+    ASSERT_EQ(s.status, "completed") << s.message;
+    const real_t p = 100e6, area = 9e-6;
+    real_t fz = 0.0;
+    for (index_t n = 0; n < m.nodes.size(); ++n)
+        fz += m.nodes.f_ext[3 * n + 2];
+    EXPECT_NEAR(fz, -p * area, 1e-12 * p * area);
+    std::vector<real_t> slab(8, 0.0);
+    std::vector<int> count(8, 0);
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+    {
+        const real_t depth = 140e-3 - m.nodes.x0[3 * i + 2]; // from the loaded end
+        if (depth > 10e-3 && depth < 90e-3)
+        {
+            const int k = static_cast<int>((depth - 10e-3) / 10e-3);
+            slab[k] += m.nodal_stress(i)[ZZ];
+            ++count[k];
+        }
+    }
+    for (int k = 0; k < 8; ++k)
+    {
+        std::printf("  %d-%d mm from the loaded end: sigma_zz = %.4f p\n", 10 + 10 * k, 20 + 10 * k, slab[k] / count[k] / -p);
+        EXPECT_NEAR(slab[k] / count[k], -p, 0.02 * p) << "slab " << k;
+    }
+}

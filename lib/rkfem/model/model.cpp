@@ -255,16 +255,37 @@ Model Model::build(const Deck& deck)
     // face sets
     for (const auto& s : d.face_sets)
     {
-        bool only_clouds = true;
-        for (index_t ip : part_range(s.part))
-            only_clouds = only_clouds && m.is_cloud(ip);
-        if (only_clouds && !part_range(s.part).empty())
-            throw DeckError({s.loc.where, s.loc.path + ".part"}, "selects only cloud parts, which have no faces",
-                            "expected a part made by a mesh generator (face loads on clouds are not built yet)");
         std::vector<Quad> faces;
+        std::vector<CloudFacet> facets;
         for (index_t ip : part_range(s.part))
         {
             const PartInfo& pi = m.parts[ip];
+            if (m.is_cloud(ip))
+            {
+                // the boundary facet points of the Voronoi cells: by the box face they lie on
+                // (named) or by the selector applied to the point
+                static const std::map<std::string, Vec3> normals = {
+                    {"xmin", -Vec3::UnitX()}, {"xmax", Vec3::UnitX()}, {"ymin", -Vec3::UnitY()},
+                    {"ymax", Vec3::UnitY()},  {"zmin", -Vec3::UnitZ()}, {"zmax", Vec3::UnitZ()},
+                    {"bottom", -Vec3::UnitZ()}, {"top", Vec3::UnitZ()}};
+                const bool named = s.select.type == SelectorSpec::Type::Named;
+                if (named && s.select.name != "side" && !normals.count(s.select.name))
+                    throw DeckError({s.loc.where, s.loc.path + ".select.name"},
+                                    "cloud part '" + pi.name + "' has no face set named '" + s.select.name + "'",
+                                    "expected one of xmin, xmax, ymin, ymax, zmin, zmax, top, bottom, side");
+                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
+                                                           : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
+                for (const CellFacetPoint& fp : m.nodal_blocks[m.part_nodal[ip]].boundary_facets)
+                {
+                    const Vec3 n = fp.nda.normalized();
+                    const bool take = !named                     ? matches(s.select, fp.x, tol)
+                                      : s.select.name == "side" ? std::abs(n[2]) < 1e-9
+                                                                : n.dot(normals.at(s.select.name)) > 1.0 - 1e-9;
+                    if (take)
+                        facets.push_back({ip, fp.x, fp.nda});
+                }
+                continue;
+            }
             if (s.select.type == SelectorSpec::Type::Named)
             {
                 auto it = pi.named_faces.find(s.select.name);
@@ -295,10 +316,12 @@ Model Model::build(const Deck& deck)
                 }
             }
         }
-        if (faces.empty())
+        if (faces.empty() && facets.empty())
             throw DeckError({s.loc.where, s.loc.path + ".select"}, "selects no boundary face",
-                            "expected a selector that matches all four nodes of at least one boundary face");
+                            "expected a selector that matches all four nodes of at least one boundary face "
+                            "(on cloud parts: a point of the cells' boundary facets)");
         m.face_sets[s.name] = std::move(faces);
+        m.cloud_face_sets[s.name] = std::move(facets);
     }
     // boundary conditions (later entries override earlier ones on the same dof)
     std::map<index_t, std::size_t> dof_slot;
@@ -382,6 +405,19 @@ Model Model::build(const Deck& deck)
             }
         }
         m.rk_face_loads_.push_back(std::move(rl));
+        CloudFaceLoads cl;
+        for (const CloudFacet& cf : m.cloud_face_sets.at(load->set))
+        {
+            m.nodal_blocks[m.part_nodal[cf.part]].rk->evaluate(cf.x, false, smp);
+            for (index_t k = 0; k < smp.size(); ++k)
+            {
+                cl.nodes.push_back(smp.nodes[k] + m.parts[cf.part].node_begin);
+                cl.psi.push_back(smp.psi[k]);
+            }
+            cl.offsets.push_back(static_cast<index_t>(cl.nodes.size()));
+            cl.nda.push_back(cf.nda);
+        }
+        m.cloud_face_loads_.push_back(std::move(cl));
     }
     m.f_ext_prev_.assign(m.nodes.f_ext.size(), 0.0);
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
@@ -536,6 +572,13 @@ void Model::apply_external_forces(real_t t)
         const real_t p = load->pressure(t);
         if (p == 0.0)
             continue;
+        // cloud facets: -p Psi_I n dA on the reference facet (no update of the area with the
+        // deformation)
+        const CloudFaceLoads& cl = cloud_face_loads_[il];
+        for (std::size_t q = 0; q < cl.nda.size(); ++q)
+            for (index_t k = cl.offsets[q]; k < cl.offsets[q + 1]; ++k)
+                for (int d = 0; d < 3; ++d)
+                    nodes.f_ext[3 * cl.nodes[k] + d] -= p * cl.psi[k] * cl.nda[q][d];
         const RkFaceLoads& rl = rk_face_loads_[il];
         for (std::size_t fi = 0; fi < faces->size(); ++fi)
         {

@@ -90,6 +90,13 @@ class Model
     std::vector<PartInfo> parts;
     std::map<std::string, std::vector<index_t>> node_sets;
     std::map<std::string, std::vector<Quad>> face_sets;
+    /// Face sets on cloud parts: boundary facet points of the particles' Voronoi cells.
+    struct CloudFacet
+    {
+        index_t part = 0;
+        Vec3 x = Vec3::Zero(), nda = Vec3::Zero(); ///< reference position, outward n dA
+    };
+    std::map<std::string, std::vector<CloudFacet>> cloud_face_sets;
     std::vector<DofCondition> conditions;
     std::vector<index_t> probe_nodes; ///< one per deck probe
     Energies energy;
@@ -153,6 +160,16 @@ class Model
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;
     std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;
     std::vector<std::pair<const LoadSpec*, const std::vector<Quad>*>> pressure_loads_;
+    /// Per pressure load: its facets on cloud parts, Psi_I at each (CSR), the force -p Psi_I n dA
+    /// on the reference facet
+    struct CloudFaceLoads
+    {
+        std::vector<index_t> offsets{0};
+        std::vector<index_t> nodes;
+        std::vector<real_t> psi;
+        std::vector<Vec3> nda;
+    };
+    std::vector<CloudFaceLoads> cloud_face_loads_;
     /// Pressure faces on rkpm parts: per face and 2x2 Gauss point, Psi_I at the reference point
     /// (CSR over face-major points), so loads reach the coefficients consistently.
     struct RkFaceLoads

@@ -576,6 +576,9 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     {
         throw singular_support(ps, e);
     }
+    for (const CellFacetPoint& fp : cells.points)
+        if (fp.neighbour < 0)
+            nb.boundary_facets.push_back(fp);
     std::vector<real_t> band(cells.volume.size());
     for (std::size_t i = 0; i < band.size(); ++i)
         band[i] = std::cbrt(cells.volume[i]); // crack band: the cell's size

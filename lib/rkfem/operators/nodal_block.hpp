@@ -21,6 +21,7 @@
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/discretization/node_set.hpp"
+#include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/integration/integration_operator.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/point_history.hpp"
@@ -46,6 +47,9 @@ struct NodalBlock
     /// set-up work that samples them (pressure faces); null for FE parts.
     std::shared_ptr<const RkShapeFunctions> rk;
     std::vector<real_t> interp_values;
+    /// Cloud parts: the Voronoi cells' facet points on the body's surface (reference position,
+    /// outward n dA), where face loads act; empty for mesh parts.
+    std::vector<CellFacetPoint> boundary_facets;
     /// point -> owner node CSR (local node i: points [owner_offsets[i], owner_offsets[i+1]))
     std::vector<index_t> owner_offsets, owner_points;
     index_t node_begin = 0, node_end = 0;
