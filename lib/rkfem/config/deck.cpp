@@ -693,15 +693,12 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
             s.fail("formulation", "'" + f + "' needs elements, and a cloud part has none", "expected formulation: rkpm");
         if (!s.has("nodal_integration"))
             p.nodal.stabilization = "none";
-        else if (p.nodal.scheme == "sd-scni" || p.nodal.stabilization == "mscni")
+        else if (p.nodal.scheme == "sd-scni")
         {
             Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
                        {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
-            const bool sd = p.nodal.scheme == "sd-scni";
-            ni.fail(sd ? "scheme" : "stabilization",
-                    sd ? "sd-scni needs the sub-cells of a hex mesh" : "mscni needs the sub-cells of a hex mesh",
-                    sd ? "expected scheme: scni | dni on a cloud part"
-                       : "expected stabilization: none on a cloud part (sub-cells of Voronoi cells are not built yet)");
+            ni.fail("scheme", "sd-scni is built on the sub-cells of a hex mesh",
+                    "expected scheme: scni | dni on a cloud part (mscni stabilization works on clouds)");
         }
     }
     if (s.has("rk"))

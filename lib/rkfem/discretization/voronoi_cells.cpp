@@ -111,6 +111,12 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
         Polyhedron P;
         CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, K::Point_3(xin[0], xin[1], xin[2]));
         real_t vol = 0.0;
+        // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
+        Vec3 apex = Vec3::Zero();
+        for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
+            apex += vec(v->point());
+        apex /= static_cast<real_t>(P.size_of_vertices());
+        std::vector<std::vector<CellFacetPoint>> pyramids; // per facet polygon: its pyramid's boundary
         for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
         {
             std::vector<Vec3> poly;
@@ -142,6 +148,11 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                     nb = owner[q];
                 }
             }
+            // the facet's sub-cell: the pyramid from the apex over the polygon, bounded by the
+            // facet's triangles and one side triangle per polygon edge (shared, with the opposite
+            // normal, by the neighbouring pyramid of the same cell)
+            pyramids.emplace_back();
+            std::vector<CellFacetPoint>& pyr = pyramids.back();
             for (std::size_t k = 0; k < poly.size(); ++k)
             {
                 const Vec3& a = poly[k];
@@ -150,11 +161,44 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 const Vec3 xq = (a + b + c) / 3.0;
                 cells.points.push_back({xq, nda, nb});
                 vol += xq.dot(nda) / 3.0;
+                pyr.push_back({xq, nda, nb});
+                // side (apex, b, a): outward from the pyramid when the base's normal is outward
+                pyr.push_back({(apex + a + b) / 3.0, 0.5 * (b - apex).cross(a - apex), -1});
             }
             if (nb >= 0)
                 cells.spacing[i] = std::max(cells.spacing[i], (Vec3(x[3 * nb], x[3 * nb + 1], x[3 * nb + 2]) - xi).norm());
         }
         RKFEM_REQUIRE(vol > 0.0, "Voronoi cells: cell " << i << " has non-positive volume " << vol);
+        // sub-cells: the pyramids, those under 1e-3 of the cell's volume (over the tiny facets
+        // that jitter makes) joined to the largest one. A thin pyramid's boundary terms are large
+        // and cancel: alone, its smoothed gradient carries round-off up to 1e-10 of its terms;
+        // joined, the union (two closed pieces) still reproduces linear fields exactly.
+        std::vector<real_t> pv(pyramids.size(), 0.0);
+        std::size_t largest = 0;
+        for (std::size_t k = 0; k < pyramids.size(); ++k)
+        {
+            for (const CellFacetPoint& fp : pyramids[k])
+                pv[k] += fp.x.dot(fp.nda) / 3.0;
+            if (pv[k] > pv[largest])
+                largest = k;
+        }
+        for (std::size_t k = 0; k < pyramids.size(); ++k)
+        {
+            if (k == largest || pv[k] < 1e-3 * vol)
+                continue;
+            cells.sub_cells.push_back({i, pv[k], static_cast<index_t>(cells.sub_points.size()), 0});
+            cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
+            cells.sub_cells.back().end = static_cast<index_t>(cells.sub_points.size());
+        }
+        VoronoiCells::SubCell joined{i, 0.0, static_cast<index_t>(cells.sub_points.size()), 0};
+        for (std::size_t k = 0; k < pyramids.size(); ++k)
+            if (k == largest || pv[k] < 1e-3 * vol)
+            {
+                joined.volume += pv[k];
+                cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
+            }
+        joined.end = static_cast<index_t>(cells.sub_points.size());
+        cells.sub_cells.push_back(joined);
         cells.volume[i] = vol;
         cells.offsets.push_back(static_cast<index_t>(cells.points.size()));
     }

@@ -37,6 +37,18 @@ struct VoronoiCells
     std::vector<index_t> offsets{0};           ///< per particle: facet points [offsets[i], offsets[i+1])
     std::vector<CellFacetPoint> points;
     std::vector<real_t> spacing;               ///< per particle: largest distance to a facet neighbour
+    /// Sub-cells (for MSCNI): one pyramid per facet polygon of a cell, apex at the average of the
+    /// cell's vertices, pyramids under 1e-3 of the cell's volume joined to the cell's largest; its
+    /// boundary points are sub_points [begin, end) (the facets' triangles and one side triangle
+    /// per polygon edge, centroid and outward n dA; neighbour unused).
+    struct SubCell
+    {
+        index_t cell = 0;
+        real_t volume = 0.0;
+        index_t begin = 0, end = 0;
+    };
+    std::vector<SubCell> sub_cells;
+    std::vector<CellFacetPoint> sub_points;
     index_t size() const { return static_cast<index_t>(volume.size()); }
 };
 

@@ -570,6 +570,11 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         const RkShapes shapes(*rk);
         nb.points = ps.nodal.scheme == "dni" ? build_dni_cells(cells.volume, cloud.x, shapes)
                                              : build_scni_cells(cells, cloud.x, shapes);
+        if (ps.nodal.scheme == "scni" && ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
         add_interpolation(nb, *rk, cloud.x, offset);
     }
     catch (const SingularMomentError& e)

@@ -122,7 +122,8 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
 /// Builds the block of a cloud part (generator type cloud; rkpm only): Voronoi cells of the
 /// particles clipped to the box body, RK support a_I = normalized_support x the longest distance
 /// to a neighbour across a facet of at least 10% of the cell's largest, SCNI on the cells (or
-/// DNI with the cell volumes), stable-step length l0 = that same distance, crack band
+/// DNI with the cell volumes) with optional MSCNI on the cells' pyramids (VoronoiCells::
+/// sub_cells), stable-step length l0 = that same distance, crack band
 /// = V^(1/3). Throws DeckError for coincident particles or a singular moment matrix.
 NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t offset);
 

@@ -228,6 +228,31 @@ IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vecto
                     });
 }
 
+IntegrationOperator build_sd_cells(const VoronoiCells& cells, const ShapeEvaluator& shapes)
+{
+    return assemble(static_cast<index_t>(cells.sub_cells.size()),
+                    [&](index_t s, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
+                        std::vector<real_t>& psi)
+                    {
+                        const VoronoiCells::SubCell& sc = cells.sub_cells[s];
+                        pos.setZero();
+                        for (index_t q = sc.begin; q < sc.end; ++q)
+                        {
+                            const CellFacetPoint& fp = cells.sub_points[q];
+                            shapes.values(-1, Vec3::Zero(), fp.x, nodes, psi);
+                            for (std::size_t k = 0; k < nodes.size(); ++k)
+                                out.emplace_back(nodes[k], psi[k] * fp.nda);
+                            pos += fp.x;
+                        }
+                        RKFEM_REQUIRE(sc.volume > 0.0, "SD cells: sub-cell " << s << " of cell " << sc.cell
+                                                                               << " has non-positive volume " << sc.volume);
+                        merge(out, 1.0 / sc.volume);
+                        w = sc.volume;
+                        pos /= static_cast<real_t>(sc.end - sc.begin);
+                        owner = sc.cell;
+                    });
+}
+
 IntegrationOperator build_dni_cells(const std::vector<real_t>& volume, const std::vector<real_t>& x,
                                     const ShapeEvaluator& shapes)
 {

@@ -36,6 +36,10 @@ IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const S
 IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vector<real_t>& x,
                                      const ShapeEvaluator& shapes);
 
+/// Sub-cell smoothing on the pyramids of a cloud's Voronoi cells (VoronoiCells::sub_cells): one
+/// point per sub-cell, owner = its cell's particle; the SD operator that MSCNI stabilizes with.
+IntegrationOperator build_sd_cells(const VoronoiCells& cells, const ShapeEvaluator& shapes);
+
 /// DNI on a cloud: one point per particle with weight volume[i] and gradient grad Psi_I(x_i).
 IntegrationOperator build_dni_cells(const std::vector<real_t>& volume, const std::vector<real_t>& x,
                                     const ShapeEvaluator& shapes);
