@@ -91,22 +91,24 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
             owner.push_back(-1);
         }
-        // a point strictly inside the cell: x_i, moved off the body faces it lies on by a small
-        // fraction of its nearest neighbour's distance (the bisectors are half that distance away)
-        Vec3 inward = Vec3::Zero();
-        for (const HalfSpace& h : body)
-            if (h.normal.dot(xi) >= h.offset - tol)
-                inward -= h.normal;
-        Vec3 xin = xi;
-        if (inward.squaredNorm() > 0.0)
+        // the point inside the cell that CGAL's dual construction starts from: x_i, pushed to at
+        // least 0.2 d_min (d_min: its nearest neighbour's distance) from every body face. The
+        // dual points scale with 1 / (distance of the point to each plane), so a point on or
+        // near a face (a generated boundary particle, an imported point) made the construction
+        // ill-conditioned: an unoptimized build got cells reaching outside the body. The push is
+        // at most sqrt(3) 0.2 d_min on a box corner, inside the bisectors (d_min / 2 away).
+        real_t dmin = 1e300;
+        for (const auto& v : adj)
         {
-            real_t dmin = 1e300;
-            for (const auto& v : adj)
-            {
-                const index_t j = v->info();
-                dmin = std::min(dmin, (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm());
-            }
-            xin += 1e-3 * dmin * inward.normalized();
+            const index_t j = v->info();
+            dmin = std::min(dmin, (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm());
+        }
+        Vec3 xin = xi;
+        for (const HalfSpace& h : body)
+        {
+            const real_t dist = h.offset - h.normal.dot(xi); // unit normals
+            if (dist < 0.2 * dmin)
+                xin -= (0.2 * dmin - dist) * h.normal;
         }
         Polyhedron P;
         CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, K::Point_3(xin[0], xin[1], xin[2]));
