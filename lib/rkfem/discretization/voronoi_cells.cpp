@@ -2,6 +2,7 @@
 
 #include <CGAL/Convex_hull_3/dual/halfspace_intersection_3.h>
 #include <CGAL/Delaunay_triangulation_3.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polyhedron_3.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
@@ -18,9 +19,13 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Vb = CGAL::Triangulation_vertex_base_with_info_3<index_t, K>;
 using Tds = CGAL::Triangulation_data_structure_3<Vb>;
 using Delaunay = CGAL::Delaunay_triangulation_3<K, Tds>;
-using Polyhedron = CGAL::Polyhedron_3<K>;
+// the cells in exact constructions: the bisector planes of a regular lattice meet many at a
+// vertex, and the dual hull's inexact constructions could put a vertex far outside the body
+using EK = CGAL::Exact_predicates_exact_constructions_kernel;
+using Polyhedron = CGAL::Polyhedron_3<EK>;
 
 Vec3 vec(const K::Point_3& p) { return {p.x(), p.y(), p.z()}; }
+Vec3 vec(const EK::Point_3& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())}; }
 } // namespace
 
 std::vector<HalfSpace> box_halfspaces(const Vec3& lo, const Vec3& hi)
@@ -74,7 +79,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
         adj.clear();
         dt.finite_adjacent_vertices(vh[i], std::back_inserter(adj));
         // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
-        std::vector<K::Plane_3> planes;
+        std::vector<EK::Plane_3> planes;
         std::vector<index_t> owner; // neighbour per plane, -1 body
         for (const auto& v : adj)
         {
@@ -111,7 +116,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 xin -= (0.2 * dmin - dist) * h.normal;
         }
         Polyhedron P;
-        CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, K::Point_3(xin[0], xin[1], xin[2]));
+        CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
         real_t vol = 0.0;
         // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
         Vec3 apex = Vec3::Zero();
@@ -142,8 +147,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             real_t best = 1e300;
             for (std::size_t q = 0; q < planes.size(); ++q)
             {
-                const Vec3 pn(planes[q].a(), planes[q].b(), planes[q].c());
-                const real_t dist = std::abs(pn.dot(c) + planes[q].d()) / pn.norm();
+                const Vec3 pn(CGAL::to_double(planes[q].a()), CGAL::to_double(planes[q].b()), CGAL::to_double(planes[q].c()));
+                const real_t dist = std::abs(pn.dot(c) + CGAL::to_double(planes[q].d())) / pn.norm();
                 if (pn.dot(area) > 0 && dist < best)
                 {
                     best = dist;
