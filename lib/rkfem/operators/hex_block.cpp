@@ -7,6 +7,7 @@
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/huge_pages.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 
@@ -17,24 +18,6 @@ namespace
 constexpr int W = 8; // lanes per batch (one AVX-512 register of doubles)
 
 index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
-
-// Both written without branches (min and a 0/1 factor instead of "trD < 0 ? ... : 0") so that
-// the lane loops vectorize: GCC keeps a conditional floating-point expression as control flow.
-
-/// Bulk viscosity pressure (LS-DYNA form): q = rho l (Q1 l trD^2 - Q2 c trD) when trD < 0.
-inline real_t bulk_q(real_t rho, real_t c, real_t l, real_t trd, real_t q1, real_t q2)
-{
-    const real_t neg = std::min(trd, 0.0);
-    return rho * l * (q1 * l * neg * neg - q2 * c * neg);
-}
-
-/// Stable time step of an element: l / (Q + sqrt(Q^2 + c^2)), Q = Q1 l |trD| + Q2 c when trD < 0.
-inline real_t element_dt(real_t c, real_t l, real_t trd, real_t q1, real_t q2)
-{
-    const real_t neg = std::min(trd, 0.0);
-    const real_t Q = -q1 * l * neg + q2 * c * static_cast<real_t>(trd < 0.0);
-    return l / (Q + std::sqrt(Q * Q + c * c));
-}
 
 /// One batch of W elements. FULL: all W lanes are elements (every batch but a partial last one),
 /// so the lane loops carry no lane test and the material/bulk-viscosity loop vectorizes.
