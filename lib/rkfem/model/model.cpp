@@ -771,21 +771,27 @@ void Model::physical_field(const std::vector<real_t>& field, std::vector<real_t>
         physical_values(nb, field, out);
 }
 
+namespace
+{
+/// History value h of point p.
+real_t history_value(const PlasticPoints& pp, std::size_t p, Model::History h)
+{
+    switch (h)
+    {
+    case Model::History::PlasticStrain:
+        return pp.eps_p[p];
+    case Model::History::Damage:
+        return pp.damage(p);
+    case Model::History::KccDelta:
+        return pp.kcc_delta(p);
+    }
+    return 0.0;
+}
+} // namespace
+
 real_t Model::element_history(index_t b, index_t e, History h) const
 {
-    auto value = [h](const PlasticPoints& pp, std::size_t p)
-    {
-        switch (h)
-        {
-        case History::PlasticStrain:
-            return pp.eps_p[p];
-        case History::Damage:
-            return pp.damage(p);
-        case History::KccDelta:
-            return pp.kcc_delta(p);
-        }
-        return 0.0;
-    };
+    auto value = [h](const PlasticPoints& pp, std::size_t p) { return history_value(pp, p, h); };
     if (part_nodal[b] >= 0)
     {
         const NodalBlock& nb = nodal_blocks[part_nodal[b]];
@@ -823,12 +829,7 @@ real_t Model::nodal_history(index_t node, History h) const
     real_t s = 0.0;
     const index_t k0 = nb.owner_offsets[i], k1 = nb.owner_offsets[i + 1];
     for (index_t k = k0; k < k1; ++k)
-    {
-        const std::size_t p = static_cast<std::size_t>(nb.owner_points[k]);
-        s += h == History::PlasticStrain ? nb.plastic.eps_p[p]
-             : h == History::Damage      ? nb.plastic.damage(p)
-                                         : nb.plastic.kcc_delta(p);
-    }
+        s += history_value(nb.plastic, static_cast<std::size_t>(nb.owner_points[k]), h);
     return k1 > k0 ? s / static_cast<real_t>(k1 - k0) : 0.0;
 }
 
