@@ -331,6 +331,16 @@ void read_components(const Section& s, const std::string& key, Dimension d,
         s.fail(key, "names no component", "expected a mapping with x, y and/or z");
 }
 
+/// origin (default 0) and size (three positive lengths) of a box or a cloud's box body.
+void read_box(const Section& s, GeneratorSpec& g)
+{
+    g.origin = s.vec3("origin", dim::length, Vec3::Zero());
+    g.size = s.vec3("size", dim::length);
+    for (int i = 0; i < 3; ++i)
+        if (!(g.size[i] > 0))
+            s.fail("size", "has a non-positive edge", "expected three positive lengths");
+}
+
 GeneratorSpec read_generator(const Section& part)
 {
     part.require("generator", "a mapping with type: box | cylinder | projectile | cloud");
@@ -344,11 +354,7 @@ GeneratorSpec read_generator(const Section& part)
     {
         Section s(part.ctx(), gn, gp, {"type", "origin", "size", "element_size", "divisions"});
         g.type = GeneratorSpec::Type::Box;
-        g.origin = s.vec3("origin", dim::length, Vec3::Zero());
-        g.size = s.vec3("size", dim::length);
-        for (int i = 0; i < 3; ++i)
-            if (!(g.size[i] > 0))
-                s.fail("size", "has a non-positive edge", "expected three positive lengths");
+        read_box(s, g);
         if (s.has("divisions"))
         {
             const YAML::Node d = s.node("divisions");
@@ -397,11 +403,7 @@ GeneratorSpec read_generator(const Section& part)
     {
         Section s(part.ctx(), gn, gp, {"type", "origin", "size", "spacing", "jitter", "seed", "points", "points_unit"});
         g.type = GeneratorSpec::Type::Cloud;
-        g.origin = s.vec3("origin", dim::length, Vec3::Zero());
-        g.size = s.vec3("size", dim::length);
-        for (int i = 0; i < 3; ++i)
-            if (!(g.size[i] > 0))
-                s.fail("size", "has a non-positive edge", "expected three positive lengths (the box body)");
+        read_box(s, g);
         if (s.has("points") == s.has("spacing"))
             s.fail(s.has("points") ? "points" : "spacing", s.has("points") ? "is given with spacing" : "is missing",
                    "expected either spacing (a jittered lattice) or points (a CSV file of x,y,z)");
@@ -674,6 +676,9 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
         const bool cloud = p.generator.type == GeneratorSpec::Type::Cloud;
+        if (cloud && p.nodal.scheme == "sd-scni")
+            ni.fail("scheme", "sd-scni is built on the sub-cells of a hex mesh",
+                    "expected scheme: scni | dni on a cloud part (mscni stabilization works on clouds)");
         p.nodal.stabilization =
             ni.choice("stabilization", {"mscni", "none"}, p.nodal.scheme == "scni" && !cloud ? "mscni" : "none");
         if (p.nodal.stabilization == "mscni" && p.nodal.scheme != "scni")
@@ -693,13 +698,6 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
             s.fail("formulation", "'" + f + "' needs elements, and a cloud part has none", "expected formulation: rkpm");
         if (!s.has("nodal_integration"))
             p.nodal.stabilization = "none";
-        else if (p.nodal.scheme == "sd-scni")
-        {
-            Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
-                       {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
-            ni.fail("scheme", "sd-scni is built on the sub-cells of a hex mesh",
-                    "expected scheme: scni | dni on a cloud part (mscni stabilization works on clouds)");
-        }
     }
     if (s.has("rk"))
     {
