@@ -21,6 +21,7 @@
 #include "rkfem/model/simulation.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/central_difference.hpp"
+#include "rkfem/time/state_vector.hpp"
 #include "../support.hpp"
 
 using namespace rkfem;
@@ -455,4 +456,37 @@ TEST(ArkodeCentralDifference, DriverRunsTheDeckWithArkodeAndMatchesTheHandLoop)
         s2 += u1[i] * u1[i];
     }
     EXPECT_LT(std::sqrt(d2 / s2), 1e-14);
+}
+
+TEST(ArkodeStateVector, CentralDifferenceStepsShareInsteadOfCopying)
+{
+    // Per step, fixed-step ERKStep (6.4.1) forms y(n+1) = y(n) + h f (reads 2 vectors, writes
+    // 1), the right-hand side writes f (1), and it copies the state four times (interpolant,
+    // stored f, y(n), output vector): with rkfem's vectors those copies share storage, the
+    // error-weight norm reads nothing, and the pool stops growing after the first steps.
+    Model m = test::model_from(nonlinear_deck);
+    const TimeSpec ts = m.deck().time;
+    ArkodeStepper ark(ArkodeStepper::Mode::CentralDifference, ts);
+    StepReport r = ark.initialize(m, 0.0);
+    real_t t = 0.0;
+    auto run_steps = [&](int k0, int k1)
+    {
+        for (int k = k0; k < k1; ++k)
+        {
+            r = ark.step(m, t, next_time_step(ts, t, r.dt_stable), k);
+            t = r.t;
+        }
+    };
+    run_steps(1, 11);
+    const StatePool::Counters c10 = ark.state_pool()->counters();
+    run_steps(11, 51);
+    const StatePool::Counters c50 = ark.state_pool()->counters();
+    const double passes = static_cast<double>(c50.passes - c10.passes) / 40;
+    const double shared = static_cast<double>(c50.shared_copies - c10.shared_copies) / 40;
+    std::printf("per step: %.2f vector passes, %.2f copies shared; storages %ld after 10 steps, %ld after 50\n", passes,
+                shared, c10.storages, c50.storages);
+    EXPECT_EQ(passes, 4.0);
+    EXPECT_EQ(shared, 4.0);
+    EXPECT_EQ(c50.storages, c10.storages);
+    EXPECT_LE(c50.storages, 4);
 }

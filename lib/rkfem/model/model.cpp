@@ -424,7 +424,9 @@ Model Model::build(const Deck& deck)
     return m;
 }
 
-void Model::impose_velocity(real_t t, real_t dt, bool half_step)
+void Model::impose_velocity(real_t t, real_t dt, bool half_step) { impose_velocity(t, dt, half_step, nodes.v.data()); }
+
+void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
 {
     for (const auto& c : conditions)
     {
@@ -447,7 +449,7 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step)
             }
             break;
         }
-        nodes.v[c.dof] = v;
+        vel[c.dof] = v;
     }
     // rkpm parts: the values just set are targets for the physical velocity
     for (auto& rc : rk_constraints_)
@@ -458,7 +460,7 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step)
         for (index_t q = 0; q < nb_count; ++q)
         {
             const index_t i = rc->node[q] - nb.node_begin;
-            real_t r = nodes.v[3 * rc->node[q] + k];
+            real_t r = vel[3 * rc->node[q] + k];
             if (conditions[rc->condition[q]].kind == BoundarySpec::Kind::Displacement && half_step)
             {
                 // target from the physical displacement: (g(t + dt) - u^h(X_b)) / dt
@@ -470,13 +472,13 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step)
             {
                 const index_t J = nb.interp_nodes[m];
                 if (rc->slot[J - nb.node_begin] < 0)
-                    r -= nb.interp_values[m] * nodes.v[3 * J + k];
+                    r -= nb.interp_values[m] * vel[3 * J + k];
             }
             rc->rhs[q] = r;
         }
         rc->x = rc->lu.solve(rc->rhs);
         for (index_t q = 0; q < nb_count; ++q)
-            nodes.v[3 * rc->node[q] + k] = rc->x[q];
+            vel[3 * rc->node[q] + k] = rc->x[q];
     }
 }
 
@@ -748,12 +750,17 @@ void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
     f_ext_prev_ = nodes.f_ext;
 }
 
-Vec3 Model::physical(const std::vector<real_t>& field, index_t node) const
+bool Model::carries_coefficients(index_t node) const
 {
     const index_t ip = nodes.part[node];
-    if (part_nodal[ip] < 0 || nodal_blocks[part_nodal[ip]].interp_offsets.empty())
+    return part_nodal[ip] >= 0 && !nodal_blocks[part_nodal[ip]].interp_offsets.empty();
+}
+
+Vec3 Model::physical(const std::vector<real_t>& field, index_t node) const
+{
+    if (!carries_coefficients(node))
         return {field[3 * node], field[3 * node + 1], field[3 * node + 2]};
-    const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+    const NodalBlock& nb = nodal_blocks[part_nodal[nodes.part[node]]];
     const index_t i = node - nb.node_begin;
     Vec3 s = Vec3::Zero();
     for (index_t k = nb.interp_offsets[i]; k < nb.interp_offsets[i + 1]; ++k)

@@ -108,6 +108,9 @@ class Model
     // ---- phases of a step (called by the steppers) ----
     /// Sets velocities of constrained dofs for the interval (t, t + dt) (half step) or at t.
     void impose_velocity(real_t t, real_t dt, bool half_step);
+    /// The same on a velocity array other than nodes.v (3 n values; the unconstrained ones are
+    /// read, as rkpm constraints need them); displacement conditions read nodes.u.
+    void impose_velocity(real_t t, real_t dt, bool half_step, real_t* v);
     /// x = x0 + u.
     void update_coordinates();
     /// Nodal state from a stepper's vector: u, v (3 n each), then x = x0 + u, in one pass.
@@ -123,6 +126,8 @@ class Model
     /// given by u - u_prev (uses stored previous external and reaction forces).
     void update_energies(const std::vector<real_t>& u_prev, real_t dt);
 
+    /// True when the node's unknowns are RK coefficients (rkpm parts), not physical values.
+    bool carries_coefficients(index_t node) const;
     /// Physical value of a node-major 3-vector field (u, v) at a node: the RK interpolant
     /// sum_J Psi_J(X_I) d_J on rkpm parts, the nodal value elsewhere.
     Vec3 physical(const std::vector<real_t>& field, index_t node) const;

@@ -1,139 +1,48 @@
 #include "rkfem/time/arkode_stepper.hpp"
 
+#include <algorithm>
 #include <arkode/arkode_erkstep.h>
-#include <array>
-#include <atomic>
 #include <cmath>
 #include <exception>
 #include <nvector/nvector_serial.h>
-#include <sstream>
 #include <vector>
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/time/central_difference.hpp"
+#include "rkfem/time/state_vector.hpp"
 
 namespace rkfem
 {
 namespace
 {
-// ---- rkfem's vector operations for ARKODE's serial vectors (-O3, OpenMP, deterministic sums) ----
 inline real_t* data(N_Vector v) { return NV_DATA_S(v); }
-inline index_t len(N_Vector v) { return static_cast<index_t>(NV_LENGTH_S(v)); }
 
-void op_linear_sum(realtype a, N_Vector x, realtype b, N_Vector y, N_Vector z)
+void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const real_t* __restrict a, real_t h_prev,
+                   real_t h, real_t* __restrict v_full, real_t* __restrict du, real_t* __restrict dv)
 {
-    const real_t *px = data(x), *py = data(y);
-    real_t* pz = data(z);
-    parallel_for("rkfem::nv::linear_sum", len(z), [&](index_t i) { pz[i] = a * px[i] + b * py[i]; });
-}
-void op_const(realtype c, N_Vector z)
-{
-    real_t* pz = data(z);
-    parallel_for("rkfem::nv::const", len(z), [&](index_t i) { pz[i] = c; });
-}
-void op_scale(realtype c, N_Vector x, N_Vector z)
-{
-    const real_t* px = data(x);
-    real_t* pz = data(z);
-    parallel_for("rkfem::nv::scale", len(z), [&](index_t i) { pz[i] = c * px[i]; });
-}
-// Weight vectors known to hold only ones (the unit error weights of the fixed-step steppers, set
-// once by unit_ewt): the weighted sum of squares then reads x alone. A few slots suffice (one
-// per live stepper); a vector not found here takes the general loop.
-std::array<std::atomic<N_Vector>, 16> g_unit_weights{};
-
-void register_unit_weights(N_Vector w, bool on)
-{
-    for (auto& slot : g_unit_weights)
+    const real_t inv_h = 1.0 / h;
+    for (index_t j = j0; j < j1; ++j)
     {
-        N_Vector expected = on ? nullptr : w;
-        if (slot.compare_exchange_strong(expected, on ? w : nullptr))
-            return;
+        const real_t vf = v[j] + 0.5 * h_prev * a[j];
+        const real_t vk = vf + 0.5 * h * a[j];
+        v_full[j] = vf;
+        du[j] = vk;
+        dv[j] = (vk - v[j]) * inv_h;
     }
 }
 
-bool is_unit_weights(N_Vector w)
+/// The arkode-cd kick, one pass: v(n) = v(n-1/2) + h_prev/2 a(n) (v_full), v(n+1/2) = v(n) +
+/// h/2 a(n) (du, u' of the right-hand side), dv = (v(n+1/2) - v(n-1/2)) / h (v'). Blocks of
+/// contiguous values with unaliased pointers, so the loop vectorizes.
+void cd_kick(index_t n, const real_t* v, const real_t* a, real_t h_prev, real_t h, real_t* v_full, real_t* du,
+             real_t* dv)
 {
-    for (const auto& slot : g_unit_weights)
-        if (slot.load(std::memory_order_relaxed) == w)
-            return true;
-    return false;
+    constexpr index_t block = 2048;
+    parallel_for("rkfem::arkode_cd::kick", (n + block - 1) / block,
+                 [&](index_t b) { cd_kick_range(b * block, std::min(n, (b + 1) * block), v, a, h_prev, h, v_full, du, dv); });
 }
-
-realtype op_wsqrsum_local(N_Vector x, N_Vector w)
-{
-    const real_t *px = data(x), *pw = data(w);
-    if (is_unit_weights(w))
-        return parallel_reduce_sum("rkfem::nv::sqrsum", len(x), [&](index_t i) { return px[i] * px[i]; });
-    return parallel_reduce_sum("rkfem::nv::wsqrsum", len(x),
-                               [&](index_t i)
-                               {
-                                   const real_t p = px[i] * pw[i];
-                                   return p * p;
-                               });
-}
-realtype op_wrms_norm(N_Vector x, N_Vector w) { return std::sqrt(op_wsqrsum_local(x, w) / len(x)); }
-int op_linear_combination(int nv, realtype* c, N_Vector* X, N_Vector z)
-{
-    real_t* pz = data(z);
-    const index_t n = len(z);
-    // z may alias X[0] (ARKODE's accumulate form); the one- and two-term forms (forward Euler's
-    // y + h f every step) get their own vectorized loops with the data pointers hoisted
-    if (nv == 1)
-    {
-        const real_t* x0 = data(X[0]);
-        const real_t c0 = c[0];
-        parallel_for("rkfem::nv::linear_combination1", n, [&](index_t i) { pz[i] = c0 * x0[i]; });
-        return 0;
-    }
-    if (nv == 2)
-    {
-        const real_t *x0 = data(X[0]), *x1 = data(X[1]);
-        const real_t c0 = c[0], c1 = c[1];
-        parallel_for("rkfem::nv::linear_combination2", n, [&](index_t i) { pz[i] = c0 * x0[i] + c1 * x1[i]; });
-        return 0;
-    }
-    std::vector<const real_t*> px(static_cast<std::size_t>(nv));
-    for (int k = 0; k < nv; ++k)
-        px[k] = data(X[k]);
-    parallel_for("rkfem::nv::linear_combination", n,
-                 [&](index_t i)
-                 {
-                     real_t s = c[0] * px[0][i];
-                     for (int k = 1; k < nv; ++k)
-                         s += c[k] * px[k][i];
-                     pz[i] = s;
-                 });
-    return 0;
-}
-int op_scale_add_multi(int nv, realtype* a, N_Vector x, N_Vector* Y, N_Vector* Z)
-{
-    const real_t* px = data(x);
-    const index_t n = len(x);
-    for (int k = 0; k < nv; ++k)
-    {
-        const real_t *py = data(Y[k]);
-        real_t* pz = data(Z[k]);
-        const real_t ak = a[k];
-        parallel_for("rkfem::nv::scale_add_multi", n, [&](index_t i) { pz[i] = ak * px[i] + py[i]; });
-    }
-    return 0;
-}
-
-void install_project_ops(N_Vector v)
-{
-    v->ops->nvlinearsum = op_linear_sum;
-    v->ops->nvconst = op_const;
-    v->ops->nvscale = op_scale;
-    v->ops->nvwrmsnorm = op_wrms_norm;
-    v->ops->nvwsqrsumlocal = op_wsqrsum_local;
-    v->ops->nvlinearcombination = op_linear_combination;
-    v->ops->nvscaleaddmulti = op_scale_add_multi;
-}
-
-
 } // namespace
 
 void* make_erk_table(const std::string& name, int* stages, int* order)
@@ -177,7 +86,10 @@ struct ArkodeStepper::Impl
     N_Vector y = nullptr;
     void* mem = nullptr;
     ARKodeButcherTable table = nullptr;
-    std::vector<real_t> state; ///< (u, v), 6 n
+    /// rkfem's state vectors (shared copies, lending to the NodeSet); null with Debian's own
+    /// serial vector over `state`
+    std::shared_ptr<StatePool> pool;
+    std::vector<real_t> state; ///< (u, v), 6 n: the serial vector's values
     Model* model = nullptr;
     index_t n3 = 0;
     // central difference
@@ -185,20 +97,28 @@ struct ArkodeStepper::Impl
     real_t h_next = 0.0;          ///< the step the last evaluation's kick was formed with
     bool state_committed = false; ///< re-evaluation after a reset: no material increment
     std::vector<real_t> v_full; ///< full-step velocity at the last evaluation
+    /// Prescribed dofs whose v' the kick does not get right by itself. A fixed dof of an FE part
+    /// has v = 0 (start_model imposes it, and v' stays 0) and a = 0 (compute_accelerations) at
+    /// every evaluation, so the kick already gives u' = v' = 0 there; prescribed motion and RK
+    /// coefficients (the mixed transformation) need v' = (u' - v) / h after the conditions.
+    std::vector<index_t> fixup_dofs;
+    StatePool::Ref y_start;     ///< y(n) held across a step: its u is the step's u_prev
+    std::vector<real_t> u_prev; ///< the same, copied (serial vector)
     // Runge-Kutta
     real_t t_n = 0.0;
-    std::vector<real_t> u_n, u_prev;
-    std::vector<real_t> target; ///< prescribed velocity targets (scratch)
+    std::vector<real_t> u_n;
     // last evaluation
     ForceReport force;
     real_t forced_h = 0.0; ///< > 0: the caller's step differs from the prediction (re-evaluation)
     std::int64_t step_index = 0;
     std::exception_ptr error;
+    bool ewt_set = false;
 
     ~Impl()
     {
-        if (unit_w)
-            register_unit_weights(unit_w, false);
+        if (pool)
+            pool->detach(); // the NodeSet keeps the state it holds
+        y_start.reset();
         if (mem)
             ERKStepFree(&mem);
         if (table)
@@ -209,12 +129,26 @@ struct ArkodeStepper::Impl
             SUNContext_Free(&ctx);
     }
 
+    /// The values of a state vector (u half, v half), for reading or for overwriting.
+    StatePool::Halves values(N_Vector v) const
+    {
+        if (pool)
+            return StatePool::values(v);
+        return {data(v), data(v) + n3};
+    }
+    StatePool::Halves overwrite(N_Vector v) const
+    {
+        if (pool)
+            return StatePool::overwrite(v);
+        return {data(v), data(v) + n3};
+    }
+
     static int rhs(realtype t, N_Vector yv, N_Vector ydot, void* user)
     {
         auto* im = static_cast<Impl*>(user);
         try
         {
-            im->evaluate(t, data(yv), data(ydot));
+            im->evaluate(t, yv, ydot);
             ++im->self->n_rhs_;
             return 0;
         }
@@ -226,22 +160,17 @@ struct ArkodeStepper::Impl
     }
 
     /// Error weights for fixed-step mode: ARKODE only uses them in its per-step "too much
-    /// accuracy" check (unit roundoff x WRMS norm of y). Debian's default, N_VConst(DBL_MIN),
-    /// makes that norm run on denormals; here the weights are set to 1 once (the vector persists).
-    static int unit_ewt(N_Vector, N_Vector ewt, void* user)
+    /// accuracy" check (unit roundoff x WRMS norm of y(n)), moot at a fixed step. Zero weights ask
+    /// no accuracy of the step: the norm is 0, and rkfem's vectors take it without reading y.
+    /// (Debian's default, N_VConst(DBL_MIN), makes that norm run on denormals.) Set once; the
+    /// weight vector persists.
+    static int zero_ewt(N_Vector, N_Vector ewt, void* user)
     {
         auto* im = static_cast<Impl*>(user);
         if (!im->ewt_set)
         {
-            N_VConst(1.0, ewt);
+            N_VConst(0.0, ewt);
             im->ewt_set = true;
-            if (im->unit_w != ewt)
-            {
-                if (im->unit_w)
-                    register_unit_weights(im->unit_w, false);
-                register_unit_weights(ewt, true);
-                im->unit_w = ewt;
-            }
         }
         return 0;
     }
@@ -254,15 +183,25 @@ struct ArkodeStepper::Impl
         return 0;
     }
 
-    void evaluate(real_t t, const real_t* y, real_t* ydot)
+    void evaluate(real_t t, N_Vector yv, N_Vector ydot)
     {
         Model& m = *model;
         NodeSet& nodes = m.nodes;
-        const real_t* u = y;
-        const real_t* v = y + n3;
         if (self->mode_ == Mode::CentralDifference)
         {
-            m.set_state(u, v);
+            // the model works on y in place: rkfem's vectors lend their halves to nodes.u and
+            // nodes.v (u stays lent after the evaluation: nodes.u is then y's u); Debian's
+            // serial vector is copied
+            if (pool)
+            {
+                pool->lend(yv, nodes.u, nodes.v);
+                m.update_coordinates();
+            }
+            else
+            {
+                const StatePool::Halves y = values(yv);
+                m.set_state(y.u, y.v);
+            }
             force = m.compute_forces(t, state_committed ? 0.0 : h_prev, step_index);
             state_committed = false;
             m.compute_accelerations();
@@ -271,29 +210,24 @@ struct ArkodeStepper::Impl
                 h = h_prev > 0 ? h_prev : force.dt_stable; // at the end time: any positive step
             h_next = h;
             const real_t* a = nodes.a.data();
+            const real_t* v = nodes.v.data(); // y's v
+            const StatePool::Halves yd = overwrite(ydot);
             // v(n) = v(n-1/2) + h_prev/2 a(n);  v(n+1/2) = v(n) + h/2 a(n);  u' = v(n+1/2),
-            // v' = (v(n+1/2) - v(n-1/2)) / h: one pass; then the prescribed motion, which changes
-            // only the conditions' dofs, and their entries of ydot
+            // v' = (v(n+1/2) - v(n-1/2)) / h: one pass; then the prescribed motion on u' (the
+            // kicked velocity), which changes only the conditions' dofs, and their v'
+            cd_kick(n3, v, a, h_prev, h, v_full.data(), yd.u, yd.v);
+            m.impose_velocity(t, h, true, yd.u);
             const real_t inv_h = 1.0 / h;
-            parallel_for("rkfem::arkode_cd::kick", n3,
-                         [&](index_t j)
-                         {
-                             const real_t vf = v[j] + 0.5 * h_prev * a[j];
-                             const real_t vk = vf + 0.5 * h * a[j];
-                             v_full[j] = vf;
-                             nodes.v[j] = vk;
-                             ydot[j] = vk;
-                             ydot[n3 + j] = (vk - v[j]) * inv_h;
-                         });
-            m.impose_velocity(t, h, true);
-            for (const DofCondition& c : m.conditions)
-            {
-                ydot[c.dof] = nodes.v[c.dof];
-                ydot[n3 + c.dof] = (nodes.v[c.dof] - v[c.dof]) * inv_h;
-            }
+            for (const index_t j : fixup_dofs)
+                yd.v[j] = (yd.u[j] - v[j]) * inv_h;
+            if (pool)
+                pool->return_v();
             return;
         }
         // Runge-Kutta: kernels see the displacement increment from the committed state
+        const StatePool::Halves y = values(yv);
+        const real_t* u = y.u;
+        const real_t* v = y.v;
         const real_t dtm = t - t_n;
         std::copy(u, u + n3, nodes.u.begin());
         if (dtm > 0)
@@ -305,24 +239,22 @@ struct ArkodeStepper::Impl
         force = m.compute_forces(t, dtm, step_index);
         m.compute_accelerations();
         const real_t* a = nodes.a.data();
+        const StatePool::Halves yd = overwrite(ydot);
         parallel_for("rkfem::arkode_erk::rhs", n3,
                      [&](index_t j)
                      {
-                         ydot[j] = v[j];
-                         ydot[n3 + j] = a[j];
+                         yd.u[j] = v[j];
+                         yd.v[j] = a[j];
                      });
         // prescribed dofs: u' = target velocity, v' = 0
         std::copy(v, v + n3, nodes.v.begin());
         m.impose_velocity(t, 0.0, false);
         for (const DofCondition& c : m.conditions)
         {
-            ydot[c.dof] = nodes.v[c.dof];
-            ydot[n3 + c.dof] = 0.0;
+            yd.u[c.dof] = nodes.v[c.dof];
+            yd.v[c.dof] = 0.0;
         }
     }
-
-    bool ewt_set = false;
-    N_Vector unit_w = nullptr; ///< the error-weight vector registered as all ones
 
     void check(int flag, const char* what)
     {
@@ -345,6 +277,7 @@ ArkodeStepper::~ArkodeStepper() = default;
 
 StepReport ArkodeStepper::initialize(Model& model, real_t t)
 {
+    impl_.reset(); // an earlier stepper state leaves the NodeSet holding the state
     impl_ = std::make_unique<Impl>();
     Impl& im = *impl_;
     im.self = this;
@@ -354,33 +287,41 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     // the same start as the hand-written central difference
     const StepReport start = start_model(model, t);
 
-    im.state.resize(2 * static_cast<std::size_t>(im.n3));
-    std::copy(n.u.begin(), n.u.end(), im.state.begin());
-    std::copy(n.v.begin(), n.v.end(), im.state.begin() + im.n3);
     im.v_full.assign(static_cast<std::size_t>(im.n3), 0.0);
-    im.target.assign(static_cast<std::size_t>(im.n3), 0.0);
+    for (const DofCondition& c : model.conditions)
+        if (c.kind != BoundarySpec::Kind::Fixed || model.carries_coefficients(c.dof / 3))
+            im.fixup_dofs.push_back(c.dof);
     im.h_prev = im.h_pending = 0.0;
     im.t_n = t;
-    im.u_n = n.u;
 
     im.check(SUNContext_Create(nullptr, &im.ctx), "SUNContext_Create");
-    im.y = N_VMake_Serial(2 * im.n3, im.state.data(), im.ctx);
-    RKFEM_REQUIRE(im.y != nullptr, "ARKODE: N_VMake_Serial failed");
     if (project_ops_)
-        install_project_ops(im.y);
+    {
+        im.pool = StatePool::create(im.n3);
+        im.y = im.pool->make_vector(im.ctx);
+    }
+    else
+    {
+        im.state.resize(2 * static_cast<std::size_t>(im.n3));
+        im.y = N_VMake_Serial(2 * im.n3, im.state.data(), im.ctx);
+    }
+    RKFEM_REQUIRE(im.y != nullptr, "ARKODE: the state vector could not be made");
+    const StatePool::Halves y = im.overwrite(im.y);
+    std::copy(n.u.begin(), n.u.end(), y.u);
+    std::copy(n.v.begin(), n.v.end(), y.v);
     im.mem = ERKStepCreate(Impl::rhs, t, im.y, im.ctx);
     RKFEM_REQUIRE(im.mem != nullptr, "ARKODE: ERKStepCreate failed");
     im.check(ERKStepSetUserData(im.mem, &im), "ERKStepSetUserData");
     im.table = static_cast<ARKodeButcherTable>(
         make_erk_table(mode_ == Mode::CentralDifference ? "FORWARD_EULER" : ts_.erk_table));
     im.check(ERKStepSetTable(im.mem, im.table), "ERKStepSetTable");
-    im.check(ERKStepWFtolerances(im.mem, Impl::unit_ewt), "ERKStepWFtolerances");
+    im.check(ERKStepWFtolerances(im.mem, Impl::zero_ewt), "ERKStepWFtolerances");
     if (fsal_workaround_ || mode_ == Mode::CentralDifference)
         im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess), "ERKStepSetPostprocessStepFn");
     im.check(ERKStepSetMaxNumSteps(im.mem, 1), "ERKStepSetMaxNumSteps");
     // ARK_ONE_STEP never interpolates, but 6.4.1 updates the interpolant every step: the
     // Hermite module copies y and f (two full-state copies); Lagrange of degree 0 copies y once
-    // (the module cannot be switched off before SUNDIALS 7.1)
+    // (the module cannot be switched off before SUNDIALS 7.1; rkfem's vectors share the copy)
     im.check(ERKStepSetInterpolantType(im.mem, ARK_INTERP_LAGRANGE), "ERKStepSetInterpolantType");
     im.check(ERKStepSetInterpolantDegree(im.mem, 0), "ERKStepSetInterpolantDegree");
     return start;
@@ -392,11 +333,15 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     NodeSet& n = model.nodes;
     im.step_index = step_index;
     im.h_pending = dt;
-    im.u_prev = n.u;
+    if (im.pool)
+        im.y_start = StatePool::Ref(im.y); // y(n): ARKODE's writes go to fresh storages
+    else
+        im.u_prev = n.u;
     if (mode_ == Mode::RungeKutta)
     {
         im.t_n = t;
-        im.u_n.assign(im.state.begin(), im.state.begin() + im.n3);
+        const StatePool::Halves y = im.values(im.y);
+        im.u_n.assign(y.u, y.u + im.n3);
     }
     if (mode_ == Mode::CentralDifference && im.h_next == 0.0)
         im.forced_h = dt; // first step after initialize(): the first evaluation kicks with dt
@@ -413,35 +358,24 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     im.check(ERKStepSetFixedStep(im.mem, dt), "ERKStepSetFixedStep");
     realtype tret = t;
     im.check(ERKStepEvolve(im.mem, t + dt, im.y, &tret, ARK_ONE_STEP), "ERKStepEvolve");
-    // the last evaluation was f(y(n+1)): nodes already hold u(n+1), x(n+1), a(n+1) and the trial
-    // state of the step; only the velocity is the kicked one, replaced by the full-step value
+    // the last evaluation was f(y(n+1)): nodes already hold u(n+1) (rkfem's vectors: y's u,
+    // lent), x(n+1), a(n+1) and the trial state of the step; the velocity is replaced by the
+    // full-step value
     if (mode_ == Mode::CentralDifference)
         std::swap(n.v, im.v_full);
     else
     {
         // without the FSAL workaround the last evaluation may sit at a stage point: take y(n+1)
-        std::copy(im.state.begin(), im.state.begin() + im.n3, n.u.begin());
-        std::copy(im.state.begin() + im.n3, im.state.end(), n.v.begin());
+        const StatePool::Halves y = im.values(im.y);
+        std::copy(y.u, y.u + im.n3, n.u.begin());
+        std::copy(y.v, y.v + im.n3, n.v.begin());
         model.update_coordinates();
     }
     model.impose_velocity(tret, dt, false);
-    const real_t bad = parallel_reduce_min("rkfem::arkode::check", im.n3,
-                                           [&](index_t j)
-                                           {
-                                               return std::isfinite(n.u[j]) && std::isfinite(n.a[j])
-                                                          ? 1e300
-                                                          : static_cast<real_t>(j);
-                                           });
-    if (bad < 1e299)
-    {
-        const index_t j = static_cast<index_t>(bad);
-        std::ostringstream os;
-        os << "non-finite acceleration or displacement at node " << j / 3 << " (part '"
-           << model.parts[n.part[j / 3]].name << "') at t = " << tret << " s, step " << step_index;
-        throw InstabilityError(os.str());
-    }
+    check_finite(model, tret, step_index);
     model.commit();
-    model.update_energies(im.u_prev, dt);
+    model.update_energies(im.pool ? im.y_start.half(0) : im.u_prev, dt);
+    im.y_start.reset();
     StepReport r;
     r.t = tret;
     r.dt = dt;
@@ -449,4 +383,6 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     r.dt_element = im.force.dt_element;
     return r;
 }
+
+const StatePool* ArkodeStepper::state_pool() const { return impl_ ? impl_->pool.get() : nullptr; }
 } // namespace rkfem

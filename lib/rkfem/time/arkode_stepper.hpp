@@ -16,9 +16,14 @@
 /// committed only after the step, from a fresh right-hand side at y(n+1).
 ///
 /// Around the three defects of Debian's 6.4.1 (../shared/reference/arkode-scaleout-io.md s. 3.2):
-/// a registered post-process step function forces a fresh f(y(n+1)) (the FSAL bug), the vector
-/// operations ARKODE uses are replaced by rkfem's -O3 OpenMP loops (Debian builds SUNDIALS at -O0),
-/// and a no-op error-weight function avoids the denormal WRMS norm in fixed-step mode.
+/// a registered post-process step function forces a fresh f(y(n+1)) (the FSAL bug), the state is
+/// rkfem's own N_Vector (state_vector.hpp: -O3 OpenMP loops, where Debian builds SUNDIALS at -O0;
+/// ARKODE's four per-step copies of the state share storage instead of copying it; the
+/// right-hand side works on the state in place), and error weights of zero, set once, avoid the
+/// denormal WRMS norm of fixed-step mode (with rkfem's vectors the norm then reads nothing).
+/// With rkfem's vectors, nodes.u between steps is ARKODE's state itself (lent, not copied):
+/// whoever changes the state between steps calls initialize() again, as after any change of
+/// the discretization.
 #include <memory>
 #include <string>
 #include <vector>
@@ -27,6 +32,8 @@
 
 namespace rkfem
 {
+class StatePool;
+
 class ArkodeStepper final : public TimeStepper
 {
   public:
@@ -35,8 +42,9 @@ class ArkodeStepper final : public TimeStepper
         CentralDifference,
         RungeKutta,
     };
-    /// `project_vector_ops` = false keeps Debian's own (unoptimised) vector operations, for the
-    /// benchmark that shows what the project's operations buy.
+    /// `project_vector_ops` = false uses Debian's own serial vector and its (unoptimised)
+    /// operations, copying the state in and out of the model, for the benchmark that shows what
+    /// rkfem's vectors buy.
     /// `fsal_workaround` = false leaves out the post-process step function (only for the test that
     /// shows Debian's 6.4.1 FSAL bug: classical RK4 then converges at order 3).
     ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops = true, bool fsal_workaround = true);
@@ -46,6 +54,8 @@ class ArkodeStepper final : public TimeStepper
     const char* name() const override { return mode_ == Mode::CentralDifference ? "arkode-cd" : "arkode-erk"; }
 
     long rhs_evaluations() const { return n_rhs_; }
+    /// rkfem's state vectors of the current run (null before initialize() and with Debian's).
+    const StatePool* state_pool() const;
 
     struct Impl;
 

@@ -22,30 +22,26 @@ void central_difference_drift(NodeSet& n, real_t dt)
     parallel_for("rkfem::cd::drift", n3, [&](index_t j) { n.u[j] += dt * n.v[j]; });
 }
 
-namespace
-{
 void check_finite(const Model& m, real_t t, std::int64_t step)
 {
     const NodeSet& n = m.nodes;
-    const real_t bad_r = parallel_reduce_min(
-        "rkfem::cd::check", n.size(),
-        [&](index_t i)
-        {
-            for (int k = 0; k < 3; ++k)
-                if (!std::isfinite(n.a[3 * i + k]) || !std::isfinite(n.u[3 * i + k]))
-                    return static_cast<real_t>(i);
-            return 1e300;
-        });
-    if (bad_r < 1e299)
-    {
-        const index_t bad = static_cast<index_t>(bad_r);
-        std::ostringstream os;
-        os << "non-finite acceleration or displacement at node " << bad << " (part '"
-           << m.parts[n.part[bad]].name << "') at t = " << t << " s, step " << step;
-        throw InstabilityError(os.str());
-    }
+    const index_t n3 = 3 * n.size();
+    const real_t* u = n.u.data();
+    const real_t* a = n.a.data();
+    // x - x is 0 for finite x and NaN otherwise: one vectorized sum finds whether any value is
+    // not finite; only then a scan finds the first such node
+    const real_t s = parallel_reduce_sum("rkfem::check_finite", n3, [&](index_t j) { return (u[j] - u[j]) + (a[j] - a[j]); });
+    if (s == 0.0)
+        return;
+    index_t bad = 0;
+    while (bad < n3 && std::isfinite(u[bad]) && std::isfinite(a[bad]))
+        ++bad;
+    bad /= 3;
+    std::ostringstream os;
+    os << "non-finite acceleration or displacement at node " << bad << " (part '" << m.parts[n.part[bad]].name
+       << "') at t = " << t << " s, step " << step;
+    throw InstabilityError(os.str());
 }
-} // namespace
 
 StepReport start_model(Model& model, real_t t)
 {

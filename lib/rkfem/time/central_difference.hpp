@@ -4,6 +4,7 @@
 ///   v(n+1/2) = v(n) + dt/2 a(n);  u(n+1) = u(n) + dt v(n+1/2);  a(n+1);  v(n+1) = v(n+1/2) + dt/2 a(n+1)
 /// which is algebraically the classical scheme v(n+1/2) = v(n-1/2) + (dt(n-1) + dt(n))/2 a(n), and
 /// keeps full-step velocities for energies and output.
+#include <cstdint>
 #include <vector>
 
 #include "rkfem/time/stepper.hpp"
@@ -16,6 +17,10 @@ class Model;
 /// The common start of every stepper: prescribed velocities at t, forces and accelerations with
 /// no material increment, committed state, initial energies; reports the stable step.
 StepReport start_model(Model& model, real_t t);
+
+/// Throws InstabilityError naming the first node (and its part), t and the step when a
+/// displacement or acceleration is not finite.
+void check_finite(const Model& model, real_t t, std::int64_t step);
 
 /// v += h a over all nodes (one half kick).
 void central_difference_kick(NodeSet& nodes, real_t h);
