@@ -929,7 +929,7 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
     t.max_steps = s.integer("max_steps", 0);
     if (t.max_steps < 0)
         s.fail("max_steps", "is negative", "expected an integer >= 0 (0: no limit)");
-    const std::string st = s.choice("stepper", {"central-difference", "arkode-cd", "arkode-erk"}, "central-difference");
+    const std::string st = s.choice("stepper", {"central-difference", "arkode-cd", "arkode-erk"}, "arkode-cd");
     t.stepper = st == "arkode-cd"    ? StepperKind::ArkodeCd
                 : st == "arkode-erk" ? StepperKind::ArkodeErk
                                      : StepperKind::CentralDifference;

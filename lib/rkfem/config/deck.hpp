@@ -236,7 +236,7 @@ struct TimeSpec
     real_t dt_scale = 0.9;
     real_t dt_max = 0.0; ///< 0: unlimited
     std::int64_t max_steps = 0; ///< 0: unlimited
-    StepperKind stepper = StepperKind::CentralDifference;
+    StepperKind stepper = StepperKind::ArkodeCd; ///< the default: within a few % of the hand loop
     std::string erk_table = "ARKODE_BOGACKI_SHAMPINE_4_2_3"; ///< arkode-erk: built-in name, RK4 or SSPRK3
     real_t energy_error_limit = 0.05; ///< stop when the balance error exceeds this (fraction)
     real_t mass_damping = 0.0; ///< dynamic-relaxation damping coefficient [1/s] (a -= c v)
