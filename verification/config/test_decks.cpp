@@ -370,3 +370,43 @@ TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
                     cloud_deck(", points: outside.csv, points_unit: mm", "    formulation: rkpm\n"),
                     ":6: parts.col.generator.points", "outside.csv:3 lies outside the box body");
 }
+
+TEST(Decks, CylinderCloudPartsRunAndTheirMistakesNameTheKey)
+{
+    auto cyl = [](const std::string& generator)
+    {
+        return replace(good, "{type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
+                       "{type: cloud, body: cylinder" + generator + "}");
+    };
+    const std::string part = "    formulation: rkpm\n";
+    auto with_rkpm = [&](const std::string& deck)
+    {
+        return replace(deck, "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                       "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n" + part);
+    };
+    const std::string ok = write_deck("cyl_ok.yaml", with_rkpm(cyl(", radius: 1 mm, height: 6 mm, spacing: 0.5 mm")));
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_cyl_ok";
+    fs::remove_all(out);
+    const Result r = run("run " + ok + " --out " + out.string() + " --quiet");
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(out / "results.xdmf"));
+    expect_rejected("cyl_size.yaml", with_rkpm(cyl(", size: [1 mm, 1 mm, 1 mm], radius: 1 mm, height: 6 mm, spacing: 0.5 mm")),
+                    ":6: parts.col.generator.size", "is not used by a cylinder body");
+    expect_rejected("cyl_radius.yaml", with_rkpm(cyl(", height: 6 mm, spacing: 0.5 mm")), ":6: parts.col.generator.radius",
+                    "missing");
+    expect_rejected("box_radius.yaml",
+                    with_rkpm(replace(good, "{type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
+                                      "{type: cloud, size: [1 mm, 1 mm, 10 mm], radius: 1 mm, spacing: 0.5 mm}")),
+                    ":6: parts.col.generator.radius", "is not used by a box body");
+    expect_rejected("cyl_body.yaml",
+                    with_rkpm(replace(good, "{type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
+                                      "{type: cloud, body: sphere, radius: 1 mm, spacing: 0.5 mm}")),
+                    ":6: parts.col.generator.body", "expected one of");
+    expect_rejected("cyl_faces.yaml",
+                    with_rkpm(cyl(", radius: 1 mm, height: 6 mm, spacing: 0.5 mm")) +
+                        "face_sets:\n  end: {part: col, select: {type: named, name: xmin}}\n",
+                    ":14: face_sets.end.select.name", "expected one of top, bottom, side (a cylinder body)");
+    write_deck("cyl_outside.csv", "# x, y, z in mm\n0, 0, 1\n0.9, 0.5, 2\n");
+    expect_rejected("cyl_outside.yaml", with_rkpm(cyl(", radius: 1 mm, height: 6 mm, points: cyl_outside.csv, points_unit: mm")),
+                    ":6: parts.col.generator.points", "cyl_outside.csv:3 lies outside the cylinder body");
+}

@@ -1,12 +1,15 @@
-// Voronoi cells of a jittered cloud clipped to a box (CGAL): volumes tile the body, SCNI on the
-// cells satisfies the integration constraint to round-off and passes the static linear patch test.
+// Voronoi cells of a jittered cloud clipped to a box or a cylinder's tangent prism (CGAL): volumes
+// tile the body, SCNI on the cells satisfies the integration constraint to round-off and passes
+// the static linear patch test.
 #include <gtest/gtest.h>
 
 #include <cstdio>
 #include <random>
 
 #include "rkfem/approximation/shape_evaluator.hpp"
+#include "rkfem/discretization/generators.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
+#include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 #include "rkfem/operators/linear_static.hpp"
 
@@ -54,19 +57,12 @@ VoronoiSetup make_setup()
 }
 } // namespace
 
-TEST(VoronoiCells, VolumesTileTheBodyAndScniSatisfiesTheIntegrationConstraint)
+namespace
 {
-    const VoronoiSetup s = make_setup();
-    real_t vol = 0.0, vmin = 1e300;
-    for (real_t v : s.cells.volume)
-    {
-        vol += v;
-        vmin = std::min(vmin, v);
-    }
-    std::printf("%d cells, total volume - 1 = %.2e, smallest %.3e\n", s.cells.size(), vol - 1.0, vmin);
-    EXPECT_NEAR(vol, 1.0, 1e-12);
-    EXPECT_GT(vmin, 0.0);
-    // IC1: sum_L b_I(L) V_L = sum over body-boundary facet points of Psi_I n dA
+/// IC1 (sum_L b_I(L) V_L = sum over body-boundary facet points of Psi_I n dA) and the SCNI
+/// gradient of the linear field x: the largest errors of each.
+std::pair<real_t, real_t> scni_consistency(const VoronoiSetup& s)
+{
     const index_t n = s.cells.size();
     std::vector<Vec3> lhs(static_cast<std::size_t>(n), Vec3::Zero()), rhs = lhs;
     for (index_t p = 0; p < s.op.n_points(); ++p)
@@ -91,9 +87,82 @@ TEST(VoronoiCells, VolumesTileTheBodyAndScniSatisfiesTheIntegrationConstraint)
                  s.op.gradient(k).transpose();
         lin = std::max(lin, (g - Mat3::Identity()).cwiseAbs().maxCoeff());
     }
+    return {ic, lin};
+}
+} // namespace
+
+TEST(VoronoiCells, VolumesTileTheBodyAndScniSatisfiesTheIntegrationConstraint)
+{
+    const VoronoiSetup s = make_setup();
+    real_t vol = 0.0, vmin = 1e300;
+    for (real_t v : s.cells.volume)
+    {
+        vol += v;
+        vmin = std::min(vmin, v);
+    }
+    std::printf("%d cells, total volume - 1 = %.2e, smallest %.3e\n", s.cells.size(), vol - 1.0, vmin);
+    EXPECT_NEAR(vol, 1.0, 1e-12);
+    EXPECT_GT(vmin, 0.0);
+    const auto [ic, lin] = scni_consistency(s);
     std::printf("IC1 error %.2e (per unit area), linear gradient error %.2e\n", ic, lin);
     EXPECT_LT(ic, 1e-12);
     EXPECT_LT(lin, 1e-11);
+}
+
+// A cylinder body (cloud parts with body: cylinder): the cells are clipped to the prism of planes
+// tangent to the cylinder, so they tile the prism, whose volume is the cylinder's times
+// sides tan(pi / sides) / pi; SCNI on them satisfies IC1. Generated (jittered, particles on the
+// surface) and random clouds.
+TEST(VoronoiCells, CylinderBodyCellsTileTheTangentPrism)
+{
+    GeneratorSpec g;
+    g.type = GeneratorSpec::Type::Cloud;
+    g.body = GeneratorSpec::Body::Cylinder;
+    g.origin = Vec3(0.1, -0.2, 0.3);
+    g.radius = 0.5;
+    g.height = 0.8;
+    g.element_size = 0.125;
+    g.jitter = 0.3;
+    for (const bool random : {false, true})
+    {
+        VoronoiSetup s;
+        s.x = generate_cloud(g).x;
+        if (random) // uniform in the cylinder: rejection sampling in the bounding box
+        {
+            const std::size_t n = s.x.size() / 3;
+            s.x.clear();
+            std::mt19937 gen(5);
+            std::uniform_real_distribution<real_t> u(-1.0, 1.0), w(0.0, 1.0);
+            while (s.x.size() < 3 * n)
+            {
+                const real_t a = u(gen), b = u(gen);
+                if (a * a + b * b <= 1.0)
+                    s.x.insert(s.x.end(), {g.origin[0] + g.radius * a, g.origin[1] + g.radius * b, g.origin[2] + g.height * w(gen)});
+            }
+        }
+        const index_t n = static_cast<index_t>(s.x.size() / 3);
+        const std::vector<HalfSpace> body = cloud_body(g, n);
+        const int sides = static_cast<int>(body.size()) - 2;
+        s.cells = voronoi_cells(s.x, body);
+        real_t vol = 0.0;
+        for (real_t v : s.cells.volume)
+            vol += v;
+        const real_t cylinder = M_PI * g.radius * g.radius * g.height;
+        const real_t prism = cylinder * sides * std::tan(M_PI / sides) / M_PI;
+        std::vector<real_t> a = s.cells.spacing;
+        for (auto& v : a)
+            v *= 1.6;
+        s.rk = RkShapeFunctions(s.x, a, {1, KernelType::CubicBSpline, SupportShape::Sphere, 1.6});
+        s.op = build_scni_cells(s.cells, s.x, RkShapes(s.rk));
+        const auto [ic, lin] = scni_consistency(s);
+        std::printf("%s cylinder cloud, %d cells, %d sides: volume / prism - 1 = %.2e (prism / cylinder - 1 = %.2e); "
+                    "IC1 error %.2e, linear gradient error %.2e\n",
+                    random ? "random" : "generated", n, sides, vol / prism - 1.0, prism / cylinder - 1.0, ic, lin);
+        EXPECT_NEAR(vol / prism, 1.0, 1e-12);
+        EXPECT_LT(prism / cylinder - 1.0, 1.1 * std::pow(M_PI / sides, 2) / 3.0);
+        EXPECT_LT(ic, 1e-12);
+        EXPECT_LT(lin, 1e-11);
+    }
 }
 
 TEST(VoronoiCells, ScniOnVoronoiCellsPassesTheLinearPatchTest)

@@ -343,3 +343,96 @@ loads:
         EXPECT_NEAR(slab[k], -p, 0.02 * p) << "slab " << k;
     }
 }
+
+// The same on a cylinder cloud (body: cylinder; the cells are clipped to the planes tangent to
+// the cylinder): the top facets tile the prism's cap, so the resultant is -p sides R^2
+// tan(pi / sides) to round-off, and behind the front sigma_zz = -p.
+TEST(UniaxialWave, PressureStepOnACylinderCloud)
+{
+    Model m = test::model_from(R"(
+title: cylinder cloud pressure wave
+time: {end: 14 us}
+parts:
+  column:
+    generator: {type: cloud, body: cylinder, radius: 2 mm, height: 100 mm, spacing: 1 mm, jitter: 0.25, seed: 4}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: rkpm
+node_sets:
+  all: {select: {type: named, name: all}}
+face_sets:
+  loaded: {select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: all, fixed: [x, y]}
+loads:
+  - {type: pressure, face_set: loaded, pressure: 100 MPa}
+)");
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt, {});
+    ASSERT_EQ(s.status, "completed") << s.message;
+    const GeneratorSpec& g = m.deck().parts[0].generator;
+    const int sides = static_cast<int>(cloud_body(g, m.nodes.size()).size()) - 2;
+    const real_t p = 100e6, area = sides * g.radius * g.radius * std::tan(M_PI / sides);
+    real_t fz = 0.0;
+    for (index_t n = 0; n < m.nodes.size(); ++n)
+        fz += m.nodes.f_ext[3 * n + 2];
+    std::printf("cylinder cloud: %d particles, %d sides; resultant / (-p A_prism) - 1 = %.2e\n", m.nodes.size(), sides,
+                fz / (-p * area) - 1.0);
+    EXPECT_NEAR(fz, -p * area, 1e-12 * p * area);
+    const std::vector<real_t> slab = bin_means(m, 10e-3, 10e-3, 5, ZZ, 100e-3); // from the loaded end
+    for (int k = 0; k < 5; ++k)
+    {
+        std::printf("  %d-%d mm from the loaded end: sigma_zz = %.4f p\n", 10 + 10 * k, 20 + 10 * k, slab[k] / -p);
+        EXPECT_NEAR(slab[k], -p, 0.02 * p) << "slab " << k;
+    }
+}
+
+TEST(UniaxialWave, PressureOnACloudFollowsTheDeformedFacets)
+{
+    // A pressure on cloud facets acts on the current facets (Nanson, n da = J F^-T N dA with F of
+    // the RK approximation at each facet point). Under a homogeneous motion x = A X the
+    // approximation is exact (linear reproduction), so the resultant on the top face (N = e_z,
+    // area A0) is exactly -p J A^-T e_z A0: a rigid rotation turns it with the body, an in-plane
+    // stretch by s scales it by s^2.
+    Model m = test::model_from(R"(
+title: cloud pressure on deformed facets
+time: {end: 1 us}
+parts:
+  block:
+    generator: {type: cloud, size: [4 mm, 3 mm, 5 mm], spacing: 1 mm, jitter: 0.3, seed: 2}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: rkpm
+face_sets:
+  loaded: {select: {type: named, name: top}}
+loads:
+  - {type: pressure, face_set: loaded, pressure: 100 MPa}
+)");
+    const real_t p = 100e6, area = 12e-6;
+    auto resultant = [&](const Mat3& A)
+    {
+        for (index_t n = 0; n < m.nodes.size(); ++n)
+        {
+            const Vec3 X(m.nodes.x0[3 * n], m.nodes.x0[3 * n + 1], m.nodes.x0[3 * n + 2]);
+            const Vec3 u = A * X - X; // coefficients of a linear field are its nodal values
+            for (int d = 0; d < 3; ++d)
+                m.nodes.u[3 * n + d] = u[d];
+        }
+        m.update_coordinates();
+        m.compute_forces(0.0, 0.0, 0);
+        Vec3 f = Vec3::Zero();
+        for (index_t n = 0; n < m.nodes.size(); ++n)
+            f += Vec3(m.nodes.f_ext[3 * n], m.nodes.f_ext[3 * n + 1], m.nodes.f_ext[3 * n + 2]);
+        return f;
+    };
+    const Mat3 R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 0.5).normalized()).toRotationMatrix();
+    const Mat3 S = Vec3(1.3, 1.3, 0.8).asDiagonal();
+    for (const auto& [name, A] : {std::pair<const char*, Mat3>{"undeformed", Mat3::Identity()}, {"rotated", R},
+                                  {"stretched", S}, {"stretched and rotated", R * S}})
+    {
+        const Vec3 expect = -p * area * A.determinant() * (A.inverse().transpose() * Vec3::UnitZ());
+        const Vec3 f = resultant(A);
+        std::printf("%-22s resultant (%.6e, %.6e, %.6e) N, |error| / pA = %.2e\n", name, f[0], f[1], f[2],
+                    (f - expect).norm() / (p * area));
+        EXPECT_LT((f - expect).norm(), 1e-11 * p * area) << name;
+    }
+}

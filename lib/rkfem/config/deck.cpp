@@ -401,9 +401,27 @@ GeneratorSpec read_generator(const Section& part)
     }
     else if (type == "cloud")
     {
-        Section s(part.ctx(), gn, gp, {"type", "origin", "size", "spacing", "jitter", "seed", "points", "points_unit"});
+        Section s(part.ctx(), gn, gp,
+                  {"type", "body", "origin", "size", "radius", "height", "spacing", "jitter", "seed", "points",
+                   "points_unit"});
         g.type = GeneratorSpec::Type::Cloud;
-        read_box(s, g);
+        g.body = s.choice("body", {"box", "cylinder"}, "box") == "box" ? GeneratorSpec::Body::Box
+                                                                        : GeneratorSpec::Body::Cylinder;
+        if (g.body == GeneratorSpec::Body::Box)
+        {
+            for (const char* k : {"radius", "height"})
+                if (s.has(k))
+                    s.fail(k, "is not used by a box body", "expected origin and size, or body: cylinder");
+            read_box(s, g);
+        }
+        else
+        {
+            if (s.has("size"))
+                s.fail("size", "is not used by a cylinder body", "expected origin (bottom centre), radius and height");
+            g.origin = s.vec3("origin", dim::length, Vec3::Zero());
+            g.radius = s.positive("radius", dim::length);
+            g.height = s.positive("height", dim::length);
+        }
         if (s.has("points") == s.has("spacing"))
             s.fail(s.has("points") ? "points" : "spacing", s.has("points") ? "is given with spacing" : "is missing",
                    "expected either spacing (a jittered lattice) or points (a CSV file of x,y,z)");

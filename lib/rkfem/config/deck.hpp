@@ -116,7 +116,7 @@ struct GeneratorSpec
         Box,
         Cylinder,
         Projectile,
-        Cloud, ///< particles not from a mesh: a jittered lattice or imported points in a box body
+        Cloud, ///< particles not from a mesh: a jittered lattice or imported points in a box or cylinder body
     };
     Type type = Type::Box;
     // box
@@ -129,9 +129,16 @@ struct GeneratorSpec
     std::string core = "butterfly"; ///< cylinder core: butterfly | ogrid
     int direction = -1;  ///< projectile: nose points to -z (-1) or +z (+1); origin = nose centre
     real_t element_size = 0.0; ///< cloud: lattice spacing
-    // cloud: the body is the box (origin, size); particles are a lattice of about element_size
-    // spacing with interior coordinates jittered by +-jitter spacing (seeded), or the points of
-    // a CSV file (x,y,z per line, in points_unit)
+    // cloud: the body is the box (origin, size) or the cylinder (origin = bottom centre, radius,
+    // height; axis +z); particles are a lattice of about element_size spacing with interior
+    // coordinates jittered by +-jitter spacing (seeded), or the points of a CSV file (x,y,z per
+    // line, in points_unit)
+    enum class Body
+    {
+        Box,
+        Cylinder,
+    };
+    Body body = Body::Box;
     real_t jitter = 0.25;
     int seed = 1;
     std::string points_file; ///< resolved against the deck's directory

@@ -148,7 +148,11 @@ std::string to_yaml(const Deck& d)
                << ", direction: " << (g.direction < 0 ? "-z" : "+z");
             break;
         case GeneratorSpec::Type::Cloud:
-            os << "type: cloud, origin: " << vec(g.origin) << ", size: " << vec(g.size);
+            if (g.body == GeneratorSpec::Body::Box)
+                os << "type: cloud, origin: " << vec(g.origin) << ", size: " << vec(g.size);
+            else
+                os << "type: cloud, body: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius
+                   << ", height: " << g.height;
             if (g.points_file.empty())
                 os << ", spacing: " << g.element_size << ", jitter: " << g.jitter << ", seed: " << g.seed;
             else

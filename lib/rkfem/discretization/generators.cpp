@@ -197,9 +197,30 @@ HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real
 
 HexMesh generate_cloud(const GeneratorSpec& g)
 {
+    const bool cyl = g.body == GeneratorSpec::Body::Cylinder;
+    const Vec3 lo = g.origin, hi = g.origin + g.size; // box body
+    const real_t tol = 1e-9 * (cyl ? std::hypot(2 * g.radius, g.height) : g.size.norm());
+    const char* body_name = cyl ? "cylinder body" : "box body";
+    // the body: inside (to tol), and the nearest point of the body for points on its surface
+    auto inside = [&](const Vec3& p)
+    {
+        if (!cyl)
+            return (p.array() >= lo.array() - tol).all() && (p.array() <= hi.array() + tol).all();
+        const real_t z = p[2] - g.origin[2];
+        return std::hypot(p[0] - g.origin[0], p[1] - g.origin[1]) <= g.radius + tol && z >= -tol && z <= g.height + tol;
+    };
+    auto clamp = [&](Vec3 p)
+    {
+        if (!cyl)
+            return Vec3(p.cwiseMax(lo).cwiseMin(hi));
+        const real_t r = std::hypot(p[0] - g.origin[0], p[1] - g.origin[1]);
+        if (r > g.radius)
+            for (int d = 0; d < 2; ++d)
+                p[d] = g.origin[d] + (p[d] - g.origin[d]) * g.radius / r;
+        p[2] = std::clamp(p[2], g.origin[2], g.origin[2] + g.height);
+        return p;
+    };
     HexMesh m;
-    const Vec3 lo = g.origin, hi = g.origin + g.size;
-    const real_t tol = 1e-9 * g.size.norm();
     const SourceLocation where{g.loc.where, g.loc.path + ".points"};
     if (!g.points_file.empty())
     {
@@ -218,20 +239,19 @@ HexMesh generate_cloud(const GeneratorSpec& g)
             if (!(is >> c[0] >> c[1] >> c[2]) || (is >> rest))
                 throw DeckError(where, g.points_file + ":" + std::to_string(ln) + " is not three numbers",
                                 "expected x,y,z per line");
-            for (int d = 0; d < 3; ++d)
-            {
-                c[d] *= g.points_unit;
-                if (!(c[d] >= lo[d] - tol && c[d] <= hi[d] + tol))
-                    throw DeckError(where, g.points_file + ":" + std::to_string(ln) + " lies outside the box body",
-                                    "expected every point within origin .. origin + size");
-                m.x.push_back(std::clamp(c[d], lo[d], hi[d]));
-            }
+            const Vec3 p = g.points_unit * Vec3(c[0], c[1], c[2]);
+            if (!inside(p))
+                throw DeckError(where, g.points_file + ":" + std::to_string(ln) + " lies outside the " + body_name,
+                                cyl ? "expected every point within radius of the axis and 0 .. height above origin"
+                                    : "expected every point within origin .. origin + size");
+            const Vec3 q = clamp(p);
+            m.x.insert(m.x.end(), {q[0], q[1], q[2]});
         }
         if (m.n_nodes() < 8)
             throw DeckError(where, g.points_file + " has " + std::to_string(m.n_nodes()) + " points",
                             "expected at least 8 points");
     }
-    else
+    else if (!cyl)
     {
         std::array<int, 3> n;
         Vec3 h;
@@ -255,13 +275,58 @@ HexMesh generate_cloud(const GeneratorSpec& g)
                     }
                 }
     }
-    static const char* names[3][2] = {{"xmin", "xmax"}, {"ymin", "ymax"}, {"zmin", "zmax"}};
+    else
+    {
+        // the nodes of the cylinder mesh generator (butterfly core: no clustering at the axis),
+        // jittered by +-jitter spacing; a particle on the side keeps its radius (its angle, and
+        // off the caps its height, are jittered), one on a cap keeps its height
+        const HexMesh c = generate_cylinder(g.origin, g.radius, g.height, g.element_size, false);
+        const real_t h = g.element_size;
+        std::mt19937 gen(static_cast<unsigned>(g.seed));
+        std::uniform_real_distribution<real_t> jit(-g.jitter, g.jitter);
+        for (index_t i = 0; i < c.n_nodes(); ++i)
+        {
+            Vec3 p = c.node(i);
+            const real_t r0 = jit(gen), r1 = jit(gen), r2 = jit(gen); // three per particle: seed only
+            const real_t dx = p[0] - g.origin[0], dy = p[1] - g.origin[1], z = p[2] - g.origin[2];
+            const real_t r = std::hypot(dx, dy);
+            const bool on_side = std::abs(r - g.radius) <= tol;
+            const bool on_cap = std::abs(z) <= tol || std::abs(z - g.height) <= tol;
+            if (on_side)
+            {
+                const real_t a = std::atan2(dy, dx) + r0 * h / g.radius;
+                p[0] = g.origin[0] + g.radius * std::cos(a);
+                p[1] = g.origin[1] + g.radius * std::sin(a);
+            }
+            else
+            {
+                p[0] += r0 * h;
+                p[1] += r1 * h;
+            }
+            if (!on_cap)
+                p[2] += r2 * h;
+            p = clamp(p);
+            m.x.insert(m.x.end(), {p[0], p[1], p[2]});
+        }
+    }
     for (index_t i = 0; i < m.n_nodes(); ++i)
     {
+        const Vec3 p = m.node(i);
+        if (cyl)
+        {
+            if (std::abs(p[2] - g.origin[2]) <= tol)
+                m.named_nodes["bottom"].push_back(i);
+            if (std::abs(p[2] - g.origin[2] - g.height) <= tol)
+                m.named_nodes["top"].push_back(i);
+            if (std::abs(std::hypot(p[0] - g.origin[0], p[1] - g.origin[1]) - g.radius) <= tol)
+                m.named_nodes["side"].push_back(i);
+            continue;
+        }
+        static const char* names[3][2] = {{"xmin", "xmax"}, {"ymin", "ymax"}, {"zmin", "zmax"}};
         bool side = false;
         for (int d = 0; d < 3; ++d)
             for (int e = 0; e < 2; ++e)
-                if (std::abs(m.x[3 * i + d] - (e ? hi[d] : lo[d])) <= tol)
+                if (std::abs(p[d] - (e ? hi[d] : lo[d])) <= tol)
                 {
                     m.named_nodes[names[d][e]].push_back(i);
                     side = side || d < 2;
@@ -269,8 +334,11 @@ HexMesh generate_cloud(const GeneratorSpec& g)
         if (side)
             m.named_nodes["side"].push_back(i);
     }
-    m.named_nodes["top"] = m.named_nodes["zmax"];
-    m.named_nodes["bottom"] = m.named_nodes["zmin"];
+    if (!cyl)
+    {
+        m.named_nodes["top"] = m.named_nodes["zmax"];
+        m.named_nodes["bottom"] = m.named_nodes["zmin"];
+    }
     return m;
 }
 

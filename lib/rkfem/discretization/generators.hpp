@@ -15,14 +15,17 @@ HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int,
 HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t element_size,
                           bool ogrid_core);
 
-/// The particles of a cloud part (`type: cloud`) as a mesh without elements: a lattice of about
-/// `element_size` spacing over the box (origin, size), each coordinate jittered by a uniform
+/// The particles of a cloud part (`type: cloud`) as a mesh without elements. Box body (origin,
+/// size): a lattice of about `element_size` spacing, each coordinate jittered by a uniform
 /// +-jitter spacing (seeded) except where the particle lies on the box's face normal to it, so
-/// that boundary particles stay on the surface; or the points of a CSV file (x,y,z per line,
-/// times points_unit; blank lines and lines starting with # skipped), which must lie in the box.
-/// Named node groups: xmin..zmax, top (= zmax), bottom (= zmin), side (x and y faces).
-/// Throws DeckError naming generator.points for a file that is missing, malformed or has points
-/// outside the box.
+/// that boundary particles stay on the surface. Cylinder body (origin = bottom centre, radius,
+/// height): the nodes of generate_cylinder (butterfly core) jittered the same way, side particles
+/// kept on the circle and cap particles on their cap. Or the points of a CSV file (x,y,z per
+/// line, times points_unit; blank lines and lines starting with # skipped), which must lie in the
+/// body (points within 1e-9 of its size outside are moved onto it).
+/// Named node groups: box xmin..zmax, top (= zmax), bottom (= zmin), side (x and y faces);
+/// cylinder top, bottom, side. Throws DeckError naming generator.points for a file that is
+/// missing, malformed or has points outside the body.
 HexMesh generate_cloud(const GeneratorSpec& spec);
 
 /// Builds the mesh a part's generator describes.

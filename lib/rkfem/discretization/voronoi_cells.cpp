@@ -24,7 +24,6 @@ using Delaunay = CGAL::Delaunay_triangulation_3<K, Tds>;
 using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 using Polyhedron = CGAL::Polyhedron_3<EK>;
 
-Vec3 vec(const K::Point_3& p) { return {p.x(), p.y(), p.z()}; }
 Vec3 vec(const EK::Point_3& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())}; }
 } // namespace
 
@@ -38,6 +37,21 @@ std::vector<HalfSpace> box_halfspaces(const Vec3& lo, const Vec3& hi)
         h.push_back({n, hi[d]});
         h.push_back({-n, -lo[d]});
     }
+    return h;
+}
+
+std::vector<HalfSpace> cylinder_halfspaces(const Vec3& origin, real_t radius, real_t height, int sides)
+{
+    RKFEM_REQUIRE(sides >= 3, "cylinder_halfspaces: " << sides << " sides");
+    std::vector<HalfSpace> h;
+    for (int k = 0; k < sides; ++k)
+    {
+        const real_t a = 2.0 * M_PI * k / sides;
+        const Vec3 n(std::cos(a), std::sin(a), 0.0);
+        h.push_back({n, n.dot(origin) + radius});
+    }
+    h.push_back({Vec3::UnitZ(), origin[2] + height});
+    h.push_back({-Vec3::UnitZ(), -origin[2]});
     return h;
 }
 
@@ -91,32 +105,70 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             planes.emplace_back(nrm[0], nrm[1], nrm[2], -nrm.dot(mid));
             owner.push_back(j);
         }
-        for (const HalfSpace& h : body)
-        {
-            planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
-            owner.push_back(-1);
-        }
-        // the point inside the cell that CGAL's dual construction starts from: x_i, pushed to at
-        // least 0.2 d_min (d_min: its nearest neighbour's distance) from every body face. The
-        // dual points scale with 1 / (distance of the point to each plane), so a point on or
-        // near a face (a generated boundary particle, an imported point) made the construction
-        // ill-conditioned: an unoptimized build got cells reaching outside the body. The push is
-        // at most sqrt(3) 0.2 d_min on a box corner, inside the bisectors (d_min / 2 away).
-        real_t dmin = 1e300;
+        // the body's planes that can cut the cell: within twice the farthest Delaunay neighbour
+        // (a faceted body has many, and each plane costs every cell's construction); checked
+        // below, all planes when the cell would reach past one left out
+        real_t dmin = 1e300, dmax = 0.0;
         for (const auto& v : adj)
         {
             const index_t j = v->info();
-            dmin = std::min(dmin, (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm());
+            const real_t d = (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm();
+            dmin = std::min(dmin, d);
+            dmax = std::max(dmax, d);
         }
-        Vec3 xin = xi;
-        for (const HalfSpace& h : body)
+        const std::size_t n_bisectors = planes.size();
+        auto add_body_planes = [&](bool all)
         {
-            const real_t dist = h.offset - h.normal.dot(xi); // unit normals
-            if (dist < 0.2 * dmin)
-                xin -= (0.2 * dmin - dist) * h.normal;
+            planes.resize(n_bisectors);
+            owner.resize(n_bisectors);
+            for (const HalfSpace& h : body)
+                if (all || h.offset - h.normal.dot(xi) <= 2.0 * dmax)
+                {
+                    planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
+                    owner.push_back(-1);
+                }
+        };
+        // the point inside the cell that CGAL's dual construction starts from: x_i, pushed to at
+        // least 0.2 d_min (d_min: its nearest neighbour's distance) from every body face, the
+        // nearest face first. The dual points scale with 1 / (distance of the point to each
+        // plane), so a point on or near a face (a generated boundary particle, an imported point)
+        // made the construction ill-conditioned: an unoptimized build got cells reaching outside
+        // the body. The push is at most about sqrt(3) 0.2 d_min (a box corner), inside the
+        // bisectors (d_min / 2 away).
+        Vec3 xin = xi;
+        for (int pass = 0; pass < 8; ++pass)
+        {
+            const HalfSpace* nearest = nullptr;
+            real_t nearest_dist = 0.2 * dmin;
+            for (const HalfSpace& h : body)
+            {
+                const real_t dist = h.offset - h.normal.dot(xin); // unit normals
+                if (dist < nearest_dist)
+                {
+                    nearest_dist = dist;
+                    nearest = &h;
+                }
+            }
+            if (nearest == nullptr)
+                break;
+            xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
         }
         Polyhedron P;
+        add_body_planes(false);
         CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
+        bool inside_body = true;
+        for (auto v = P.vertices_begin(); v != P.vertices_end() && inside_body; ++v)
+        {
+            const Vec3 p = vec(v->point());
+            for (const HalfSpace& h : body)
+                inside_body = inside_body && h.normal.dot(p) <= h.offset + tol;
+        }
+        if (!inside_body)
+        {
+            P.clear();
+            add_body_planes(true);
+            CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
+        }
         real_t vol = 0.0;
         // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
         Vec3 apex = Vec3::Zero();

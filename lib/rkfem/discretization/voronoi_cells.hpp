@@ -24,6 +24,11 @@ struct HalfSpace
 /// The six half-spaces of an axis-aligned box.
 std::vector<HalfSpace> box_halfspaces(const Vec3& lo, const Vec3& hi);
 
+/// The prism of `sides` planes tangent to the cylinder (axis +z from `origin`, the bottom
+/// centre; radius, height), and its two caps: a convex body that holds the whole cylinder, with
+/// the volume of the cylinder times sides tan(pi / sides) / pi (1 + (pi / sides)^2 / 3 + ...).
+std::vector<HalfSpace> cylinder_halfspaces(const Vec3& origin, real_t radius, real_t height, int sides);
+
 struct CellFacetPoint
 {
     Vec3 x;               ///< quadrature point

@@ -269,10 +269,14 @@ Model Model::build(const Deck& deck)
                     {"ymax", Vec3::UnitY()},  {"zmin", -Vec3::UnitZ()}, {"zmax", Vec3::UnitZ()},
                     {"bottom", -Vec3::UnitZ()}, {"top", Vec3::UnitZ()}};
                 const bool named = s.select.type == SelectorSpec::Type::Named;
-                if (named && s.select.name != "side" && !normals.count(s.select.name))
+                const bool cylinder = d.parts[ip].generator.body == GeneratorSpec::Body::Cylinder;
+                if (named && s.select.name != "side" &&
+                    (!normals.count(s.select.name) ||
+                     (cylinder && s.select.name != "top" && s.select.name != "bottom")))
                     throw DeckError({s.loc.where, s.loc.path + ".select.name"},
                                     "cloud part '" + pi.name + "' has no face set named '" + s.select.name + "'",
-                                    "expected one of xmin, xmax, ymin, ymax, zmin, zmax, top, bottom, side");
+                                    cylinder ? "expected one of top, bottom, side (a cylinder body)"
+                                             : "expected one of xmin, xmax, ymin, ymax, zmin, zmax, top, bottom, side");
                 const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
                                                            : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
                 for (const CellFacetPoint& fp : m.nodal_blocks[m.part_nodal[ip]].boundary_facets)
@@ -408,11 +412,12 @@ Model Model::build(const Deck& deck)
         CloudFaceLoads cl;
         for (const CloudFacet& cf : m.cloud_face_sets.at(load->set))
         {
-            m.nodal_blocks[m.part_nodal[cf.part]].rk->evaluate(cf.x, false, smp);
+            m.nodal_blocks[m.part_nodal[cf.part]].rk->evaluate(cf.x, true, smp);
             for (index_t k = 0; k < smp.size(); ++k)
             {
                 cl.nodes.push_back(smp.nodes[k] + m.parts[cf.part].node_begin);
                 cl.psi.push_back(smp.psi[k]);
+                cl.grad.push_back(smp.grad[k]);
             }
             cl.offsets.push_back(static_cast<index_t>(cl.nodes.size()));
             cl.nda.push_back(cf.nda);
@@ -574,13 +579,20 @@ void Model::apply_external_forces(real_t t)
         const real_t p = load->pressure(t);
         if (p == 0.0)
             continue;
-        // cloud facets: -p Psi_I n dA on the reference facet (no update of the area with the
-        // deformation)
+        // cloud facets: -p Psi_I n da on the current facet, n da = J F^-T N dA (Nanson) with
+        // F = 1 + sum_I d_I (x) grad Psi_I at the facet point
         const CloudFaceLoads& cl = cloud_face_loads_[il];
         for (std::size_t q = 0; q < cl.nda.size(); ++q)
+        {
+            Mat3 F = Mat3::Identity();
+            for (index_t k = cl.offsets[q]; k < cl.offsets[q + 1]; ++k)
+                F += Vec3(nodes.u[3 * cl.nodes[k]], nodes.u[3 * cl.nodes[k] + 1], nodes.u[3 * cl.nodes[k] + 2]) *
+                     cl.grad[k].transpose();
+            const Vec3 nda = F.determinant() * F.inverse().transpose() * cl.nda[q];
             for (index_t k = cl.offsets[q]; k < cl.offsets[q + 1]; ++k)
                 for (int d = 0; d < 3; ++d)
-                    nodes.f_ext[3 * cl.nodes[k] + d] -= p * cl.psi[k] * cl.nda[q][d];
+                    nodes.f_ext[3 * cl.nodes[k] + d] -= p * cl.psi[k] * nda[d];
+        }
         const RkFaceLoads& rl = rk_face_loads_[il];
         for (std::size_t fi = 0; fi < faces->size(); ++fi)
         {

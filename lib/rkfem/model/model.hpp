@@ -165,13 +165,14 @@ class Model
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;
     std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;
     std::vector<std::pair<const LoadSpec*, const std::vector<Quad>*>> pressure_loads_;
-    /// Per pressure load: its facets on cloud parts, Psi_I at each (CSR), the force -p Psi_I n dA
-    /// on the reference facet
+    /// Per pressure load: its facets on cloud parts, Psi_I and grad Psi_I at each (CSR, reference
+    /// configuration) and the reference N dA; the force is -p Psi_I n da on the current facet
     struct CloudFaceLoads
     {
         std::vector<index_t> offsets{0};
         std::vector<index_t> nodes;
         std::vector<real_t> psi;
+        std::vector<Vec3> grad;
         std::vector<Vec3> nda;
     };
     std::vector<CloudFaceLoads> cloud_face_loads_;

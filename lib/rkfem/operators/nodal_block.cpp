@@ -504,6 +504,18 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     return nb;
 }
 
+std::vector<HalfSpace> cloud_body(const GeneratorSpec& g, index_t n_particles)
+{
+    if (g.body == GeneratorSpec::Body::Box)
+        return box_halfspaces(g.origin, g.origin + g.size);
+    // the tangent prism, its facets about a quarter of the mean spacing wide: the body's volume
+    // is then the cylinder's to (pi / sides)^2 / 3 (2e-4 at the minimum of 128 sides), and a
+    // boundary cell meets a few of them
+    const real_t spacing = std::cbrt(M_PI * g.radius * g.radius * g.height / std::max<index_t>(1, n_particles));
+    const int sides = std::clamp(static_cast<int>(std::ceil(8.0 * M_PI * g.radius / spacing)), 128, 4096);
+    return cylinder_halfspaces(g.origin, g.radius, g.height, sides);
+}
+
 NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t offset)
 {
     const GeneratorSpec& g = ps.generator;
@@ -511,12 +523,12 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     VoronoiCells cells;
     try
     {
-        cells = voronoi_cells(cloud.x, box_halfspaces(g.origin, g.origin + g.size));
+        cells = voronoi_cells(cloud.x, cloud_body(g, n));
     }
     catch (const Error& e)
     {
         throw DeckError({g.loc.where, ps.loc.path + ".generator"}, e.what(),
-                        "expected distinct particles inside the box body");
+                        "expected distinct particles inside the body");
     }
     // per particle: the facet area shared with each neighbour, and the longest distance to a
     // neighbour across a facet of at least 10% of the cell's largest (jitter adds small facets to

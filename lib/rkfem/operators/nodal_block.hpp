@@ -119,8 +119,12 @@ RkParams rk_params(const RkSpec& spec);
 /// the nodes. A singular RK moment matrix becomes a DeckError naming rk.normalized_support.
 NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
 
+/// The convex body a cloud part's Voronoi cells are clipped to: its box, or the prism of planes
+/// tangent to its cylinder (at least 128, about 8 pi radius / mean spacing of n_particles).
+std::vector<HalfSpace> cloud_body(const GeneratorSpec& g, index_t n_particles);
+
 /// Builds the block of a cloud part (generator type cloud; rkpm only): Voronoi cells of the
-/// particles clipped to the box body, RK support a_I = normalized_support x the longest distance
+/// particles clipped to the body (cloud_body), RK support a_I = normalized_support x the longest distance
 /// to a neighbour across a facet of at least 10% of the cell's largest, SCNI on the cells (or
 /// DNI with the cell volumes) with optional MSCNI on the cells' pyramids (VoronoiCells::
 /// sub_cells), stable-step length l0 = that same distance, crack band
