@@ -140,3 +140,36 @@ TEST(Hex8VolumeGradient, CompileTimeTableEqualsTheComputedOne)
         }
     }
 }
+
+// The hourglass butterflies equal the sums over the base vectors (exactly, on integers; to
+// round-off on reals): s_a = sum_J Gamma_aJ y_J, and the transpose y_J = sum_a Gamma_aJ s_a.
+TEST(Hex8Basis, HourglassButterfliesEqualTheBaseVectorSums)
+{
+    std::mt19937 gen(2);
+    std::uniform_int_distribution<int> k(-1000, 1000);
+    for (int trial = 0; trial < 100; ++trial)
+    {
+        real_t y[8], q[4];
+        for (auto& v : y)
+            v = k(gen);
+        for (auto& v : q)
+            v = k(gen);
+        real_t s[4], z[8];
+        hourglass_sums(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], s[0], s[1], s[2], s[3]);
+        hourglass_spread(q[0], q[1], q[2], q[3], z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7]);
+        for (int a = 0; a < 4; ++a)
+        {
+            real_t ref = 0.0;
+            for (int J = 0; J < 8; ++J)
+                ref += hex8_hourglass_base[a][J] * y[J];
+            ASSERT_EQ(s[a], ref) << "mode " << a;
+        }
+        for (int J = 0; J < 8; ++J)
+        {
+            real_t ref = 0.0;
+            for (int a = 0; a < 4; ++a)
+                ref += hex8_hourglass_base[a][J] * q[a];
+            ASSERT_EQ(z[J], ref) << "node " << J;
+        }
+    }
+}

@@ -373,7 +373,7 @@ TEST(NodalAssembly, ScatterAndGatherAgreeAndDoNotDependOnThreads)
     Fixture fx(ps, 13, 0.01, 0.3); // 2744 particles, 17576 sub-cells: several chunks of each
     ASSERT_TRUE(fx.blk.scatter_assembly());
     EXPECT_GE(fx.blk.n_point_chunks, 2);
-    EXPECT_GE(static_cast<index_t>(fx.blk.chunks.size()) - fx.blk.n_point_chunks, 2);
+    EXPECT_GE(static_cast<index_t>(fx.blk.scatter.chunks.size()) - fx.blk.n_point_chunks, 2);
     std::mt19937 gen(5);
     std::uniform_real_distribution<real_t> r(-1.0, 1.0);
     for (std::size_t j = 0; j < fx.nodes.u.size(); ++j)

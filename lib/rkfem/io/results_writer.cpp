@@ -122,7 +122,7 @@ void ResultsWriter::write_step(const Model& model, real_t time)
         for (index_t e = 0; e < model.blocks[b].n_elements(); ++e, ++c)
         {
             put_stress(model.element_stress(static_cast<index_t>(b), e));
-            volume[c] = model.blocks[b].volume[e];
+            volume[c] = element_volume(model.blocks[b], model.nodes, e);
             eps[c] = model.element_plastic_strain(static_cast<index_t>(b), e);
             damage[c] = model.element_history(static_cast<index_t>(b), e, Model::History::Damage);
             delta[c] = model.element_history(static_cast<index_t>(b), e, Model::History::KccDelta);

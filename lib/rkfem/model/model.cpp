@@ -670,7 +670,7 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
             std::ostringstream os;
             os << "element " << offset + r.bad_element << " (part '" << parts[ib].name
                << "', local " << r.bad_element << ") has non-positive or NaN volume "
-               << blk.volume[r.bad_element] << " m^3 at t = " << t << " s, step " << step;
+               << element_volume(blk, nodes, r.bad_element) << " m^3 at t = " << t << " s, step " << step;
             throw InstabilityError(os.str());
         }
         book(r, offset + r.dt_element);

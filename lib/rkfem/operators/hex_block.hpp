@@ -5,15 +5,17 @@
 ///
 /// Per-point arrays are component-major: component c of point p is at [c * n_points + p], where a
 /// 1-point block has n_points = n_elements and a 2x2x2 block has point p = 8 e + g.
-/// The element force buffer is n_elements x 8 x 3 ([24 e + 3 I + d]); nodal forces are gathered
-/// from it through the node -> (element, local node) transpose CSR, so the sum for each node is
-/// taken in one fixed order whatever the thread count.
+/// Nodal forces are assembled in a fixed order whatever the thread count: 1-point blocks scatter
+/// each chunk of elements into a buffer of the chunk's own (ChunkedScatter); otherwise the
+/// element force buffer, n_elements x 8 x 3 ([24 e + 3 I + d]), is gathered through the node ->
+/// (element, local node) transpose CSR.
 #include <vector>
 
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/point_history.hpp"
+#include "rkfem/operators/chunked_scatter.hpp"
 
 namespace rkfem
 {
@@ -31,15 +33,21 @@ struct HexBlock
     index_t node_end = 0;
     std::vector<index_t> node_elem_offsets; ///< (node_end - node_begin + 1)
     std::vector<index_t> node_elem_slots;   ///< 8 e + I, for each node in order
+    /// 1-point kernel: per full batch of 8 elements, 3 x node id of node I of element 8 b + l at
+    /// [64 b + 8 I + l] (one load per node of the batch for the vector gathers)
+    std::vector<index_t> gather_index;
 
     // state (committed / trial), component-major
     std::vector<real_t> stress, stress_trial;     ///< 6 x n_points [Pa]
     std::vector<real_t> hg_force, hg_force_trial; ///< 12 x n_elements (stiffness form) [N]
     std::vector<real_t> volume0;                  ///< n_elements, reference volume [m^3]
-    std::vector<real_t> volume;                   ///< n_elements, current volume [m^3]
+
+    /// Scatter assembly of 1-point blocks (chunks of elements, see chunked_scatter.hpp); empty:
+    /// elem_force and the transpose gather
+    ChunkedScatter scatter;
 
     // per-step scratch
-    std::vector<real_t> elem_force; ///< n_elements x 24 [N]
+    std::vector<real_t> elem_force; ///< n_elements x 24 [N] (gather assembly only)
     std::vector<real_t> batch_sums;  ///< n_batches x 4: d_int, d_hg, d_bv, dt_min
     std::vector<index_t> batch_idx;  ///< n_batches x 2: dt element, bad element
 
@@ -47,8 +55,9 @@ struct HexBlock
     index_t points_per_element() const { return formulation == Formulation::Fem1pt ? 1 : 8; }
     index_t n_points() const { return n_elements() * points_per_element(); }
 
-    /// Sizes state arrays and builds the assembly CSR. Nodes must already hold coordinates.
-    void initialize(const NodeSet& nodes);
+    /// Sizes state arrays and builds the assembly tables. Nodes must already hold coordinates.
+    /// 1-point blocks scatter by default (chunks of elements); 2x2x2 blocks always gather.
+    void initialize(const NodeSet& nodes, Assembly assembly = Assembly::Automatic);
     /// Commits trial state.
     void commit()
     {
@@ -76,6 +85,9 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
 
 /// f_int[node] = sum over the node's (element, local) slots, for the block's node range.
 void assemble_block_forces(const HexBlock& blk, NodeSet& nodes);
+
+/// The current volume of element e (exact for the trilinear hex, from nodes.x) [m^3].
+real_t element_volume(const HexBlock& blk, const NodeSet& nodes, index_t e);
 
 /// Lumped mass rho V0 / 8 to each node of each element.
 void add_lumped_mass(const HexBlock& blk, NodeSet& nodes);

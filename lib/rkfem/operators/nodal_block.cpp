@@ -588,17 +588,6 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     return nb;
 }
 
-namespace
-{
-/// Points per chunk of the scatter assembly: a function of the point count only (never of the
-/// thread count), a multiple of the batch width, about 1/16 of the points within [2048, 32768].
-index_t chunk_size(index_t n)
-{
-    const index_t c = std::clamp<index_t>(n / 16, 2048, 32768);
-    return (c + kPointLanes - 1) / kPointLanes * kPointLanes;
-}
-} // namespace
-
 void NodalBlock::initialize(Assembly assembly)
 {
     const index_t np = n_points(), ns = n_stab();
@@ -607,67 +596,49 @@ void NodalBlock::initialize(Assembly assembly)
 
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
     // the node range its entries touch
-    chunks.clear();
+    scatter.clear();
+    scatter.node_begin = node_begin;
+    scatter.node_end = node_end;
     n_point_chunks = 0;
-    std::size_t buffer = 0;
     bool local = true;
     for (const IntegrationOperator* op : {&points, &stabilization})
     {
-        const std::size_t op_begin = buffer;
         // stabilization chunks cover as many nodes as stress-point chunks (about 8 sub-cells
         // per node)
         const index_t n = op->n_points();
-        const index_t size = chunk_size(np) * std::max<index_t>(1, np > 0 ? n / np : 1);
-        for (index_t first = 0; first < n; first += size)
-        {
-            Chunk ch{first, std::min(n, first + size), node_end, node_begin, buffer};
-            for (index_t k = op->offsets[ch.first]; k < op->offsets[ch.last]; ++k)
-            {
-                RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,
-                              "nodal block: entry touches node " << op->nodes[k] << " outside the part's range ["
-                                                                 << node_begin << ", " << node_end << ")");
-                ch.lo = std::min(ch.lo, op->nodes[k]);
-                ch.hi = std::max(ch.hi, op->nodes[k] + 1);
-            }
-            ch.hi = std::max(ch.hi, ch.lo);
-            buffer += 4 * static_cast<std::size_t>(ch.hi - ch.lo);
-            chunks.push_back(ch);
-        }
+        const index_t size = ChunkedScatter::chunk_size(np, kPointLanes) * std::max<index_t>(1, np > 0 ? n / np : 1);
+        const std::size_t added = scatter.add_chunks(n, size,
+                                                     [&](index_t first, index_t last, index_t& lo, index_t& hi)
+                                                     {
+                                                         for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
+                                                         {
+                                                             RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,
+                                                                           "nodal block: entry touches node "
+                                                                               << op->nodes[k] << " outside the part's range ["
+                                                                               << node_begin << ", " << node_end << ")");
+                                                             lo = std::min(lo, op->nodes[k]);
+                                                             hi = std::max(hi, op->nodes[k] + 1);
+                                                         }
+                                                     });
         if (op == &points)
-            n_point_chunks = static_cast<index_t>(chunks.size());
+            n_point_chunks = static_cast<index_t>(scatter.chunks.size());
         // a point order without locality (an imported cloud in random order) makes every
         // chunk's range the whole block: then the transpose gather
-        local = local && buffer - op_begin <= 4 * 3 * static_cast<std::size_t>(nn);
+        local = local && added <= 4 * 3 * static_cast<std::size_t>(nn);
     }
-    const bool scatter = assembly == Assembly::Scatter || (assembly == Assembly::Automatic && local);
-    if (scatter)
-    {
-        node_chunk_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
-        for (const Chunk& ch : chunks)
-            for (index_t n = ch.lo; n < ch.hi; ++n)
-                ++node_chunk_offsets[n - node_begin + 1];
-        for (index_t i = 0; i < nn; ++i)
-            node_chunk_offsets[i + 1] += node_chunk_offsets[i];
-        node_chunks.resize(static_cast<std::size_t>(node_chunk_offsets.back()));
-        std::vector<index_t> fill(node_chunk_offsets.begin(), node_chunk_offsets.end() - 1);
-        for (index_t c = 0; c < static_cast<index_t>(chunks.size()); ++c)
-            for (index_t n = chunks[c].lo; n < chunks[c].hi; ++n)
-                node_chunks[fill[n - node_begin]++] = c;
-        scatter_buffer.assign(buffer, 0.0);
-    }
+    const bool use_scatter = assembly == Assembly::Scatter || (assembly == Assembly::Automatic && local);
+    if (use_scatter)
+        scatter.finish();
     else
     {
-        chunks.clear();
+        scatter.clear();
         n_point_chunks = 0;
-        node_chunk_offsets.clear();
-        node_chunks.clear();
-        scatter_buffer.clear();
     }
     // transpose (node -> entries) for the gather assembly
     node_entry_offsets.clear();
     node_point.clear();
     node_grad.clear();
-    if (!scatter)
+    if (!use_scatter)
     {
         std::vector<index_t> entry_point(static_cast<std::size_t>(ne_p + ne_s));
         for (index_t p = 0; p < np; ++p)
@@ -718,7 +689,7 @@ void NodalBlock::initialize(Assembly assembly)
     stab_stress.assign(6 * static_cast<std::size_t>(ns), 0.0);
     stab_stress_trial = stab_stress;
     jacobian.assign(static_cast<std::size_t>(np), 1.0);
-    point_tensor.assign(scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
+    point_tensor.assign(use_scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
     finv.assign(9 * static_cast<std::size_t>(np), 0.0);
     spin.assign(3 * static_cast<std::size_t>(np), 0.0);
     point_energy.assign(3 * static_cast<std::size_t>(np + ns), 0.0);
@@ -731,7 +702,7 @@ void NodalBlock::initialize(Assembly assembly)
         use_huge_pages(op->weight);
     }
     for (auto* a : {&node_grad, &stress, &stress_trial, &stab_stress, &stab_stress_trial, &jacobian, &point_tensor,
-                    &finv, &spin, &point_energy, &point_dt, &scatter_buffer, &length0})
+                    &finv, &spin, &point_energy, &point_dt, &length0})
         use_huge_pages(*a);
     use_huge_pages(node_point);
 }
@@ -756,9 +727,9 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
             parallel_for("rkfem::nodal_points", blk.n_point_chunks,
                          [&](index_t c)
                          {
-                             const NodalBlock::Chunk& ch = blk.chunks[c];
-                             real_t* buf = blk.scatter_buffer.data() + ch.buffer;
-                             std::fill(buf, buf + 4 * static_cast<std::size_t>(ch.hi - ch.lo), 0.0);
+                             const ChunkedScatter::Chunk& ch = blk.scatter.chunks[c];
+                             real_t* buf = blk.scatter.chunk_buffer(c);
+                             blk.scatter.zero(c);
                              for (index_t b = ch.first / kPointLanes; b * kPointLanes < ch.last; ++b)
                                  batch.template operator()<PLASTIC>(b, buf, ch.lo);
                          });
@@ -821,12 +792,12 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                     P[3 * j + i] = V0 * J * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
         };
         if (blk.scatter_assembly())
-            parallel_for("rkfem::nodal_stabilization", static_cast<index_t>(blk.chunks.size()) - blk.n_point_chunks,
+            parallel_for("rkfem::nodal_stabilization", static_cast<index_t>(blk.scatter.chunks.size()) - blk.n_point_chunks,
                          [&](index_t c)
                          {
-                             const NodalBlock::Chunk& ch = blk.chunks[blk.n_point_chunks + c];
-                             real_t* buf = blk.scatter_buffer.data() + ch.buffer;
-                             std::fill(buf, buf + 4 * static_cast<std::size_t>(ch.hi - ch.lo), 0.0);
+                             const ChunkedScatter::Chunk& ch = blk.scatter.chunks[blk.n_point_chunks + c];
+                             real_t* buf = blk.scatter.chunk_buffer(blk.n_point_chunks + c);
+                             blk.scatter.zero(blk.n_point_chunks + c);
                              real_t P[9];
                              for (index_t s = ch.first; s < ch.last; ++s)
                              {
@@ -861,21 +832,7 @@ void assemble_nodal_forces(const NodalBlock& blk, NodeSet& nodes)
     const index_t nn = blk.node_end - blk.node_begin;
     if (blk.scatter_assembly())
     {
-        // the node's force: the buffers of the chunks that cover it, in chunk order
-        parallel_for("rkfem::nodal_assemble", nn,
-                     [&](index_t i)
-                     {
-                         const index_t n = blk.node_begin + i;
-                         real_t f[3] = {0.0, 0.0, 0.0};
-                         for (index_t k = blk.node_chunk_offsets[i]; k < blk.node_chunk_offsets[i + 1]; ++k)
-                         {
-                             const NodalBlock::Chunk& ch = blk.chunks[blk.node_chunks[k]];
-                             const real_t* b = &blk.scatter_buffer[ch.buffer + 4 * static_cast<std::size_t>(n - ch.lo)];
-                             f[0] += b[0], f[1] += b[1], f[2] += b[2];
-                         }
-                         for (int a = 0; a < 3; ++a)
-                             nodes.f_int[3 * static_cast<std::size_t>(n) + a] = f[a];
-                     });
+        blk.scatter.reduce(nodes.f_int);
         return;
     }
     parallel_for("rkfem::nodal_assemble", nn,

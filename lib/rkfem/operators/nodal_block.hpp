@@ -25,6 +25,7 @@
 #include "rkfem/integration/integration_operator.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/point_history.hpp"
+#include "rkfem/operators/chunked_scatter.hpp"
 #include "rkfem/operators/hex_block.hpp"
 
 namespace rkfem
@@ -54,31 +55,13 @@ struct NodalBlock
     std::vector<index_t> owner_offsets, owner_points;
     index_t node_begin = 0, node_end = 0;
 
-    /// How nodal forces are assembled; both are deterministic and independent of the thread
-    /// count. Scatter: the points are cut into fixed chunks (a function of the point count
-    /// only); each chunk adds V0 P g of its points, in point order, into a buffer of its own
-    /// over the node range its entries touch, and a node's force is the sum of the buffers that
-    /// cover it, in chunk order. It streams the gradients once per step. Gather: each node sums
-    /// over a transposed copy of its entries (streams them twice); chosen automatically when
-    /// the point order has no locality (the ranges of one operator's chunks would add up to over
-    /// 3 nodes per node).
-    enum class Assembly
-    {
-        Automatic,
-        Scatter,
-        Gather,
-    };
-    struct Chunk
-    {
-        index_t first = 0, last = 0; ///< points [first, last) of the stress or stabilization operator
-        index_t lo = 0, hi = 0;      ///< global nodes its entries touch lie in [lo, hi)
-        std::size_t buffer = 0;      ///< offset of its buffer (4 values per node) in scatter_buffer
-    };
-    std::vector<Chunk> chunks;  ///< stress-point chunks, then stabilization chunks (empty: gather)
+    /// How nodal forces are assembled (chunked_scatter.hpp). Scatter: chunks of points add
+    /// V0 P g, in point order, into their buffers; it streams the gradients once per step.
+    /// Gather: each node sums over a transposed copy of its entries (streams them twice).
+    using Assembly = rkfem::Assembly;
+    ChunkedScatter scatter;      ///< stress-point chunks, then stabilization chunks (empty: gather)
     index_t n_point_chunks = 0; ///< how many of them are stress-point chunks
-    std::vector<index_t> node_chunk_offsets, node_chunks; ///< local node -> covering chunks, in order
-    std::vector<real_t> scatter_buffer;
-    bool scatter_assembly() const { return !chunks.empty(); }
+    bool scatter_assembly() const { return !scatter.empty(); }
 
     // transpose (node -> entries of points, then of stabilization), built by initialize(): for
     // slot q of local node i in [node_entry_offsets[i], node_entry_offsets[i + 1]), the point

@@ -1,0 +1,76 @@
+#pragma once
+/// @file chunked_scatter.hpp
+/// Deterministic scatter assembly of nodal forces for blocks whose items (elements, stress
+/// points) are ordered with locality. The items are cut into fixed chunks (a function of the
+/// item count only, never of the thread count); each chunk adds its items' nodal forces, in
+/// item order, into a buffer of its own over the range of nodes its items touch (4 values per
+/// node: x, y, z and padding), and a node's force is the sum of the buffers that cover it, in
+/// chunk order. So results do not depend on the number of threads, and the per-item force
+/// tensors are never written out: the buffers stay in cache while a chunk runs.
+#include <algorithm>
+#include <cstddef>
+#include <vector>
+
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+/// How a block assembles nodal forces; both ways are deterministic and independent of the
+/// thread count. Scatter: ChunkedScatter below. Gather: each node sums its items' terms through
+/// a transpose table (the terms are written out per item first). Automatic: the scatter unless
+/// the item order has no locality (chunk ranges adding up to over 3 nodes per node).
+enum class Assembly
+{
+    Automatic,
+    Scatter,
+    Gather,
+};
+
+struct ChunkedScatter
+{
+    struct Chunk
+    {
+        index_t first = 0, last = 0; ///< items [first, last)
+        index_t lo = 0, hi = 0;      ///< the nodes its items touch lie in [lo, hi)
+        std::size_t buffer = 0;      ///< offset of its buffer (4 values per node) in `buffer`
+    };
+    std::vector<Chunk> chunks;
+    index_t node_begin = 0, node_end = 0;                 ///< the block's nodes
+    std::vector<index_t> node_chunk_offsets, node_chunks; ///< local node -> covering chunks, in order
+    std::vector<real_t> buffer;
+
+    /// Items per chunk for n items: about n / 16 within [2048, 32768], a multiple of `multiple`.
+    static index_t chunk_size(index_t n, index_t multiple);
+
+    /// Appends chunks of `size` consecutive items of [0, n_items); `range(first, last, lo, hi)`
+    /// widens [lo, hi) to the nodes that items [first, last) touch. Returns the buffer values
+    /// the new chunks take (4 per covered node), for a locality test.
+    template <class Range> std::size_t add_chunks(index_t n_items, index_t size, Range&& range)
+    {
+        std::size_t added = 0;
+        for (index_t first = 0; first < n_items; first += size)
+        {
+            Chunk ch{first, std::min(n_items, first + size), node_end, node_begin, next_buffer_};
+            range(ch.first, ch.last, ch.lo, ch.hi);
+            ch.hi = std::max(ch.hi, ch.lo);
+            next_buffer_ += 4 * static_cast<std::size_t>(ch.hi - ch.lo);
+            added += 4 * static_cast<std::size_t>(ch.hi - ch.lo);
+            chunks.push_back(ch);
+        }
+        return added;
+    }
+    /// Builds the node -> chunk table and the buffers, after the last add_chunks.
+    void finish();
+    void clear();
+    bool empty() const { return chunks.empty(); }
+    real_t* chunk_buffer(index_t c) { return buffer.data() + chunks[static_cast<std::size_t>(c)].buffer; }
+    /// Zeroes chunk c's buffer (a chunk's pass starts with it).
+    void zero(index_t c);
+    /// f[3 n + a] = the sum over the chunks covering node n of their buffer values, in chunk
+    /// order, for the block's nodes.
+    void reduce(std::vector<real_t>& f) const;
+
+  private:
+    std::size_t next_buffer_ = 0;
+};
+} // namespace rkfem
