@@ -96,7 +96,9 @@ struct ArkodeStepper::Impl
     real_t h_prev = 0.0, h_pending = 0.0;
     real_t h_next = 0.0;          ///< the step the last evaluation's kick was formed with
     bool state_committed = false; ///< re-evaluation after a reset: no material increment
-    std::vector<real_t> v_full; ///< full-step velocity at the last evaluation
+    /// Full-step velocity at the last evaluation (Debian's serial vector; with rkfem's vectors
+    /// it goes straight into the array nodes.v takes back after the evaluation)
+    std::vector<real_t> v_full;
     /// Prescribed dofs whose v' the kick does not get right by itself. A fixed dof of an FE part
     /// has v = 0 (start_model imposes it, and v' stays 0) and a = 0 (compute_accelerations) at
     /// every evaluation, so the kick already gives u' = v' = 0 there; prescribed motion and RK
@@ -215,7 +217,7 @@ struct ArkodeStepper::Impl
             // v(n) = v(n-1/2) + h_prev/2 a(n);  v(n+1/2) = v(n) + h/2 a(n);  u' = v(n+1/2),
             // v' = (v(n+1/2) - v(n-1/2)) / h: one pass; then the prescribed motion on u' (the
             // kicked velocity), which changes only the conditions' dofs, and their v'
-            cd_kick(n3, v, a, h_prev, h, v_full.data(), yd.u, yd.v);
+            cd_kick(n3, v, a, h_prev, h, pool ? pool->parked_v().data() : v_full.data(), yd.u, yd.v);
             m.impose_velocity(t, h, true, yd.u);
             const real_t inv_h = 1.0 / h;
             for (const index_t j : fixup_dofs)
@@ -287,7 +289,8 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     // the same start as the hand-written central difference
     const StepReport start = start_model(model, t);
 
-    im.v_full.assign(static_cast<std::size_t>(im.n3), 0.0);
+    if (!project_ops_)
+        im.v_full.assign(static_cast<std::size_t>(im.n3), 0.0);
     for (const DofCondition& c : model.conditions)
         if (c.kind != BoundarySpec::Kind::Fixed || model.carries_coefficients(c.dof / 3))
             im.fixup_dofs.push_back(c.dof);
@@ -362,7 +365,10 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     // lent), x(n+1), a(n+1) and the trial state of the step; the velocity is replaced by the
     // full-step value
     if (mode_ == Mode::CentralDifference)
-        std::swap(n.v, im.v_full);
+    {
+        if (!im.pool) // (rkfem's vectors: the kick wrote it into nodes.v's own array)
+            std::swap(n.v, im.v_full);
+    }
     else
     {
         // without the FSAL workaround the last evaluation may sit at a stage point: take y(n+1)

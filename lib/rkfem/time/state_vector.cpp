@@ -548,6 +548,12 @@ void StatePool::lend(N_Vector y, std::vector<real_t>& u, std::vector<real_t>& v)
     lent_v_ = &v;
 }
 
+std::vector<real_t>& StatePool::parked_v()
+{
+    RKFEM_REQUIRE(lent_ != nullptr && lent_v_ != nullptr, "StatePool::parked_v: no v half is lent");
+    return lent_->half[1];
+}
+
 void StatePool::return_v()
 {
     if (lent_ != nullptr && lent_v_ != nullptr)

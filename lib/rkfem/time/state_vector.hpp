@@ -59,6 +59,9 @@ class StatePool
     /// Moves y's halves into u and v (swaps: u and v then hold y's values, y's storage holds
     /// the arrays u and v had). Ends an earlier lend first. The caller must not write them.
     void lend(N_Vector y, std::vector<real_t>& u, std::vector<real_t>& v);
+    /// While v is lent: the array the NodeSet's v gave in exchange (parked in the storage). It
+    /// becomes the NodeSet's v again at return_v(), so what the caller writes there is then v.
+    std::vector<real_t>& parked_v();
     /// Gives the lent v half back to its storage (v gets its own array back); u stays lent.
     void return_v();
     /// Ends a lend leaving the lent values where they are: the NodeSet keeps the state, the
