@@ -10,6 +10,7 @@
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/simd.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 
 // GCC 12's AVX-512 intrinsics (gathers, unpacks, 128-bit shuffles, extracts) start from an
@@ -28,15 +29,8 @@ index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 
 /// One batch of W elements. FULL: all W lanes are elements (every batch but a partial last one),
 /// so the lane loops carry no lane test and the material/bulk-viscosity loop vectorizes.
-// The lane loops are 8 doubles wide: one AVX-512 register where the CPU has them (GCC 12
-// prefers 256-bit vectors on AVX-512 CPUs; 1-point viscous at 1e4 elements: 67 -> 61 ns per
-// element-cycle). Only this kernel: the 2x2x2 one is 47% slower with 512-bit vectors.
-#if defined(__AVX512F__)
-#define RKFEM_WIDE_VECTORS __attribute__((target("prefer-vector-width=512")))
-#else
-#define RKFEM_WIDE_VECTORS
-#endif
-
+// 512-bit lane loops (core/simd.hpp; 1-point viscous at 1e4 elements: 67 -> 61 ns per
+// element-cycle)
 template <HourglassType HG, bool PLASTIC, bool FULL>
 RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt, real_t* buf, index_t lo)
 {

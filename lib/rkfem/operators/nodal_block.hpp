@@ -75,6 +75,9 @@ struct NodalBlock
     std::vector<real_t> stab_stress, stab_stress_trial; ///< 6 x n_stab [Pa]
     std::vector<real_t> jacobian;                     ///< n_points, det F
 
+    /// The force pass prefetches the next batch's stencils: for gradient tables over 32 MiB
+    bool prefetch_stencils = false;
+
     // per-step scratch
     std::vector<real_t> point_tensor; ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
     std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for stabilization
