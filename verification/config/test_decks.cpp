@@ -352,8 +352,9 @@ TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
     expect_rejected("cloud_fem.yaml", cloud_deck(", spacing: 1 mm", ""), ":6: parts.col.formulation",
                     "expected formulation: rkpm");
     expect_rejected("cloud_sd.yaml",
-                    cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n    nodal_integration: {scheme: sd-scni}\n"),
-                    ":9: parts.col.nodal_integration.scheme", "expected scheme: scni | dni on a cloud part");
+                    cloud_deck(", spacing: 1 mm",
+                               "    formulation: rkpm\n    nodal_integration: {scheme: sd-scni, stabilization: mscni}\n"),
+                    ":9: parts.col.nodal_integration.stabilization", "mscni stabilizes scheme scni only");
     expect_rejected("cloud_jitter.yaml", cloud_deck(", spacing: 1 mm, jitter: 0.6", "    formulation: rkpm\n"),
                     ":6: parts.col.generator.jitter", "is outside [0, 0.45]");
     expect_rejected("cloud_both.yaml", cloud_deck(", spacing: 1 mm, points: p.csv", "    formulation: rkpm\n"),

@@ -121,15 +121,15 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValue)
 TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValueOnClouds)
 {
     const PartSpec ps = part(Formulation::Rkpm, "scni", "none");
-    for (const char* stab : {"none", "mscni"})
+    for (const auto& [scheme, stab] : {std::pair<const char*, const char*>{"scni", "none"}, {"scni", "mscni"}, {"sd-scni", "none"}})
         for (const real_t jitter : {0.0, 0.25, 0.45})
             for (const int seed : {1, 2})
             {
-                const Fixture fx = cloud_fixture(part(Formulation::Rkpm, "scni", stab), jitter, seed);
+                const Fixture fx = cloud_fixture(part(Formulation::Rkpm, scheme, stab), jitter, seed);
                 const real_t a = critical_dt_factor(fx);
-                std::printf("cloud, %s, jitter %.2f, seed %d: alpha_crit %.3f; default alpha %.3f\n", stab, jitter,
-                            seed, a, fx.blk.dt_factor);
-                EXPECT_LT(fx.blk.dt_factor, a) << stab << ", jitter " << jitter << ", seed " << seed;
+                std::printf("cloud, %s + %s, jitter %.2f, seed %d: alpha_crit %.3f; default alpha %.3f\n", scheme, stab,
+                            jitter, seed, a, fx.blk.dt_factor);
+                EXPECT_LT(fx.blk.dt_factor, a) << scheme << " + " << stab << ", jitter " << jitter << ", seed " << seed;
             }
     // uniformly random points (an imported cloud with no lattice behind it)
     for (const int seed : {1, 2})

@@ -248,7 +248,7 @@ std::vector<real_t> bin_means(const Model& m, real_t start, real_t width, int n,
     return sum;
 }
 
-void check_cloud_wave(const std::string& stabilization)
+void check_cloud_wave(const std::string& stabilization, const std::string& scheme = "scni")
 {
     Model m = test::model_from(R"(
 title: cloud wave
@@ -265,7 +265,8 @@ boundary_conditions:
   - {node_set: all, fixed: [x, y]}
   - {node_set: end, velocity: {z: 10 m/s}}
 )",
-                               {"parts.column.nodal_integration.stabilization=" + stabilization});
+                               {"parts.column.nodal_integration.stabilization=" + stabilization,
+                                "parts.column.nodal_integration.scheme=" + scheme});
     ASSERT_EQ(m.nodal_blocks.size(), 1u);
     const NodalBlock& nb = m.nodal_blocks[0];
     EXPECT_EQ(nb.n_stab() > 0, stabilization == "mscni");
@@ -304,6 +305,9 @@ boundary_conditions:
 TEST(UniaxialWave, RkParticlesOnAVoronoiCloudMatchTheory) { check_cloud_wave("none"); }
 
 TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithMscniMatchTheory) { check_cloud_wave("mscni"); }
+
+// SD-SCNI on the cloud: every pyramid sub-cell of a Voronoi cell is a stress point
+TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithSdScniMatchTheory) { check_cloud_wave("none", "sd-scni"); }
 
 // A pressure step on the top of a cloud column (the facets of the Voronoi cells on the body's
 // surface carry -p Psi_I n dA): the load's resultant is -p A to round-off (partition of unity, the

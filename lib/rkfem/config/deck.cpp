@@ -694,9 +694,6 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
         const bool cloud = p.generator.type == GeneratorSpec::Type::Cloud;
-        if (cloud && p.nodal.scheme == "sd-scni")
-            ni.fail("scheme", "sd-scni is built on the sub-cells of a hex mesh",
-                    "expected scheme: scni | dni on a cloud part (mscni stabilization works on clouds)");
         p.nodal.stabilization =
             ni.choice("stabilization", {"mscni", "none"}, p.nodal.scheme == "scni" && !cloud ? "mscni" : "none");
         if (p.nodal.stabilization == "mscni" && p.nodal.scheme != "scni")

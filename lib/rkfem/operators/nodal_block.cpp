@@ -568,8 +568,11 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     try
     {
         const RkShapes shapes(*rk);
-        nb.points = ps.nodal.scheme == "dni" ? build_dni_cells(cells.volume, cloud.x, shapes)
-                                             : build_scni_cells(cells, cloud.x, shapes);
+        // SD-SCNI on a cloud: each Voronoi cell's pyramids (VoronoiCells::sub_cells, the sub-cells
+        // MSCNI uses) are stress points of their own, owned by the cell's particle
+        nb.points = ps.nodal.scheme == "dni"       ? build_dni_cells(cells.volume, cloud.x, shapes)
+                    : ps.nodal.scheme == "sd-scni" ? build_sd_cells(cells, shapes)
+                                                   : build_scni_cells(cells, cloud.x, shapes);
         if (ps.nodal.scheme == "scni" && ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
         {
             nb.stabilization = build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
