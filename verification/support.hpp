@@ -1,6 +1,10 @@
 #pragma once
 // Helpers shared by verification tests: a block built straight from a generated mesh, and a
 // model built from deck text.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
 #include <random>
 
 #include "rkfem/config/deck.hpp"
@@ -60,6 +64,24 @@ inline HexBlock make_block(const HexMesh& mesh, NodeSet& nodes, Formulation f, H
     b.initialize(nodes);
     add_lumped_mass(b, nodes);
     return b;
+}
+
+/// Forces assembled by scatter (s) and gather (g), each on 1 and 2 threads: asserts that each
+/// pair is bitwise equal (thread-count independence) and returns max |s - g| / max |g|.
+inline real_t assembly_difference(const std::vector<real_t>& s1, const std::vector<real_t>& s2,
+                                  const std::vector<real_t>& g1, const std::vector<real_t>& g2)
+{
+    real_t scale = 0.0, diff = 0.0;
+    for (std::size_t j = 0; j < s1.size(); ++j)
+    {
+        EXPECT_EQ(s1[j], s2[j]) << "scatter, dof " << j;
+        EXPECT_EQ(g1[j], g2[j]) << "gather, dof " << j;
+        if (s1[j] != s2[j] || g1[j] != g2[j])
+            break;
+        scale = std::max(scale, std::abs(g1[j]));
+        diff = std::max(diff, std::abs(s1[j] - g1[j]));
+    }
+    return diff / scale;
 }
 
 inline Model model_from(const std::string& deck_text, const std::vector<std::string>& overrides = {})

@@ -309,17 +309,22 @@ TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithMscniMatchTheory) { check_cloud
 // SD-SCNI on the cloud: every pyramid sub-cell of a Voronoi cell is a stress point
 TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithSdScniMatchTheory) { check_cloud_wave("none", "sd-scni"); }
 
-// A pressure step on the top of a cloud column (the facets of the Voronoi cells on the body's
-// surface carry -p Psi_I n dA): the load's resultant is -p A to round-off (partition of unity, the
-// facets tile the face), and behind the front the particles carry sigma_zz = -p.
-TEST(UniaxialWave, PressureStepOnACloud)
+namespace
+{
+/// A pressure step of 100 MPa on the top of a laterally held cloud column of height `height`
+/// (generator: the deck's generator mapping) whose top facets have area `area(model)`: the
+/// load's resultant is -p A to round-off (partition of unity, the facets tile the face), and in
+/// the `slabs` 10 mm slabs from 10 mm below the loaded end sigma_zz = -p within 2%.
+template <class Area>
+void check_cloud_pressure_step(const std::string& generator, real_t height, const std::string& end_time, int slabs,
+                               Area&& area)
 {
     Model m = test::model_from(R"(
 title: cloud pressure wave
-time: {end: 20 us}
+time: {end: )" + end_time + R"(}
 parts:
   column:
-    generator: {type: cloud, size: [3 mm, 3 mm, 140 mm], spacing: 1 mm, jitter: 0.25, seed: 4}
+    generator: )" + generator + R"(
     material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
     formulation: rkpm
 node_sets:
@@ -335,60 +340,43 @@ loads:
     opt.progress = false;
     const RunSummary s = run_simulation(m, opt, {});
     ASSERT_EQ(s.status, "completed") << s.message;
-    const real_t p = 100e6, area = 9e-6;
+    const real_t p = 100e6, a = area(m);
     real_t fz = 0.0;
     for (index_t n = 0; n < m.nodes.size(); ++n)
         fz += m.nodes.f_ext[3 * n + 2];
-    EXPECT_NEAR(fz, -p * area, 1e-12 * p * area);
-    const std::vector<real_t> slab = bin_means(m, 10e-3, 10e-3, 8, ZZ, 140e-3); // from the loaded end
-    for (int k = 0; k < 8; ++k)
+    std::printf("%d particles: resultant / (-p A) - 1 = %.2e\n", m.nodes.size(), fz / (-p * a) - 1.0);
+    EXPECT_NEAR(fz, -p * a, 1e-12 * p * a);
+    const std::vector<real_t> slab = bin_means(m, 10e-3, 10e-3, slabs, ZZ, height); // from the loaded end
+    for (int k = 0; k < slabs; ++k)
     {
         std::printf("  %d-%d mm from the loaded end: sigma_zz = %.4f p\n", 10 + 10 * k, 20 + 10 * k, slab[k] / -p);
         EXPECT_NEAR(slab[k], -p, 0.02 * p) << "slab " << k;
     }
 }
+} // namespace
+
+// A pressure step on the top of a cloud column (the facets of the Voronoi cells on the body's
+// surface carry -p Psi_I n dA): the resultant is -p A, and behind the front sigma_zz = -p.
+TEST(UniaxialWave, PressureStepOnACloud)
+{
+    check_cloud_pressure_step("{type: cloud, size: [3 mm, 3 mm, 140 mm], spacing: 1 mm, jitter: 0.25, seed: 4}", 140e-3,
+                              "20 us", 8, [](const Model&) { return 9e-6; });
+}
 
 // The same on a cylinder cloud (body: cylinder; the cells are clipped to the planes tangent to
-// the cylinder): the top facets tile the prism's cap, so the resultant is -p sides R^2
-// tan(pi / sides) to round-off, and behind the front sigma_zz = -p.
+// the cylinder): the top facets tile the prism's cap, of area sides R^2 tan(pi / sides).
 TEST(UniaxialWave, PressureStepOnACylinderCloud)
 {
-    Model m = test::model_from(R"(
-title: cylinder cloud pressure wave
-time: {end: 14 us}
-parts:
-  column:
-    generator: {type: cloud, body: cylinder, radius: 2 mm, height: 100 mm, spacing: 1 mm, jitter: 0.25, seed: 4}
-    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
-    formulation: rkpm
-node_sets:
-  all: {select: {type: named, name: all}}
-face_sets:
-  loaded: {select: {type: named, name: top}}
-boundary_conditions:
-  - {node_set: all, fixed: [x, y]}
-loads:
-  - {type: pressure, face_set: loaded, pressure: 100 MPa}
-)");
-    RunOptions opt;
-    opt.progress = false;
-    const RunSummary s = run_simulation(m, opt, {});
-    ASSERT_EQ(s.status, "completed") << s.message;
-    const GeneratorSpec& g = m.deck().parts[0].generator;
-    const int sides = static_cast<int>(cloud_body(g, m.nodes.size()).size()) - 2;
-    const real_t p = 100e6, area = sides * g.radius * g.radius * std::tan(M_PI / sides);
-    real_t fz = 0.0;
-    for (index_t n = 0; n < m.nodes.size(); ++n)
-        fz += m.nodes.f_ext[3 * n + 2];
-    std::printf("cylinder cloud: %d particles, %d sides; resultant / (-p A_prism) - 1 = %.2e\n", m.nodes.size(), sides,
-                fz / (-p * area) - 1.0);
-    EXPECT_NEAR(fz, -p * area, 1e-12 * p * area);
-    const std::vector<real_t> slab = bin_means(m, 10e-3, 10e-3, 5, ZZ, 100e-3); // from the loaded end
-    for (int k = 0; k < 5; ++k)
-    {
-        std::printf("  %d-%d mm from the loaded end: sigma_zz = %.4f p\n", 10 + 10 * k, 20 + 10 * k, slab[k] / -p);
-        EXPECT_NEAR(slab[k], -p, 0.02 * p) << "slab " << k;
-    }
+    check_cloud_pressure_step(
+        "{type: cloud, body: cylinder, radius: 2 mm, height: 100 mm, spacing: 1 mm, jitter: 0.25, seed: 4}", 100e-3,
+        "14 us", 5,
+        [](const Model& m)
+        {
+            const GeneratorSpec& g = m.deck().parts[0].generator;
+            const int sides = static_cast<int>(cloud_body(g, m.nodes.size()).size()) - 2;
+            std::printf("cylinder cloud: %d sides\n", sides);
+            return sides * g.radius * g.radius * std::tan(M_PI / sides);
+        });
 }
 
 TEST(UniaxialWave, PressureOnACloudFollowsTheDeformedFacets)

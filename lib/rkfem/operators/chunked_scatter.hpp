@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
@@ -66,6 +67,21 @@ struct ChunkedScatter
     real_t* chunk_buffer(index_t c) { return buffer.data() + chunks[static_cast<std::size_t>(c)].buffer; }
     /// Zeroes chunk c's buffer (a chunk's pass starts with it).
     void zero(index_t c);
+    /// Runs chunks [c0, c1) in parallel: each zeroes its buffer, then calls batch(b, buffer, lo)
+    /// for its batches b of `width` items in order (the buffer covers nodes from lo on).
+    template <class Batch> void run_chunks(const char* label, index_t c0, index_t c1, index_t width, Batch&& batch)
+    {
+        parallel_for(label, c1 - c0,
+                     [&](index_t i)
+                     {
+                         const index_t c = c0 + i;
+                         const Chunk& ch = chunks[static_cast<std::size_t>(c)];
+                         real_t* buf = chunk_buffer(c);
+                         zero(c);
+                         for (index_t b = ch.first / width; b * width < ch.last; ++b)
+                             batch(b, buf, ch.lo);
+                     });
+    }
     /// f[3 n + a] = the sum over the chunks covering node n of their buffer values, in chunk
     /// order, for the block's nodes.
     void reduce(std::vector<real_t>& f) const;

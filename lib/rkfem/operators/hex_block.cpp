@@ -594,15 +594,8 @@ template <HourglassType HG> void run_1pt(HexBlock& blk, const NodeSet& nodes, in
     auto run = [&]<bool PLASTIC>()
     {
         if (!blk.scatter.empty())
-            parallel_for("rkfem::hex1pt", static_cast<index_t>(blk.scatter.chunks.size()),
-                         [&](index_t c)
-                         {
-                             const ChunkedScatter::Chunk& ch = blk.scatter.chunks[c];
-                             real_t* buf = blk.scatter.chunk_buffer(c);
-                             blk.scatter.zero(c);
-                             for (index_t b = ch.first / W; b * W < ch.last; ++b)
-                                 batch.template operator()<PLASTIC>(b, buf, ch.lo);
-                         });
+            blk.scatter.run_chunks("rkfem::hex1pt", 0, static_cast<index_t>(blk.scatter.chunks.size()), W,
+                                   [&](index_t b, real_t* buf, index_t lo) { batch.template operator()<PLASTIC>(b, buf, lo); });
         else
             parallel_for("rkfem::hex1pt", nb, [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
     };

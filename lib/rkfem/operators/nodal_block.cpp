@@ -731,15 +731,8 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
     auto run = [&]<bool PLASTIC>()
     {
         if (blk.scatter_assembly())
-            parallel_for("rkfem::nodal_points", blk.n_point_chunks,
-                         [&](index_t c)
-                         {
-                             const ChunkedScatter::Chunk& ch = blk.scatter.chunks[c];
-                             real_t* buf = blk.scatter.chunk_buffer(c);
-                             blk.scatter.zero(c);
-                             for (index_t b = ch.first / kPointLanes; b * kPointLanes < ch.last; ++b)
-                                 batch.template operator()<PLASTIC>(b, buf, ch.lo);
-                         });
+            blk.scatter.run_chunks("rkfem::nodal_points", 0, blk.n_point_chunks, kPointLanes,
+                                   [&](index_t b, real_t* buf, index_t lo) { batch.template operator()<PLASTIC>(b, buf, lo); });
         else
             parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
                          [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
@@ -799,19 +792,14 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                     P[3 * j + i] = V0 * J * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
         };
         if (blk.scatter_assembly())
-            parallel_for("rkfem::nodal_stabilization", static_cast<index_t>(blk.scatter.chunks.size()) - blk.n_point_chunks,
-                         [&](index_t c)
-                         {
-                             const ChunkedScatter::Chunk& ch = blk.scatter.chunks[blk.n_point_chunks + c];
-                             real_t* buf = blk.scatter.chunk_buffer(blk.n_point_chunks + c);
-                             blk.scatter.zero(blk.n_point_chunks + c);
-                             real_t P[9];
-                             for (index_t s = ch.first; s < ch.last; ++s)
-                             {
-                                 sub_cell(s, P);
-                                 scatter_point(st, s, P, buf, ch.lo);
-                             }
-                         });
+            blk.scatter.run_chunks("rkfem::nodal_stabilization", blk.n_point_chunks,
+                                   static_cast<index_t>(blk.scatter.chunks.size()), 1,
+                                   [&](index_t s, real_t* buf, index_t lo)
+                                   {
+                                       real_t P[9];
+                                       sub_cell(s, P);
+                                       scatter_point(st, s, P, buf, lo);
+                                   });
         else
             parallel_for("rkfem::nodal_stabilization", ns,
                          [&](index_t s) { sub_cell(s, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + s)]); });
