@@ -11,6 +11,8 @@
 
 #include <sundials/sundials_context.h>
 
+#include "rkfem/core/stream_stores.hpp"
+#include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/state_vector.hpp"
 
 using namespace rkfem;
@@ -62,6 +64,14 @@ real_t fx(index_t i)
 real_t fy(index_t i)
 {
     return std::cos(0.11 * i) - 0.05 * (i % 7);
+}
+
+/// Values of order 1 formed by the library's loops and by the same expressions here: the
+/// compiler may contract a product and a sum into one fused multiply-add in either place, so
+/// they agree to a few roundings (1e-15), not bitwise.
+void expect_close(real_t got, real_t want, index_t i, const char* what)
+{
+    ASSERT_NEAR(got, want, 1e-15 * std::max(1.0, std::abs(want))) << what << " at " << i;
 }
 } // namespace
 
@@ -231,4 +241,126 @@ TEST(StateVector, LendingMovesTheHalvesWithoutCopying)
     EXPECT_EQ(u, std::vector<real_t>(n3, -1.0));
     N_VDestroy(z);
     N_VDestroy(y);
+}
+
+TEST(StateVector, RecordedDifferenceEqualsTheStoredOne)
+{
+    // y's v half recorded as (y_u - x_v) * s: the linear sum forms it on the fly with the same
+    // operations as a stored half (so bitwise the same values), a read writes it out, and x's
+    // values stay held for it when x itself is overwritten
+    Fixture f;
+    N_Vector x = f.filled(fx), y = N_VClone(x), z = N_VClone(x);
+    const std::vector<real_t> X = values_of(x);
+    const real_t s = 0.3, a = 1.0, b = 0.7;
+    real_t* yu = StatePool::overwrite_with_difference(y, x, s);
+    for (index_t i = 0; i < n3; ++i)
+        yu[i] = fy(i);
+    auto dv = [&](index_t i) { return (fy(i) - X[n3 + i]) * s; };
+
+    N_VLinearSum(a, x, b, y, z);
+    EXPECT_EQ(f.pool->counters().fused_differences, 1);
+    EXPECT_EQ(f.pool->counters().materialized_differences, 0);
+    std::vector<real_t> Z = values_of(z);
+    for (index_t i = 0; i < n3; ++i)
+    {
+        expect_close(Z[i], a * X[i] + b * fy(i), i, "u");
+        expect_close(Z[n3 + i], a * X[n3 + i] + b * dv(i), i, "v");
+    }
+    N_VLinearSum(b, y, a, x, z); // the recorded vector first
+    EXPECT_EQ(f.pool->counters().fused_differences, 2);
+    EXPECT_EQ(values_of(z), Z);
+
+    // x overwritten: y still refers to the values it was recorded over
+    const StatePool::Halves xh = StatePool::overwrite(x);
+    std::fill(xh.u, xh.u + n3, 9.0);
+    std::fill(xh.v, xh.v + n3, 9.0);
+    N_VLinearSum(a, x, b, y, y); // in place on the recorded vector
+    EXPECT_EQ(f.pool->counters().fused_differences, 3);
+    Z = values_of(y);
+    for (index_t i = 0; i < n3; ++i)
+    {
+        expect_close(Z[i], a * 9.0 + b * fy(i), i, "u");
+        expect_close(Z[n3 + i], a * 9.0 + b * dv(i), i, "v");
+    }
+
+    // any other read writes the half out
+    yu = StatePool::overwrite_with_difference(z, x, s);
+    for (index_t i = 0; i < n3; ++i)
+        yu[i] = fy(i);
+    Z = values_of(z);
+    EXPECT_EQ(f.pool->counters().materialized_differences, 1);
+    for (index_t i = 0; i < n3; ++i)
+        ASSERT_EQ(Z[n3 + i], (fy(i) - 9.0) * s) << i;
+    N_VDestroy(z);
+    N_VDestroy(y);
+    N_VDestroy(x);
+}
+
+namespace
+{
+/// n values starting at the given offset (in values) from a 64-byte line boundary, so the
+/// streaming loops' peel, whole lines and tail all run.
+struct Misaligned
+{
+    std::vector<real_t> store;
+    real_t* p = nullptr;
+    Misaligned(index_t n, index_t offset) : store(static_cast<std::size_t>(n) + 16, -7.0)
+    {
+        p = store.data();
+        p += values_to_line(p) + offset;
+    }
+};
+
+void expect_close(const real_t* got, const std::function<real_t(index_t)>& want, index_t n,
+                  const char* what)
+{
+    for (index_t i = 0; i < n; ++i)
+        expect_close(got[i], want(i), i, what);
+}
+} // namespace
+
+TEST(StateVector, StreamingStoresWriteEveryValueOfLargeArrays)
+{
+    // arrays past kStreamBytes are written with streaming stores where the CPU has AVX-512: the
+    // arkode-cd kick and the update with a recorded difference must still give every value
+    const index_t n = static_cast<index_t>(kStreamBytes / sizeof(real_t)) + 1003;
+    Misaligned v(n, 3), a(n, 1), vf(n, 5), du(n, 2);
+    for (index_t i = 0; i < n; ++i)
+        v.p[i] = fx(i), a.p[i] = fy(i);
+    if (!stream_pays(n))
+        GTEST_SKIP()
+            << "no AVX-512 here: the kick and update run their plain loops only (tested above)";
+    const real_t h_prev = 0.7, h = 0.9;
+    arkode_cd_kick(n, v.p, a.p, h_prev, h, vf.p, du.p, nullptr);
+    expect_close(
+        vf.p, [&](index_t i) { return fx(i) + 0.5 * h_prev * fy(i); }, n, "v(n)");
+    expect_close(
+        du.p, [&](index_t i) { return fx(i) + 0.5 * h_prev * fy(i) + 0.5 * h * fy(i); }, n,
+        "v(n+1/2)");
+    EXPECT_EQ(vf.p[n], -7.0); // nothing written past the end
+    EXPECT_EQ(du.p[-1], -7.0);
+
+    SUNContext ctx = nullptr;
+    SUNContext_Create(nullptr, &ctx);
+    {
+        std::shared_ptr<StatePool> pool = StatePool::create(n);
+        N_Vector x = pool->make_vector(ctx), y = N_VClone(x), z = N_VClone(x);
+        const StatePool::Halves xh = StatePool::overwrite(x);
+        for (index_t i = 0; i < n; ++i)
+            xh.u[i] = fx(i), xh.v[i] = fy(i);
+        real_t* yu = StatePool::overwrite_with_difference(y, x, 1.0 / h);
+        std::copy(du.p, du.p + n, yu);
+        N_VLinearSum(1.0, x, h, y, z);
+        EXPECT_EQ(pool->counters().fused_differences, 1);
+        const StatePool::Halves zh = StatePool::values(z);
+        expect_close(
+            zh.u, [&](index_t i) { return fx(i) + h * du.p[i]; }, n, "u(n+1)");
+        expect_close(
+            zh.v, [&](index_t i) { return fy(i) + h * ((du.p[i] - fy(i)) * (1.0 / h)); }, n,
+            "v(n+1/2)");
+        N_VDestroy(z);
+        N_VDestroy(y);
+        N_VDestroy(x);
+    }
+    SUNContext_Free(&ctx);
 }

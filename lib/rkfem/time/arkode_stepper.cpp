@@ -9,6 +9,7 @@
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/stream_stores.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/time/central_difference.hpp"
 #include "rkfem/time/state_vector.hpp"
@@ -17,33 +18,58 @@ namespace rkfem
 {
 namespace
 {
-inline real_t* data(N_Vector v) { return NV_DATA_S(v); }
+inline real_t* data(N_Vector v)
+{
+    return NV_DATA_S(v);
+}
 
-void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const real_t* __restrict a, real_t h_prev,
-                   real_t h, real_t* __restrict v_full, real_t* __restrict du, real_t* __restrict dv)
+void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const real_t* __restrict a,
+                   real_t h_prev, real_t h, real_t* __restrict v_full, real_t* __restrict du,
+                   real_t* __restrict dv, bool stream)
 {
     const real_t inv_h = 1.0 / h;
+#if defined(__AVX512F__)
+    if (stream) // (set only without dv)
+    {
+        const __m512d c0 = _mm512_set1_pd(0.5 * h_prev), c1 = _mm512_set1_pd(0.5 * h);
+        auto vf = [&](index_t j) { return v[j] + 0.5 * h_prev * a[j]; };
+        auto vf8 = [&](index_t j)
+        { return _mm512_fmadd_pd(c0, _mm512_loadu_pd(a + j), _mm512_loadu_pd(v + j)); };
+        stream_range(j0, j1, v_full, vf, vf8);
+        stream_range(
+            j0, j1, du, [&](index_t j) { return vf(j) + 0.5 * h * a[j]; },
+            [&](index_t j) { return _mm512_fmadd_pd(c1, _mm512_loadu_pd(a + j), vf8(j)); });
+        _mm_sfence();
+        return;
+    }
+#endif
     for (index_t j = j0; j < j1; ++j)
     {
         const real_t vf = v[j] + 0.5 * h_prev * a[j];
         const real_t vk = vf + 0.5 * h * a[j];
         v_full[j] = vf;
         du[j] = vk;
-        dv[j] = (vk - v[j]) * inv_h;
+        if (dv != nullptr)
+            dv[j] = (vk - v[j]) * inv_h;
     }
 }
+} // namespace
 
-/// The arkode-cd kick, one pass: v(n) = v(n-1/2) + h_prev/2 a(n) (v_full), v(n+1/2) = v(n) +
-/// h/2 a(n) (du, u' of the right-hand side), dv = (v(n+1/2) - v(n-1/2)) / h (v'). Blocks of
-/// contiguous values with unaliased pointers, so the loop vectorizes.
-void cd_kick(index_t n, const real_t* v, const real_t* a, real_t h_prev, real_t h, real_t* v_full, real_t* du,
-             real_t* dv)
+/// Blocks of contiguous values with unaliased pointers, so the loop vectorizes (the dv test is
+/// the same for the whole loop); arrays far larger than the caches are written with streaming
+/// stores (stream_stores.hpp).
+void arkode_cd_kick(index_t n, const real_t* v, const real_t* a, real_t h_prev, real_t h,
+                    real_t* v_full, real_t* du, real_t* dv)
 {
     constexpr index_t block = 2048;
+    const bool stream = dv == nullptr && stream_pays(n);
     parallel_for("rkfem::arkode_cd::kick", (n + block - 1) / block,
-                 [&](index_t b) { cd_kick_range(b * block, std::min(n, (b + 1) * block), v, a, h_prev, h, v_full, du, dv); });
+                 [&](index_t b)
+                 {
+                     cd_kick_range(b * block, std::min(n, (b + 1) * block), v, a, h_prev, h, v_full,
+                                   du, dv, stream);
+                 });
 }
-} // namespace
 
 void* make_erk_table(const std::string& name, int* stages, int* order)
 {
@@ -77,7 +103,10 @@ void* make_erk_table(const std::string& name, int* stages, int* order)
     return B;
 }
 
-void free_erk_table(void* table) { ARKodeButcherTable_Free(static_cast<ARKodeButcherTable>(table)); }
+void free_erk_table(void* table)
+{
+    ARKodeButcherTable_Free(static_cast<ARKodeButcherTable>(table));
+}
 
 struct ArkodeStepper::Impl
 {
@@ -213,17 +242,25 @@ struct ArkodeStepper::Impl
             h_next = h;
             const real_t* a = nodes.a.data();
             const real_t* v = nodes.v.data(); // y's v
-            const StatePool::Halves yd = overwrite(ydot);
+            const real_t inv_h = 1.0 / h;
             // v(n) = v(n-1/2) + h_prev/2 a(n);  v(n+1/2) = v(n) + h/2 a(n);  u' = v(n+1/2),
             // v' = (v(n+1/2) - v(n-1/2)) / h: one pass; then the prescribed motion on u' (the
-            // kicked velocity), which changes only the conditions' dofs, and their v'
-            cd_kick(n3, v, a, h_prev, h, pool ? pool->parked_v().data() : v_full.data(), yd.u, yd.v);
+            // kicked velocity), which changes only the conditions' dofs, and their v'. rkfem's
+            // vectors record v' = (u' - v) / h over y instead of storing it: after the prescribed
+            // motion it holds at every dof, and ERKStep's update forms it on the fly
+            if (pool)
+            {
+                pool->return_v(); // y keeps its v (v still points to it); nodes.v gets v(n)
+                real_t* du = StatePool::overwrite_with_difference(ydot, yv, inv_h);
+                arkode_cd_kick(n3, v, a, h_prev, h, nodes.v.data(), du, nullptr);
+                m.impose_velocity(t, h, true, du);
+                return;
+            }
+            const StatePool::Halves yd = overwrite(ydot);
+            arkode_cd_kick(n3, v, a, h_prev, h, v_full.data(), yd.u, yd.v);
             m.impose_velocity(t, h, true, yd.u);
-            const real_t inv_h = 1.0 / h;
             for (const index_t j : fixup_dofs)
                 yd.v[j] = (yd.u[j] - v[j]) * inv_h;
-            if (pool)
-                pool->return_v();
             return;
         }
         // Runge-Kutta: kernels see the displacement increment from the committed state
@@ -270,7 +307,8 @@ struct ArkodeStepper::Impl
     }
 };
 
-ArkodeStepper::ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops, bool fsal_workaround)
+ArkodeStepper::ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops,
+                             bool fsal_workaround)
     : mode_(mode), ts_(ts), project_ops_(project_vector_ops), fsal_workaround_(fsal_workaround)
 {
 }
@@ -320,7 +358,8 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     im.check(ERKStepSetTable(im.mem, im.table), "ERKStepSetTable");
     im.check(ERKStepWFtolerances(im.mem, Impl::zero_ewt), "ERKStepWFtolerances");
     if (fsal_workaround_ || mode_ == Mode::CentralDifference)
-        im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess), "ERKStepSetPostprocessStepFn");
+        im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess),
+                 "ERKStepSetPostprocessStepFn");
     im.check(ERKStepSetMaxNumSteps(im.mem, 1), "ERKStepSetMaxNumSteps");
     // ARK_ONE_STEP never interpolates, but 6.4.1 updates the interpolant every step: the
     // Hermite module copies y and f (two full-state copies); Lagrange of degree 0 copies y once
@@ -390,5 +429,8 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     return r;
 }
 
-const StatePool* ArkodeStepper::state_pool() const { return impl_ ? impl_->pool.get() : nullptr; }
+const StatePool* ArkodeStepper::state_pool() const
+{
+    return impl_ ? impl_->pool.get() : nullptr;
+}
 } // namespace rkfem

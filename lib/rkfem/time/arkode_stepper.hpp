@@ -73,4 +73,10 @@ class ArkodeStepper final : public TimeStepper
 /// order through the pointers (for tests). The table is owned by the caller (ARKodeButcherTable).
 void* make_erk_table(const std::string& name, int* stages = nullptr, int* order = nullptr);
 void free_erk_table(void* table);
+
+/// The arkode-cd kick over n values, one pass: v(n) = v(n-1/2) + h_prev/2 a(n) into v_full,
+/// v(n+1/2) = v(n) + h/2 a(n) into du (u' of the right-hand side), and, unless dv is null (rkfem's
+/// vectors record it instead), v' = (v(n+1/2) - v(n-1/2)) / h into dv. Exposed for its test.
+void arkode_cd_kick(index_t n, const real_t* v, const real_t* a, real_t h_prev, real_t h, real_t* v_full, real_t* du,
+                    real_t* dv);
 } // namespace rkfem

@@ -7,6 +7,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/stream_stores.hpp"
 
 namespace rkfem
 {
@@ -29,7 +30,41 @@ index_t half_len(N_Vector v)
     return content(v).pool->half_length();
 }
 
-/// The storage of x, for reading: a constant is materialized, a lent half taken back.
+/// The v half of a difference's base, for reading (taken back if it is lent).
+const real_t* base_v(StatePool& pool, StateStorage* base)
+{
+    if (pool.v_lent(base))
+        pool.reclaim();
+    return base->half[1].data();
+}
+
+/// Forgets s's recorded v half (its values are about to be overwritten, or nobody needs them).
+void drop_difference(StatePool& pool, StateStorage* s)
+{
+    if (s->diff_base == nullptr)
+        return;
+    StateStorage* base = s->diff_base;
+    s->diff_base = nullptr;
+    pool.release(base);
+}
+
+/// Writes s's recorded v half out: v_i = (u_i - base_v_i) * scale.
+void materialize_difference(StatePool& pool, StateStorage* s)
+{
+    if (s->diff_base == nullptr)
+        return;
+    const real_t* __restrict u = s->half[0].data();
+    const real_t* __restrict b = base_v(pool, s->diff_base);
+    real_t* __restrict v = s->half[1].data();
+    const real_t scale = s->diff_scale;
+    parallel_for("rkfem::nv::materialize_difference", pool.half_length(),
+                 [&](index_t i) { v[i] = (u[i] - b[i]) * scale; });
+    drop_difference(pool, s);
+    pool.count_difference(false);
+}
+
+/// The storage of x, for reading: a constant is materialized, a lent half taken back, a
+/// recorded difference written out.
 StateStorage* readable(Content& c)
 {
     if (c.s == nullptr)
@@ -46,6 +81,7 @@ StateStorage* readable(Content& c)
     }
     else if (c.pool->is_lent(c.s))
         c.pool->reclaim();
+    materialize_difference(*c.pool, c.s);
     c.pool->count_pass();
     return c.s;
 }
@@ -57,6 +93,7 @@ StateStorage* writable(Content& c)
     {
         if (c.pool->is_lent(c.s))
             c.pool->reclaim();
+        drop_difference(*c.pool, c.s);
     }
     else
     {
@@ -197,9 +234,87 @@ realtype* op_array_pointer(N_Vector)
     return nullptr;
 }
 
+/// z = a x + b y over [i0, i1) where y's v half is recorded: y_v = (y_u - base_v) scale.
+void linear_sum_difference(index_t i0, index_t i1, real_t a, const real_t* __restrict xu,
+                           const real_t* __restrict xv, real_t b, const real_t* __restrict yu,
+                           const real_t* __restrict bv, real_t scale, real_t* __restrict zu,
+                           real_t* __restrict zv)
+{
+    for (index_t i = i0; i < i1; ++i)
+    {
+        const real_t yv = (yu[i] - bv[i]) * scale;
+        zu[i] = a * xu[i] + b * yu[i];
+        zv[i] = a * xv[i] + b * yv;
+    }
+}
+
 void op_linear_sum(realtype a, N_Vector x, realtype b, N_Vector y, N_Vector z)
 {
-    map2(x, y, z, [a, b](real_t xi, real_t yi) { return a * xi + b * yi; });
+    auto recorded = [](const Content& c) { return c.s != nullptr && c.s->diff_base != nullptr; };
+    if (recorded(content(x)) && !recorded(content(y)))
+    {
+        std::swap(a, b); // ERKStep passes (y(n), f) or (f, y(n)): the recorded one goes second
+        std::swap(x, y);
+    }
+    Content& cy = content(y);
+    if (!recorded(cy) || content(x).s == cy.s)
+    {
+        map2(x, y, z, [a, b](real_t xi, real_t yi) { return a * xi + b * yi; });
+        return;
+    }
+    // y's v half is a recorded difference: z = a x + b y in one loop that forms it on the fly
+    // (the same operations as writing it out first, so the same values)
+    StatePool& pool = *cy.pool;
+    const StateStorage* xs = readable(content(x));
+    StateStorage* ys = cy.s;
+    StateStorage* base = ys->diff_base;
+    const real_t scale = ys->diff_scale;
+    ++ys->refs; // z may be y: its storage and base stay until the loop has run
+    ++base->refs;
+    const real_t* bv = base_v(pool, base);
+    StateStorage* zs = writable(content(z));
+    const real_t *xu = xs->half[0].data(), *xv = xs->half[1].data(), *yu = ys->half[0].data();
+    real_t *zu = zs->half[0].data(), *zv = zs->half[1].data();
+    const index_t n = pool.half_length();
+    constexpr index_t block = 2048;
+    const bool stream = stream_pays(n);
+    parallel_for(
+        "rkfem::nv::linear_sum_difference", (n + block - 1) / block,
+        [&](index_t blk)
+        {
+            const index_t i0 = blk * block, i1 = std::min(n, i0 + block);
+#if defined(__AVX512F__)
+            if (stream)
+            {
+                // one array at a time over the block (stream_stores.hpp)
+                const __m512d va = _mm512_set1_pd(a), vb = _mm512_set1_pd(b),
+                              vs = _mm512_set1_pd(scale);
+                stream_range(
+                    i0, i1, zu, [&](index_t i) { return a * xu[i] + b * yu[i]; },
+                    [&](index_t i)
+                    {
+                        return _mm512_fmadd_pd(va, _mm512_loadu_pd(xu + i),
+                                               _mm512_mul_pd(vb, _mm512_loadu_pd(yu + i)));
+                    });
+                stream_range(
+                    i0, i1, zv,
+                    [&](index_t i) { return a * xv[i] + b * ((yu[i] - bv[i]) * scale); },
+                    [&](index_t i)
+                    {
+                        const __m512d yv = _mm512_mul_pd(
+                            _mm512_sub_pd(_mm512_loadu_pd(yu + i), _mm512_loadu_pd(bv + i)), vs);
+                        return _mm512_fmadd_pd(va, _mm512_loadu_pd(xv + i), _mm512_mul_pd(vb, yv));
+                    });
+                _mm_sfence();
+                return;
+            }
+#endif
+            linear_sum_difference(i0, i1, a, xu, xv, b, yu, bv, scale, zu, zv);
+        });
+    pool.count_pass(); // y read (x's and z's passes are counted by readable and writable)
+    pool.count_difference(true);
+    pool.release(base);
+    pool.release(ys);
 }
 
 void op_const(realtype c, N_Vector z)
@@ -517,6 +632,7 @@ void StatePool::release(StateStorage* s)
         return;
     if (s == lent_)
         reclaim();
+    drop_difference(*this, s);
     free_.push_back(s);
 }
 
@@ -548,12 +664,6 @@ void StatePool::lend(N_Vector y, std::vector<real_t>& u, std::vector<real_t>& v)
     lent_v_ = &v;
 }
 
-std::vector<real_t>& StatePool::parked_v()
-{
-    RKFEM_REQUIRE(lent_ != nullptr && lent_v_ != nullptr, "StatePool::parked_v: no v half is lent");
-    return lent_->half[1];
-}
-
 void StatePool::return_v()
 {
     if (lent_ != nullptr && lent_v_ != nullptr)
@@ -579,6 +689,20 @@ StatePool::Halves StatePool::overwrite(N_Vector y)
 {
     StateStorage* s = writable(content(y));
     return {s->half[0].data(), s->half[1].data()};
+}
+
+real_t* StatePool::overwrite_with_difference(N_Vector y, N_Vector x, real_t scale)
+{
+    Content& cx = content(x);
+    if (cx.s == nullptr)
+        readable(cx); // a constant gets values to refer to
+    StateStorage* base = cx.s;
+    ++base->refs; // before y is prepared: y's old storage may be x's
+    StateStorage* s = writable(content(y));
+    RKFEM_REQUIRE(s != base, "StatePool::overwrite_with_difference: y and x share a storage");
+    s->diff_base = base;
+    s->diff_scale = scale;
+    return s->half[0].data();
 }
 
 StatePool::Ref::Ref(N_Vector y)

@@ -14,7 +14,9 @@
 ///    weighted norm with constant weights c reads the vector only when c != 0;
 ///  - lend() moves a vector's halves into a NodeSet's u and v (std::vector swaps, no copy), so
 ///    the right-hand side works on the state in place; the storage takes a lent half back as
-///    soon as an operation touches its values.
+///    soon as an operation touches its values;
+///  - the central-difference right-hand side's v' = (u' - v) / h is recorded, not stored
+///    (overwrite_with_difference), and formed inside ERKStep's update z = y + h f.
 /// Every loop is an rkfem -O3 OpenMP loop; reductions use the fixed-chunk sums of parallel.hpp,
 /// so results do not depend on the thread count. Only the ARKODE stepper creates these vectors.
 #include <memory>
@@ -30,6 +32,11 @@ struct StateStorage
 {
     std::vector<real_t> half[2]; ///< u, v (n3 each)
     int refs = 0;                ///< vectors sharing it (and StateRefs holding it)
+    /// Non-null: the v half is not written yet; its values are
+    /// v_i = (u_i - diff_base->half[1][i]) * diff_scale (overwrite_with_difference). The storage
+    /// holds a reference on diff_base until then.
+    StateStorage* diff_base = nullptr;
+    real_t diff_scale = 0.0;
 };
 
 class StatePool
@@ -55,13 +62,16 @@ class StatePool
     /// y's values, for overwriting every entry: y gets a storage of its own first (its values
     /// are then undefined).
     static Halves overwrite(N_Vector y);
+    /// For the central-difference right-hand side (u' = v(n+1/2), v' = (u' - v) / h): y's u half,
+    /// for overwriting every entry; y's v half is recorded as (u'_i - x_v,i) * scale over x's v
+    /// half, and written only when an operation reads it. The one operation that uses it,
+    /// z = a x + b y (ERKStep's solution update), computes it on the fly: the update then reads
+    /// three arrays, not four, and the right-hand side writes one, not two. Returns y's u.
+    static real_t* overwrite_with_difference(N_Vector y, N_Vector x, real_t scale);
 
     /// Moves y's halves into u and v (swaps: u and v then hold y's values, y's storage holds
     /// the arrays u and v had). Ends an earlier lend first. The caller must not write them.
     void lend(N_Vector y, std::vector<real_t>& u, std::vector<real_t>& v);
-    /// While v is lent: the array the NodeSet's v gave in exchange (parked in the storage). It
-    /// becomes the NodeSet's v again at return_v(), so what the caller writes there is then v.
-    std::vector<real_t>& parked_v();
     /// Gives the lent v half back to its storage (v gets its own array back); u stays lent.
     void return_v();
     /// Ends a lend leaving the lent values where they are: the NodeSet keeps the state, the
@@ -94,6 +104,9 @@ class StatePool
         long storages = 0;      ///< storages allocated so far (the pool's size)
         long passes = 0;        ///< loops over all values of a vector (reads of a vector, writes)
         long shared_copies = 0; ///< copies done by sharing a storage
+        long fused_differences = 0; ///< linear sums that computed a recorded v half on the fly
+        long materialized_differences =
+            0; ///< recorded v halves written out because a loop read them
     };
     const Counters& counters() const { return counters_; }
 
@@ -103,8 +116,13 @@ class StatePool
     /// Ends the current lend (the storage takes its arrays back).
     void reclaim();
     bool is_lent(const StateStorage* s) const { return s != nullptr && s == lent_; }
+    bool v_lent(const StateStorage* s) const { return is_lent(s) && lent_v_ != nullptr; }
     void count_pass(long n = 1) { counters_.passes += n; }
     void count_shared_copy() { ++counters_.shared_copies; }
+    void count_difference(bool fused)
+    {
+        ++(fused ? counters_.fused_differences : counters_.materialized_differences);
+    }
 
   private:
     explicit StatePool(index_t n3) : n3_(n3) {}
