@@ -352,22 +352,29 @@ template <bool PLASTIC, bool FULL>
         first_piola(VJ, q, sn, Fi, l, P);
     }
 
+    // the batch's energies (summed in lane order), smallest step and first bad point: what the
+    // step needs of its points, without per-point arrays to write and read back
     const bool stabilized = blk.n_stab() > 0; // the stabilization of this point's sub-cells needs F^-1 and W
+    real_t sum_int = 0.0, sum_bv = 0.0, dt_min = std::numeric_limits<real_t>::max();
+    index_t dt_point = p0, bad = -1;
     for (int l = 0; l < nl; ++l)
     {
         const std::size_t p = static_cast<std::size_t>(p0 + l);
         const real_t J = Jl[l];
         blk.jacobian[p] = J;
-        if (!(J > 0.0))
+        if (!(J > 0.0) || !(dtl[l] > 0.0))
         {
-            blk.point_dt[p] = -1.0; // flags the bad point
+            if (bad < 0)
+                bad = static_cast<index_t>(p);
             continue;
         }
-        blk.point_dt[p] = dtl[l];
-        real_t* e = &blk.point_energy[3 * p];
-        e[0] = e_int[l];
-        e[1] = 0.0;
-        e[2] = e_bv[l];
+        sum_int += e_int[l];
+        sum_bv += e_bv[l];
+        if (dtl[l] < dt_min)
+        {
+            dt_min = dtl[l];
+            dt_point = static_cast<index_t>(p);
+        }
         real_t Pp[9];
         for (int k = 0; k < 9; ++k)
             Pp[k] = P[k][l];
@@ -385,6 +392,12 @@ template <bool PLASTIC, bool FULL>
                 blk.spin[3 * p + k] = wl[k][l];
         }
     }
+    const std::size_t b = static_cast<std::size_t>(batch);
+    blk.batch_sums[3 * b] = sum_int;
+    blk.batch_sums[3 * b + 1] = sum_bv;
+    blk.batch_sums[3 * b + 2] = dt_min;
+    blk.batch_idx[2 * b] = dt_point;
+    blk.batch_idx[2 * b + 1] = bad;
 }
 
 /// Default dt factor alpha (dt = alpha J^(1/3) l0 / c) per nodal formulation, calibrated from
@@ -698,8 +711,10 @@ void NodalBlock::initialize(Assembly assembly)
     point_tensor.assign(use_scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
     finv.assign(9 * static_cast<std::size_t>(np), 0.0);
     spin.assign(3 * static_cast<std::size_t>(np), 0.0);
-    point_energy.assign(3 * static_cast<std::size_t>(np + ns), 0.0);
-    point_dt.assign(static_cast<std::size_t>(np), 0.0);
+    const std::size_t nb = static_cast<std::size_t>((np + kPointLanes - 1) / kPointLanes);
+    batch_sums.assign(3 * nb, 0.0);
+    batch_idx.assign(2 * nb, -1);
+    stab_energy.assign(static_cast<std::size_t>(ns), 0.0);
 
     prefetch_stencils = points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
     for (IntegrationOperator* op : {&points, &stabilization})
@@ -709,7 +724,7 @@ void NodalBlock::initialize(Assembly assembly)
         use_huge_pages(op->weight);
     }
     for (auto* a : {&node_grad, &stress, &stress_trial, &stab_stress, &stab_stress_trial, &jacobian, &point_tensor,
-                    &finv, &spin, &point_energy, &point_dt, &length0})
+                    &finv, &spin, &stab_energy, &length0})
         use_huge_pages(*a);
     use_huge_pages(node_point);
 }
@@ -743,12 +758,20 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
         run.template operator()<false>();
 
     ForcePassResult r;
-    for (index_t p = 0; p < np; ++p)
-        if (!(blk.point_dt[p] > 0.0))
+    const index_t nb = (np + kPointLanes - 1) / kPointLanes;
+    for (index_t b = 0; b < nb; ++b)
+    {
+        if (blk.batch_idx[2 * b + 1] >= 0)
         {
-            r.bad_element = p;
+            r.bad_element = blk.batch_idx[2 * b + 1];
             return r;
         }
+        if (blk.batch_sums[3 * b + 2] < r.dt_stable)
+        {
+            r.dt_stable = blk.batch_sums[3 * b + 2];
+            r.dt_element = blk.batch_idx[2 * b];
+        }
+    }
 
     if (ns > 0)
     {
@@ -782,10 +805,7 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                 power += 0.5 * (s_old[k] + sg[k]) * d[k] + (s_old[k + 3] + sg[k + 3]) * d[k + 3];
             const real_t J = blk.jacobian[L];
             const real_t V0 = st.weight[s];
-            const std::size_t q = static_cast<std::size_t>(np) + s;
-            blk.point_energy[3 * q] = 0.0;
-            blk.point_energy[3 * q + 1] = dt * V0 * J * power;
-            blk.point_energy[3 * q + 2] = 0.0;
+            blk.stab_energy[s] = dt * V0 * J * power;
             const real_t S[3][3] = {{sg[0], sg[3], sg[5]}, {sg[3], sg[1], sg[4]}, {sg[5], sg[4], sg[2]}};
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j)
@@ -805,20 +825,10 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                          [&](index_t s) { sub_cell(s, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + s)]); });
     }
 
-    const index_t nq = np + ns;
-    r.d_internal = parallel_reduce_sum("rkfem::nodal_energy", nq,
-                                       [&](index_t q) { return blk.point_energy[3 * static_cast<std::size_t>(q)]; });
-    r.d_hourglass = parallel_reduce_sum("rkfem::nodal_stab_energy", nq,
-                                        [&](index_t q) { return blk.point_energy[3 * static_cast<std::size_t>(q) + 1]; });
-    r.d_bulk_viscosity = parallel_reduce_sum("rkfem::nodal_bv_energy", nq, [&](index_t q)
-                                             { return blk.point_energy[3 * static_cast<std::size_t>(q) + 2]; });
-    r.dt_stable = parallel_reduce_min("rkfem::nodal_dt", np, [&](index_t p) { return blk.point_dt[p]; });
-    for (index_t p = 0; p < np; ++p)
-        if (blk.point_dt[p] == r.dt_stable)
-        {
-            r.dt_element = p;
-            break;
-        }
+    r.d_internal = parallel_reduce_sum("rkfem::nodal_energy", nb, [&](index_t b) { return blk.batch_sums[3 * b]; });
+    r.d_bulk_viscosity =
+        parallel_reduce_sum("rkfem::nodal_bv_energy", nb, [&](index_t b) { return blk.batch_sums[3 * b + 1]; });
+    r.d_hourglass = parallel_reduce_sum("rkfem::nodal_stab_energy", ns, [&](index_t s) { return blk.stab_energy[s]; });
     return r;
 }
 

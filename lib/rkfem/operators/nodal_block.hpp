@@ -82,8 +82,9 @@ struct NodalBlock
     std::vector<real_t> point_tensor; ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
     std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for stabilization
     std::vector<real_t> spin;         ///< 3 x n_points: W of the point
-    std::vector<real_t> point_energy; ///< 3 x (n_points + n_stab): internal, stabilization, bulk viscosity
-    std::vector<real_t> point_dt;     ///< n_points
+    std::vector<real_t> batch_sums;  ///< per batch of stress points x 3: d_int, d_bv, dt_min
+    std::vector<index_t> batch_idx;  ///< per batch x 2: the point of dt_min, the first bad point (-1: none)
+    std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell
 
     index_t n_points() const { return points.n_points(); }
     index_t n_stab() const { return stabilization.n_points(); }
