@@ -97,6 +97,16 @@ TEST(Decks, UnknownKeySuggestsTheClosest)
                     ":7: parts.col.materail", "did you mean 'material'");
 }
 
+TEST(Decks, RepeatedKeyIsRejected)
+{
+    // YAML leaves repeated keys to the application; yaml-cpp keeps both and reads the first, so
+    // the second would be dropped without a word
+    expect_rejected("repeated_key.yaml", replace(good, "  end: 1 us\n", "  end: 1 us\n  end: 2 us\n"),
+                    ":4: time.end", "key 'end' given twice; each key once (first given on line 3)");
+    expect_rejected("repeated_flow_key.yaml", replace(good, "E: 200 GPa", "E: 200 GPa, E: 210 GPa"),
+                    ":7: parts.col.material.E", "given twice");
+}
+
 TEST(Decks, MissingKey)
 {
     expect_rejected("missing_key.yaml", replace(good, "  end: 1 us\n", "  dt_scale: 0.9\n"),

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <algorithm>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <yaml-cpp/yaml.h>
@@ -94,9 +95,18 @@ class Section
             throw DeckError(locate(ctx_, node_, path_),
                             node_.IsNull() ? "is empty" : "is not a mapping",
                             "expected keys: " + join(allowed_));
+        std::map<std::string, YAML::Node> seen; // yaml-cpp keeps both of a repeated key; [] reads the first
         for (const auto& kv : node_)
         {
             const std::string key = kv.first.as<std::string>();
+            if (const auto [it, fresh] = seen.emplace(key, kv.first); !fresh)
+            {
+                const YAML::Mark first = it->second.Mark();
+                throw DeckError(locate(ctx_, kv.first, child_path(path_, key)), "key '" + key + "' given twice",
+                                "each key once" + (first.is_null() ? std::string()
+                                                                   : " (first given on line " +
+                                                                         std::to_string(first.line + 1) + ")"));
+            }
             if (std::find(allowed_.begin(), allowed_.end(), key) != allowed_.end())
                 continue;
             std::string best;
