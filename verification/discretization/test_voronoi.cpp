@@ -117,6 +117,45 @@ TEST(VoronoiCells, VolumesTileTheBodyAndScniSatisfiesTheIntegrationConstraint)
     EXPECT_LT(lin, 1e-11);
 }
 
+// Points clustered in one corner of a large box: the cells of the cluster's outer points reach
+// the far corner, past the body planes that the first construction leaves out (those farther
+// than twice the farthest Delaunay neighbour), so those cells are built again with every plane.
+// They must still tile the box and stay inside it.
+TEST(VoronoiCells, CellsReachingFarBodyPlanesAreRebuiltWithAllOfThem)
+{
+    VoronoiSetup s;
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<real_t> u(0.01, 0.05);
+    for (int i = 0; i < 40; ++i)
+        s.x.insert(s.x.end(), {u(gen), u(gen), u(gen)});
+    const std::vector<HalfSpace> body = box_halfspaces(Vec3::Zero(), Vec3::Ones());
+    s.cells = voronoi_cells(s.x, body);
+    real_t vol = 0.0;
+    for (real_t v : s.cells.volume)
+        vol += v;
+    real_t outside = 0.0;
+    for (const CellFacetPoint& p : s.cells.points)
+        for (const HalfSpace& h : body)
+            outside = std::max(outside, h.normal.dot(p.x) - h.offset);
+    std::printf("%d of %d cells rebuilt with all body planes; total volume - 1 = %.2e, farthest facet point "
+                "outside %.1e\n",
+                s.cells.rebuilt_with_all_planes, s.cells.size(), vol - 1.0, outside);
+    EXPECT_GT(s.cells.rebuilt_with_all_planes, 0);
+    EXPECT_NEAR(vol, 1.0, 1e-12);
+    EXPECT_LE(outside, 1e-12);
+    // each cell is closed: sum of n dA = 0 (its facets' areas and normals from CGAL's polygons)
+    real_t open = 0.0;
+    for (index_t i = 0; i < s.cells.size(); ++i)
+    {
+        Vec3 nda = Vec3::Zero();
+        for (index_t k = s.cells.offsets[i]; k < s.cells.offsets[i + 1]; ++k)
+            nda += s.cells.points[k].nda;
+        open = std::max(open, nda.norm());
+    }
+    std::printf("largest |sum n dA| of a cell %.1e\n", open);
+    EXPECT_LT(open, 1e-12);
+}
+
 // A cylinder body (cloud parts with body: cylinder): the cells are clipped to the prism of planes
 // tangent to the cylinder, so they tile the prism, whose volume is the cylinder's times
 // sides tan(pi / sides) / pi; SCNI on them satisfies IC1. Generated (jittered, particles on the

@@ -165,6 +165,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
         }
         if (!inside_body)
         {
+            ++cells.rebuilt_with_all_planes;
             P.clear();
             add_body_planes(true);
             CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));

@@ -54,6 +54,9 @@ struct VoronoiCells
     };
     std::vector<SubCell> sub_cells;
     std::vector<CellFacetPoint> sub_points;
+    /// Cells built again with every body plane: the first try leaves out the body planes farther
+    /// than twice the farthest Delaunay neighbour, and a cell that reaches past one is redone.
+    index_t rebuilt_with_all_planes = 0;
     index_t size() const { return static_cast<index_t>(volume.size()); }
 };
 
