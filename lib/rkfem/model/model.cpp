@@ -424,9 +424,42 @@ Model Model::build(const Deck& deck)
         }
         m.cloud_face_loads_.push_back(std::move(cl));
     }
-    m.f_ext_prev_.assign(m.nodes.f_ext.size(), 0.0);
+    m.collect_loaded_dofs();
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
     return m;
+}
+
+void Model::collect_loaded_dofs()
+{
+    std::vector<char> loaded(nodes.f_ext.size(), 0);
+    auto node_dofs = [&](index_t n)
+    {
+        for (int k = 0; k < 3; ++k)
+            loaded[3 * static_cast<std::size_t>(n) + k] = 1;
+    };
+    for (const auto& [load, ids] : nodal_loads_)
+        for (int k = 0; k < 3; ++k)
+            if (load->active[k])
+                for (index_t n : ids)
+                    loaded[3 * static_cast<std::size_t>(n) + k] = 1;
+    for (std::size_t il = 0; il < pressure_loads_.size(); ++il)
+    {
+        for (index_t n : cloud_face_loads_[il].nodes)
+            node_dofs(n);
+        const RkFaceLoads& rl = rk_face_loads_[il];
+        const std::vector<Quad>& faces = *pressure_loads_[il].second;
+        for (std::size_t fi = 0; fi < faces.size(); ++fi)
+            if (!rl.is_rk[fi])
+                for (index_t n : faces[fi])
+                    node_dofs(n);
+        for (index_t n : rl.nodes)
+            node_dofs(n);
+    }
+    loaded_dofs_.clear();
+    for (std::size_t j = 0; j < loaded.size(); ++j)
+        if (loaded[j])
+            loaded_dofs_.push_back(static_cast<index_t>(j));
+    f_ext_prev_.assign(loaded_dofs_.size(), 0.0);
 }
 
 void Model::impose_velocity(real_t t, real_t dt, bool half_step) { impose_velocity(t, dt, half_step, nodes.v.data()); }
@@ -562,7 +595,8 @@ void Model::set_state(const real_t* u, const real_t* v)
 
 void Model::apply_external_forces(real_t t)
 {
-    std::fill(nodes.f_ext.begin(), nodes.f_ext.end(), 0.0);
+    for (const index_t j : loaded_dofs_) // f_ext is zero at every other dof
+        nodes.f_ext[j] = 0.0;
     for (const auto& [load, ids] : nodal_loads_)
         for (int k = 0; k < 3; ++k)
             if (load->active[k])
@@ -731,18 +765,28 @@ void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
                                 return nodes.mass[i] * (nodes.a[j] * nodes.a[j] + nodes.a[j + 1] * nodes.a[j + 1] +
                                                         nodes.a[j + 2] * nodes.a[j + 2]);
                             });
+    const index_t n_loaded = static_cast<index_t>(loaded_dofs_.size());
+    auto keep_f_ext = [&]
+    {
+        for (index_t q = 0; q < n_loaded; ++q)
+            f_ext_prev_[q] = nodes.f_ext[loaded_dofs_[q]];
+    };
     if (dt <= 0)
     {
-        f_ext_prev_ = nodes.f_ext;
+        keep_f_ext();
         bc_v_prev_.resize(conditions.size());
         for (std::size_t k = 0; k < conditions.size(); ++k)
             bc_v_prev_[k] = nodes.v[conditions[k].dof];
         return;
     }
-    // external work, trapezoid in time
-    energy.external_work += parallel_reduce_sum(
-        "rkfem::external_work", 3 * n,
-        [&](index_t j) { return 0.5 * (f_ext_prev_[j] + nodes.f_ext[j]) * (nodes.u[j] - u_prev[j]); });
+    // external work, trapezoid in time, over the loaded dofs (f_ext is zero elsewhere)
+    energy.external_work += parallel_reduce_sum("rkfem::external_work", n_loaded,
+                                                [&](index_t q)
+                                                {
+                                                    const index_t j = loaded_dofs_[q];
+                                                    return 0.5 * (f_ext_prev_[q] + nodes.f_ext[j]) *
+                                                           (nodes.u[j] - u_prev[j]);
+                                                });
     // work of reactions at prescribed dofs: R = f_int - f_ext + m a_prescribed
     for (std::size_t k = 0; k < conditions.size(); ++k)
     {
@@ -759,7 +803,7 @@ void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
     const real_t c = deck_.time.mass_damping;
     if (c > 0)
         energy.damping += dt * c * 2.0 * energy.kinetic;
-    f_ext_prev_ = nodes.f_ext;
+    keep_f_ext();
 }
 
 bool Model::carries_coefficients(index_t node) const

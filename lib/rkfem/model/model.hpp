@@ -159,6 +159,10 @@ class Model
     Deck deck_;
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();
+    /// The dofs any load can put a force on (ascending): f_ext is zero everywhere else, so the
+    /// load pass zeroes and the external work sums only these. f_ext_prev_ is per loaded dof.
+    std::vector<index_t> loaded_dofs_;
+    void collect_loaded_dofs();
     std::vector<real_t> f_ext_prev_;
     std::vector<real_t> reaction_prev_;
     std::vector<real_t> bc_v_prev_;
