@@ -263,7 +263,8 @@ void op_linear_sum(realtype a, N_Vector x, realtype b, N_Vector y, N_Vector z)
         return;
     }
     // y's v half is a recorded difference: z = a x + b y in one loop that forms it on the fly
-    // (the same operations as writing it out first, so the same values)
+    // (the operations of writing it out first: the same values, up to where the compiler fuses
+    // a multiply and an add)
     StatePool& pool = *cy.pool;
     const StateStorage* xs = readable(content(x));
     StateStorage* ys = cy.s;
