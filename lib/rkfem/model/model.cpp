@@ -595,7 +595,9 @@ void Model::set_state(const real_t* u, const real_t* v)
 
 void Model::apply_external_forces(real_t t)
 {
-    for (const index_t j : loaded_dofs_) // f_ext is zero at every other dof
+    // f_ext is zero at every dof but the loaded ones; a load added here must add the dofs it
+    // writes in collect_loaded_dofs()
+    for (const index_t j : loaded_dofs_)
         nodes.f_ext[j] = 0.0;
     for (const auto& [load, ids] : nodal_loads_)
         for (int k = 0; k < 3; ++k)

@@ -18,14 +18,10 @@ namespace rkfem
 {
 namespace
 {
-inline real_t* data(N_Vector v)
-{
-    return NV_DATA_S(v);
-}
+inline real_t* data(N_Vector v) { return NV_DATA_S(v); }
 
-void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const real_t* __restrict a,
-                   real_t h_prev, real_t h, real_t* __restrict v_full, real_t* __restrict du,
-                   real_t* __restrict dv, bool stream)
+void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const real_t* __restrict a, real_t h_prev,
+                   real_t h, real_t* __restrict v_full, real_t* __restrict du, real_t* __restrict dv, bool stream)
 {
     const real_t inv_h = 1.0 / h;
 #if defined(__AVX512F__)
@@ -33,12 +29,10 @@ void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const rea
     {
         const __m512d c0 = _mm512_set1_pd(0.5 * h_prev), c1 = _mm512_set1_pd(0.5 * h);
         auto vf = [&](index_t j) { return v[j] + 0.5 * h_prev * a[j]; };
-        auto vf8 = [&](index_t j)
-        { return _mm512_fmadd_pd(c0, _mm512_loadu_pd(a + j), _mm512_loadu_pd(v + j)); };
+        auto vf8 = [&](index_t j) { return _mm512_fmadd_pd(c0, _mm512_loadu_pd(a + j), _mm512_loadu_pd(v + j)); };
         stream_range(j0, j1, v_full, vf, vf8);
-        stream_range(
-            j0, j1, du, [&](index_t j) { return vf(j) + 0.5 * h * a[j]; },
-            [&](index_t j) { return _mm512_fmadd_pd(c1, _mm512_loadu_pd(a + j), vf8(j)); });
+        stream_range(j0, j1, du, [&](index_t j) { return vf(j) + 0.5 * h * a[j]; },
+                     [&](index_t j) { return _mm512_fmadd_pd(c1, _mm512_loadu_pd(a + j), vf8(j)); });
         _mm_sfence();
         return;
     }
@@ -58,17 +52,14 @@ void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const rea
 /// Blocks of contiguous values with unaliased pointers, so the loop vectorizes (the dv test is
 /// the same for the whole loop); arrays far larger than the caches are written with streaming
 /// stores (stream_stores.hpp).
-void arkode_cd_kick(index_t n, const real_t* v, const real_t* a, real_t h_prev, real_t h,
-                    real_t* v_full, real_t* du, real_t* dv)
+void arkode_cd_kick(index_t n, const real_t* v, const real_t* a, real_t h_prev, real_t h, real_t* v_full, real_t* du,
+                    real_t* dv)
 {
     constexpr index_t block = 2048;
     const bool stream = dv == nullptr && stream_pays(n);
     parallel_for("rkfem::arkode_cd::kick", (n + block - 1) / block,
                  [&](index_t b)
-                 {
-                     cd_kick_range(b * block, std::min(n, (b + 1) * block), v, a, h_prev, h, v_full,
-                                   du, dv, stream);
-                 });
+                 { cd_kick_range(b * block, std::min(n, (b + 1) * block), v, a, h_prev, h, v_full, du, dv, stream); });
 }
 
 void* make_erk_table(const std::string& name, int* stages, int* order)
@@ -103,10 +94,7 @@ void* make_erk_table(const std::string& name, int* stages, int* order)
     return B;
 }
 
-void free_erk_table(void* table)
-{
-    ARKodeButcherTable_Free(static_cast<ARKodeButcherTable>(table));
-}
+void free_erk_table(void* table) { ARKodeButcherTable_Free(static_cast<ARKodeButcherTable>(table)); }
 
 struct ArkodeStepper::Impl
 {
@@ -126,9 +114,10 @@ struct ArkodeStepper::Impl
     real_t h_next = 0.0;          ///< the step the last evaluation's kick was formed with
     bool state_committed = false; ///< re-evaluation after a reset: no material increment
     /// Full-step velocity at the last evaluation (Debian's serial vector; with rkfem's vectors
-    /// it goes straight into the array nodes.v takes back after the evaluation)
+    /// the kick writes it into nodes.v, whose own array is back before the kick)
     std::vector<real_t> v_full;
-    /// Prescribed dofs whose v' the kick does not get right by itself. A fixed dof of an FE part
+    /// Debian's serial vector: prescribed dofs whose v' the kick does not get right by itself
+    /// (rkfem's vectors record v' = (u' - v) / h, which holds at every dof). A fixed dof of an FE part
     /// has v = 0 (start_model imposes it, and v' stays 0) and a = 0 (compute_accelerations) at
     /// every evaluation, so the kick already gives u' = v' = 0 there; prescribed motion and RK
     /// coefficients (the mixed transformation) need v' = (u' - v) / h after the conditions.
@@ -307,8 +296,7 @@ struct ArkodeStepper::Impl
     }
 };
 
-ArkodeStepper::ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops,
-                             bool fsal_workaround)
+ArkodeStepper::ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops, bool fsal_workaround)
     : mode_(mode), ts_(ts), project_ops_(project_vector_ops), fsal_workaround_(fsal_workaround)
 {
 }
@@ -328,10 +316,12 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     const StepReport start = start_model(model, t);
 
     if (!project_ops_)
+    {
         im.v_full.assign(static_cast<std::size_t>(im.n3), 0.0);
-    for (const DofCondition& c : model.conditions)
-        if (c.kind != BoundarySpec::Kind::Fixed || model.carries_coefficients(c.dof / 3))
-            im.fixup_dofs.push_back(c.dof);
+        for (const DofCondition& c : model.conditions)
+            if (c.kind != BoundarySpec::Kind::Fixed || model.carries_coefficients(c.dof / 3))
+                im.fixup_dofs.push_back(c.dof);
+    }
     im.h_prev = im.h_pending = 0.0;
     im.t_n = t;
 
@@ -358,8 +348,7 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     im.check(ERKStepSetTable(im.mem, im.table), "ERKStepSetTable");
     im.check(ERKStepWFtolerances(im.mem, Impl::zero_ewt), "ERKStepWFtolerances");
     if (fsal_workaround_ || mode_ == Mode::CentralDifference)
-        im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess),
-                 "ERKStepSetPostprocessStepFn");
+        im.check(ERKStepSetPostprocessStepFn(im.mem, Impl::postprocess), "ERKStepSetPostprocessStepFn");
     im.check(ERKStepSetMaxNumSteps(im.mem, 1), "ERKStepSetMaxNumSteps");
     // ARK_ONE_STEP never interpolates, but 6.4.1 updates the interpolant every step: the
     // Hermite module copies y and f (two full-state copies); Lagrange of degree 0 copies y once
@@ -429,8 +418,5 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
     return r;
 }
 
-const StatePool* ArkodeStepper::state_pool() const
-{
-    return impl_ ? impl_->pool.get() : nullptr;
-}
+const StatePool* ArkodeStepper::state_pool() const { return impl_ ? impl_->pool.get() : nullptr; }
 } // namespace rkfem
