@@ -6,8 +6,11 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 
 #include "rkfem/analysis/convergence_study.hpp"
+#include "rkfem/core/error.hpp"
 
 using namespace rkfem;
 
@@ -41,3 +44,53 @@ void check(const std::string& sweep_file, const std::string& dir)
 } // namespace
 
 TEST(ManufacturedSolution, SmokeSweepRates) { check("mms_smoke.yaml", out_dir("convergence_smoke")); }
+
+namespace
+{
+/// read_sweep's error for a sweep file with `body` ("" when it reads).
+std::string sweep_error(const std::string& body)
+{
+    const std::string path = ::testing::TempDir() + "/sweep_under_test.yaml";
+    std::ofstream(path) << body;
+    try
+    {
+        read_sweep(path);
+    }
+    catch (const DeckError& e)
+    {
+        return e.what();
+    }
+    return "";
+}
+} // namespace
+
+TEST(ConvergenceSweepInput, BadCasesNameTheKeyAndLine)
+{
+    const std::string head = "title: t\nresolutions: [4, 8]\ncases:\n";
+    // the solver does not change the problem, so two cases may differ in it alone
+    EXPECT_EQ(sweep_error(head + "  - {scheme: scni, solver: direct}\n  - {scheme: scni, solver: pcg}\n"), "");
+    const std::string twice = sweep_error(head + "  - {scheme: scni}\n  - {scheme: sd-scni}\n  - {scheme: scni}\n");
+    EXPECT_NE(twice.find(":6: cases.2: the same case as cases.0 (line 4)"), std::string::npos) << twice;
+    const std::string bc = sweep_error(head + "  - {scheme: scni, boundary: free}\n");
+    EXPECT_NE(bc.find(":4: cases.0.boundary: 'free' is not a valid choice; expected one of traction | dirichlet"),
+              std::string::npos)
+        << bc;
+    const std::string solver = sweep_error(head + "  - {scheme: scni, solver: gmres}\n");
+    EXPECT_NE(solver.find("cases.0.solver: 'gmres' is not a valid choice; expected one of auto | direct | pcg"),
+              std::string::npos)
+        << solver;
+}
+
+TEST(ConvergenceSweepInput, EverySweepInStudiesReads)
+{
+    // the long sweeps do not run in CI: their definitions are at least read here
+    int n = 0;
+    for (const auto& e : std::filesystem::directory_iterator(std::string(RKFEM_SOURCE_DIR) + "/studies/sweeps"))
+        if (e.path().extension() == ".yaml")
+        {
+            const ConvergenceSweep s = read_sweep(e.path().string());
+            EXPECT_FALSE(s.cases.empty()) << e.path();
+            ++n;
+        }
+    EXPECT_GE(n, 3);
+}

@@ -102,10 +102,10 @@ ConvergenceSweep read_sweep(const std::string& path)
         {
             const std::string k = it->first.as<std::string>();
             static const std::vector<std::string> keys = {"formulation", "scheme", "stabilization", "normalized_support",
-                                                          "support", "kernel", "order"};
+                                                          "support", "kernel", "order", "solver", "boundary"};
             if (std::find(keys.begin(), keys.end(), k) == keys.end())
                 throw DeckError(at(path, it->first, p + "." + k), "unknown key",
-                                "expected formulation, scheme, stabilization, normalized_support, support, kernel, order");
+                                "expected formulation, scheme, stabilization, normalized_support, support, kernel, order, solver, boundary");
         }
         MmsCase mc;
         mc.formulation = text(path, c, "formulation", p, {"rkpm", "fem-nodal"}, "rkpm") == "rkpm" ? Formulation::Rkpm
@@ -123,6 +123,18 @@ ConvergenceSweep read_sweep(const std::string& path)
                        : k == "gaussian"      ? KernelType::Gaussian
                                               : KernelType::CubicBSpline;
         mc.rk.order = text(path, c, "order", p, {"1", "2"}, "1") == "1" ? 1 : 2;
+        const std::string solver = text(path, c, "solver", p, {"auto", "direct", "pcg"}, "auto");
+        mc.boundary = text(path, c, "boundary", p, {"traction", "dirichlet"}, "traction") == "dirichlet"
+                          ? MmsBoundary::Dirichlet
+                          : MmsBoundary::Traction;
+        mc.solver = solver == "direct" ? MmsSolver::Direct : solver == "pcg" ? MmsSolver::Pcg : MmsSolver::Auto;
+        for (std::size_t j = 0; j < s.cases.size(); ++j)
+            if (s.cases[j].table_name() == mc.table_name())
+                throw DeckError(at(path, c, p), "the same case as cases." + std::to_string(j) + " (line " +
+                                                    std::to_string(cases[j].Mark().line + 1) + "); both would write table " +
+                                                    mc.table_name(),
+                                "expected cases that differ in formulation, scheme, stabilization, normalized_support, "
+                                "support, kernel, order, boundary or solver");
         s.cases.push_back(mc);
     }
     return s;
@@ -133,7 +145,7 @@ std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const s
     std::filesystem::create_directories(out_dir);
     std::vector<std::vector<MmsResult>> all;
     std::ofstream csv(out_dir + "/convergence.csv");
-    csv << "case,formulation,scheme,stabilization,normalized_support,n,h,dofs,l2,h1,l2_rate,h1_rate,seconds\n";
+    csv << "case,formulation,scheme,stabilization,normalized_support,n,h,dofs,l2,h1,l2_rate,h1_rate,seconds,pcg_iterations\n";
     const hid_t f = H5Fcreate((out_dir + "/convergence.h5").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     RKFEM_REQUIRE(f >= 0, "cannot create " << out_dir << "/convergence.h5");
     for (const MmsCase& base : s.cases)
@@ -154,22 +166,23 @@ std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const s
                 h1r = observed_rate(q.h1, r.h1, q.h, r.h);
             }
             if (!quiet)
-                std::printf("%-24s h = 1/%-3d dofs %8d  L2 %.4e  H1 %.4e  rates %6.3f %6.3f  (%.1f s)\n",
-                            base.label().c_str(), n, r.dofs, r.l2, r.h1, l2r, h1r, r.seconds);
+            {
+                std::printf("%-24s h = 1/%-3d dofs %8d  L2 %.4e  H1 %.4e  rates %6.3f %6.3f  (%.1f s", base.label().c_str(),
+                            n, r.dofs, r.l2, r.h1, l2r, h1r, r.seconds);
+                if (r.iterations > 0)
+                    std::printf(", %d PCG iterations", r.iterations);
+                std::printf(")\n");
+                std::fflush(stdout);
+            }
             csv << '"' << base.label() << "\"," << (base.formulation == Formulation::Rkpm ? "rkpm" : "fem-nodal") << ','
                 << base.scheme << ',' << base.stabilization << ',' << base.rk.normalized_support << ',' << n << ','
                 << r.h << ',' << r.dofs << ',' << r.l2 << ',' << r.h1 << ',' << l2r << ',' << h1r << ',' << r.seconds
-                << '\n';
+                << ',' << r.iterations << '\n';
             const real_t vals[8] = {static_cast<real_t>(n), r.h, static_cast<real_t>(r.dofs), r.l2, r.h1, l2r, h1r, r.seconds};
             for (int k = 0; k < 8; ++k)
                 col[k].push_back(vals[k]);
         }
-        std::string name = base.label();
-        if (base.formulation == Formulation::Rkpm)
-            name += " a" + std::to_string(base.rk.normalized_support).substr(0, 4);
-        for (auto& ch : name)
-            if (ch == ' ' || ch == '+')
-                ch = '_';
+        const std::string name = base.table_name();
         const hid_t g = H5Gcreate2(f, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
         const char* names[8] = {"n", "h", "dofs", "l2", "h1", "l2_rate", "h1_rate", "seconds"};
         for (int k = 0; k < 8; ++k)

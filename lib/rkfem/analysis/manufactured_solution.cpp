@@ -2,11 +2,13 @@
 
 #include <chrono>
 #include <cmath>
+#include <sstream>
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/integration/hex_gauss.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 #include "rkfem/operators/linear_static.hpp"
 
@@ -120,7 +122,36 @@ std::string MmsCase::label() const
     s += scheme;
     if (scheme == "scni" && stabilization > 0)
         s += "+mscni";
+    if (boundary == MmsBoundary::Dirichlet)
+        s += " dirichlet";
     return s;
+}
+
+std::string MmsCase::table_name() const
+{
+    std::ostringstream s;
+    s << label();
+    if (scheme == "scni" && stabilization > 0 && stabilization != 1)
+        s << " cs" << stabilization;
+    if (formulation == Formulation::Rkpm)
+    {
+        s << " a" << std::to_string(rk.normalized_support).substr(0, 4);
+        if (rk.kernel == KernelType::QuinticBSpline)
+            s << " quintic";
+        else if (rk.kernel == KernelType::Gaussian)
+            s << " gaussian";
+        if (rk.support == SupportShape::Sphere)
+            s << " sphere";
+        if (rk.order == 2)
+            s << " quadratic";
+    }
+    if (solver != MmsSolver::Auto)
+        s << (solver == MmsSolver::Direct ? " direct" : " pcg");
+    std::string name = s.str();
+    for (auto& ch : name)
+        if (ch == ' ' || ch == '+')
+            ch = '_';
+    return name;
 }
 
 MmsResult solve_mms(const MmsCase& c)
@@ -142,9 +173,9 @@ MmsResult solve_mms(const MmsCase& c)
                                : c.scheme == "sd-scni" ? NodalScheme::SdScni
                                                        : NodalScheme::Scni;
     const IntegrationOperator op = build_nodal(scheme, mesh, shapes);
-    SparseMatrix K = assemble_stiffness(op, mat, nn);
-    if (scheme == NodalScheme::Scni && c.stabilization > 0)
-        K += assemble_stiffness(build_mscni_stabilization(op, build_sd_scni(mesh, shapes)), mat, nn, c.stabilization);
+    const bool stabilized = scheme == NodalScheme::Scni && c.stabilization > 0;
+    const IntegrationOperator stab =
+        stabilized ? build_mscni_stabilization(op, build_sd_scni(mesh, shapes)) : IntegrationOperator{};
 
     // loads: body force with 3^3 Gauss points per element, exact traction on the boundary facets
     std::vector<real_t> f(3 * static_cast<std::size_t>(nn), 0.0);
@@ -159,7 +190,8 @@ MmsResult solve_mms(const MmsCase& c)
                                  for (int d = 0; d < 3; ++d)
                                      f[3 * nodes[k] + d] += psi[k] * b[d];
                          });
-    for (const BoundaryPoint& bp : boundary_quadrature(mesh))
+    const bool dirichlet = c.boundary == MmsBoundary::Dirichlet;
+    for (const BoundaryPoint& bp : dirichlet ? std::vector<BoundaryPoint>{} : boundary_quadrature(mesh))
     {
         shapes.values(bp.element, bp.point.xi, bp.point.x, nodes, psi);
         const Vec3 t = ex.stress(bp.point.x) * bp.point.nda;
@@ -176,8 +208,57 @@ MmsResult solve_mms(const MmsCase& c)
         throw Error("manufactured solution: corner not found");
     };
     const index_t c0 = corner(Vec3(0, 0, 0)), c1 = corner(Vec3(1, 0, 0)), c2 = corner(Vec3(0, 1, 0));
-    const std::vector<index_t> pinned = {3 * c0, 3 * c0 + 1, 3 * c0 + 2, 3 * c1 + 1, 3 * c1 + 2, 3 * c2 + 2};
-    const std::vector<real_t> d = solve_static(K, f, pinned, std::vector<real_t>(pinned.size(), 0.0));
+    std::vector<index_t> pinned = {3 * c0, 3 * c0 + 1, 3 * c0 + 2, 3 * c1 + 1, 3 * c1 + 2, 3 * c2 + 2};
+    // Dirichlet: the boundary particles' collocation rows u_h(X_b) = sum_J Psi_J(X_b) d_J = 0 (RK),
+    // or their dofs pinned (FE shape functions interpolate)
+    std::vector<Eigen::Triplet<real_t, int>> collocation;
+    int n_rows = 0;
+    if (dirichlet)
+    {
+        pinned.clear();
+        RkSample smp;
+        for (index_t i = 0; i < nn; ++i)
+        {
+            const Vec3 x = mesh.node(i);
+            if ((x.array() > 1e-12).all() && (x.array() < 1 - 1e-12).all())
+                continue;
+            if (!is_rk)
+            {
+                for (int dd = 0; dd < 3; ++dd)
+                    pinned.push_back(3 * i + dd);
+                continue;
+            }
+            rk.evaluate(x, false, smp);
+            for (int dd = 0; dd < 3; ++dd, ++n_rows)
+                for (index_t k = 0; k < smp.size(); ++k)
+                    collocation.emplace_back(n_rows, static_cast<int>(3 * smp.nodes[k] + dd), smp.psi[k]);
+        }
+    }
+    SparseMatrix C(n_rows, 3 * nn);
+    C.setFromTriplets(collocation.begin(), collocation.end());
+    MmsResult r;
+    std::vector<real_t> d;
+    if (c.solver == MmsSolver::Pcg || (c.solver == MmsSolver::Auto && 3 * nn > MmsCase::pcg_above_dofs))
+    {
+        std::vector<StiffnessTerm> terms{{&op, 1.0}};
+        if (stabilized)
+            terms.push_back({&stab, c.stabilization});
+        const MatrixFreeStiffness K(terms, mat, nn);
+        const SparseMatrix fe = assemble_stiffness(build_hex_gauss(mesh, 2), mat, nn);
+        PcgResult pr = solve_static_pcg(K, f, pinned, fe, c.pcg_rtol, c.pcg_max_iterations, &C);
+        d = std::move(pr.u);
+        r.iterations = pr.iterations;
+    }
+    else
+    {
+        SparseMatrix K = assemble_stiffness(op, mat, nn);
+        if (stabilized)
+            K += assemble_stiffness(stab, mat, nn, c.stabilization);
+        if (n_rows > 0)
+            d = solve_static_constrained(K, f, C, std::vector<real_t>(static_cast<std::size_t>(n_rows), 0.0));
+        else
+            d = solve_static(K, f, pinned, std::vector<real_t>(pinned.size(), 0.0));
+    }
 
     // errors
     real_t e2 = 0, u2 = 0, g2 = 0, gu2 = 0;
@@ -213,7 +294,6 @@ MmsResult solve_mms(const MmsCase& c)
                              g2 += w * (gh - ge).squaredNorm();
                              gu2 += w * ge.squaredNorm();
                          });
-    MmsResult r;
     r.n = c.n;
     r.h = 1.0 / c.n;
     r.dofs = 3 * nn;

@@ -4,7 +4,9 @@
 ///   u_i = sin(pi x) sin(pi y) sin(pi z)  (i = 1, 2, 3),
 /// body force b = -div sigma(u), exact traction sigma(u) n on the whole boundary and the six
 /// rigid-body dofs pinned at three corners (where u = 0). Solved on an n^3 box mesh with any nodal
-/// formulation (CHOLMOD); errors against the exact field with 4^3 Gauss points per element:
+/// formulation, by CHOLMOD on the assembled K, or (large cases) by conjugate gradients on the
+/// matrix-free K preconditioned with the factored trilinear 2x2x2 FE stiffness of the same nodes
+/// (operators/linear_static.hpp), to a relative residual of 1e-10 by default; errors against the exact field with 4^3 Gauss points per element:
 ///   L2 = ||u_h - u|| / ||u||,  H1 = |u_h - u|_1 / |u|_1  (u_h = physical field, direct gradients).
 #include <string>
 
@@ -13,6 +15,20 @@
 
 namespace rkfem
 {
+enum class MmsSolver
+{
+    Auto,   ///< direct up to pcg_above_dofs, PCG above
+    Direct, ///< CHOLMOD on the assembled stiffness
+    Pcg,    ///< matrix-free conjugate gradients, FE-preconditioned
+};
+
+enum class MmsBoundary
+{
+    Traction,  ///< exact traction on the whole boundary, rigid motion pinned at three corners
+    Dirichlet, ///< u = 0 on the whole boundary (the exact field vanishes there): RK by collocation
+               ///< u_h(X_b) = 0 at the boundary particles, FE nodes pinned
+};
+
 struct MmsCase
 {
     Formulation formulation = Formulation::Rkpm; ///< rkpm or fem-nodal
@@ -21,7 +37,15 @@ struct MmsCase
     RkParams rk;
     int n = 8; ///< elements per side, h = 1/n
     real_t E = 1.0, nu = 0.3;
+    MmsSolver solver = MmsSolver::Auto;
+    MmsBoundary boundary = MmsBoundary::Traction;
+    real_t pcg_rtol = 1e-10;
+    int pcg_max_iterations = 20000;
+    static constexpr index_t pcg_above_dofs = 10000; ///< h = 1/16 and finer (PCG is the faster there)
     std::string label() const;
+    /// The case's table name (HDF5 group): the label plus every parameter that sets it apart
+    /// (a/h, kernel, support, order for RK; c_s other than 1; an explicit solver).
+    std::string table_name() const;
 };
 
 struct MmsResult
@@ -31,6 +55,7 @@ struct MmsResult
     index_t dofs = 0;
     real_t l2 = 0.0, h1 = 0.0;
     real_t seconds = 0.0;
+    int iterations = 0; ///< PCG iterations (0: direct solve)
 };
 
 MmsResult solve_mms(const MmsCase& c);
