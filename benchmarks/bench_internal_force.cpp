@@ -4,6 +4,8 @@
 // Arguments: {elements (approximate cube), threads, kind} with kind 0 none, 1 viscous,
 // 2 stiffness, 3 fully integrated.
 #include <benchmark/benchmark.h>
+
+#include <cstdlib>
 #include <cmath>
 #include <omp.h>
 
@@ -44,6 +46,8 @@ Setup make_setup(index_t n_elements, int kind)
     s.blk.node_begin = 0;
     s.blk.node_end = mesh.n_nodes();
     s.blk.initialize(s.nodes);
+    // RKFEM_BENCH_PLAIN_STORES=1: the stress stored plainly, for an A/B of the streamed stores
+    s.blk.stream_stress = std::getenv("RKFEM_BENCH_PLAIN_STORES") == nullptr;
     add_lumped_mass(s.blk, s.nodes);
     return s;
 }

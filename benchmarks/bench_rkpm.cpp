@@ -9,6 +9,8 @@
 // lattice, ns per particle per build; BM_NeighbourListCheck: the per-step "moved more than
 // skin / 2?" test that decides whether to rebuild, ns per particle.
 #include <benchmark/benchmark.h>
+
+#include <cstdlib>
 #include <cmath>
 #include <omp.h>
 
@@ -62,6 +64,8 @@ void BM_NodalInternalForce(benchmark::State& state)
     ps.rk.normalized_support = state.range(1) / 100.0;
     ps.nodal.stabilization = state.range(2) ? "mscni" : "none";
     NodalBlock blk = build_nodal_block(ps, mesh, 0);
+    // RKFEM_BENCH_PLAIN_STORES=1: the stress stored plainly, for an A/B of the streamed stores
+    blk.stream_stress = std::getenv("RKFEM_BENCH_PLAIN_STORES") == nullptr;
     NodeSet nodes;
     nodes.resize(mesh.n_nodes());
     for (std::size_t i = 0; i < mesh.x.size(); ++i)

@@ -100,14 +100,14 @@ std::vector<Sym6> history(const std::string& model, int kind)
             hex_internal_force(hb, nodes, dt);
             hb.commit();
             for (int k = 0; k < 6; ++k)
-                s[k] = hb.stress[k * static_cast<std::size_t>(hb.n_points())];
+                s[k] = hb.stress[k * hb.stress_stride];
         }
         else
         {
             nodal_internal_force(nb, nodes, dt);
             nb.commit();
             for (int k = 0; k < 6; ++k)
-                s[k] = nb.stress[k * static_cast<std::size_t>(nb.n_points())];
+                s[k] = nb.stress[k * nb.stress_stride];
         }
         out.push_back(s);
     }

@@ -11,6 +11,7 @@
 
 #include <sundials/sundials_context.h>
 
+#include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/stream_stores.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/state_vector.hpp"
@@ -363,4 +364,37 @@ TEST(StateVector, StreamingStoresWriteEveryValueOfLargeArrays)
         N_VDestroy(x);
     }
     SUNContext_Free(&ctx);
+}
+
+TEST(StreamStores, BatchesOfLargeLineAlignedFieldsStreamWholeLines)
+{
+    // the element and particle kernels' stress fields (6 components, structure of arrays): a
+    // batch of 8 points is one line per component when the field starts on a line (LineVector,
+    // kept by use_huge_pages) and n is a multiple of 8; then, past kStreamBytes, it streams
+    const std::size_t n = (kStreamBytes / (6 * sizeof(real_t)) / 8 + 64) * 8;
+    LineVector<real_t> field(6 * n + 8, -7.0);
+    use_huge_pages(field);
+    ASSERT_EQ(reinterpret_cast<std::uintptr_t>(field.data()) % 64, 0u);
+    auto value = [](int k, std::size_t i) { return 1000.0 * k + 0.5 * static_cast<real_t>(i); };
+    auto write = [&](real_t* out, std::size_t nn, std::size_t i0, bool may_stream)
+    {
+        real_t v[6][8];
+        for (int k = 0; k < 6; ++k)
+            for (int l = 0; l < 8; ++l)
+                v[k][l] = value(k, i0 + l);
+        const bool streamed = store_batch8<6>(v, out, nn, i0, may_stream);
+        _mm_sfence();
+        for (int k = 0; k < 6; ++k)
+            for (int l = 0; l < 8; ++l)
+                EXPECT_EQ(out[k * nn + i0 + l], value(k, i0 + l)) << "component " << k << ", point " << i0 + l;
+        return streamed;
+    };
+    const bool avx512 = stream_pays(static_cast<index_t>(6 * n));
+    for (std::size_t i0 : {std::size_t{0}, std::size_t{8}, n / 16 * 8, n - 8})
+        EXPECT_EQ(write(field.data(), n, i0, true), avx512) << "batch at " << i0;
+    EXPECT_FALSE(write(field.data(), n, 16, false)) << "the caller did not ask (no fence after it)";
+    EXPECT_FALSE(write(field.data() + 1, n, 0, true)) << "lines not aligned";
+    EXPECT_FALSE(write(field.data(), n - 4, 0, true)) << "n not a multiple of 8";
+    EXPECT_FALSE(write(field.data(), 64, 0, true)) << "a field that fits in cache";
+    EXPECT_EQ(field[6 * n], -7.0); // nothing past the end
 }

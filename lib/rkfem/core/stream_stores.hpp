@@ -58,4 +58,30 @@ inline void stream_range(index_t i0, index_t i1, real_t* out, Value&& value, Lan
         out[i0] = value(i0);
 }
 #endif
+/// Writes one batch of 8 points' K components, v[k][l], into a structure-of-arrays field out
+/// (component k of point i at out[k n + i]) from point i0 on. With may_stream (the caller fences:
+/// ChunkedScatter::run_chunks ends every chunk with _mm_sfence), a field past kStreamBytes and
+/// 64-byte aligned component lines (n a multiple of 8), each component is one streaming store of
+/// a whole line: the field is not read for ownership (the element and particle kernels' stress
+/// update writes 48 bytes per point that it would otherwise first read).
+/// Returns whether it streamed.
+template <int K>
+inline bool store_batch8(const real_t (&v)[K][8], real_t* out, std::size_t n, std::size_t i0, bool may_stream)
+{
+#if defined(__AVX512F__)
+    if (may_stream && n % 8 == 0 && stream_pays(static_cast<index_t>(K * n)) &&
+        (reinterpret_cast<std::uintptr_t>(out + i0) & 63) == 0)
+    {
+        for (int k = 0; k < K; ++k)
+            _mm512_stream_pd(out + k * n + i0, _mm512_loadu_pd(v[k]));
+        return true;
+    }
+#else
+    (void)may_stream;
+#endif
+    for (int k = 0; k < K; ++k)
+        for (int l = 0; l < 8; ++l)
+            out[k * n + i0 + l] = v[k][l];
+    return false;
+}
 } // namespace rkfem

@@ -923,7 +923,7 @@ Sym6 Model::element_stress(index_t b, index_t e) const
     }
     const HexBlock& blk = blocks[b];
     const index_t npe = blk.points_per_element();
-    const std::size_t np = static_cast<std::size_t>(blk.n_points());
+    const std::size_t np = blk.stress_stride;
     Sym6 s = Sym6::Zero();
     for (index_t g = 0; g < npe; ++g)
         for (int k = 0; k < 6; ++k)
@@ -938,7 +938,7 @@ Sym6 Model::nodal_stress(index_t node) const
     {
         const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
         const index_t i = node - nb.node_begin;
-        const std::size_t np = static_cast<std::size_t>(nb.n_points());
+        const std::size_t np = nb.stress_stride;
         Sym6 s = Sym6::Zero();
         const index_t k0 = nb.owner_offsets[i], k1 = nb.owner_offsets[i + 1];
         for (index_t k = k0; k < k1; ++k)

@@ -9,6 +9,7 @@
 /// tensors are never written out: the buffers stay in cache while a chunk runs.
 #include <algorithm>
 #include <cstddef>
+#include <immintrin.h>
 #include <vector>
 
 #include "rkfem/core/parallel.hpp"
@@ -80,6 +81,8 @@ struct ChunkedScatter
                          zero(c);
                          for (index_t b = ch.first / width; b * width < ch.last; ++b)
                              batch(b, buf, ch.lo);
+                         // the batches may write with streaming stores (core/stream_stores.hpp)
+                         _mm_sfence();
                      });
     }
     /// f[3 n + a] = the sum over the chunks covering node n of their buffer values, in chunk

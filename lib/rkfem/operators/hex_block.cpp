@@ -11,6 +11,7 @@
 #include "rkfem/operators/bulk_viscosity.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/simd.hpp"
+#include "rkfem/core/stream_stores.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 
 // GCC 12's AVX-512 intrinsics (gathers, unpacks, 128-bit shuffles, extracts) start from an
@@ -130,7 +131,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     const ElasticParams mat = blk.material;
     const real_t c = mat.wave_speed();
     const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
-    const std::size_t np = static_cast<std::size_t>(ne);
+    const std::size_t np = static_cast<std::size_t>(ne), ss = blk.stress_stride;
     const real_t* s_in = blk.stress.data();
     real_t* s_out = blk.stress_trial.data();
 
@@ -169,16 +170,15 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             const real_t d0 = L[0][0][l], d1 = L[1][1][l], d2 = L[2][2][l];
             const real_t d3 = 0.5 * (L[0][1][l] + L[1][0][l]), d4 = 0.5 * (L[1][2][l] + L[2][1][l]),
                          d5 = 0.5 * (L[2][0][l] + L[0][2][l]);
-            real_t s0 = s_in[e], s1 = s_in[np + e], s2 = s_in[2 * np + e], s3 = s_in[3 * np + e],
-                   s4 = s_in[4 * np + e], s5 = s_in[5 * np + e];
+            real_t s0 = s_in[e], s1 = s_in[ss + e], s2 = s_in[2 * ss + e], s3 = s_in[3 * ss + e],
+                   s4 = s_in[4 * ss + e], s5 = s_in[5 * ss + e];
             so[0][l] = s0, so[1][l] = s1, so[2][l] = s2, so[3][l] = s3, so[4][l] = s4, so[5][l] = s5;
             dl[0][l] = d0, dl[1][l] = d1, dl[2][l] = d2, dl[3][l] = d3, dl[4][l] = d4, dl[5][l] = d5;
             elastic_update(mat, d0, d1, d2, d3, d4, d5, 0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
                            0.5 * (L[2][0][l] - L[0][2][l]), dt, s0, s1, s2, s3, s4, s5);
-            s_out[e] = s0, s_out[np + e] = s1, s_out[2 * np + e] = s2;
-            s_out[3 * np + e] = s3, s_out[4 * np + e] = s4, s_out[5 * np + e] = s5;
             sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
         }
+        store_batch8<6>(sn, s_out, ss, static_cast<std::size_t>(e0), buf != nullptr && blk.stream_stress);
     }
     else
     {
@@ -197,7 +197,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                                  0.5 * (L[2][0][l] - L[0][2][l])};
             real_t s[6];
             for (int k = 0; k < 6; ++k)
-                so[k][l] = s[k] = s_in[k * np + e];
+                so[k][l] = s[k] = s_in[k * ss + e];
             if constexpr (PLASTIC)
             {
                 if (active(l))
@@ -210,7 +210,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                 dl[k][l] = d[k];
                 sn[k][l] = s[k];
                 if (active(l))
-                    s_out[k * np + e] = s[k];
+                    s_out[k * ss + e] = s[k];
             }
         }
     }
@@ -422,8 +422,7 @@ template <bool PLASTIC>
 void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, real_t out[4],
                          index_t& bad)
 {
-    const std::size_t ne = static_cast<std::size_t>(blk.n_elements());
-    const std::size_t np = 8 * ne;
+    const std::size_t np = blk.stress_stride;
     real_t xe[8][3], ve[8][3];
     for (int I = 0; I < 8; ++I)
     {
@@ -514,8 +513,9 @@ void HexBlock::initialize(const NodeSet& nodes, Assembly assembly)
 {
     const index_t ne = n_elements();
     const std::size_t np = static_cast<std::size_t>(n_points());
-    stress.assign(6 * np, 0.0);
-    stress_trial.assign(6 * np, 0.0);
+    stress_stride = (np + 7) / 8 * 8;
+    stress.assign(6 * stress_stride, 0.0);
+    stress_trial.assign(6 * stress_stride, 0.0);
     if (plastic.active())
         plastic.resize(np);
     hg_force.assign(12 * static_cast<std::size_t>(ne), 0.0);
@@ -574,7 +574,9 @@ void HexBlock::initialize(const NodeSet& nodes, Assembly assembly)
             for (int l = 0; l < W; ++l)
                 gather_index[64 * static_cast<std::size_t>(b) + 8 * I + l] = 3 * conn[8 * (W * b + l) + I];
     use_huge_pages(gather_index);
-    for (auto* a : {&stress, &stress_trial, &hg_force, &hg_force_trial, &elem_force, &volume0})
+    use_huge_pages(stress);
+    use_huge_pages(stress_trial);
+    for (auto* a : {&hg_force, &hg_force_trial, &elem_force, &volume0})
         use_huge_pages(*a);
     use_huge_pages(conn);
     use_huge_pages(node_elem_slots);

@@ -11,6 +11,8 @@
 /// (element, local node) transpose CSR.
 #include <vector>
 
+#include "rkfem/core/huge_pages.hpp"
+
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/materials/elastic.hpp"
@@ -38,7 +40,14 @@ struct HexBlock
     std::vector<index_t> gather_index;
 
     // state (committed / trial), component-major
-    std::vector<real_t> stress, stress_trial;     ///< 6 x n_points [Pa]
+    /// component k of point p at [k stress_stride + p]; the stride is n_points rounded up to a
+    /// multiple of 8, so every batch of 8 points is one cache line per component
+    LineVector<real_t> stress, stress_trial; ///< 6 x stress_stride [Pa]
+    std::size_t stress_stride = 0;
+    /// The force pass may write the stress field with streaming stores (core/stream_stores.hpp,
+    /// store_batch8; only past kStreamBytes, with the chunked scatter). Off: plain stores, the
+    /// same values (verification compares the two).
+    bool stream_stress = true;
     std::vector<real_t> hg_force, hg_force_trial; ///< 12 x n_elements (stiffness form) [N]
     std::vector<real_t> volume0;                  ///< n_elements, reference volume [m^3]
 

@@ -8,6 +8,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/stream_stores.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
@@ -200,7 +201,7 @@ template <bool PLASTIC, bool FULL>
     constexpr int W = kPointLanes;
     const IntegrationOperator& op = blk.points;
     const index_t np = blk.n_points();
-    const std::size_t snp = static_cast<std::size_t>(np);
+    const std::size_t snp = blk.stress_stride;
     const index_t p0 = batch * W;
     const int nl = FULL ? W : static_cast<int>(std::min<index_t>(W, np - p0));
     auto lane_point = [&](int l) { return static_cast<std::size_t>(p0 + (FULL || l < nl ? l : 0)); };
@@ -283,10 +284,9 @@ template <bool PLASTIC, bool FULL>
             so[0][l] = s0, so[1][l] = s1, so[2][l] = s2, so[3][l] = s3, so[4][l] = s4, so[5][l] = s5;
             elastic_update(mat, dl[0][l], dl[1][l], dl[2][l], dl[3][l], dl[4][l], dl[5][l], wl[0][l], wl[1][l],
                            wl[2][l], dt, s0, s1, s2, s3, s4, s5);
-            s_out[p] = s0, s_out[snp + p] = s1, s_out[2 * snp + p] = s2;
-            s_out[3 * snp + p] = s3, s_out[4 * snp + p] = s4, s_out[5 * snp + p] = s5;
             sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
         }
+        store_batch8<6>(sn, s_out, snp, static_cast<std::size_t>(p0), buf != nullptr && blk.stream_stress);
     }
     else
     {
@@ -701,7 +701,8 @@ void NodalBlock::initialize(Assembly assembly)
             owner_points[f[points.owner[p] - node_begin]++] = p;
     }
 
-    stress.assign(6 * static_cast<std::size_t>(np), 0.0);
+    stress_stride = (static_cast<std::size_t>(np) + 7) / 8 * 8;
+    stress.assign(6 * stress_stride, 0.0);
     if (plastic.active())
         plastic.resize(static_cast<std::size_t>(np));
     stress_trial = stress;
@@ -723,8 +724,10 @@ void NodalBlock::initialize(Assembly assembly)
         use_huge_pages(op->grad);
         use_huge_pages(op->weight);
     }
-    for (auto* a : {&node_grad, &stress, &stress_trial, &stab_stress, &stab_stress_trial, &jacobian, &point_tensor,
-                    &finv, &spin, &stab_energy, &length0})
+    use_huge_pages(stress);
+    use_huge_pages(stress_trial);
+    for (auto* a : {&node_grad, &stab_stress, &stab_stress_trial, &jacobian, &point_tensor, &finv, &spin, &stab_energy,
+                    &length0})
         use_huge_pages(*a);
     use_huge_pages(node_point);
 }

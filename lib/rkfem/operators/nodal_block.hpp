@@ -17,6 +17,8 @@
 #include <memory>
 #include <vector>
 
+#include "rkfem/core/huge_pages.hpp"
+
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
@@ -71,7 +73,14 @@ struct NodalBlock
     std::vector<real_t> node_grad; ///< 3 per slot
 
     // state, component-major
-    std::vector<real_t> stress, stress_trial;         ///< 6 x n_points [Pa]
+    /// component k of point p at [k stress_stride + p]; the stride is n_points rounded up to a
+    /// multiple of 8, so every batch of 8 points is one cache line per component
+    LineVector<real_t> stress, stress_trial; ///< 6 x stress_stride [Pa]
+    std::size_t stress_stride = 0;
+    /// The force pass may write the stress field with streaming stores (core/stream_stores.hpp,
+    /// store_batch8; only past kStreamBytes, with the chunked scatter). Off: plain stores, the
+    /// same values (verification compares the two).
+    bool stream_stress = true;
     std::vector<real_t> stab_stress, stab_stress_trial; ///< 6 x n_stab [Pa]
     std::vector<real_t> jacobian;                     ///< n_points, det F
 
