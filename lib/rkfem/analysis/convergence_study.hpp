@@ -2,14 +2,15 @@
 /// @file convergence_study.hpp
 /// A convergence sweep over nodal schemes with the manufactured solution: read from a YAML sweep
 /// definition (studies/sweeps/*.yaml), run every case at every resolution, write
-/// DIR/convergence.csv and DIR/convergence.h5 (one group per case: n, h, dofs, l2, h1, l2_rate,
-/// h1_rate, seconds) that notebooks/convergence.ipynb plots.
+/// DIR/convergence.csv and DIR/convergence.h5 (one group per case, named by MmsCase::table_name:
+/// n, h, dofs, l2, h1, l2_rate, h1_rate, seconds) that notebooks/convergence.ipynb plots.
 ///
 ///   title: ...
 ///   resolutions: [8, 16]          # elements per side of the unit cube
 ///   cases:
 ///     - {formulation: rkpm, scheme: scni, stabilization: 1, normalized_support: 1.25,
-///        support: box, kernel: cubic-bspline}
+///        support: box, kernel: cubic-bspline, boundary: traction | dirichlet,
+///        solver: auto | direct | pcg}
 #include <string>
 #include <vector>
 

@@ -2,11 +2,13 @@
 /// @file manufactured_solution.hpp
 /// Static manufactured-solution problem for 3-D linear elasticity on the unit cube,
 ///   u_i = sin(pi x) sin(pi y) sin(pi z)  (i = 1, 2, 3),
-/// body force b = -div sigma(u), exact traction sigma(u) n on the whole boundary and the six
-/// rigid-body dofs pinned at three corners (where u = 0). Solved on an n^3 box mesh with any nodal
-/// formulation, by CHOLMOD on the assembled K, or (large cases) by conjugate gradients on the
-/// matrix-free K preconditioned with the factored trilinear 2x2x2 FE stiffness of the same nodes
-/// (operators/linear_static.hpp), to a relative residual of 1e-10 by default; errors against the exact field with 4^3 Gauss points per element:
+/// body force b = -div sigma(u), and on the boundary either the exact traction sigma(u) n with
+/// the six rigid-body dofs pinned at three corners (where u = 0), or u = 0 (MmsBoundary). Solved
+/// on an n^3 box mesh with any nodal formulation: by CHOLMOD on the assembled K (UMFPACK with
+/// collocation constraints), or, for large cases, by conjugate gradients on the matrix-free K
+/// preconditioned with the factored trilinear 2x2x2 FE stiffness of the same nodes
+/// (operators/linear_static.hpp), to a relative residual of 1e-10 by default. Errors against the
+/// exact field with 4^3 Gauss points per element:
 ///   L2 = ||u_h - u|| / ||u||,  H1 = |u_h - u|_1 / |u|_1  (u_h = physical field, direct gradients).
 #include <string>
 
