@@ -44,7 +44,8 @@ struct StiffnessTerm
 /// K = sum of terms, applied without forming it: per point, the strain from the gradients, Hooke,
 /// the stress weighted by w scale; then per node the sum over the entries that touch it (a
 /// transpose gather: no atomics, and the sum does not depend on the number of threads).
-/// Memory: 6 stress values per point and two indices per entry. The operators must outlive it.
+/// Memory: 6 stress values per point and two indices per entry. The operators must outlive it;
+/// apply() works in that scratch, so one object serves one caller at a time.
 class MatrixFreeStiffness
 {
 public:
