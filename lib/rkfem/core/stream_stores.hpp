@@ -58,6 +58,10 @@ inline void stream_range(index_t i0, index_t i1, real_t* out, Value&& value, Lan
         out[i0] = value(i0);
 }
 #endif
+/// The component stride of a structure-of-arrays field of n points that store_batch8 can write
+/// in whole lines: n rounded up to a multiple of 8.
+inline std::size_t batch8_stride(std::size_t n) { return (n + 7) / 8 * 8; }
+
 /// Writes one batch of 8 points' K components, v[k][l], into a structure-of-arrays field out
 /// (component k of point i at out[k n + i]) from point i0 on. With may_stream (the caller fences:
 /// ChunkedScatter::run_chunks ends every chunk with _mm_sfence), a field past kStreamBytes and

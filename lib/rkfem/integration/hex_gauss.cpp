@@ -40,8 +40,7 @@ IntegrationOperator build_hex_gauss(const HexMesh& mesh, int n)
             for (int j = 0; j < n; ++j)
                 for (int i = 0; i < n; ++i)
                 {
-                    const real_t xi[3] = {n == 1 ? 0.0 : (2 * i - 1) * g, n == 1 ? 0.0 : (2 * j - 1) * g,
-                                          n == 1 ? 0.0 : (2 * k - 1) * g};
+                    const real_t xi[3] = {(2 * i - 1) * g, (2 * j - 1) * g, (2 * k - 1) * g}; // g = 0: centre
                     real_t N[8], dNdx[8][3];
                     hex8_shape(xi, N);
                     const real_t detJ = hex8_gradients(xe, xi, dNdx);

@@ -422,7 +422,7 @@ template <bool PLASTIC>
 void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, real_t out[4],
                          index_t& bad)
 {
-    const std::size_t np = blk.stress_stride;
+    const std::size_t ss = blk.stress_stride;
     real_t xe[8][3], ve[8][3];
     for (int I = 0; I < 8; ++I)
     {
@@ -457,13 +457,13 @@ void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t 
         const std::size_t p = 8 * static_cast<std::size_t>(e) + gp;
         real_t s_old[6];
         for (int k = 0; k < 6; ++k)
-            s_old[k] = s_new[gp][k] = blk.stress[k * np + p];
+            s_old[k] = s_new[gp][k] = blk.stress[k * ss + p];
         if constexpr (PLASTIC)
             blk.plastic.update(p, d, w, dt, s_new[gp]);
         else
             elastic_update(mat, d, w, dt, s_new[gp]);
         for (int k = 0; k < 6; ++k)
-            blk.stress_trial[k * np + p] = s_new[gp][k];
+            blk.stress_trial[k * ss + p] = s_new[gp][k];
         real_t power = 0.0;
         for (int k = 0; k < 3; ++k)
             power += 0.5 * (s_old[k] + s_new[gp][k]) * d[k] + (s_old[k + 3] + s_new[gp][k + 3]) * d[k + 3];
@@ -513,7 +513,7 @@ void HexBlock::initialize(const NodeSet& nodes, Assembly assembly)
 {
     const index_t ne = n_elements();
     const std::size_t np = static_cast<std::size_t>(n_points());
-    stress_stride = (np + 7) / 8 * 8;
+    stress_stride = batch8_stride(np);
     stress.assign(6 * stress_stride, 0.0);
     stress_trial.assign(6 * stress_stride, 0.0);
     if (plastic.active())

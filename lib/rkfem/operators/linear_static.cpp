@@ -306,7 +306,7 @@ PcgResult solve_static_pcg(const MatrixFreeStiffness& K, const std::vector<real_
     SparseMatrix Ct;
     Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> cct;
     Eigen::VectorXd lam;
-    SparseMatrix M = preconditioner;
+    SparseMatrix M; // the preconditioner plus beta C^T C, with constraints only
     if (constrained)
     {
         Ct = constraints->transpose();
@@ -317,13 +317,8 @@ PcgResult solve_static_pcg(const MatrixFreeStiffness& K, const std::vector<real_
         // the preconditioner must be definite where K is, on C u = 0: add beta C^T C, which
         // removes the preconditioner's free motions as the constraints remove K's
         const SparseMatrix CtC = (Ct * *constraints).pruned();
-        real_t dp = 0, dc = 0;
-        for (index_t i = 0; i < n; ++i)
-        {
-            dp += preconditioner.coeff(i, i);
-            dc += CtC.coeff(i, i);
-        }
-        M += (dp / std::max(dc, std::numeric_limits<real_t>::min())) * CtC;
+        const real_t dp = preconditioner.diagonal().sum(), dc = CtC.diagonal().sum();
+        M = preconditioner + (dp / std::max(dc, std::numeric_limits<real_t>::min())) * CtC;
     }
     const auto project = [&](std::vector<real_t>& v)
     {
@@ -336,7 +331,7 @@ PcgResult solve_static_pcg(const MatrixFreeStiffness& K, const std::vector<real_
         vm -= Ct * lam;
     };
     Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> chol;
-    chol.compute(lower_restricted_to(M, map, nf));
+    chol.compute(lower_restricted_to(constrained ? M : preconditioner, map, nf));
     RKFEM_REQUIRE(chol.info() == Eigen::Success, "static solve (PCG): the preconditioner with " << pinned_dofs.size()
                                                      << " pinned dofs is not positive definite");
     const auto dot = [n](const std::vector<real_t>& a, const std::vector<real_t>& b)

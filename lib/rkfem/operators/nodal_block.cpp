@@ -701,7 +701,7 @@ void NodalBlock::initialize(Assembly assembly)
             owner_points[f[points.owner[p] - node_begin]++] = p;
     }
 
-    stress_stride = (static_cast<std::size_t>(np) + 7) / 8 * 8;
+    stress_stride = batch8_stride(static_cast<std::size_t>(np));
     stress.assign(6 * stress_stride, 0.0);
     if (plastic.active())
         plastic.resize(static_cast<std::size_t>(np));
