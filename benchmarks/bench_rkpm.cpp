@@ -4,7 +4,9 @@
 // BM_NodalInternalForce: one internal-force pass of a total-Lagrangian nodal block (gather F and
 // Fdot, elastic update, V0 P, plus MSCNI stabilization when on) and the transpose assembly, in
 // ns per particle-step. Arguments: {particles (approximate cube), 100 a/h, stabilization 0/1,
-// threads}. `entries` is the gradient stencil per stress point.
+// threads, shared stencils 0/1}. `entries` is the gradient stencil per stress point; on the
+// lattice the points share 27 (a/h 1.25) or 125 (a/h 1.51) stencils (integration/
+// stencil_table.hpp), and with the last argument 0 each reads its own, as on a jittered cloud.
 // BM_NeighbourListBuild: cell-list neighbour lists with a skin (radius 1.51 h + skin 0.3 h) for a
 // lattice, ns per particle per build; BM_NeighbourListCheck: the per-step "moved more than
 // skin / 2?" test that decides whether to rebuild, ns per particle.
@@ -64,6 +66,13 @@ void BM_NodalInternalForce(benchmark::State& state)
     ps.rk.normalized_support = state.range(1) / 100.0;
     ps.nodal.stabilization = state.range(2) ? "mscni" : "none";
     NodalBlock blk = build_nodal_block(ps, mesh, 0);
+    // argument 5 = 0: each point streams its own stencil from the operator, as on a jittered
+    // cloud (the lattice's shared stencils off)
+    if (state.range(4) == 0)
+    {
+        blk.share_stencils = false;
+        blk.initialize();
+    }
     // RKFEM_BENCH_PLAIN_STORES=1: the stress stored plainly, for an A/B of the streamed stores
     blk.stream_stress = std::getenv("RKFEM_BENCH_PLAIN_STORES") == nullptr;
     NodeSet nodes;
@@ -93,7 +102,8 @@ void BM_NodalInternalForce(benchmark::State& state)
 
 BENCHMARK(BM_RkShapeFunctions)->Args({10000, 151})->Args({10000, 125})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_NodalInternalForce)
-    ->ArgsProduct({{10000, 30000, 100000, 300000}, {125, 151}, {0, 1}, {1, 2}})
+    ->ArgsProduct({{10000, 30000, 100000, 300000}, {125, 151}, {0, 1}, {1, 2}, {1}})
+    ->ArgsProduct({{10000, 300000}, {125, 151}, {0}, {1, 2}, {0}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

@@ -227,14 +227,16 @@ class DynamicPatch : public ::testing::TestWithParam<std::tuple<Formulation, std
 
 namespace
 {
-/// A linear velocity field held on the boundary-touching nodes of an n^3 jittered block for
-/// `steps` explicit steps: uniform D and stress to 1e-12, free-node forces below 1e-10 of the
-/// largest. With `streamed`, the block's stress field must be one the kernel writes with
-/// streaming stores (skipped without AVX-512).
-void dynamic_patch(Formulation form, const std::string& stab, int n, int steps, bool streamed)
+/// A linear velocity field held on the boundary-touching nodes of an n^3 block (jittered by 0.3
+/// h unless `regular`) for `steps` explicit steps: uniform D and stress to 1e-12, free-node
+/// forces below 1e-10 of the largest. With `streamed`, the block's stress field must be one the
+/// kernel writes with streaming stores (skipped without AVX-512). A regular block must run on
+/// shared stencils (integration/stencil_table.hpp), a jittered one on its own.
+void dynamic_patch(Formulation form, const std::string& stab, int n, int steps, bool streamed, bool regular = false)
 {
     const PartSpec ps = part(form, "scni", stab);
-    Fixture fx(ps, n, 0.01, 0.3);
+    Fixture fx(ps, n, 0.01, regular ? 0.0 : 0.3);
+    ASSERT_EQ(fx.blk.point_stencils.empty(), !regular);
     if (streamed)
     {
         ASSERT_EQ(fx.blk.stress_stride % 8, 0u);
@@ -325,6 +327,12 @@ TEST(DynamicPatchLarge, HoldsWhereTheStressIsStreamed)
     // 57^3 fem-nodal points: the stress field passes kStreamBytes, so the particle kernel writes
     // it with whole-line streaming stores (stride rounded up to 8 points)
     dynamic_patch(Formulation::FemNodal, "none", 56, 3, true);
+}
+
+TEST(DynamicPatchLarge, HoldsOnSharedStencils)
+{
+    // a regular 31^3 rkpm lattice: the force pass reads 27 shared stencils
+    dynamic_patch(Formulation::Rkpm, "none", 30, 3, false, true);
 }
 
 INSTANTIATE_TEST_SUITE_P(NodalFormulations, DynamicPatch,

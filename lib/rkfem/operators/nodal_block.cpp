@@ -25,16 +25,15 @@ const __m256i lanes3 = _mm256_setr_epi64x(-1, -1, -1, 0);
 
 /// F = 1 + sum_k u_k (x) g_k and Fd = sum_k v_k (x) g_k over the entries of point p. With AVX2
 /// each column is one 4-lane FMA (lane 3 unused): 6 FMAs per entry instead of 18 scalar ones.
-inline void gather_gradients(const IntegrationOperator& op, index_t p, const real_t* u, const real_t* v,
-                             real_t F[3][3], real_t Fd[3][3])
+inline void gather_gradients(const StencilView& st, const real_t* u, const real_t* v, real_t F[3][3], real_t Fd[3][3])
 {
 #if defined(__AVX2__) && defined(__FMA__)
     __m256d f0 = _mm256_setr_pd(1, 0, 0, 0), f1 = _mm256_setr_pd(0, 1, 0, 0), f2 = _mm256_setr_pd(0, 0, 1, 0);
     __m256d d0 = _mm256_setzero_pd(), d1 = _mm256_setzero_pd(), d2 = _mm256_setzero_pd();
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    for (index_t k = 0; k < st.size; ++k)
     {
-        const std::size_t n = 3 * static_cast<std::size_t>(op.nodes[k]);
-        const real_t* g = &op.grad[3 * static_cast<std::size_t>(k)];
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
         const __m256d uu = _mm256_maskload_pd(u + n, lanes3), vv = _mm256_maskload_pd(v + n, lanes3);
         const __m256d g0 = _mm256_broadcast_sd(g), g1 = _mm256_broadcast_sd(g + 1), g2 = _mm256_broadcast_sd(g + 2);
         f0 = _mm256_fmadd_pd(uu, g0, f0);
@@ -64,10 +63,10 @@ inline void gather_gradients(const IntegrationOperator& op, index_t p, const rea
             F[i][j] = i == j ? 1.0 : 0.0;
             Fd[i][j] = 0.0;
         }
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    for (index_t k = 0; k < st.size; ++k)
     {
-        const std::size_t n = 3 * static_cast<std::size_t>(op.nodes[k]);
-        const real_t* g = &op.grad[3 * static_cast<std::size_t>(k)];
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j)
             {
@@ -78,15 +77,15 @@ inline void gather_gradients(const IntegrationOperator& op, index_t p, const rea
 #endif
 }
 
-/// G = sum_k v_k (x) g_k over the entries of point p (stabilization sub-cells).
-inline void gather_velocity_gradient(const IntegrationOperator& op, index_t p, const real_t* v, real_t G[3][3])
+/// G = sum_k v_k (x) g_k over the entries of a stencil (stabilization sub-cells).
+inline void gather_velocity_gradient(const StencilView& st, const real_t* v, real_t G[3][3])
 {
 #if defined(__AVX2__) && defined(__FMA__)
     __m256d d0 = _mm256_setzero_pd(), d1 = _mm256_setzero_pd(), d2 = _mm256_setzero_pd();
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    for (index_t k = 0; k < st.size; ++k)
     {
-        const real_t* g = &op.grad[3 * static_cast<std::size_t>(k)];
-        const __m256d vv = _mm256_maskload_pd(v + 3 * static_cast<std::size_t>(op.nodes[k]), lanes3);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        const __m256d vv = _mm256_maskload_pd(v + 3 * static_cast<std::size_t>(st.base + st.offset[k]), lanes3);
         d0 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(g), d0);
         d1 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(g + 1), d1);
         d2 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(g + 2), d2);
@@ -102,10 +101,10 @@ inline void gather_velocity_gradient(const IntegrationOperator& op, index_t p, c
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             G[i][j] = 0.0;
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    for (index_t k = 0; k < st.size; ++k)
     {
-        const std::size_t n = 3 * static_cast<std::size_t>(op.nodes[k]);
-        const real_t* g = &op.grad[3 * static_cast<std::size_t>(k)];
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j)
                 G[i][j] += v[n + i] * g[j];
@@ -142,18 +141,17 @@ inline void gather_forces(const NodalBlock& blk, index_t i, real_t f[3])
 #endif
 }
 
-/// buf[4 (n - lo) + a] += sum_j P_aj g_j for every entry (n, g) of point p of op; P by columns.
-inline void scatter_point(const IntegrationOperator& op, index_t p, const real_t P[9], real_t* buf, index_t lo)
+/// buf[4 (n - lo) + a] += sum_j P_aj g_j for every entry (n, g) of a stencil; P by columns.
+inline void scatter_point(const StencilView& st, const real_t P[9], real_t* buf, index_t lo)
 {
 #if defined(__AVX2__) && defined(__FMA__)
     const __m256d c0 = _mm256_setr_pd(P[0], P[1], P[2], 0.0), c1 = _mm256_setr_pd(P[3], P[4], P[5], 0.0),
                   c2 = _mm256_setr_pd(P[6], P[7], P[8], 0.0);
-    const index_t* nodes = op.nodes.data();
-    const real_t* grad = op.grad.data();
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(st.base - lo);
+    for (index_t k = 0; k < st.size; ++k)
     {
-        real_t* f = buf + 4 * static_cast<std::size_t>(nodes[k] - lo);
-        const real_t* g = grad + 3 * static_cast<std::size_t>(k);
+        real_t* f = b + 4 * static_cast<std::size_t>(st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
         __m256d acc = _mm256_loadu_pd(f);
         acc = _mm256_fmadd_pd(c0, _mm256_broadcast_sd(g), acc);
         acc = _mm256_fmadd_pd(c1, _mm256_broadcast_sd(g + 1), acc);
@@ -161,10 +159,10 @@ inline void scatter_point(const IntegrationOperator& op, index_t p, const real_t
         _mm256_storeu_pd(f, acc);
     }
 #else
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    for (index_t k = 0; k < st.size; ++k)
     {
-        real_t* f = buf + 4 * static_cast<std::size_t>(op.nodes[k] - lo);
-        const real_t* g = &op.grad[3 * static_cast<std::size_t>(k)];
+        real_t* f = buf + 4 * static_cast<std::size_t>(st.base + st.offset[k] - lo);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
         for (int a = 0; a < 3; ++a)
             f[a] += P[a] * g[0] + P[3 + a] * g[1] + P[6 + a] * g[2];
     }
@@ -233,7 +231,7 @@ template <bool PLASTIC, bool FULL>
     for (int l = 0; l < W; ++l)
     {
         real_t f[3][3], fd[3][3];
-        gather_gradients(op, static_cast<index_t>(lane_point(l)), u, v, f, fd);
+        gather_gradients(stencil_view(op, blk.point_stencils, static_cast<index_t>(lane_point(l))), u, v, f, fd);
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j)
                 F[i][j][l] = f[i][j], Fd[i][j][l] = fd[i][j];
@@ -379,7 +377,7 @@ template <bool PLASTIC, bool FULL>
         for (int k = 0; k < 9; ++k)
             Pp[k] = P[k][l];
         if (buf)
-            scatter_point(op, static_cast<index_t>(p), Pp, buf, lo);
+            scatter_point(stencil_view(op, blk.point_stencils, static_cast<index_t>(p)), Pp, buf, lo);
         else
             std::copy(Pp, Pp + 9, &blk.point_tensor[9 * p]);
         if (stabilized)
@@ -613,6 +611,15 @@ void NodalBlock::initialize(Assembly assembly)
     const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     const index_t nn = node_end - node_begin;
 
+    // shared stencils first: they snap the operators' gradients, which the transpose copies
+    point_stencils.clear();
+    stab_stencils.clear();
+    if (share_stencils)
+    {
+        point_stencils = rkfem::share_stencils(points);
+        stab_stencils = rkfem::share_stencils(stabilization);
+    }
+
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
     // the node range its entries touch
     scatter.clear();
@@ -717,7 +724,7 @@ void NodalBlock::initialize(Assembly assembly)
     batch_idx.assign(2 * nb, -1);
     stab_energy.assign(static_cast<std::size_t>(ns), 0.0);
 
-    prefetch_stencils = points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
+    prefetch_stencils = point_stencils.empty() && points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
     for (IntegrationOperator* op : {&points, &stabilization})
     {
         use_huge_pages(op->nodes);
@@ -788,7 +795,7 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
         {
             const index_t L = st.parent[s];
             real_t G[3][3];
-            gather_velocity_gradient(st, s, v, G);
+            gather_velocity_gradient(stencil_view(st, blk.stab_stencils, s), v, G);
             const real_t* Fi = &blk.finv[9 * static_cast<std::size_t>(L)];
             real_t Ls[3][3];
             for (int i = 0; i < 3; ++i)
@@ -821,7 +828,7 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                                    {
                                        real_t P[9];
                                        sub_cell(s, P);
-                                       scatter_point(st, s, P, buf, lo);
+                                       scatter_point(stencil_view(st, blk.stab_stencils, s), P, buf, lo);
                                    });
         else
             parallel_for("rkfem::nodal_stabilization", ns,

@@ -25,6 +25,7 @@
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/integration/integration_operator.hpp"
+#include "rkfem/integration/stencil_table.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/point_history.hpp"
 #include "rkfem/operators/chunked_scatter.hpp"
@@ -43,6 +44,11 @@ struct NodalBlock
     std::vector<real_t> length0; ///< per point: l0, the shortest mesh edge at the owner node [m]
     IntegrationOperator points;             ///< stress points (global node ids)
     IntegrationOperator stabilization;      ///< MSCNI sub-cells (empty: none)
+    /// Shared stencils of `points` and `stabilization` (integration/stencil_table.hpp), built by
+    /// initialize() when `share_stencils` is on and sharing pays (lattices, structured meshes);
+    /// empty: the force pass reads the operators' own entries.
+    StencilTable point_stencils, stab_stencils;
+    bool share_stencils = true;
     /// RK parts: physical value at node I = sum over k in [interp_offsets[i], interp_offsets[i+1])
     /// of interp_values[k] * coefficient[interp_nodes[k]] (local node i); empty for FE parts.
     std::vector<index_t> interp_offsets, interp_nodes;

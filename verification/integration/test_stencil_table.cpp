@@ -1,0 +1,240 @@
+// Shared stencils (integration/stencil_table.hpp): the classes a lattice must give, what the
+// snap may move, that the snapped operator keeps linear completeness and the integration
+// constraint, that a jittered cloud keeps its own stencils, and that the force pass reads the
+// table exactly as it would read the operator.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "nodal_common.hpp"
+#include "rkfem/integration/stencil_table.hpp"
+#include "rkfem/operators/nodal_block.hpp"
+
+using namespace rkfem;
+using namespace rkfem::test;
+
+namespace
+{
+/// max over points of |sum_I X_I (x) g_I - 1| and |sum_I g_I| h: linear completeness.
+real_t completeness_error(const HexMesh& mesh, const IntegrationOperator& op, real_t h)
+{
+    real_t err = 0.0;
+    for (index_t p = 0; p < op.n_points(); ++p)
+    {
+        Mat3 g = Mat3::Zero();
+        Vec3 s = Vec3::Zero();
+        for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+        {
+            g += mesh.node(op.nodes[k]) * op.gradient(k).transpose();
+            s += op.gradient(k);
+        }
+        err = std::max({err, (g - Mat3::Identity()).cwiseAbs().maxCoeff(), s.norm() * h});
+    }
+    return err;
+}
+
+/// max over nodes of |sum_p V_p g_I(p)| h / V outside the boundary layer of width `layer`: the
+/// integration constraint, whose boundary term vanishes for nodes whose functions do not reach
+/// the surface.
+real_t interior_divergence_error(const HexMesh& mesh, const IntegrationOperator& op, real_t h, real_t layer)
+{
+    std::vector<Vec3> sum(static_cast<std::size_t>(mesh.n_nodes()), Vec3::Zero());
+    real_t vol = 0.0;
+    for (index_t p = 0; p < op.n_points(); ++p)
+    {
+        vol += op.weight[p];
+        for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+            sum[op.nodes[k]] += op.weight[p] * op.gradient(k);
+    }
+    const Vec3 hi = mesh.node(mesh.n_nodes() - 1);
+    real_t err = 0.0;
+    for (index_t i = 0; i < mesh.n_nodes(); ++i)
+    {
+        const Vec3 x = mesh.node(i);
+        if ((x.array() > layer).all() && (x.array() < hi.array() - layer).all())
+            err = std::max(err, sum[i].norm());
+    }
+    return err * h / vol;
+}
+
+/// The largest |g_snapped - g_own| / max |g_own| over the points' stencils.
+real_t largest_snap(const IntegrationOperator& own, const IntegrationOperator& snapped)
+{
+    real_t worst = 0.0;
+    for (index_t p = 0; p < own.n_points(); ++p)
+    {
+        real_t scale = 0.0, diff = 0.0;
+        for (index_t k = 3 * own.offsets[p]; k < 3 * own.offsets[p + 1]; ++k)
+        {
+            scale = std::max(scale, std::abs(own.grad[k]));
+            diff = std::max(diff, std::abs(snapped.grad[k] - own.grad[k]));
+        }
+        worst = std::max(worst, diff / scale);
+    }
+    return worst;
+}
+
+IntegrationOperator scni_on(const HexMesh& mesh, Formulation f, real_t support)
+{
+    if (f == Formulation::FemNodal)
+        return build_scni(mesh, FemShapes(mesh));
+    RkParams rp;
+    rp.normalized_support = support;
+    return build_scni(mesh, RkShapes(rkfem::rk_on_mesh(mesh, rp)));
+}
+} // namespace
+
+// On an n^3 lattice a point's SCNI stencil depends only on the nodes within the reach of its
+// cell's functions (cell half-width + the moment matrices' support): about 1.75 h for a/h 1.25
+// and 2.01 h for a/h 1.51 and for fem-nodal 1.5 h. Per axis, the points closer than that to a face
+// differ and the rest are translates: 3 classes per axis (faces, interior) for a/h 1.25 and
+// FE, 5 for a/h 1.51, so exactly 27 and 125 stencils.
+TEST(StencilTable, LatticeSharesOneStencilPerBoundaryClass)
+{
+    const int n = 14;
+    const real_t h = 0.01;
+    const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(n * h), {n, n, n});
+    struct Case
+    {
+        const char* name;
+        Formulation f;
+        real_t support;
+        index_t classes;
+    };
+    for (const Case& c : {Case{"rkpm a/h 1.25", Formulation::Rkpm, 1.25, 27}, Case{"rkpm a/h 1.51", Formulation::Rkpm, 1.51, 125},
+                          Case{"fem-nodal", Formulation::FemNodal, 0.0, 27}})
+    {
+        const IntegrationOperator own = scni_on(mesh, c.f, c.support);
+        IntegrationOperator op = own;
+        const StencilTable t = share_stencils(op);
+        ASSERT_FALSE(t.empty()) << c.name;
+        EXPECT_EQ(t.n_stencils(), c.classes) << c.name;
+        // the table is the snapped operator, entry for entry and bit for bit
+        for (index_t p = 0; p < op.n_points(); ++p)
+        {
+            const StencilView s = t.view(p);
+            ASSERT_EQ(s.size, op.offsets[p + 1] - op.offsets[p]);
+            for (index_t k = 0; k < s.size; ++k)
+            {
+                const index_t e = op.offsets[p] + k;
+                ASSERT_EQ(s.base + s.offset[k], op.nodes[e]);
+                for (int d = 0; d < 3; ++d)
+                    ASSERT_EQ(s.grad[3 * k + d], op.grad[3 * e + d]);
+            }
+        }
+        const real_t snap = largest_snap(own, op);
+        const real_t c_own = completeness_error(mesh, own, h), c_shared = completeness_error(mesh, op, h);
+        const real_t layer = 2.6 * h; // beyond the reach of every function of the boundary nodes
+        const real_t d_own = interior_divergence_error(mesh, own, h, layer),
+                     d_shared = interior_divergence_error(mesh, op, h, layer);
+        std::printf("%-14s %d stencils for %d points (%.1f%% of the entries); largest snap %.2e; completeness "
+                    "%.4e -> %.4e; interior divergence %.2e -> %.2e\n",
+                    c.name, t.n_stencils(), op.n_points(), 100.0 * t.n_entries() / op.n_entries(), snap, c_own,
+                    c_shared, d_own, d_shared);
+        // the snap stays within the tolerance it was given, and here within the round-off of
+        // building the stencils (coordinates up to 14 h from the origin)
+        EXPECT_LE(snap, 1e-13);
+        // linear completeness stays at the round-off of sum X_I g_I (terms 14 times the result):
+        // the kept stencils are translates built nearer the origin
+        EXPECT_LT(c_shared, 2.0 * c_own);
+        EXPECT_LT(c_shared, 1e-12);
+        // the integration constraint: each V_p g moves by at most snap V_p / h, and a node sums
+        // at most 125 points, so the normalized sum moves by under 125 snap / n_points, 1e-15
+        EXPECT_LT(d_shared, 1e-15);
+    }
+}
+
+TEST(StencilTable, JitteredCloudKeepsItsOwnStencils)
+{
+    const HexMesh mesh = distorted_box(8, 0.01, 0.3);
+    const IntegrationOperator own = scni_on(mesh, Formulation::Rkpm, 1.25);
+    IntegrationOperator op = own;
+    const StencilTable t = share_stencils(op);
+    EXPECT_TRUE(t.empty()) << t.n_stencils() << " stencils";
+    EXPECT_EQ(op.grad, own.grad);
+    EXPECT_EQ(op.nodes, own.nodes);
+}
+
+// Three points with the same node offsets: the second differs from the first by half the
+// tolerance (shared), the third by twice it (its own); a fourth holds a NaN (never shared).
+TEST(StencilTable, ToleranceDecidesWhatIsShared)
+{
+    const real_t tol = 1e-11;
+    IntegrationOperator op;
+    const real_t g[6] = {1.0, -2.0, 0.5, -1.0, 2.0, -0.5};
+    for (int p = 0; p < 4; ++p)
+    {
+        op.weight.push_back(1.0);
+        op.nodes.push_back(10 * p);
+        op.nodes.push_back(10 * p + 3);
+        op.grad.insert(op.grad.end(), g, g + 6);
+        op.offsets.push_back(op.n_entries());
+    }
+    op.grad[6 + 1] += 0.5 * tol * 2.0; // scale: the largest |g| is 2
+    op.grad[12 + 4] -= 2.0 * tol * 2.0;
+    op.grad[18 + 2] = std::numeric_limits<real_t>::quiet_NaN();
+    StencilSharing opts;
+    opts.relative_tolerance = tol;
+    opts.max_entry_fraction = 1.0;
+    const StencilTable t = share_stencils(op, opts);
+    ASSERT_EQ(t.n_stencils(), 3);
+    EXPECT_EQ(t.point_stencil, (std::vector<index_t>{0, 0, 1, 2}));
+    EXPECT_EQ(t.point_base, (std::vector<index_t>{0, 10, 20, 30}));
+    EXPECT_EQ(op.grad[6 + 1], g[1]) << "a shared point takes its class's gradients";
+    EXPECT_EQ(op.grad[12 + 4], g[4] - 2.0 * tol * 2.0) << "a point outside the tolerance keeps its own";
+    EXPECT_TRUE(std::isnan(op.grad[18 + 2]));
+    // a sharing that does not pay leaves the operator alone
+    IntegrationOperator op2 = op;
+    opts.max_entry_fraction = 0.5;
+    EXPECT_TRUE(share_stencils(op2, opts).empty());
+    EXPECT_EQ(op2.nodes, op.nodes);
+}
+
+// The force pass with the shared stencils gives the bits of the pass that reads the (snapped)
+// operator's own entries: stress, energies and nodal forces, with and without MSCNI.
+TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
+{
+    const int n = 12;
+    const real_t h = 0.01;
+    const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(n * h), {n, n, n});
+    for (const char* stab : {"none", "mscni"})
+    {
+        PartSpec ps;
+        ps.formulation = Formulation::Rkpm;
+        ps.material.model = "elastic";
+        ps.material.rho = 2400.0;
+        ps.material.E = 30e9;
+        ps.material.nu = 0.2;
+        ps.nodal.stabilization = stab;
+        NodalBlock blk = build_nodal_block(ps, mesh, 0);
+        ASSERT_FALSE(blk.point_stencils.empty()) << stab;
+        if (blk.n_stab() > 0)
+        {
+            ASSERT_FALSE(blk.stab_stencils.empty());
+        }
+        NodeSet nodes;
+        nodes.resize(mesh.n_nodes());
+        nodes.x0 = nodes.x = mesh.x;
+        for (std::size_t i = 0; i < mesh.x.size(); ++i)
+        {
+            nodes.v[i] = std::sin(300.0 * mesh.x[i] + static_cast<real_t>(i % 3));
+            nodes.u[i] = 1e-5 * std::cos(200.0 * mesh.x[i] + static_cast<real_t>(i % 5));
+        }
+        const real_t dt = 1e-7;
+        const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
+        assemble_nodal_forces(blk, nodes);
+        const std::vector<real_t> f_shared = nodes.f_int;
+        const LineVector<real_t> s_shared = blk.stress_trial;
+        blk.point_stencils.clear();
+        blk.stab_stencils.clear();
+        const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
+        assemble_nodal_forces(blk, nodes);
+        EXPECT_TRUE(s_shared == blk.stress_trial) << stab;
+        EXPECT_EQ(f_shared, nodes.f_int) << stab;
+        EXPECT_EQ(a.d_internal, b.d_internal) << stab;
+        EXPECT_EQ(a.d_hourglass, b.d_hourglass) << stab;
+        EXPECT_EQ(a.dt_stable, b.dt_stable) << stab;
+    }
+}
