@@ -1,5 +1,8 @@
 #include "rkfem/operators/chunked_scatter.hpp"
 
+#include <algorithm>
+
+#include "rkfem/core/error.hpp"
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/parallel.hpp"
 
@@ -27,6 +30,7 @@ void ChunkedScatter::finish()
             node_chunks[fill[n - node_begin]++] = c;
     buffer.assign(next_buffer_, 0.0);
     use_huge_pages(buffer);
+    buffer_zero.assign(chunks.size(), 1);
 }
 
 void ChunkedScatter::clear()
@@ -35,18 +39,23 @@ void ChunkedScatter::clear()
     node_chunk_offsets.clear();
     node_chunks.clear();
     buffer.clear();
+    buffer_zero.clear();
     next_buffer_ = 0;
 }
 
 void ChunkedScatter::zero(index_t c)
 {
+    if (buffer_zero[static_cast<std::size_t>(c)])
+        return;
     const Chunk& ch = chunks[static_cast<std::size_t>(c)];
     std::fill(buffer.begin() + static_cast<std::ptrdiff_t>(ch.buffer),
               buffer.begin() + static_cast<std::ptrdiff_t>(ch.buffer + 4 * static_cast<std::size_t>(ch.hi - ch.lo)), 0.0);
 }
 
-void ChunkedScatter::reduce(std::vector<real_t>& f) const
+void ChunkedScatter::reduce(std::vector<real_t>& f)
 {
+    RKFEM_REQUIRE(std::find(buffer_zero.begin(), buffer_zero.end(), 0) != buffer_zero.end(),
+                  "chunked scatter: reduce() called twice for one force pass (the first consumed the sums)");
     parallel_for("rkfem::scatter_reduce", node_end - node_begin,
                  [&](index_t i)
                  {
@@ -55,11 +64,13 @@ void ChunkedScatter::reduce(std::vector<real_t>& f) const
                      for (index_t k = node_chunk_offsets[i]; k < node_chunk_offsets[i + 1]; ++k)
                      {
                          const Chunk& ch = chunks[static_cast<std::size_t>(node_chunks[k])];
-                         const real_t* b = &buffer[ch.buffer + 4 * static_cast<std::size_t>(n - ch.lo)];
+                         real_t* b = &buffer[ch.buffer + 4 * static_cast<std::size_t>(n - ch.lo)];
                          s[0] += b[0], s[1] += b[1], s[2] += b[2];
+                         b[0] = b[1] = b[2] = b[3] = 0.0;
                      }
                      for (int a = 0; a < 3; ++a)
                          f[3 * static_cast<std::size_t>(n) + a] = s[a];
                  });
+    std::fill(buffer_zero.begin(), buffer_zero.end(), 1);
 }
 } // namespace rkfem

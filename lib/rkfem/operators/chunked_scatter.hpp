@@ -40,6 +40,9 @@ struct ChunkedScatter
     index_t node_begin = 0, node_end = 0;                 ///< the block's nodes
     std::vector<index_t> node_chunk_offsets, node_chunks; ///< local node -> covering chunks, in order
     std::vector<real_t> buffer;
+    /// per chunk: its buffer is all zero (after finish() and after reduce(), which zeroes what it
+    /// reads), so its next pass need not clear it
+    std::vector<char> buffer_zero;
 
     /// Items per chunk for n items: about n / 16 within [2048, 32768], a multiple of `multiple`.
     static index_t chunk_size(index_t n, index_t multiple);
@@ -66,10 +69,11 @@ struct ChunkedScatter
     void clear();
     bool empty() const { return chunks.empty(); }
     real_t* chunk_buffer(index_t c) { return buffer.data() + chunks[static_cast<std::size_t>(c)].buffer; }
-    /// Zeroes chunk c's buffer (a chunk's pass starts with it).
+    /// Zeroes chunk c's buffer unless it is zero already (a chunk's pass starts with it).
     void zero(index_t c);
-    /// Runs chunks [c0, c1) in parallel: each zeroes its buffer, then calls batch(b, buffer, lo)
-    /// for its batches b of `width` items in order (the buffer covers nodes from lo on).
+    /// Runs chunks [c0, c1) in parallel: each starts from a zero buffer, then calls batch(b,
+    /// buffer, lo) for its batches b of `width` items in order (the buffer covers nodes from lo
+    /// on).
     template <class Batch> void run_chunks(const char* label, index_t c0, index_t c1, index_t width, Batch&& batch)
     {
         parallel_for(label, c1 - c0,
@@ -79,6 +83,7 @@ struct ChunkedScatter
                          const Chunk& ch = chunks[static_cast<std::size_t>(c)];
                          real_t* buf = chunk_buffer(c);
                          zero(c);
+                         buffer_zero[static_cast<std::size_t>(c)] = 0;
                          for (index_t b = ch.first / width; b * width < ch.last; ++b)
                              batch(b, buf, ch.lo);
                          // the batches may write with streaming stores (core/stream_stores.hpp)
@@ -86,8 +91,11 @@ struct ChunkedScatter
                      });
     }
     /// f[3 n + a] = the sum over the chunks covering node n of their buffer values, in chunk
-    /// order, for the block's nodes.
-    void reduce(std::vector<real_t>& f) const;
+    /// order, for the block's nodes. It consumes the buffers: each value is zeroed as it is
+    /// read (the lines are in cache then), which spares the next pass a clearing sweep over
+    /// memory. A second reduce() with no chunk run since the last is an error (it would give
+    /// zero forces).
+    void reduce(std::vector<real_t>& f);
 
   private:
     std::size_t next_buffer_ = 0;

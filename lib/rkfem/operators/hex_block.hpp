@@ -92,8 +92,9 @@ struct ForcePassResult
 /// element forces into blk.elem_force; assembly is separate (assemble_block_forces).
 ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t dt);
 
-/// f_int[node] = sum over the node's (element, local) slots, for the block's node range.
-void assemble_block_forces(const HexBlock& blk, NodeSet& nodes);
+/// f_int[node] = sum over the node's (element, local) slots, for the block's node range. Once
+/// per force pass: with the chunked scatter it consumes the chunk sums (ChunkedScatter::reduce).
+void assemble_block_forces(HexBlock& blk, NodeSet& nodes);
 
 /// The current volume of element e (exact for the trilinear hex, from nodes.x) [m^3].
 real_t element_volume(const HexBlock& blk, const NodeSet& nodes, index_t e);

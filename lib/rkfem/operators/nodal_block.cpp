@@ -842,7 +842,7 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
     return r;
 }
 
-void assemble_nodal_forces(const NodalBlock& blk, NodeSet& nodes)
+void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes)
 {
     const index_t nn = blk.node_end - blk.node_begin;
     if (blk.scatter_assembly())

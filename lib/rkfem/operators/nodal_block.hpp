@@ -137,8 +137,9 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
 /// separate (assemble_nodal_forces). d_hourglass carries the stabilization work.
 ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt);
 
-/// f_int[node] = sum over the node's entries, for the block's node range.
-void assemble_nodal_forces(const NodalBlock& blk, NodeSet& nodes);
+/// f_int[node] = sum over the node's entries, for the block's node range. Once per force pass:
+/// with the chunked scatter it consumes the chunk sums (ChunkedScatter::reduce).
+void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes);
 
 /// Lumped mass rho V0_p to each point's owner node.
 void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes);
