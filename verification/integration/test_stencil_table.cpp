@@ -193,7 +193,8 @@ TEST(StencilTable, ToleranceDecidesWhatIsShared)
 }
 
 // The force pass with the shared stencils gives the bits of the pass that reads the (snapped)
-// operator's own entries: stress, energies and nodal forces, with and without MSCNI.
+// operator's own entries: stress, energies and nodal forces, with and without MSCNI, through
+// both the whole-vector path of uniform batches and the lane-by-lane one.
 TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
 {
     const int n = 12;
@@ -210,6 +211,21 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         ps.nodal.stabilization = stab;
         NodalBlock blk = build_nodal_block(ps, mesh, 0);
         ASSERT_FALSE(blk.point_stencils.empty()) << stab;
+        // batches of 8 points with one stencil and consecutive bases (the whole-vector path)
+        // and batches without (the lane-by-lane path) must both occur
+        const StencilTable& t = blk.point_stencils;
+        index_t uniform = 0, batches = blk.n_points() / 8;
+        for (index_t b = 0; b < batches; ++b)
+        {
+            bool same = true;
+            for (int l = 1; l < 8; ++l)
+                same = same && t.point_stencil[8 * b + l] == t.point_stencil[8 * b] &&
+                       t.point_base[8 * b + l] == t.point_base[8 * b] + l;
+            uniform += same;
+        }
+        std::printf("%s: %d of %d full batches are uniform\n", stab, uniform, batches);
+        ASSERT_GT(uniform, 0);
+        ASSERT_LT(uniform, batches);
         if (blk.n_stab() > 0)
         {
             ASSERT_FALSE(blk.stab_stencils.empty());

@@ -28,22 +28,6 @@ constexpr int W = 8; // lanes per batch (one AVX-512 register of doubles)
 
 index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 
-#if defined(__AVX512F__)
-/// Coordinates d of 8 consecutive nodes from their node-major triples p[0..23] (x0 y0 z0 x1 ...):
-/// three line loads and two two-source permutes per coordinate, where an 8-lane gather would
-/// take a load per lane.
-inline void load_consecutive_nodes(const real_t* p, __m512d& X, __m512d& Y, __m512d& Z)
-{
-    const __m512d a = _mm512_loadu_pd(p), b = _mm512_loadu_pd(p + 8), c = _mm512_loadu_pd(p + 16);
-    // X = a0 a3 a6 b1 b4 b7 c2 c5, Y = a1 a4 a7 b2 b5 c0 c3 c6, Z = a2 a5 b0 b3 b6 c1 c4 c7
-    const __m512d xab = _mm512_permutex2var_pd(a, _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), b);
-    const __m512d yab = _mm512_permutex2var_pd(a, _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), b);
-    const __m512d zab = _mm512_permutex2var_pd(a, _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), b);
-    X = _mm512_permutex2var_pd(xab, _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13), c);
-    Y = _mm512_permutex2var_pd(yab, _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14), c);
-    Z = _mm512_permutex2var_pd(zab, _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15), c);
-}
-#endif
 
 /// One batch of W elements. FULL: all W lanes are elements (every batch but a partial last one),
 /// so the lane loops carry no lane test and the material/bulk-viscosity loop vectorizes.
@@ -74,11 +58,11 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             if (_mm256_cmpeq_epi32_mask(idx, row) == 0xFF)
             {
                 __m512d X, Y, Z;
-                load_consecutive_nodes(nodes.x.data() + g3[8 * I], X, Y, Z);
+                simd::load_triples(nodes.x.data() + g3[8 * I], X, Y, Z);
                 _mm512_store_pd(xe[I][0], X);
                 _mm512_store_pd(xe[I][1], Y);
                 _mm512_store_pd(xe[I][2], Z);
-                load_consecutive_nodes(nodes.v.data() + g3[8 * I], X, Y, Z);
+                simd::load_triples(nodes.v.data() + g3[8 * I], X, Y, Z);
                 _mm512_store_pd(ve[I][0], X);
                 _mm512_store_pd(ve[I][1], Y);
                 _mm512_store_pd(ve[I][2], Z);
@@ -390,15 +374,9 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                 if (_mm256_cmpeq_epi32_mask(idx, _mm256_add_epi32(_mm256_set1_epi32(g3[8 * I]), step)) == 0xFF)
                 {
                     // consecutive nodes: their 8 (x, y, z, 0) quadruples are 4 whole vectors
-                    const __m512i lo2 = _mm512_setr_epi64(0, 8, 1, 9, 2, 10, 3, 11),
-                                  hi2 = _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15);
-                    const __m512d xy_a = _mm512_permutex2var_pd(X, lo2, Y), xy_b = _mm512_permutex2var_pd(X, hi2, Y);
-                    const __m512d z_a = _mm512_permutex2var_pd(Z, lo2, zero), z_b = _mm512_permutex2var_pd(Z, hi2, zero);
-                    const __m512i first = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11),
-                                  second = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
+                    __m512d q[4];
+                    simd::interleave4(X, Y, Z, q);
                     real_t* b = buf + 4 * static_cast<std::size_t>(g3[8 * I] / 3 - lo);
-                    const __m512d q[4] = {_mm512_permutex2var_pd(xy_a, first, z_a), _mm512_permutex2var_pd(xy_a, second, z_a),
-                                          _mm512_permutex2var_pd(xy_b, first, z_b), _mm512_permutex2var_pd(xy_b, second, z_b)};
                     for (int k = 0; k < 4; ++k)
                         _mm512_storeu_pd(b + 8 * k, _mm512_add_pd(_mm512_loadu_pd(b + 8 * k), q[k]));
                     continue;

@@ -8,6 +8,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/simd.hpp"
 #include "rkfem/core/stream_stores.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
@@ -169,6 +170,99 @@ inline void scatter_point(const StencilView& st, const real_t P[9], real_t* buf,
 #endif
 }
 
+#if defined(__AVX512F__)
+/// A batch whose 8 points share one stencil and whose bases are consecutive (points along a
+/// lattice row): entry k of lane l touches node base + offset[k] + l, so each entry's nodes are 8
+/// consecutive ones, read and written as whole vectors instead of lane by lane.
+bool uniform_batch(const StencilTable& t, index_t p0)
+{
+    if (t.empty())
+        return false;
+    const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_stencil.data() + p0));
+    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_base.data() + p0));
+    const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(t.point_base[static_cast<std::size_t>(p0)]),
+                                         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    return _mm256_cmpeq_epi32_mask(s, _mm256_set1_epi32(t.point_stencil[static_cast<std::size_t>(p0)])) == 0xFF &&
+           _mm256_cmpeq_epi32_mask(b, row) == 0xFF;
+}
+
+/// F = 1 + sum_k u_k (x) g_k and Fd = sum_k v_k (x) g_k for the 8 lanes of a uniform batch,
+/// into F[i][j][l]. The sums run over the lanes' node triples as they lie in memory (three
+/// vectors per entry, no shuffles), with the same FMAs in the same order as gather_gradients,
+/// so the bits are those of the lane-by-lane path; the triples are unpacked once at the end.
+inline void gather_gradients_uniform(const StencilView& st, const real_t* u, const real_t* v, real_t (&F)[3][3][8],
+                                     real_t (&Fd)[3][3][8])
+{
+    // fu[j][r]: vector r of the triples (F_0j, F_1j, F_2j) of lanes 0..7 (position 8 r + e is
+    // lane (8 r + e) / 3, component (8 r + e) % 3), starting from the identity's column j
+    __m512d fu[3][3], fv[3][3];
+    for (int j = 0; j < 3; ++j)
+        for (int r = 0; r < 3; ++r)
+        {
+            alignas(64) real_t init[8];
+            for (int e = 0; e < 8; ++e)
+                init[e] = (8 * r + e) % 3 == j ? 1.0 : 0.0;
+            fu[j][r] = _mm512_load_pd(init);
+            fv[j][r] = _mm512_setzero_pd();
+        }
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const __m512d u0 = _mm512_loadu_pd(u + n), u1 = _mm512_loadu_pd(u + n + 8), u2 = _mm512_loadu_pd(u + n + 16);
+        const __m512d v0 = _mm512_loadu_pd(v + n), v1 = _mm512_loadu_pd(v + n + 8), v2 = _mm512_loadu_pd(v + n + 16);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        for (int j = 0; j < 3; ++j)
+        {
+            const __m512d gj = _mm512_set1_pd(g[j]);
+            fu[j][0] = _mm512_fmadd_pd(u0, gj, fu[j][0]);
+            fu[j][1] = _mm512_fmadd_pd(u1, gj, fu[j][1]);
+            fu[j][2] = _mm512_fmadd_pd(u2, gj, fu[j][2]);
+            fv[j][0] = _mm512_fmadd_pd(v0, gj, fv[j][0]);
+            fv[j][1] = _mm512_fmadd_pd(v1, gj, fv[j][1]);
+            fv[j][2] = _mm512_fmadd_pd(v2, gj, fv[j][2]);
+        }
+    }
+    for (int j = 0; j < 3; ++j)
+    {
+        __m512d X, Y, Z;
+        simd::deinterleave3(fu[j][0], fu[j][1], fu[j][2], X, Y, Z);
+        _mm512_store_pd(F[0][j], X);
+        _mm512_store_pd(F[1][j], Y);
+        _mm512_store_pd(F[2][j], Z);
+        simd::deinterleave3(fv[j][0], fv[j][1], fv[j][2], X, Y, Z);
+        _mm512_store_pd(Fd[0][j], X);
+        _mm512_store_pd(Fd[1][j], Y);
+        _mm512_store_pd(Fd[2][j], Z);
+    }
+}
+
+/// buf += V0 P g for the 8 lanes of a uniform batch (P[3 j + i][l] = P_ij of lane l). Column j
+/// of the lanes' P as padded quadruples (x, y, z, 0), 4 vectors; per entry the 8 consecutive
+/// nodes' quadruples are 4 vectors of the buffer. The entries run last to first, so each node
+/// takes its lanes' terms in lane order, with the FMAs of scatter_point: the same bits.
+inline void scatter_uniform(const StencilView& st, const real_t (&P)[9][8], real_t* buf, index_t lo)
+{
+    __m512d c[3][4];
+    for (int j = 0; j < 3; ++j)
+        simd::interleave4(_mm512_load_pd(P[3 * j]), _mm512_load_pd(P[3 * j + 1]), _mm512_load_pd(P[3 * j + 2]), c[j]);
+    real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(st.base - lo);
+    for (index_t k = st.size - 1; k >= 0; --k)
+    {
+        real_t* f = b + 4 * static_cast<std::size_t>(st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        const __m512d g0 = _mm512_set1_pd(g[0]), g1 = _mm512_set1_pd(g[1]), g2 = _mm512_set1_pd(g[2]);
+        for (int q = 0; q < 4; ++q)
+        {
+            __m512d acc = _mm512_loadu_pd(f + 8 * q);
+            acc = _mm512_fmadd_pd(c[0][q], g0, acc);
+            acc = _mm512_fmadd_pd(c[1][q], g1, acc);
+            acc = _mm512_fmadd_pd(c[2][q], g2, acc);
+            _mm512_storeu_pd(f + 8 * q, acc);
+        }
+    }
+}
+#endif
+
 /// V0 P = V0 J (sigma - q 1) F^-T of lane l, by columns ([3 j + i] = P_ij).
 template <int W>
 inline void first_piola(real_t VJ, real_t q, const real_t (&sn)[6][W], const real_t (&Fi)[3][3][W], int l,
@@ -228,6 +322,14 @@ template <bool PLASTIC, bool FULL>
         }
     }
     alignas(64) real_t F[3][3][W], Fd[3][3][W];
+#if defined(__AVX512F__)
+    const bool uniform = FULL && uniform_batch(blk.point_stencils, p0);
+    if (uniform)
+        gather_gradients_uniform(blk.point_stencils.view(p0), u, v, F, Fd);
+    else
+#else
+    constexpr bool uniform = false;
+#endif
     for (int l = 0; l < W; ++l)
     {
         real_t f[3][3], fd[3][3];
@@ -373,13 +475,6 @@ template <bool PLASTIC, bool FULL>
             dt_min = dtl[l];
             dt_point = static_cast<index_t>(p);
         }
-        real_t Pp[9];
-        for (int k = 0; k < 9; ++k)
-            Pp[k] = P[k][l];
-        if (buf)
-            scatter_point(stencil_view(op, blk.point_stencils, static_cast<index_t>(p)), Pp, buf, lo);
-        else
-            std::copy(Pp, Pp + 9, &blk.point_tensor[9 * p]);
         if (stabilized)
         {
             real_t* fi = &blk.finv[9 * p];
@@ -390,6 +485,26 @@ template <bool PLASTIC, bool FULL>
                 blk.spin[3 * p + k] = wl[k][l];
         }
     }
+    // V0 P g into the chunk's buffer (or V0 P out for the transpose gather), for the good points
+#if defined(__AVX512F__)
+    if (uniform && buf && bad < 0)
+        scatter_uniform(blk.point_stencils.view(p0), P, buf, lo);
+    else
+#endif
+        for (int l = 0; l < nl; ++l)
+        {
+            const std::size_t p = static_cast<std::size_t>(p0 + l);
+            if (!(Jl[l] > 0.0) || !(dtl[l] > 0.0))
+                continue;
+            real_t Pp[9];
+            for (int k = 0; k < 9; ++k)
+                Pp[k] = P[k][l];
+            if (buf)
+                scatter_point(stencil_view(op, blk.point_stencils, static_cast<index_t>(p)), Pp, buf, lo);
+            else
+                std::copy(Pp, Pp + 9, &blk.point_tensor[9 * p]);
+        }
+    (void)uniform;
     const std::size_t b = static_cast<std::size_t>(batch);
     blk.batch_sums[3 * b] = sum_int;
     blk.batch_sums[3 * b + 1] = sum_bv;
