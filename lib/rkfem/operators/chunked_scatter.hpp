@@ -39,6 +39,14 @@ struct ChunkedScatter
     std::vector<Chunk> chunks;
     index_t node_begin = 0, node_end = 0;                 ///< the block's nodes
     std::vector<index_t> node_chunk_offsets, node_chunks; ///< local node -> covering chunks, in order
+    /// Runs of consecutive nodes covered by the same chunks (built by finish()): the reduction
+    /// works a run at a time, 8 nodes per vector step.
+    struct Run
+    {
+        index_t first = 0, last = 0; ///< local nodes [first, last)
+        index_t chunks = 0;          ///< its covering chunks: node_chunks[node_chunk_offsets[first] + c]
+    };
+    std::vector<Run> runs;
     std::vector<real_t> buffer;
     /// per chunk: its buffer is all zero (after finish() and after reduce(), which zeroes what it
     /// reads), so its next pass need not clear it

@@ -46,7 +46,9 @@ struct NodalBlock
     IntegrationOperator stabilization;      ///< MSCNI sub-cells (empty: none)
     /// Shared stencils of `points` and `stabilization` (integration/stencil_table.hpp), built by
     /// initialize() when `share_stencils` is on and sharing pays (lattices, structured meshes);
-    /// empty: the force pass reads the operators' own entries.
+    /// empty: the force pass reads the operators' own entries. initialize() snaps the operators
+    /// to them; an operator changed afterwards needs initialize() again. Batches of 8 points
+    /// with one stencil and consecutive bases (along lattice rows) take a whole-vector path.
     StencilTable point_stencils, stab_stencils;
     bool share_stencils = true;
     /// RK parts: physical value at node I = sum over k in [interp_offsets[i], interp_offsets[i+1])
