@@ -1,6 +1,7 @@
 #pragma once
 // Shared set-up for nodal-integration tests: a jittered hex mesh, RK functions over its nodes,
 // and the operators every scheme builds on it.
+#include <algorithm>
 #include <memory>
 
 #include "rkfem/approximation/shape_evaluator.hpp"
@@ -36,6 +37,25 @@ inline const char* scheme_name(Scheme s)
     case Scheme::FemMscni: return "fem_nodal_mscni";
     }
     return "?";
+}
+
+/// Linear completeness of an operator on a mesh's nodes with spacing h: the max over points of
+/// |sum_I X_I (x) g_I - 1| and |sum_I g_I| h.
+inline real_t linear_gradient_error(const HexMesh& mesh, const IntegrationOperator& op, real_t h)
+{
+    real_t err = 0.0;
+    for (index_t p = 0; p < op.n_points(); ++p)
+    {
+        Mat3 g = Mat3::Zero();
+        Vec3 s = Vec3::Zero();
+        for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+        {
+            g += mesh.node(op.nodes[k]) * op.gradient(k).transpose();
+            s += op.gradient(k);
+        }
+        err = std::max({err, (g - Mat3::Identity()).cwiseAbs().maxCoeff(), s.norm() * h});
+    }
+    return err;
 }
 
 /// The stress-point operator and (for MSCNI) the stabilization operator of a scheme.

@@ -17,24 +17,6 @@ using namespace rkfem::test;
 
 namespace
 {
-/// max over points of |sum_I X_I (x) g_I - 1| and |sum_I g_I| h: linear completeness.
-real_t completeness_error(const HexMesh& mesh, const IntegrationOperator& op, real_t h)
-{
-    real_t err = 0.0;
-    for (index_t p = 0; p < op.n_points(); ++p)
-    {
-        Mat3 g = Mat3::Zero();
-        Vec3 s = Vec3::Zero();
-        for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
-        {
-            g += mesh.node(op.nodes[k]) * op.gradient(k).transpose();
-            s += op.gradient(k);
-        }
-        err = std::max({err, (g - Mat3::Identity()).cwiseAbs().maxCoeff(), s.norm() * h});
-    }
-    return err;
-}
-
 /// max over nodes of |sum_p V_p g_I(p)| h / V outside the boundary layer of width `layer`: the
 /// integration constraint, whose boundary term vanishes for nodes whose functions do not reach
 /// the surface.
@@ -125,7 +107,7 @@ TEST(StencilTable, LatticeSharesOneStencilPerBoundaryClass)
             }
         }
         const real_t snap = largest_snap(own, op);
-        const real_t c_own = completeness_error(mesh, own, h), c_shared = completeness_error(mesh, op, h);
+        const real_t c_own = linear_gradient_error(mesh, own, h), c_shared = linear_gradient_error(mesh, op, h);
         const real_t layer = 2.6 * h; // beyond the reach of every function of the boundary nodes
         const real_t d_own = interior_divergence_error(mesh, own, h, layer),
                      d_shared = interior_divergence_error(mesh, op, h, layer);
