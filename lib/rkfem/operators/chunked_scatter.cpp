@@ -77,19 +77,19 @@ void ChunkedScatter::reduce(std::vector<real_t>& f)
                  {
                      const Run& run = runs[static_cast<std::size_t>(r)];
                      const index_t* cover = node_chunks.data() + node_chunk_offsets[run.first];
-                     // the run's first node in each covering chunk's buffer
-                     real_t* src[64];
-                     const index_t nc = std::min<index_t>(run.chunks, 64);
-                     for (index_t c = 0; c < nc; ++c)
-                     {
-                         const Chunk& ch = chunks[static_cast<std::size_t>(cover[c])];
-                         src[c] = &buffer[ch.buffer + 4 * static_cast<std::size_t>(node_begin + run.first - ch.lo)];
-                     }
                      real_t* out = &f[3 * static_cast<std::size_t>(node_begin + run.first)];
                      index_t i = 0;
 #if defined(__AVX512F__)
                      if (run.chunks <= 64)
                      {
+                         // the run's first node in each covering chunk's buffer
+                         real_t* src[64];
+                         const index_t nc = run.chunks;
+                         for (index_t c = 0; c < nc; ++c)
+                         {
+                             const Chunk& ch = chunks[static_cast<std::size_t>(cover[c])];
+                             src[c] = &buffer[ch.buffer + 4 * static_cast<std::size_t>(node_begin + run.first - ch.lo)];
+                         }
                          // 8 nodes per step: 4 padded quadruples per chunk summed from zero in chunk
                          // order (the scalar sums' order), then packed to 3 vectors of triples
                          const __m512i p0 = _mm512_setr_epi64(0, 1, 2, 4, 5, 6, 8, 9),
