@@ -34,6 +34,7 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
     t.point_stencil.resize(static_cast<std::size_t>(np));
     t.point_base.resize(static_cast<std::size_t>(np));
     std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets;
+    std::vector<real_t> scale; // per stored stencil: its largest |gradient component|
     const std::size_t budget = static_cast<std::size_t>(opts.max_entry_fraction * static_cast<real_t>(op.n_entries()));
 
     for (index_t p = 0; p < np; ++p)
@@ -44,30 +45,28 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
         const real_t* g = op.grad.data() + 3 * static_cast<std::size_t>(k0);
         t.point_base[static_cast<std::size_t>(p)] = n > 0 ? nodes[0] : 0;
         std::vector<index_t>& candidates = by_offsets[offsets_hash(nodes, n)];
+        // does stored stencil s have this point's node offsets and, within the tolerance of
+        // its largest gradient, its gradients? (written so that a NaN on either side differs)
+        auto matches = [&](index_t s)
+        {
+            const index_t j0 = t.offsets[static_cast<std::size_t>(s)];
+            if (t.offsets[static_cast<std::size_t>(s) + 1] - j0 != n)
+                return false;
+            for (index_t k = 1; k < n; ++k)
+                if (t.node_offset[static_cast<std::size_t>(j0 + k)] != nodes[k] - nodes[0])
+                    return false;
+            const real_t* gs = t.grad.data() + 3 * static_cast<std::size_t>(j0);
+            const real_t bound = opts.relative_tolerance * scale[static_cast<std::size_t>(s)];
+            for (index_t k = 0; k < 3 * n; ++k)
+                if (!(std::abs(gs[k] - g[k]) <= bound))
+                    return false;
+            return true;
+        };
         index_t found = -1;
         const int searched = std::min<int>(static_cast<int>(candidates.size()), opts.max_candidates);
         for (int c = 0; c < searched && found < 0; ++c)
-        {
-            const index_t s = candidates[static_cast<std::size_t>(c)];
-            const index_t j0 = t.offsets[static_cast<std::size_t>(s)];
-            if (t.offsets[static_cast<std::size_t>(s) + 1] - j0 != n)
-                continue;
-            bool same = true;
-            for (index_t k = 1; k < n && same; ++k)
-                same = t.node_offset[static_cast<std::size_t>(j0 + k)] == nodes[k] - nodes[0];
-            if (!same)
-                continue;
-            const real_t* gs = t.grad.data() + 3 * static_cast<std::size_t>(j0);
-            real_t scale = 0.0;
-            for (index_t k = 0; k < 3 * n; ++k)
-                scale = std::max(scale, std::abs(gs[k]));
-            const real_t bound = opts.relative_tolerance * scale;
-            // written so that a NaN on either side compares as different
-            for (index_t k = 0; k < 3 * n && same; ++k)
-                same = std::abs(gs[k] - g[k]) <= bound;
-            if (same)
-                found = s;
-        }
+            if (matches(candidates[static_cast<std::size_t>(c)]))
+                found = candidates[static_cast<std::size_t>(c)];
         if (found < 0)
         {
             found = t.n_stencils();
@@ -75,6 +74,10 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
                 t.node_offset.push_back(nodes[k] - nodes[0]);
             t.grad.insert(t.grad.end(), g, g + 3 * n);
             t.offsets.push_back(static_cast<index_t>(t.node_offset.size()));
+            real_t largest = 0.0;
+            for (index_t k = 0; k < 3 * n; ++k)
+                largest = std::max(largest, std::abs(g[k]));
+            scale.push_back(largest);
             candidates.push_back(found);
             if (t.node_offset.size() > budget)
                 return {}; // sharing does not pay: the operator stays as it was

@@ -28,7 +28,6 @@ constexpr int W = 8; // lanes per batch (one AVX-512 register of doubles)
 
 index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 
-
 /// One batch of W elements. FULL: all W lanes are elements (every batch but a partial last one),
 /// so the lane loops carry no lane test and the material/bulk-viscosity loop vectorizes.
 // 512-bit lane loops (core/simd.hpp; 1-point viscous at 1e4 elements: 67 -> 61 ns per
@@ -45,10 +44,12 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     alignas(64) real_t xe[8][3][W];
     alignas(64) real_t ve[8][3][W];
 #if defined(__AVX512F__)
+    // bit I: node I of the batch's 8 elements is 8 consecutive nodes (as along a structured
+    // mesh's rows), loaded with line loads and permutes here and added as whole vectors below
+    unsigned consecutive = 0;
     if constexpr (FULL)
     {
-        // node I of the batch's 8 elements: one 8-lane gather per coordinate
-        // (consecutive nodes, as along a structured mesh's rows: line loads and permutes)
+        // node I of the batch's 8 elements: one 8-lane gather per coordinate, or the line loads
         const index_t* g3 = &blk.gather_index[64 * static_cast<std::size_t>(batch)];
         const __m256i step = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
         for (int I = 0; I < 8; ++I)
@@ -57,6 +58,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(g3[8 * I]), step);
             if (_mm256_cmpeq_epi32_mask(idx, row) == 0xFF)
             {
+                consecutive |= 1u << I;
                 __m512d X, Y, Z;
                 simd::load_triples(nodes.x.data() + g3[8 * I], X, Y, Z);
                 _mm512_store_pd(xe[I][0], X);
@@ -366,12 +368,10 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             // zmm k holds lanes (2k', 2k'+2) or (2k'+1, 2k'+3) in its 256-bit halves
             const index_t* g3 = &blk.gather_index[64 * static_cast<std::size_t>(batch)];
             const __m512d zero = _mm512_setzero_pd();
-            const __m256i step = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
             for (int I = 0; I < 8; ++I)
             {
                 const __m512d X = _mm512_load_pd(f[I][0]), Y = _mm512_load_pd(f[I][1]), Z = _mm512_load_pd(f[I][2]);
-                const __m256i idx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(g3 + 8 * I));
-                if (_mm256_cmpeq_epi32_mask(idx, _mm256_add_epi32(_mm256_set1_epi32(g3[8 * I]), step)) == 0xFF)
+                if (consecutive >> I & 1u)
                 {
                     // consecutive nodes: their 8 (x, y, z, 0) quadruples are 4 whole vectors
                     __m512d q[4];

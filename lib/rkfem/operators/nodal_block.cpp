@@ -457,12 +457,14 @@ template <bool PLASTIC, bool FULL>
     const bool stabilized = blk.n_stab() > 0; // the stabilization of this point's sub-cells needs F^-1 and W
     real_t sum_int = 0.0, sum_bv = 0.0, dt_min = std::numeric_limits<real_t>::max();
     index_t dt_point = p0, bad = -1;
+    bool good[W] = {}; // the lane's point has J > 0 and a step (its forces are assembled)
     for (int l = 0; l < nl; ++l)
     {
         const std::size_t p = static_cast<std::size_t>(p0 + l);
         const real_t J = Jl[l];
         blk.jacobian[p] = J;
-        if (!(J > 0.0) || !(dtl[l] > 0.0))
+        good[l] = J > 0.0 && dtl[l] > 0.0;
+        if (!good[l])
         {
             if (bad < 0)
                 bad = static_cast<index_t>(p);
@@ -494,7 +496,7 @@ template <bool PLASTIC, bool FULL>
         for (int l = 0; l < nl; ++l)
         {
             const std::size_t p = static_cast<std::size_t>(p0 + l);
-            if (!(Jl[l] > 0.0) || !(dtl[l] > 0.0))
+            if (!good[l])
                 continue;
             real_t Pp[9];
             for (int k = 0; k < 9; ++k)
