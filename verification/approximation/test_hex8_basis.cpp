@@ -2,10 +2,15 @@
 // consistency to round-off; the Flanagan-Belytschko volume gradient equals the exact integral of
 // grad N over the element (2x2x2 Gauss is exact for it).
 #include <gtest/gtest.h>
+#include <cmath>
+#include <limits>
 #include <random>
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/approximation/fem/hex8_modes.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
+#include "rkfem/core/simd.hpp"
+#include "rkfem/discretization/hex_mesh.hpp"
 
 using namespace rkfem;
 
@@ -117,59 +122,171 @@ TEST(Hex8VolumeGradient, EqualsExactIntegralOfShapeGradients)
     }
 }
 
-TEST(Hex8VolumeGradient, CompileTimeTableEqualsTheComputedOne)
+
+namespace
 {
-    // the kernels' constant table (Hex8VolumeGradientFixed) is the computed table term by term:
-    // same pairs, and for each node the same nine (pair, coefficient) terms, coefficients +-1/12
-    const auto& tab = hex8_volume_gradient_table();
-    using VG = Hex8VolumeGradientFixed;
-    ASSERT_EQ(tab.n_pairs, VG::n_pairs);
-    for (int p = 0; p < VG::n_pairs; ++p)
+/// phi_k at node I (hex8_modes.hpp): 1, xi, eta, zeta, xi eta, eta zeta, zeta xi, xi eta zeta
+real_t mode_at_node(int k, int I)
+{
+    const real_t x = hex8_nodes[I][0], y = hex8_nodes[I][1], z = hex8_nodes[I][2];
+    const real_t phi[8] = {1, x, y, z, x * y, y * z, z * x, x * y * z};
+    return phi[k];
+}
+} // namespace
+
+// The butterflies are the mode sums exactly (integer data: every sum is exact):
+// Y_k = sum_I phi_k(I) y_I and y_I = sum_{k >= 1} phi_k(I) F_k; the hourglass modes 4-7 are the
+// Flanagan-Belytschko base vectors in hex8_hourglass_base's order; the modes are orthogonal
+// (to modes and back gives 8 y less the mean).
+TEST(Hex8Modes, ButterfliesAreTheModeSums)
+{
+    std::mt19937 gen(2);
+    std::uniform_int_distribution<int> k(-1000, 1000);
+    for (int a = 0; a < 4; ++a)
+        for (int I = 0; I < 8; ++I)
+            ASSERT_EQ(mode_at_node(mode_xi_eta + a, I), hex8_hourglass_base[a][I]) << a << " " << I;
+    for (int trial = 0; trial < 100; ++trial)
     {
-        EXPECT_EQ(tab.pair_k[p], VG::pairs[p][0]) << p;
-        EXPECT_EQ(tab.pair_l[p], VG::pairs[p][1]) << p;
-    }
-    for (int I = 0; I < 8; ++I)
-    {
-        ASSERT_EQ(tab.node_offsets[I + 1] - tab.node_offsets[I], 9) << I;
-        for (int t = 0; t < 9; ++t)
+        real_t y[8][3], F[8][3], Y[8][3], z[8][3], back[8][3];
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+            {
+                y[I][d] = k(gen);
+                F[I][d] = k(gen);
+            }
+        hex8_to_modes(y, Y);
+        hex8_from_modes_no_mean(F, z);
+        hex8_from_modes_no_mean(Y, back);
+        for (int d = 0; d < 3; ++d)
         {
-            const int k = tab.node_offsets[I] + t;
-            EXPECT_EQ(tab.term_pair[k], VG::terms[I][t][0]) << I << " " << t;
-            EXPECT_EQ(tab.term_coef[k], VG::terms[I][t][1] / 12.0) << I << " " << t;
+            for (int m = 0; m < 8; ++m)
+            {
+                real_t ref = 0.0;
+                for (int I = 0; I < 8; ++I)
+                    ref += mode_at_node(m, I) * y[I][d];
+                ASSERT_EQ(Y[m][d], ref) << "mode " << m;
+            }
+            for (int I = 0; I < 8; ++I)
+            {
+                real_t ref = 0.0;
+                for (int m = 1; m < 8; ++m)
+                    ref += mode_at_node(m, I) * F[m][d];
+                ASSERT_EQ(z[I][d], ref) << "node " << I;
+                ASSERT_EQ(back[I][d], 8 * y[I][d] - Y[mode_const][d]) << "node " << I;
+            }
         }
     }
 }
 
-// The hourglass butterflies equal the sums over the base vectors (exactly, on integers; to
-// round-off on reals): s_a = sum_J Gamma_aJ y_J, and the transpose y_J = sum_a Gamma_aJ s_a.
-TEST(Hex8Basis, HourglassButterfliesEqualTheBaseVectorSums)
+// The mode form of the exact-volume gradient (12 cross products of position modes) is the
+// nodal form (hex8_volume_gradient, itself checked against 2x2x2 Gauss above) to round-off on
+// distorted elements: the same V and b_I = sum_k phi_k(I) B_k. The twist mode has no gradient
+// (B_7 = 0): its component of the nodal b, sum_I Gamma_3I b_I, vanishes to round-off. The
+// largest face area from the modes is the one from each face's diagonals (area = |d1 x d2| / 2).
+TEST(Hex8Modes, VolumeGradientAndFaceAreasEqualTheNodalForms)
 {
-    std::mt19937 gen(2);
-    std::uniform_int_distribution<int> k(-1000, 1000);
-    for (int trial = 0; trial < 100; ++trial)
+    for (unsigned seed = 1; seed <= 20; ++seed)
     {
-        real_t y[8], q[4];
-        for (auto& v : y)
-            v = k(gen);
-        for (auto& v : q)
-            v = k(gen);
-        real_t s[4], z[8];
-        hourglass_sums(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], s[0], s[1], s[2], s[3]);
-        hourglass_spread(q[0], q[1], q[2], q[3], z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7]);
-        for (int a = 0; a < 4; ++a)
+        real_t xe[8][3], b[8][3], A[8][3], B[8][3], bm[8][3];
+        distorted_element(seed, xe);
+        const real_t V = hex8_volume_gradient(xe, b);
+        hex8_to_modes(xe, A);
+        const real_t Vm = hex8_mode_volume_gradient(A, B);
+        hex8_from_modes_no_mean(B, bm);
+        EXPECT_NEAR(Vm, V, 1e-14 * V);
+        const real_t bscale = std::cbrt(V * V);
+        for (int d = 0; d < 3; ++d)
         {
-            real_t ref = 0.0;
-            for (int J = 0; J < 8; ++J)
-                ref += hex8_hourglass_base[a][J] * y[J];
-            ASSERT_EQ(s[a], ref) << "mode " << a;
+            EXPECT_EQ(B[mode_const][d], 0.0);
+            EXPECT_EQ(B[mode_xi_eta_zeta][d], 0.0);
+            real_t twist = 0.0;
+            for (int I = 0; I < 8; ++I)
+            {
+                EXPECT_NEAR(bm[I][d], b[I][d], 1e-14 * bscale) << "node " << I << " dir " << d;
+                twist += hex8_hourglass_base[3][I] * b[I][d];
+            }
+            EXPECT_NEAR(twist, 0.0, 1e-14 * bscale) << "dir " << d;
         }
-        for (int J = 0; J < 8; ++J)
+        real_t amax2 = 0.0;
+        for (const auto& f : hex_faces)
         {
-            real_t ref = 0.0;
-            for (int a = 0; a < 4; ++a)
-                ref += hex8_hourglass_base[a][J] * q[a];
-            ASSERT_EQ(z[J], ref) << "node " << J;
+            real_t d1[3], d2[3];
+            for (int d = 0; d < 3; ++d)
+            {
+                d1[d] = xe[f[2]][d] - xe[f[0]][d];
+                d2[d] = xe[f[3]][d] - xe[f[1]][d];
+            }
+            const real_t cx = d1[1] * d2[2] - d1[2] * d2[1], cy = d1[2] * d2[0] - d1[0] * d2[2],
+                         cz = d1[0] * d2[1] - d1[1] * d2[0];
+            amax2 = std::max(amax2, 0.25 * (cx * cx + cy * cy + cz * cz));
         }
+        EXPECT_NEAR(hex8_mode_max_face_area2(A), amax2, 1e-14 * amax2);
+    }
+}
+
+// The element kernels run the same templates on lane vectors (simd::d8, fused multiply-adds):
+// eight distorted elements in the lanes give each element's scalar volume, gradient modes and
+// face area to round-off.
+TEST(Hex8Modes, LaneVectorsGiveTheScalarResults)
+{
+    alignas(64) real_t xl[8][3][8];
+    real_t Vs[8], Bs[8][8][3], as[8];
+    for (int l = 0; l < 8; ++l)
+    {
+        real_t xe[8][3], A[8][3];
+        distorted_element(100 + l, xe);
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                xl[I][d][l] = xe[I][d];
+        hex8_to_modes(xe, A);
+        Vs[l] = hex8_mode_volume_gradient(A, Bs[l]);
+        as[l] = hex8_mode_max_face_area2(A);
+    }
+    simd::d8 x[8][3], A[8][3], B[8][3];
+    for (int I = 0; I < 8; ++I)
+        for (int d = 0; d < 3; ++d)
+            x[I][d] = simd::load(xl[I][d]);
+    hex8_to_modes(x, A);
+    alignas(64) real_t V[8], a2[8], Bl[8][3][8];
+    simd::store(V, hex8_mode_volume_gradient(A, B));
+    simd::store(a2, hex8_mode_max_face_area2(A));
+    for (int k = 0; k < 8; ++k)
+        for (int d = 0; d < 3; ++d)
+            simd::store(Bl[k][d], B[k][d]);
+    for (int l = 0; l < 8; ++l)
+    {
+        EXPECT_NEAR(V[l], Vs[l], 1e-14 * Vs[l]) << "lane " << l;
+        EXPECT_NEAR(a2[l], as[l], 1e-14 * as[l]) << "lane " << l;
+        const real_t bscale = std::cbrt(Vs[l] * Vs[l]);
+        for (int k = 0; k < 8; ++k)
+            for (int d = 0; d < 3; ++d)
+                EXPECT_NEAR(Bl[k][d][l], Bs[l][k][d], 1e-15 * bscale) << "lane " << l << " mode " << k;
+    }
+}
+
+// The lane helpers keep std::min / std::max's rule (a NaN first operand is kept: the kernels'
+// time step and face-area maxima rely on it), and where_negative selects by sign.
+TEST(Simd, LaneHelpersFollowTheScalarRules)
+{
+    const real_t nan = std::numeric_limits<real_t>::quiet_NaN();
+    alignas(64) const real_t a[8] = {1.0, -2.0, nan, 3.0, nan, 0.0, -0.0, 5.0};
+    alignas(64) const real_t b[8] = {2.0, -3.0, 1.0, nan, nan, -0.0, 0.0, -5.0};
+    alignas(64) real_t mn[8], mx[8], wn[8], fm[8];
+    const simd::d8 va = simd::load(a), vb = simd::load(b);
+    simd::store(mn, simd::min(va, vb));
+    simd::store(mx, simd::max(va, vb));
+    simd::store(wn, simd::where_negative(va, vb));
+    simd::store(fm, simd::mul_add(va, vb, simd::broadcast(0.5)));
+    for (int l = 0; l < 8; ++l)
+    {
+        const real_t rmin = std::min(a[l], b[l]), rmax = std::max(a[l], b[l]);
+        EXPECT_TRUE(std::isnan(rmin) ? std::isnan(mn[l]) : mn[l] == rmin && std::signbit(mn[l]) == std::signbit(rmin))
+            << "lane " << l;
+        EXPECT_TRUE(std::isnan(rmax) ? std::isnan(mx[l]) : mx[l] == rmax && std::signbit(mx[l]) == std::signbit(rmax))
+            << "lane " << l;
+        const real_t rw = a[l] < 0.0 ? b[l] : 0.0;
+        EXPECT_TRUE(std::isnan(rw) ? std::isnan(wn[l]) : wn[l] == rw) << "lane " << l;
+        const real_t rf = std::fma(a[l], b[l], 0.5);
+        EXPECT_TRUE(std::isnan(rf) ? std::isnan(fm[l]) : fm[l] == rf) << "lane " << l;
     }
 }

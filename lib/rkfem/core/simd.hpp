@@ -10,11 +10,107 @@
 #define RKFEM_WIDE_VECTORS
 #endif
 
+#include <cmath>
+#include <cstring>
+#include <type_traits>
+
+/// Inlined into the batch kernels whatever the size heuristics say: their arguments are arrays
+/// of lane vectors, which stay in registers only when the call is inlined.
+#define RKFEM_LANE_INLINE inline __attribute__((always_inline))
+
 #if defined(__AVX512F__)
 #include <immintrin.h>
+#endif
+
+#if !defined(__AVX512F__)
+// GCC notes that a 64-byte vector passed by value has another ABI where AVX-512 is enabled
+// (once per translation unit, wherever d8 first crosses a call): the lane helpers and kernels
+// are inline or internal, no such call crosses a library boundary.
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
 
 namespace rkfem::simd
 {
+/// A lane vector of 8 doubles for the batch kernels (one batch of 8 elements or points, one
+/// register): an AVX-512 register where the CPU has one, else GCC's generic vector (lowered to
+/// what the CPU has). Arithmetic operators work on it directly; the helpers below add the fused
+/// multiply-add, sqrt, min and max. The same helpers on real_t let templates run on scalars:
+/// there mul_add is the expression a * b + c, so scalar callers compile as they did when they
+/// wrote it out (GCC contracts it to an FMA where the CPU has one, as it does the written form).
+#if defined(__AVX512F__)
+using d8 = __m512d;
+inline d8 broadcast(double a) { return _mm512_set1_pd(a); }
+inline d8 load(const double* p) { return _mm512_loadu_pd(p); }
+inline void store(double* p, d8 a) { _mm512_storeu_pd(p, a); }
+/// a b + c, fused
+inline d8 mul_add(d8 a, d8 b, d8 c) { return _mm512_fmadd_pd(a, b, c); }
+/// c - a b, fused
+inline d8 neg_mul_add(d8 a, d8 b, d8 c) { return _mm512_fnmadd_pd(a, b, c); }
+inline d8 sqrt(d8 a) { return _mm512_sqrt_pd(a); }
+/// std::min's lane rule, (b < a) ? b : a (a NaN a is kept)
+// (a compare and a blend: GCC 12's _mm512_min_pd / _mm512_max_pd start from an undefined
+// source that -Wuninitialized reports wherever they are inlined)
+inline d8 min(d8 a, d8 b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(b, a, _CMP_LT_OQ), a, b); }
+/// std::max's lane rule, (a < b) ? b : a (a NaN a is kept)
+inline d8 max(d8 a, d8 b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), a, b); }
+/// v where x < 0, else 0
+inline d8 where_negative(d8 x, d8 v)
+{
+    return _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(x, _mm512_setzero_pd(), _CMP_LT_OQ), v);
+}
+#else
+typedef double d8 __attribute__((vector_size(64)));
+inline d8 broadcast(double a) { return d8{} + a; }
+inline d8 load(const double* p)
+{
+    d8 r;
+    std::memcpy(&r, p, sizeof r);
+    return r;
+}
+inline void store(double* p, d8 a) { std::memcpy(p, &a, sizeof a); }
+inline d8 mul_add(d8 a, d8 b, d8 c) { return a * b + c; }
+inline d8 neg_mul_add(d8 a, d8 b, d8 c) { return c - a * b; }
+inline d8 sqrt(d8 a)
+{
+    for (int l = 0; l < 8; ++l)
+        a[l] = std::sqrt(a[l]);
+    return a;
+}
+inline d8 min(d8 a, d8 b) { return b < a ? b : a; }
+inline d8 max(d8 a, d8 b) { return a < b ? b : a; }
+inline d8 where_negative(d8 x, d8 v) { return x < 0.0 ? v : d8{}; }
+#endif
+inline double mul_add(double a, double b, double c) { return a * b + c; }
+inline double neg_mul_add(double a, double b, double c) { return c - a * b; }
+/// A scalar operand among lane vectors is broadcast.
+inline d8 lanes(double a) { return broadcast(a); }
+inline d8 lanes(d8 a) { return a; }
+template <class A, class B, class C>
+    requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>))
+inline d8 mul_add(A a, B b, C c)
+{
+    return mul_add(lanes(a), lanes(b), lanes(c));
+}
+template <class A, class B, class C>
+    requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>))
+inline d8 neg_mul_add(A a, B b, C c)
+{
+    return neg_mul_add(lanes(a), lanes(b), lanes(c));
+}
+inline double min(double a, double b) { return b < a ? b : a; }
+inline double max(double a, double b) { return a < b ? b : a; }
+inline double sqrt(double a) { return std::sqrt(a); }
+inline double where_negative(double x, double v) { return x < 0.0 ? v : 0.0; }
+/// a scalar as T: itself for real_t, broadcast for a lane vector
+template <class T> inline T lanes_like(double a)
+{
+    if constexpr (std::is_same_v<T, double>)
+        return a;
+    else
+        return broadcast(a);
+}
+
+#if defined(__AVX512F__)
 /// Eight (x, y, z) triples, node-major in a, b, c (x0 y0 z0 x1 ... z7), to one vector per
 /// component (lane l = triple l): two two-source permutes per component.
 inline void deinterleave3(__m512d a, __m512d b, __m512d c, __m512d& X, __m512d& Y, __m512d& Z)
@@ -48,5 +144,5 @@ inline void interleave4(__m512d X, __m512d Y, __m512d Z, __m512d q[4])
     q[2] = _mm512_permutex2var_pd(xy_b, first, z_b);
     q[3] = _mm512_permutex2var_pd(xy_b, second, z_b);
 }
-} // namespace rkfem::simd
 #endif
+} // namespace rkfem::simd

@@ -35,19 +35,21 @@ struct ElasticParams
 /// independent spin components, W = (L - L^T)/2. The Jaumann rotation is integrated by the
 /// Hughes-Winget rule (objective_rate.hpp), then the elastic increment is added.
 /// The update on scalars (the element kernels' lane loops vectorize over this form).
-inline void elastic_update(const ElasticParams& p, real_t d0, real_t d1, real_t d2, real_t d3, real_t d4, real_t d5,
-                           real_t w0, real_t w1, real_t w2, real_t dt, real_t& s0, real_t& s1, real_t& s2,
-                           real_t& s3, real_t& s4, real_t& s5)
+/// T is real_t or a lane vector (simd::d8).
+template <class T>
+inline void elastic_update(const ElasticParams& p, T d0, T d1, T d2, T d3, T d4, T d5, T w0, T w1, T w2, real_t dt,
+                           T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
 {
     rotate_stress(w0, w1, w2, dt, s0, s1, s2, s3, s4, s5);
-    const real_t l = p.lambda * (d0 + d1 + d2);
+    const T l = p.lambda * (d0 + d1 + d2);
     const real_t m2 = 2.0 * p.mu;
-    s0 += dt * (l + m2 * d0);
-    s1 += dt * (l + m2 * d1);
-    s2 += dt * (l + m2 * d2);
-    s3 += dt * m2 * d3;
-    s4 += dt * m2 * d4;
-    s5 += dt * m2 * d5;
+    // s += dt (l + m2 d), s += (dt m2) d: fused on lane vectors (simd::mul_add)
+    s0 = simd::mul_add(dt, simd::mul_add(m2, d0, l), s0);
+    s1 = simd::mul_add(dt, simd::mul_add(m2, d1, l), s1);
+    s2 = simd::mul_add(dt, simd::mul_add(m2, d2, l), s2);
+    s3 = simd::mul_add(dt * m2, d3, s3);
+    s4 = simd::mul_add(dt * m2, d4, s4);
+    s5 = simd::mul_add(dt * m2, d5, s5);
 }
 
 inline void elastic_update(const ElasticParams& p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])

@@ -5,40 +5,46 @@
 /// which is exactly orthogonal, so a rigid rotation leaves the stress invariants unchanged to
 /// round-off (the additive update sigma + dt (W sigma - sigma W) drifts by O(dt^2) per step).
 /// Voigt order xx yy zz xy yz zx; w = (W_xy, W_yz, W_zx), W = (L - L^T)/2.
+#include "rkfem/core/simd.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
 {
 /// The rotation on six scalars (the element kernels' lane loops vectorize over this form; the
-/// array form below calls it).
-inline void rotate_stress(real_t w0, real_t w1, real_t w2, real_t dt, real_t& s0, real_t& s1, real_t& s2, real_t& s3,
-                          real_t& s4, real_t& s5)
+/// array form below calls it). T is real_t or a lane vector (simd::d8) of 8 points.
+template <class T>
+inline void rotate_stress(T w0, T w1, T w2, real_t dt, T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
 {
+    using simd::mul_add;
+    using simd::neg_mul_add;
     const real_t h = 0.5 * dt;
-    const real_t a = h * w0, b = h * w1, c = h * w2; // half-step spin: xy, yz, zx
+    const T a = h * w0, b = h * w1, c = h * w2; // half-step spin: xy, yz, zx
     // A = h W = [[0, a, -c], [-a, 0, b], [c, -b, 0]]; Cayley transform of a skew matrix:
     // R = (1 - A)^-1 (1 + A) = 1 + k (A + A^2), k = 2 / (1 + a^2 + b^2 + c^2).
-    const real_t k = 2.0 / (1.0 + a * a + b * b + c * c);
+    // (mul_add(x, y, z) is x y + z: fused on lane vectors, in this order unfused on scalars)
+    const T k = 2.0 / mul_add(c, c, mul_add(b, b, mul_add(a, a, 1.0)));
     // A^2 (symmetric): [[-a2-c2, bc, ab], [bc, -a2-b2, ac], [ab, ac, -b2-c2]]
-    const real_t r00 = 1.0 + k * (-a * a - c * c), r11 = 1.0 + k * (-a * a - b * b), r22 = 1.0 + k * (-b * b - c * c);
-    const real_t r01 = k * (a + b * c), r10 = k * (-a + b * c);
-    const real_t r02 = k * (-c + a * b), r20 = k * (c + a * b);
-    const real_t r12 = k * (b + a * c), r21 = k * (-b + a * c);
-    const real_t s00 = s0, s11 = s1, s22 = s2, s01 = s3, s12 = s4, s20 = s5;
-    // T = R S
-    const real_t t00 = r00 * s00 + r01 * s01 + r02 * s20, t01 = r00 * s01 + r01 * s11 + r02 * s12,
-                 t02 = r00 * s20 + r01 * s12 + r02 * s22;
-    const real_t t10 = r10 * s00 + r11 * s01 + r12 * s20, t11 = r10 * s01 + r11 * s11 + r12 * s12,
-                 t12 = r10 * s20 + r11 * s12 + r12 * s22;
-    const real_t t20 = r20 * s00 + r21 * s01 + r22 * s20, t21 = r20 * s01 + r21 * s11 + r22 * s12,
-                 t22 = r20 * s20 + r21 * s12 + r22 * s22;
+    const T r00 = mul_add(k, neg_mul_add(c, c, -(a * a)), 1.0), r11 = mul_add(k, neg_mul_add(b, b, -(a * a)), 1.0),
+            r22 = mul_add(k, neg_mul_add(c, c, -(b * b)), 1.0);
+    const T r01 = k * mul_add(b, c, a), r10 = k * mul_add(b, c, -a);
+    const T r02 = k * mul_add(a, b, -c), r20 = k * mul_add(a, b, c);
+    const T r12 = k * mul_add(a, c, b), r21 = k * mul_add(a, c, -b);
+    const T s00 = s0, s11 = s1, s22 = s2, s01 = s3, s12 = s4, s20 = s5;
+    // T = R S, row . column as x0 y0 + x1 y1 + x2 y2 left to right
+    auto dot = [](T x0, T y0, T x1, T y1, T x2, T y2) { return mul_add(x2, y2, mul_add(x1, y1, x0 * y0)); };
+    const T t00 = dot(r00, s00, r01, s01, r02, s20), t01 = dot(r00, s01, r01, s11, r02, s12),
+            t02 = dot(r00, s20, r01, s12, r02, s22);
+    const T t10 = dot(r10, s00, r11, s01, r12, s20), t11 = dot(r10, s01, r11, s11, r12, s12),
+            t12 = dot(r10, s20, r11, s12, r12, s22);
+    const T t20 = dot(r20, s00, r21, s01, r22, s20), t21 = dot(r20, s01, r21, s11, r22, s12),
+            t22 = dot(r20, s20, r21, s12, r22, s22);
     // S' = T R^T
-    s0 = t00 * r00 + t01 * r01 + t02 * r02;
-    s1 = t10 * r10 + t11 * r11 + t12 * r12;
-    s2 = t20 * r20 + t21 * r21 + t22 * r22;
-    s3 = t00 * r10 + t01 * r11 + t02 * r12;
-    s4 = t10 * r20 + t11 * r21 + t12 * r22;
-    s5 = t20 * r00 + t21 * r01 + t22 * r02;
+    s0 = dot(t00, r00, t01, r01, t02, r02);
+    s1 = dot(t10, r10, t11, r11, t12, r12);
+    s2 = dot(t20, r20, t21, r21, t22, r22);
+    s3 = dot(t00, r10, t01, r11, t02, r12);
+    s4 = dot(t10, r20, t11, r21, t12, r22);
+    s5 = dot(t20, r00, t21, r01, t22, r02);
 }
 
 inline void rotate_stress(const real_t w[3], real_t dt, real_t s[6])

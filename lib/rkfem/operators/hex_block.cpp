@@ -6,6 +6,7 @@
 #include <type_traits>
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/approximation/fem/hex8_modes.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
@@ -28,124 +29,125 @@ constexpr int W = 8; // lanes per batch (one AVX-512 register of doubles)
 
 index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 
-/// One batch of W elements. FULL: all W lanes are elements (every batch but a partial last one),
-/// so the lane loops carry no lane test and the material/bulk-viscosity loop vectorizes.
-// 512-bit lane loops (core/simd.hpp; 1-point viscous at 1e4 elements: 67 -> 61 ns per
-// element-cycle)
+/// One batch of W elements, one element per lane of a simd::d8. FULL: all W lanes are elements
+/// (every batch but a partial last one), so loads and stores are whole lane vectors; a partial
+/// batch's lanes past the block's end repeat its first element and are not stored.
+///
+/// The element is worked in its mode basis (hex8_modes.hpp): positions and velocities go to
+/// modes in one butterfly each, the exact-volume gradient is 12 cross products of position
+/// modes, the velocity gradient and the hourglass velocities come from the velocity modes, and
+/// the nodal forces (stress and hourglass) are one inverse butterfly of their modes.
 template <HourglassType HG, bool PLASTIC, bool FULL>
 RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt, real_t* buf, index_t lo)
 {
+    using simd::d8;
+    using simd::mul_add;
     const index_t ne = blk.n_elements();
     const index_t e0 = batch * W;
     const int nl = FULL ? W : static_cast<int>(std::min<index_t>(W, ne - e0));
     auto lane_element = [&](int l) { return static_cast<std::size_t>(e0 + (FULL || l < nl ? l : 0)); };
-    auto active = [&](int l) { return FULL || l < nl; };
+    // a field of the block's elements (component stride n) for the batch's lanes
+    auto load_lanes = [&](const real_t* field) -> d8
+    {
+        if constexpr (FULL)
+            return simd::load(field + e0);
+        else
+        {
+            alignas(64) real_t t[W];
+            for (int l = 0; l < W; ++l)
+                t[l] = field[lane_element(l)];
+            return simd::load(t);
+        }
+    };
+    auto store_lanes = [&](real_t* field, d8 v)
+    {
+        if constexpr (FULL)
+            simd::store(field + e0, v);
+        else
+        {
+            alignas(64) real_t t[W];
+            simd::store(t, v);
+            for (int l = 0; l < nl; ++l)
+                field[e0 + l] = t[l];
+        }
+    };
 
-    alignas(64) real_t xe[8][3][W];
-    alignas(64) real_t ve[8][3][W];
 #if defined(__AVX512F__)
     // bit I: node I of the batch's 8 elements is 8 consecutive nodes (as along a structured
-    // mesh's rows), loaded with line loads and permutes here and added as whole vectors below
+    // mesh's rows), loaded with line loads and permutes and added as whole vectors below
     unsigned consecutive = 0;
+    const index_t* g3 = FULL ? &blk.gather_index[64 * static_cast<std::size_t>(batch)] : nullptr;
     if constexpr (FULL)
     {
-        // node I of the batch's 8 elements: one 8-lane gather per coordinate, or the line loads
-        const index_t* g3 = &blk.gather_index[64 * static_cast<std::size_t>(batch)];
         const __m256i step = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
         for (int I = 0; I < 8; ++I)
         {
             const __m256i idx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(g3 + 8 * I));
             const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(g3[8 * I]), step);
-            if (_mm256_cmpeq_epi32_mask(idx, row) == 0xFF)
-            {
-                consecutive |= 1u << I;
-                __m512d X, Y, Z;
-                simd::load_triples(nodes.x.data() + g3[8 * I], X, Y, Z);
-                _mm512_store_pd(xe[I][0], X);
-                _mm512_store_pd(xe[I][1], Y);
-                _mm512_store_pd(xe[I][2], Z);
-                simd::load_triples(nodes.v.data() + g3[8 * I], X, Y, Z);
-                _mm512_store_pd(ve[I][0], X);
-                _mm512_store_pd(ve[I][1], Y);
-                _mm512_store_pd(ve[I][2], Z);
-                continue;
-            }
-            for (int d = 0; d < 3; ++d)
-            {
-                _mm512_store_pd(xe[I][d], _mm512_i32gather_pd(idx, nodes.x.data() + d, 8));
-                _mm512_store_pd(ve[I][d], _mm512_i32gather_pd(idx, nodes.v.data() + d, 8));
-            }
+            consecutive |= (_mm256_cmpeq_epi32_mask(idx, row) == 0xFF ? 1u : 0u) << I;
         }
     }
-    else
 #endif
-    for (int l = 0; l < W; ++l)
+    // the modes Y_k (k = 1..7; the constant mode is not used) of a nodal field (x or v) over the
+    // batch's elements: node I of the 8 elements by line loads or one 8-lane gather per component
+    auto field_modes = [&](const std::vector<real_t>& field, d8 (&Y)[8][3]) __attribute__((always_inline))
     {
-        const std::size_t e = lane_element(l);
-        const index_t* c = &blk.conn[8 * e];
-        for (int I = 0; I < 8; ++I)
+        d8 y[8][3];
+#if defined(__AVX512F__)
+        if constexpr (FULL)
         {
-            const std::size_t n = 3 * static_cast<std::size_t>(c[I]);
-            for (int d = 0; d < 3; ++d)
+            for (int I = 0; I < 8; ++I)
             {
-                xe[I][d][l] = nodes.x[n + d];
-                ve[I][d][l] = nodes.v[n + d];
+                if (consecutive >> I & 1u)
+                {
+                    simd::load_triples(field.data() + g3[8 * I], y[I][0], y[I][1], y[I][2]);
+                    continue;
+                }
+                const __m256i idx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(g3 + 8 * I));
+                for (int d = 0; d < 3; ++d)
+                    y[I][d] = _mm512_i32gather_pd(idx, field.data() + d, 8);
             }
         }
-    }
-
-    // b_I = dV/dx_I (Flanagan-Belytschko, exact volume integration), from the compile-time
-    // table: 24 pair cross products, then nine +-1/12 terms per node (unrolled)
-    using VG = Hex8VolumeGradientFixed;
-    alignas(64) real_t cr[VG::n_pairs][3][W];
-#pragma GCC unroll 24
-    for (int p = 0; p < VG::n_pairs; ++p)
-    {
-        const int k = VG::pairs[p][0], m = VG::pairs[p][1];
-#pragma omp simd
-        for (int l = 0; l < W; ++l)
+        else
+#endif
         {
-            cr[p][0][l] = xe[k][1][l] * xe[m][2][l] - xe[k][2][l] * xe[m][1][l];
-            cr[p][1][l] = xe[k][2][l] * xe[m][0][l] - xe[k][0][l] * xe[m][2][l];
-            cr[p][2][l] = xe[k][0][l] * xe[m][1][l] - xe[k][1][l] * xe[m][0][l];
-        }
-    }
-    alignas(64) real_t b[8][3][W];
-#pragma GCC unroll 8
-    for (int I = 0; I < 8; ++I)
-        for (int d = 0; d < 3; ++d)
-#pragma omp simd
+            alignas(64) real_t yl[8][3][W];
             for (int l = 0; l < W; ++l)
             {
-                real_t s = 0.0;
-#pragma GCC unroll 9
-                for (int t = 0; t < 9; ++t)
-                    s += VG::terms[I][t][1] * cr[VG::terms[I][t][0]][d][l];
-                b[I][d][l] = s * (1.0 / 12.0);
+                const index_t* c = &blk.conn[8 * lane_element(l)];
+                for (int I = 0; I < 8; ++I)
+                    for (int d = 0; d < 3; ++d)
+                        yl[I][d][l] = field[3 * static_cast<std::size_t>(c[I]) + d];
             }
-    alignas(64) real_t vol[W], inv_v[W];
-#pragma omp simd
-    for (int l = 0; l < W; ++l)
-    {
-        real_t s = 0.0;
-        for (int I = 0; I < 8; ++I)
-            s += b[I][0][l] * xe[I][0][l] + b[I][1][l] * xe[I][1][l] + b[I][2][l] * xe[I][2][l];
-        vol[l] = s / 3.0;
-        inv_v[l] = 1.0 / vol[l];
-    }
+            for (int I = 0; I < 8; ++I)
+                for (int d = 0; d < 3; ++d)
+                    y[I][d] = simd::load(yl[I][d]);
+        }
+        hex8_to_modes(y, Y);
+    };
 
-    // velocity gradient L_ij = (1/V) sum_I v_iI b_jI
-    alignas(64) real_t L[3][3][W];
+    // b_I = dV/dx_I in modes (Flanagan-Belytschko, exact volume integration), the volume, and
+    // the velocity gradient L_ij = (1/V) sum_I v_iI b_jI = (1/V) sum_k U_ki B_kj (positions
+    // first, velocities after: fewer lane vectors live at once)
+    d8 A[8][3], B[8][3];
+    field_modes(nodes.x, A);
+    const d8 vol = hex8_mode_volume_gradient(A, B);
+    // characteristic length lc = V / a with a the largest face area: one division for 1/V and 1/a
+    const d8 area = simd::sqrt(hex8_mode_max_face_area2(A));
+    const d8 r = 1.0 / (vol * area);
+    const d8 inv_v = r * area, inv_a = r * vol;
+    const d8 lc = vol * inv_a;
+    d8 U[8][3];
+    field_modes(nodes.v, U);
+    d8 L[3][3];
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
-#pragma omp simd
-            for (int l = 0; l < W; ++l)
-            {
-                real_t s = 0.0;
-                for (int I = 0; I < 8; ++I)
-                    s += ve[I][i][l] * b[I][j][l];
-                L[i][j][l] = s * inv_v[l];
-            }
+        {
+            d8 s = U[1][i] * B[1][j];
+            for (int k = 2; k <= 6; ++k)
+                s = mul_add(U[k][i], B[k][j], s);
+            L[i][j] = s * inv_v;
+        }
 
     const ElasticParams mat = blk.material;
     const real_t c = mat.wave_speed();
@@ -154,208 +156,154 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     const real_t* s_in = blk.stress.data();
     real_t* s_out = blk.stress_trial.data();
 
-    alignas(64) real_t sig[6][W]; // effective stress for the force (incl. bulk viscosity)
-    alignas(64) real_t lc[W], dt_e[W], de_int[W], de_bv[W];
-    // characteristic length from the largest face (staged over lanes so each loop vectorizes)
-    alignas(64) real_t amax2[W];
-#pragma omp simd
-    for (int l = 0; l < W; ++l)
-        amax2[l] = 0.0;
-#pragma GCC unroll 6
-    for (int fi = 0; fi < 6; ++fi)
+    // stress update (strain rate d, old and new stress kept for the stress power)
+    const d8 dl[6] = {L[0][0],
+                      L[1][1],
+                      L[2][2],
+                      0.5 * (L[0][1] + L[1][0]),
+                      0.5 * (L[1][2] + L[2][1]),
+                      0.5 * (L[2][0] + L[0][2])};
+    const d8 wl[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]), 0.5 * (L[2][0] - L[0][2])};
+    d8 so[6], sn[6];
+    for (int k = 0; k < 6; ++k)
+        so[k] = load_lanes(s_in + k * ss);
+    if constexpr (PLASTIC)
     {
-        const auto& f = hex_faces[fi];
-#pragma omp simd
-        for (int l = 0; l < W; ++l)
+        // the point's model update per lane
+        alignas(64) real_t dv[6][W], wv[3][W], sv[6][W];
+        for (int k = 0; k < 6; ++k)
         {
-            const real_t a0 = xe[f[2]][0][l] - xe[f[0]][0][l], a1 = xe[f[2]][1][l] - xe[f[0]][1][l],
-                         a2 = xe[f[2]][2][l] - xe[f[0]][2][l];
-            const real_t b0 = xe[f[3]][0][l] - xe[f[1]][0][l], b1 = xe[f[3]][1][l] - xe[f[1]][1][l],
-                         b2 = xe[f[3]][2][l] - xe[f[1]][2][l];
-            const real_t cx = a1 * b2 - a2 * b1, cy = a2 * b0 - a0 * b2, cz = a0 * b1 - a1 * b0;
-            const real_t a = 0.25 * (cx * cx + cy * cy + cz * cz);
-            amax2[l] = a > amax2[l] ? a : amax2[l];
+            simd::store(dv[k], dl[k]);
+            simd::store(sv[k], so[k]);
         }
-    }
-    // stress update per lane (strain rate d, old and new stress kept for the stress power)
-    alignas(64) real_t dl[6][W], so[6][W], sn[6][W];
-    if constexpr (FULL && !PLASTIC)
-    {
-        // straight-line over lanes: vectorizes
-#pragma omp simd
-        for (int l = 0; l < W; ++l)
+        for (int k = 0; k < 3; ++k)
+            simd::store(wv[k], wl[k]);
+        for (int l = 0; l < nl; ++l)
         {
-            const std::size_t e = static_cast<std::size_t>(e0) + l;
-            const real_t d0 = L[0][0][l], d1 = L[1][1][l], d2 = L[2][2][l];
-            const real_t d3 = 0.5 * (L[0][1][l] + L[1][0][l]), d4 = 0.5 * (L[1][2][l] + L[2][1][l]),
-                         d5 = 0.5 * (L[2][0][l] + L[0][2][l]);
-            real_t s0 = s_in[e], s1 = s_in[ss + e], s2 = s_in[2 * ss + e], s3 = s_in[3 * ss + e],
-                   s4 = s_in[4 * ss + e], s5 = s_in[5 * ss + e];
-            so[0][l] = s0, so[1][l] = s1, so[2][l] = s2, so[3][l] = s3, so[4][l] = s4, so[5][l] = s5;
-            dl[0][l] = d0, dl[1][l] = d1, dl[2][l] = d2, dl[3][l] = d3, dl[4][l] = d4, dl[5][l] = d5;
-            elastic_update(mat, d0, d1, d2, d3, d4, d5, 0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
-                           0.5 * (L[2][0][l] - L[0][2][l]), dt, s0, s1, s2, s3, s4, s5);
-            sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
+            const real_t d[6] = {dv[0][l], dv[1][l], dv[2][l], dv[3][l], dv[4][l], dv[5][l]};
+            const real_t w[3] = {wv[0][l], wv[1][l], wv[2][l]};
+            real_t s[6] = {sv[0][l], sv[1][l], sv[2][l], sv[3][l], sv[4][l], sv[5][l]};
+            blk.plastic.update(lane_element(l), d, w, dt, s);
+            for (int k = 0; k < 6; ++k)
+                sv[k][l] = s[k];
         }
-        store_batch8<6>(sn, s_out, ss, static_cast<std::size_t>(e0), buf != nullptr && blk.stream_stress);
+        for (int k = 0; k < 6; ++k)
+            sn[k] = simd::load(sv[k]);
     }
     else
     {
-        // a partial batch (lanes past the block's end repeat its first element, unstored) or an
-        // inelastic block (the point's model update per lane)
-        for (int l = 0; l < W; ++l)
-        {
-            const std::size_t e = lane_element(l);
-            const real_t d[6] = {L[0][0][l],
-                                 L[1][1][l],
-                                 L[2][2][l],
-                                 0.5 * (L[0][1][l] + L[1][0][l]),
-                                 0.5 * (L[1][2][l] + L[2][1][l]),
-                                 0.5 * (L[2][0][l] + L[0][2][l])};
-            const real_t w[3] = {0.5 * (L[0][1][l] - L[1][0][l]), 0.5 * (L[1][2][l] - L[2][1][l]),
-                                 0.5 * (L[2][0][l] - L[0][2][l])};
-            real_t s[6];
-            for (int k = 0; k < 6; ++k)
-                so[k][l] = s[k] = s_in[k * ss + e];
-            if constexpr (PLASTIC)
-            {
-                if (active(l))
-                    blk.plastic.update(e, d, w, dt, s);
-            }
-            else
-                elastic_update(mat, d, w, dt, s);
-            for (int k = 0; k < 6; ++k)
-            {
-                dl[k][l] = d[k];
-                sn[k][l] = s[k];
-                if (active(l))
-                    s_out[k * ss + e] = s[k];
-            }
-        }
+        for (int k = 0; k < 6; ++k)
+            sn[k] = so[k];
+        elastic_update(mat, dl[0], dl[1], dl[2], dl[3], dl[4], dl[5], wl[0], wl[1], wl[2], dt, sn[0], sn[1], sn[2],
+                       sn[3], sn[4], sn[5]);
     }
-    // bulk viscosity, time step, energies, effective stress
-#pragma omp simd
-    for (int l = 0; l < W; ++l)
+    if constexpr (FULL)
     {
-        const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
-        lc[l] = vol[l] / std::sqrt(amax2[l]);
-        const real_t rho = mat.rho * blk.volume0[lane_element(l)] / vol[l];
-        const real_t q = bulk_q(rho, c, lc[l], trd, q1, q2);
-        dt_e[l] = element_dt(c, lc[l], trd, q1, q2);
-        const real_t power = 0.5 * ((so[0][l] + sn[0][l]) * dl[0][l] + (so[1][l] + sn[1][l]) * dl[1][l] +
-                                    (so[2][l] + sn[2][l]) * dl[2][l]) +
-                             (so[3][l] + sn[3][l]) * dl[3][l] + (so[4][l] + sn[4][l]) * dl[4][l] +
-                             (so[5][l] + sn[5][l]) * dl[5][l];
-        de_int[l] = dt * vol[l] * power;
-        de_bv[l] = -dt * vol[l] * q * trd;
-        sig[0][l] = sn[0][l] - q;
-        sig[1][l] = sn[1][l] - q;
-        sig[2][l] = sn[2][l] - q;
-        sig[3][l] = sn[3][l];
-        sig[4][l] = sn[4][l];
-        sig[5][l] = sn[5][l];
+        alignas(64) real_t st[6][W];
+        for (int k = 0; k < 6; ++k)
+            simd::store(st[k], sn[k]);
+        store_batch8<6>(st, s_out, ss, static_cast<std::size_t>(e0), buf != nullptr && blk.stream_stress);
     }
+    else
+        for (int k = 0; k < 6; ++k)
+            store_lanes(s_out + k * ss, sn[k]);
 
-    // Hourglass control (Flanagan-Belytschko). Mode a has base vector Gamma_a and shape vector
-    // gamma_aI = Gamma_aI - (1/V) b_I . h_a with h_a = sum_J Gamma_aJ x_J. With g_a = sum_J
-    // Gamma_aJ v_J the hourglass velocity is qdot_ai = sum_I v_iI gamma_aI = g_ai - L_ij h_aj
-    // (sum_I v_iI b_jI = V L_ij), and the nodal forces sum_a gamma_aI Q_ai = sum_a Gamma_aI Q_ai
-    // - b_jI M_ji with M_ji = (1/V) sum_a h_aj Q_ai, which joins the stress term below. The
-    // Gamma sums over the nodes are butterflies (hourglass_sums, hourglass_spread).
-    alignas(64) real_t de_hg[W] = {};
-    alignas(64) real_t M[3][3][W] = {}; // M_ji at [j][i]
-    alignas(64) real_t hq[8][3][W];     // sum_a Gamma_aI Q_ai
-    if constexpr (HG != HourglassType::None)
-    {
-        const real_t qm = blk.hourglass.coefficient;
-        // per-lane hourglass coefficient: viscous a_h = QM rho c V^(2/3) / 4 with V^(2/3) taken
-        // as lc^2 (equal for cubes); stiffness k = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V)
-        // (Flanagan-Belytschko)
-        alignas(64) real_t coef[W];
-#pragma omp simd
-        for (int l = 0; l < W; ++l)
-        {
-            if constexpr (HG == HourglassType::Stiffness)
-            {
-                real_t bb = 0.0;
-                for (int I = 0; I < 8; ++I)
-                    bb += b[I][0][l] * b[I][0][l] + b[I][1][l] * b[I][1][l] + b[I][2][l] * b[I][2][l];
-                coef[l] = qm * mat.plane_wave_modulus() * bb * inv_v[l] / 3.0;
-            }
-            else
-                coef[l] = 0.25 * qm * mat.rho * c * lc[l] * lc[l];
-        }
-        alignas(64) real_t hx[4][3][W], g[4][3][W];
-        for (int d = 0; d < 3; ++d)
-#pragma omp simd
-            for (int l = 0; l < W; ++l)
-            {
-                hourglass_sums(xe[0][d][l], xe[1][d][l], xe[2][d][l], xe[3][d][l], xe[4][d][l], xe[5][d][l],
-                               xe[6][d][l], xe[7][d][l], hx[0][d][l], hx[1][d][l], hx[2][d][l], hx[3][d][l]);
-                hourglass_sums(ve[0][d][l], ve[1][d][l], ve[2][d][l], ve[3][d][l], ve[4][d][l], ve[5][d][l],
-                               ve[6][d][l], ve[7][d][l], g[0][d][l], g[1][d][l], g[2][d][l], g[3][d][l]);
-            }
-        // hourglass velocity and generalized force Q_ai
-        alignas(64) real_t Q[4][3][W];
-        for (int a = 0; a < 4; ++a)
-            for (int i = 0; i < 3; ++i)
-#pragma omp simd
-                for (int l = 0; l < W; ++l)
-                {
-                    real_t qd = g[a][i][l];
-                    if constexpr (HG != HourglassType::ViscousPlain) // the plain form takes gamma = Gamma
-                        qd -= L[i][0][l] * hx[a][0][l] + L[i][1][l] * hx[a][1][l] + L[i][2][l] * hx[a][2][l];
-                    if constexpr (HG == HourglassType::Stiffness)
-                    {
-                        const real_t k = coef[l];
-                        const std::size_t slot = static_cast<std::size_t>(3 * a + i) * np + lane_element(l);
-                        const real_t Qold = blk.hg_force[slot];
-                        const real_t Qnew = Qold + k * dt * qd;
-                        if (active(l))
-                            blk.hg_force_trial[slot] = Qnew;
-                        Q[a][i][l] = Qnew;
-                        de_hg[l] += 0.5 * (Qold + Qnew) * qd * dt;
-                    }
-                    else
-                    {
-                        Q[a][i][l] = coef[l] * qd;
-                        de_hg[l] += Q[a][i][l] * qd * dt;
-                    }
-                }
-        if constexpr (HG != HourglassType::ViscousPlain)
-            for (int j = 0; j < 3; ++j)
-                for (int i = 0; i < 3; ++i)
-#pragma omp simd
-                    for (int l = 0; l < W; ++l)
-                        M[j][i][l] = inv_v[l] * (hx[0][j][l] * Q[0][i][l] + hx[1][j][l] * Q[1][i][l] +
-                                                 hx[2][j][l] * Q[2][i][l] + hx[3][j][l] * Q[3][i][l]);
-        for (int i = 0; i < 3; ++i)
-#pragma omp simd
-            for (int l = 0; l < W; ++l)
-                hourglass_spread(Q[0][i][l], Q[1][i][l], Q[2][i][l], Q[3][i][l], hq[0][i][l], hq[1][i][l], hq[2][i][l],
-                                 hq[3][i][l], hq[4][i][l], hq[5][i][l], hq[6][i][l], hq[7][i][l]);
-    }
+    // bulk viscosity, time step, energies, effective stress (characteristic length: volume over
+    // the largest face area)
+    const d8 trd = dl[0] + dl[1] + dl[2];
+    const d8 rho = mat.rho * load_lanes(blk.volume0.data()) * inv_v;
+    const d8 q = bulk_q(rho, c, lc, trd, q1, q2);
+    // the stable step, kept as its inverse (no division per element; the batch's smallest step
+    // is one division): 1/lc = a/V
+    const d8 inv_dt = element_dt_inverse(c, lc, area * inv_v, trd, q1, q2);
+    d8 power = (so[0] + sn[0]) * dl[0];
+    power = mul_add(so[1] + sn[1], dl[1], power);
+    power = mul_add(so[2] + sn[2], dl[2], power) * 0.5;
+    for (int k = 3; k < 6; ++k)
+        power = mul_add(so[k] + sn[k], dl[k], power);
+    const d8 de_int = dt * vol * power;
+    const d8 de_bv = -dt * vol * q * trd;
+    const d8 sig[6] = {sn[0] - q, sn[1] - q, sn[2] - q, sn[3], sn[4], sn[5]};
 
-    // internal force f_iI = (sigma_ij - M_ji) b_jI + sum_a Gamma_aI Q_ai
-    alignas(64) real_t T[3][3][W]; // sigma_ij - M_ji
+    // Hourglass control (Flanagan-Belytschko). Mode a (base vector Gamma_a, position mode
+    // k = 4 + a) has gamma_aI = Gamma_aI - (1/V) b_I . h_a with h_a = sum_J Gamma_aJ x_J = A_k.
+    // With g_a = sum_J Gamma_aJ v_J = U_k the hourglass velocity is qdot_ai = sum_I v_iI gamma_aI
+    // = g_ai - L_ij h_aj, and the nodal forces sum_a gamma_aI Q_ai = sum_a Gamma_aI Q_ai - b_jI
+    // M_ji with M_ji = (1/V) sum_a h_aj Q_ai, which joins the stress term below.
+    d8 de_hg = simd::broadcast(0.0);
+    d8 T[3][3]; // sigma_ij - M_ji
     static constexpr int voigt[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}};
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
-#pragma omp simd
-            for (int l = 0; l < W; ++l)
-                T[i][j][l] = sig[voigt[i][j]][l] - M[j][i][l];
-    alignas(64) real_t f[8][3][W];
-    for (int I = 0; I < 8; ++I)
-        for (int i = 0; i < 3; ++i)
-#pragma omp simd
-            for (int l = 0; l < W; ++l)
+            T[i][j] = sig[voigt[i][j]];
+    d8 Q[4][3];
+    if constexpr (HG != HourglassType::None)
+    {
+        const real_t qm = blk.hourglass.coefficient;
+        // hourglass coefficient: viscous a_h = QM rho c V^(2/3) / 4 with V^(2/3) taken as lc^2
+        // (equal for cubes); stiffness k = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V)
+        // (Flanagan-Belytschko), sum_I |b_I|^2 = 8 sum_k |B_k|^2 by the modes' orthogonality
+        d8 coef;
+        if constexpr (HG == HourglassType::Stiffness)
+        {
+            d8 bb = B[1][0] * B[1][0];
+            for (int k = 1; k <= 6; ++k)
+                for (int d = k == 1 ? 1 : 0; d < 3; ++d)
+                    bb = mul_add(B[k][d], B[k][d], bb);
+            coef = qm * mat.plane_wave_modulus() * (8.0 * bb) * inv_v / 3.0;
+        }
+        else
+            coef = 0.25 * qm * mat.rho * c * lc * lc;
+        for (int a = 0; a < 4; ++a)
+            for (int i = 0; i < 3; ++i)
             {
-                const real_t fi = T[i][0][l] * b[I][0][l] + T[i][1][l] * b[I][1][l] + T[i][2][l] * b[I][2][l];
-                if constexpr (HG != HourglassType::None)
-                    f[I][i][l] = fi + hq[I][i][l];
+                const int k = mode_xi_eta + a;
+                d8 qd = U[k][i];
+                if constexpr (HG != HourglassType::ViscousPlain) // the plain form takes gamma = Gamma
+                    qd = simd::neg_mul_add(L[i][2], A[k][2],
+                                           simd::neg_mul_add(L[i][1], A[k][1], simd::neg_mul_add(L[i][0], A[k][0], qd)));
+                if constexpr (HG == HourglassType::Stiffness)
+                {
+                    const std::size_t slot = static_cast<std::size_t>(3 * a + i) * np;
+                    const d8 Qold = load_lanes(blk.hg_force.data() + slot);
+                    const d8 Qnew = mul_add(coef * dt, qd, Qold);
+                    store_lanes(blk.hg_force_trial.data() + slot, Qnew);
+                    Q[a][i] = Qnew;
+                    de_hg = mul_add((Qold + Qnew) * qd, 0.5 * dt, de_hg);
+                }
                 else
-                    f[I][i][l] = fi;
+                {
+                    Q[a][i] = coef * qd;
+                    de_hg = mul_add(Q[a][i] * qd, dt, de_hg);
+                }
             }
+        if constexpr (HG != HourglassType::ViscousPlain)
+            for (int j = 0; j < 3; ++j)
+                for (int i = 0; i < 3; ++i)
+                    T[i][j] = simd::neg_mul_add(
+                        inv_v,
+                        mul_add(A[7][j], Q[3][i], mul_add(A[6][j], Q[2][i], mul_add(A[5][j], Q[1][i], A[4][j] * Q[0][i]))),
+                        T[i][j]);
+    }
+
+    // internal force f_iI = (sigma_ij - M_ji) b_jI + sum_a Gamma_aI Q_ai: in modes F_ki =
+    // T_ij B_kj (k = 1..6) plus Q_ai in mode 4 + a, then one inverse butterfly
+    d8 F[8][3], f[8][3];
+    for (int k = 1; k <= 6; ++k)
+        for (int i = 0; i < 3; ++i)
+            F[k][i] = mul_add(T[i][2], B[k][2], mul_add(T[i][1], B[k][1], T[i][0] * B[k][0]));
+    for (int i = 0; i < 3; ++i)
+    {
+        if constexpr (HG != HourglassType::None)
+        {
+            for (int a = 0; a < 3; ++a)
+                F[mode_xi_eta + a][i] = F[mode_xi_eta + a][i] + Q[a][i];
+            F[mode_xi_eta_zeta][i] = Q[3][i];
+        }
+        else
+            F[mode_xi_eta_zeta][i] = simd::broadcast(0.0);
+    }
+    hex8_from_modes_no_mean(F, f);
 
     // nodal forces: into the chunk's buffer (scatter assembly) or the element force buffer
     if (buf != nullptr)
@@ -366,20 +314,20 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         {
             // lanes to (x, y, z, 0) per element: unpack x/y and z/0, then pair the 128-bit halves;
             // zmm k holds lanes (2k', 2k'+2) or (2k'+1, 2k'+3) in its 256-bit halves
-            const index_t* g3 = &blk.gather_index[64 * static_cast<std::size_t>(batch)];
             const __m512d zero = _mm512_setzero_pd();
-            for (int I = 0; I < 8; ++I)
+            // node I's 8 terms, one node row of the buffer
+            auto add_node = [&](int I)
             {
-                const __m512d X = _mm512_load_pd(f[I][0]), Y = _mm512_load_pd(f[I][1]), Z = _mm512_load_pd(f[I][2]);
+                const __m512d X = f[I][0], Y = f[I][1], Z = f[I][2];
                 if (consecutive >> I & 1u)
                 {
                     // consecutive nodes: their 8 (x, y, z, 0) quadruples are 4 whole vectors
-                    __m512d q[4];
-                    simd::interleave4(X, Y, Z, q);
+                    __m512d qv[4];
+                    simd::interleave4(X, Y, Z, qv);
                     real_t* b = buf + 4 * static_cast<std::size_t>(g3[8 * I] / 3 - lo);
                     for (int k = 0; k < 4; ++k)
-                        _mm512_storeu_pd(b + 8 * k, _mm512_add_pd(_mm512_loadu_pd(b + 8 * k), q[k]));
-                    continue;
+                        _mm512_storeu_pd(b + 8 * k, _mm512_add_pd(_mm512_loadu_pd(b + 8 * k), qv[k]));
+                    return;
                 }
                 const __m512d xy_even = _mm512_unpacklo_pd(X, Y), xy_odd = _mm512_unpackhi_pd(X, Y);
                 const __m512d z_even = _mm512_unpacklo_pd(Z, zero), z_odd = _mm512_unpackhi_pd(Z, zero);
@@ -400,48 +348,109 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                         const __m256d add = h == 0 ? _mm512_castpd512_pd256(v[k]) : _mm512_extractf64x4_pd(v[k], 1);
                         _mm256_storeu_pd(b, _mm256_add_pd(_mm256_loadu_pd(b), add));
                     }
+            };
+            // Nodes (0, 1), (2, 3), (4, 5), (6, 7) are neighbours along xi. Where both rows of
+            // a pair are consecutive and one is the other shifted by a node (a structured row),
+            // the pair's 9 nodes are summed in registers: the buffer is read and written once
+            // instead of twice with 7 of 8 nodes in common (the second read would wait for the
+            // first write: a load half over a store cannot take its data from the store buffer).
+            // The terms are added in the node-by-node order: the same bits.
+            for (int P = 0; P < 8; P += 2)
+            {
+                // along xi node 1 follows 0, 2 follows 3, 5 follows 4, 6 follows 7
+                const bool first_low = P == 0 || P == 4;
+                const int I_low = first_low ? P : P + 1, I_high = first_low ? P + 1 : P;
+                if ((consecutive >> P & 3u) != 3u || g3[8 * I_high] != g3[8 * I_low] + 3)
+                {
+                    add_node(P);
+                    add_node(P + 1);
+                    continue;
+                }
+                __m512d ql[4], qh[4], r[4];
+                simd::interleave4(f[I_low][0], f[I_low][1], f[I_low][2], ql);
+                simd::interleave4(f[I_high][0], f[I_high][1], f[I_high][2], qh);
+                // the high row's quadruples a node (half a vector) on: r[k] = (qh[k-1] high, qh[k] low)
+                r[0] = _mm512_shuffle_f64x2(qh[0], qh[0], _MM_SHUFFLE(1, 0, 1, 0));
+                for (int k = 1; k < 4; ++k)
+                    r[k] = _mm512_shuffle_f64x2(qh[k - 1], qh[k], _MM_SHUFFLE(1, 0, 3, 2));
+                real_t* b = buf + 4 * static_cast<std::size_t>(g3[8 * I_low] / 3 - lo);
+                for (int k = 0; k < 4; ++k)
+                {
+                    const __m512d old = _mm512_loadu_pd(b + 8 * k);
+                    // r[0]'s low half is no node of the high row: not added (a -0 stays -0)
+                    const __mmask8 m = k == 0 ? 0xF0 : 0xFF;
+                    __m512d sum;
+                    if (first_low)
+                    {
+                        sum = _mm512_add_pd(old, ql[k]);
+                        sum = _mm512_mask_add_pd(sum, m, sum, r[k]);
+                    }
+                    else
+                        sum = _mm512_add_pd(_mm512_mask_add_pd(old, m, old, r[k]), ql[k]);
+                    _mm512_storeu_pd(b + 8 * k, sum);
+                }
+                _mm256_storeu_pd(b + 32, _mm256_add_pd(_mm256_loadu_pd(b + 32), _mm512_extractf64x4_pd(qh[3], 1)));
             }
         }
         else
 #endif
-        for (int I = 0; I < 8; ++I)
-            for (int l = 0; l < nl; ++l)
-            {
-                real_t* b = buf + 4 * static_cast<std::size_t>(blk.conn[8 * static_cast<std::size_t>(e0 + l) + I] - lo);
-                b[0] += f[I][0][l];
-                b[1] += f[I][1][l];
-                b[2] += f[I][2][l];
-            }
+        {
+            alignas(64) real_t fl[8][3][W];
+            for (int I = 0; I < 8; ++I)
+                for (int d = 0; d < 3; ++d)
+                    simd::store(fl[I][d], f[I][d]);
+            for (int I = 0; I < 8; ++I)
+                for (int l = 0; l < nl; ++l)
+                {
+                    real_t* b =
+                        buf + 4 * static_cast<std::size_t>(blk.conn[8 * static_cast<std::size_t>(e0 + l) + I] - lo);
+                    b[0] += fl[I][0][l];
+                    b[1] += fl[I][1][l];
+                    b[2] += fl[I][2][l];
+                }
+        }
     }
     else
+    {
+        alignas(64) real_t fl[8][3][W];
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                simd::store(fl[I][d], f[I][d]);
         for (int l = 0; l < nl; ++l)
         {
             real_t* fe = &blk.elem_force[24 * static_cast<std::size_t>(e0 + l)];
             for (int I = 0; I < 8; ++I)
                 for (int d = 0; d < 3; ++d)
-                    fe[3 * I + d] = f[I][d][l];
+                    fe[3 * I + d] = fl[I][d][l];
         }
+    }
     // batch results
-    real_t sum_int = 0.0, sum_hg = 0.0, sum_bv = 0.0, dt_min = 1e300;
+    alignas(64) real_t vol_l[W], inv_dt_l[W], int_l[W], hg_l[W], bv_l[W];
+    simd::store(vol_l, vol);
+    simd::store(inv_dt_l, inv_dt);
+    simd::store(int_l, de_int);
+    simd::store(hg_l, de_hg);
+    simd::store(bv_l, de_bv);
+    real_t sum_int = 0.0, sum_hg = 0.0, sum_bv = 0.0, inv_dt_max = 0.0;
     index_t dt_elem = -1, bad = -1;
     for (int l = 0; l < nl; ++l)
     {
         const index_t e = e0 + l;
-        sum_int += de_int[l];
-        sum_hg += de_hg[l];
-        sum_bv += de_bv[l];
-        if (dt_e[l] < dt_min)
+        sum_int += int_l[l];
+        sum_hg += hg_l[l];
+        sum_bv += bv_l[l];
+        if (inv_dt_l[l] > inv_dt_max)
         {
-            dt_min = dt_e[l];
+            inv_dt_max = inv_dt_l[l];
             dt_elem = e;
         }
-        if (!(vol[l] > 0.0) && bad < 0)
+        if (!(vol_l[l] > 0.0) && bad < 0)
             bad = e;
     }
     blk.batch_sums[4 * batch + 0] = sum_int;
     blk.batch_sums[4 * batch + 1] = sum_hg;
     blk.batch_sums[4 * batch + 2] = sum_bv;
-    blk.batch_sums[4 * batch + 3] = dt_min;
+    blk.batch_sums[4 * batch + 3] = dt_elem >= 0 ? 1.0 / inv_dt_max : 1e300;
     blk.batch_idx[2 * batch + 0] = dt_elem;
     blk.batch_idx[2 * batch + 1] = bad;
 }

@@ -67,33 +67,4 @@ inline constexpr std::array<std::array<real_t, 8>, 4> hex8_hourglass_base{{
     {-1, +1, -1, +1, +1, -1, +1, -1},
 }};
 
-/// s_a = sum_J Gamma_aJ y_J for the four base vectors above (xi eta, eta zeta, zeta xi,
-/// xi eta zeta at the nodes), as a butterfly over the bottom (nodes 0-3) and top (4-7) faces:
-/// 18 additions instead of 28. Scalar arguments, so that it vectorizes inside lane loops.
-template <class T>
-inline void hourglass_sums(T y0, T y1, T y2, T y3, T y4, T y5, T y6, T y7, T& s0, T& s1, T& s2, T& s3)
-{
-    // on a face (corners 0..3 around it): a = xi eta, b = eta, c = xi weighted sums
-    const T e0 = y2 - y0, g0 = y3 - y1, e1 = y6 - y4, g1 = y7 - y5;
-    const T a0 = (y0 + y2) - (y1 + y3), a1 = (y4 + y6) - (y5 + y7);
-    s0 = a1 + a0;                 // xi eta
-    s1 = (e1 + g1) - (e0 + g0);   // eta zeta: zeta = -1 on the bottom face
-    s2 = (e1 - g1) - (e0 - g0);   // zeta xi
-    s3 = a1 - a0;                 // xi eta zeta
-}
-
-/// y_J = sum_a Gamma_aJ s_a (the transpose of hourglass_sums): 12 additions instead of 32.
-template <class T>
-inline void hourglass_spread(T s0, T s1, T s2, T s3, T& y0, T& y1, T& y2, T& y3, T& y4, T& y5, T& y6, T& y7)
-{
-    const T dm = s0 - s3, dp = s0 + s3, u = s1 + s2, w = s1 - s2;
-    y0 = dm + u;
-    y1 = w - dm;
-    y2 = dm - u;
-    y3 = -(dm + w);
-    y4 = dp - u;
-    y5 = -(dp + w);
-    y6 = dp + u;
-    y7 = w - dp;
-}
 } // namespace rkfem
