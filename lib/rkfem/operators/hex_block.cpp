@@ -250,7 +250,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             for (int k = 1; k <= 6; ++k)
                 for (int d = k == 1 ? 1 : 0; d < 3; ++d)
                     bb = mul_add(B[k][d], B[k][d], bb);
-            coef = qm * mat.plane_wave_modulus() * (8.0 * bb) * inv_v / 3.0;
+            coef = (qm * mat.plane_wave_modulus() * 8.0 / 3.0) * bb * inv_v;
         }
         else
             coef = 0.25 * qm * mat.rho * c * lc * lc;
@@ -304,6 +304,13 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             F[mode_xi_eta_zeta][i] = simd::broadcast(0.0);
     }
     hex8_from_modes_no_mean(F, f);
+    // the forces lane by lane, for the paths that add or write them element by element
+    auto force_lanes = [&](real_t (&fl)[8][3][W])
+    {
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                simd::store(fl[I][d], f[I][d]);
+    };
 
     // nodal forces: into the chunk's buffer (scatter assembly) or the element force buffer
     if (buf != nullptr)
@@ -396,9 +403,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 #endif
         {
             alignas(64) real_t fl[8][3][W];
-            for (int I = 0; I < 8; ++I)
-                for (int d = 0; d < 3; ++d)
-                    simd::store(fl[I][d], f[I][d]);
+            force_lanes(fl);
             for (int I = 0; I < 8; ++I)
                 for (int l = 0; l < nl; ++l)
                 {
@@ -413,9 +418,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     else
     {
         alignas(64) real_t fl[8][3][W];
-        for (int I = 0; I < 8; ++I)
-            for (int d = 0; d < 3; ++d)
-                simd::store(fl[I][d], f[I][d]);
+        force_lanes(fl);
         for (int l = 0; l < nl; ++l)
         {
             real_t* fe = &blk.elem_force[24 * static_cast<std::size_t>(e0 + l)];
