@@ -76,7 +76,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"outputs\": " << s.n_outputs << ",\n";
     o << "  \"energy\": {\"kinetic\": " << num(e.kinetic) << ", \"internal\": " << num(e.internal)
       << ", \"hourglass\": " << num(e.hourglass) << ", \"bulk_viscosity\": " << num(e.bulk_viscosity)
-      << ", \"damping\": " << num(e.damping) << ", \"external_work\": " << num(e.external_work)
+      << ", \"contact\": " << num(e.contact) << ", \"damping\": " << num(e.damping)
+      << ", \"external_work\": " << num(e.external_work)
       << ", \"kinetic0\": " << num(e.kinetic0) << ", \"internal0\": " << num(e.internal0) << "},\n";
     o << "  \"balance_error\": " << num(e.balance_error()) << ",\n";
     o << "  \"max_balance_error\": " << num(s.max_balance_error) << ",\n";

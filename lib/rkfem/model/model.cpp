@@ -32,23 +32,6 @@ struct RkVelocityConstraint
     Eigen::VectorXd rhs, x;
 };
 
-real_t Energies::balance_error() const
-{
-    const real_t lhs = kinetic + kinetic_correction + internal + hourglass + bulk_viscosity + damping;
-    const real_t err = std::abs(lhs - kinetic0 - internal0 - external_work);
-    const real_t scale = std::max({std::abs(kinetic) + std::abs(internal) + std::abs(hourglass) +
-                                       std::abs(bulk_viscosity) + std::abs(damping),
-                                   std::abs(external_work), std::abs(kinetic0 + internal0),
-                                   std::numeric_limits<real_t>::min()});
-    return err / scale;
-}
-
-real_t Energies::hourglass_ratio() const
-{
-    const real_t denom = internal + hourglass;
-    return denom > 0 ? hourglass / denom : 0.0;
-}
-
 namespace
 {
 bool matches(const SelectorSpec& s, const Vec3& p, real_t tol)
@@ -426,7 +409,40 @@ Model Model::build(const Deck& deck)
     }
     m.collect_loaded_dofs();
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
+    m.contact.resize(m.nodes.size());
+    m.plan_assembly();
+    for (const DofCondition& c : m.conditions)
+        m.constrained_dofs_.push_back(c.dof);
+    std::sort(m.constrained_dofs_.begin(), m.constrained_dofs_.end());
     return m;
+}
+
+void Model::plan_assembly()
+{
+    // each block's node range (nodal parts: the nodal block's)
+    std::vector<std::pair<index_t, index_t>> range;
+    for (std::size_t ib = 0; ib < blocks.size(); ++ib)
+        if (part_nodal[ib] >= 0)
+            range.emplace_back(nodal_blocks[part_nodal[ib]].node_begin, nodal_blocks[part_nodal[ib]].node_end);
+        else
+            range.emplace_back(blocks[ib].node_begin, blocks[ib].node_end);
+    block_adds_.assign(blocks.size(), 0);
+    for (std::size_t a = 0; a < range.size(); ++a)
+        for (std::size_t b = 0; b < range.size(); ++b)
+            if (a != b && range[a].first < range[b].second && range[b].first < range[a].second)
+                block_adds_[a] = 1;
+    // the union of the adding blocks' ranges, as disjoint sorted intervals
+    std::vector<std::pair<index_t, index_t>> shared;
+    for (std::size_t a = 0; a < range.size(); ++a)
+        if (block_adds_[a])
+            shared.push_back(range[a]);
+    std::sort(shared.begin(), shared.end());
+    shared_node_ranges_.clear();
+    for (const auto& r : shared)
+        if (!shared_node_ranges_.empty() && r.first <= shared_node_ranges_.back().second)
+            shared_node_ranges_.back().second = std::max(shared_node_ranges_.back().second, r.second);
+        else
+            shared_node_ranges_.push_back(r);
 }
 
 void Model::collect_loaded_dofs()
@@ -663,7 +679,7 @@ void Model::apply_external_forces(real_t t)
     }
 }
 
-ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
+ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
 {
     ForceReport rep;
     pending_int_ = pending_hg_ = pending_bv_ = 0.0;
@@ -680,9 +696,15 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
             rep.dt_element = dt_element;
         }
     };
+    // blocks whose node ranges overlap add into f_int, zeroed once here over those ranges; a
+    // block alone on its nodes writes them (no clearing pass)
+    for (const auto& [lo, hi] : shared_node_ranges_)
+        std::fill(nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(lo),
+                  nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(hi), 0.0);
     for (std::size_t ib = 0; ib < blocks.size(); ++ib)
     {
         HexBlock& blk = blocks[ib];
+        const bool add = block_adds_[ib] != 0;
         if (part_nodal[ib] >= 0)
         {
             NodalBlock& nb = nodal_blocks[part_nodal[ib]];
@@ -696,7 +718,7 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
                 throw InstabilityError(os.str());
             }
             book(r, offset); // first element of the part; nodal points are not elements
-            assemble_nodal_forces(nb, nodes);
+            assemble_nodal_forces(nb, nodes, add);
             offset += blk.n_elements();
             continue;
         }
@@ -710,14 +732,23 @@ ForceReport Model::compute_forces(real_t t, real_t dt, std::int64_t step)
             throw InstabilityError(os.str());
         }
         book(r, offset + r.dt_element);
-        assemble_block_forces(blk, nodes);
+        assemble_block_forces(blk, nodes, add);
         offset += blk.n_elements();
     }
-    apply_external_forces(t);
     return rep;
 }
 
-void Model::compute_accelerations()
+void Model::external_forces(real_t t)
+{
+    apply_external_forces(t);
+    if (contacts.empty())
+        return;
+    contact.clear();
+    for (auto& c : contacts)
+        c->add_forces(nodes, t, contact);
+}
+
+void Model::accelerations()
 {
     const real_t c = deck_.time.mass_damping;
     const index_t n = nodes.size();
@@ -731,6 +762,13 @@ void Model::compute_accelerations()
                          nodes.a[j] = (nodes.f_ext[j] - nodes.f_int[j]) * inv_m - c * nodes.v[j];
                      }
                  });
+    // contact forces: only on the nodes in contact this pass
+    for (index_t i : contact.nodes())
+    {
+        const real_t inv_m = 1.0 / nodes.mass[i];
+        for (int k = 0; k < 3; ++k)
+            nodes.a[3 * static_cast<std::size_t>(i) + k] += contact.f[3 * static_cast<std::size_t>(i) + k] * inv_m;
+    }
     for (const auto& cnd : conditions)
         nodes.a[cnd.dof] = 0.0;
 }
@@ -747,7 +785,7 @@ void Model::commit()
     pending_int_ = pending_hg_ = pending_bv_ = 0.0;
 }
 
-void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
+void Model::update_energies(const real_t* u_prev, real_t dt)
 {
     const index_t n = nodes.size();
     energy.kinetic = parallel_reduce_sum("rkfem::kinetic", n,
@@ -776,6 +814,7 @@ void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
     if (dt <= 0)
     {
         keep_f_ext();
+        contact.commit();
         bc_v_prev_.resize(conditions.size());
         for (std::size_t k = 0; k < conditions.size(); ++k)
             bc_v_prev_[k] = nodes.v[conditions[k].dof];
@@ -797,15 +836,48 @@ void Model::update_energies(const std::vector<real_t>& u_prev, real_t dt)
         // prescribed acceleration over the step, from the imposed velocities
         const real_t ap = (nodes.v[j] - bc_v_prev_[k]) / dt;
         bc_v_prev_[k] = nodes.v[j];
-        const real_t r = nodes.f_int[j] - nodes.f_ext[j] + nodes.mass[j / 3] * ap;
+        const real_t r = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + nodes.mass[j / 3] * ap;
         energy.external_work += 0.5 * (reaction_prev_[k] + r) * du;
         reaction_prev_[k] = r;
     }
+    // contact: the sliding energy is minus the work of the contact forces
+    if (!contact.empty())
+        energy.contact -= contact.step_work(nodes.u.data(), u_prev);
+    contact.commit();
     // mass damping dissipation
     const real_t c = deck_.time.mass_damping;
     if (c > 0)
         energy.damping += dt * c * 2.0 * energy.kinetic;
     keep_f_ext();
+}
+
+void Model::check(real_t t, std::int64_t step) const
+{
+    const index_t n3 = 3 * nodes.size();
+    const real_t* u = nodes.u.data();
+    const real_t* a = nodes.a.data();
+    // x - x is 0 for finite x and NaN otherwise: one vectorized sum finds whether any value is
+    // not finite; only then a scan finds the first such node
+    const real_t s = parallel_reduce_sum("rkfem::check_finite", n3, [&](index_t j) { return (u[j] - u[j]) + (a[j] - a[j]); });
+    if (s == 0.0)
+        return;
+    index_t bad = 0;
+    while (bad < n3 && std::isfinite(u[bad]) && std::isfinite(a[bad]))
+        ++bad;
+    bad /= 3;
+    std::ostringstream os;
+    os << "non-finite acceleration or displacement at node " << bad << " (part '" << parts[nodes.part[bad]].name
+       << "') at t = " << t << " s, step " << step;
+    throw InstabilityError(os.str());
+}
+
+std::vector<index_t> Model::velocity_driven_dofs() const
+{
+    std::vector<index_t> dofs;
+    for (const DofCondition& c : conditions)
+        if (c.kind != BoundarySpec::Kind::Fixed || carries_coefficients(c.dof / 3))
+            dofs.push_back(c.dof);
+    return dofs;
 }
 
 bool Model::carries_coefficients(index_t node) const

@@ -11,8 +11,12 @@
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/discretization/node_set.hpp"
+#include "rkfem/contact/contact_algorithm.hpp"
+#include "rkfem/operators/contact_channel.hpp"
+#include "rkfem/operators/energy_ledger.hpp"
 #include "rkfem/operators/hex_block.hpp"
 #include "rkfem/operators/nodal_block.hpp"
+#include "rkfem/time/explicit_operator.hpp"
 
 namespace rkfem
 {
@@ -40,35 +44,7 @@ struct DofCondition
 /// particle. Lambda_bb is factored once (total Lagrangian).
 struct RkVelocityConstraint;
 
-struct Energies
-{
-    real_t kinetic = 0.0;            ///< 1/2 m v.v at the full step
-    /// -(dt^2 / 8) sum m a.a: turns `kinetic` into the leapfrog-consistent 1/2 m v(n-1/2).v(n+1/2),
-    /// the kinetic energy that central difference conserves exactly for linear elasticity.
-    real_t kinetic_correction = 0.0;
-    real_t internal = 0.0;
-    real_t hourglass = 0.0;
-    real_t bulk_viscosity = 0.0;
-    real_t damping = 0.0;       ///< dissipated by mass damping
-    real_t external_work = 0.0; ///< loads and prescribed motion
-    real_t kinetic0 = 0.0, internal0 = 0.0; ///< leapfrog-consistent kinetic energy at t = 0
-
-    real_t total() const { return kinetic + internal + hourglass + bulk_viscosity; }
-    /// |E_kin' + E_int + E_hg + E_bv + E_damp - E_kin0' - E_int0 - W_ext| / max(energy scale),
-    /// with E_kin' = kinetic + kinetic_correction (leapfrog-consistent kinetic energy)
-    real_t balance_error() const;
-    /// E_hg / (E_int + E_hg), 0 when there is no internal energy
-    real_t hourglass_ratio() const;
-};
-
-/// Everything a step reports back to the run loop.
-struct ForceReport
-{
-    real_t dt_stable = 1e300; ///< before the scale factor
-    index_t dt_element = -1;  ///< global element index controlling dt
-};
-
-class Model
+class Model final : public ExplicitOperator
 {
   public:
     Model() = default;
@@ -105,26 +81,42 @@ class Model
     /// Global element index -> (block, local element).
     std::pair<index_t, index_t> locate_element(index_t global) const;
 
-    // ---- phases of a step (called by the steppers) ----
+    /// Contact forces reach the nodes through this channel (own work term in the ledger).
+    ContactChannel contact;
+    /// Contact algorithms, evaluated in order in external_forces() on current positions.
+    std::vector<std::unique_ptr<ContactAlgorithm>> contacts;
+
+    // ---- the explicit operator (time/explicit_operator.hpp): phases the steppers call ----
+    NodeSet& state() override { return nodes; }
+    const NodeSet& state() const override { return nodes; }
+    Energies& ledger() override { return energy; }
     /// Sets velocities of constrained dofs for the interval (t, t + dt) (half step) or at t.
     void impose_velocity(real_t t, real_t dt, bool half_step);
     /// The same on a velocity array other than nodes.v (3 n values; the unconstrained ones are
     /// read, as rkpm constraints need them); displacement conditions read nodes.u.
-    void impose_velocity(real_t t, real_t dt, bool half_step, real_t* v);
+    void impose_velocity(real_t t, real_t dt, bool half_step, real_t* v) override;
     /// x = x0 + u.
-    void update_coordinates();
+    void update_coordinates() override;
     /// Nodal state from a stepper's vector: u, v (3 n each), then x = x0 + u, in one pass.
-    void set_state(const real_t* u, const real_t* v);
-    /// Internal forces (all blocks, assembled) and external forces at time t; stress trial state.
-    /// Throws InstabilityError on a non-positive element volume.
-    ForceReport compute_forces(real_t t, real_t dt, std::int64_t step);
-    /// a = (f_ext - f_int) / m - c v; zero on constrained dofs.
-    void compute_accelerations();
+    void set_state(const real_t* u, const real_t* v) override;
+    const std::vector<index_t>& constrained_dofs() const override { return constrained_dofs_; }
+    std::vector<index_t> velocity_driven_dofs() const override;
+    /// Internal forces (all blocks, assembled), stress trial state. Throws InstabilityError on a
+    /// non-positive element volume.
+    ForceReport internal_forces(real_t t, real_t dt, std::int64_t step) override;
+    /// Loads at t into f_ext; contact algorithms into the contact channel.
+    void external_forces(real_t t) override;
+    /// a = (f_ext + f_contact - f_int) / m - c v; zero on constrained dofs.
+    void accelerations() override;
+    /// Throws InstabilityError naming the first node (and its part), t and the step when a
+    /// displacement or acceleration is not finite.
+    void check(real_t t, std::int64_t step) const override;
     /// Commits material trial state and books this step's energy increments.
-    void commit();
+    void commit() override;
     /// Recomputes kinetic energy; books external work over a step with displacement increment
-    /// given by u - u_prev (uses stored previous external and reaction forces).
-    void update_energies(const std::vector<real_t>& u_prev, real_t dt);
+    /// given by u - u_prev (uses stored previous external and reaction forces) and the contact
+    /// channel's work.
+    void update_energies(const real_t* u_prev, real_t dt) override;
 
     /// True when the node's unknowns are RK coefficients (rkpm parts), not physical values.
     bool carries_coefficients(index_t node) const;
@@ -155,8 +147,15 @@ class Model
     /// Element stress (average over its points), Voigt.
     Sym6 element_stress(index_t block, index_t e) const;
 
+    /// Decides how the blocks assemble f_int: a block whose node range overlaps another's adds
+    /// into it, and those ranges are zeroed once per evaluation; a block alone on its nodes
+    /// writes them. Call again after the blocks change.
+    void plan_assembly();
+
   private:
     Deck deck_;
+    std::vector<char> block_adds_;                                 ///< per block
+    std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();
     /// The dofs any load can put a force on (ascending): f_ext is zero everywhere else, so the
@@ -164,6 +163,7 @@ class Model
     std::vector<index_t> loaded_dofs_;
     void collect_loaded_dofs();
     std::vector<real_t> f_ext_prev_;
+    std::vector<index_t> constrained_dofs_; ///< the dofs of `conditions`, ascending
     std::vector<real_t> reaction_prev_;
     std::vector<real_t> bc_v_prev_;
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;

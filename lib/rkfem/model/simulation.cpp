@@ -21,7 +21,7 @@ namespace
 std::vector<std::string> history_columns(const Model& m)
 {
     std::vector<std::string> c{"time", "dt", "kinetic", "internal", "hourglass", "bulk_viscosity",
-                               "damping", "external_work", "total", "balance_error", "hourglass_ratio"};
+                               "damping", "external_work", "contact", "total", "balance_error", "hourglass_ratio"};
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
@@ -36,7 +36,7 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows)
 {
     const Energies& e = m.energy;
     rows.insert(rows.end(), {t, dt, e.kinetic, e.internal, e.hourglass, e.bulk_viscosity, e.damping,
-                             e.external_work, e.total(), e.balance_error(), e.hourglass_ratio()});
+                             e.external_work, e.contact, e.total(), e.balance_error(), e.hourglass_ratio()});
     for (index_t n : m.probe_nodes)
     {
         const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);

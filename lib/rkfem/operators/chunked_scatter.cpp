@@ -68,7 +68,7 @@ void ChunkedScatter::zero(index_t c)
               buffer.begin() + static_cast<std::ptrdiff_t>(ch.buffer + 4 * static_cast<std::size_t>(ch.hi - ch.lo)), 0.0);
 }
 
-void ChunkedScatter::reduce(std::vector<real_t>& f)
+void ChunkedScatter::reduce(std::vector<real_t>& f, bool add)
 {
     RKFEM_REQUIRE(std::find(buffer_zero.begin(), buffer_zero.end(), 0) != buffer_zero.end(),
                   "chunked scatter: reduce() called twice for one force pass (the first consumed the sums)");
@@ -106,9 +106,18 @@ void ChunkedScatter::reduce(std::vector<real_t>& f)
                                      q[k] = _mm512_add_pd(q[k], _mm512_loadu_pd(b));
                                      _mm512_storeu_pd(b, zero);
                                  }
-                             _mm512_storeu_pd(out + 3 * i, _mm512_permutex2var_pd(q[0], p0, q[1]));
-                             _mm512_storeu_pd(out + 3 * i + 8, _mm512_permutex2var_pd(q[1], p1, q[2]));
-                             _mm512_storeu_pd(out + 3 * i + 16, _mm512_permutex2var_pd(q[2], p2, q[3]));
+                             __m512d t0 = _mm512_permutex2var_pd(q[0], p0, q[1]);
+                             __m512d t1 = _mm512_permutex2var_pd(q[1], p1, q[2]);
+                             __m512d t2 = _mm512_permutex2var_pd(q[2], p2, q[3]);
+                             if (add)
+                             {
+                                 t0 = _mm512_add_pd(_mm512_loadu_pd(out + 3 * i), t0);
+                                 t1 = _mm512_add_pd(_mm512_loadu_pd(out + 3 * i + 8), t1);
+                                 t2 = _mm512_add_pd(_mm512_loadu_pd(out + 3 * i + 16), t2);
+                             }
+                             _mm512_storeu_pd(out + 3 * i, t0);
+                             _mm512_storeu_pd(out + 3 * i + 8, t1);
+                             _mm512_storeu_pd(out + 3 * i + 16, t2);
                          }
                      }
 #endif
@@ -123,7 +132,7 @@ void ChunkedScatter::reduce(std::vector<real_t>& f)
                              b[0] = b[1] = b[2] = b[3] = 0.0;
                          }
                          for (int a = 0; a < 3; ++a)
-                             out[3 * i + a] = s[a];
+                             out[3 * i + a] = add ? out[3 * i + a] + s[a] : s[a];
                      }
                  });
     std::fill(buffer_zero.begin(), buffer_zero.end(), 1);

@@ -102,8 +102,10 @@ struct ChunkedScatter
     /// order, for the block's nodes. It consumes the buffers: each value is zeroed as it is
     /// read (the lines are in cache then), which spares the next pass a clearing sweep over
     /// memory. A second reduce() with no chunk run since the last is an error (it would give
-    /// zero forces).
-    void reduce(std::vector<real_t>& f);
+    /// zero forces). With `add`, the block's sums are added to f instead (blocks that share
+    /// nodes): f[3 n + a] += sum, the sum formed first, so the result is the same whatever the
+    /// other blocks added before.
+    void reduce(std::vector<real_t>& f, bool add = false);
 
   private:
     std::size_t next_buffer_ = 0;

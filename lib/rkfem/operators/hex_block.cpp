@@ -715,11 +715,11 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
     return r;
 }
 
-void assemble_block_forces(HexBlock& blk, NodeSet& nodes)
+void assemble_block_forces(HexBlock& blk, NodeSet& nodes, bool add)
 {
     if (!blk.scatter.empty())
     {
-        blk.scatter.reduce(nodes.f_int);
+        blk.scatter.reduce(nodes.f_int, add);
         return;
     }
     const index_t nn = blk.node_end - blk.node_begin;
@@ -735,6 +735,12 @@ void assemble_block_forces(HexBlock& blk, NodeSet& nodes)
                          f2 += fe[2];
                      }
                      const std::size_t n = 3 * static_cast<std::size_t>(blk.node_begin + i);
+                     if (add)
+                     {
+                         f0 += nodes.f_int[n];
+                         f1 += nodes.f_int[n + 1];
+                         f2 += nodes.f_int[n + 2];
+                     }
                      nodes.f_int[n] = f0;
                      nodes.f_int[n + 1] = f1;
                      nodes.f_int[n + 2] = f2;

@@ -94,7 +94,9 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
 
 /// f_int[node] = sum over the node's (element, local) slots, for the block's node range. Once
 /// per force pass: with the chunked scatter it consumes the chunk sums (ChunkedScatter::reduce).
-void assemble_block_forces(HexBlock& blk, NodeSet& nodes);
+/// With `add` the block's sums are added to f_int (blocks whose node ranges overlap: the
+/// caller zeroes f_int once per evaluation and every block adds).
+void assemble_block_forces(HexBlock& blk, NodeSet& nodes, bool add = false);
 
 /// The current volume of element e (exact for the trilinear hex, from nodes.x) [m^3].
 real_t element_volume(const HexBlock& blk, const NodeSet& nodes, index_t e);

@@ -959,12 +959,12 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
     return r;
 }
 
-void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes)
+void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes, bool add)
 {
     const index_t nn = blk.node_end - blk.node_begin;
     if (blk.scatter_assembly())
     {
-        blk.scatter.reduce(nodes.f_int);
+        blk.scatter.reduce(nodes.f_int, add);
         return;
     }
     parallel_for("rkfem::nodal_assemble", nn,
@@ -974,7 +974,7 @@ void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes)
                      gather_forces(blk, i, f);
                      const std::size_t n = 3 * static_cast<std::size_t>(blk.node_begin + i);
                      for (int a = 0; a < 3; ++a)
-                         nodes.f_int[n + a] = f[a];
+                         nodes.f_int[n + a] = add ? nodes.f_int[n + a] + f[a] : f[a];
                  });
 }
 

@@ -140,8 +140,9 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
 ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt);
 
 /// f_int[node] = sum over the node's entries, for the block's node range. Once per force pass:
-/// with the chunked scatter it consumes the chunk sums (ChunkedScatter::reduce).
-void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes);
+/// with the chunked scatter it consumes the chunk sums (ChunkedScatter::reduce). With `add` the
+/// sums are added to f_int (assemble_block_forces).
+void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes, bool add = false);
 
 /// Lumped mass rho V0_p to each point's owner node.
 void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes);

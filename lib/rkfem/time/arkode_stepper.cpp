@@ -10,8 +10,8 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/stream_stores.hpp"
-#include "rkfem/model/model.hpp"
 #include "rkfem/time/central_difference.hpp"
+#include "rkfem/time/explicit_operator.hpp"
 #include "rkfem/time/state_vector.hpp"
 
 namespace rkfem
@@ -107,7 +107,7 @@ struct ArkodeStepper::Impl
     /// serial vector over `state`
     std::shared_ptr<StatePool> pool;
     std::vector<real_t> state; ///< (u, v), 6 n: the serial vector's values
-    Model* model = nullptr;
+    ExplicitOperator* model = nullptr;
     index_t n3 = 0;
     // central difference
     real_t h_prev = 0.0, h_pending = 0.0;
@@ -118,7 +118,7 @@ struct ArkodeStepper::Impl
     std::vector<real_t> v_full;
     /// Debian's serial vector: prescribed dofs whose v' the kick does not get right by itself
     /// (rkfem's vectors record v' = (u' - v) / h, which holds at every dof). A fixed dof of an FE part
-    /// has v = 0 (start_model imposes it, and v' stays 0) and a = 0 (compute_accelerations) at
+    /// has v = 0 (start_model imposes it, and v' stays 0) and a = 0 (accelerations) at
     /// every evaluation, so the kick already gives u' = v' = 0 there; prescribed motion and RK
     /// coefficients (the mixed transformation) need v' = (u' - v) / h after the conditions.
     std::vector<index_t> fixup_dofs;
@@ -205,8 +205,8 @@ struct ArkodeStepper::Impl
 
     void evaluate(real_t t, N_Vector yv, N_Vector ydot)
     {
-        Model& m = *model;
-        NodeSet& nodes = m.nodes;
+        ExplicitOperator& m = *model;
+        NodeSet& nodes = m.state();
         if (self->mode_ == Mode::CentralDifference)
         {
             // the model works on y in place: rkfem's vectors lend their halves to nodes.u and
@@ -224,7 +224,7 @@ struct ArkodeStepper::Impl
             }
             force = m.compute_forces(t, state_committed ? 0.0 : h_prev, step_index);
             state_committed = false;
-            m.compute_accelerations();
+            m.accelerations();
             real_t h = forced_h > 0 ? forced_h : next_time_step(self->ts_, t, force.dt_stable);
             if (!(h > 0))
                 h = h_prev > 0 ? h_prev : force.dt_stable; // at the end time: any positive step
@@ -265,7 +265,7 @@ struct ArkodeStepper::Impl
             std::copy(v, v + n3, nodes.v.begin());
         m.update_coordinates();
         force = m.compute_forces(t, dtm, step_index);
-        m.compute_accelerations();
+        m.accelerations();
         const real_t* a = nodes.a.data();
         const StatePool::Halves yd = overwrite(ydot);
         parallel_for("rkfem::arkode_erk::rhs", n3,
@@ -276,11 +276,11 @@ struct ArkodeStepper::Impl
                      });
         // prescribed dofs: u' = target velocity, v' = 0
         std::copy(v, v + n3, nodes.v.begin());
-        m.impose_velocity(t, 0.0, false);
-        for (const DofCondition& c : m.conditions)
+        m.impose_velocity(t, 0.0, false, nodes.v.data());
+        for (const index_t j : m.constrained_dofs())
         {
-            yd.u[c.dof] = nodes.v[c.dof];
-            yd.v[c.dof] = 0.0;
+            yd.u[j] = nodes.v[j];
+            yd.v[j] = 0.0;
         }
     }
 
@@ -303,14 +303,14 @@ ArkodeStepper::ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_
 
 ArkodeStepper::~ArkodeStepper() = default;
 
-StepReport ArkodeStepper::initialize(Model& model, real_t t)
+StepReport ArkodeStepper::initialize(ExplicitOperator& model, real_t t)
 {
     impl_.reset(); // an earlier stepper state leaves the NodeSet holding the state
     impl_ = std::make_unique<Impl>();
     Impl& im = *impl_;
     im.self = this;
     im.model = &model;
-    NodeSet& n = model.nodes;
+    NodeSet& n = model.state();
     im.n3 = 3 * n.size();
     // the same start as the hand-written central difference
     const StepReport start = start_model(model, t);
@@ -318,9 +318,7 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     if (!project_ops_)
     {
         im.v_full.assign(static_cast<std::size_t>(im.n3), 0.0);
-        for (const DofCondition& c : model.conditions)
-            if (c.kind != BoundarySpec::Kind::Fixed || model.carries_coefficients(c.dof / 3))
-                im.fixup_dofs.push_back(c.dof);
+        im.fixup_dofs = model.velocity_driven_dofs();
     }
     im.h_prev = im.h_pending = 0.0;
     im.t_n = t;
@@ -358,10 +356,10 @@ StepReport ArkodeStepper::initialize(Model& model, real_t t)
     return start;
 }
 
-StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t step_index)
+StepReport ArkodeStepper::step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index)
 {
     Impl& im = *impl_;
-    NodeSet& n = model.nodes;
+    NodeSet& n = model.state();
     im.step_index = step_index;
     im.h_pending = dt;
     if (im.pool)
@@ -405,10 +403,10 @@ StepReport ArkodeStepper::step(Model& model, real_t t, real_t dt, std::int64_t s
         std::copy(y.v, y.v + im.n3, n.v.begin());
         model.update_coordinates();
     }
-    model.impose_velocity(tret, dt, false);
-    check_finite(model, tret, step_index);
+    model.impose_velocity(tret, dt, false, n.v.data());
+    model.check(tret, step_index);
     model.commit();
-    model.update_energies(im.pool ? im.y_start.half(0) : im.u_prev, dt);
+    model.update_energies(im.pool ? im.y_start.half(0).data() : im.u_prev.data(), dt);
     im.y_start.reset();
     StepReport r;
     r.t = tret;

@@ -49,8 +49,8 @@ class ArkodeStepper final : public TimeStepper
     /// shows Debian's 6.4.1 FSAL bug: classical RK4 then converges at order 3).
     ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops = true, bool fsal_workaround = true);
     ~ArkodeStepper() override;
-    StepReport initialize(Model& model, real_t t) override;
-    StepReport step(Model& model, real_t t, real_t dt, std::int64_t step_index) override;
+    StepReport initialize(ExplicitOperator& model, real_t t) override;
+    StepReport step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index) override;
     const char* name() const override { return mode_ == Mode::CentralDifference ? "arkode-cd" : "arkode-erk"; }
 
     long rhs_evaluations() const { return n_rhs_; }

@@ -12,15 +12,11 @@
 namespace rkfem
 {
 struct NodeSet;
-class Model;
+class ExplicitOperator;
 
 /// The common start of every stepper: prescribed velocities at t, forces and accelerations with
 /// no material increment, committed state, initial energies; reports the stable step.
-StepReport start_model(Model& model, real_t t);
-
-/// Throws InstabilityError naming the first node (and its part), t and the step when a
-/// displacement or acceleration is not finite.
-void check_finite(const Model& model, real_t t, std::int64_t step);
+StepReport start_model(ExplicitOperator& model, real_t t);
 
 /// v += h a over all nodes (one half kick).
 void central_difference_kick(NodeSet& nodes, real_t h);
@@ -30,8 +26,8 @@ void central_difference_drift(NodeSet& nodes, real_t dt);
 class CentralDifference final : public TimeStepper
 {
   public:
-    StepReport initialize(Model& model, real_t t) override;
-    StepReport step(Model& model, real_t t, real_t dt, std::int64_t step_index) override;
+    StepReport initialize(ExplicitOperator& model, real_t t) override;
+    StepReport step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index) override;
     const char* name() const override { return "central-difference"; }
 
   private:

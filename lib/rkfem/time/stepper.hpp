@@ -1,7 +1,8 @@
 #pragma once
 /// @file stepper.hpp
-/// Steppers see a model (the operator: forces and accelerations) and advance it. The hand-written
-/// central difference and (next) SUNDIALS ARKODE steppers implement this one interface.
+/// Steppers see an explicit operator (explicit_operator.hpp: the phases of a step) and advance it.
+/// The hand-written central difference and the SUNDIALS ARKODE steppers implement this one
+/// interface.
 #include <cstdint>
 #include <memory>
 
@@ -10,7 +11,7 @@
 
 namespace rkfem
 {
-class Model;
+class ExplicitOperator;
 
 struct StepReport
 {
@@ -24,12 +25,12 @@ class TimeStepper
 {
   public:
     virtual ~TimeStepper() = default;
-    /// Prepares the model at time t (initial forces, accelerations, energies). Call again after
-    /// the discretization changes.
-    virtual StepReport initialize(Model& model, real_t t) = 0;
+    /// Prepares the operator at time t (initial forces, accelerations, energies). Call again after
+    /// the discretization changes: the trajectory and the energy ledger continue.
+    virtual StepReport initialize(ExplicitOperator& model, real_t t) = 0;
     /// Advances from t by dt; commits material state when the step is accepted.
     /// Throws InstabilityError when the step cannot be completed.
-    virtual StepReport step(Model& model, real_t t, real_t dt, std::int64_t step_index) = 0;
+    virtual StepReport step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index) = 0;
     virtual const char* name() const = 0;
 };
 

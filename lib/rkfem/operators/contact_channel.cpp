@@ -1,0 +1,63 @@
+#include "rkfem/operators/contact_channel.hpp"
+
+namespace rkfem
+{
+void ContactChannel::resize(index_t n_nodes)
+{
+    f.assign(3 * static_cast<std::size_t>(n_nodes), 0.0);
+    mark_.assign(static_cast<std::size_t>(n_nodes), 0);
+    touched_.clear();
+    prev_nodes_.clear();
+    prev_f_.clear();
+}
+
+void ContactChannel::clear()
+{
+    for (index_t i : touched_)
+    {
+        for (int d = 0; d < 3; ++d)
+            f[3 * static_cast<std::size_t>(i) + d] = 0.0;
+        mark_[static_cast<std::size_t>(i)] = 0;
+    }
+    touched_.clear();
+}
+
+void ContactChannel::add(index_t node, const Vec3& force)
+{
+    const std::size_t i = static_cast<std::size_t>(node);
+    if (!mark_[i])
+    {
+        mark_[i] = 1;
+        touched_.push_back(node);
+    }
+    for (int d = 0; d < 3; ++d)
+        f[3 * i + d] += force[d];
+}
+
+real_t ContactChannel::step_work(const real_t* u, const real_t* u_prev) const
+{
+    real_t w = 0.0;
+    for (std::size_t k = 0; k < prev_nodes_.size(); ++k)
+        for (int d = 0; d < 3; ++d)
+        {
+            const std::size_t j = 3 * static_cast<std::size_t>(prev_nodes_[k]) + d;
+            w += 0.5 * prev_f_[3 * k + d] * (u[j] - u_prev[j]);
+        }
+    for (index_t i : touched_)
+        for (int d = 0; d < 3; ++d)
+        {
+            const std::size_t j = 3 * static_cast<std::size_t>(i) + d;
+            w += 0.5 * f[j] * (u[j] - u_prev[j]);
+        }
+    return w;
+}
+
+void ContactChannel::commit()
+{
+    prev_nodes_ = touched_; // capacity is reused
+    prev_f_.resize(3 * touched_.size());
+    for (std::size_t k = 0; k < touched_.size(); ++k)
+        for (int d = 0; d < 3; ++d)
+            prev_f_[3 * k + d] = f[3 * static_cast<std::size_t>(touched_[k]) + d];
+}
+} // namespace rkfem

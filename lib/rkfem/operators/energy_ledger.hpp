@@ -1,0 +1,56 @@
+#pragma once
+/// @file energy_ledger.hpp
+/// The energy ledger of a run: the stored and dissipated energies, the work put in from outside
+/// (loads, prescribed motion) and through contact, and the initial energies the balance is
+/// measured from. The ledger starts once, at the first start of a stepper; a stepper started
+/// again (after an event that changed the discretization, or any re-initialisation) continues it.
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+struct Energies
+{
+    real_t kinetic = 0.0; ///< 1/2 m v.v at the full step
+    /// -(dt^2 / 8) sum m a.a: turns `kinetic` into the leapfrog-consistent 1/2 m v(n-1/2).v(n+1/2),
+    /// the kinetic energy that central difference conserves exactly for linear elasticity.
+    real_t kinetic_correction = 0.0;
+    real_t internal = 0.0;
+    real_t hourglass = 0.0;
+    real_t bulk_viscosity = 0.0;
+    real_t damping = 0.0;       ///< dissipated by mass damping
+    real_t external_work = 0.0; ///< loads and prescribed motion
+    /// Sliding (contact) energy, LS-DYNA's sleout: minus the work the contact forces did on the
+    /// nodes (stored in penalty springs while in contact, plus what friction dissipated).
+    real_t contact = 0.0;
+    real_t kinetic0 = 0.0, internal0 = 0.0; ///< leapfrog-consistent kinetic energy at t = 0
+
+    real_t total() const { return kinetic + internal + hourglass + bulk_viscosity + contact; }
+    /// |E_kin' + E_int + E_hg + E_bv + E_contact + E_damp - E_kin0' - E_int0 - W_ext| / max(energy
+    /// scale), with E_kin' = kinetic + kinetic_correction (leapfrog-consistent kinetic energy)
+    real_t balance_error() const;
+    /// E_hg / (E_int + E_hg), 0 when there is no internal energy
+    real_t hourglass_ratio() const;
+
+    /// Records the initial energies from the current ones, the first time only: the start of a
+    /// stepper calls it, and a restart in the middle of a run keeps the ledger's origin.
+    void start()
+    {
+        if (started_)
+            return;
+        kinetic0 = kinetic + kinetic_correction;
+        internal0 = internal;
+        started_ = true;
+    }
+    bool started() const { return started_; }
+
+  private:
+    bool started_ = false;
+};
+
+/// What a force evaluation reports back to the stepper and the run loop.
+struct ForceReport
+{
+    real_t dt_stable = 1e300; ///< before the scale factor
+    index_t dt_element = -1;  ///< global element index controlling dt
+};
+} // namespace rkfem

@@ -1,0 +1,177 @@
+// Blocks that share nodes add into one force vector: a distorted box cut at a layer into a
+// 1-point hex block below and a nodal-integrated FE block (SCNI + MSCNI) above, sharing the
+// interface layer's nodes. Under a linear velocity field every point's stress is the same, so
+// the net force on every node that is not on the outer boundary vanishes, the interface nodes
+// included, where it is the sum of the two blocks' forces: the linear patch test to 1e-10. The
+// result does not depend on the thread count (bitwise), and a block that overwrites the other's
+// sums instead of adding to them fails it (the negative control).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <omp.h>
+
+#include "../support.hpp"
+#include "rkfem/operators/nodal_block.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+struct SharedBox
+{
+    HexMesh full;
+    NodeSet nodes;
+    HexBlock lower;  ///< fem-1pt, nodes [0, interface layer end)
+    NodalBlock upper; ///< fem-nodal, nodes [interface layer begin, end)
+    real_t h = 0.01;
+    int n = 0;
+};
+
+SharedBox make_shared_box(int n, int cut)
+{
+    SharedBox s;
+    s.n = n;
+    s.full = test::distorted_box(n, s.h, 0.25);
+    const index_t layer = static_cast<index_t>(n + 1) * (n + 1); // nodes per z layer
+    const index_t lower_nodes = (cut + 1) * layer, upper_offset = cut * layer;
+    const index_t lower_elems = static_cast<index_t>(n) * n * cut;
+    s.nodes.resize(s.full.n_nodes());
+    s.nodes.x0 = s.nodes.x = s.full.x;
+
+    HexBlock& b = s.lower;
+    b.formulation = Formulation::Fem1pt;
+    b.hourglass = {HourglassType::Stiffness, 0.05};
+    b.material = ElasticParams::from_E_nu(7850, 200e9, 0.3);
+    b.conn.assign(s.full.conn.begin(), s.full.conn.begin() + 8 * lower_elems);
+    b.node_begin = 0;
+    b.node_end = lower_nodes;
+    b.initialize(s.nodes);
+    add_lumped_mass(b, s.nodes);
+
+    HexMesh up;
+    up.x.assign(s.full.x.begin() + 3 * upper_offset, s.full.x.end());
+    up.conn.assign(s.full.conn.begin() + 8 * lower_elems, s.full.conn.end());
+    for (index_t& c : up.conn)
+        c -= upper_offset;
+    up.faces = extract_boundary_faces(up.conn);
+    PartSpec ps;
+    ps.name = "upper";
+    ps.formulation = Formulation::FemNodal;
+    ps.material.model = "elastic";
+    ps.material.rho = 7850.0;
+    ps.material.E = 200e9;
+    ps.material.nu = 0.3;
+    ps.nodal.scheme = "scni";
+    ps.nodal.stabilization = "mscni";
+    s.upper = build_nodal_block(ps, up, upper_offset);
+    add_nodal_mass(s.upper, s.nodes);
+    return s;
+}
+
+/// Five steps of the linear velocity field v = A x0 with both blocks assembled (adding, or the
+/// upper block overwriting); returns f_int.
+std::vector<real_t> linear_steps(SharedBox& s, bool add)
+{
+    const real_t A[3][3] = {{1.0, 0.3, -0.2}, {0.1, -0.5, 0.4}, {0.25, 0.2, 0.7}}; // 1/s
+    const real_t dt = 1e-7;
+    NodeSet& nodes = s.nodes;
+    for (int step = 0; step < 5; ++step)
+    {
+        for (index_t i = 0; i < nodes.size(); ++i)
+            for (int d = 0; d < 3; ++d)
+            {
+                real_t v = 0;
+                for (int j = 0; j < 3; ++j)
+                    v += A[d][j] * nodes.x0[3 * i + j];
+                nodes.v[3 * i + d] = v;
+                nodes.u[3 * i + d] += dt * v;
+                nodes.x[3 * i + d] = nodes.x0[3 * i + d] + nodes.u[3 * i + d];
+            }
+        hex_internal_force(s.lower, nodes, dt);
+        nodal_internal_force(s.upper, nodes, dt);
+        std::fill(nodes.f_int.begin(), nodes.f_int.end(), 0.0);
+        assemble_block_forces(s.lower, nodes, add);
+        assemble_nodal_forces(s.upper, nodes, add);
+        s.lower.commit();
+        s.upper.commit();
+    }
+    return nodes.f_int;
+}
+
+struct Residual
+{
+    real_t interior = 0.0;  ///< max over nodes off the outer boundary, / force scale
+    real_t interface = 0.0; ///< max over the interface layer's interior nodes, / force scale
+};
+
+Residual residual(const SharedBox& s, const std::vector<real_t>& f, int cut)
+{
+    const real_t sxx = s.lower.stress[0]; // a stress component of the first point
+    real_t sref = 0.0;
+    for (int k = 0; k < 6; ++k)
+        sref = std::max(sref, std::abs(s.lower.stress[k * s.lower.stress_stride]));
+    EXPECT_GT(std::abs(sxx) + sref, 0.0);
+    const real_t scale = sref * s.h * s.h;
+    const index_t layer = static_cast<index_t>(s.n + 1) * (s.n + 1);
+    Residual r;
+    for (index_t i = 0; i < s.nodes.size(); ++i)
+        if (test::is_interior(s.full, i, 0.5 * s.h, (s.n - 0.5) * s.h))
+            for (int d = 0; d < 3; ++d)
+            {
+                const real_t e = std::abs(f[3 * i + d]) / scale;
+                r.interior = std::max(r.interior, e);
+                if (i / layer == cut)
+                    r.interface = std::max(r.interface, e);
+            }
+    return r;
+}
+} // namespace
+
+TEST(SharedNodes, TwoBlocksOnOneInterfacePassTheLinearPatchTest)
+{
+    const int n = 4, cut = 2;
+    SharedBox s = make_shared_box(n, cut);
+    ASSERT_EQ(s.lower.node_end - s.upper.node_begin, (n + 1) * (n + 1)); // the shared layer
+    const Residual r = residual(s, linear_steps(s, true), cut);
+    // both blocks see the same uniform stress
+    real_t spread = 0.0, sref = 0.0;
+    for (int k = 0; k < 6; ++k)
+        sref = std::max(sref, std::abs(s.lower.stress[k * s.lower.stress_stride]));
+    for (index_t p = 0; p < s.upper.n_points(); ++p)
+        for (int k = 0; k < 6; ++k)
+            spread = std::max(spread, std::abs(s.upper.stress[k * s.upper.stress_stride + p] -
+                                               s.lower.stress[k * s.lower.stress_stride]) / sref);
+    std::printf("1-pt | fem-nodal on a %d^3 distorted box: interior residual %.2e, interface %.2e, stress "
+                "spread between the blocks %.2e\n",
+                n, r.interior, r.interface, spread);
+    EXPECT_LT(spread, 1e-10);
+    EXPECT_LT(r.interior, 1e-10);
+    EXPECT_LT(r.interface, 1e-10);
+
+    // negative control: the upper block's sums overwrite the lower block's on the shared layer
+    SharedBox w = make_shared_box(n, cut);
+    const Residual rw = residual(w, linear_steps(w, false), cut);
+    std::printf("overwriting instead of adding: interface residual %.2e\n", rw.interface);
+    EXPECT_GT(rw.interface, 1e-2);
+}
+
+TEST(SharedNodes, AssemblyDoesNotDependOnTheThreadCount)
+{
+    // large enough for several scatter chunks per block
+    const int n = 24, cut = 10;
+    std::vector<real_t> f[2];
+    for (int threads : {1, 2})
+    {
+        omp_set_num_threads(threads);
+        SharedBox s = make_shared_box(n, cut);
+        ASSERT_GT(s.lower.scatter.chunks.size(), 1u);
+        f[threads - 1] = linear_steps(s, true);
+        const Residual r = residual(s, f[threads - 1], cut);
+        std::printf("%d^3, %d thread(s): interior residual %.2e, interface %.2e\n", n, threads, r.interior,
+                    r.interface);
+        EXPECT_LT(r.interior, 1e-10);
+    }
+    omp_set_num_threads(1);
+    EXPECT_TRUE(f[0] == f[1]) << "forces differ between 1 and 2 threads";
+}
