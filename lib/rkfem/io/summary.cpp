@@ -86,13 +86,14 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     const std::size_t nc = s.history_columns.size();
     const std::size_t nr = nc ? s.history.size() / nc : 0;
     const auto& probes = model.deck().probes;
+    const std::size_t first_probe_column = nc - 12 * probes.size(); // probes' 12 columns each come last
     for (std::size_t p = 0; p < probes.size(); ++p)
     {
         o << (p ? ",\n" : "\n") << "    " << quote(probes[p].name) << ": {\"node\": "
           << model.probe_nodes[p];
         for (std::size_t q = 0; q < 12; ++q)
         {
-            const std::size_t col = 11 + 12 * p + q;
+            const std::size_t col = first_probe_column + 12 * p + q;
             double lo = 1e300, hi = -1e300;
             for (std::size_t r = 0; r < nr; ++r)
             {
