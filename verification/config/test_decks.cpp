@@ -421,3 +421,42 @@ TEST(Decks, CylinderCloudPartsRunAndTheirMistakesNameTheKey)
     expect_rejected("cyl_outside.yaml", with_rkpm(cyl(", radius: 1 mm, height: 6 mm, points: cyl_outside.csv, points_unit: mm")),
                     ":6: parts.col.generator.points", "cyl_outside.csv:3 lies outside the cylinder body");
 }
+
+TEST(Decks, CoupledPartsRunAndTheirMistakesNameTheKey)
+{
+    const std::string deck = std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_coupled.yaml";
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_coupled_ok";
+    fs::remove_all(out);
+    const Result r = run("run " + deck + " --out " + out.string() +
+                         " --quiet --set 'parts.column.generator.size=[2 mm, 2 mm, 40 mm]' --set time.end=6us"
+                         " --set 'parts.column.regions.0.select.min=[-1 mm, -1 mm, 20 mm]'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(out / "results.xdmf"));
+    // every probe reports its own 12 columns (displacements, velocities, stresses)
+    std::ifstream in(out / "summary.json");
+    const std::string summary((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (const char* probe : {"\"fe_side\": \\{\"node\": [0-9]+, \"ux\"", "\"rk_side\": \\{\"node\": [0-9]+, \"ux\""})
+        EXPECT_TRUE(std::regex_search(summary, std::regex(probe))) << probe << "\n" << summary;
+    // ... and ends with szx (before the summary gained the contact column, a probe's first
+    // column was read one too early)
+    const std::regex last_column("\"szx\": \\{[^}]*\\}\\}");
+    EXPECT_EQ(std::distance(std::sregex_iterator(summary.begin(), summary.end(), last_column), std::sregex_iterator()), 2)
+        << summary;
+
+    const std::string part = "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n";
+    const std::string region = "    regions:\n      - {select: {type: box, min: [0, 0, 0], max: [1 mm, 1 mm, 5 mm]}}\n";
+    expect_rejected("coupled_1pt.yaml", replace(good, part, part + region), ":9: parts.col.regions",
+                    "expected formulation: fem-nodal on a part with regions");
+    expect_rejected("coupled_plane.yaml",
+                    replace(good, part,
+                            part + "    formulation: fem-nodal\n    regions:\n"
+                                   "      - {select: {type: plane, point: [0, 0, 0], normal: [0, 0, 1]}}\n"),
+                    ":10: parts.col.regions.0.select", "expected select type box, cylinder or sphere");
+    expect_rejected("coupled_transition.yaml", replace(good, part, part + "    transition: ramp\n"),
+                    ":8: parts.col.transition", "remove it or add regions");
+    expect_rejected("coupled_all.yaml",
+                    replace(good, part,
+                            part + "    formulation: fem-nodal\n    regions:\n"
+                                   "      - {select: {type: sphere, point: [0, 0, 0], radius: 1 m}}\n"),
+                    ":10: parts.col.regions", "leaving no FE region");
+}

@@ -13,7 +13,6 @@
 #include <cstdio>
 
 #include "nodal_common.hpp"
-#include "rkfem/operators/linear_static.hpp"
 
 using namespace rkfem;
 using namespace rkfem::test;
@@ -23,87 +22,24 @@ namespace
 constexpr real_t h = 0.25;
 const ElasticParams mat = ElasticParams::from_E_nu(1.0, 1e3, 0.3);
 
-Vec3 exact(const Vec3& x)
-{
-    return {0.1 + 0.2 * x[0] + 0.3 * x[1] + 0.1 * x[2], 0.05 + 0.1 * x[0] - 0.2 * x[1] + 0.15 * x[2],
-            -0.1 + 0.05 * x[0] + 0.1 * x[1] - 0.3 * x[2]};
-}
-
 /// MSCNI stabilization coefficient used by these tests (c_s = 1 reproduces SD-SCNI exactly).
 constexpr real_t c_stab = 0.5;
 
 SparseMatrix stiffness(const Operators& ops, index_t n, real_t cs = c_stab)
 {
-    SparseMatrix K = assemble_stiffness(ops.points, mat, n);
-    if (ops.stabilization.n_points() > 0)
-        K += assemble_stiffness(ops.stabilization, mat, n, cs);
-    return K;
+    return operator_stiffness(ops, mat, n, cs);
 }
-
-struct PatchResult
-{
-    real_t displacement_error = 0.0; ///< max |d - u(x)| / max |u|, interior nodes
-    real_t strain_error = 0.0;       ///< max |eps - eps_exact| / |eps_exact| over points
-};
 
 PatchResult patch_test(Scheme scheme)
 {
     const HexMesh mesh = distorted_box(4, h, 0.3);
     const RkShapeFunctions rk = rk_on_mesh(mesh);
     const Operators ops = build(scheme, mesh, rk);
-    const index_t n = mesh.n_nodes();
-    const SparseMatrix K = stiffness(ops, n);
-    std::vector<index_t> dofs;
-    std::vector<real_t> values;
-    for (index_t i = 0; i < n; ++i)
-        if (!is_interior(mesh, i, 1e-9, 4 * h - 1e-9))
-            for (int d = 0; d < 3; ++d)
-            {
-                dofs.push_back(3 * i + d);
-                values.push_back(exact(mesh.node(i))[d]);
-            }
-    // RK test functions of interior nodes do not vanish on the boundary, so their equations carry
-    // the exact traction sigma n through the boundary quadrature that IC1 balances (zero for FE)
-    Mat3 ge;
-    ge << 0.2, 0.3, 0.1, 0.1, -0.2, 0.15, 0.05, 0.1, -0.3;
-    const Mat3 eps_exact = 0.5 * (ge + ge.transpose());
-    const Mat3 sigma = mat.lambda * eps_exact.trace() * Mat3::Identity() + 2.0 * mat.mu * eps_exact;
-    std::vector<real_t> f(3 * static_cast<std::size_t>(n), 0.0);
-    std::vector<index_t> nodes;
-    std::vector<real_t> psi;
     RkShapes rks(rk);
     FemShapes fes(mesh);
     const bool is_rk = scheme == Scheme::RkDni || scheme == Scheme::RkScni || scheme == Scheme::RkSdScni ||
                        scheme == Scheme::RkMscni;
-    for (const BoundaryPoint& b : boundary_quadrature(mesh))
-    {
-        (is_rk ? static_cast<const ShapeEvaluator&>(rks) : fes).values(b.element, b.point.xi, b.point.x, nodes, psi);
-        const Vec3 t = sigma * b.point.nda;
-        for (std::size_t k = 0; k < nodes.size(); ++k)
-            for (int d = 0; d < 3; ++d)
-                f[3 * nodes[k] + d] += psi[k] * t[d];
-    }
-    const std::vector<real_t> u = solve_static(K, f, dofs, values);
-    PatchResult r;
-    real_t umax = 0.0;
-    for (index_t i = 0; i < n; ++i)
-    {
-        const Vec3 ue = exact(mesh.node(i));
-        umax = std::max(umax, ue.norm());
-        r.displacement_error = std::max(r.displacement_error, (Vec3(u[3 * i], u[3 * i + 1], u[3 * i + 2]) - ue).norm());
-    }
-    r.displacement_error /= umax;
-    for (index_t p = 0; p < ops.points.n_points(); ++p)
-    {
-        Mat3 g = Mat3::Zero();
-        for (index_t k = ops.points.offsets[p]; k < ops.points.offsets[p + 1]; ++k)
-        {
-            const index_t I = ops.points.nodes[k];
-            g += Vec3(u[3 * I], u[3 * I + 1], u[3 * I + 2]) * ops.points.gradient(k).transpose();
-        }
-        r.strain_error = std::max(r.strain_error, (0.5 * (g + g.transpose()) - eps_exact).norm() / eps_exact.norm());
-    }
-    return r;
+    return linear_patch(mesh, 4 * h, ops, is_rk ? static_cast<const ShapeEvaluator&>(rks) : fes, mat, c_stab);
 }
 
 class LinearPatch : public ::testing::TestWithParam<Scheme>

@@ -679,12 +679,14 @@ MaterialSpec read_material(const Section& part)
                     "expected model: elastic | j2 | kcc | cscm");
 }
 
+SelectorSpec read_selector(const Section& parent);
+
 PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n,
                    const std::string& path)
 {
     Section s(ctx, n, path,
               {"generator", "material", "formulation", "hourglass", "bulk_viscosity",
-               "nodal_integration", "rk", "initial_velocity"});
+               "nodal_integration", "rk", "initial_velocity", "regions", "transition"});
     PartSpec p;
     p.name = name;
     p.loc = s.loc();
@@ -724,10 +726,41 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         if (!s.has("nodal_integration"))
             p.nodal.stabilization = "none";
     }
+    if (s.has("regions"))
+    {
+        // FE-RK coupling: the RK regions of an FE part
+        if (p.formulation != Formulation::FemNodal)
+            s.fail("regions", "RK regions are coupled to formulation fem-nodal only (fem-1pt is not built yet)",
+                   "expected formulation: fem-nodal on a part with regions");
+        if (p.generator.type == GeneratorSpec::Type::Cloud)
+            s.fail("regions", "a cloud part has no elements to divide", "remove regions");
+        p.regions_loc = s.loc("regions");
+        const YAML::Node rn = s.node("regions");
+        if (!rn.IsSequence() || rn.size() == 0)
+            s.fail("regions", "is not a non-empty list", "expected regions: [{select: {type: box | cylinder | sphere, ...}}]");
+        for (std::size_t i = 0; i < rn.size(); ++i)
+        {
+            Section r(ctx, rn[i], s.path("regions") + "." + std::to_string(i), {"formulation", "select"});
+            r.choice("formulation", {"rkpm"}, "rkpm");
+            SelectorSpec sel = read_selector(r);
+            if (sel.type != SelectorSpec::Type::Box && sel.type != SelectorSpec::Type::Cylinder &&
+                sel.type != SelectorSpec::Type::Sphere)
+                r.fail("select", "a region is a volume", "expected select type box, cylinder or sphere");
+            p.regions.push_back(sel);
+        }
+        p.transition = s.choice("transition", {"mixed", "ramp"}, "mixed");
+        p.nodal.scheme = s.has("nodal_integration") ? p.nodal.scheme : "scni";
+        if (p.nodal.scheme != "scni")
+            s.fail("nodal_integration", "a coupled part is integrated by scheme scni (with or without mscni)",
+                   "expected nodal_integration.scheme: scni");
+    }
+    else if (s.has("transition"))
+        s.fail("transition", "is only used by parts with regions", "remove it or add regions");
     if (s.has("rk"))
     {
-        if (p.formulation != Formulation::Rkpm)
-            s.fail("rk", "is only used by formulation rkpm", "remove it or set formulation: rkpm");
+        if (p.formulation != Formulation::Rkpm && !p.coupled())
+            s.fail("rk", "is only used by formulation rkpm and by parts with regions",
+                   "remove it or set formulation: rkpm");
         Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support"});
         p.rk.loc = r.loc();
         const std::string order = r.choice("order", {"1", "2"}, "1");

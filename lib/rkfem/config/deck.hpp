@@ -146,19 +146,6 @@ struct GeneratorSpec
     SourceLocation loc;
 };
 
-struct PartSpec
-{
-    std::string name;
-    GeneratorSpec generator;
-    MaterialSpec material;
-    Formulation formulation = Formulation::Fem1pt;
-    HourglassSpec hourglass;
-    BulkViscositySpec bulk_viscosity;
-    NodalIntegrationSpec nodal;
-    RkSpec rk;
-    Vec3 initial_velocity = Vec3::Zero();
-    SourceLocation loc;
-};
 
 /// Geometric predicate or generator name selecting nodes (or faces whose 4 nodes all match).
 struct SelectorSpec
@@ -179,6 +166,27 @@ struct SelectorSpec
     Vec3 max = Vec3::Zero();
     real_t radius = 0.0;
     real_t tolerance = -1.0; ///< < 0: 1e-6 of the part's bounding-box diagonal
+};
+
+struct PartSpec
+{
+    std::string name;
+    GeneratorSpec generator;
+    MaterialSpec material;
+    Formulation formulation = Formulation::Fem1pt;
+    HourglassSpec hourglass;
+    BulkViscositySpec bulk_viscosity;
+    NodalIntegrationSpec nodal;
+    RkSpec rk;
+    Vec3 initial_velocity = Vec3::Zero();
+    /// RK regions of an FE part (FE-RK coupling): elements whose centroid lies in any of them
+    /// are RK (box, cylinder: within radius of the axis, sphere); empty: a single-kind part.
+    std::vector<SelectorSpec> regions;
+    std::string transition = "mixed"; ///< mixed | ramp (coupled parts)
+    SourceLocation regions_loc;       ///< where `regions` is given
+    SourceLocation loc;
+
+    bool coupled() const { return !regions.empty(); }
 };
 
 struct SetSpec

@@ -55,6 +55,32 @@ const char* selector_name(SelectorSpec::Type t)
     return "?";
 }
 
+void selector(std::ostringstream& os, const SelectorSpec& sel)
+{
+    os << "select: {type: " << selector_name(sel.type);
+    switch (sel.type)
+    {
+    case SelectorSpec::Type::Named:
+        os << ", name: " << sel.name;
+        break;
+    case SelectorSpec::Type::Plane:
+        os << ", point: " << vec(sel.point) << ", normal: " << vec(sel.normal);
+        break;
+    case SelectorSpec::Type::Box:
+        os << ", min: " << vec(sel.min) << ", max: " << vec(sel.max);
+        break;
+    case SelectorSpec::Type::Cylinder:
+        os << ", point: " << vec(sel.point) << ", axis: " << vec(sel.normal) << ", radius: " << sel.radius;
+        break;
+    case SelectorSpec::Type::Sphere:
+        os << ", point: " << vec(sel.point) << ", radius: " << sel.radius;
+        break;
+    }
+    if (sel.tolerance >= 0)
+        os << ", tolerance: " << sel.tolerance;
+    os << "}";
+}
+
 void sets(std::ostringstream& os, const char* key, const std::vector<SetSpec>& v)
 {
     if (v.empty())
@@ -65,29 +91,8 @@ void sets(std::ostringstream& os, const char* key, const std::vector<SetSpec>& v
         os << "  " << s.name << ": {";
         if (!s.part.empty())
             os << "part: " << s.part << ", ";
-        os << "select: {type: " << selector_name(s.select.type);
-        switch (s.select.type)
-        {
-        case SelectorSpec::Type::Named:
-            os << ", name: " << s.select.name;
-            break;
-        case SelectorSpec::Type::Plane:
-            os << ", point: " << vec(s.select.point) << ", normal: " << vec(s.select.normal);
-            break;
-        case SelectorSpec::Type::Box:
-            os << ", min: " << vec(s.select.min) << ", max: " << vec(s.select.max);
-            break;
-        case SelectorSpec::Type::Cylinder:
-            os << ", point: " << vec(s.select.point) << ", axis: " << vec(s.select.normal)
-               << ", radius: " << s.select.radius;
-            break;
-        case SelectorSpec::Type::Sphere:
-            os << ", point: " << vec(s.select.point) << ", radius: " << s.select.radius;
-            break;
-        }
-        if (s.select.tolerance >= 0)
-            os << ", tolerance: " << s.select.tolerance;
-        os << "}}\n";
+        selector(os, s.select);
+        os << "}\n";
     }
 }
 
@@ -227,7 +232,18 @@ std::string to_yaml(const Deck& d)
             os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
                << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
                << ", dt_factor: " << p.nodal.dt_factor << "}\n";
-        if (p.formulation == Formulation::Rkpm)
+        if (p.coupled())
+        {
+            os << "    regions:\n";
+            for (const auto& r : p.regions)
+            {
+                os << "      - {formulation: rkpm, ";
+                selector(os, r);
+                os << "}\n";
+            }
+            os << "    transition: " << p.transition << "\n";
+        }
+        if (p.formulation == Formulation::Rkpm || p.coupled())
             os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
                << ", normalized_support: " << p.rk.normalized_support << "}\n";
         if (p.formulation == Formulation::Fem1pt)

@@ -152,7 +152,8 @@ Model Model::build(const Deck& deck)
         if (is_nodal(ps.formulation))
         {
             NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(ps, mesh, offset)
-                                                                             : build_nodal_block(ps, mesh, offset);
+                            : ps.coupled()                                  ? build_coupled_block(ps, mesh, offset)
+                                                                            : build_nodal_block(ps, mesh, offset);
             nb.part = static_cast<index_t>(ip);
             add_nodal_mass(nb, m.nodes);
             m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
@@ -365,6 +366,13 @@ Model Model::build(const Deck& deck)
         {
             const index_t ip = m.nodes.part[q[0]];
             const bool is_rk = d.parts[ip].formulation == Formulation::Rkpm;
+            if (d.parts[ip].coupled())
+                for (index_t node : q)
+                    if (m.carries_coefficients(node))
+                        throw DeckError({load->loc.where, load->loc.path + ".set"},
+                                        "face set '" + load->set + "' reaches the RK region of coupled part '" +
+                                            d.parts[ip].name + "', where pressure is not distributed yet",
+                                        "expected a pressure on faces of the FE region");
             rl.is_rk.push_back(is_rk);
             if (!is_rk)
             {
@@ -883,7 +891,12 @@ std::vector<index_t> Model::velocity_driven_dofs() const
 bool Model::carries_coefficients(index_t node) const
 {
     const index_t ip = nodes.part[node];
-    return part_nodal[ip] >= 0 && !nodal_blocks[part_nodal[ip]].interp_offsets.empty();
+    if (part_nodal[ip] < 0)
+        return false;
+    const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+    if (!nb.particle.empty()) // coupled FE-RK part: particles only
+        return nb.particle[static_cast<std::size_t>(node - nb.node_begin)] != 0;
+    return !nb.interp_offsets.empty();
 }
 
 Vec3 Model::physical(const std::vector<real_t>& field, index_t node) const

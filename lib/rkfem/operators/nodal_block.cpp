@@ -1,5 +1,7 @@
 #include "rkfem/operators/nodal_block.hpp"
 
+#include "rkfem/approximation/coupling/coupled_shapes.hpp"
+
 #include <algorithm>
 #include <map>
 #include <immintrin.h>
@@ -630,6 +632,95 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
         throw singular_support(ps, e);
     }
     // stable-step length and crack band: the shortest mesh edge at the node
+    const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+    finish_block(nb, offset, l0, l0);
+    return nb;
+}
+
+namespace
+{
+/// Is point c inside region r (box, within radius of a cylinder's axis, sphere)?
+bool inside_region(const SelectorSpec& r, const Vec3& c)
+{
+    switch (r.type)
+    {
+    case SelectorSpec::Type::Box:
+        return (c.array() >= r.min.array()).all() && (c.array() <= r.max.array()).all();
+    case SelectorSpec::Type::Cylinder:
+    {
+        const Vec3 d = c - r.point;
+        return (d - d.dot(r.normal) * r.normal).norm() <= r.radius;
+    }
+    case SelectorSpec::Type::Sphere:
+        return (c - r.point).norm() <= r.radius;
+    default:
+        return false;
+    }
+}
+} // namespace
+
+std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh)
+{
+    std::vector<char> rk(static_cast<std::size_t>(mesh.n_elements()), 0);
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        Vec3 c = Vec3::Zero();
+        for (int a = 0; a < 8; ++a)
+            c += mesh.node(mesh.conn[8 * e + a]) / 8.0;
+        for (const SelectorSpec& r : ps.regions)
+            rk[e] = rk[e] || inside_region(r, c);
+    }
+    return rk;
+}
+
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
+{
+    const std::vector<char> rk_elements = rk_region_elements(ps, mesh);
+    index_t n_rk = 0;
+    for (char c : rk_elements)
+        n_rk += c;
+    if (n_rk == 0 || n_rk == mesh.n_elements())
+        throw DeckError(ps.regions_loc,
+                        n_rk == 0 ? "contain no element centroid of the part"
+                                  : "contain every element of the part, leaving no FE region",
+                        n_rk == 0 ? "expected regions that hold some of the part's elements"
+                                  : "expected formulation: rkpm for an all-RK part, or smaller regions");
+    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+    const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
+    try
+    {
+        auto shapes = std::make_shared<const CoupledShapes>(mesh, rk_elements, rk_params(ps.rk), t);
+        nb.points = build_scni(mesh, *shapes);
+        if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
+        // physical values: identity at FE nodes, the RK interpolant at particles
+        nb.interp_offsets.assign(1, 0);
+        std::vector<index_t> row_nodes;
+        std::vector<real_t> row_values;
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+        {
+            row_nodes.clear();
+            row_values.clear();
+            shapes->node_row(i, row_nodes, row_values);
+            for (std::size_t k = 0; k < row_nodes.size(); ++k)
+            {
+                nb.interp_nodes.push_back(row_nodes[k] + offset);
+                nb.interp_values.push_back(row_values[k]);
+            }
+            nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
+        }
+        nb.particle.resize(static_cast<std::size_t>(mesh.n_nodes()));
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+            nb.particle[i] = shapes->is_particle(i);
+        nb.coupled = shapes;
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
     const std::vector<real_t> l0 = nodal_spacing(mesh, false);
     finish_block(nb, offset, l0, l0);
     return nb;

@@ -33,6 +33,8 @@
 
 namespace rkfem
 {
+class CoupledShapes;
+
 struct NodalBlock
 {
     index_t part = 0;
@@ -58,6 +60,10 @@ struct NodalBlock
     /// set-up work that samples them (pressure faces); null for FE parts.
     std::shared_ptr<const RkShapeFunctions> rk;
     std::vector<real_t> interp_values;
+    /// Coupled FE-RK parts: the approximation (element kinds, particles, RK functions; local
+    /// numbering) and, per local node, whether its unknowns are RK coefficients; empty otherwise.
+    std::shared_ptr<const CoupledShapes> coupled;
+    std::vector<char> particle;
     /// Cloud parts: the Voronoi cells' facet points on the body's surface (reference position,
     /// outward n dA), where face loads act; empty for mesh parts.
     std::vector<CellFacetPoint> boundary_facets;
@@ -122,6 +128,14 @@ RkParams rk_params(const RkSpec& spec);
 /// shifted by `offset`): approximation, nodal integration, stabilization, RK interpolation at
 /// the nodes. A singular RK moment matrix becomes a DeckError naming rk.normalized_support.
 NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
+
+/// Per element of a part's mesh: 1 if its centroid lies in one of the part's RK regions.
+std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh);
+
+/// Builds the block of a coupled FE-RK part (a fem-nodal part with regions): the mixed or ramp
+/// approximation of approximation/coupling/coupled_shapes.hpp over the whole mesh, SCNI on its
+/// node-dual cells (+ MSCNI), physical values at the nodes (identity at FE nodes).
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
 
 /// The convex body a cloud part's Voronoi cells are clipped to: its box, or the prism of planes
 /// tangent to its cylinder (at least 128, about 8 pi radius / mean spacing of n_particles).

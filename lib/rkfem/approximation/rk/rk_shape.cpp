@@ -43,9 +43,11 @@ void basis(const Vec3& y, Eigen::Matrix<real_t, m, 1>& H, Eigen::Matrix<real_t, 
         }
     }
 }
-/// Moment matrix, its LDL^T, and Psi (and direct gradients) for every sample entry.
+/// Moment matrix, its LDL^T, and Psi (and direct gradients) for every sample entry. With
+/// `others` (values only), the right-hand side is H(0) - sum_k w_k H(dy_k / s): the RK functions
+/// complete other functions' reproduction (RkShapeFunctions::evaluate_completing).
 template <int m, class OnSingular>
-void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singular)
+void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singular, const RkOthers* others = nullptr)
 {
     using MatM = Eigen::Matrix<real_t, m, m>;
     using VecM = Eigen::Matrix<real_t, m, 1>;
@@ -70,13 +72,27 @@ void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singul
                 dM[i].noalias() += phi * (Hi * H.transpose() + H * Hi.transpose()) + out.dphi[k][i] * H * H.transpose();
             }
     }
+    VecM H0 = VecM::Zero();
+    H0[0] = 1.0;
+    if (others != nullptr)
+    {
+        for (std::size_t k = 0; k < others->weight.size(); ++k)
+        {
+            basis<m>(others->dx[k] * inv_s, H, dH);
+            H0.noalias() -= others->weight[k] * H;
+        }
+        // the other functions reproduce the basis here by themselves: every Psi is 0, whatever M
+        if (H0.cwiseAbs().maxCoeff() < 1e-13)
+        {
+            out.psi.assign(static_cast<std::size_t>(n), 0.0);
+            return;
+        }
+    }
     Eigen::LDLT<MatM> ldlt(M);
     const auto D = ldlt.vectorD();
     const real_t dmax = D.cwiseAbs().maxCoeff();
     if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
         singular("pivot ratio below 1e-12");
-    VecM H0 = VecM::Zero();
-    H0[0] = 1.0;
     const VecM b = ldlt.solve(H0);
     VecM db[3];
     if (gradients)
@@ -115,7 +131,14 @@ RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> ra
     cells_ = CellList(x_, a_.empty() ? 1.0 : a_max);
 }
 
-void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const
+void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const { evaluate_impl(x, gradients, out, nullptr); }
+
+void RkShapeFunctions::evaluate_completing(const Vec3& x, const RkOthers& others, RkSample& out) const
+{
+    evaluate_impl(x, false, out, &others);
+}
+
+void RkShapeFunctions::evaluate_impl(const Vec3& x, bool gradients, RkSample& out, const RkOthers* others) const
 {
     out.clear();
     real_t s = 1e300;
@@ -146,12 +169,12 @@ void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) co
            << "; increase rk.normalized_support or refine the particle cloud there";
         throw SingularMomentError(os.str());
     };
-    if (n < m)
+    if (n < m && others == nullptr)
         singular("too few neighbours");
     if (m == 4)
-        solve_and_fill<4>(out, s, gradients, singular);
+        solve_and_fill<4>(out, s, gradients, singular, others);
     else
-        solve_and_fill<10>(out, s, gradients, singular);
+        solve_and_fill<10>(out, s, gradients, singular, others);
 }
 
 RkShapeFunctions rk_on_mesh(const HexMesh& mesh, const RkParams& params)

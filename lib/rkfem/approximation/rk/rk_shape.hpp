@@ -57,6 +57,19 @@ struct RkSample
     index_t size() const { return static_cast<index_t>(nodes.size()); }
 };
 
+/// Other functions that share the reproducing conditions at a point (FE functions of an
+/// interface element): their values w_k and offsets dx_k = x - x_k from their nodes.
+struct RkOthers
+{
+    std::vector<real_t> weight;
+    std::vector<Vec3> dx;
+    void clear()
+    {
+        weight.clear();
+        dx.clear();
+    }
+};
+
 class RkShapeFunctions
 {
   public:
@@ -66,6 +79,11 @@ class RkShapeFunctions
 
     /// Psi_I(x) for every covering particle, and grad Psi_I(x) when `gradients`.
     void evaluate(const Vec3& x, bool gradients, RkSample& out) const;
+    /// Psi_I(x) that complete the reproduction of other functions (Huerta & Fernandez-Mendez
+    /// 2000): M(x) b(x) = H(0) - sum_k w_k H((x - x_k)/s), so sum_k w_k H(x - x_k) + sum_I Psi_I
+    /// H(x - x_I) = H(0). Where the others reproduce the basis by themselves every Psi is 0 (and M
+    /// is not needed). Values only.
+    void evaluate_completing(const Vec3& x, const RkOthers& others, RkSample& out) const;
 
     index_t size() const { return static_cast<index_t>(a_.size()); }
     real_t radius(index_t i) const { return a_[static_cast<std::size_t>(i)]; }
@@ -73,6 +91,7 @@ class RkShapeFunctions
     const RkParams& params() const { return p_; }
 
   private:
+    void evaluate_impl(const Vec3& x, bool gradients, RkSample& out, const RkOthers* others) const;
     std::vector<real_t> x_, a_;
     RkParams p_;
     CellList cells_;

@@ -1,0 +1,173 @@
+#include "rkfem/approximation/coupling/coupled_shapes.hpp"
+
+#include <algorithm>
+
+#include "rkfem/core/error.hpp"
+
+namespace rkfem
+{
+CoupledShapes::CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params,
+                             Transition transition)
+    : mesh_(mesh), transition_(transition)
+{
+    const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
+    RKFEM_REQUIRE(static_cast<index_t>(rk_element.size()) == ne,
+                  "coupled shapes: " << rk_element.size() << " element flags for " << ne << " elements");
+    kind_.assign(static_cast<std::size_t>(ne), Kind::Fe);
+    particle_of_.assign(static_cast<std::size_t>(nn), -1);
+    index_t n_rk = 0;
+    for (index_t e = 0; e < ne; ++e)
+        if (rk_element[e])
+        {
+            kind_[e] = Kind::Rk;
+            ++n_rk;
+            for (int a = 0; a < 8; ++a)
+                particle_of_[mesh.conn[8 * e + a]] = 0;
+        }
+    RKFEM_REQUIRE(n_rk > 0 && n_rk < ne, "coupled shapes: " << n_rk << " of " << ne
+                                                             << " elements are RK; a coupled part needs both kinds");
+    // interface elements, and the nodes they touch
+    std::vector<char> touches_interface(static_cast<std::size_t>(nn), 0);
+    for (index_t e = 0; e < ne; ++e)
+    {
+        if (kind_[e] == Kind::Rk)
+            continue;
+        bool any = false;
+        for (int a = 0; a < 8; ++a)
+            any = any || particle_of_[mesh.conn[8 * e + a]] >= 0;
+        if (!any)
+            continue;
+        kind_[e] = Kind::Interface;
+        for (int a = 0; a < 8; ++a)
+            touches_interface[mesh.conn[8 * e + a]] = 1;
+    }
+    for (index_t i = 0; i < nn; ++i)
+        if (particle_of_[i] >= 0)
+        {
+            particle_of_[i] = static_cast<index_t>(particle_node_.size());
+            particle_node_.push_back(i);
+        }
+    // supports: normalized_support x the longest edge at the node; at least kInterfaceSupport x
+    // for every node of an RK element that shares a node with an interface element (two particle
+    // layers reach across each interface element)
+    const std::vector<real_t> h = nodal_spacing(mesh);
+    std::vector<real_t> c(static_cast<std::size_t>(nn), params.normalized_support);
+    for (index_t e = 0; e < ne; ++e)
+    {
+        if (kind_[e] != Kind::Rk)
+            continue;
+        bool near = false;
+        for (int a = 0; a < 8; ++a)
+            near = near || touches_interface[mesh.conn[8 * e + a]];
+        if (near)
+            for (int a = 0; a < 8; ++a)
+            {
+                real_t& ca = c[mesh.conn[8 * e + a]];
+                ca = std::max(ca, kInterfaceSupport);
+            }
+    }
+    std::vector<real_t> x, radius;
+    for (index_t i : particle_node_)
+    {
+        for (int d = 0; d < 3; ++d)
+            x.push_back(mesh.x[3 * i + d]);
+        radius.push_back(c[i] * h[i]);
+    }
+    rk_ = RkShapeFunctions(std::move(x), std::move(radius), params);
+}
+
+void CoupledShapes::values(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
+                           std::vector<real_t>& psi) const
+{
+    thread_local RkSample s;
+    thread_local RkOthers others;
+    nodes.clear();
+    psi.clear();
+    const index_t* en = &mesh_.conn[8 * static_cast<std::size_t>(e)];
+    real_t N[8];
+    const real_t z[3] = {xi[0], xi[1], xi[2]};
+    hex8_shape(z, N);
+    auto add_particles = [&](real_t scale)
+    {
+        for (index_t k = 0; k < s.size(); ++k)
+        {
+            const index_t node = particle_node_[s.nodes[k]];
+            auto it = std::find(nodes.begin(), nodes.end(), node);
+            if (it == nodes.end())
+            {
+                nodes.push_back(node);
+                psi.push_back(scale * s.psi[k]);
+            }
+            else
+                psi[it - nodes.begin()] += scale * s.psi[k];
+        }
+    };
+    switch (kind_[static_cast<std::size_t>(e)])
+    {
+    case Kind::Fe:
+        nodes.assign(en, en + 8);
+        psi.assign(N, N + 8);
+        return;
+    case Kind::Rk:
+        rk_.evaluate(x, false, s);
+        add_particles(1.0);
+        return;
+    case Kind::Interface:
+        break;
+    }
+    if (transition_ == Transition::Mixed)
+    {
+        others.clear();
+        for (int a = 0; a < 8; ++a)
+            if (particle_of_[en[a]] < 0)
+            {
+                nodes.push_back(en[a]);
+                psi.push_back(N[a]);
+                others.weight.push_back(N[a]);
+                others.dx.push_back(x - mesh_.node(en[a]));
+            }
+        rk_.evaluate_completing(x, others, s);
+        add_particles(1.0);
+        return;
+    }
+    // ramp: (1 - R) N_k for every node of the element, R Psi_J for every covering particle
+    real_t R = 0.0;
+    for (int a = 0; a < 8; ++a)
+        if (particle_of_[en[a]] >= 0)
+            R += N[a];
+    for (int a = 0; a < 8; ++a)
+    {
+        nodes.push_back(en[a]);
+        psi.push_back((1.0 - R) * N[a]);
+    }
+    if (R > 0.0)
+    {
+        rk_.evaluate(x, false, s);
+        add_particles(R);
+    }
+}
+
+void CoupledShapes::gradients_at_node(index_t, std::vector<index_t>&, std::vector<Vec3>&) const
+{
+    throw Error("direct nodal integration is not available on coupled FE-RK parts");
+}
+
+void CoupledShapes::node_row(index_t node, std::vector<index_t>& nodes, std::vector<real_t>& values) const
+{
+    const index_t p = particle_of_[static_cast<std::size_t>(node)];
+    if (p < 0)
+    {
+        nodes.push_back(node);
+        values.push_back(1.0);
+        return;
+    }
+    // N_i(X_J) = 0 for every FE node i: the RK interpolant alone, in either treatment
+    thread_local RkSample s;
+    rk_.evaluate(mesh_.node(node), false, s);
+    for (index_t k = 0; k < s.size(); ++k)
+    {
+        nodes.push_back(particle_node_[s.nodes[k]]);
+        values.push_back(s.psi[k]);
+    }
+}
+} // namespace rkfem

@@ -1,0 +1,77 @@
+#pragma once
+/// @file coupled_shapes.hpp
+/// The approximation of a part that is FE in some elements and RK in others (seed Table 1,
+/// feature 3; ../shared/reference/rkpm-methods.md s. 4.1-4.3). Elements are of three kinds:
+///   RK         in an RK region: its 8 nodes are particles, u = sum_J Psi_J d_J;
+///   FE         no particle node: u = sum_i N_i u_i (trilinear);
+///   interface  an FE element with at least one particle node: the transition.
+/// Particles are the nodes of RK elements; their unknowns are generalized coefficients. FE nodes
+/// keep the Kronecker property (their unknowns are physical values), so conditions and FE
+/// contact on them are unchanged.
+///
+/// Two transition treatments in interface elements:
+///   mixed (Huerta & Fernandez-Mendez 2000, the default): u = sum_{i in F} N_i u_i + sum_J Psi_J d_J
+///     with M(x) b(x) = H(0) - sum_{i in F} N_i(x) H(x - x_i): the RK functions fill exactly the
+///     reproduction the missing FE nodes leave, and vanish where the FE functions are complete
+///     (every face shared with an FE element). Linear fields are reproduced everywhere.
+///   ramp (Belytschko, Organ & Krongauz 1995): u = (1 - R) sum_{k in e} N_k u_k + R sum_J Psi_J d_J,
+///     R = sum_{k in e, particle} N_k, the standard RK functions blended in; at particle nodes u_k
+///     is the node's unknown (its coefficient), so the FE part is not a physical interpolant there.
+/// Particles of RK elements that share a node with an interface element get a support of at
+/// least kInterfaceSupport x their spacing, so that every point of an interface element is
+/// covered by particles out of one plane (s. 4.2: "give interface particles a larger support").
+#include <vector>
+
+#include "rkfem/approximation/shape_evaluator.hpp"
+
+namespace rkfem
+{
+enum class Transition
+{
+    Mixed,
+    Ramp,
+};
+
+class CoupledShapes final : public ShapeEvaluator
+{
+  public:
+    enum class Kind : char
+    {
+        Fe,
+        Interface,
+        Rk,
+    };
+    /// Normalized support of the particles next to interface elements (at least).
+    static constexpr real_t kInterfaceSupport = 2.2;
+
+    /// mesh: the whole part (local numbering); rk_element[e] != 0: element e lies in an RK region.
+    /// Throws Error when no element, or every element, is RK.
+    CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params,
+                  Transition transition);
+
+    void values(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
+                std::vector<real_t>& psi) const override;
+    /// Undefined on coupled parts (DNI is not offered there).
+    void gradients_at_node(index_t i, std::vector<index_t>& nodes, std::vector<Vec3>& grad) const override;
+
+    Kind kind(index_t e) const { return kind_[static_cast<std::size_t>(e)]; }
+    bool is_particle(index_t node) const { return particle_of_[static_cast<std::size_t>(node)] >= 0; }
+    index_t n_particles() const { return static_cast<index_t>(particle_node_.size()); }
+    /// The RK functions over the particles (particle numbering; particle_node() maps to nodes).
+    const RkShapeFunctions& rk() const { return rk_; }
+    index_t particle_node(index_t p) const { return particle_node_[static_cast<std::size_t>(p)]; }
+    Transition transition() const { return transition_; }
+
+    /// Physical value at node I: the row sum_k N_k(X_I) d_k (identity at FE nodes, the RK
+    /// interpolant sum_J Psi_J(X_I) d_J at particles), appended to (nodes, values).
+    void node_row(index_t node, std::vector<index_t>& nodes, std::vector<real_t>& values) const;
+
+  private:
+    const HexMesh& mesh_;
+    std::vector<Kind> kind_;
+    std::vector<index_t> particle_of_;   ///< per node: particle index, -1 for FE nodes
+    std::vector<index_t> particle_node_; ///< per particle: node
+    RkShapeFunctions rk_;
+    Transition transition_;
+};
+} // namespace rkfem
