@@ -111,8 +111,11 @@ TEST(HexPatch, OnePointPassesWhereTheStressIsStreamed)
     ASSERT_EQ(blk.stress_stride % 8, 0u);
     ASSERT_EQ(reinterpret_cast<std::uintptr_t>(blk.stress.data()) % 64, 0u);
     ASSERT_FALSE(blk.scatter.empty()) << "streaming needs the chunked scatter (it fences each chunk)";
-    if (!stream_pays(static_cast<index_t>(6 * blk.stress_stride)))
-        GTEST_SKIP() << "no AVX-512 here: the stress is stored plainly (the 3^3 patch tests cover that)";
+    // without AVX-512 both paths store plainly: the patch and the comparison still run (and the
+    // comparison is then between two plain passes)
+    std::printf("stress stores: %s\n", stream_pays(static_cast<index_t>(6 * blk.stress_stride))
+                                           ? "streamed"
+                                           : "plain (no AVX-512 here)");
     const PatchResult r = run_patch(Formulation::Fem1pt, HourglassType::Viscous, 56);
     EXPECT_LT(r.stress_spread, 1e-10);
     EXPECT_LT(r.interior_residual, 1e-10);

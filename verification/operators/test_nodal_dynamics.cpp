@@ -242,8 +242,10 @@ void dynamic_patch(Formulation form, const std::string& stab, int n, int steps, 
         ASSERT_EQ(fx.blk.stress_stride % 8, 0u);
         ASSERT_EQ(reinterpret_cast<std::uintptr_t>(fx.blk.stress.data()) % 64, 0u);
         ASSERT_TRUE(fx.blk.scatter_assembly()) << "streaming needs the chunked scatter (it fences each chunk)";
-        if (!stream_pays(static_cast<index_t>(6 * fx.blk.stress_stride)))
-            GTEST_SKIP() << "no AVX-512 here: the stress is stored plainly (the 6^3 patches cover that)";
+        // without AVX-512 the stress is stored plainly: the patch still runs
+        std::printf("stress stores: %s\n", stream_pays(static_cast<index_t>(6 * fx.blk.stress_stride))
+                                               ? "streamed"
+                                               : "plain (no AVX-512 here)");
     }
     Mat3 L0;
     L0 << 20.0, -5.0, 3.0, 8.0, -10.0, 4.0, -6.0, 2.0, 5.0; // [1/s]
