@@ -160,11 +160,11 @@ class PenaltyWall final : public ContactAlgorithm
 {
   public:
     PenaltyWall(real_t z_wall, real_t k) : z_(z_wall), k_(k) {}
-    void add_forces(const NodeSet& nodes, real_t, ContactChannel& ch) override
+    void add_forces(const PhysicalNodes& nodes, real_t, ContactChannel& ch) override
     {
         for (index_t i = 0; i < nodes.size(); ++i)
         {
-            const real_t g = nodes.x[3 * static_cast<std::size_t>(i) + 2] - z_;
+            const real_t g = nodes.x(i)[2] - z_;
             if (g < 0)
                 ch.add(i, Vec3(0, 0, -k_ * g));
         }
@@ -192,13 +192,18 @@ TEST(ContactChannel, ClosesTheLedgerThroughAnImpact)
 {
     // a bar moving at 10 m/s onto a penalty wall: during contact the springs hold energy that
     // only the channel's work term accounts for; after separation it is given back
-    for (const char* st : {"central-difference", "arkode-cd"})
+    for (const char* st : {"central-difference", "arkode-cd", "central-difference rkpm"})
     {
-        Model m = test::model_from(falling_bar);
+        // on RK particles the wall sees the physical positions through the kinematic map, and
+        // its forces reach the coefficients through the map's transpose
+        const bool rk = std::string(st).find("rkpm") != std::string::npos;
+        Model m = test::model_from(falling_bar, rk ? std::vector<std::string>{"parts.bar.formulation=rkpm",
+                                                                                "parts.bar.hourglass=~"}
+                                                   : std::vector<std::string>{});
         const real_t k = 2e8; // N/m per node: stiffer than the bar's 4 nodes' share of E A / h
         m.contacts.push_back(std::make_unique<PenaltyWall>(0.0, k));
         const TimeSpec ts = m.deck().time;
-        auto stepper_ = stepper(st, ts);
+        auto stepper_ = stepper(rk ? "central-difference" : st, ts);
         const real_t dt = 0.5 * next_time_step(ts, 0.0, stepper_->initialize(m, 0.0).dt_stable);
         const real_t e0 = m.energy.kinetic;
         real_t t = 0.0, max_err = 0.0, max_sliding = 0.0, min_z = 1.0;
@@ -209,7 +214,7 @@ TEST(ContactChannel, ClosesTheLedgerThroughAnImpact)
             max_err = std::max(max_err, m.energy.balance_error());
             max_sliding = std::max(max_sliding, m.energy.contact);
             for (index_t i = 0; i < m.nodes.size(); ++i)
-                min_z = std::min(min_z, m.nodes.x[3 * i + 2]);
+                min_z = std::min(min_z, m.kinematics.position(m.nodes.x0, m.nodes.u, i)[2]);
         }
         real_t pz = 0.0;
         for (index_t i = 0; i < m.nodes.size(); ++i)
@@ -223,4 +228,43 @@ TEST(ContactChannel, ClosesTheLedgerThroughAnImpact)
         EXPECT_LT(std::abs(m.energy.contact), 1e-2 * e0); // given back after separation
         EXPECT_LT(pz / (-mass * 10.0), -0.9);           // it bounced
     }
+}
+
+TEST(KinematicMap, SpreadIsTheTransposeOfThePhysicalValues)
+{
+    // rows of an RK part (rkpm bar): sum_I f_I . u^h(X_I) = sum_J (spread f)_J . d_J for any
+    // field, so forces at physical points do the same work in either space; FE nodes are
+    // identity rows; the RK rows are partitions of unity
+    Model m = test::model_from(driven_bar, {"parts.bar.formulation=rkpm", "parts.bar.hourglass=~"});
+    const KinematicMap& map = m.kinematics;
+    const index_t n = m.nodes.size();
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
+    std::vector<real_t> d(3 * n), f(3 * n), spread(3 * n, 0.0), u;
+    for (index_t j = 0; j < 3 * n; ++j)
+        d[j] = rnd(gen), f[j] = rnd(gen);
+    map.physical_field(d, u);
+    real_t lhs = 0.0, rhs = 0.0, scale = 0.0, unity = 0.0;
+    for (index_t i = 0; i < n; ++i)
+    {
+        ASSERT_TRUE(map.carries_coefficients(i));
+        map.spread(i, Vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]), spread.data());
+        real_t s = 0.0;
+        map.for_row(i, [&](index_t, real_t w) { s += w; });
+        unity = std::max(unity, std::abs(s - 1.0));
+    }
+    for (index_t j = 0; j < 3 * n; ++j)
+    {
+        lhs += f[j] * u[j];
+        rhs += spread[j] * d[j];
+        scale += std::abs(f[j] * u[j]);
+    }
+    std::printf("sum f . u^h = %.15e, sum spread(f) . d = %.15e; partition of unity to %.1e\n", lhs, rhs, unity);
+    EXPECT_NEAR(lhs, rhs, 1e-13 * scale);
+    EXPECT_LT(unity, 1e-13);
+    // an FE part: every row is the identity
+    Model fe = test::model_from(driven_bar);
+    for (index_t i = 0; i < fe.nodes.size(); ++i)
+        ASSERT_FALSE(fe.kinematics.carries_coefficients(i));
+    EXPECT_TRUE(fe.kinematics.identity());
 }

@@ -355,6 +355,21 @@ Model Model::build(const Deck& deck)
                             "expected the name of a part");
         m.probe_nodes.push_back(best);
     }
+    // the kinematic map: the RK rows of every nodal block, moved out of the block (it served
+    // the build only)
+    m.kinematics.reset(m.nodes.size());
+    for (NodalBlock& nb : m.nodal_blocks)
+    {
+        if (nb.interp_offsets.empty())
+            continue;
+        const std::vector<char> all(static_cast<std::size_t>(nb.node_end - nb.node_begin), 1);
+        m.kinematics.set_rows(nb.node_begin, nb.node_end, nb.interp_offsets, nb.interp_nodes, nb.interp_values,
+                              nb.particle.empty() ? &all : &nb.particle);
+        std::vector<index_t>().swap(nb.interp_offsets);
+        std::vector<index_t>().swap(nb.interp_nodes);
+        std::vector<real_t>().swap(nb.interp_values);
+    }
+    m.contact.set_map(&m.kinematics);
     m.build_rk_constraints();
     // consistent pressure distribution on rkpm faces: Psi_I at 2x2 Gauss points of each face
     for (const auto& [load, faces] : m.pressure_loads_)
@@ -465,7 +480,7 @@ void Model::collect_loaded_dofs()
         for (int k = 0; k < 3; ++k)
             if (load->active[k])
                 for (index_t n : ids)
-                    loaded[3 * static_cast<std::size_t>(n) + k] = 1;
+                    kinematics.for_row(n, [&](index_t j, real_t) { loaded[3 * static_cast<std::size_t>(j) + k] = 1; });
     for (std::size_t il = 0; il < pressure_loads_.size(); ++il)
     {
         for (index_t n : cloud_face_loads_[il].nodes)
@@ -521,7 +536,6 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
         const index_t nb_count = static_cast<index_t>(rc->node.size());
         for (index_t q = 0; q < nb_count; ++q)
         {
-            const index_t i = rc->node[q] - nb.node_begin;
             real_t r = vel[3 * rc->node[q] + k];
             if (conditions[rc->condition[q]].kind == BoundarySpec::Kind::Displacement && half_step)
             {
@@ -530,12 +544,12 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
                 const real_t uh = physical(nodes.u, rc->node[q])[k];
                 r = dt > 0 ? ((*c.value)(t + dt) - uh) / dt : 0.0;
             }
-            for (index_t m = nb.interp_offsets[i]; m < nb.interp_offsets[i + 1]; ++m)
-            {
-                const index_t J = nb.interp_nodes[m];
-                if (rc->slot[J - nb.node_begin] < 0)
-                    r -= nb.interp_values[m] * vel[3 * J + k];
-            }
+            kinematics.for_row(rc->node[q],
+                               [&](index_t J, real_t w)
+                               {
+                                   if (rc->slot[J - nb.node_begin] < 0)
+                                       r -= w * vel[3 * J + k];
+                               });
             rc->rhs[q] = r;
         }
         rc->x = rc->lu.solve(rc->rhs);
@@ -549,7 +563,10 @@ void Model::build_rk_constraints()
     for (index_t b = 0; b < static_cast<index_t>(nodal_blocks.size()); ++b)
     {
         const NodalBlock& nb = nodal_blocks[b];
-        if (nb.interp_offsets.empty())
+        bool any = false;
+        for (index_t i = nb.node_begin; i < nb.node_end && !any; ++i)
+            any = kinematics.carries_coefficients(i);
+        if (!any)
             continue;
         for (int k = 0; k < 3; ++k)
         {
@@ -572,13 +589,13 @@ void Model::build_rk_constraints()
             std::vector<Eigen::Triplet<real_t, int>> t;
             for (index_t q = 0; q < m; ++q)
             {
-                const index_t i = rc->node[q] - nb.node_begin;
-                for (index_t e = nb.interp_offsets[i]; e < nb.interp_offsets[i + 1]; ++e)
-                {
-                    const index_t col = rc->slot[nb.interp_nodes[e] - nb.node_begin];
-                    if (col >= 0)
-                        t.emplace_back(q, col, nb.interp_values[e]);
-                }
+                kinematics.for_row(rc->node[q],
+                                   [&](index_t J, real_t w)
+                                   {
+                                       const index_t col = rc->slot[J - nb.node_begin];
+                                       if (col >= 0)
+                                           t.emplace_back(q, col, w);
+                                   });
             }
             SparseMatrix A(m, m);
             A.setFromTriplets(t.begin(), t.end());
@@ -631,7 +648,13 @@ void Model::apply_external_forces(real_t t)
                 if (load->total)
                     f /= static_cast<real_t>(ids.size());
                 for (index_t n : ids)
-                    nodes.f_ext[3 * n + k] += f;
+                {
+                    // a force at the node's physical point (RK particles: spread to the
+                    // coefficients through the kinematic map)
+                    Vec3 fk = Vec3::Zero();
+                    fk[k] = f;
+                    kinematics.spread(n, fk, nodes.f_ext.data());
+                }
             }
     for (std::size_t il = 0; il < pressure_loads_.size(); ++il)
     {
@@ -752,8 +775,9 @@ void Model::external_forces(real_t t)
     if (contacts.empty())
         return;
     contact.clear();
+    const PhysicalNodes physical_nodes(nodes, kinematics);
     for (auto& c : contacts)
-        c->add_forces(nodes, t, contact);
+        c->add_forces(physical_nodes, t, contact);
 }
 
 void Model::accelerations()
@@ -888,37 +912,16 @@ std::vector<index_t> Model::velocity_driven_dofs() const
     return dofs;
 }
 
-bool Model::carries_coefficients(index_t node) const
-{
-    const index_t ip = nodes.part[node];
-    if (part_nodal[ip] < 0)
-        return false;
-    const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
-    if (!nb.particle.empty()) // coupled FE-RK part: particles only
-        return nb.particle[static_cast<std::size_t>(node - nb.node_begin)] != 0;
-    return !nb.interp_offsets.empty();
-}
+bool Model::carries_coefficients(index_t node) const { return kinematics.carries_coefficients(node); }
 
 Vec3 Model::physical(const std::vector<real_t>& field, index_t node) const
 {
-    if (!carries_coefficients(node))
-        return {field[3 * node], field[3 * node + 1], field[3 * node + 2]};
-    const NodalBlock& nb = nodal_blocks[part_nodal[nodes.part[node]]];
-    const index_t i = node - nb.node_begin;
-    Vec3 s = Vec3::Zero();
-    for (index_t k = nb.interp_offsets[i]; k < nb.interp_offsets[i + 1]; ++k)
-    {
-        const index_t j = nb.interp_nodes[k];
-        s += nb.interp_values[k] * Vec3(field[3 * j], field[3 * j + 1], field[3 * j + 2]);
-    }
-    return s;
+    return kinematics.physical(field.data(), node);
 }
 
 void Model::physical_field(const std::vector<real_t>& field, std::vector<real_t>& out) const
 {
-    out = field;
-    for (const auto& nb : nodal_blocks)
-        physical_values(nb, field, out);
+    kinematics.physical_field(field, out);
 }
 
 namespace

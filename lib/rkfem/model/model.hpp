@@ -11,6 +11,7 @@
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/discretization/node_set.hpp"
+#include "rkfem/approximation/rk/kinematic_map.hpp"
 #include "rkfem/contact/contact_algorithm.hpp"
 #include "rkfem/operators/contact_channel.hpp"
 #include "rkfem/operators/energy_ledger.hpp"
@@ -81,6 +82,9 @@ class Model final : public ExplicitOperator
     /// Global element index -> (block, local element).
     std::pair<index_t, index_t> locate_element(index_t global) const;
 
+    /// Unknowns <-> physical nodal values (RK coefficients on particles, identity elsewhere):
+    /// conditions, loads, output, probes and contact go through it.
+    KinematicMap kinematics;
     /// Contact forces reach the nodes through this channel (own work term in the ledger).
     ContactChannel contact;
     /// Contact algorithms, evaluated in order in external_forces() on current positions.

@@ -1,5 +1,7 @@
 #include "rkfem/operators/contact_channel.hpp"
 
+#include "rkfem/approximation/rk/kinematic_map.hpp"
+
 namespace rkfem
 {
 void ContactChannel::resize(index_t n_nodes)
@@ -23,6 +25,13 @@ void ContactChannel::clear()
 }
 
 void ContactChannel::add(index_t node, const Vec3& force)
+{
+    if (map_ == nullptr || !map_->carries_coefficients(node))
+        return add_unknown(node, force);
+    map_->for_row(node, [&](index_t j, real_t w) { add_unknown(j, w * force); });
+}
+
+void ContactChannel::add_unknown(index_t node, const Vec3& force)
 {
     const std::size_t i = static_cast<std::size_t>(node);
     if (!mark_[i])

@@ -12,15 +12,21 @@
 
 namespace rkfem
 {
+class KinematicMap;
+
 class ContactChannel
 {
   public:
+    /// Forces then act at physical points: add() spreads a force at an RK particle's point to
+    /// the coefficients of its row (null: every node carries its physical value).
+    void set_map(const KinematicMap* map) { map_ = map; }
     /// Sizes the channel for n nodes, with no force anywhere.
     void resize(index_t n_nodes);
     /// Starts a force evaluation: zeroes the forces of this pass's nodes (the previous pass of the
     /// same step). The forces of the last committed step are kept for the work.
     void clear();
-    /// Adds force f to node i (serial: contact algorithms collect their forces, then add them).
+    /// Adds a force f acting at node i's physical point (serial: contact algorithms collect
+    /// their forces, then add them); on RK particles it reaches the unknowns of the map's row.
     void add(index_t node, const Vec3& f);
     /// Nodes with a force in the current pass, in the order they were first touched.
     const std::vector<index_t>& nodes() const { return touched_; }
@@ -32,9 +38,11 @@ class ContactChannel
     /// The current pass's forces become the step's start for the next step's work.
     void commit();
 
-    std::vector<real_t> f; ///< 3 n, node-major; zero on every node not in nodes()
+    std::vector<real_t> f; ///< 3 n, node-major, on the unknowns; zero on every node not in nodes()
 
   private:
+    void add_unknown(index_t node, const Vec3& f);
+    const KinematicMap* map_ = nullptr;
     std::vector<index_t> touched_;
     std::vector<char> mark_;
     std::vector<index_t> prev_nodes_; ///< nodes touched at the last commit

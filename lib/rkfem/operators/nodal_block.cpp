@@ -1075,28 +1075,4 @@ void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes)
         nodes.mass[blk.points.owner[p]] += blk.material.rho * blk.points.weight[p];
 }
 
-void physical_values(const NodalBlock& blk, const std::vector<real_t>& coef, std::vector<real_t>& out)
-{
-    const index_t nn = blk.node_end - blk.node_begin;
-    if (blk.interp_offsets.empty())
-    {
-        std::copy(coef.begin() + 3 * static_cast<std::ptrdiff_t>(blk.node_begin),
-                  coef.begin() + 3 * static_cast<std::ptrdiff_t>(blk.node_end),
-                  out.begin() + 3 * static_cast<std::ptrdiff_t>(blk.node_begin));
-        return;
-    }
-    parallel_for("rkfem::nodal_interpolate", nn,
-                 [&](index_t i)
-                 {
-                     real_t s[3] = {0, 0, 0};
-                     for (index_t k = blk.interp_offsets[i]; k < blk.interp_offsets[i + 1]; ++k)
-                     {
-                         const std::size_t n = 3 * static_cast<std::size_t>(blk.interp_nodes[k]);
-                         for (int a = 0; a < 3; ++a)
-                             s[a] += blk.interp_values[k] * coef[n + a];
-                     }
-                     for (int a = 0; a < 3; ++a)
-                         out[3 * static_cast<std::size_t>(blk.node_begin + i) + a] = s[a];
-                 });
-}
 } // namespace rkfem

@@ -53,8 +53,9 @@ struct NodalBlock
     /// with one stencil and consecutive bases (along lattice rows) take a whole-vector path.
     StencilTable point_stencils, stab_stencils;
     bool share_stencils = true;
-    /// RK parts: physical value at node I = sum over k in [interp_offsets[i], interp_offsets[i+1])
-    /// of interp_values[k] * coefficient[interp_nodes[k]] (local node i); empty for FE parts.
+    /// RK parts, as built: physical value at node I = sum over k in [interp_offsets[i],
+    /// interp_offsets[i+1]) of interp_values[k] * coefficient[interp_nodes[k]] (local node i);
+    /// empty for FE parts. Model moves these rows into its KinematicMap (and empties them here).
     std::vector<index_t> interp_offsets, interp_nodes;
     /// RK parts: the shape functions (local node numbering, reference configuration), kept for
     /// set-up work that samples them (pressure faces); null for FE parts.
@@ -161,7 +162,4 @@ void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes, bool add = false);
 /// Lumped mass rho V0_p to each point's owner node.
 void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes);
 
-/// Physical values (u^h(X_I)) of a node-major 3-vector field for the block's nodes, written
-/// into out (same layout); identity for FE blocks.
-void physical_values(const NodalBlock& blk, const std::vector<real_t>& coef, std::vector<real_t>& out);
 } // namespace rkfem
