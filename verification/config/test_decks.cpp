@@ -460,3 +460,18 @@ TEST(Decks, CoupledPartsRunAndTheirMistakesNameTheKey)
                                    "      - {select: {type: sphere, point: [0, 0, 0], radius: 1 m}}\n"),
                     ":10: parts.col.regions", "leaving no FE region");
 }
+
+TEST(Decks, ErosionMistakesNameTheKey)
+{
+    const std::string part = "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n";
+    const std::string j2 = "    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 500 MPa, etan: 1 GPa}\n";
+    expect_rejected("erosion_elastic.yaml", replace(good, part, part + "    erosion: {effective_plastic_strain: 0.1}\n"),
+                    ":8: parts.col.erosion", "expected material model j2, kcc or cscm");
+    expect_rejected("erosion_nodal.yaml",
+                    replace(good, part, j2 + "    formulation: fem-nodal\n    erosion: {effective_plastic_strain: 0.1}\n"),
+                    ":9: parts.col.erosion", "expected formulation fem-1pt or fem-2x2x2");
+    expect_rejected("erosion_damage.yaml", replace(good, part, j2 + "    erosion: {damage: 1.5}\n"),
+                    ":8: parts.col.erosion.damage", "is outside [0, 1]");
+    expect_rejected("erosion_none.yaml", replace(good, part, j2 + "    erosion: {damage: 0}\n"), ":8: parts.col.erosion",
+                    "has no criterion");
+}

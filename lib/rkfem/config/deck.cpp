@@ -686,7 +686,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
 {
     Section s(ctx, n, path,
               {"generator", "material", "formulation", "hourglass", "bulk_viscosity",
-               "nodal_integration", "rk", "initial_velocity", "regions", "transition"});
+               "nodal_integration", "rk", "initial_velocity", "regions", "transition", "erosion"});
     PartSpec p;
     p.name = name;
     p.loc = s.loc();
@@ -804,6 +804,24 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                    "expected a coefficient >= 0");
     }
     p.initial_velocity = s.vec3("initial_velocity", dim::velocity, Vec3::Zero());
+    if (s.has("erosion"))
+    {
+        if (p.formulation != Formulation::Fem1pt && p.formulation != Formulation::Fem2x2x2)
+            s.fail("erosion", "erodes elements of Gauss-point formulations only",
+                   "expected formulation fem-1pt or fem-2x2x2 on a part with erosion");
+        if (p.material.model == "elastic")
+            s.fail("erosion", "needs a material with history (plastic strain, damage)",
+                   "expected material model j2, kcc or cscm");
+        Section e(ctx, s.node("erosion"), s.path("erosion"), {"effective_plastic_strain", "damage"});
+        p.erosion.plastic_strain = e.quantity("effective_plastic_strain", dim::none, 0.0);
+        p.erosion.damage = e.quantity("damage", dim::none, 0.0);
+        if (!(p.erosion.plastic_strain >= 0.0 && std::isfinite(p.erosion.plastic_strain)))
+            e.fail("effective_plastic_strain", "is negative or not finite", "expected a strain > 0 (0: off)");
+        if (!(p.erosion.damage >= 0.0 && p.erosion.damage <= 1.0))
+            e.fail("damage", "is outside [0, 1]", "expected a damage index in (0, 1] (0: off)");
+        if (!p.erosion.active())
+            s.fail("erosion", "has no criterion", "expected effective_plastic_strain and/or damage > 0");
+    }
     return p;
 }
 

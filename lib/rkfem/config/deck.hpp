@@ -84,6 +84,15 @@ struct HourglassSpec
     real_t coefficient = 0.1; ///< QM
 };
 
+/// Element erosion (LS-DYNA *MAT_ADD_EROSION analog): after each step, an element whose
+/// point-averaged committed value reaches a limit is removed (0: that criterion is off).
+struct ErosionSpec
+{
+    real_t plastic_strain = 0.0; ///< effective plastic strain
+    real_t damage = 0.0;         ///< 0..1 damage index (K&C: delta - 1; CSCM d; J2: failed)
+    bool active() const { return plastic_strain > 0 || damage > 0; }
+};
+
 struct BulkViscositySpec
 {
     real_t linear = 0.06;   ///< Q2 (LS-DYNA), multiplies rho c l |tr D|
@@ -181,6 +190,7 @@ struct PartSpec
     Vec3 initial_velocity = Vec3::Zero();
     /// RK regions of an FE part (FE-RK coupling): elements whose centroid lies in any of them
     /// are RK (box, cylinder: within radius of the axis, sphere); empty: a single-kind part.
+    ErosionSpec erosion;
     std::vector<SelectorSpec> regions;
     std::string transition = "mixed"; ///< mixed | ramp (coupled parts)
     SourceLocation regions_loc;       ///< where `regions` is given

@@ -258,6 +258,9 @@ std::string to_yaml(const Deck& d)
         os << "    bulk_viscosity: {linear: " << p.bulk_viscosity.linear
            << ", quadratic: " << p.bulk_viscosity.quadratic << "}\n";
         os << "    initial_velocity: " << vec(p.initial_velocity) << "\n";
+        if (p.erosion.active())
+            os << "    erosion: {effective_plastic_strain: " << p.erosion.plastic_strain << ", damage: " << p.erosion.damage
+               << "}\n";
     }
     sets(os, "node_sets", d.node_sets);
     sets(os, "face_sets", d.face_sets);

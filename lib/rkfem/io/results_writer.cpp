@@ -40,20 +40,23 @@ ResultsWriter::~ResultsWriter()
 void ResultsWriter::write_mesh(const Model& model)
 {
     const hid_t f = static_cast<hid_t>(file_);
-    const hid_t g = H5Gcreate2(f, "mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    n_nodes_ = model.nodes.size();
-    n_elements_ = model.n_elements();
-    write_dataset(g, "coordinates", model.nodes.x0.data(), n_nodes_, 3);
+    Mesh mesh;
+    mesh.group = meshes_.empty() ? "mesh" : "mesh_" + step_name(static_cast<int>(meshes_.size()));
+    mesh.version = model.topology_version();
+    const hid_t g = H5Gcreate2(f, mesh.group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    mesh.n_nodes = model.nodes.size();
+    mesh.n_elements = model.n_elements();
+    write_dataset(g, "coordinates", model.nodes.x0.data(), mesh.n_nodes, 3);
     std::vector<index_t> conn, part;
     for (const auto& b : model.blocks)
     {
         conn.insert(conn.end(), b.conn.begin(), b.conn.end());
         part.insert(part.end(), b.n_elements(), b.part);
     }
-    write_dataset_int(g, "connectivity", conn.data(), n_elements_, 8);
+    write_dataset_int(g, "connectivity", conn.data(), mesh.n_elements, 8);
     // cloud parts: each particle is a vertex cell; with any, the XDMF topology is mixed
     // (XDMF cell codes: 9 hexahedron + 8 ids, 1 polyvertex + count 1 + id)
-    n_cells_ = model.n_cells();
+    mesh.n_cells = model.n_cells();
     std::vector<index_t> particles;
     for (index_t ip = 0; ip < static_cast<index_t>(model.parts.size()); ++ip)
         if (model.is_cloud(ip))
@@ -74,20 +77,28 @@ void ResultsWriter::write_mesh(const Model& model)
         }
         for (index_t i : particles)
             topo.insert(topo.end(), {1, 1, i});
-        topology_size_ = static_cast<long long>(topo.size());
-        write_dataset_int(g, "topology", topo.data(), topology_size_, 1);
+        mesh.topology_size = static_cast<long long>(topo.size());
+        write_dataset_int(g, "topology", topo.data(), mesh.topology_size, 1);
         write_dataset_int(g, "particles", particles.data(), static_cast<long long>(particles.size()), 1);
     }
-    write_dataset_int(g, "part", part.data(), n_cells_, 1);
+    write_dataset_int(g, "part", part.data(), mesh.n_cells, 1);
     H5Gclose(g);
-    const hid_t s = H5Gcreate2(f, "steps", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    H5Gclose(s);
+    if (meshes_.empty())
+    {
+        const hid_t s = H5Gcreate2(f, "steps", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+        H5Gclose(s);
+    }
+    meshes_.push_back(std::move(mesh));
     H5Fflush(f, H5F_SCOPE_GLOBAL);
 }
 
 void ResultsWriter::write_step(const Model& model, real_t time)
 {
     const hid_t f = static_cast<hid_t>(file_);
+    if (meshes_.empty() || meshes_.back().version != model.topology_version())
+        write_mesh(model); // an event changed the cells since the last output
+    const Mesh& mesh = meshes_.back();
+    const long long n_nodes = mesh.n_nodes, n_cells = mesh.n_cells;
     const std::string name = "steps/" + step_name(n_steps());
     const hid_t g = H5Gcreate2(f, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     {
@@ -96,6 +107,16 @@ void ResultsWriter::write_step(const Model& model, real_t time)
         H5Awrite(attr, H5T_NATIVE_DOUBLE, &time);
         H5Aclose(attr);
         H5Sclose(space);
+        // the group of this step's mesh, as a fixed-length string attribute
+        const std::string mesh_path = "/" + mesh.group;
+        const hid_t type = H5Tcopy(H5T_C_S1);
+        H5Tset_size(type, mesh_path.size());
+        const hid_t s2 = H5Screate(H5S_SCALAR);
+        const hid_t a2 = H5Acreate2(g, "mesh", type, s2, H5P_DEFAULT, H5P_DEFAULT);
+        H5Awrite(a2, type, mesh_path.c_str());
+        H5Aclose(a2);
+        H5Sclose(s2);
+        H5Tclose(type);
     }
     // physical nodal values (RK parts carry generalized coefficients)
     std::vector<real_t> u, v, x(model.nodes.x0.size());
@@ -103,11 +124,11 @@ void ResultsWriter::write_step(const Model& model, real_t time)
     model.physical_field(model.nodes.v, v);
     for (std::size_t i = 0; i < x.size(); ++i)
         x[i] = model.nodes.x0[i] + u[i];
-    write_dataset(g, "coordinates", x.data(), n_nodes_, 3);
-    write_dataset(g, "displacement", u.data(), n_nodes_, 3);
-    write_dataset(g, "velocity", v.data(), n_nodes_, 3);
-    std::vector<real_t> stress(6 * n_cells_), pressure(n_cells_), eps(n_cells_, 0.0), volume(n_cells_),
-        damage(n_cells_, 0.0), delta(n_cells_, 0.0);
+    write_dataset(g, "coordinates", x.data(), n_nodes, 3);
+    write_dataset(g, "displacement", u.data(), n_nodes, 3);
+    write_dataset(g, "velocity", v.data(), n_nodes, 3);
+    std::vector<real_t> stress(6 * n_cells), pressure(n_cells), eps(n_cells, 0.0), volume(n_cells),
+        damage(n_cells, 0.0), delta(n_cells, 0.0);
     std::size_t c = 0;
     auto put_stress = [&](const Sym6& s)
     {
@@ -144,15 +165,16 @@ void ResultsWriter::write_step(const Model& model, real_t time)
             delta[c] = model.nodal_history(i, Model::History::KccDelta);
         }
     }
-    write_dataset(g, "stress", stress.data(), n_cells_, 6);
-    write_dataset(g, "pressure", pressure.data(), n_cells_, 1);
-    write_dataset(g, "effective_plastic_strain", eps.data(), n_cells_, 1);
-    write_dataset(g, "volume", volume.data(), n_cells_, 1);
-    write_dataset(g, "damage", damage.data(), n_cells_, 1);
-    write_dataset(g, "kcc_scaled_damage", delta.data(), n_cells_, 1);
+    write_dataset(g, "stress", stress.data(), n_cells, 6);
+    write_dataset(g, "pressure", pressure.data(), n_cells, 1);
+    write_dataset(g, "effective_plastic_strain", eps.data(), n_cells, 1);
+    write_dataset(g, "volume", volume.data(), n_cells, 1);
+    write_dataset(g, "damage", damage.data(), n_cells, 1);
+    write_dataset(g, "kcc_scaled_damage", delta.data(), n_cells, 1);
     H5Gclose(g);
     H5Fflush(f, H5F_SCOPE_GLOBAL);
     times_.push_back(time);
+    step_mesh_.push_back(static_cast<int>(meshes_.size()) - 1);
     write_xdmf();
 }
 
@@ -188,6 +210,10 @@ void ResultsWriter::write_xdmf() const
         for (std::size_t i = 0; i < times_.size(); ++i)
         {
             const std::string g = "results.h5:/steps/" + step_name(static_cast<int>(i));
+            const Mesh& mesh = meshes_[static_cast<std::size_t>(step_mesh_[i])];
+            const std::string m = "results.h5:/" + mesh.group;
+            const long long n_nodes = mesh.n_nodes, n_elements = mesh.n_elements, n_cells = mesh.n_cells,
+                            topology_size = mesh.topology_size;
             auto item = [&](const char* name, long long rows, int cols, const char* type = "Float",
                             int prec = 8)
             {
@@ -201,24 +227,24 @@ void ResultsWriter::write_xdmf() const
             };
             x << " <Grid Name=\"step_" << i << "\" GridType=\"Uniform\">\n"
               << "  <Time Value=\"" << times_[i] << "\"/>\n"
-              << (topology_size_ > 0
-                      ? "  <Topology TopologyType=\"Mixed\" NumberOfElements=\"" + std::to_string(n_cells_) + "\">" +
-                            item("results.h5:/mesh/topology", topology_size_, 1, "Int", 4)
-                      : "  <Topology TopologyType=\"Hexahedron\" NumberOfElements=\"" + std::to_string(n_elements_) +
-                            "\">" + item("results.h5:/mesh/connectivity", n_elements_, 8, "Int", 4))
+              << (topology_size > 0
+                      ? "  <Topology TopologyType=\"Mixed\" NumberOfElements=\"" + std::to_string(n_cells) + "\">" +
+                            item((m + "/topology").c_str(), topology_size, 1, "Int", 4)
+                      : "  <Topology TopologyType=\"Hexahedron\" NumberOfElements=\"" + std::to_string(n_elements) +
+                            "\">" + item((m + "/connectivity").c_str(), n_elements, 8, "Int", 4))
               << "</Topology>\n"
-              << "  <Geometry GeometryType=\"XYZ\">" << item((g + "/coordinates").c_str(), n_nodes_, 3)
+              << "  <Geometry GeometryType=\"XYZ\">" << item((g + "/coordinates").c_str(), n_nodes, 3)
               << "</Geometry>\n";
             for (const char* v : {"displacement", "velocity"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
-                  << item((g + "/" + v).c_str(), n_nodes_, 3) << "</Attribute>\n";
+                  << item((g + "/" + v).c_str(), n_nodes, 3) << "</Attribute>\n";
             x << "  <Attribute Name=\"stress\" AttributeType=\"Tensor6\" Center=\"Cell\">"
-              << item((g + "/stress").c_str(), n_cells_, 6) << "</Attribute>\n";
+              << item((g + "/stress").c_str(), n_cells, 6) << "</Attribute>\n";
             for (const char* v : {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Scalar\" Center=\"Cell\">"
-                  << item((g + "/" + v).c_str(), n_cells_, 1) << "</Attribute>\n";
+                  << item((g + "/" + v).c_str(), n_cells, 1) << "</Attribute>\n";
             x << "  <Attribute Name=\"part\" AttributeType=\"Scalar\" Center=\"Cell\">"
-              << item("results.h5:/mesh/part", n_cells_, 1, "Int", 4) << "</Attribute>\n";
+              << item((m + "/part").c_str(), n_cells, 1, "Int", 4) << "</Attribute>\n";
             x << " </Grid>\n";
         }
         x << "</Grid>\n</Domain>\n</Xdmf>\n";

@@ -10,7 +10,9 @@
 ///       stress                                n_elem x 6  (xx yy zz xy yz zx) [Pa]
 ///       pressure, effective_plastic_strain, volume   n_elem
 /// The file is flushed and the XDMF index rewritten after every output, so a run that stops
-/// keeps everything written so far.
+/// keeps everything written so far. When an event changes the topology (Model::
+/// topology_version), the next output first writes the new mesh as /mesh_NNNNNN (same layout);
+/// each step's attribute `mesh` names the group of its mesh, and each XDMF time step points at it.
 #include <string>
 #include <vector>
 
@@ -39,8 +41,15 @@ class ResultsWriter
     std::string dir_;
     long long file_ = -1; // hid_t
     std::vector<real_t> times_;
-    long long n_nodes_ = 0, n_elements_ = 0;
-    long long n_cells_ = 0;       ///< elements, then the particles of cloud parts (vertex cells)
-    long long topology_size_ = 0; ///< > 0: a mixed topology (hexahedra and polyvertices) of this length
+    struct Mesh
+    {
+        std::string group; ///< "mesh", then "mesh_000001", ...
+        int version = 0;   ///< the model's topology version it shows
+        long long n_nodes = 0, n_elements = 0;
+        long long n_cells = 0;       ///< elements, then the particles of cloud parts (vertex cells)
+        long long topology_size = 0; ///< > 0: a mixed topology (hexahedra and polyvertices) of this length
+    };
+    std::vector<Mesh> meshes_;
+    std::vector<int> step_mesh_; ///< per step: index into meshes_
 };
 } // namespace rkfem

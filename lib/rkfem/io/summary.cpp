@@ -68,6 +68,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"message\": " << quote(s.message) << ",\n";
     o << "  \"nodes\": " << model.nodes.size() << ",\n";
     o << "  \"elements\": " << model.n_elements() << ",\n";
+    o << "  \"eroded_elements\": " << model.eroded_elements() << ",\n";
     o << "  \"threads\": " << max_threads() << ",\n";
     o << "  \"steps\": " << s.steps << ",\n";
     o << "  \"end_time\": " << num(s.end_time) << ",\n";
@@ -76,7 +77,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"outputs\": " << s.n_outputs << ",\n";
     o << "  \"energy\": {\"kinetic\": " << num(e.kinetic) << ", \"internal\": " << num(e.internal)
       << ", \"hourglass\": " << num(e.hourglass) << ", \"bulk_viscosity\": " << num(e.bulk_viscosity)
-      << ", \"contact\": " << num(e.contact) << ", \"damping\": " << num(e.damping)
+      << ", \"contact\": " << num(e.contact) << ", \"eroded\": " << num(e.eroded) << ", \"damping\": " << num(e.damping)
       << ", \"external_work\": " << num(e.external_work)
       << ", \"kinetic0\": " << num(e.kinetic0) << ", \"internal0\": " << num(e.internal0) << "},\n";
     o << "  \"balance_error\": " << num(e.balance_error()) << ",\n";

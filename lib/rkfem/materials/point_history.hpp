@@ -136,6 +136,28 @@ struct PlasticPoints
             energy_trial.assign(n, 0.0);
         }
     }
+    /// Keeps the committed state of points from[0], from[1], ... as points 0, 1, ... (an event
+    /// that removes or reorders points); trial state = committed.
+    void gather(const std::vector<index_t>& from)
+    {
+        auto pick = [&](auto& committed, auto& trial)
+        {
+            if (committed.empty())
+                return;
+            auto out = committed;
+            out.resize(from.size());
+            for (std::size_t q = 0; q < from.size(); ++q)
+                out[q] = committed[static_cast<std::size_t>(from[q])];
+            committed = out;
+            trial = std::move(out);
+        };
+        pick(eps_p, eps_p_trial);
+        pick(failed, failed_trial);
+        pick(kcc_state, kcc_trial);
+        pick(cscm_state, cscm_trial);
+        pick(ev, ev_trial);
+        pick(energy, energy_trial);
+    }
     /// Crack-band lengths per point (element size, nodal spacing): with a fracture energy, each
     /// K&C point gets the tensile damage scale that dissipates G_f over its length (one solve
     /// per distinct length);

@@ -432,12 +432,57 @@ Model Model::build(const Deck& deck)
     }
     m.collect_loaded_dofs();
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
+    m.reaction_inertia_.assign(m.conditions.size(), 0.0);
     m.contact.resize(m.nodes.size());
     m.plan_assembly();
     for (const DofCondition& c : m.conditions)
         m.constrained_dofs_.push_back(c.dof);
     std::sort(m.constrained_dofs_.begin(), m.constrained_dofs_.end());
     return m;
+}
+
+void Model::remove_elements(index_t block, const std::vector<char>& keep)
+{
+    RKFEM_REQUIRE(block >= 0 && block < static_cast<index_t>(blocks.size()), "remove_elements: no block " << block);
+    RKFEM_REQUIRE(part_nodal[block] < 0, "remove_elements: part '" << parts[block].name
+                                                                   << "' is integrated at its nodes; only Gauss-point "
+                                                                      "FE parts lose elements");
+    blocks[block].remove_elements(keep, nodes);
+    index_t offset = 0;
+    for (std::size_t ip = 0; ip < parts.size(); ++ip)
+    {
+        parts[ip].element_offset = offset;
+        offset += blocks[ip].n_elements();
+    }
+    plan_assembly();
+    ++topology_version_;
+}
+
+bool Model::apply_events(real_t, std::int64_t)
+{
+    bool changed = false;
+    for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
+    {
+        const ErosionSpec& er = deck_.parts[static_cast<std::size_t>(b)].erosion;
+        if (!er.active() || part_nodal[b] >= 0)
+            continue;
+        const index_t ne = blocks[b].n_elements();
+        std::vector<char> keep(static_cast<std::size_t>(ne), 1);
+        index_t removed = 0;
+        for (index_t e = 0; e < ne; ++e)
+        {
+            const bool erode = (er.plastic_strain > 0 && element_history(b, e, History::PlasticStrain) >= er.plastic_strain) ||
+                               (er.damage > 0 && element_history(b, e, History::Damage) >= er.damage);
+            keep[e] = !erode;
+            removed += erode;
+        }
+        if (removed == 0)
+            continue;
+        remove_elements(b, keep);
+        eroded_elements_ += removed;
+        changed = true;
+    }
+    return changed;
 }
 
 void Model::plan_assembly()
@@ -845,11 +890,18 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
     };
     if (dt <= 0)
     {
+        // a (re)start: the forces of this state open the next step's trapezoids; after an event
+        // the reactions are those of the new discretization, with the last step's inertia term
+        // m a_p (a prescribed acceleration needs a step)
         keep_f_ext();
         contact.commit();
         bc_v_prev_.resize(conditions.size());
         for (std::size_t k = 0; k < conditions.size(); ++k)
-            bc_v_prev_[k] = nodes.v[conditions[k].dof];
+        {
+            const index_t j = conditions[k].dof;
+            bc_v_prev_[k] = nodes.v[j];
+            reaction_prev_[k] = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
+        }
         return;
     }
     // external work, trapezoid in time, over the loaded dofs (f_ext is zero elsewhere)
@@ -868,7 +920,8 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
         // prescribed acceleration over the step, from the imposed velocities
         const real_t ap = (nodes.v[j] - bc_v_prev_[k]) / dt;
         bc_v_prev_[k] = nodes.v[j];
-        const real_t r = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + nodes.mass[j / 3] * ap;
+        reaction_inertia_[k] = nodes.mass[j / 3] * ap;
+        const real_t r = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
         energy.external_work += 0.5 * (reaction_prev_[k] + r) * du;
         reaction_prev_[k] = r;
     }

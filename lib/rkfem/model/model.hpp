@@ -151,6 +151,19 @@ class Model final : public ExplicitOperator
     /// Element stress (average over its points), Voigt.
     Sym6 element_stress(index_t block, index_t e) const;
 
+    // ---- events between steps (the stepper is started again after one) ----
+    /// Removes the elements of a Gauss-point FE block with keep[e] == 0 (erosion): the kept
+    /// elements keep their state, the block's tables are rebuilt, the nodes keep their mass (a
+    /// node no element holds any more flies free), and the output topology changes. The energy
+    /// ledger continues: the removed elements' internal energy stays booked.
+    void remove_elements(index_t block, const std::vector<char>& keep);
+    /// The model's own events after an accepted step (erosion by the parts' criteria); true when
+    /// the discretization changed.
+    bool apply_events(real_t t, std::int64_t step);
+    index_t eroded_elements() const { return eroded_elements_; }
+    /// Incremented by every event that changes the cells (output writes a new mesh).
+    int topology_version() const { return topology_version_; }
+
     /// Decides how the blocks assemble f_int: a block whose node range overlaps another's adds
     /// into it, and those ranges are zeroed once per evaluation; a block alone on its nodes
     /// writes them. Call again after the blocks change.
@@ -158,6 +171,8 @@ class Model final : public ExplicitOperator
 
   private:
     Deck deck_;
+    int topology_version_ = 0;
+    index_t eroded_elements_ = 0;
     std::vector<char> block_adds_;                                 ///< per block
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
@@ -169,6 +184,7 @@ class Model final : public ExplicitOperator
     std::vector<real_t> f_ext_prev_;
     std::vector<index_t> constrained_dofs_; ///< the dofs of `conditions`, ascending
     std::vector<real_t> reaction_prev_;
+    std::vector<real_t> reaction_inertia_; ///< per condition: m a_p of the last step
     std::vector<real_t> bc_v_prev_;
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;
     std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;

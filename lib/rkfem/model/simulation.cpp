@@ -12,6 +12,7 @@
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/io/results_writer.hpp"
 #include "rkfem/io/summary.hpp"
+#include "rkfem/time/central_difference.hpp"
 #include "rkfem/time/stepper.hpp"
 
 namespace rkfem
@@ -21,7 +22,7 @@ namespace
 std::vector<std::string> history_columns(const Model& m)
 {
     std::vector<std::string> c{"time", "dt", "kinetic", "internal", "hourglass", "bulk_viscosity",
-                               "damping", "external_work", "contact", "total", "balance_error", "hourglass_ratio"};
+                               "damping", "external_work", "contact", "eroded", "total", "balance_error", "hourglass_ratio"};
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
@@ -36,7 +37,7 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows)
 {
     const Energies& e = m.energy;
     rows.insert(rows.end(), {t, dt, e.kinetic, e.internal, e.hourglass, e.bulk_viscosity, e.damping,
-                             e.external_work, e.contact, e.total(), e.balance_error(), e.hourglass_ratio()});
+                             e.external_work, e.contact, e.eroded, e.total(), e.balance_error(), e.hourglass_ratio()});
     for (index_t n : m.probe_nodes)
     {
         const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);
@@ -156,7 +157,8 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         };
         observe(false);
         real_t dt_stable = rep.dt_stable;
-        const index_t ne = model.n_cells(); // elements, and the particles of cloud parts
+        index_t ne = model.n_cells(); // elements, and the particles of cloud parts
+        std::vector<real_t> event_a;  // accelerations before an event
         while (t < ts.end * (1 - 1e-12))
         {
             if (ts.max_steps > 0 && step >= ts.max_steps)
@@ -171,6 +173,17 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             dt_last = dt;
             dt_stable = rep.dt_stable;
             element_steps += static_cast<std::size_t>(ne);
+            const bool own = model.apply_events(t, step);
+            if ((opt.events && opt.events(model, t, step)) || own)
+            {
+                // the discretization changed: start the stepper again from this state, and book
+                // what the new accelerations change in the kinetic energy
+                event_a = model.nodes.a;
+                rep = stepper->initialize(model, t);
+                book_event_energy(model, event_a, dt);
+                dt_stable = rep.dt_stable;
+                ne = model.n_cells();
+            }
             const real_t err = model.energy.balance_error();
             sum.max_balance_error = std::max(sum.max_balance_error, err);
             const bool last = t >= ts.end * (1 - 1e-12) || (ts.max_steps > 0 && step >= ts.max_steps);

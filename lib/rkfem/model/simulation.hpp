@@ -16,6 +16,9 @@ struct RunOptions
     bool progress = true;     ///< progress line on stderr
     std::string deck_path;
     std::vector<std::string> overrides;
+    /// Events between steps: called after each accepted step; returns true when it changed the
+    /// discretization (the stepper is then started again; the energy ledger continues).
+    std::function<bool(Model&, real_t t, std::int64_t step)> events;
 };
 
 struct RunSummary

@@ -22,11 +22,16 @@ struct Energies
     /// Sliding (contact) energy, LS-DYNA's sleout: minus the work the contact forces did on the
     /// nodes (stored in penalty springs while in contact, plus what friction dissipated).
     real_t contact = 0.0;
+    /// Energy events took out of the mechanical system (erosion): at each event, the change of
+    /// the leapfrog-consistent kinetic energy that the new accelerations make, with no work
+    /// term behind it (the removed elements' last half impulse, book_event_energy).
+    real_t eroded = 0.0;
     real_t kinetic0 = 0.0, internal0 = 0.0; ///< leapfrog-consistent kinetic energy at t = 0
 
     real_t total() const { return kinetic + internal + hourglass + bulk_viscosity + contact; }
-    /// |E_kin' + E_int + E_hg + E_bv + E_contact + E_damp - E_kin0' - E_int0 - W_ext| / max(energy
-    /// scale), with E_kin' = kinetic + kinetic_correction (leapfrog-consistent kinetic energy)
+    /// |E_kin' + E_int + E_hg + E_bv + E_contact + E_damp + E_eroded - E_kin0' - E_int0 - W_ext| /
+    /// max(energy scale), with E_kin' = kinetic + kinetic_correction (leapfrog-consistent kinetic
+    /// energy)
     real_t balance_error() const;
     /// E_hg / (E_int + E_hg), 0 when there is no internal energy
     real_t hourglass_ratio() const;

@@ -1,5 +1,7 @@
 #include "rkfem/operators/hex_block.hpp"
 
+#include "rkfem/core/error.hpp"
+
 #include <algorithm>
 #include <immintrin.h>
 #include <cmath>
@@ -561,6 +563,54 @@ void HexBlock::initialize(const NodeSet& nodes, Assembly assembly)
         plastic.resize(np);
     hg_force.assign(12 * static_cast<std::size_t>(ne), 0.0);
     hg_force_trial.assign(12 * static_cast<std::size_t>(ne), 0.0);
+    build_tables(nodes, assembly);
+}
+
+void HexBlock::remove_elements(const std::vector<char>& keep, const NodeSet& nodes)
+{
+    const index_t ne = n_elements(), npe = points_per_element();
+    RKFEM_REQUIRE(static_cast<index_t>(keep.size()) == ne,
+                  "remove_elements: " << keep.size() << " flags for " << ne << " elements");
+    std::vector<index_t> kept, from_points;
+    for (index_t e = 0; e < ne; ++e)
+        if (keep[e])
+        {
+            kept.push_back(e);
+            for (index_t g = 0; g < npe; ++g)
+                from_points.push_back(e * npe + g);
+        }
+    const index_t ne2 = static_cast<index_t>(kept.size());
+    const std::size_t np2 = from_points.size(), stride2 = batch8_stride(np2);
+    // committed state of the kept points, in order; trial = committed (the event falls between
+    // steps, after the commit)
+    LineVector<real_t> s2(6 * stride2, 0.0);
+    for (int k = 0; k < 6; ++k)
+        for (std::size_t q = 0; q < np2; ++q)
+            s2[k * stride2 + q] = stress[k * stress_stride + static_cast<std::size_t>(from_points[q])];
+    stress = s2;
+    stress_trial = std::move(s2);
+    stress_stride = stride2;
+    std::vector<real_t> hg2(12 * static_cast<std::size_t>(ne2));
+    for (int k = 0; k < 12; ++k)
+        for (index_t q = 0; q < ne2; ++q)
+            hg2[static_cast<std::size_t>(k) * ne2 + q] = hg_force[static_cast<std::size_t>(k) * ne + kept[q]];
+    hg_force = hg2;
+    hg_force_trial = std::move(hg2);
+    if (plastic.active())
+        plastic.gather(from_points);
+    std::vector<index_t> conn2;
+    conn2.reserve(8 * kept.size());
+    for (index_t e : kept)
+        conn2.insert(conn2.end(), conn.begin() + 8 * static_cast<std::ptrdiff_t>(e),
+                     conn.begin() + 8 * static_cast<std::ptrdiff_t>(e + 1));
+    conn = std::move(conn2);
+    build_tables(nodes, scatter.empty() && formulation == Formulation::Fem1pt && ne > 0 ? Assembly::Gather
+                                                                                       : Assembly::Automatic);
+}
+
+void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
+{
+    const index_t ne = n_elements();
     // 1-point blocks whose element order has locality assemble by chunked scatter (the element
     // forces are never written out); others (2x2x2, an element order without locality: chunk
     // ranges adding up to over 3 nodes per node) through the element force buffer

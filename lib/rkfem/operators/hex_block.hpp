@@ -64,9 +64,16 @@ struct HexBlock
     index_t points_per_element() const { return formulation == Formulation::Fem1pt ? 1 : 8; }
     index_t n_points() const { return n_elements() * points_per_element(); }
 
-    /// Sizes state arrays and builds the assembly tables. Nodes must already hold coordinates.
-    /// 1-point blocks scatter by default (chunks of elements); 2x2x2 blocks always gather.
+    /// Sizes state arrays (zero state) and builds the assembly tables. Nodes must already hold
+    /// coordinates. 1-point blocks scatter by default (chunks of elements); 2x2x2 blocks always
+    /// gather.
     void initialize(const NodeSet& nodes, Assembly assembly = Assembly::Automatic);
+    /// The tables only (reference volumes, node -> element transpose, gather indices, scatter
+    /// chunks, scratch), from conn and the nodes' reference coordinates; state is not touched.
+    void build_tables(const NodeSet& nodes, Assembly assembly = Assembly::Automatic);
+    /// An event between steps: keeps the elements with keep[e] != 0, in order, with their
+    /// committed state (stress, hourglass forces, material history), and rebuilds the tables.
+    void remove_elements(const std::vector<char>& keep, const NodeSet& nodes);
     /// Commits trial state.
     void commit()
     {

@@ -22,6 +22,25 @@ void central_difference_drift(NodeSet& n, real_t dt)
     parallel_for("rkfem::cd::drift", n3, [&](index_t j) { n.u[j] += dt * n.v[j]; });
 }
 
+void book_event_energy(ExplicitOperator& model, const std::vector<real_t>& a_old, real_t dt)
+{
+    const NodeSet& n = model.state();
+    const real_t h = 0.5 * dt;
+    const real_t change = parallel_reduce_sum("rkfem::event_energy", n.size(),
+                                              [&](index_t i)
+                                              {
+                                                  real_t s = 0.0;
+                                                  for (int d = 0; d < 3; ++d)
+                                                  {
+                                                      const std::size_t j = 3 * static_cast<std::size_t>(i) + d;
+                                                      const real_t v_half = n.v[j] - h * a_old[j];
+                                                      s += v_half * (n.a[j] - a_old[j]);
+                                                  }
+                                                  return 0.5 * n.mass[i] * h * s;
+                                              });
+    model.ledger().eroded -= change;
+}
+
 StepReport start_model(ExplicitOperator& model, real_t t)
 {
     NodeSet& n = model.state();

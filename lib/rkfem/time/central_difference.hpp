@@ -23,6 +23,13 @@ void central_difference_kick(NodeSet& nodes, real_t h);
 /// u += dt v over all nodes.
 void central_difference_drift(NodeSet& nodes, real_t dt);
 
+/// After an event that changed the forces at t(n+1) (accelerations a_old before, nodes.a after
+/// the stepper started again): the leapfrog-consistent kinetic energy 1/2 m v(n+1/2).v(n+3/2)
+/// now takes a_new where the ledger booked a_old, a change no work term accounts for. Books
+/// -1/2 sum m v(n+1/2) . (dt/2)(a_new - a_old) into ledger().eroded, v(n+1/2) = v - dt/2 a_old,
+/// dt the step that ended at the event.
+void book_event_energy(ExplicitOperator& model, const std::vector<real_t>& a_old, real_t dt);
+
 class CentralDifference final : public TimeStepper
 {
   public:
