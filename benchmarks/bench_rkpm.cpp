@@ -20,6 +20,8 @@
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/operators/nodal_block.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
 

@@ -20,6 +20,7 @@
 #include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 #include "rkfem/operators/linear_static.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
 
 using namespace rkfem;
 

@@ -11,6 +11,8 @@
 #include "nodal_common.hpp"
 #include "rkfem/integration/stencil_table.hpp"
 #include "rkfem/operators/nodal_block.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
 using namespace rkfem::test;

@@ -21,6 +21,8 @@
 #include "rkfem/operators/nodal_block.hpp"
 #include "../support.hpp"
 #include "rkfem/core/stream_stores.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
 using namespace rkfem::test;

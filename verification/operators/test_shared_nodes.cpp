@@ -13,6 +13,8 @@
 
 #include "../support.hpp"
 #include "rkfem/operators/nodal_block.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
 

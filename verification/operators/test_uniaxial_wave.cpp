@@ -5,6 +5,7 @@
 
 #include "../support.hpp"
 #include "rkfem/model/simulation.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
 
 using namespace rkfem;
 

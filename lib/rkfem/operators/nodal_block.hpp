@@ -14,6 +14,7 @@
 /// Nodal forces are assembled in a fixed order (chunked scatter or transpose gather, see
 /// NodalBlock::Assembly), so results do not depend on the thread count. For RK parts the node unknowns are
 /// generalized coefficients; `interpolation` (Psi_J(X_I) per node) gives physical values.
+/// The force pass is in nodal_force.hpp, the builders from deck parts in nodal_block_build.hpp.
 #include <memory>
 #include <vector>
 
@@ -122,44 +123,7 @@ struct NodalBlock
     }
 };
 
-/// The RK approximation settings of a deck's `rk` section.
-RkParams rk_params(const RkSpec& spec);
-
-/// Builds the block of a fem-nodal or rkpm part from its mesh (local numbering; node ids are
-/// shifted by `offset`): approximation, nodal integration, stabilization, RK interpolation at
-/// the nodes. A singular RK moment matrix becomes a DeckError naming rk.normalized_support.
-NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
-
-/// Per element of a part's mesh: 1 if its centroid lies in one of the part's RK regions.
-std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh);
-
-/// Builds the block of a coupled FE-RK part (a fem-nodal part with regions): the mixed or ramp
-/// approximation of approximation/coupling/coupled_shapes.hpp over the whole mesh, SCNI on its
-/// node-dual cells (+ MSCNI), physical values at the nodes (identity at FE nodes).
-NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
-
-/// The convex body a cloud part's Voronoi cells are clipped to: its box, or the prism of planes
-/// tangent to its cylinder (at least 128, about 8 pi radius / mean spacing of n_particles).
-std::vector<HalfSpace> cloud_body(const GeneratorSpec& g, index_t n_particles);
-
-/// Builds the block of a cloud part (generator type cloud; rkpm only): Voronoi cells of the
-/// particles clipped to the body (cloud_body), RK support a_I = normalized_support x the longest distance
-/// to a neighbour across a facet of at least 10% of the cell's largest, SCNI on the cells (or
-/// DNI with the cell volumes) with optional MSCNI on the cells' pyramids (VoronoiCells::
-/// sub_cells), stable-step length l0 = that same distance, crack band
-/// = V^(1/3). Throws DeckError for coincident particles or a singular moment matrix.
-NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t offset);
-
-/// Internal force pass (material update into trial state, per-point tensors); assembly is
-/// separate (assemble_nodal_forces). d_hourglass carries the stabilization work.
-ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt);
-
-/// f_int[node] = sum over the node's entries, for the block's node range. Once per force pass:
-/// with the chunked scatter it consumes the chunk sums (ChunkedScatter::reduce). With `add` the
-/// sums are added to f_int (assemble_block_forces).
-void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes, bool add = false);
-
-/// Lumped mass rho V0_p to each point's owner node.
-void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes);
-
+/// Stress points per batch of the force pass (one AVX-512 register of doubles); point state
+/// is laid out in whole batches.
+inline constexpr int kPointLanes = 8;
 } // namespace rkfem

@@ -1,0 +1,142 @@
+// GCC 12 reports a false "may be used uninitialized" inside Eigen's AVX-512 kernels (dense LU and
+// SparseLU here); every value is initialised.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
+// Prescribed motion: velocities of constrained dofs, and on RK particles the physical
+// velocity through the mixed transformation (Chen & Wang 2000).
+#include "rkfem/model/model.hpp"
+
+#include <Eigen/SparseLU>
+#include <memory>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/operators/linear_static.hpp"
+
+namespace rkfem
+{
+struct RkVelocityConstraint
+{
+    index_t block = 0;                  ///< nodal block
+    int component = 0;
+    std::vector<index_t> condition;     ///< index into Model::conditions, per constrained node
+    std::vector<index_t> node;          ///< global node per constrained node
+    std::vector<index_t> slot;          ///< global node -> position in `node`, -1 if free (block range)
+    Eigen::SparseLU<SparseMatrix> lu;   ///< Lambda_bb
+    Eigen::VectorXd rhs, x;
+};
+
+void Model::impose_velocity(real_t t, real_t dt, bool half_step) { impose_velocity(t, dt, half_step, nodes.v.data()); }
+
+void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
+{
+    for (const auto& c : conditions)
+    {
+        real_t v = 0.0;
+        switch (c.kind)
+        {
+        case BoundarySpec::Kind::Fixed:
+            v = 0.0;
+            break;
+        case BoundarySpec::Kind::Velocity:
+            v = (*c.value)(half_step ? t + 0.5 * dt : t);
+            break;
+        case BoundarySpec::Kind::Displacement:
+            if (half_step)
+                v = dt > 0 ? ((*c.value)(t + dt) - nodes.u[c.dof]) / dt : 0.0;
+            else
+            {
+                const real_t h = dt > 0 ? dt : 1e-9;
+                v = ((*c.value)(t + h) - (*c.value)(t)) / h;
+            }
+            break;
+        }
+        vel[c.dof] = v;
+    }
+    // rkpm parts: the values just set are targets for the physical velocity
+    for (auto& rc : rk_constraints_)
+    {
+        const NodalBlock& nb = nodal_blocks[rc->block];
+        const int k = rc->component;
+        const index_t nb_count = static_cast<index_t>(rc->node.size());
+        for (index_t q = 0; q < nb_count; ++q)
+        {
+            real_t r = vel[3 * rc->node[q] + k];
+            if (conditions[rc->condition[q]].kind == BoundarySpec::Kind::Displacement && half_step)
+            {
+                // target from the physical displacement: (g(t + dt) - u^h(X_b)) / dt
+                const DofCondition& c = conditions[rc->condition[q]];
+                const real_t uh = physical(nodes.u, rc->node[q])[k];
+                r = dt > 0 ? ((*c.value)(t + dt) - uh) / dt : 0.0;
+            }
+            kinematics.for_row(rc->node[q],
+                               [&](index_t J, real_t w)
+                               {
+                                   if (rc->slot[J - nb.node_begin] < 0)
+                                       r -= w * vel[3 * J + k];
+                               });
+            rc->rhs[q] = r;
+        }
+        rc->x = rc->lu.solve(rc->rhs);
+        for (index_t q = 0; q < nb_count; ++q)
+            vel[3 * rc->node[q] + k] = rc->x[q];
+    }
+}
+
+void Model::build_rk_constraints()
+{
+    for (index_t b = 0; b < static_cast<index_t>(nodal_blocks.size()); ++b)
+    {
+        const NodalBlock& nb = nodal_blocks[b];
+        bool any = false;
+        for (index_t i = nb.node_begin; i < nb.node_end && !any; ++i)
+            any = kinematics.carries_coefficients(i);
+        if (!any)
+            continue;
+        for (int k = 0; k < 3; ++k)
+        {
+            auto rc = std::make_shared<RkVelocityConstraint>();
+            rc->block = b;
+            rc->component = k;
+            rc->slot.assign(static_cast<std::size_t>(nb.node_end - nb.node_begin), -1);
+            for (index_t ci = 0; ci < static_cast<index_t>(conditions.size()); ++ci)
+            {
+                const index_t n = conditions[ci].dof / 3;
+                if (conditions[ci].dof % 3 != k || n < nb.node_begin || n >= nb.node_end)
+                    continue;
+                rc->slot[n - nb.node_begin] = static_cast<index_t>(rc->node.size());
+                rc->node.push_back(n);
+                rc->condition.push_back(ci);
+            }
+            if (rc->node.empty())
+                continue;
+            const index_t m = static_cast<index_t>(rc->node.size());
+            std::vector<Eigen::Triplet<real_t, int>> t;
+            for (index_t q = 0; q < m; ++q)
+            {
+                kinematics.for_row(rc->node[q],
+                                   [&](index_t J, real_t w)
+                                   {
+                                       const index_t col = rc->slot[J - nb.node_begin];
+                                       if (col >= 0)
+                                           t.emplace_back(q, col, w);
+                                   });
+            }
+            SparseMatrix A(m, m);
+            A.setFromTriplets(t.begin(), t.end());
+            rc->lu.compute(A);
+            if (rc->lu.info() != Eigen::Success)
+            {
+                const auto& bc = deck_.boundary_conditions;
+                const std::string where = bc.empty() ? deck_.path : bc.front().loc.where;
+                throw DeckError({where, "boundary_conditions"},
+                                "the RK interpolation matrix of the " + std::to_string(m) + " particles constrained in component " +
+                                    std::to_string(k) + " of part '" + parts[nb.part].name + "' is singular",
+                                "expected constrained particle sets whose kernel functions are independent (e.g. whole faces)");
+            }
+            rc->rhs.resize(m);
+            rc->x.resize(m);
+            rk_constraints_.push_back(std::move(rc));
+        }
+    }
+}
+} // namespace rkfem

@@ -1,0 +1,138 @@
+// What output and probes read: physical values, stresses and histories per element and node.
+#include "rkfem/model/model.hpp"
+
+#include <algorithm>
+
+namespace rkfem
+{
+bool Model::carries_coefficients(index_t node) const { return kinematics.carries_coefficients(node); }
+
+Vec3 Model::physical(const std::vector<real_t>& field, index_t node) const
+{
+    return kinematics.physical(field.data(), node);
+}
+
+void Model::physical_field(const std::vector<real_t>& field, std::vector<real_t>& out) const
+{
+    kinematics.physical_field(field, out);
+}
+
+namespace
+{
+/// History value h of point p.
+real_t history_value(const PlasticPoints& pp, std::size_t p, Model::History h)
+{
+    switch (h)
+    {
+    case Model::History::PlasticStrain:
+        return pp.eps_p[p];
+    case Model::History::Damage:
+        return pp.damage(p);
+    case Model::History::KccDelta:
+        return pp.kcc_delta(p);
+    }
+    return 0.0;
+}
+} // namespace
+
+real_t Model::element_history(index_t b, index_t e, History h) const
+{
+    auto value = [h](const PlasticPoints& pp, std::size_t p) { return history_value(pp, p, h); };
+    if (part_nodal[b] >= 0)
+    {
+        const NodalBlock& nb = nodal_blocks[part_nodal[b]];
+        if (!nb.plastic.active())
+            return 0.0;
+        real_t s = 0.0;
+        int count = 0;
+        for (int I = 0; I < 8; ++I)
+        {
+            const index_t i = blocks[b].conn[8 * static_cast<std::size_t>(e) + I] - nb.node_begin;
+            for (index_t k = nb.owner_offsets[i]; k < nb.owner_offsets[i + 1]; ++k, ++count)
+                s += value(nb.plastic, static_cast<std::size_t>(nb.owner_points[k]));
+        }
+        return count ? s / count : 0.0;
+    }
+    const HexBlock& blk = blocks[b];
+    if (!blk.plastic.active())
+        return 0.0;
+    const index_t npe = blk.points_per_element();
+    real_t s = 0.0;
+    for (index_t g = 0; g < npe; ++g)
+        s += value(blk.plastic, static_cast<std::size_t>(e) * npe + g);
+    return s / npe;
+}
+
+real_t Model::nodal_history(index_t node, History h) const
+{
+    const index_t ip = nodes.part[node];
+    if (part_nodal[ip] < 0)
+        return 0.0;
+    const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+    if (!nb.plastic.active())
+        return 0.0;
+    const index_t i = node - nb.node_begin;
+    real_t s = 0.0;
+    const index_t k0 = nb.owner_offsets[i], k1 = nb.owner_offsets[i + 1];
+    for (index_t k = k0; k < k1; ++k)
+        s += history_value(nb.plastic, static_cast<std::size_t>(nb.owner_points[k]), h);
+    return k1 > k0 ? s / static_cast<real_t>(k1 - k0) : 0.0;
+}
+
+bool Model::is_cloud(index_t part) const
+{
+    return deck_.parts[static_cast<std::size_t>(part)].generator.type == GeneratorSpec::Type::Cloud;
+}
+
+index_t Model::n_cells() const
+{
+    index_t n = n_elements();
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+        if (is_cloud(ip))
+            n += parts[ip].node_end - parts[ip].node_begin;
+    return n;
+}
+
+Sym6 Model::element_stress(index_t b, index_t e) const
+{
+    if (part_nodal[b] >= 0)
+    {
+        Sym6 s = Sym6::Zero();
+        for (int I = 0; I < 8; ++I)
+            s += nodal_stress(blocks[b].conn[8 * static_cast<std::size_t>(e) + I]);
+        return s / 8.0;
+    }
+    const HexBlock& blk = blocks[b];
+    const index_t npe = blk.points_per_element();
+    const std::size_t np = blk.stress_stride;
+    Sym6 s = Sym6::Zero();
+    for (index_t g = 0; g < npe; ++g)
+        for (int k = 0; k < 6; ++k)
+            s[k] += blk.stress[k * np + static_cast<std::size_t>(e) * npe + g];
+    return s / static_cast<real_t>(npe);
+}
+
+Sym6 Model::nodal_stress(index_t node) const
+{
+    const index_t ip = nodes.part[node];
+    if (part_nodal[ip] >= 0)
+    {
+        const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+        const index_t i = node - nb.node_begin;
+        const std::size_t np = nb.stress_stride;
+        Sym6 s = Sym6::Zero();
+        const index_t k0 = nb.owner_offsets[i], k1 = nb.owner_offsets[i + 1];
+        for (index_t k = k0; k < k1; ++k)
+            for (int c = 0; c < 6; ++c)
+                s[c] += nb.stress[c * np + nb.owner_points[k]];
+        return k1 > k0 ? Sym6(s / static_cast<real_t>(k1 - k0)) : s;
+    }
+    const HexBlock& blk = blocks[ip];
+    const index_t i = node - blk.node_begin;
+    Sym6 s = Sym6::Zero();
+    const index_t k0 = blk.node_elem_offsets[i], k1 = blk.node_elem_offsets[i + 1];
+    for (index_t k = k0; k < k1; ++k)
+        s += element_stress(ip, blk.node_elem_slots[k] / 8);
+    return k1 > k0 ? Sym6(s / static_cast<real_t>(k1 - k0)) : s;
+}
+} // namespace rkfem

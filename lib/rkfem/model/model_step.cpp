@@ -1,0 +1,242 @@
+// The explicit operator's phases (time/explicit_operator.hpp): state, forces, accelerations,
+// checks, commit and energies.
+#include "rkfem/model/model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/operators/nodal_force.hpp"
+
+namespace rkfem
+{
+void Model::update_coordinates()
+{
+    const index_t n3 = 3 * nodes.size();
+    parallel_for("rkfem::coordinates", n3, [&](index_t i) { nodes.x[i] = nodes.x0[i] + nodes.u[i]; });
+}
+
+void Model::set_state(const real_t* u, const real_t* v)
+{
+    const index_t n3 = 3 * nodes.size();
+    parallel_for("rkfem::set_state", n3,
+                 [&](index_t i)
+                 {
+                     nodes.u[i] = u[i];
+                     nodes.v[i] = v[i];
+                     nodes.x[i] = nodes.x0[i] + u[i];
+                 });
+}
+
+ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
+{
+    ForceReport rep;
+    pending_int_ = pending_hg_ = pending_bv_ = 0.0;
+    index_t offset = 0;
+    // energy increments and the controlling stable step of one block's pass
+    auto book = [&](const ForcePassResult& r, index_t dt_element)
+    {
+        pending_int_ += r.d_internal;
+        pending_hg_ += r.d_hourglass;
+        pending_bv_ += r.d_bulk_viscosity;
+        if (r.dt_stable < rep.dt_stable)
+        {
+            rep.dt_stable = r.dt_stable;
+            rep.dt_element = dt_element;
+        }
+    };
+    // blocks whose node ranges overlap add into f_int, zeroed once here over those ranges; a
+    // block alone on its nodes writes them (no clearing pass)
+    for (const auto& [lo, hi] : shared_node_ranges_)
+        std::fill(nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(lo),
+                  nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(hi), 0.0);
+    for (std::size_t ib = 0; ib < blocks.size(); ++ib)
+    {
+        HexBlock& blk = blocks[ib];
+        const bool add = block_adds_[ib] != 0;
+        if (part_nodal[ib] >= 0)
+        {
+            NodalBlock& nb = nodal_blocks[part_nodal[ib]];
+            const ForcePassResult r = nodal_internal_force(nb, nodes, dt);
+            if (r.bad_element >= 0)
+            {
+                std::ostringstream os;
+                os << "integration point " << r.bad_element << " (owner node " << nb.points.owner[r.bad_element]
+                   << ", part '" << parts[ib].name << "') has non-positive or NaN det F = "
+                   << nb.jacobian[r.bad_element] << " at t = " << t << " s, step " << step;
+                throw InstabilityError(os.str());
+            }
+            book(r, offset); // first element of the part; nodal points are not elements
+            assemble_nodal_forces(nb, nodes, add);
+            offset += blk.n_elements();
+            continue;
+        }
+        const ForcePassResult r = hex_internal_force(blk, nodes, dt);
+        if (r.bad_element >= 0)
+        {
+            std::ostringstream os;
+            os << "element " << offset + r.bad_element << " (part '" << parts[ib].name
+               << "', local " << r.bad_element << ") has non-positive or NaN volume "
+               << element_volume(blk, nodes, r.bad_element) << " m^3 at t = " << t << " s, step " << step;
+            throw InstabilityError(os.str());
+        }
+        book(r, offset + r.dt_element);
+        assemble_block_forces(blk, nodes, add);
+        offset += blk.n_elements();
+    }
+    return rep;
+}
+
+void Model::external_forces(real_t t)
+{
+    apply_external_forces(t);
+    if (contacts.empty())
+        return;
+    contact.clear();
+    const PhysicalNodes physical_nodes(nodes, kinematics);
+    for (auto& c : contacts)
+        c->add_forces(physical_nodes, t, contact);
+}
+
+void Model::accelerations()
+{
+    const real_t c = deck_.time.mass_damping;
+    const index_t n = nodes.size();
+    parallel_for("rkfem::accelerations", n,
+                 [&](index_t i)
+                 {
+                     const real_t inv_m = 1.0 / nodes.mass[i];
+                     for (int k = 0; k < 3; ++k)
+                     {
+                         const std::size_t j = 3 * static_cast<std::size_t>(i) + k;
+                         nodes.a[j] = (nodes.f_ext[j] - nodes.f_int[j]) * inv_m - c * nodes.v[j];
+                     }
+                 });
+    // contact forces: only on the nodes in contact this pass
+    for (index_t i : contact.nodes())
+    {
+        const real_t inv_m = 1.0 / nodes.mass[i];
+        for (int k = 0; k < 3; ++k)
+            nodes.a[3 * static_cast<std::size_t>(i) + k] += contact.f[3 * static_cast<std::size_t>(i) + k] * inv_m;
+    }
+    for (const auto& cnd : conditions)
+        nodes.a[cnd.dof] = 0.0;
+}
+
+void Model::commit()
+{
+    for (auto& b : blocks)
+        b.commit();
+    for (auto& b : nodal_blocks)
+        b.commit();
+    energy.internal += pending_int_;
+    energy.hourglass += pending_hg_;
+    energy.bulk_viscosity += pending_bv_;
+    pending_int_ = pending_hg_ = pending_bv_ = 0.0;
+}
+
+void Model::update_energies(const real_t* u_prev, real_t dt)
+{
+    const index_t n = nodes.size();
+    energy.kinetic = parallel_reduce_sum("rkfem::kinetic", n,
+                                         [&](index_t i)
+                                         {
+                                             const std::size_t j = 3 * static_cast<std::size_t>(i);
+                                             return 0.5 * nodes.mass[i] *
+                                                    (nodes.v[j] * nodes.v[j] + nodes.v[j + 1] * nodes.v[j + 1] +
+                                                     nodes.v[j + 2] * nodes.v[j + 2]);
+                                         });
+    energy.kinetic_correction =
+        -0.125 * dt * dt *
+        parallel_reduce_sum("rkfem::kinetic_correction", n,
+                            [&](index_t i)
+                            {
+                                const std::size_t j = 3 * static_cast<std::size_t>(i);
+                                return nodes.mass[i] * (nodes.a[j] * nodes.a[j] + nodes.a[j + 1] * nodes.a[j + 1] +
+                                                        nodes.a[j + 2] * nodes.a[j + 2]);
+                            });
+    const index_t n_loaded = static_cast<index_t>(loaded_dofs_.size());
+    auto keep_f_ext = [&]
+    {
+        for (index_t q = 0; q < n_loaded; ++q)
+            f_ext_prev_[q] = nodes.f_ext[loaded_dofs_[q]];
+    };
+    if (dt <= 0)
+    {
+        // a (re)start: the forces of this state open the next step's trapezoids; after an event
+        // the reactions are those of the new discretization, with the last step's inertia term
+        // m a_p (a prescribed acceleration needs a step)
+        keep_f_ext();
+        contact.commit();
+        bc_v_prev_.resize(conditions.size());
+        for (std::size_t k = 0; k < conditions.size(); ++k)
+        {
+            const index_t j = conditions[k].dof;
+            bc_v_prev_[k] = nodes.v[j];
+            reaction_prev_[k] = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
+        }
+        return;
+    }
+    // external work, trapezoid in time, over the loaded dofs (f_ext is zero elsewhere)
+    energy.external_work += parallel_reduce_sum("rkfem::external_work", n_loaded,
+                                                [&](index_t q)
+                                                {
+                                                    const index_t j = loaded_dofs_[q];
+                                                    return 0.5 * (f_ext_prev_[q] + nodes.f_ext[j]) *
+                                                           (nodes.u[j] - u_prev[j]);
+                                                });
+    // work of reactions at prescribed dofs: R = f_int - f_ext + m a_prescribed
+    for (std::size_t k = 0; k < conditions.size(); ++k)
+    {
+        const index_t j = conditions[k].dof;
+        const real_t du = nodes.u[j] - u_prev[j];
+        // prescribed acceleration over the step, from the imposed velocities
+        const real_t ap = (nodes.v[j] - bc_v_prev_[k]) / dt;
+        bc_v_prev_[k] = nodes.v[j];
+        reaction_inertia_[k] = nodes.mass[j / 3] * ap;
+        const real_t r = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
+        energy.external_work += 0.5 * (reaction_prev_[k] + r) * du;
+        reaction_prev_[k] = r;
+    }
+    // contact: the sliding energy is minus the work of the contact forces
+    if (!contact.empty())
+        energy.contact -= contact.step_work(nodes.u.data(), u_prev);
+    contact.commit();
+    // mass damping dissipation
+    const real_t c = deck_.time.mass_damping;
+    if (c > 0)
+        energy.damping += dt * c * 2.0 * energy.kinetic;
+    keep_f_ext();
+}
+
+void Model::check(real_t t, std::int64_t step) const
+{
+    const index_t n3 = 3 * nodes.size();
+    const real_t* u = nodes.u.data();
+    const real_t* a = nodes.a.data();
+    // x - x is 0 for finite x and NaN otherwise: one vectorized sum finds whether any value is
+    // not finite; only then a scan finds the first such node
+    const real_t s = parallel_reduce_sum("rkfem::check_finite", n3, [&](index_t j) { return (u[j] - u[j]) + (a[j] - a[j]); });
+    if (s == 0.0)
+        return;
+    index_t bad = 0;
+    while (bad < n3 && std::isfinite(u[bad]) && std::isfinite(a[bad]))
+        ++bad;
+    bad /= 3;
+    std::ostringstream os;
+    os << "non-finite acceleration or displacement at node " << bad << " (part '" << parts[nodes.part[bad]].name
+       << "') at t = " << t << " s, step " << step;
+    throw InstabilityError(os.str());
+}
+
+std::vector<index_t> Model::velocity_driven_dofs() const
+{
+    std::vector<index_t> dofs;
+    for (const DofCondition& c : conditions)
+        if (c.kind != BoundarySpec::Kind::Fixed || carries_coefficients(c.dof / 3))
+            dofs.push_back(c.dof);
+    return dofs;
+}
+} // namespace rkfem

@@ -1,0 +1,319 @@
+#include "rkfem/operators/nodal_block_build.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+
+#include "rkfem/approximation/coupling/coupled_shapes.hpp"
+#include "rkfem/approximation/shape_evaluator.hpp"
+#include "rkfem/core/error.hpp"
+#include "rkfem/discretization/voronoi_cells.hpp"
+#include "rkfem/integration/nodal/nodal_integration.hpp"
+
+namespace rkfem
+{
+namespace
+{
+/// Default dt factor alpha (dt = alpha J^(1/3) l0 / c) per nodal formulation, calibrated from
+/// the largest eigenvalue of M^-1 K on free regular and jittered blocks (verification/
+/// operators/test_nodal_dynamics.cpp, NodalTimeStep prints alpha_crit): the smallest critical
+/// value found (regular block: rkpm 1.054, fem-nodal 0.957), rounded down. Like l/c for hexes
+/// it is the critical estimate; time.dt_scale (0.9) applies on top.
+real_t default_dt_factor(const PartSpec& ps)
+{
+    return ps.formulation == Formulation::Rkpm ? 1.0 : 0.95;
+}
+
+} // namespace
+
+RkParams rk_params(const RkSpec& spec)
+{
+    RkParams rp;
+    rp.order = spec.order;
+    rp.kernel = spec.kernel == "quintic-bspline" ? KernelType::QuinticBSpline
+                : spec.kernel == "gaussian"      ? KernelType::Gaussian
+                                                 : KernelType::CubicBSpline;
+    rp.support = spec.support == "sphere" ? SupportShape::Sphere : SupportShape::Box;
+    rp.normalized_support = spec.normalized_support;
+    return rp;
+}
+
+namespace
+{
+NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset)
+{
+    NodalBlock nb;
+    nb.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
+    nb.plastic.configure(ps.material);
+    nb.node_begin = offset;
+    nb.node_end = offset + n_nodes;
+    nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);
+    nb.bulk_viscosity = ps.bulk_viscosity;
+    return nb;
+}
+
+/// RK interpolation Psi_J(X_I) at the particles, for physical nodal values.
+void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::vector<real_t>& x, index_t offset)
+{
+    RkSample smp;
+    nb.interp_offsets.assign(1, 0);
+    for (std::size_t i = 0; 3 * i < x.size(); ++i)
+    {
+        rk.evaluate(Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]), false, smp);
+        for (index_t k = 0; k < smp.size(); ++k)
+        {
+            nb.interp_nodes.push_back(smp.nodes[k] + offset);
+            nb.interp_values.push_back(smp.psi[k]);
+        }
+        nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
+    }
+}
+
+DeckError singular_support(const PartSpec& ps, const SingularMomentError& e)
+{
+    return DeckError({ps.rk.loc.where.empty() ? ps.loc.where : ps.rk.loc.where, ps.loc.path + ".rk.normalized_support"},
+                     e.what(), "expected a support large enough that every point is covered by 4 particles not in one plane");
+}
+
+/// Operators to global node ids, l0 per point from the owner node, state arrays, crack bands.
+void finish_block(NodalBlock& nb, index_t offset, const std::vector<real_t>& l0, const std::vector<real_t>& band)
+{
+    for (auto* op : {&nb.points, &nb.stabilization})
+    {
+        for (auto& n : op->nodes)
+            n += offset;
+        for (auto& o : op->owner)
+            o += offset;
+    }
+    nb.length0.resize(static_cast<std::size_t>(nb.points.n_points()));
+    std::vector<real_t> lengths(nb.length0.size());
+    for (index_t p = 0; p < nb.points.n_points(); ++p)
+    {
+        nb.length0[p] = l0[nb.points.owner[p] - offset];
+        lengths[p] = band[nb.points.owner[p] - offset];
+    }
+    nb.initialize();
+    nb.plastic.set_lengths(lengths);
+}
+} // namespace
+
+NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
+{
+    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+    const NodalScheme scheme = ps.nodal.scheme == "dni"       ? NodalScheme::Dni
+                               : ps.nodal.scheme == "sd-scni" ? NodalScheme::SdScni
+                                                              : NodalScheme::Scni;
+    std::shared_ptr<const RkShapeFunctions> rk;
+    std::unique_ptr<ShapeEvaluator> shapes;
+    if (ps.formulation == Formulation::Rkpm)
+    {
+        rk = std::make_shared<const RkShapeFunctions>(rk_on_mesh(mesh, rk_params(ps.rk)));
+        shapes = std::make_unique<RkShapes>(*rk);
+        nb.rk = rk;
+    }
+    else
+        shapes = std::make_unique<FemShapes>(mesh);
+    try
+    {
+        nb.points = build_nodal(scheme, mesh, *shapes);
+        if (scheme == NodalScheme::Scni && ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
+        if (rk)
+            add_interpolation(nb, *rk, mesh.x, offset);
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    // stable-step length and crack band: the shortest mesh edge at the node
+    const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+    finish_block(nb, offset, l0, l0);
+    return nb;
+}
+
+namespace
+{
+/// Is point c inside region r (box, within radius of a cylinder's axis, sphere)?
+bool inside_region(const SelectorSpec& r, const Vec3& c)
+{
+    switch (r.type)
+    {
+    case SelectorSpec::Type::Box:
+        return (c.array() >= r.min.array()).all() && (c.array() <= r.max.array()).all();
+    case SelectorSpec::Type::Cylinder:
+    {
+        const Vec3 d = c - r.point;
+        return (d - d.dot(r.normal) * r.normal).norm() <= r.radius;
+    }
+    case SelectorSpec::Type::Sphere:
+        return (c - r.point).norm() <= r.radius;
+    default:
+        return false;
+    }
+}
+} // namespace
+
+std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh)
+{
+    std::vector<char> rk(static_cast<std::size_t>(mesh.n_elements()), 0);
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        Vec3 c = Vec3::Zero();
+        for (int a = 0; a < 8; ++a)
+            c += mesh.node(mesh.conn[8 * e + a]) / 8.0;
+        for (const SelectorSpec& r : ps.regions)
+            rk[e] = rk[e] || inside_region(r, c);
+    }
+    return rk;
+}
+
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
+{
+    const std::vector<char> rk_elements = rk_region_elements(ps, mesh);
+    index_t n_rk = 0;
+    for (char c : rk_elements)
+        n_rk += c;
+    if (n_rk == 0 || n_rk == mesh.n_elements())
+        throw DeckError(ps.regions_loc,
+                        n_rk == 0 ? "contain no element centroid of the part"
+                                  : "contain every element of the part, leaving no FE region",
+                        n_rk == 0 ? "expected regions that hold some of the part's elements"
+                                  : "expected formulation: rkpm for an all-RK part, or smaller regions");
+    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+    const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
+    try
+    {
+        auto shapes = std::make_shared<const CoupledShapes>(mesh, rk_elements, rk_params(ps.rk), t);
+        nb.points = build_scni(mesh, *shapes);
+        if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
+        // physical values: identity at FE nodes, the RK interpolant at particles
+        nb.interp_offsets.assign(1, 0);
+        std::vector<index_t> row_nodes;
+        std::vector<real_t> row_values;
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+        {
+            row_nodes.clear();
+            row_values.clear();
+            shapes->node_row(i, row_nodes, row_values);
+            for (std::size_t k = 0; k < row_nodes.size(); ++k)
+            {
+                nb.interp_nodes.push_back(row_nodes[k] + offset);
+                nb.interp_values.push_back(row_values[k]);
+            }
+            nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
+        }
+        nb.particle.resize(static_cast<std::size_t>(mesh.n_nodes()));
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+            nb.particle[i] = shapes->is_particle(i);
+        nb.coupled = shapes;
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+    finish_block(nb, offset, l0, l0);
+    return nb;
+}
+
+std::vector<HalfSpace> cloud_body(const GeneratorSpec& g, index_t n_particles)
+{
+    if (g.body == GeneratorSpec::Body::Box)
+        return box_halfspaces(g.origin, g.origin + g.size);
+    // the tangent prism, its facets about a quarter of the mean spacing wide: the body's volume
+    // is then the cylinder's to (pi / sides)^2 / 3 (2e-4 at the minimum of 128 sides), and a
+    // boundary cell meets a few of them
+    const real_t spacing = std::cbrt(M_PI * g.radius * g.radius * g.height / std::max<index_t>(1, n_particles));
+    const int sides = std::clamp(static_cast<int>(std::ceil(8.0 * M_PI * g.radius / spacing)), 128, 4096);
+    return cylinder_halfspaces(g.origin, g.radius, g.height, sides);
+}
+
+NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t offset)
+{
+    const GeneratorSpec& g = ps.generator;
+    const index_t n = cloud.n_nodes();
+    VoronoiCells cells;
+    try
+    {
+        cells = voronoi_cells(cloud.x, cloud_body(g, n));
+    }
+    catch (const Error& e)
+    {
+        throw DeckError({g.loc.where, ps.loc.path + ".generator"}, e.what(),
+                        "expected distinct particles inside the body");
+    }
+    // per particle: the facet area shared with each neighbour, and the longest distance to a
+    // neighbour across a facet of at least 10% of the cell's largest (jitter adds small facets to
+    // diagonal neighbours, which this leaves out). It sets the support size and the stable-step
+    // length: with it the critical alpha of free clouds is 1.15-1.41 for jitter 0-0.45 and for
+    // random points (NodalTimeStep.DefaultFactorIsBelowTheCriticalValueOnClouds), against 1.175
+    // for the regular lattice; the nearest neighbour's distance gave 2-6 on jittered clouds
+    // (needlessly small steps).
+    std::vector<real_t> reach(static_cast<std::size_t>(n), 0.0);
+    for (index_t i = 0; i < n; ++i)
+    {
+        std::map<index_t, real_t> area;
+        for (index_t q = cells.offsets[i]; q < cells.offsets[i + 1]; ++q)
+            if (cells.points[q].neighbour >= 0)
+                area[cells.points[q].neighbour] += cells.points[q].nda.norm();
+        real_t amax = 0.0;
+        for (const auto& [j, a] : area)
+            amax = std::max(amax, a);
+        for (const auto& [j, a] : area)
+        {
+            if (a >= 0.1 * amax)
+                reach[i] = std::max(reach[i], (cloud.node(i) - cloud.node(j)).norm());
+        }
+        if (area.empty())
+            throw DeckError({g.loc.where, ps.loc.path + ".generator"}, "particle " + std::to_string(i) + " has no neighbour",
+                            "expected at least 2 particles");
+    }
+    NodalBlock nb = block_frame(ps, n, offset);
+    std::vector<real_t> a = reach;
+    for (auto& v : a)
+        v *= ps.rk.normalized_support;
+    auto rk = std::make_shared<const RkShapeFunctions>(cloud.x, std::move(a), rk_params(ps.rk));
+    nb.rk = rk;
+    try
+    {
+        const RkShapes shapes(*rk);
+        // SD-SCNI on a cloud: each Voronoi cell's pyramids (VoronoiCells::sub_cells, the sub-cells
+        // MSCNI uses) are stress points of their own, owned by the cell's particle
+        nb.points = ps.nodal.scheme == "dni"       ? build_dni_cells(cells.volume, cloud.x, shapes)
+                    : ps.nodal.scheme == "sd-scni" ? build_sd_cells(cells, shapes)
+                                                   : build_scni_cells(cells, cloud.x, shapes);
+        if (ps.nodal.scheme == "scni" && ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
+        add_interpolation(nb, *rk, cloud.x, offset);
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    for (const CellFacetPoint& fp : cells.points)
+        if (fp.neighbour < 0)
+            nb.boundary_facets.push_back(fp);
+    std::vector<real_t> band(cells.volume.size());
+    for (std::size_t i = 0; i < band.size(); ++i)
+        band[i] = std::cbrt(cells.volume[i]); // crack band: the cell's size
+    finish_block(nb, offset, reach, band);
+    return nb;
+}
+
+void add_nodal_mass(const NodalBlock& blk, NodeSet& nodes)
+{
+    for (index_t p = 0; p < blk.n_points(); ++p)
+        nodes.mass[blk.points.owner[p]] += blk.material.rho * blk.points.weight[p];
+}
+} // namespace rkfem

@@ -1,0 +1,635 @@
+#include "rkfem/operators/nodal_force.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <immintrin.h>
+#include <memory>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/huge_pages.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/core/simd.hpp"
+#include "rkfem/core/stream_stores.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
+
+namespace rkfem
+{
+namespace
+{
+#if defined(__AVX2__) && defined(__FMA__)
+const __m256i lanes3 = _mm256_setr_epi64x(-1, -1, -1, 0);
+#endif
+
+/// F = 1 + sum_k u_k (x) g_k and Fd = sum_k v_k (x) g_k over the entries of point p. With AVX2
+/// each column is one 4-lane FMA (lane 3 unused): 6 FMAs per entry instead of 18 scalar ones.
+inline void gather_gradients(const StencilView& st, const real_t* u, const real_t* v, real_t F[3][3], real_t Fd[3][3])
+{
+#if defined(__AVX2__) && defined(__FMA__)
+    __m256d f0 = _mm256_setr_pd(1, 0, 0, 0), f1 = _mm256_setr_pd(0, 1, 0, 0), f2 = _mm256_setr_pd(0, 0, 1, 0);
+    __m256d d0 = _mm256_setzero_pd(), d1 = _mm256_setzero_pd(), d2 = _mm256_setzero_pd();
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        const __m256d uu = _mm256_maskload_pd(u + n, lanes3), vv = _mm256_maskload_pd(v + n, lanes3);
+        const __m256d g0 = _mm256_broadcast_sd(g), g1 = _mm256_broadcast_sd(g + 1), g2 = _mm256_broadcast_sd(g + 2);
+        f0 = _mm256_fmadd_pd(uu, g0, f0);
+        f1 = _mm256_fmadd_pd(uu, g1, f1);
+        f2 = _mm256_fmadd_pd(uu, g2, f2);
+        d0 = _mm256_fmadd_pd(vv, g0, d0);
+        d1 = _mm256_fmadd_pd(vv, g1, d1);
+        d2 = _mm256_fmadd_pd(vv, g2, d2);
+    }
+    alignas(32) real_t c[6][4];
+    _mm256_store_pd(c[0], f0);
+    _mm256_store_pd(c[1], f1);
+    _mm256_store_pd(c[2], f2);
+    _mm256_store_pd(c[3], d0);
+    _mm256_store_pd(c[4], d1);
+    _mm256_store_pd(c[5], d2);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+        {
+            F[i][j] = c[j][i];
+            Fd[i][j] = c[3 + j][i];
+        }
+#else
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+        {
+            F[i][j] = i == j ? 1.0 : 0.0;
+            Fd[i][j] = 0.0;
+        }
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+            {
+                F[i][j] += u[n + i] * g[j];
+                Fd[i][j] += v[n + i] * g[j];
+            }
+    }
+#endif
+}
+
+/// G = sum_k v_k (x) g_k over the entries of a stencil (stabilization sub-cells).
+inline void gather_velocity_gradient(const StencilView& st, const real_t* v, real_t G[3][3])
+{
+#if defined(__AVX2__) && defined(__FMA__)
+    __m256d d0 = _mm256_setzero_pd(), d1 = _mm256_setzero_pd(), d2 = _mm256_setzero_pd();
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        const __m256d vv = _mm256_maskload_pd(v + 3 * static_cast<std::size_t>(st.base + st.offset[k]), lanes3);
+        d0 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(g), d0);
+        d1 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(g + 1), d1);
+        d2 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(g + 2), d2);
+    }
+    alignas(32) real_t c[3][4];
+    _mm256_store_pd(c[0], d0);
+    _mm256_store_pd(c[1], d1);
+    _mm256_store_pd(c[2], d2);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            G[i][j] = c[j][i];
+#else
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            G[i][j] = 0.0;
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                G[i][j] += v[n + i] * g[j];
+    }
+#endif
+}
+
+/// f = sum over the node's slots of P_point g (P stored by columns: [9 q + 3 j + a] = P_aj).
+inline void gather_forces(const NodalBlock& blk, index_t i, real_t f[3])
+{
+#if defined(__AVX2__) && defined(__FMA__)
+    // three accumulators (one per gradient component): three independent FMA chains
+    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd();
+    for (index_t q = blk.node_entry_offsets[i]; q < blk.node_entry_offsets[i + 1]; ++q)
+    {
+        const real_t* g = &blk.node_grad[3 * static_cast<std::size_t>(q)];
+        const real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(blk.node_point[q])];
+        a0 = _mm256_fmadd_pd(_mm256_maskload_pd(P, lanes3), _mm256_broadcast_sd(g), a0);
+        a1 = _mm256_fmadd_pd(_mm256_maskload_pd(P + 3, lanes3), _mm256_broadcast_sd(g + 1), a1);
+        a2 = _mm256_fmadd_pd(_mm256_maskload_pd(P + 6, lanes3), _mm256_broadcast_sd(g + 2), a2);
+    }
+    alignas(32) real_t c[4];
+    _mm256_store_pd(c, _mm256_add_pd(_mm256_add_pd(a0, a1), a2));
+    f[0] = c[0], f[1] = c[1], f[2] = c[2];
+#else
+    f[0] = f[1] = f[2] = 0.0;
+    for (index_t q = blk.node_entry_offsets[i]; q < blk.node_entry_offsets[i + 1]; ++q)
+    {
+        const real_t* g = &blk.node_grad[3 * static_cast<std::size_t>(q)];
+        const real_t* P = &blk.point_tensor[9 * static_cast<std::size_t>(blk.node_point[q])];
+        for (int a = 0; a < 3; ++a)
+            f[a] += P[a] * g[0] + P[3 + a] * g[1] + P[6 + a] * g[2];
+    }
+#endif
+}
+
+/// buf[4 (n - lo) + a] += sum_j P_aj g_j for every entry (n, g) of a stencil; P by columns.
+inline void scatter_point(const StencilView& st, const real_t P[9], real_t* buf, index_t lo)
+{
+#if defined(__AVX2__) && defined(__FMA__)
+    const __m256d c0 = _mm256_setr_pd(P[0], P[1], P[2], 0.0), c1 = _mm256_setr_pd(P[3], P[4], P[5], 0.0),
+                  c2 = _mm256_setr_pd(P[6], P[7], P[8], 0.0);
+    real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(st.base - lo);
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        real_t* f = b + 4 * static_cast<std::size_t>(st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        __m256d acc = _mm256_loadu_pd(f);
+        acc = _mm256_fmadd_pd(c0, _mm256_broadcast_sd(g), acc);
+        acc = _mm256_fmadd_pd(c1, _mm256_broadcast_sd(g + 1), acc);
+        acc = _mm256_fmadd_pd(c2, _mm256_broadcast_sd(g + 2), acc);
+        _mm256_storeu_pd(f, acc);
+    }
+#else
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        real_t* f = buf + 4 * static_cast<std::size_t>(st.base + st.offset[k] - lo);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        for (int a = 0; a < 3; ++a)
+            f[a] += P[a] * g[0] + P[3 + a] * g[1] + P[6 + a] * g[2];
+    }
+#endif
+}
+
+#if defined(__AVX512F__)
+/// A batch whose 8 points share one stencil and whose bases are consecutive (points along a
+/// lattice row): entry k of lane l touches node base + offset[k] + l, so each entry's nodes are 8
+/// consecutive ones, read and written as whole vectors instead of lane by lane.
+bool uniform_batch(const StencilTable& t, index_t p0)
+{
+    if (t.empty())
+        return false;
+    const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_stencil.data() + p0));
+    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_base.data() + p0));
+    const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(t.point_base[static_cast<std::size_t>(p0)]),
+                                         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    return _mm256_cmpeq_epi32_mask(s, _mm256_set1_epi32(t.point_stencil[static_cast<std::size_t>(p0)])) == 0xFF &&
+           _mm256_cmpeq_epi32_mask(b, row) == 0xFF;
+}
+
+/// F = 1 + sum_k u_k (x) g_k and Fd = sum_k v_k (x) g_k for the 8 lanes of a uniform batch,
+/// into F[i][j][l]. The sums run over the lanes' node triples as they lie in memory (three
+/// vectors per entry, no shuffles), with the same FMAs in the same order as gather_gradients,
+/// so the bits are those of the lane-by-lane path; the triples are unpacked once at the end.
+inline void gather_gradients_uniform(const StencilView& st, const real_t* u, const real_t* v, real_t (&F)[3][3][8],
+                                     real_t (&Fd)[3][3][8])
+{
+    // fu[j][r]: vector r of the triples (F_0j, F_1j, F_2j) of lanes 0..7 (position 8 r + e is
+    // lane (8 r + e) / 3, component (8 r + e) % 3), starting from the identity's column j
+    __m512d fu[3][3], fv[3][3];
+    for (int j = 0; j < 3; ++j)
+        for (int r = 0; r < 3; ++r)
+        {
+            alignas(64) real_t init[8];
+            for (int e = 0; e < 8; ++e)
+                init[e] = (8 * r + e) % 3 == j ? 1.0 : 0.0;
+            fu[j][r] = _mm512_load_pd(init);
+            fv[j][r] = _mm512_setzero_pd();
+        }
+    for (index_t k = 0; k < st.size; ++k)
+    {
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[k]);
+        const __m512d u0 = _mm512_loadu_pd(u + n), u1 = _mm512_loadu_pd(u + n + 8), u2 = _mm512_loadu_pd(u + n + 16);
+        const __m512d v0 = _mm512_loadu_pd(v + n), v1 = _mm512_loadu_pd(v + n + 8), v2 = _mm512_loadu_pd(v + n + 16);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        for (int j = 0; j < 3; ++j)
+        {
+            const __m512d gj = _mm512_set1_pd(g[j]);
+            fu[j][0] = _mm512_fmadd_pd(u0, gj, fu[j][0]);
+            fu[j][1] = _mm512_fmadd_pd(u1, gj, fu[j][1]);
+            fu[j][2] = _mm512_fmadd_pd(u2, gj, fu[j][2]);
+            fv[j][0] = _mm512_fmadd_pd(v0, gj, fv[j][0]);
+            fv[j][1] = _mm512_fmadd_pd(v1, gj, fv[j][1]);
+            fv[j][2] = _mm512_fmadd_pd(v2, gj, fv[j][2]);
+        }
+    }
+    for (int j = 0; j < 3; ++j)
+    {
+        __m512d X, Y, Z;
+        simd::deinterleave3(fu[j][0], fu[j][1], fu[j][2], X, Y, Z);
+        _mm512_store_pd(F[0][j], X);
+        _mm512_store_pd(F[1][j], Y);
+        _mm512_store_pd(F[2][j], Z);
+        simd::deinterleave3(fv[j][0], fv[j][1], fv[j][2], X, Y, Z);
+        _mm512_store_pd(Fd[0][j], X);
+        _mm512_store_pd(Fd[1][j], Y);
+        _mm512_store_pd(Fd[2][j], Z);
+    }
+}
+
+/// buf += V0 P g for the 8 lanes of a uniform batch (P[3 j + i][l] = P_ij of lane l). Column j
+/// of the lanes' P as padded quadruples (x, y, z, 0), 4 vectors; per entry the 8 consecutive
+/// nodes' quadruples are 4 vectors of the buffer. The entries run last to first, so each node
+/// takes its lanes' terms in lane order, with the FMAs of scatter_point: the same bits.
+inline void scatter_uniform(const StencilView& st, const real_t (&P)[9][8], real_t* buf, index_t lo)
+{
+    __m512d c[3][4];
+    for (int j = 0; j < 3; ++j)
+        simd::interleave4(_mm512_load_pd(P[3 * j]), _mm512_load_pd(P[3 * j + 1]), _mm512_load_pd(P[3 * j + 2]), c[j]);
+    real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(st.base - lo);
+    for (index_t k = st.size - 1; k >= 0; --k)
+    {
+        real_t* f = b + 4 * static_cast<std::size_t>(st.offset[k]);
+        const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
+        const __m512d g0 = _mm512_set1_pd(g[0]), g1 = _mm512_set1_pd(g[1]), g2 = _mm512_set1_pd(g[2]);
+        for (int q = 0; q < 4; ++q)
+        {
+            __m512d acc = _mm512_loadu_pd(f + 8 * q);
+            acc = _mm512_fmadd_pd(c[0][q], g0, acc);
+            acc = _mm512_fmadd_pd(c[1][q], g1, acc);
+            acc = _mm512_fmadd_pd(c[2][q], g2, acc);
+            _mm512_storeu_pd(f + 8 * q, acc);
+        }
+    }
+}
+#endif
+
+/// V0 P = V0 J (sigma - q 1) F^-T of lane l, by columns ([3 j + i] = P_ij).
+template <int W>
+inline void first_piola(real_t VJ, real_t q, const real_t (&sn)[6][W], const real_t (&Fi)[3][3][W], int l,
+                        real_t (&P)[9][W])
+{
+    const real_t S[3][3] = {{sn[0][l] - q, sn[3][l], sn[5][l]},
+                            {sn[3][l], sn[1][l] - q, sn[4][l]},
+                            {sn[5][l], sn[4][l], sn[2][l] - q}};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
+}
+
+
+/// One batch of kPointLanes stress points: the stencil sums per point (gather_gradients), then
+/// the per-point algebra as lane loops over structure-of-arrays scratch (F^-1, L, stress
+/// update, bulk viscosity, stable step, V0 P), which the compiler vectorizes across points. The
+/// loops are written without branches (min, 0/1 factors); a point with J <= 0 gets NaN or inf
+/// in its lane and is flagged after the loops. FULL: all lanes are points; otherwise lanes past
+/// the block's end repeat its first point and nothing of theirs is stored. With a scatter buffer
+/// (buf != null, chunked assembly) V0 P g goes straight into it; otherwise V0 P is stored for the
+/// transpose gather.
+template <bool PLASTIC, bool FULL>
+[[gnu::noinline]] void nodal_points_batch(NodalBlock& blk, const real_t* u, const real_t* v, index_t batch, real_t dt,
+                                          real_t* buf, index_t lo)
+{
+    constexpr int W = kPointLanes;
+    const IntegrationOperator& op = blk.points;
+    const index_t np = blk.n_points();
+    const std::size_t snp = blk.stress_stride;
+    const index_t p0 = batch * W;
+    const int nl = FULL ? W : static_cast<int>(std::min<index_t>(W, np - p0));
+    auto lane_point = [&](int l) { return static_cast<std::size_t>(p0 + (FULL || l < nl ? l : 0)); };
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const real_t alpha = blk.dt_factor;
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+
+    // the next batch's stencil (gradients and node ids) is requested now, so that it streams in
+    // while this batch computes: the loads of a stencil otherwise wait on memory latency. Only
+    // for stencils far larger than the caches: in cache the prefetches only cost (bench_rkpm,
+    // 1 thread: 10k particles 94 -> 83 ns per particle-step without them, 30k 97 -> 89; 100k
+    // 135 -> 113 and 300k 144 -> 140 with them)
+    if (FULL && blk.prefetch_stencils)
+    {
+        const index_t pn = std::min<index_t>(p0 + 2 * W, np);
+        if (p0 + W < pn)
+        {
+            const std::size_t k0 = static_cast<std::size_t>(op.offsets[p0 + W]), k1 = static_cast<std::size_t>(op.offsets[pn]);
+            const char* g = reinterpret_cast<const char*>(op.grad.data());
+            for (std::size_t b = 24 * k0; b < 24 * k1; b += 64)
+                _mm_prefetch(g + b, _MM_HINT_T0);
+            const char* n = reinterpret_cast<const char*>(op.nodes.data());
+            for (std::size_t b = 4 * k0; b < 4 * k1; b += 64)
+                _mm_prefetch(n + b, _MM_HINT_T0);
+        }
+    }
+    alignas(64) real_t F[3][3][W], Fd[3][3][W];
+#if defined(__AVX512F__)
+    const bool uniform = FULL && uniform_batch(blk.point_stencils, p0);
+    if (uniform)
+        gather_gradients_uniform(blk.point_stencils.view(p0), u, v, F, Fd);
+    else
+#else
+    constexpr bool uniform = false;
+#endif
+    for (int l = 0; l < W; ++l)
+    {
+        real_t f[3][3], fd[3][3];
+        gather_gradients(stencil_view(op, blk.point_stencils, static_cast<index_t>(lane_point(l))), u, v, f, fd);
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                F[i][j][l] = f[i][j], Fd[i][j][l] = fd[i][j];
+    }
+
+    alignas(64) real_t Jl[W], Fi[3][3][W], dl[6][W], wl[3][W], so[6][W], sn[6][W];
+    const real_t* __restrict s_in = blk.stress.data();
+    real_t* __restrict s_out = blk.stress_trial.data();
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        const real_t J = F[0][0][l] * (F[1][1][l] * F[2][2][l] - F[1][2][l] * F[2][1][l]) -
+                         F[0][1][l] * (F[1][0][l] * F[2][2][l] - F[1][2][l] * F[2][0][l]) +
+                         F[0][2][l] * (F[1][0][l] * F[2][1][l] - F[1][1][l] * F[2][0][l]);
+        Jl[l] = J;
+        const real_t iJ = 1.0 / J;
+        Fi[0][0][l] = (F[1][1][l] * F[2][2][l] - F[1][2][l] * F[2][1][l]) * iJ;
+        Fi[0][1][l] = (F[0][2][l] * F[2][1][l] - F[0][1][l] * F[2][2][l]) * iJ;
+        Fi[0][2][l] = (F[0][1][l] * F[1][2][l] - F[0][2][l] * F[1][1][l]) * iJ;
+        Fi[1][0][l] = (F[1][2][l] * F[2][0][l] - F[1][0][l] * F[2][2][l]) * iJ;
+        Fi[1][1][l] = (F[0][0][l] * F[2][2][l] - F[0][2][l] * F[2][0][l]) * iJ;
+        Fi[1][2][l] = (F[0][2][l] * F[1][0][l] - F[0][0][l] * F[1][2][l]) * iJ;
+        Fi[2][0][l] = (F[1][0][l] * F[2][1][l] - F[1][1][l] * F[2][0][l]) * iJ;
+        Fi[2][1][l] = (F[0][1][l] * F[2][0][l] - F[0][0][l] * F[2][1][l]) * iJ;
+        Fi[2][2][l] = (F[0][0][l] * F[1][1][l] - F[0][1][l] * F[1][0][l]) * iJ;
+        real_t L[3][3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                L[i][j] = Fd[i][0][l] * Fi[0][j][l] + Fd[i][1][l] * Fi[1][j][l] + Fd[i][2][l] * Fi[2][j][l];
+        dl[0][l] = L[0][0];
+        dl[1][l] = L[1][1];
+        dl[2][l] = L[2][2];
+        dl[3][l] = 0.5 * (L[0][1] + L[1][0]);
+        dl[4][l] = 0.5 * (L[1][2] + L[2][1]);
+        dl[5][l] = 0.5 * (L[2][0] + L[0][2]);
+        wl[0][l] = 0.5 * (L[0][1] - L[1][0]);
+        wl[1][l] = 0.5 * (L[1][2] - L[2][1]);
+        wl[2][l] = 0.5 * (L[2][0] - L[0][2]);
+    }
+    if constexpr (!PLASTIC && FULL)
+    {
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            const std::size_t p = static_cast<std::size_t>(p0 + l);
+            real_t s0 = s_in[p], s1 = s_in[snp + p], s2 = s_in[2 * snp + p], s3 = s_in[3 * snp + p],
+                   s4 = s_in[4 * snp + p], s5 = s_in[5 * snp + p];
+            so[0][l] = s0, so[1][l] = s1, so[2][l] = s2, so[3][l] = s3, so[4][l] = s4, so[5][l] = s5;
+            elastic_update(mat, dl[0][l], dl[1][l], dl[2][l], dl[3][l], dl[4][l], dl[5][l], wl[0][l], wl[1][l],
+                           wl[2][l], dt, s0, s1, s2, s3, s4, s5);
+            sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
+        }
+        store_batch8<6>(sn, s_out, snp, static_cast<std::size_t>(p0), buf != nullptr && blk.stream_stress);
+    }
+    else
+    {
+        // a partial batch or an inelastic block: the point's model update per lane
+        for (int l = 0; l < W; ++l)
+        {
+            const std::size_t p = lane_point(l);
+            const bool active = FULL || l < nl;
+            const real_t d[6] = {dl[0][l], dl[1][l], dl[2][l], dl[3][l], dl[4][l], dl[5][l]};
+            const real_t w[3] = {wl[0][l], wl[1][l], wl[2][l]};
+            real_t s[6];
+            for (int k = 0; k < 6; ++k)
+                so[k][l] = s[k] = s_in[k * snp + p];
+            if constexpr (PLASTIC)
+            {
+                if (active && Jl[l] > 0.0)
+                    blk.plastic.update(static_cast<index_t>(p), d, w, dt, s);
+            }
+            else
+                elastic_update(mat, d, w, dt, s);
+            for (int k = 0; k < 6; ++k)
+            {
+                sn[k][l] = s[k];
+                if (active)
+                    s_out[k * snp + p] = s[k];
+            }
+        }
+    }
+
+    // J^(1/3) for the stable-step length: two Newton steps from 1 + (J - 1)/3 where |J - 1| <
+    // 0.25 (relative error below 1e-7, far below what a time-step estimate needs), std::cbrt
+    // (about 10 ns) only for the lanes outside, blended in without a branch
+    alignas(64) real_t far[W], root[W];
+    for (int l = 0; l < W; ++l)
+    {
+        const bool f = !(std::abs(Jl[l] - 1.0) < 0.25);
+        far[l] = static_cast<real_t>(f);
+        root[l] = f ? std::cbrt(Jl[l]) : 1.0;
+    }
+    // bulk viscosity (LS-DYNA form) with l = alpha J^(1/3) l0, the length of the stable-step
+    // estimate, energies, V0 P = V0 J (sigma - q 1) F^-T
+    alignas(64) real_t P[9][W], e_int[W], e_bv[W], dtl[W];
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        const std::size_t p = lane_point(l);
+        const real_t J = Jl[l];
+        real_t r = 1.0 + (J - 1.0) / 3.0;
+        r -= (r * r * r - J) / (3.0 * r * r);
+        r -= (r * r * r - J) / (3.0 * r * r);
+        r += far[l] * (root[l] - r);
+        const real_t len = alpha * r * blk.length0[p];
+        const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
+        const real_t q = bulk_q(mat.rho / J, c, len, trd, q1, q2);
+        dtl[l] = element_dt(c, len, trd, q1, q2);
+        const real_t power = 0.5 * ((so[0][l] + sn[0][l]) * dl[0][l] + (so[1][l] + sn[1][l]) * dl[1][l] +
+                                    (so[2][l] + sn[2][l]) * dl[2][l]) +
+                             (so[3][l] + sn[3][l]) * dl[3][l] + (so[4][l] + sn[4][l]) * dl[4][l] +
+                             (so[5][l] + sn[5][l]) * dl[5][l];
+        const real_t VJ = op.weight[p] * J;
+        e_int[l] = dt * VJ * power;
+        e_bv[l] = -dt * VJ * q * trd;
+        first_piola(VJ, q, sn, Fi, l, P);
+    }
+
+    // the batch's energies (summed in lane order), smallest step and first bad point: what the
+    // step needs of its points, without per-point arrays to write and read back
+    const bool stabilized = blk.n_stab() > 0; // the stabilization of this point's sub-cells needs F^-1 and W
+    real_t sum_int = 0.0, sum_bv = 0.0, dt_min = std::numeric_limits<real_t>::max();
+    index_t dt_point = p0, bad = -1;
+    bool good[W] = {}; // the lane's point has J > 0 and a step (its forces are assembled)
+    for (int l = 0; l < nl; ++l)
+    {
+        const std::size_t p = static_cast<std::size_t>(p0 + l);
+        const real_t J = Jl[l];
+        blk.jacobian[p] = J;
+        good[l] = J > 0.0 && dtl[l] > 0.0;
+        if (!good[l])
+        {
+            if (bad < 0)
+                bad = static_cast<index_t>(p);
+            continue;
+        }
+        sum_int += e_int[l];
+        sum_bv += e_bv[l];
+        if (dtl[l] < dt_min)
+        {
+            dt_min = dtl[l];
+            dt_point = static_cast<index_t>(p);
+        }
+        if (stabilized)
+        {
+            real_t* fi = &blk.finv[9 * p];
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    fi[3 * i + j] = Fi[i][j][l];
+            for (int k = 0; k < 3; ++k)
+                blk.spin[3 * p + k] = wl[k][l];
+        }
+    }
+    // V0 P g into the chunk's buffer (or V0 P out for the transpose gather), for the good points
+#if defined(__AVX512F__)
+    if (uniform && buf && bad < 0)
+        scatter_uniform(blk.point_stencils.view(p0), P, buf, lo);
+    else
+#endif
+        for (int l = 0; l < nl; ++l)
+        {
+            const std::size_t p = static_cast<std::size_t>(p0 + l);
+            if (!good[l])
+                continue;
+            real_t Pp[9];
+            for (int k = 0; k < 9; ++k)
+                Pp[k] = P[k][l];
+            if (buf)
+                scatter_point(stencil_view(op, blk.point_stencils, static_cast<index_t>(p)), Pp, buf, lo);
+            else
+                std::copy(Pp, Pp + 9, &blk.point_tensor[9 * p]);
+        }
+    (void)uniform;
+    const std::size_t b = static_cast<std::size_t>(batch);
+    blk.batch_sums[3 * b] = sum_int;
+    blk.batch_sums[3 * b + 1] = sum_bv;
+    blk.batch_sums[3 * b + 2] = dt_min;
+    blk.batch_idx[2 * b] = dt_point;
+    blk.batch_idx[2 * b + 1] = bad;
+}
+} // namespace
+
+ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt)
+{
+    const index_t np = blk.n_points(), ns = blk.n_stab();
+    const ElasticParams mat = blk.material;
+    const real_t* u = nodes.u.data();
+    const real_t* v = nodes.v.data();
+
+    auto batch = [&]<bool PLASTIC>(index_t b, real_t* buf, index_t lo)
+    {
+        if ((b + 1) * kPointLanes <= np)
+            nodal_points_batch<PLASTIC, true>(blk, u, v, b, dt, buf, lo);
+        else
+            nodal_points_batch<PLASTIC, false>(blk, u, v, b, dt, buf, lo);
+    };
+    auto run = [&]<bool PLASTIC>()
+    {
+        if (blk.scatter_assembly())
+            blk.scatter.run_chunks("rkfem::nodal_points", 0, blk.n_point_chunks, kPointLanes,
+                                   [&](index_t b, real_t* buf, index_t lo) { batch.template operator()<PLASTIC>(b, buf, lo); });
+        else
+            parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
+                         [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
+    };
+    if (blk.plastic.active())
+        run.template operator()<true>();
+    else
+        run.template operator()<false>();
+
+    ForcePassResult r;
+    const index_t nb = (np + kPointLanes - 1) / kPointLanes;
+    for (index_t b = 0; b < nb; ++b)
+    {
+        if (blk.batch_idx[2 * b + 1] >= 0)
+        {
+            r.bad_element = blk.batch_idx[2 * b + 1];
+            return r;
+        }
+        if (blk.batch_sums[3 * b + 2] < r.dt_stable)
+        {
+            r.dt_stable = blk.batch_sums[3 * b + 2];
+            r.dt_element = blk.batch_idx[2 * b];
+        }
+    }
+
+    if (ns > 0)
+    {
+        const IntegrationOperator& st = blk.stabilization;
+        const std::size_t sns = static_cast<std::size_t>(ns);
+        ElasticParams smat = mat;
+        smat.lambda *= blk.stabilization_coefficient;
+        smat.mu *= blk.stabilization_coefficient;
+        // sub-cell s: stress update and V0 P (by columns)
+        auto sub_cell = [&](index_t s, real_t P[9])
+        {
+            const index_t L = st.parent[s];
+            real_t G[3][3];
+            gather_velocity_gradient(stencil_view(st, blk.stab_stencils, s), v, G);
+            const real_t* Fi = &blk.finv[9 * static_cast<std::size_t>(L)];
+            real_t Ls[3][3];
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    Ls[i][j] = G[i][0] * Fi[j] + G[i][1] * Fi[3 + j] + G[i][2] * Fi[6 + j];
+            const real_t d[6] = {Ls[0][0], Ls[1][1], Ls[2][2], 0.5 * (Ls[0][1] + Ls[1][0]),
+                                 0.5 * (Ls[1][2] + Ls[2][1]), 0.5 * (Ls[2][0] + Ls[0][2])};
+            const real_t* w = &blk.spin[3 * static_cast<std::size_t>(L)];
+            real_t s_old[6], sg[6];
+            for (int k = 0; k < 6; ++k)
+                s_old[k] = sg[k] = blk.stab_stress[k * sns + s];
+            elastic_update(smat, d, w, dt, sg);
+            for (int k = 0; k < 6; ++k)
+                blk.stab_stress_trial[k * sns + s] = sg[k];
+            real_t power = 0.0;
+            for (int k = 0; k < 3; ++k)
+                power += 0.5 * (s_old[k] + sg[k]) * d[k] + (s_old[k + 3] + sg[k + 3]) * d[k + 3];
+            const real_t J = blk.jacobian[L];
+            const real_t V0 = st.weight[s];
+            blk.stab_energy[s] = dt * V0 * J * power;
+            const real_t S[3][3] = {{sg[0], sg[3], sg[5]}, {sg[3], sg[1], sg[4]}, {sg[5], sg[4], sg[2]}};
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    P[3 * j + i] = V0 * J * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
+        };
+        if (blk.scatter_assembly())
+            blk.scatter.run_chunks("rkfem::nodal_stabilization", blk.n_point_chunks,
+                                   static_cast<index_t>(blk.scatter.chunks.size()), 1,
+                                   [&](index_t s, real_t* buf, index_t lo)
+                                   {
+                                       real_t P[9];
+                                       sub_cell(s, P);
+                                       scatter_point(stencil_view(st, blk.stab_stencils, s), P, buf, lo);
+                                   });
+        else
+            parallel_for("rkfem::nodal_stabilization", ns,
+                         [&](index_t s) { sub_cell(s, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + s)]); });
+    }
+
+    r.d_internal = parallel_reduce_sum("rkfem::nodal_energy", nb, [&](index_t b) { return blk.batch_sums[3 * b]; });
+    r.d_bulk_viscosity =
+        parallel_reduce_sum("rkfem::nodal_bv_energy", nb, [&](index_t b) { return blk.batch_sums[3 * b + 1]; });
+    r.d_hourglass = parallel_reduce_sum("rkfem::nodal_stab_energy", ns, [&](index_t s) { return blk.stab_energy[s]; });
+    return r;
+}
+
+void assemble_nodal_forces(NodalBlock& blk, NodeSet& nodes, bool add)
+{
+    const index_t nn = blk.node_end - blk.node_begin;
+    if (blk.scatter_assembly())
+    {
+        blk.scatter.reduce(nodes.f_int, add);
+        return;
+    }
+    parallel_for("rkfem::nodal_assemble", nn,
+                 [&](index_t i)
+                 {
+                     real_t f[3];
+                     gather_forces(blk, i, f);
+                     const std::size_t n = 3 * static_cast<std::size_t>(blk.node_begin + i);
+                     for (int a = 0; a < 3; ++a)
+                         nodes.f_int[n + a] = add ? nodes.f_int[n + a] + f[a] : f[a];
+                 });
+}
+} // namespace rkfem
