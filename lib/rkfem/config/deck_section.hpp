@@ -1,0 +1,238 @@
+#pragma once
+/// @file deck_section.hpp
+/// Internal to the deck reader (config/deck*.cpp): the parsing context, a YAML mapping with a
+/// fixed set of allowed keys that reads quantities with units and locates every error, and the
+/// readers of the deck's sections, one file per concept (deck_parts.cpp: parts, generators,
+/// materials; deck_conditions.cpp: selectors and sets, conditions, loads, time; deck.cpp: the
+/// whole deck, overrides).
+#include <algorithm>
+#include <array>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+#include <yaml-cpp/yaml.h>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/units.hpp"
+
+namespace rkfem::deck_detail
+{
+/// Levenshtein distance (suggestions for unknown keys).
+std::size_t edit_distance(std::string_view a, std::string_view b);
+
+inline std::string join(const std::vector<std::string>& items, const char* sep = ", ")
+{
+    std::string out;
+    for (const auto& s : items)
+        out += (out.empty() ? "" : sep) + s;
+    return out;
+}
+
+/// Parsing context: deck name and which key paths came from --set.
+struct Context
+{
+    std::string name;
+    std::map<std::string, std::string> overridden; // path -> "path=value"
+};
+
+inline std::string child_path(const std::string& parent, const std::string& key)
+{
+    return parent.empty() ? key : parent + "." + key;
+}
+
+/// Where a node of the deck (or the --set that gave it) is.
+SourceLocation locate(const Context& ctx, const YAML::Node& node, const std::string& path);
+
+/// A YAML mapping with a fixed set of allowed keys. Unknown keys are rejected at construction
+/// (with the closest allowed key suggested).
+class Section
+{
+  public:
+    Section(const Context& ctx, const YAML::Node& node, std::string path,
+            std::vector<std::string> allowed)
+        : ctx_(ctx), node_(node), path_(std::move(path)), allowed_(std::move(allowed))
+    {
+        if (!node_.IsMap())
+            throw DeckError(locate(ctx_, node_, path_),
+                            node_.IsNull() ? "is empty" : "is not a mapping",
+                            "expected keys: " + join(allowed_));
+        std::map<std::string, YAML::Node> seen; // yaml-cpp keeps both of a repeated key; [] reads the first
+        for (const auto& kv : node_)
+        {
+            const std::string key = kv.first.as<std::string>();
+            if (const auto [it, fresh] = seen.emplace(key, kv.first); !fresh)
+            {
+                const YAML::Mark first = it->second.Mark();
+                throw DeckError(locate(ctx_, kv.first, child_path(path_, key)), "key '" + key + "' given twice",
+                                "each key once" + (first.is_null() ? std::string()
+                                                                   : " (first given on line " +
+                                                                         std::to_string(first.line + 1) + ")"));
+            }
+            if (std::find(allowed_.begin(), allowed_.end(), key) != allowed_.end())
+                continue;
+            std::string best;
+            std::size_t best_d = 1000;
+            for (const auto& a : allowed_)
+            {
+                const std::size_t d = edit_distance(key, a);
+                if (d < best_d)
+                {
+                    best_d = d;
+                    best = a;
+                }
+            }
+            const std::string cp = child_path(path_, key);
+            const bool close = best_d <= std::max<std::size_t>(2, key.size() / 3);
+            throw DeckError(locate(ctx_, kv.first, cp), "unknown key '" + key + "'",
+                            close ? "did you mean '" + best + "'? (valid keys: " + join(allowed_) +
+                                        ")"
+                                  : "valid keys: " + join(allowed_));
+        }
+    }
+
+    bool has(const std::string& key) const { return node_[key].IsDefined() && !node_[key].IsNull(); }
+    YAML::Node node(const std::string& key) const { return node_[key]; }
+    const YAML::Node& self() const { return node_; }
+    std::string path(const std::string& key) const { return child_path(path_, key); }
+    const std::string& path() const { return path_; }
+    SourceLocation loc() const { return locate(ctx_, node_, path_); }
+    SourceLocation loc(const std::string& key) const
+    {
+        return has(key) ? locate(ctx_, node_[key], path(key)) : SourceLocation{loc().where, path(key)};
+    }
+    const Context& ctx() const { return ctx_; }
+
+    [[noreturn]] void fail(const std::string& key, const std::string& problem,
+                           const std::string& expected) const
+    {
+        throw DeckError(loc(key), problem, expected);
+    }
+
+    void require(const std::string& key, const std::string& expected) const
+    {
+        if (!has(key))
+            throw DeckError(SourceLocation{loc().where, path(key)}, "missing required key",
+                            "expected " + expected);
+    }
+
+    std::string scalar_text(const std::string& key, const std::string& expected) const
+    {
+        const YAML::Node n = node_[key];
+        if (!n.IsScalar())
+            fail(key, n.IsSequence() ? "is a list" : "is a mapping", "expected " + expected);
+        return n.Scalar();
+    }
+
+    real_t quantity(const std::string& key, Dimension d) const
+    {
+        require(key, describe(d));
+        return quantity_of(node_[key], path(key), d);
+    }
+    real_t quantity(const std::string& key, Dimension d, real_t fallback) const
+    {
+        return has(key) ? quantity(key, d) : fallback;
+    }
+
+    real_t quantity_of(const YAML::Node& n, const std::string& p, Dimension d) const
+    {
+        if (!n.IsScalar())
+            throw DeckError(locate(ctx_, n, p), n.IsSequence() ? "is a list" : "is a mapping",
+                            "expected " + describe(d));
+        try
+        {
+            return parse_quantity(n.Scalar(), d).value_si;
+        }
+        catch (const Error& e)
+        {
+            throw DeckError(locate(ctx_, n, p), e.what(), "");
+        }
+    }
+
+    real_t positive(const std::string& key, Dimension d) const
+    {
+        const real_t v = quantity(key, d);
+        if (!(v > 0.0))
+            fail(key, "must be positive (got " + scalar_text(key, "") + ")",
+                 "expected " + describe(d) + " > 0");
+        return v;
+    }
+
+    long long integer(const std::string& key, long long fallback) const
+    {
+        if (!has(key))
+            return fallback;
+        const std::string t = scalar_text(key, "an integer");
+        try
+        {
+            std::size_t pos = 0;
+            const long long v = std::stoll(t, &pos);
+            if (pos != t.size())
+                throw std::invalid_argument(t);
+            return v;
+        }
+        catch (const std::exception&)
+        {
+            fail(key, "'" + t + "' is not an integer", "expected an integer");
+        }
+    }
+
+    std::string text(const std::string& key) const
+    {
+        require(key, "a name");
+        return scalar_text(key, "a name");
+    }
+    std::string text(const std::string& key, const std::string& fallback) const
+    {
+        return has(key) ? scalar_text(key, "a name") : fallback;
+    }
+
+    std::string choice(const std::string& key, const std::vector<std::string>& options,
+                       const std::string& fallback) const
+    {
+        if (!has(key) && !fallback.empty())
+            return fallback;
+        require(key, "one of " + join(options, " | "));
+        const std::string v = scalar_text(key, "one of " + join(options, " | "));
+        if (std::find(options.begin(), options.end(), v) == options.end())
+            fail(key, "'" + v + "' is not a valid choice", "expected one of " + join(options, " | "));
+        return v;
+    }
+
+    Vec3 vec3(const std::string& key, Dimension d) const
+    {
+        require(key, "a list of 3 values, " + describe(d));
+        const YAML::Node n = node_[key];
+        if (!n.IsSequence() || n.size() != 3)
+            fail(key, "is not a list of 3 values", "expected [x, y, z], each " + describe(d));
+        Vec3 v;
+        for (int i = 0; i < 3; ++i)
+            v[i] = quantity_of(n[i], path(key) + "." + std::to_string(i), d);
+        return v;
+    }
+    Vec3 vec3(const std::string& key, Dimension d, const Vec3& fallback) const
+    {
+        return has(key) ? vec3(key, d) : fallback;
+    }
+
+  private:
+    const Context& ctx_;
+    YAML::Node node_;
+    std::string path_;
+    std::vector<std::string> allowed_;
+};
+
+TimeFunction read_time_function(const Section& parent, const YAML::Node& n, const std::string& p, Dimension d);
+int component_index(const std::string& c);
+void read_components(const Section& s, const std::string& key, Dimension d, std::array<bool, 3>& active,
+                     std::array<TimeFunction, 3>& value);
+SelectorSpec read_selector(const Section& parent);
+std::vector<SetSpec> read_sets(const Context& ctx, const YAML::Node& root, const std::string& key);
+BoundarySpec read_boundary(const Context& ctx, const YAML::Node& n, const std::string& p);
+LoadSpec read_load(const Context& ctx, const YAML::Node& n, const std::string& p);
+TimeSpec read_time(const Context& ctx, const YAML::Node& root);
+GeneratorSpec read_generator(const Section& part);
+MaterialSpec read_material(const Section& part);
+PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& path);
+} // namespace rkfem::deck_detail
