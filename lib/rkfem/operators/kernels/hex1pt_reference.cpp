@@ -1,0 +1,132 @@
+#include "rkfem/operators/kernels/hex1pt_reference.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
+#include "rkfem/discretization/hex_mesh.hpp"
+#include "rkfem/materials/elastic.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
+
+namespace rkfem
+{
+Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt)
+{
+    Hex1ptElement out;
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const std::size_t ne = static_cast<std::size_t>(blk.n_elements());
+    real_t x[8][3], v[8][3];
+    for (int I = 0; I < 8; ++I)
+        for (int d = 0; d < 3; ++d)
+        {
+            const std::size_t n = 3 * static_cast<std::size_t>(blk.conn[8 * static_cast<std::size_t>(e) + I]) + d;
+            x[I][d] = nodes.x[n];
+            v[I][d] = nodes.v[n];
+        }
+
+    // uniform gradient, volume, velocity gradient
+    real_t b[8][3];
+    const real_t V = hex8_volume_gradient(x, b);
+    out.volume = V;
+    real_t L[3][3] = {};
+    for (int I = 0; I < 8; ++I)
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                L[i][j] += v[I][i] * b[I][j] / V;
+    const real_t dv[6] = {L[0][0], L[1][1], L[2][2], 0.5 * (L[0][1] + L[1][0]), 0.5 * (L[1][2] + L[2][1]),
+                          0.5 * (L[2][0] + L[0][2])};
+    const real_t wv[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]), 0.5 * (L[2][0] - L[0][2])};
+
+    // stress update
+    real_t s_old[6];
+    for (int k = 0; k < 6; ++k)
+        s_old[k] = blk.stress[k * blk.stress_stride + static_cast<std::size_t>(e)];
+    std::copy(s_old, s_old + 6, out.stress);
+    elastic_update(mat, dv, wv, dt, out.stress);
+
+    // characteristic length: volume over the largest face area
+    std::vector<real_t> xv(&x[0][0], &x[0][0] + 24);
+    real_t area = 0.0;
+    for (const auto& face : hex_faces)
+        area = std::max(area, quad_normal(xv, {face[0], face[1], face[2], face[3]}).norm());
+    const real_t lc = V / area;
+
+    // bulk viscosity, stable step, energies
+    const real_t trd = dv[0] + dv[1] + dv[2];
+    const real_t rho = mat.rho * blk.volume0[static_cast<std::size_t>(e)] / V;
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+    const real_t q = bulk_q(rho, c, lc, trd, q1, q2);
+    out.dt_stable = element_dt(c, lc, trd, q1, q2);
+    real_t power = 0.0;
+    for (int k = 0; k < 6; ++k)
+        power += (k < 3 ? 0.5 : 1.0) * (s_old[k] + out.stress[k]) * dv[k];
+    out.d_internal = dt * V * power;
+    out.d_bulk_viscosity = -dt * V * q * trd;
+
+    // T = sigma - q 1 - (1/V) sum_a Q_a (x) h_a, by rows
+    static constexpr int voigt[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}};
+    real_t T[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            T[i][j] = out.stress[voigt[i][j]] - (i == j ? q : 0.0);
+    const HourglassType hg = blk.hourglass.type;
+    if (hg != HourglassType::None)
+    {
+        const real_t qm = blk.hourglass.coefficient;
+        real_t bb = 0.0;
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                bb += b[I][d] * b[I][d];
+        const real_t ch = hg == HourglassType::Stiffness ? qm * mat.plane_wave_modulus() * bb / (3.0 * V)
+                                                         : 0.25 * qm * mat.rho * c * lc * lc;
+        for (int a = 0; a < 4; ++a)
+        {
+            real_t h[3] = {}, g[3] = {};
+            for (int J = 0; J < 8; ++J)
+                for (int d = 0; d < 3; ++d)
+                {
+                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
+                    g[d] += hex8_hourglass_base[a][J] * v[J][d];
+                }
+            for (int i = 0; i < 3; ++i)
+            {
+                real_t qdot = g[i];
+                if (hg != HourglassType::ViscousPlain)
+                    for (int j = 0; j < 3; ++j)
+                        qdot -= L[i][j] * h[j];
+                real_t& Q = out.hg_force[a][i];
+                if (hg == HourglassType::Stiffness)
+                {
+                    const real_t Q_old = blk.hg_force[static_cast<std::size_t>(3 * a + i) * ne + static_cast<std::size_t>(e)];
+                    Q = Q_old + ch * dt * qdot;
+                    out.d_hourglass += 0.5 * dt * (Q_old + Q) * qdot;
+                }
+                else
+                {
+                    Q = ch * qdot;
+                    out.d_hourglass += dt * Q * qdot;
+                }
+                if (hg != HourglassType::ViscousPlain)
+                    for (int j = 0; j < 3; ++j)
+                        T[i][j] -= Q * h[j] / V;
+            }
+        }
+    }
+
+    // nodal forces
+    for (int I = 0; I < 8; ++I)
+        for (int i = 0; i < 3; ++i)
+        {
+            real_t f = 0.0;
+            for (int j = 0; j < 3; ++j)
+                f += T[i][j] * b[I][j];
+            if (hg != HourglassType::None)
+                for (int a = 0; a < 4; ++a)
+                    f += hex8_hourglass_base[a][I] * out.hg_force[a][i];
+            out.f[I][i] = f;
+        }
+    return out;
+}
+} // namespace rkfem
