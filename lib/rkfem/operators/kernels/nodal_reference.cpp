@@ -1,0 +1,119 @@
+#include "rkfem/operators/kernels/nodal_reference.hpp"
+
+#include <cmath>
+
+#include "rkfem/materials/elastic.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
+
+namespace rkfem
+{
+namespace
+{
+/// F = 1 + sum u (x) g (or, with identity = false, sum v (x) g) over the entries of point p.
+Mat3 stencil_sum(const IntegrationOperator& op, index_t p, const std::vector<real_t>& field, bool identity)
+{
+    Mat3 M = Mat3::Zero();
+    if (identity)
+        M = Mat3::Identity();
+    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    {
+        const std::size_t n = 3 * static_cast<std::size_t>(op.nodes[k]);
+        M += Vec3(field[n], field[n + 1], field[n + 2]) * op.gradient(k).transpose();
+    }
+    return M;
+}
+
+/// f_I += P g for every entry of point p (P = V0 J sigma F^-T).
+void scatter(const IntegrationOperator& op, index_t p, const Mat3& P, std::vector<real_t>& f)
+{
+    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    {
+        const Vec3 fi = P * op.gradient(k);
+        for (int a = 0; a < 3; ++a)
+            f[3 * static_cast<std::size_t>(op.nodes[k]) + a] += fi[a];
+    }
+}
+
+Mat3 tensor(const real_t s[6])
+{
+    Mat3 S;
+    S << s[0], s[3], s[5], s[3], s[1], s[4], s[5], s[4], s[2];
+    return S;
+}
+
+/// sym and skew parts of L in Voigt order (d: xx yy zz xy yz zx; w: xy yz zx)
+void split(const Mat3& L, real_t d[6], real_t w[3])
+{
+    d[0] = L(0, 0), d[1] = L(1, 1), d[2] = L(2, 2);
+    d[3] = 0.5 * (L(0, 1) + L(1, 0)), d[4] = 0.5 * (L(1, 2) + L(2, 1)), d[5] = 0.5 * (L(2, 0) + L(0, 2));
+    w[0] = 0.5 * (L(0, 1) - L(1, 0)), w[1] = 0.5 * (L(1, 2) - L(2, 1)), w[2] = 0.5 * (L(2, 0) - L(0, 2));
+}
+
+real_t stress_power(const real_t s_old[6], const real_t s_new[6], const real_t d[6])
+{
+    real_t power = 0.0;
+    for (int k = 0; k < 6; ++k)
+        power += (k < 3 ? 0.5 : 1.0) * (s_old[k] + s_new[k]) * d[k];
+    return power;
+}
+} // namespace
+
+NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt)
+{
+    NodalPass out;
+    out.f.assign(nodes.f_int.size(), 0.0);
+    const IntegrationOperator& op = blk.points;
+    const index_t np = blk.n_points(), ns = blk.n_stab();
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+    std::vector<Mat3> finv(static_cast<std::size_t>(np));
+    std::vector<Vec3> spin(static_cast<std::size_t>(np));
+    std::vector<real_t> jac(static_cast<std::size_t>(np));
+    out.stress.resize(6 * static_cast<std::size_t>(np));
+    for (index_t p = 0; p < np; ++p)
+    {
+        const Mat3 F = stencil_sum(op, p, nodes.u, true), Fd = stencil_sum(op, p, nodes.v, false);
+        const real_t J = F.determinant();
+        const Mat3 Fi = F.inverse();
+        real_t d[6], w[3], s_old[6];
+        split(Fd * Fi, d, w);
+        real_t* s = &out.stress[6 * static_cast<std::size_t>(p)];
+        for (int k = 0; k < 6; ++k)
+            s_old[k] = s[k] = blk.stress[k * blk.stress_stride + static_cast<std::size_t>(p)];
+        elastic_update(mat, d, w, dt, s);
+        const real_t len = blk.dt_factor * std::cbrt(J) * blk.length0[static_cast<std::size_t>(p)];
+        const real_t trd = d[0] + d[1] + d[2];
+        const real_t q = bulk_q(mat.rho / J, c, len, trd, q1, q2);
+        out.dt_stable = std::min(out.dt_stable, element_dt(c, len, trd, q1, q2));
+        const real_t VJ = op.weight[p] * J;
+        out.d_internal += dt * VJ * stress_power(s_old, s, d);
+        out.d_bulk_viscosity += -dt * VJ * q * trd;
+        scatter(op, p, VJ * (tensor(s) - q * Mat3::Identity()) * Fi.transpose(), out.f);
+        finv[p] = Fi;
+        spin[p] = Vec3(w[0], w[1], w[2]);
+        jac[p] = J;
+    }
+    // MSCNI: each sub-cell's stress from its own strain rate, with its parent's F^-1 and spin
+    const IntegrationOperator& st = blk.stabilization;
+    ElasticParams smat = mat;
+    smat.lambda *= blk.stabilization_coefficient;
+    smat.mu *= blk.stabilization_coefficient;
+    out.stab_stress.resize(6 * static_cast<std::size_t>(ns));
+    for (index_t s = 0; s < ns; ++s)
+    {
+        const index_t P = st.parent[s];
+        real_t d[6], w_unused[3], s_old[6];
+        split(stencil_sum(st, s, nodes.v, false) * finv[P], d, w_unused);
+        const real_t w[3] = {spin[P][0], spin[P][1], spin[P][2]};
+        real_t* sg = &out.stab_stress[6 * static_cast<std::size_t>(s)];
+        for (int k = 0; k < 6; ++k)
+            s_old[k] = sg[k] = blk.stab_stress[k * static_cast<std::size_t>(ns) + static_cast<std::size_t>(s)];
+        elastic_update(smat, d, w, dt, sg);
+        const real_t VJ = st.weight[s] * jac[P];
+        out.d_stabilization += dt * VJ * stress_power(s_old, sg, d);
+        scatter(st, s, VJ * tensor(sg) * finv[P].transpose(), out.f);
+    }
+    return out;
+}
+} // namespace rkfem
