@@ -18,7 +18,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 
 namespace
 {

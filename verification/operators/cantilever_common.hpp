@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "../support.hpp"
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 
 namespace rkfem::test
 {

@@ -10,7 +10,7 @@
 
 #include "../support.hpp"
 #include "rkfem/approximation/coupling/coupled_shapes.hpp"
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 #include "rkfem/time/central_difference.hpp"
 
 using namespace rkfem;

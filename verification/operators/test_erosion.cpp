@@ -12,7 +12,7 @@
 #include <hdf5.h>
 
 #include "../support.hpp"
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 
 using namespace rkfem;
 

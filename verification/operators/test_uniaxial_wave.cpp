@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "../support.hpp"
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
 
 using namespace rkfem;

@@ -18,7 +18,7 @@
 #include <functional>
 #include <cstdio>
 
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/central_difference.hpp"
 #include "rkfem/time/state_vector.hpp"

@@ -1,4 +1,4 @@
-#include "rkfem/io/summary.hpp"
+#include "rkfem/run/summary.hpp"
 
 #include <algorithm>
 #include <fstream>
@@ -6,7 +6,7 @@
 #include <sstream>
 
 #include "rkfem/core/parallel.hpp"
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 
 namespace rkfem
 {

@@ -1,4 +1,4 @@
-#include "rkfem/model/simulation.hpp"
+#include "rkfem/run/simulation.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -11,7 +11,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/io/results_writer.hpp"
-#include "rkfem/io/summary.hpp"
+#include "rkfem/run/summary.hpp"
 #include "rkfem/time/central_difference.hpp"
 #include "rkfem/time/stepper.hpp"
 
