@@ -445,8 +445,8 @@ TEST(Decks, CoupledPartsRunAndTheirMistakesNameTheKey)
 
     const std::string part = "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n";
     const std::string region = "    regions:\n      - {select: {type: box, min: [0, 0, 0], max: [1 mm, 1 mm, 5 mm]}}\n";
-    expect_rejected("coupled_1pt.yaml", replace(good, part, part + region), ":9: parts.col.regions",
-                    "expected formulation: fem-nodal on a part with regions");
+    expect_rejected("coupled_2x2x2.yaml", replace(good, part, part + "    formulation: fem-2x2x2\n" + region),
+                    ":10: parts.col.regions", "expected formulation: fem-nodal or fem-1pt on a part with regions");
     expect_rejected("coupled_plane.yaml",
                     replace(good, part,
                             part + "    formulation: fem-nodal\n    regions:\n"

@@ -137,3 +137,91 @@ TEST(CoupledWave, FreeColumnConservesMomentum)
         EXPECT_LT(worst, 1e-12);
     }
 }
+
+TEST(CoupledWave, FemOnePointSideCrossesTheInterfaceToo)
+{
+    // the FE side as 1-point hexes (viscous hourglass control) and the transition and RK
+    // elements' nodes on their dual cells: the same plateau and reflection checks, against an
+    // all-fem-1pt run of the same mesh
+    const real_t plateau = -7850 * 5856.4 * 10.0;
+    const Wave fe = run_wave({"parts.column.regions=~", "parts.column.formulation=fem-1pt"});
+    const Wave cw = run_wave({"parts.column.formulation=fem-1pt"});
+    real_t fe_err = 0.0, rk_err = 0.0, reflected = 0.0;
+    for (index_t e = 20; e < 120; ++e)
+        fe_err = std::max(fe_err, std::abs(cw.szz[e] / plateau - 1));
+    for (index_t e = 170; e < 210; ++e)
+        rk_err = std::max(rk_err, std::abs(cw.szz[e] / plateau - 1));
+    for (index_t e = 70; e < 145; ++e)
+        reflected = std::max(reflected, std::abs(cw.szz[e] - fe.szz[e]) / std::abs(plateau));
+    std::printf("fem-1pt | mixed | rkpm: plateau error FE side %.2e, RK side %.2e; reflected wave %.2e; balance error "
+                "%.2e (all fem-1pt %.2e)\n",
+                fe_err, rk_err, reflected, cw.balance, fe.balance);
+    EXPECT_LT(fe_err, 0.02);
+    EXPECT_LT(rk_err, 0.02);
+    EXPECT_LT(reflected, 0.01);
+    EXPECT_LT(cw.balance, 0.005);
+}
+
+TEST(CoupledPatch, LinearVelocityFieldThroughAFemOnePointSide)
+{
+    // a linear velocity field (coefficients of particles = the field at their positions) held
+    // over a few steps: uniform stress everywhere, so every FE node off the outer boundary,
+    // those of the transition layer included (their forces come from the 1-point elements and
+    // the dual cells), carries no force. (RK test functions of interior particles reach the
+    // boundary on this small block and carry its traction: the static patch tests cover them.)
+    const char* box = R"(
+time: {end: 1 s}
+parts:
+  b:
+    generator: {type: box, size: [4 mm, 4 mm, 6 mm], divisions: [4, 4, 6]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    bulk_viscosity: {linear: 0, quadratic: 0}
+    regions:
+      - {select: {type: box, min: [-1 mm, -1 mm, 3 mm], max: [5 mm, 5 mm, 7 mm]}}
+)";
+    for (const char* transition : {"mixed", "ramp"})
+        for (const char* form : {"fem-1pt", "fem-nodal"})
+        {
+            Model m = test::model_from(box, {std::string("parts.b.transition=") + transition,
+                                             std::string("parts.b.formulation=") + form,
+                                             std::string(form) == "fem-1pt" ? "title=x" : "parts.b.hourglass=~"});
+            const real_t A[3][3] = {{1.0, 0.3, -0.2}, {0.1, -0.5, 0.4}, {0.25, 0.2, 0.7}}; // 1/s
+            const real_t dt = 1e-8;
+            for (int step = 1; step <= 5; ++step)
+            {
+                for (index_t i = 0; i < m.nodes.size(); ++i)
+                    for (int d = 0; d < 3; ++d)
+                    {
+                        real_t v = 0.0;
+                        for (int j = 0; j < 3; ++j)
+                            v += A[d][j] * m.nodes.x0[3 * i + j];
+                        m.nodes.v[3 * i + d] = v;
+                        m.nodes.u[3 * i + d] += dt * v;
+                    }
+                m.update_coordinates();
+                m.compute_forces(step * dt, dt, step);
+                m.commit();
+            }
+            real_t residual = 0.0, scale = 0.0;
+            index_t checked = 0;
+            for (index_t i = 0; i < m.nodes.size(); ++i)
+            {
+                const Vec3 x(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]);
+                const bool interior = !m.carries_coefficients(i) && x[0] > 1e-7 && x[0] < 4e-3 - 1e-7 && x[1] > 1e-7 && x[1] < 4e-3 - 1e-7 &&
+                                      x[2] > 1e-7 && x[2] < 6e-3 - 1e-7;
+                for (int d = 0; d < 3; ++d)
+                {
+                    scale = std::max(scale, std::abs(m.nodes.f_int[3 * i + d]));
+                    if (interior)
+                        residual = std::max(residual, std::abs(m.nodes.f_int[3 * i + d]));
+                }
+                checked += interior;
+            }
+            std::printf("%s side, %s: %ld interior FE nodes, force / largest boundary force %.2e\n", form, transition,
+                        static_cast<long>(checked), residual / scale);
+            EXPECT_GE(checked, 2 * 3 * 3); // two interior FE layers, the second one the transition's
+            EXPECT_LT(residual / scale, 1e-10) << form << ", " << transition;
+        }
+}

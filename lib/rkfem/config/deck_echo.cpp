@@ -228,7 +228,7 @@ std::string to_yaml(const Deck& d)
                : p.formulation == Formulation::FemNodal ? "fem-nodal"
                                                         : "rkpm")
            << "\n";
-        if (is_nodal(p.formulation))
+        if (is_nodal(p.formulation) || p.coupled())
             os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
                << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
                << ", dt_factor: " << p.nodal.dt_factor << "}\n";

@@ -369,8 +369,8 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                                        : Formulation::Rkpm;
     if (s.has("nodal_integration"))
     {
-        if (!is_nodal(p.formulation))
-            s.fail("nodal_integration", "is only used by formulations fem-nodal and rkpm",
+        if (!is_nodal(p.formulation) && !s.has("regions"))
+            s.fail("nodal_integration", "is only used by formulations fem-nodal and rkpm (and parts with regions)",
                    "remove it or set formulation: rkpm (or fem-nodal)");
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
@@ -399,9 +399,9 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     if (s.has("regions"))
     {
         // FE-RK coupling: the RK regions of an FE part
-        if (p.formulation != Formulation::FemNodal)
-            s.fail("regions", "RK regions are coupled to formulation fem-nodal only (fem-1pt is not built yet)",
-                   "expected formulation: fem-nodal on a part with regions");
+        if (p.formulation != Formulation::FemNodal && p.formulation != Formulation::Fem1pt)
+            s.fail("regions", "RK regions are coupled to an FE side of formulation fem-nodal or fem-1pt",
+                   "expected formulation: fem-nodal or fem-1pt on a part with regions");
         if (p.generator.type == GeneratorSpec::Type::Cloud)
             s.fail("regions", "a cloud part has no elements to divide", "remove regions");
         p.regions_loc = s.loc("regions");

@@ -129,7 +129,8 @@ Model Model::build(const Deck& deck)
             blk.plastic.set_lengths(h);
         }
         m.part_nodal.push_back(-1);
-        if (is_nodal(ps.formulation))
+        m.part_fe_side.push_back(-1);
+        if (is_nodal(ps.formulation) || ps.coupled())
         {
             NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(ps, mesh, offset)
                             : ps.coupled()                                  ? build_coupled_block(ps, mesh, offset)
@@ -137,6 +138,37 @@ Model Model::build(const Deck& deck)
             nb.part = static_cast<index_t>(ip);
             add_nodal_mass(nb, m.nodes);
             m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
+            if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
+            {
+                // the FE elements of a coupled part with a fem-1pt FE side: a 1-point block of
+                // their own (the part's block above only holds the mesh for output)
+                FeSide side;
+                side.local.assign(static_cast<std::size_t>(mesh.n_elements()), -1);
+                HexBlock& fb = side.block;
+                fb.part = blk.part;
+                fb.formulation = Formulation::Fem1pt;
+                fb.hourglass = ps.hourglass;
+                fb.bulk_viscosity = ps.bulk_viscosity;
+                fb.material = blk.material;
+                fb.plastic.configure(ps.material);
+                fb.node_begin = blk.node_begin;
+                fb.node_end = blk.node_end;
+                for (index_t e = 0; e < mesh.n_elements(); ++e)
+                    if (nb.fe_element[e])
+                    {
+                        side.local[e] = fb.n_elements();
+                        fb.conn.insert(fb.conn.end(), blk.conn.begin() + 8 * static_cast<std::ptrdiff_t>(e),
+                                       blk.conn.begin() + 8 * static_cast<std::ptrdiff_t>(e + 1));
+                    }
+                fb.initialize(m.nodes);
+                std::vector<real_t> h(static_cast<std::size_t>(fb.n_points()));
+                for (index_t q = 0; q < fb.n_points(); ++q)
+                    h[q] = std::cbrt(fb.volume0[q]);
+                fb.plastic.set_lengths(h);
+                add_lumped_mass(fb, m.nodes);
+                m.part_fe_side.back() = static_cast<index_t>(m.fe_sides.size());
+                m.fe_sides.push_back(std::move(side));
+            }
             m.nodal_blocks.push_back(std::move(nb));
         }
         for (index_t e = 0; e < blk.n_elements(); ++e)
@@ -145,7 +177,7 @@ Model Model::build(const Deck& deck)
                                 "element " + std::to_string(e) + " has non-positive volume " +
                                     std::to_string(blk.volume0[e]) + " m^3",
                                 "expected a generator that makes valid (positive-volume) hexahedra");
-        if (!is_nodal(ps.formulation))
+        if (!is_nodal(ps.formulation) && !ps.coupled())
             add_lumped_mass(blk, m.nodes);
         elem_offset += blk.n_elements();
         offset = info.node_end;

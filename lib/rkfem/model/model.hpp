@@ -64,6 +64,15 @@ class Model final : public ExplicitOperator
                                   ///< integrates only fem-1pt / fem-2x2x2 parts)
     std::vector<NodalBlock> nodal_blocks; ///< fem-nodal and rkpm parts
     std::vector<index_t> part_nodal;      ///< per part: index into nodal_blocks, -1 for Gauss-point FE
+    /// Coupled parts with a fem-1pt FE side: the 1-point block of their FE elements, integrated
+    /// besides the part's nodal block (which holds the transition and RK elements' nodes).
+    struct FeSide
+    {
+        HexBlock block;
+        std::vector<index_t> local; ///< element of the part -> element of `block`, -1 if not FE
+    };
+    std::vector<FeSide> fe_sides;
+    std::vector<index_t> part_fe_side; ///< per part: index into fe_sides, -1 for none
     std::vector<PartInfo> parts;
     std::map<std::string, std::vector<index_t>> node_sets;
     std::map<std::string, std::vector<Quad>> face_sets;

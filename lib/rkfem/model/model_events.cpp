@@ -63,9 +63,14 @@ void Model::plan_assembly()
             range.emplace_back(blocks[ib].node_begin, blocks[ib].node_end);
     block_adds_.assign(blocks.size(), 0);
     for (std::size_t a = 0; a < range.size(); ++a)
+    {
+        // a coupled part's FE side shares the part's nodes with its nodal block: both add
+        if (part_fe_side[a] >= 0)
+            block_adds_[a] = 1;
         for (std::size_t b = 0; b < range.size(); ++b)
             if (a != b && range[a].first < range[b].second && range[b].first < range[a].second)
                 block_adds_[a] = 1;
+    }
     // the union of the adding blocks' ranges, as disjoint sorted intervals
     std::vector<std::pair<index_t, index_t>> shared;
     for (std::size_t a = 0; a < range.size(); ++a)

@@ -38,6 +38,11 @@ real_t history_value(const PlasticPoints& pp, std::size_t p, Model::History h)
 real_t Model::element_history(index_t b, index_t e, History h) const
 {
     auto value = [h](const PlasticPoints& pp, std::size_t p) { return history_value(pp, p, h); };
+    if (part_fe_side[b] >= 0 && fe_sides[part_fe_side[b]].local[e] >= 0)
+    {
+        const HexBlock& fb = fe_sides[part_fe_side[b]].block;
+        return fb.plastic.active() ? value(fb.plastic, static_cast<std::size_t>(fe_sides[part_fe_side[b]].local[e])) : 0.0;
+    }
     if (part_nodal[b] >= 0)
     {
         const NodalBlock& nb = nodal_blocks[part_nodal[b]];
@@ -95,6 +100,14 @@ index_t Model::n_cells() const
 
 Sym6 Model::element_stress(index_t b, index_t e) const
 {
+    if (part_fe_side[b] >= 0 && fe_sides[part_fe_side[b]].local[e] >= 0)
+    {
+        const HexBlock& fb = fe_sides[part_fe_side[b]].block;
+        Sym6 s;
+        for (int k = 0; k < 6; ++k)
+            s[k] = fb.stress[k * fb.stress_stride + static_cast<std::size_t>(fe_sides[part_fe_side[b]].local[e])];
+        return s;
+    }
     if (part_nodal[b] >= 0)
     {
         Sym6 s = Sym6::Zero();
@@ -125,7 +138,9 @@ Sym6 Model::nodal_stress(index_t node) const
         for (index_t k = k0; k < k1; ++k)
             for (int c = 0; c < 6; ++c)
                 s[c] += nb.stress[c * np + nb.owner_points[k]];
-        return k1 > k0 ? Sym6(s / static_cast<real_t>(k1 - k0)) : s;
+        if (k1 > k0 || part_fe_side[ip] < 0)
+            return k1 > k0 ? Sym6(s / static_cast<real_t>(k1 - k0)) : s;
+        // a node of a coupled part's FE side that owns no point: the average of its elements
     }
     const HexBlock& blk = blocks[ip];
     const index_t i = node - blk.node_begin;

@@ -70,6 +70,25 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
             }
             book(r, offset); // first element of the part; nodal points are not elements
             assemble_nodal_forces(nb, nodes, add);
+            if (part_fe_side[ib] >= 0)
+            {
+                // the FE elements of a coupled part with a fem-1pt FE side
+                FeSide& side = fe_sides[static_cast<std::size_t>(part_fe_side[ib])];
+                auto part_element = [&](index_t local)
+                { return static_cast<index_t>(std::find(side.local.begin(), side.local.end(), local) - side.local.begin()); };
+                const ForcePassResult rf = hex_internal_force(side.block, nodes, dt);
+                if (rf.bad_element >= 0)
+                {
+                    std::ostringstream os;
+                    os << "element " << offset + part_element(rf.bad_element) << " (part '" << parts[ib].name
+                       << "', local " << part_element(rf.bad_element) << ") has non-positive or NaN volume "
+                       << element_volume(side.block, nodes, rf.bad_element) << " m^3 at t = " << t << " s, step "
+                       << step;
+                    throw InstabilityError(os.str());
+                }
+                book(rf, rf.dt_element >= 0 ? offset + part_element(rf.dt_element) : offset);
+                assemble_block_forces(side.block, nodes, true);
+            }
             offset += blk.n_elements();
             continue;
         }
@@ -131,6 +150,8 @@ void Model::commit()
         b.commit();
     for (auto& b : nodal_blocks)
         b.commit();
+    for (auto& side : fe_sides)
+        side.block.commit();
     energy.internal += pending_int_;
     energy.hourglass += pending_hg_;
     energy.bulk_viscosity += pending_bv_;

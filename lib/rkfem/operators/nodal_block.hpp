@@ -34,8 +34,6 @@
 
 namespace rkfem
 {
-class CoupledShapes;
-
 struct NodalBlock
 {
     index_t part = 0;
@@ -62,10 +60,11 @@ struct NodalBlock
     /// set-up work that samples them (pressure faces); null for FE parts.
     std::shared_ptr<const RkShapeFunctions> rk;
     std::vector<real_t> interp_values;
-    /// Coupled FE-RK parts: the approximation (element kinds, particles, RK functions; local
-    /// numbering) and, per local node, whether its unknowns are RK coefficients; empty otherwise.
-    std::shared_ptr<const CoupledShapes> coupled;
-    std::vector<char> particle;
+    /// Coupled FE-RK parts: per local node, whether its unknowns are RK coefficients, and per
+    /// element of the part's mesh, whether it is an FE element (no particle node); empty
+    /// otherwise. With a fem-1pt FE side the FE elements are integrated by a 1-point block and
+    /// this block holds the points of the other elements' nodes only.
+    std::vector<char> particle, fe_element;
     /// Cloud parts: the Voronoi cells' facet points on the body's surface (reference position,
     /// outward n dA), where face loads act; empty for mesh parts.
     std::vector<CellFacetPoint> boundary_facets;

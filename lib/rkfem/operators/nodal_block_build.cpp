@@ -171,6 +171,30 @@ std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh)
     return rk;
 }
 
+namespace
+{
+/// The coupled shapes seen through a sub-mesh of some of the part's elements: element e of the
+/// sub-mesh is element elements[e] of the part (node ids stay the part's).
+class SubMeshShapes final : public ShapeEvaluator
+{
+  public:
+    SubMeshShapes(const CoupledShapes& shapes, const std::vector<index_t>& elements) : s_(shapes), e_(elements) {}
+    void values(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
+                std::vector<real_t>& psi) const override
+    {
+        s_.values(e_[static_cast<std::size_t>(e)], xi, x, nodes, psi);
+    }
+    void gradients_at_node(index_t i, std::vector<index_t>& nodes, std::vector<Vec3>& grad) const override
+    {
+        s_.gradients_at_node(i, nodes, grad);
+    }
+
+  private:
+    const CoupledShapes& s_;
+    const std::vector<index_t>& e_;
+};
+} // namespace
+
 NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
 {
     const std::vector<char> rk_elements = rk_region_elements(ps, mesh);
@@ -187,13 +211,52 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
     const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
     try
     {
-        auto shapes = std::make_shared<const CoupledShapes>(mesh, rk_elements, rk_params(ps.rk), t);
-        nb.points = build_scni(mesh, *shapes);
-        if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        const CoupledShapes shapes(mesh, rk_elements, rk_params(ps.rk), t);
+        const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+        if (ps.formulation == Formulation::FemNodal)
         {
-            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
-            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+            // every node's dual cell
+            nb.points = build_scni(mesh, shapes);
+            if (stabilized)
+                nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, shapes));
         }
+        else
+        {
+            // fem-1pt FE side: the FE elements are the part's 1-point block; the nodes of the
+            // transition and RK elements get the dual cells of those elements only (their faces
+            // with FE elements are the cells' boundary), on a sub-mesh with its own numbering
+            std::vector<index_t> elements, sub_to_part, part_to_sub(static_cast<std::size_t>(mesh.n_nodes()), -1);
+            HexMesh sub;
+            for (index_t e = 0; e < mesh.n_elements(); ++e)
+            {
+                if (shapes.kind(e) == CoupledShapes::Kind::Fe)
+                    continue;
+                elements.push_back(e);
+                for (int a = 0; a < 8; ++a)
+                {
+                    const index_t i = mesh.conn[8 * e + a];
+                    if (part_to_sub[i] < 0)
+                    {
+                        part_to_sub[i] = static_cast<index_t>(sub_to_part.size());
+                        sub_to_part.push_back(i);
+                        for (int d = 0; d < 3; ++d)
+                            sub.x.push_back(mesh.x[3 * i + d]);
+                    }
+                    sub.conn.push_back(part_to_sub[i]);
+                }
+            }
+            sub.faces = extract_boundary_faces(sub.conn);
+            const SubMeshShapes sub_shapes(shapes, elements);
+            nb.points = build_scni(sub, sub_shapes);
+            if (stabilized)
+                nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(sub, sub_shapes));
+            // owners to the part's numbering (the gradients' nodes already are)
+            for (auto* op : {&nb.points, &nb.stabilization})
+                for (auto& o : op->owner)
+                    o = sub_to_part[static_cast<std::size_t>(o)];
+        }
+        if (stabilized)
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         // physical values: identity at FE nodes, the RK interpolant at particles
         nb.interp_offsets.assign(1, 0);
         std::vector<index_t> row_nodes;
@@ -202,7 +265,7 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
         {
             row_nodes.clear();
             row_values.clear();
-            shapes->node_row(i, row_nodes, row_values);
+            shapes.node_row(i, row_nodes, row_values);
             for (std::size_t k = 0; k < row_nodes.size(); ++k)
             {
                 nb.interp_nodes.push_back(row_nodes[k] + offset);
@@ -211,9 +274,11 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
             nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
         }
         nb.particle.resize(static_cast<std::size_t>(mesh.n_nodes()));
+        nb.fe_element.resize(static_cast<std::size_t>(mesh.n_elements()));
         for (index_t i = 0; i < mesh.n_nodes(); ++i)
-            nb.particle[i] = shapes->is_particle(i);
-        nb.coupled = shapes;
+            nb.particle[i] = shapes.is_particle(i);
+        for (index_t e = 0; e < mesh.n_elements(); ++e)
+            nb.fe_element[e] = shapes.kind(e) == CoupledShapes::Kind::Fe;
     }
     catch (const SingularMomentError& e)
     {
