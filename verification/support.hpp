@@ -84,6 +84,37 @@ inline real_t assembly_difference(const std::vector<real_t>& s1, const std::vect
     return diff / scale;
 }
 
+/// A steel part (E 200 GPa, nu 0.3, rho 7850 kg/m^3) for nodal blocks built straight from a mesh.
+inline PartSpec steel_nodal_part(Formulation f, const std::string& scheme = "scni", const std::string& stab = "mscni")
+{
+    PartSpec ps;
+    ps.name = "block";
+    ps.formulation = f;
+    ps.material.model = "elastic";
+    ps.material.rho = 7850.0;
+    ps.material.E = 200e9;
+    ps.material.nu = 0.3;
+    ps.nodal.scheme = scheme;
+    ps.nodal.stabilization = stab;
+    return ps;
+}
+
+/// One step of the linear velocity field v = A x0 (A in 1/s) on every node: v, u += dt v and
+/// x = x0 + u, so the geometry stays a linear map of x0.
+inline void linear_velocity_step(NodeSet& nodes, const real_t (&A)[3][3], real_t dt)
+{
+    for (index_t i = 0; i < nodes.size(); ++i)
+        for (int d = 0; d < 3; ++d)
+        {
+            real_t v = 0;
+            for (int j = 0; j < 3; ++j)
+                v += A[d][j] * nodes.x0[3 * i + j];
+            nodes.v[3 * i + d] = v;
+            nodes.u[3 * i + d] += dt * v;
+            nodes.x[3 * i + d] = nodes.x0[3 * i + d] + nodes.u[3 * i + d];
+        }
+}
+
 inline Model model_from(const std::string& deck_text, const std::vector<std::string>& overrides = {})
 {
     return Model::build(parse_deck(deck_text, "test.yaml", overrides));

@@ -37,16 +37,7 @@ PatchResult run_patch(Formulation f, HourglassType hg, int n = 3)
     for (int step = 0; step < 5; ++step)
     {
         // v = A x0, displacement advanced so geometry stays a linear map of x0
-        for (index_t i = 0; i < nodes.size(); ++i)
-            for (int d = 0; d < 3; ++d)
-            {
-                real_t v = 0;
-                for (int j = 0; j < 3; ++j)
-                    v += A[d][j] * nodes.x0[3 * i + j];
-                nodes.v[3 * i + d] = v;
-                nodes.u[3 * i + d] += dt * v;
-                nodes.x[3 * i + d] = nodes.x0[3 * i + d] + nodes.u[3 * i + d];
-            }
+        test::linear_velocity_step(nodes, A, dt);
         hex_internal_force(blk, nodes, dt);
         assemble_block_forces(blk, nodes);
         blk.commit();

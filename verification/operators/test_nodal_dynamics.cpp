@@ -31,16 +31,7 @@ namespace
 {
 PartSpec part(Formulation f, const std::string& scheme, const std::string& stab)
 {
-    PartSpec ps;
-    ps.name = "block";
-    ps.formulation = f;
-    ps.material.model = "elastic";
-    ps.material.rho = 7850.0;
-    ps.material.E = 200e9;
-    ps.material.nu = 0.3;
-    ps.nodal.scheme = scheme;
-    ps.nodal.stabilization = stab;
-    return ps;
+    return test::steel_nodal_part(f, scheme, stab);
 }
 
 struct Fixture

@@ -94,7 +94,9 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly)
     c.dt = std::abs(fast.dt_stable - dt_min) / dt_min;
     EXPECT_GT(std::abs(d_bv), 0.0); // some elements compress: bulk viscosity acts
     if (hg != HourglassType::None)
+    {
         EXPECT_GT(std::abs(d_hg), 0.0);
+    }
     return c;
 }
 
@@ -155,15 +157,7 @@ struct NodalCompared
 /// whole-vector batches along rows) mesh, a random committed state and motion.
 NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, real_t bulk_linear, real_t bulk_quadratic)
 {
-    PartSpec ps;
-    ps.name = "block";
-    ps.formulation = form;
-    ps.material.model = "elastic";
-    ps.material.rho = 7850.0;
-    ps.material.E = 200e9;
-    ps.material.nu = 0.3;
-    ps.nodal.scheme = "scni";
-    ps.nodal.stabilization = "mscni";
+    PartSpec ps = test::steel_nodal_part(form);
     ps.bulk_viscosity = {bulk_linear, bulk_quadratic};
     const HexMesh mesh = test::distorted_box(7, 0.01, jitter);
     NodeSet nodes;

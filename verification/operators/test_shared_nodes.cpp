@@ -57,15 +57,7 @@ SharedBox make_shared_box(int n, int cut)
     for (index_t& c : up.conn)
         c -= upper_offset;
     up.faces = extract_boundary_faces(up.conn);
-    PartSpec ps;
-    ps.name = "upper";
-    ps.formulation = Formulation::FemNodal;
-    ps.material.model = "elastic";
-    ps.material.rho = 7850.0;
-    ps.material.E = 200e9;
-    ps.material.nu = 0.3;
-    ps.nodal.scheme = "scni";
-    ps.nodal.stabilization = "mscni";
+    const PartSpec ps = test::steel_nodal_part(Formulation::FemNodal);
     s.upper = build_nodal_block(ps, up, upper_offset);
     add_nodal_mass(s.upper, s.nodes);
     return s;
@@ -80,16 +72,7 @@ std::vector<real_t> linear_steps(SharedBox& s, bool add)
     NodeSet& nodes = s.nodes;
     for (int step = 0; step < 5; ++step)
     {
-        for (index_t i = 0; i < nodes.size(); ++i)
-            for (int d = 0; d < 3; ++d)
-            {
-                real_t v = 0;
-                for (int j = 0; j < 3; ++j)
-                    v += A[d][j] * nodes.x0[3 * i + j];
-                nodes.v[3 * i + d] = v;
-                nodes.u[3 * i + d] += dt * v;
-                nodes.x[3 * i + d] = nodes.x0[3 * i + d] + nodes.u[3 * i + d];
-            }
+        test::linear_velocity_step(nodes, A, dt);
         hex_internal_force(s.lower, nodes, dt);
         nodal_internal_force(s.upper, nodes, dt);
         std::fill(nodes.f_int.begin(), nodes.f_int.end(), 0.0);
