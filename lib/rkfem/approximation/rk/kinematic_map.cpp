@@ -73,6 +73,11 @@ Vec3 KinematicMap::physical(const real_t* field, index_t node) const
 
 void KinematicMap::physical_field(const std::vector<real_t>& field, std::vector<real_t>& out) const
 {
+    if (identity())
+    {
+        out = field; // no node carries coefficients
+        return;
+    }
     out.resize(field.size());
     parallel_for("rkfem::kinematic_map", size(),
                  [&](index_t i)
