@@ -16,6 +16,23 @@ namespace rkfem
 {
 void NodalBlock::initialize(Assembly assembly)
 {
+    build_tables(assembly);
+    const index_t np = n_points(), ns = n_stab();
+    stress_stride = batch8_stride(static_cast<std::size_t>(np));
+    stress.assign(6 * stress_stride, 0.0);
+    if (plastic.active())
+        plastic.resize(static_cast<std::size_t>(np));
+    stress_trial = stress;
+    stab_stress.assign(6 * static_cast<std::size_t>(ns), 0.0);
+    stab_stress_trial = stab_stress;
+    use_huge_pages(stress);
+    use_huge_pages(stress_trial);
+    use_huge_pages(stab_stress);
+    use_huge_pages(stab_stress_trial);
+}
+
+void NodalBlock::build_tables(Assembly assembly)
+{
     const index_t np = n_points(), ns = n_stab();
     const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     const index_t nn = node_end - node_begin;
@@ -117,13 +134,6 @@ void NodalBlock::initialize(Assembly assembly)
             owner_points[f[points.owner[p] - node_begin]++] = p;
     }
 
-    stress_stride = batch8_stride(static_cast<std::size_t>(np));
-    stress.assign(6 * stress_stride, 0.0);
-    if (plastic.active())
-        plastic.resize(static_cast<std::size_t>(np));
-    stress_trial = stress;
-    stab_stress.assign(6 * static_cast<std::size_t>(ns), 0.0);
-    stab_stress_trial = stab_stress;
     jacobian.assign(static_cast<std::size_t>(np), 1.0);
     point_tensor.assign(use_scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
     finv.assign(9 * static_cast<std::size_t>(np), 0.0);
@@ -140,10 +150,7 @@ void NodalBlock::initialize(Assembly assembly)
         use_huge_pages(op->grad);
         use_huge_pages(op->weight);
     }
-    use_huge_pages(stress);
-    use_huge_pages(stress_trial);
-    for (auto* a : {&node_grad, &stab_stress, &stab_stress_trial, &jacobian, &point_tensor, &finv, &spin, &stab_energy,
-                    &length0})
+    for (auto* a : {&node_grad, &jacobian, &point_tensor, &finv, &spin, &stab_energy, &length0})
         use_huge_pages(*a);
     use_huge_pages(node_point);
 }

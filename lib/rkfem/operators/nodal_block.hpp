@@ -112,7 +112,12 @@ struct NodalBlock
 
     index_t n_points() const { return points.n_points(); }
     index_t n_stab() const { return stabilization.n_points(); }
+    /// Builds the tables (build_tables) and sizes the state (zero stress, fresh history).
     void initialize(Assembly assembly = Assembly::Automatic);
+    /// The tables only (shared stencils, which snap the operators, the node transposes, scatter
+    /// chunks, per-step scratch), from the operators; the material state is not touched, so an
+    /// operator that changed (a rebuilt neighbourhood) keeps its points' state.
+    void build_tables(Assembly assembly = Assembly::Automatic);
     void commit()
     {
         stress.swap(stress_trial);
