@@ -3,7 +3,8 @@
 // velocities; elements in the middle reach the plastic-strain limit and are removed. Through
 // the events the nodes keep their mass, momentum is conserved to round-off, the energy ledger
 // continues (the balance keeps the bound of the run without erosion), a limit never reached
-// gives the bits of the run without erosion, and results.h5 gets a mesh per topology.
+// gives the bits of the run without erosion, and results.h5 gets a mesh per topology. Point
+// state moves between block kinds whole (operators/point_state.hpp).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,6 +13,8 @@
 #include <hdf5.h>
 
 #include "../support.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/operators/point_state.hpp"
 #include "rkfem/run/simulation.hpp"
 
 using namespace rkfem;
@@ -143,4 +146,51 @@ TEST(Erosion, ResultsGetAMeshPerTopology)
     H5Gclose(last);
     H5Gclose(steps);
     H5Fclose(f);
+}
+
+TEST(PointState, MovesBetweenBlockKinds)
+{
+    // J2 state of a 1-point hex block's points copied onto a nodal block's points (what a
+    // conversion of elements into particles does): stress and history arrive whole, committed
+    // and trial; a block of another model is refused
+    MaterialSpec j2;
+    j2.model = "j2";
+    j2.rho = 7850;
+    j2.E = 205e9;
+    j2.nu = 0.29;
+    j2.sigy = 500e6;
+    j2.etan = 1e9;
+    const HexMesh mesh = test::distorted_box(3, 0.01, 0.2);
+    NodeSet nodes;
+    HexBlock hex = test::make_block(mesh, nodes, Formulation::Fem1pt, {HourglassType::Viscous, 0.1},
+                                    ElasticParams::from_E_nu(j2.rho, j2.E, j2.nu));
+    hex.plastic.configure(j2);
+    hex.plastic.resize(static_cast<std::size_t>(hex.n_points()));
+    PartSpec ps = test::steel_nodal_part(Formulation::FemNodal);
+    ps.material = j2;
+    NodalBlock nodal = build_nodal_block(ps, mesh, 0);
+    std::mt19937 gen(3);
+    std::uniform_real_distribution<real_t> rnd(0.0, 1.0);
+    for (std::size_t k = 0; k < hex.stress.size(); ++k)
+        hex.stress[k] = 1e8 * rnd(gen);
+    for (std::size_t p = 0; p < hex.plastic.eps_p.size(); ++p)
+        hex.plastic.eps_p[p] = 0.1 * rnd(gen);
+    const PointState src = point_state(hex), dst = point_state(nodal);
+    for (std::size_t q = 0; q < dst.n_points; ++q)
+        copy_point_state(src, q % src.n_points, dst, q);
+    real_t diff = 0.0;
+    for (std::size_t q = 0; q < dst.n_points; ++q)
+    {
+        const std::size_t e = q % src.n_points;
+        diff = std::max(diff, std::abs(nodal.plastic.eps_p[q] - hex.plastic.eps_p[e]) +
+                                  std::abs(nodal.plastic.eps_p_trial[q] - hex.plastic.eps_p[e]));
+        for (int k = 0; k < 6; ++k)
+            diff = std::max(diff, std::abs(nodal.stress[k * nodal.stress_stride + q] - hex.stress[k * hex.stress_stride + e]) +
+                                      std::abs(nodal.stress_trial[k * nodal.stress_stride + q] -
+                                               hex.stress[k * hex.stress_stride + e]));
+    }
+    EXPECT_EQ(diff, 0.0);
+    EXPECT_GT(nodal.plastic.eps_p[0], 0.0);
+    NodalBlock elastic = build_nodal_block(test::steel_nodal_part(Formulation::FemNodal), mesh, 0);
+    EXPECT_THROW(copy_point_state(src, 0, point_state(elastic), 0), Error);
 }

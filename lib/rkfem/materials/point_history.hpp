@@ -136,6 +136,25 @@ struct PlasticPoints
             energy_trial.assign(n, 0.0);
         }
     }
+    /// Copies the committed history of point `from` of `src` (the same model) into point `to`,
+    /// trial = committed: state that moves between blocks (an element's points to the particles
+    /// that replace it).
+    void copy_point(const PlasticPoints& src, std::size_t from, std::size_t to)
+    {
+        auto one = [&](auto& committed, auto& trial, const auto& other)
+        {
+            if (committed.empty())
+                return;
+            committed[to] = other[from];
+            trial[to] = other[from];
+        };
+        one(eps_p, eps_p_trial, src.eps_p);
+        one(failed, failed_trial, src.failed);
+        one(kcc_state, kcc_trial, src.kcc_state);
+        one(cscm_state, cscm_trial, src.cscm_state);
+        one(ev, ev_trial, src.ev);
+        one(energy, energy_trial, src.energy);
+    }
     /// Keeps the committed state of points from[0], from[1], ... as points 0, 1, ... (an event
     /// that removes or reorders points); trial state = committed.
     void gather(const std::vector<index_t>& from)
