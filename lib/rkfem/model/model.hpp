@@ -1,8 +1,11 @@
 #pragma once
 /// @file model.hpp
-/// The model built from a deck: nodes of every part in one NodeSet, one HexBlock per part, named
-/// node and face sets, boundary conditions, loads and probes; and the per-step phases the time
-/// steppers call (kinematic conditions, forces, accelerations, commit, energies).
+/// The model built from a deck: nodes of every part in one NodeSet, one HexBlock per part (its
+/// mesh and output; it integrates Gauss-point FE parts), nodal blocks for fem-nodal, rkpm and
+/// coupled parts, the kinematic map, named node and face sets, boundary conditions, loads,
+/// contact and probes. It implements the explicit operator (time/explicit_operator.hpp) the
+/// steppers call, and the events between steps. Its definitions are split by concept:
+/// model.cpp (build), model_conditions, model_loads, model_step, model_events, model_fields.
 #include <map>
 #include <memory>
 #include <string>
