@@ -475,3 +475,25 @@ TEST(Decks, ErosionMistakesNameTheKey)
     expect_rejected("erosion_none.yaml", replace(good, part, j2 + "    erosion: {damage: 0}\n"), ":8: parts.col.erosion",
                     "has no criterion");
 }
+
+TEST(Decks, TinyOutputIntervalsWriteEveryStepAndEnd)
+{
+    // an output or history interval far below the step (or below the resolution of t) writes
+    // at every step; the loop that advanced the next output time used to spin forever
+    const std::string deck = write_deck("tiny_intervals.yaml",
+                                        replace(good, "  end: 1 us\n",
+                                                "  end: 0.3 us\n  history_interval: 1e-20 s\n  output_interval: 1e-20 s\n"));
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_tiny_intervals";
+    fs::remove_all(out);
+    const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
+    ASSERT_EQ(r.code, 0) << r.output;
+    std::ifstream in(out / "summary.json");
+    const std::string summary((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::smatch steps, outputs;
+    ASSERT_TRUE(std::regex_search(summary, steps, std::regex("\"steps\": ([0-9]+)")));
+    ASSERT_TRUE(std::regex_search(summary, outputs, std::regex("\"outputs\": ([0-9]+)")));
+    EXPECT_EQ(std::stoi(outputs[1]), std::stoi(steps[1]) + 1); // the start and every step
+
+    expect_rejected("dt_max_negative.yaml", replace(good, "  end: 1 us\n", "  end: 1 us\n  dt_max: -1 us\n"),
+                    ":4: time.dt_max", "is negative");
+}

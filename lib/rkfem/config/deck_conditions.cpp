@@ -263,6 +263,8 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
     if (!(t.dt_scale > 0 && t.dt_scale <= 1.0))
         s.fail("dt_scale", "is out of range", "expected 0 < dt_scale <= 1");
     t.dt_max = s.quantity("dt_max", dim::time, 0.0);
+    if (!(t.dt_max >= 0.0))
+        s.fail("dt_max", "is negative", "expected a step cap >= 0 (0: no cap)");
     t.max_steps = s.integer("max_steps", 0);
     if (t.max_steps < 0)
         s.fail("max_steps", "is negative", "expected an integer >= 0 (0: no limit)");

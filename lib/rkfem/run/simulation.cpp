@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <unistd.h>
 
@@ -45,6 +46,28 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows)
         const Sym6 s = m.nodal_stress(n);
         for (int k = 0; k < 6; ++k)
             rows.push_back(s[k]);
+    }
+}
+
+/// next += interval until next > limit: the next output time after one at `limit`. An interval
+/// far below the step skips the missed times in one jump, and one below the resolution of `limit`
+/// (next + interval == next) ends just past limit: an output every step, never an endless loop.
+void advance_past(real_t& next, real_t limit, real_t interval)
+{
+    if (next > limit)
+        return;
+    const real_t missed = std::floor((limit - next) / interval);
+    if (missed > 16)
+        next += (missed - 1) * interval;
+    while (next <= limit)
+    {
+        const real_t after = next + interval;
+        if (!(after > next))
+        {
+            next = std::nextafter(limit, std::numeric_limits<real_t>::infinity());
+            return;
+        }
+        next = after;
     }
 }
 
@@ -138,15 +161,13 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                 append_row(model, t, dt_last, sum.history);
                 flush_history_row(first);
                 if (ts.history_interval > 0)
-                    while (next_history <= t)
-                        next_history += ts.history_interval;
+                    advance_past(next_history, t, ts.history_interval);
             }
             if (writer && (t >= next_output - 1e-12 * ts.end || final_step))
             {
                 writer->write_step(model, t);
                 if (ts.output_interval > 0)
-                    while (next_output <= t + 1e-12 * ts.end)
-                        next_output += ts.output_interval;
+                    advance_past(next_output, t + 1e-12 * ts.end, ts.output_interval);
                 else
                     next_output = 2 * ts.end + 1; // start and end only
                 if (csv.is_open())
