@@ -20,6 +20,18 @@ using namespace rkfem;
 
 namespace
 {
+/// Random small displacements (x = x0 + u, |u| up to u_max) and velocities up to 20 m/s.
+void random_motion(NodeSet& nodes, std::mt19937& gen, real_t u_max)
+{
+    std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
+    for (std::size_t j = 0; j < nodes.u.size(); ++j)
+    {
+        nodes.u[j] = u_max * rnd(gen);
+        nodes.x[j] = nodes.x0[j] + nodes.u[j];
+        nodes.v[j] = 20.0 * rnd(gen);
+    }
+}
+
 struct Compared
 {
     real_t force = 0.0, stress = 0.0, hourglass = 0.0, energy = 0.0, dt = 0.0; ///< max relative differences
@@ -35,12 +47,7 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly)
     blk.initialize(nodes, assembly);
     std::mt19937 gen(17);
     std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
-    for (std::size_t j = 0; j < nodes.u.size(); ++j)
-    {
-        nodes.u[j] = 4e-4 * rnd(gen);
-        nodes.x[j] = nodes.x0[j] + nodes.u[j];
-        nodes.v[j] = 20.0 * rnd(gen);
-    }
+    random_motion(nodes, gen, 4e-4);
     const std::size_t ne = static_cast<std::size_t>(blk.n_elements());
     for (int k = 0; k < 6; ++k)
         for (std::size_t e = 0; e < ne; ++e)
@@ -167,12 +174,7 @@ NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, 
     blk.initialize(assembly);
     std::mt19937 gen(23);
     std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
-    for (std::size_t j = 0; j < nodes.u.size(); ++j)
-    {
-        nodes.u[j] = 2e-4 * rnd(gen);
-        nodes.x[j] = nodes.x0[j] + nodes.u[j];
-        nodes.v[j] = 20.0 * rnd(gen);
-    }
+    random_motion(nodes, gen, 2e-4);
     for (int k = 0; k < 6; ++k)
     {
         for (index_t p = 0; p < blk.n_points(); ++p)
@@ -238,21 +240,12 @@ TEST(BlockTables, RebuildingThemKeepsTheState)
     // give the same bits, for a 1-point hex block and a nodal block
     std::mt19937 gen(29);
     std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
-    auto randomize = [&](NodeSet& nodes)
-    {
-        for (std::size_t j = 0; j < nodes.u.size(); ++j)
-        {
-            nodes.u[j] = 2e-4 * rnd(gen);
-            nodes.x[j] = nodes.x0[j] + nodes.u[j];
-            nodes.v[j] = 20.0 * rnd(gen);
-        }
-    };
     const HexMesh mesh = test::distorted_box(5, 0.01, 0.25);
     {
         NodeSet nodes;
         HexBlock blk = test::make_block(mesh, nodes, Formulation::Fem1pt, {HourglassType::Stiffness, 0.05},
                                         ElasticParams::from_E_nu(7850, 200e9, 0.3));
-        randomize(nodes);
+        random_motion(nodes, gen, 2e-4);
         for (auto& q : blk.hg_force)
             q = 1e3 * rnd(gen);
         for (std::size_t k = 0; k < blk.stress.size(); ++k)
@@ -272,7 +265,7 @@ TEST(BlockTables, RebuildingThemKeepsTheState)
         nodes.resize(mesh.n_nodes());
         nodes.x0 = nodes.x = mesh.x;
         NodalBlock blk = build_nodal_block(test::steel_nodal_part(Formulation::Rkpm), mesh, 0);
-        randomize(nodes);
+        random_motion(nodes, gen, 2e-4);
         for (std::size_t k = 0; k < blk.stress.size(); ++k)
             blk.stress[k] = 1e8 * rnd(gen);
         for (auto& s : blk.stab_stress)
