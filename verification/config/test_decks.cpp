@@ -497,3 +497,12 @@ TEST(Decks, TinyOutputIntervalsWriteEveryStepAndEnd)
     expect_rejected("dt_max_negative.yaml", replace(good, "  end: 1 us\n", "  end: 1 us\n  dt_max: -1 us\n"),
                     ":4: time.dt_max", "is negative");
 }
+
+TEST(Decks, QuantitiesMustBeFiniteAndDecksOneDocument)
+{
+    // a value that overflows to infinity through its unit, and a second YAML document, were
+    // accepted silently
+    expect_rejected("infinite_E.yaml", replace(good, "E: 200 GPa", "E: 1e300 GPa"), ":7: parts.col.material.E",
+                    "is not a finite number in SI units");
+    expect_rejected("two_documents.yaml", good + "---\ntitle: second\n", ":13", "holds 2 YAML documents");
+}

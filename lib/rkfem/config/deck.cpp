@@ -212,20 +212,37 @@ Deck build(const YAML::Node& root, Context& ctx)
 }
 } // namespace
 
-Deck parse_deck(const std::string& text, const std::string& name,
-                const std::vector<std::string>& overrides)
+namespace
 {
-    Context ctx{name, {}};
-    YAML::Node root;
+/// The one YAML document of a deck; a second one (after `---`) is refused, not ignored.
+YAML::Node load_document(const std::string& text, const std::string& name)
+{
+    std::vector<YAML::Node> docs;
     try
     {
-        root = YAML::Load(text);
+        docs = YAML::LoadAll(text);
     }
     catch (const YAML::Exception& e)
     {
         throw DeckError({name + ":" + std::to_string(e.mark.line + 1), ""},
                         "YAML syntax error: " + e.msg, "expected a valid YAML document");
     }
+    if (docs.size() > 1)
+    {
+        const YAML::Mark m = docs[1].Mark();
+        throw DeckError({m.is_null() ? name : name + ":" + std::to_string(m.line + 1), ""},
+                        "holds " + std::to_string(docs.size()) + " YAML documents",
+                        "expected one document (remove the second after ---)");
+    }
+    return docs.empty() ? YAML::Node() : docs.front();
+}
+} // namespace
+
+Deck parse_deck(const std::string& text, const std::string& name,
+                const std::vector<std::string>& overrides)
+{
+    Context ctx{name, {}};
+    YAML::Node root = load_document(text, name);
     for (const auto& o : overrides)
         apply_override(root, o, ctx);
     return build(root, ctx);
@@ -239,16 +256,7 @@ MaterialPointDeck read_material_point_deck(const std::string& path)
     std::stringstream ss;
     ss << in.rdbuf();
     Context ctx{path, {}};
-    YAML::Node root;
-    try
-    {
-        root = YAML::Load(ss.str());
-    }
-    catch (const YAML::Exception& e)
-    {
-        throw DeckError({path + ":" + std::to_string(e.mark.line + 1), ""}, "YAML syntax error: " + e.msg,
-                        "expected a valid YAML document");
-    }
+    const YAML::Node root = load_document(ss.str(), path);
     if (!root.IsMap())
         throw DeckError({path, ""}, "is not a YAML mapping", "expected top-level keys title, material, path");
     Section top(ctx, root, "", {"title", "material", "path"});

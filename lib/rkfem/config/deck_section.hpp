@@ -6,6 +6,7 @@
 /// materials; deck_conditions.cpp: selectors and sets, conditions, loads, time; deck.cpp: the
 /// whole deck, overrides).
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <map>
 #include <string>
@@ -140,14 +141,19 @@ class Section
         if (!n.IsScalar())
             throw DeckError(locate(ctx_, n, p), n.IsSequence() ? "is a list" : "is a mapping",
                             "expected " + describe(d));
+        real_t v = 0.0;
         try
         {
-            return parse_quantity(n.Scalar(), d).value_si;
+            v = parse_quantity(n.Scalar(), d).value_si;
         }
         catch (const Error& e)
         {
             throw DeckError(locate(ctx_, n, p), e.what(), "");
         }
+        if (!std::isfinite(v))
+            throw DeckError(locate(ctx_, n, p), "'" + n.Scalar() + "' is not a finite number in SI units",
+                            "expected a finite " + describe(d));
+        return v;
     }
 
     real_t positive(const std::string& key, Dimension d) const
