@@ -136,46 +136,56 @@ struct PlasticPoints
             energy_trial.assign(n, 0.0);
         }
     }
+    /// Calls f(committed, trial) for each history array pair, and with `other` (a block of the
+    /// same model) f(committed, trial, other's committed): the one list of the state's arrays.
+    template <class F> void each_array(F&& f)
+    {
+        f(eps_p, eps_p_trial);
+        f(failed, failed_trial);
+        f(kcc_state, kcc_trial);
+        f(cscm_state, cscm_trial);
+        f(ev, ev_trial);
+        f(energy, energy_trial);
+    }
+    template <class F> void each_array(const PlasticPoints& other, F&& f)
+    {
+        f(eps_p, eps_p_trial, other.eps_p);
+        f(failed, failed_trial, other.failed);
+        f(kcc_state, kcc_trial, other.kcc_state);
+        f(cscm_state, cscm_trial, other.cscm_state);
+        f(ev, ev_trial, other.ev);
+        f(energy, energy_trial, other.energy);
+    }
     /// Copies the committed history of point `from` of `src` (the same model) into point `to`,
     /// trial = committed: state that moves between blocks (an element's points to the particles
     /// that replace it).
     void copy_point(const PlasticPoints& src, std::size_t from, std::size_t to)
     {
-        auto one = [&](auto& committed, auto& trial, const auto& other)
-        {
-            if (committed.empty())
-                return;
-            committed[to] = other[from];
-            trial[to] = other[from];
-        };
-        one(eps_p, eps_p_trial, src.eps_p);
-        one(failed, failed_trial, src.failed);
-        one(kcc_state, kcc_trial, src.kcc_state);
-        one(cscm_state, cscm_trial, src.cscm_state);
-        one(ev, ev_trial, src.ev);
-        one(energy, energy_trial, src.energy);
+        each_array(src,
+                   [&](auto& committed, auto& trial, const auto& other)
+                   {
+                       if (committed.empty())
+                           return;
+                       committed[to] = other[from];
+                       trial[to] = other[from];
+                   });
     }
     /// Keeps the committed state of points from[0], from[1], ... as points 0, 1, ... (an event
     /// that removes or reorders points); trial state = committed.
     void gather(const std::vector<index_t>& from)
     {
-        auto pick = [&](auto& committed, auto& trial)
-        {
-            if (committed.empty())
-                return;
-            auto out = committed;
-            out.resize(from.size());
-            for (std::size_t q = 0; q < from.size(); ++q)
-                out[q] = committed[static_cast<std::size_t>(from[q])];
-            committed = out;
-            trial = std::move(out);
-        };
-        pick(eps_p, eps_p_trial);
-        pick(failed, failed_trial);
-        pick(kcc_state, kcc_trial);
-        pick(cscm_state, cscm_trial);
-        pick(ev, ev_trial);
-        pick(energy, energy_trial);
+        each_array(
+            [&](auto& committed, auto& trial)
+            {
+                if (committed.empty())
+                    return;
+                auto out = committed;
+                out.resize(from.size());
+                for (std::size_t q = 0; q < from.size(); ++q)
+                    out[q] = committed[static_cast<std::size_t>(from[q])];
+                committed = out;
+                trial = std::move(out);
+            });
     }
     /// Crack-band lengths per point (element size, nodal spacing): with a fracture energy, each
     /// K&C point gets the tensile damage scale that dissipates G_f over its length (one solve
@@ -207,12 +217,7 @@ struct PlasticPoints
     }
     void commit()
     {
-        eps_p.swap(eps_p_trial);
-        failed.swap(failed_trial);
-        kcc_state.swap(kcc_trial);
-        cscm_state.swap(cscm_trial);
-        ev.swap(ev_trial);
-        energy.swap(energy_trial);
+        each_array([](auto& committed, auto& trial) { committed.swap(trial); });
     }
     /// Updates point p from its committed history into the trial arrays; returns the plastic
     /// work density increment (K&C and CSCM; 0 for J2).
