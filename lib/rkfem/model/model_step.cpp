@@ -105,6 +105,9 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
         assemble_block_forces(blk, nodes, add);
         offset += blk.n_elements();
     }
+    // penalty contact bounds the step too (dt_element still names the element with the smallest)
+    for (const auto& c : contacts)
+        rep.dt_stable = std::min(rep.dt_stable, c->stable_step());
     return rep;
 }
 

@@ -56,11 +56,6 @@ class CoupledShapes final : public ShapeEvaluator
 
     Kind kind(index_t e) const { return kind_[static_cast<std::size_t>(e)]; }
     bool is_particle(index_t node) const { return particle_of_[static_cast<std::size_t>(node)] >= 0; }
-    index_t n_particles() const { return static_cast<index_t>(particle_node_.size()); }
-    /// The RK functions over the particles (particle numbering; particle_node() maps to nodes).
-    const RkShapeFunctions& rk() const { return rk_; }
-    index_t particle_node(index_t p) const { return particle_node_[static_cast<std::size_t>(p)]; }
-    Transition transition() const { return transition_; }
 
     /// Physical value at node I: the row sum_k N_k(X_I) d_k (identity at FE nodes, the RK
     /// interpolant sum_J Psi_J(X_I) d_J at particles), appended to (nodes, values).
