@@ -506,3 +506,32 @@ TEST(Decks, QuantitiesMustBeFiniteAndDecksOneDocument)
                     "is not a finite number in SI units");
     expect_rejected("two_documents.yaml", good + "---\ntitle: second\n", ":13", "holds 2 YAML documents");
 }
+
+TEST(Decks, ContactsAreCheckedWithTheirLines)
+{
+    // each contact entry names its surfaces (parts or face sets) and its own keys; a mistake is
+    // one line naming the entry
+    const std::string wall = good + "contacts:\n  - {type: rigid-wall, surfaces: [col], point: [0, 0, 0], normal: [0, 0, 1]}\n";
+    expect_rejected("contact_unknown_surface.yaml", replace(wall, "surfaces: [col]", "surfaces: [colum]"),
+                    ":13: contacts.0.surfaces.0", "unknown surface 'colum'");
+    expect_rejected("contact_zero_normal.yaml", replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 0]}\n"),
+                    ":13: contacts.0.normal", "is the zero vector");
+    expect_rejected("contact_bad_type.yaml", replace(wall, "rigid-wall", "rigid_wall"), ":13: contacts.0.type",
+                    "'rigid_wall' is not a valid choice");
+    expect_rejected("contact_wall_key.yaml", replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 1], thickness: 1 mm}\n"),
+                    ":13: contacts.0.thickness", "unknown key 'thickness'");
+    expect_rejected("contact_penalty.yaml", replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 1], penalty_scale: 2}\n"),
+                    ":13: contacts.0.penalty_scale", "is outside (0, 0.80]");
+    const std::string pair = good + "contacts:\n  - {type: surface-to-surface, surfaces: [col]}\n";
+    expect_rejected("contact_one_surface.yaml", pair, ":13: contacts.0.surfaces", "does not name two surfaces");
+    expect_rejected("contact_friction.yaml",
+                    replace(pair, "surfaces: [col]", "surfaces: [col, col], friction: {static: -0.1}"),
+                    ":13: contacts.0.friction.static", "is negative");
+    // a good contact deck runs, and check echoes the resolved contact
+    const std::string deck = write_deck("contact_good.yaml", wall);
+    const Result r = run("check " + deck);
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("- {type: rigid-wall, surfaces: [col], point: [0, 0, 0], normal: [0, 0, 1]"),
+              std::string::npos)
+        << r.output;
+}

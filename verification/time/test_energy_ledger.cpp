@@ -160,7 +160,10 @@ class PenaltyWall final : public ContactAlgorithm
 {
   public:
     PenaltyWall(real_t z_wall, real_t k) : z_(z_wall), k_(k) {}
-    void add_forces(const PhysicalNodes& nodes, real_t, ContactChannel& ch) override
+    void set_surfaces(std::vector<ContactSurface>) override {}
+    Vec3 resultant() const override { return Vec3::Zero(); }
+    index_t active_nodes() const override { return 0; }
+    void add_forces(const PhysicalNodes& nodes, const ContactClock&, ContactChannel& ch) override
     {
         for (index_t i = 0; i < nodes.size(); ++i)
         {

@@ -114,7 +114,7 @@ Deck build(const YAML::Node& root, Context& ctx)
                         "expected top-level keys title, time, parts, ...");
     Section top(ctx, root, "",
                 {"title", "time", "parts", "node_sets", "face_sets", "boundary_conditions",
-                 "loads", "probes"});
+                 "loads", "probes", "contacts"});
     Deck deck;
     deck.path = ctx.name;
     deck.title = top.text("title", "");
@@ -161,6 +161,7 @@ Deck build(const YAML::Node& root, Context& ctx)
     };
     list("boundary_conditions", read_boundary, deck.boundary_conditions);
     list("loads", read_load, deck.loads);
+    list("contacts", read_contact, deck.contacts);
 
     auto set_exists = [&](const std::vector<SetSpec>& sets, const std::string& name)
     {
@@ -189,6 +190,28 @@ Deck build(const YAML::Node& root, Context& ctx)
             throw DeckError({l.loc.where, l.loc.path + (face ? ".face_set" : ".node_set")},
                             "unknown " + std::string(face ? "face" : "node") + " set '" + l.set + "'",
                             "expected one of " + names_of(sets));
+    }
+
+    for (std::size_t i = 0; i < deck.contacts.size(); ++i)
+    {
+        const ContactSpec& c = deck.contacts[i];
+        for (std::size_t k = 0; k < c.surfaces.size(); ++k)
+        {
+            const std::string& name = c.surfaces[k];
+            const bool is_part =
+                std::any_of(deck.parts.begin(), deck.parts.end(), [&](const PartSpec& p) { return p.name == name; });
+            if (!is_part && !set_exists(deck.face_sets, name))
+            {
+                std::vector<std::string> names;
+                for (const auto& p : deck.parts)
+                    names.push_back(p.name);
+                for (const auto& f : deck.face_sets)
+                    names.push_back(f.name);
+                throw DeckError({c.loc.where, c.loc.path + ".surfaces." + std::to_string(k)},
+                                "unknown surface '" + name + "'",
+                                "expected a part or face-set name: " + join(names));
+            }
+        }
     }
 
     const YAML::Node probes = root["probes"];

@@ -246,6 +246,31 @@ struct ProbeSpec
     SourceLocation loc;
 };
 
+/// One contact definition (deck key contacts): LS-DYNA's *CONTACT_AUTOMATIC_SURFACE_TO_SURFACE,
+/// *CONTACT_AUTOMATIC_SINGLE_SURFACE and *RIGIDWALL_PLANAR (penalty) analogs.
+struct ContactSpec
+{
+    enum class Kind
+    {
+        SurfaceToSurface,
+        SingleSurface,
+        RigidWall
+    };
+    Kind kind = Kind::SurfaceToSurface;
+    /// Part or face-set names: surface-to-surface two (each a part's boundary or a face set),
+    /// single-surface and rigid-wall any number (their union; empty: every part)
+    std::vector<std::string> surfaces;
+    bool soft = true;               ///< stiffness: soft (max of segment and soft, SOFT = 1) | segment
+    real_t penalty_scale = 0.1;     ///< SLSFAC (segment stiffness K A / h)
+    real_t soft_scale = 0.1;        ///< SOFSCL (soft stiffness m* / dt^2); rigid wall: its penalty
+    real_t thickness = 0.0;         ///< [m]
+    real_t max_penetration = 0.5;   ///< of the element depth behind a segment
+    real_t mu_static = 0.0, mu_dynamic = 0.0;
+    real_t decay = 0.0;             ///< [s/m]
+    Vec3 point = Vec3::Zero(), normal = Vec3::UnitZ(), velocity = Vec3::Zero(); ///< rigid wall
+    SourceLocation loc;
+};
+
 enum class StepperKind
 {
     CentralDifference, ///< hand-written kick-drift-kick
@@ -278,6 +303,7 @@ struct Deck
     std::vector<BoundarySpec> boundary_conditions;
     std::vector<LoadSpec> loads;
     std::vector<ProbeSpec> probes;
+    std::vector<ContactSpec> contacts;
     SourceLocation time_loc;
 };
 

@@ -306,6 +306,33 @@ std::string to_yaml(const Deck& d)
                    << "}\n";
         }
     }
+    if (!d.contacts.empty())
+    {
+        os << "contacts:\n";
+        for (const auto& c : d.contacts)
+        {
+            os << "  - {type: "
+               << (c.kind == ContactSpec::Kind::SurfaceToSurface ? "surface-to-surface"
+                   : c.kind == ContactSpec::Kind::SingleSurface  ? "single-surface"
+                                                                 : "rigid-wall");
+            if (!c.surfaces.empty())
+            {
+                os << ", surfaces: [";
+                for (std::size_t k = 0; k < c.surfaces.size(); ++k)
+                    os << (k ? ", " : "") << c.surfaces[k];
+                os << "]";
+            }
+            if (c.kind == ContactSpec::Kind::RigidWall)
+                os << ", point: " << vec(c.point) << ", normal: " << vec(c.normal) << ", velocity: " << vec(c.velocity)
+                   << ", penalty_scale: " << c.soft_scale;
+            else
+                os << ", stiffness: " << (c.soft ? "soft" : "segment") << ", penalty_scale: " << c.penalty_scale
+                   << ", soft_scale: " << c.soft_scale << ", thickness: " << c.thickness
+                   << ", max_penetration: " << c.max_penetration;
+            os << ", friction: {static: " << c.mu_static << ", dynamic: " << c.mu_dynamic << ", decay: " << c.decay
+               << "}}\n";
+        }
+    }
     if (!d.probes.empty())
     {
         os << "probes:\n";

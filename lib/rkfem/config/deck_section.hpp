@@ -237,6 +237,7 @@ SelectorSpec read_selector(const Section& parent);
 std::vector<SetSpec> read_sets(const Context& ctx, const YAML::Node& root, const std::string& key);
 BoundarySpec read_boundary(const Context& ctx, const YAML::Node& n, const std::string& p);
 LoadSpec read_load(const Context& ctx, const YAML::Node& n, const std::string& p);
+ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::string& p);
 TimeSpec read_time(const Context& ctx, const YAML::Node& root);
 GeneratorSpec read_generator(const Section& part);
 MaterialSpec read_material(const Section& part);

@@ -3,7 +3,12 @@
 /// One contact definition (a rigid wall, a pair of surfaces, a surface with itself): it reads the
 /// current nodal state and adds its nodal forces to the contact channel. Penalty algorithms also
 /// bound the stable step.
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
 #include "rkfem/approximation/rk/kinematic_map.hpp"
+#include "rkfem/contact/contact_surface.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/operators/contact_channel.hpp"
 
@@ -36,14 +41,54 @@ class PhysicalNodes
     const KinematicMap& map_;
 };
 
+/// When contact forces are evaluated: the time and the elements' critical step at that
+/// evaluation (the soft penalty's stiffness m / dt^2 takes the first one it sees and keeps it,
+/// as LS-DYNA's SOFT = 1 takes the initial step).
+struct ContactClock
+{
+    real_t t = 0.0;
+    real_t dt_critical = 0.0;
+};
+
+/// Coulomb friction, LS-DYNA's FS, FD and DC: mu = mu_d + (mu_s - mu_d) exp(-decay |v_t|). Stick is
+/// regularized: the tangential force never exceeds the one that stops the relative sliding within
+/// one critical step (m* |v_t| / dt), so there is no tangential spring with a history.
+struct Friction
+{
+    real_t mu_static = 0.0, mu_dynamic = 0.0;
+    real_t decay = 0.0; ///< [s/m]
+    bool active() const { return mu_static > 0.0 || mu_dynamic > 0.0; }
+    real_t coefficient(real_t slip_speed) const
+    {
+        return mu_dynamic + (mu_static - mu_dynamic) * std::exp(-decay * slip_speed);
+    }
+    /// The tangential force on a point of reduced mass m* sliding at v_t under normal force fn.
+    Vec3 force(const Vec3& v_t, real_t fn, real_t m_star, real_t dt) const
+    {
+        const real_t s = v_t.norm();
+        if (!active() || !(s > 0.0))
+            return Vec3::Zero();
+        const real_t ft = std::min(coefficient(s) * fn, m_star * s / dt);
+        return (-ft / s) * v_t;
+    }
+};
+
 class ContactAlgorithm
 {
   public:
     virtual ~ContactAlgorithm() = default;
-    /// Adds the forces at time t from the current physical positions and velocities; the
+    /// Adds the forces at clock.t from the current physical positions and velocities; the
     /// channel takes forces at physical points.
-    virtual void add_forces(const PhysicalNodes& nodes, real_t t, ContactChannel& channel) = 0;
+    virtual void add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel) = 0;
     /// The largest stable step the contact stiffness allows (1e300: no bound).
     virtual real_t stable_step() const { return 1e300; }
+    /// The surfaces again, after an event changed them (erosion exposes new faces); the same
+    /// number and order as at construction.
+    virtual void set_surfaces(std::vector<ContactSurface> surfaces) = 0;
+    /// The resultant force the contact put on its first surface's nodes in the last evaluation
+    /// (slave side of a wall), for histories (LS-DYNA's RCFORC / RWFORC).
+    virtual Vec3 resultant() const = 0;
+    /// Nodes in contact in the last evaluation.
+    virtual index_t active_nodes() const = 0;
 };
 } // namespace rkfem

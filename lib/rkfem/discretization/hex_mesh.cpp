@@ -6,7 +6,7 @@
 
 namespace rkfem
 {
-std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn)
+std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::vector<index_t>* owner)
 {
     const index_t ne = static_cast<index_t>(conn.size() / 8);
     struct Entry
@@ -42,11 +42,15 @@ std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn)
         i = j;
     }
     std::vector<Quad> faces;
+    if (owner)
+        owner->clear();
     for (std::size_t i = 0; i < entries.size(); ++i)
         if (boundary[i])
         {
             const index_t e = entries[i].element;
             const int f = entries[i].face;
+            if (owner)
+                owner->push_back(e);
             faces.push_back({conn[8 * e + hex_faces[f][0]], conn[8 * e + hex_faces[f][1]],
                              conn[8 * e + hex_faces[f][2]], conn[8 * e + hex_faces[f][3]]});
         }

@@ -40,8 +40,9 @@ inline constexpr std::array<std::array<int, 4>, 6> hex_faces{{
     {3, 0, 4, 7}, // xi = -1
 }};
 
-/// Finds faces that belong to one element only. Order: by element, then by local face.
-std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn);
+/// Finds faces that belong to one element only. Order: by element, then by local face. With
+/// `owner`, the element of each face (an index into conn / 8).
+std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::vector<index_t>* owner = nullptr);
 
 /// Area-weighted normal of a quad (|n| = area for a planar quad): (x2 - x0) x (x3 - x1) / 2.
 Vec3 quad_normal(const std::vector<real_t>& x, const Quad& q);

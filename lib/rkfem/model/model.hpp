@@ -99,8 +99,12 @@ class Model final : public ExplicitOperator
     KinematicMap kinematics;
     /// Contact forces reach the nodes through this channel (own work term in the ledger).
     ContactChannel contact;
-    /// Contact algorithms, evaluated in order in external_forces() on current positions.
+    /// Contact algorithms, evaluated in order in external_forces() on current positions; one
+    /// per deck contact, same order.
     std::vector<std::unique_ptr<ContactAlgorithm>> contacts;
+    /// The surface of parts or face sets (empty: every meshed part): a part's is the boundary of
+    /// its current elements. Throws DeckError (at `loc`) for cloud parts.
+    ContactSurface contact_surface(const std::vector<std::string>& names, const SourceLocation& loc) const;
 
     // ---- the explicit operator (time/explicit_operator.hpp): phases the steppers call ----
     NodeSet& state() override { return nodes; }
@@ -189,6 +193,11 @@ class Model final : public ExplicitOperator
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();
+    real_t dt_critical_ = 0.0; ///< the elements' critical step at the last force evaluation
+    std::vector<ContactSurface> contact_surfaces(const ContactSpec& c) const;
+    void build_contacts();
+    /// After erosion: every contact's surfaces again from the remaining elements.
+    void refresh_contact_surfaces();
     /// The dofs any load can put a force on (ascending): f_ext is zero everywhere else, so the
     /// load pass zeroes and the external work sums only these. f_ext_prev_ is per loaded dof.
     std::vector<index_t> loaded_dofs_;

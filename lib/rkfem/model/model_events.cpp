@@ -22,6 +22,7 @@ void Model::remove_elements(index_t block, const std::vector<char>& keep)
         offset += blocks[ip].n_elements();
     }
     plan_assembly();
+    refresh_contact_surfaces(); // eroding contact: the newly exposed faces join the surfaces
     ++topology_version_;
 }
 

@@ -105,6 +105,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
         assemble_block_forces(blk, nodes, add);
         offset += blk.n_elements();
     }
+    dt_critical_ = rep.dt_stable;
     // penalty contact bounds the step too (dt_element still names the element with the smallest)
     for (const auto& c : contacts)
         rep.dt_stable = std::min(rep.dt_stable, c->stable_step());
@@ -118,8 +119,9 @@ void Model::external_forces(real_t t)
         return;
     contact.clear();
     const PhysicalNodes physical_nodes(nodes, kinematics);
+    const ContactClock clock{t, dt_critical_};
     for (auto& c : contacts)
-        c->add_forces(physical_nodes, t, contact);
+        c->add_forces(physical_nodes, clock, contact);
 }
 
 void Model::accelerations()

@@ -1,0 +1,45 @@
+#pragma once
+/// @file contact_surface.hpp
+/// A contact surface: quadrilateral segments (outward normals by the right-hand rule, as the
+/// mesh's boundary faces are), what the penalty needs per segment, and the surface's nodes with
+/// their tributary areas. Built once per discretization in the reference configuration; an
+/// event that exposes new faces (erosion) builds it again.
+#include <vector>
+
+#include "rkfem/core/types.hpp"
+#include "rkfem/discretization/hex_mesh.hpp"
+
+namespace rkfem
+{
+struct ContactSurface
+{
+    std::vector<Quad> segments;
+    std::vector<real_t> bulk_modulus; ///< per segment: K of the material behind it [Pa]
+    std::vector<real_t> depth;        ///< per segment: V / A of the element behind it (reference) [m]
+    std::vector<index_t> nodes;       ///< the segments' distinct nodes, ascending
+    std::vector<real_t> node_area;    ///< per entry of `nodes`: a quarter of each adjacent segment's area [m^2]
+
+    index_t n_segments() const { return static_cast<index_t>(segments.size()); }
+    /// Appends segments: faces of elements of a hex connectivity (owner[f]: the element of face
+    /// f, an index into conn / 8; empty: depth from the face alone, its square root of area),
+    /// bulk modulus K for all of them. x0: reference coordinates of every node (3 n).
+    void add(const std::vector<Quad>& faces, const std::vector<index_t>& owner, const std::vector<index_t>& conn,
+             const std::vector<real_t>& x0, real_t K);
+    /// Computes `nodes` and `node_area` from the segments (call after the last add()).
+    void finish(const std::vector<real_t>& x0);
+};
+
+/// The closest point of a bilinear quadrilateral segment to a point.
+struct SegmentPoint
+{
+    real_t xi = 0.0, eta = 0.0; ///< in [-1, 1]^2 (clamped)
+    real_t N[4] = {0.0, 0.0, 0.0, 0.0}; ///< shape functions there
+    Vec3 x = Vec3::Zero();      ///< the point on the segment
+    Vec3 normal = Vec3::Zero(); ///< unit outward normal there
+    bool inside = false;        ///< the unclamped projection lies in the segment (with a tolerance)
+};
+
+/// Projects p on the segment with corners c (Newton on the squared distance, clamped to the
+/// parameter square). `tolerance`: how far outside [-1, 1] in (xi, eta) still counts as inside.
+SegmentPoint project_on_segment(const Vec3 (&c)[4], const Vec3& p, real_t tolerance = 1e-3);
+} // namespace rkfem

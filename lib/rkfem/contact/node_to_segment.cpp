@@ -1,0 +1,268 @@
+#include "rkfem/contact/node_to_segment.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "rkfem/core/parallel.hpp"
+
+namespace rkfem
+{
+NodeToSegmentContact::NodeToSegmentContact(std::vector<ContactSurface> surfaces, const ContactParameters& p) : p_(p)
+{
+    set_surfaces(std::move(surfaces));
+}
+
+void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
+{
+    surfaces_ = std::move(surfaces);
+    passes_.clear();
+    if (surfaces_.size() == 1)
+        passes_.push_back(Pass{0, 0, {}, {}, {}, {}});
+    else
+    {
+        passes_.push_back(Pass{0, 1, {}, {}, {}, {}});
+        passes_.push_back(Pass{1, 0, {}, {}, {}, {}});
+    }
+    all_nodes_.clear();
+    real_t size = 0.0, deepest = 0.0;
+    index_t n_seg = 0;
+    for (const ContactSurface& s : surfaces_)
+    {
+        all_nodes_.insert(all_nodes_.end(), s.nodes.begin(), s.nodes.end());
+        for (index_t k = 0; k < s.n_segments(); ++k)
+            deepest = std::max(deepest, s.depth[k]);
+        for (real_t a : s.node_area) // the tributary areas sum to the segments' area
+            size += a;
+        n_seg += s.n_segments();
+    }
+    std::sort(all_nodes_.begin(), all_nodes_.end());
+    all_nodes_.erase(std::unique(all_nodes_.begin(), all_nodes_.end()), all_nodes_.end());
+    const std::size_t n_surf = surfaces_.size();
+    corner_slot_.assign(n_surf, {});
+    node_normal_.assign(n_surf, {});
+    segment_area_.assign(n_surf, {});
+    node_segment_offsets_.assign(n_surf, {});
+    node_segments_.assign(n_surf, {});
+    for (std::size_t k = 0; k < n_surf; ++k)
+    {
+        const ContactSurface& s = surfaces_[k];
+        for (const Quad& q : s.segments)
+            for (index_t n : q)
+                corner_slot_[k].push_back(
+                    static_cast<index_t>(std::lower_bound(s.nodes.begin(), s.nodes.end(), n) - s.nodes.begin()));
+        node_normal_[k].assign(s.nodes.size(), Vec3::Zero());
+        segment_area_[k].assign(s.segments.size(), Vec3::Zero());
+        // node -> segments, counts then offsets then entries
+        std::vector<index_t>& off = node_segment_offsets_[k];
+        off.assign(s.nodes.size() + 1, 0);
+        for (index_t slot : corner_slot_[k])
+            ++off[static_cast<std::size_t>(slot) + 1];
+        for (std::size_t i = 0; i < s.nodes.size(); ++i)
+            off[i + 1] += off[i];
+        std::vector<index_t> fill(off.begin(), off.end() - 1);
+        node_segments_[k].resize(static_cast<std::size_t>(off.back()));
+        for (std::size_t c = 0; c < corner_slot_[k].size(); ++c)
+            node_segments_[k][static_cast<std::size_t>(fill[static_cast<std::size_t>(corner_slot_[k][c])]++)] =
+                static_cast<index_t>(c / 4);
+    }
+    // the search margin: a quarter of the mean segment's edge (size: the total area)
+    margin_ = n_seg > 0 ? 0.25 * std::sqrt(size / static_cast<real_t>(n_seg)) : 0.0;
+    reach_ = margin_ + p_.max_penetration * deepest + p_.thickness;
+    searched_ = false;
+    active_ = 0;
+    resultant_ = Vec3::Zero();
+}
+
+void NodeToSegmentContact::search(const PhysicalNodes& nodes)
+{
+    x_search_.resize(3 * all_nodes_.size());
+    for (std::size_t k = 0; k < all_nodes_.size(); ++k)
+    {
+        const Vec3 x = nodes.x(all_nodes_[k]);
+        for (int d = 0; d < 3; ++d)
+            x_search_[3 * k + d] = x[d];
+    }
+    for (Pass& pass : passes_)
+    {
+        const ContactSurface& master = surfaces_[static_cast<std::size_t>(pass.master)];
+        const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
+        const index_t ns = master.n_segments();
+        lo_.resize(3 * static_cast<std::size_t>(ns));
+        hi_.resize(3 * static_cast<std::size_t>(ns));
+        for (index_t s = 0; s < ns; ++s)
+        {
+            Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+            for (index_t n : master.segments[s])
+            {
+                const Vec3 x = nodes.x(n);
+                lo = lo.cwiseMin(x);
+                hi = hi.cwiseMax(x);
+            }
+            for (int d = 0; d < 3; ++d)
+            {
+                lo_[3 * s + d] = lo[d];
+                hi_[3 * s + d] = hi[d];
+            }
+        }
+        pass.buckets.build(lo_, hi_, reach_);
+        const index_t n_slave = static_cast<index_t>(slave.nodes.size());
+        pass.offsets.assign(static_cast<std::size_t>(n_slave) + 1, 0);
+        pass.candidates.clear();
+        const bool self = pass.slave == pass.master;
+        for (index_t k = 0; k < n_slave; ++k)
+        {
+            const index_t i = slave.nodes[k];
+            pass.buckets.for_candidates(nodes.x(i),
+                                        [&](index_t s)
+                                        {
+                                            const Quad& q = master.segments[s];
+                                            if (self && std::find(q.begin(), q.end(), i) != q.end())
+                                                return; // a node never contacts a segment it belongs to
+                                            pass.candidates.push_back(s);
+                                        });
+            pass.offsets[k + 1] = static_cast<index_t>(pass.candidates.size());
+        }
+        pass.hits.resize(static_cast<std::size_t>(n_slave));
+    }
+    searched_ = true;
+    ++searches_;
+}
+
+void NodeToSegmentContact::update_node_normals(const PhysicalNodes& nodes)
+{
+    for (std::size_t k = 0; k < surfaces_.size(); ++k)
+    {
+        const ContactSurface& s = surfaces_[k];
+        std::vector<Vec3>& nn = node_normal_[k];
+        std::fill(nn.begin(), nn.end(), Vec3::Zero());
+        for (index_t f = 0; f < s.n_segments(); ++f)
+        {
+            const Quad& q = s.segments[f];
+            const Vec3 a = 0.5 * (nodes.x(q[2]) - nodes.x(q[0])).cross(nodes.x(q[3]) - nodes.x(q[1]));
+            segment_area_[k][static_cast<std::size_t>(f)] = a;
+            for (int c = 0; c < 4; ++c)
+                nn[static_cast<std::size_t>(corner_slot_[k][4 * f + c])] += a;
+        }
+        for (Vec3& n : nn)
+        {
+            const real_t len = n.norm();
+            if (len > 0.0)
+                n /= len;
+        }
+    }
+}
+
+void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) const
+{
+    const ContactSurface& master = surfaces_[static_cast<std::size_t>(pass.master)];
+    const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
+    const index_t n_slave = static_cast<index_t>(slave.nodes.size());
+    const bool soft = p_.soft && dt0_ > 0.0 && dt0_ < 1e299;
+    parallel_for("rkfem::contact_node_to_segment", n_slave,
+                 [&](index_t k)
+                 {
+                     Hit& h = pass.hits[static_cast<std::size_t>(k)];
+                     h.segment = -1;
+                     const index_t i = slave.nodes[k];
+                     const Vec3 xs = nodes.x(i);
+                     const Vec3& ns = node_normal_[static_cast<std::size_t>(pass.slave)][static_cast<std::size_t>(k)];
+                     real_t best = 1e300;
+                     SegmentPoint at;
+                     for (index_t c = pass.offsets[k]; c < pass.offsets[k + 1]; ++c)
+                     {
+                         const index_t s = pass.candidates[c];
+                         const Quad& q = master.segments[s];
+                         const Vec3 corners[4] = {nodes.x(q[0]), nodes.x(q[1]), nodes.x(q[2]), nodes.x(q[3])};
+                         const SegmentPoint sp = project_on_segment(corners, xs);
+                         if (!sp.inside || !(sp.normal.dot(ns) < 0.0))
+                             continue;
+                         const real_t gap = (xs - sp.x).dot(sp.normal);
+                         const real_t pen = p_.thickness - gap;
+                         if (!(pen > 0.0) || pen > p_.max_penetration * master.depth[s] + p_.thickness || pen >= best)
+                             continue;
+                         best = pen;
+                         h.segment = s;
+                         at = sp;
+                     }
+                     if (h.segment < 0)
+                         return;
+                     const Quad& q = master.segments[h.segment];
+                     real_t m_m = 0.0;
+                     Vec3 v_m = Vec3::Zero();
+                     for (int a = 0; a < 4; ++a)
+                     {
+                         h.N[a] = at.N[a];
+                         m_m += at.N[a] * nodes.mass(q[a]);
+                         v_m += at.N[a] * nodes.v(q[a]);
+                     }
+                     const real_t m_s = nodes.mass(i);
+                     const real_t m_star = m_s * m_m / (m_s + m_m);
+                     // the slave node's area that faces the segment
+                     const std::size_t ss = static_cast<std::size_t>(pass.slave);
+                     real_t area = 0.0;
+                     for (index_t j = node_segment_offsets_[ss][k]; j < node_segment_offsets_[ss][k + 1]; ++j)
+                         area += 0.25 * std::max(0.0, -segment_area_[ss][node_segments_[ss][j]].dot(at.normal));
+                     real_t k_pen =
+                         p_.penalty_scale * master.bulk_modulus[h.segment] * area / master.depth[h.segment];
+                     if (soft)
+                         k_pen = std::max(k_pen, p_.soft_scale * m_star / (dt0_ * dt0_));
+                     const real_t fn = k_pen * best;
+                     h.f = fn * at.normal;
+                     if (p_.friction.active() && dt0_ > 0.0)
+                     {
+                         const Vec3 v_rel = nodes.v(i) - v_m;
+                         const Vec3 v_t = v_rel - v_rel.dot(at.normal) * at.normal;
+                         h.f += p_.friction.force(v_t, fn, m_star, dt0_);
+                     }
+                     h.k_over_m = k_pen / m_star;
+                 });
+}
+
+void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel)
+{
+    if (dt0_ == 0.0 && clock.dt_critical > 0.0)
+        dt0_ = clock.dt_critical;
+    bool redo = !searched_;
+    if (!redo)
+    {
+        const real_t limit = 0.25 * margin_ * margin_; // half the margin, squared
+        for (std::size_t k = 0; k < all_nodes_.size() && !redo; ++k)
+        {
+            const Vec3 x = nodes.x(all_nodes_[k]);
+            const Vec3 x0(x_search_[3 * k], x_search_[3 * k + 1], x_search_[3 * k + 2]);
+            redo = (x - x0).squaredNorm() > limit;
+        }
+    }
+    if (redo)
+        search(nodes);
+    update_node_normals(nodes);
+    resultant_ = Vec3::Zero();
+    active_ = 0;
+    real_t k_over_m = 0.0;
+    for (Pass& pass : passes_)
+    {
+        evaluate(pass, nodes);
+        const ContactSurface& master = surfaces_[static_cast<std::size_t>(pass.master)];
+        const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
+        const real_t side = pass.slave == 0 ? 1.0 : -1.0; // resultant on surface 0
+        for (std::size_t k = 0; k < pass.hits.size(); ++k)
+        {
+            const Hit& h = pass.hits[k];
+            if (h.segment < 0)
+                continue;
+            channel.add(slave.nodes[k], h.f);
+            const Quad& q = master.segments[h.segment];
+            for (int a = 0; a < 4; ++a)
+                channel.add(q[a], -h.N[a] * h.f);
+            resultant_ += side * h.f;
+            k_over_m = std::max(k_over_m, h.k_over_m);
+            ++active_;
+        }
+    }
+    // A surface node's stiffest element mode is taken at most sqrt(2) / dt0 (the free end of a
+    // 1-D bar at the critical step dt0, against 2 / dt0 inside); the contact spring adds k / m*,
+    // and central difference needs omega dt <= 2: dt <= dt0 sqrt(2 / (1 + k dt0^2 / m*)). Below
+    // k dt0^2 / m* = 1 (every default) the elements' step stands.
+    dt_bound_ = k_over_m > 0.0 && dt0_ > 0.0 ? dt0_ * std::sqrt(2.0 / (1.0 + k_over_m * dt0_ * dt0_)) : 1e300;
+}
+} // namespace rkfem

@@ -1,0 +1,59 @@
+#include "rkfem/contact/rigid_wall.hpp"
+
+#include <algorithm>
+
+#include "rkfem/core/parallel.hpp"
+
+namespace rkfem
+{
+RigidWall::RigidWall(std::vector<ContactSurface> surfaces, const RigidWallParameters& p) : p_(p)
+{
+    set_surfaces(std::move(surfaces));
+}
+
+void RigidWall::set_surfaces(std::vector<ContactSurface> surfaces)
+{
+    nodes_.clear();
+    for (const ContactSurface& s : surfaces)
+        nodes_.insert(nodes_.end(), s.nodes.begin(), s.nodes.end());
+    std::sort(nodes_.begin(), nodes_.end());
+    nodes_.erase(std::unique(nodes_.begin(), nodes_.end()), nodes_.end());
+    f_.assign(nodes_.size(), Vec3::Zero());
+}
+
+void RigidWall::add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel)
+{
+    if (dt0_ == 0.0 && clock.dt_critical > 0.0 && clock.dt_critical < 1e299)
+        dt0_ = clock.dt_critical;
+    resultant_ = Vec3::Zero();
+    active_ = 0;
+    if (dt0_ == 0.0)
+        return;
+    const Vec3 origin = p_.point + clock.t * p_.velocity;
+    const Vec3& n = p_.normal;
+    parallel_for("rkfem::rigid_wall", static_cast<index_t>(nodes_.size()),
+                 [&](index_t k)
+                 {
+                     const index_t i = nodes_[k];
+                     const real_t gap = (nodes.x(i) - origin).dot(n);
+                     Vec3& f = f_[static_cast<std::size_t>(k)];
+                     if (!(gap < 0.0))
+                     {
+                         f = Vec3::Zero();
+                         return;
+                     }
+                     const real_t m = nodes.mass(i);
+                     const real_t fn = -p_.scale * m / (dt0_ * dt0_) * gap;
+                     f = fn * n;
+                     const Vec3 v_rel = nodes.v(i) - p_.velocity;
+                     f += p_.friction.force(v_rel - v_rel.dot(n) * n, fn, m, dt0_);
+                 });
+    for (std::size_t k = 0; k < nodes_.size(); ++k)
+        if (f_[k] != Vec3::Zero())
+        {
+            channel.add(nodes_[k], f_[k]);
+            resultant_ += f_[k];
+            ++active_;
+        }
+}
+} // namespace rkfem

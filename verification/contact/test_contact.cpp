@@ -1,0 +1,331 @@
+// Penalty contact (lib/rkfem/contact): the closest point on a segment, the bucket search
+// against brute force, and elastic bars against a rigid wall and against each other, where
+// 1-D wave theory gives the answers: a bar of length L striking a wall end on stays in
+// contact for 2 L / c and leaves with its speed reversed; two identical bars exchange their
+// velocities after 2 L / c. Momentum is conserved to round-off through node-to-segment
+// contact (each force meets its opposite, spread by shape functions that sum to 1), and the
+// energy ledger closes with the penalty springs' energy in its contact term.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "../support.hpp"
+#include "rkfem/contact/contact_surface.hpp"
+#include "rkfem/contact/segment_buckets.hpp"
+#include "rkfem/run/simulation.hpp"
+
+using namespace rkfem;
+
+TEST(SegmentProjection, FindsTheClosestPointOfAWarpedQuad)
+{
+    // a warped quad: closest points of random targets checked against a fine parameter scan
+    const Vec3 c[4] = {{0, 0, 0}, {2, 0, 0.3}, {2.2, 1.8, -0.2}, {-0.1, 2, 0.1}};
+    std::mt19937 gen(3);
+    std::uniform_real_distribution<real_t> u(-0.9, 0.9), h(-0.5, 0.5);
+    real_t worst = 0.0;
+    for (int trial = 0; trial < 50; ++trial)
+    {
+        const real_t xi = u(gen), eta = u(gen);
+        auto at = [&](real_t a, real_t b)
+        {
+            return 0.25 * ((1 - a) * (1 - b) * c[0] + (1 + a) * (1 - b) * c[1] + (1 + a) * (1 + b) * c[2] +
+                           (1 - a) * (1 + b) * c[3]);
+        };
+        const Vec3 p = at(xi, eta) + Vec3(0.1 * h(gen), 0.1 * h(gen), h(gen));
+        const SegmentPoint s = project_on_segment(c, p);
+        real_t best = 1e300;
+        for (int i = 0; i <= 400; ++i)
+            for (int j = 0; j <= 400; ++j)
+                best = std::min(best, (at(-1 + i / 200.0, -1 + j / 200.0) - p).norm());
+        EXPECT_TRUE(s.inside);
+        EXPECT_LE((s.x - p).norm(), best + 1e-12);
+        worst = std::max(worst, (s.x - p).norm() - best);
+        // the normal is perpendicular to the surface there and points by the right-hand rule
+        const Vec3 t1 = at(s.xi + 1e-6, s.eta) - at(s.xi - 1e-6, s.eta);
+        const Vec3 t2 = at(s.xi, s.eta + 1e-6) - at(s.xi, s.eta - 1e-6);
+        EXPECT_NEAR(s.normal.dot(t1) / t1.norm(), 0.0, 1e-8);
+        EXPECT_NEAR(s.normal.dot(t2) / t2.norm(), 0.0, 1e-8);
+        EXPECT_GT(s.normal.dot((c[1] - c[0]).cross(c[3] - c[0])), 0.0);
+        EXPECT_NEAR(s.N[0] + s.N[1] + s.N[2] + s.N[3], 1.0, 1e-15);
+    }
+    std::printf("closest point: at most %.2e closer than the 401^2 scan (negative: the scan is coarser)\n", worst);
+    // a point beside the segment is not inside; its clamped point lies on the edge
+    const SegmentPoint out = project_on_segment(c, Vec3(1.0, -1.0, 0.0));
+    EXPECT_FALSE(out.inside);
+    EXPECT_DOUBLE_EQ(out.eta, -1.0);
+}
+
+TEST(SegmentBuckets, CandidatesAreExactlyTheInflatedBoxesHoldingThePoint)
+{
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<real_t> pos(0.0, 10.0), size(0.05, 1.5);
+    const index_t n = 400;
+    std::vector<real_t> lo(3 * n), hi(3 * n);
+    for (index_t s = 0; s < n; ++s)
+        for (int d = 0; d < 3; ++d)
+        {
+            lo[3 * s + d] = pos(gen);
+            hi[3 * s + d] = lo[3 * s + d] + size(gen);
+        }
+    // one long segment among short ones: the cell count stays bounded
+    hi[0] = lo[0] + 40.0;
+    const real_t margin = 0.2;
+    SegmentBuckets b;
+    b.build(lo, hi, margin);
+    EXPECT_LE(b.n_cells(), 4 * n + 64 + 200); // a bounded grid (the enlargement steps overshoot a little)
+    index_t total = 0;
+    for (int q = 0; q < 2000; ++q)
+    {
+        const Vec3 p(pos(gen) * 1.1 - 0.5, pos(gen) * 1.1 - 0.5, pos(gen) * 1.1 - 0.5);
+        std::vector<index_t> found, brute;
+        b.for_candidates(p, [&](index_t s) { found.push_back(s); });
+        for (index_t s = 0; s < n; ++s)
+        {
+            bool in = true;
+            for (int d = 0; d < 3; ++d)
+                in = in && p[d] >= lo[3 * s + d] - margin && p[d] <= hi[3 * s + d] + margin;
+            if (in)
+                brute.push_back(s);
+        }
+        ASSERT_EQ(found, brute) << "query " << q;
+        total += static_cast<index_t>(found.size());
+    }
+    EXPECT_GT(total, 1000); // the queries do hit boxes
+}
+
+namespace
+{
+// 1-D bars: nu = 0 and one element across, so the bar wave speed is c = sqrt(E / rho)
+const char* wall_deck = R"(
+title: bar onto a rigid wall
+time: {end: 30 us, stepper: central-difference}
+parts:
+  bar:
+    generator: {type: box, origin: [0, 0, 0.05 mm], size: [2 mm, 2 mm, 20 mm], divisions: [1, 1, 320]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    bulk_viscosity: {linear: 0, quadratic: 0}
+    initial_velocity: [0, 0, -10 m/s]
+contacts:
+  - {type: rigid-wall, surfaces: [bar], point: [0, 0, 0], normal: [0, 0, 1], penalty_scale: 0.5}
+)";
+
+const char* bars_deck = R"(
+title: two bars end on
+time: {end: 30 us, stepper: central-difference}
+parts:
+  a:
+    generator: {type: box, origin: [0, 0, 0], size: [2 mm, 2 mm, 20 mm], divisions: [1, 1, 80]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    bulk_viscosity: {linear: 0, quadratic: 0}
+    initial_velocity: [0, 0, 10 m/s]
+  b:
+    generator: {type: box, origin: [0, 0, 20.05 mm], size: [2 mm, 2 mm, 20 mm], divisions: [1, 1, 80]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    bulk_viscosity: {linear: 0, quadratic: 0}
+contacts:
+  - {type: surface-to-surface, surfaces: [a, b]}
+)";
+
+struct ImpactRun
+{
+    real_t t_first = -1.0, t_last = -1.0; ///< first and last time with a contact force
+    std::vector<Vec3> momentum;           ///< per part, at the end
+    std::vector<real_t> mass;             ///< per part
+    real_t momentum_drift = 0.0;          ///< max |sum m v - p0| over the run
+    real_t worst_balance = 0.0;
+    real_t largest_contact_energy = 0.0, final_contact_energy = 0.0, initial_kinetic = 0.0;
+    RunSummary summary;
+};
+
+ImpactRun impact(const char* deck, const std::vector<std::string>& overrides = {})
+{
+    Model m = test::model_from(deck, overrides);
+    ImpactRun r;
+    Vec3 p0 = Vec3::Zero();
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        p0 += m.nodes.mass[i] * Vec3(m.nodes.v[3 * i], m.nodes.v[3 * i + 1], m.nodes.v[3 * i + 2]);
+    RunOptions opt;
+    opt.progress = false;
+    r.summary = run_simulation(m, opt,
+                               [&](const Model& mm, real_t t, real_t dt, std::int64_t)
+                               {
+                                   if (dt == 0.0)
+                                       r.initial_kinetic = mm.energy.kinetic;
+                                   if (mm.contacts[0]->active_nodes() > 0)
+                                   {
+                                       if (r.t_first < 0)
+                                           r.t_first = t;
+                                       r.t_last = t;
+                                   }
+                                   Vec3 p = Vec3::Zero();
+                                   for (index_t i = 0; i < mm.nodes.size(); ++i)
+                                       p += mm.nodes.mass[i] *
+                                            Vec3(mm.nodes.v[3 * i], mm.nodes.v[3 * i + 1], mm.nodes.v[3 * i + 2]);
+                                   r.momentum_drift = std::max(r.momentum_drift, (p - p0).norm());
+                                   r.worst_balance = std::max(r.worst_balance, mm.energy.balance_error());
+                                   r.largest_contact_energy = std::max(r.largest_contact_energy, mm.energy.contact);
+                               });
+    r.final_contact_energy = m.energy.contact;
+    r.momentum.assign(m.parts.size(), Vec3::Zero());
+    r.mass.assign(m.parts.size(), 0.0);
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+    {
+        const index_t p = m.nodes.part[i];
+        r.mass[p] += m.nodes.mass[i];
+        r.momentum[p] += m.nodes.mass[i] * Vec3(m.nodes.v[3 * i], m.nodes.v[3 * i + 1], m.nodes.v[3 * i + 2]);
+    }
+    return r;
+}
+} // namespace
+
+TEST(RigidWall, ElasticBarReboundsWithItsSpeedAfterTwoTransitTimes)
+{
+    const real_t c = std::sqrt(200e9 / 7850.0), L = 0.02, v0 = 10.0;
+    const ImpactRun r = impact(wall_deck);
+    ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
+    const real_t duration = r.t_last - r.t_first, v_after = r.momentum[0][2] / r.mass[0];
+    std::printf("rigid wall: contact %.3f us (2L/c %.3f us, %+.2f%%), rebound %.4f m/s (%+.2f%%), largest balance "
+                "error %.2e, wall spring energy at most %.2e J of %.2e J\n",
+                1e6 * duration, 2e6 * L / c, 100 * (duration / (2 * L / c) - 1), v_after, 100 * (v_after / v0 - 1),
+                r.worst_balance, r.largest_contact_energy, r.initial_kinetic);
+    EXPECT_NEAR(duration / (2 * L / c), 1.0, 0.02);
+    EXPECT_NEAR(v_after / v0, 1.0, 0.01);
+    EXPECT_LT(r.worst_balance, 0.01);
+    EXPECT_GT(r.largest_contact_energy, 1e-4 * r.initial_kinetic); // the springs held energy...
+    EXPECT_LT(std::abs(r.final_contact_energy), 1e-3 * r.initial_kinetic); // ...and gave it back
+}
+
+TEST(SurfaceToSurface, IdenticalBarsExchangeVelocitiesAndConserveMomentum)
+{
+    const real_t c = std::sqrt(200e9 / 7850.0), L = 0.02, v0 = 10.0;
+    for (const char* stiffness : {"segment", "soft"})
+    {
+        const std::string st(stiffness);
+        const ImpactRun r =
+            impact(bars_deck, st == "segment" ? std::vector<std::string>{"contacts.0.stiffness=segment", "contacts.0.penalty_scale=0.5"}
+                                              : std::vector<std::string>{"contacts.0.penalty_scale=0.01", "contacts.0.soft_scale=0.5"});
+        ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
+        const real_t duration = r.t_last - r.t_first;
+        const real_t va = r.momentum[0][2] / r.mass[0], vb = r.momentum[1][2] / r.mass[1];
+        const real_t p0 = r.mass[0] * v0;
+        std::printf("bars (%s): contact %.3f us (2L/c %.3f us, %+.2f%%), after: a %.4f m/s, b %.4f m/s, momentum "
+                    "drift %.1e of p0, largest balance error %.2e\n",
+                    stiffness, 1e6 * duration, 2e6 * L / c, 100 * (duration / (2 * L / c) - 1), va, vb,
+                    r.momentum_drift / p0, r.worst_balance);
+        EXPECT_NEAR(duration / (2 * L / c), 1.0, 0.02);
+        EXPECT_NEAR(va / v0, 0.0, 0.01);
+        EXPECT_NEAR(vb / v0, 1.0, 0.01);
+        EXPECT_LT(r.momentum_drift, 1e-10 * p0);
+        EXPECT_LT(r.worst_balance, 0.01);
+    }
+}
+
+TEST(SurfaceToSurface, AStiffPenaltyBoundsTheStep)
+{
+    // penalty_scale 1 puts k dt0^2 / m* = 1.33 on the bars' end nodes: at the elements' step
+    // (0.9 dt0) the run went unstable (balance error 0.1 at step 127); the contact's bound
+    // dt0 sqrt(2 / (1 + 1.33)) = 0.93 dt0 keeps it stable
+    const ImpactRun r = impact(bars_deck, {"contacts.0.stiffness=segment", "contacts.0.penalty_scale=1"});
+    ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
+    const real_t p0 = r.mass[0] * 10.0;
+    std::printf("bars, penalty_scale 1: %lld steps (%lld at the elements' step), after: a %.4f m/s, b %.4f m/s, "
+                "largest balance error %.2e\n",
+                static_cast<long long>(r.summary.steps), static_cast<long long>(impact(bars_deck).summary.steps),
+                r.momentum[0][2] / r.mass[0], r.momentum[1][2] / r.mass[1], r.worst_balance);
+    EXPECT_LT(r.worst_balance, 0.01);
+    EXPECT_NEAR(r.momentum[1][2] / p0, 1.0, 0.01);
+}
+
+namespace
+{
+// two elastic blocks with non-matching meshes (4 x 4 below, 3 x 3 above), a pressure on the top,
+// rollers on the symmetry planes x = 0 and y = 0 and the bottom; dynamic relaxation to the static
+// state, where the stress is uniaxial: sigma_zz = -p everywhere, sigma_xx = sigma_yy = 0
+const char* patch_deck = R"(
+title: contact patch test
+time: {end: 150 us, stepper: central-difference, mass_damping: 3e5 1/s, energy_error_limit: 1}
+parts:
+  lower:
+    generator: {type: box, origin: [0, 0, 0], size: [10 mm, 10 mm, 10 mm], divisions: [4, 4, 3]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+  upper:
+    generator: {type: box, origin: [0, 0, 10 mm], size: [10 mm, 10 mm, 10 mm], divisions: [3, 3, 3]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+node_sets:
+  x0: {select: {type: plane, point: [0, 0, 0], normal: [1, 0, 0]}}
+  y0: {select: {type: plane, point: [0, 0, 0], normal: [0, 1, 0]}}
+  base: {part: lower, select: {type: named, name: bottom}}
+face_sets:
+  top: {part: upper, select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: x0, fixed: [x]}
+  - {node_set: y0, fixed: [y]}
+  - {node_set: base, fixed: [z]}
+loads:
+  - {type: pressure, face_set: top, pressure: 10 MPa}
+contacts:
+  - {type: surface-to-surface, surfaces: [upper, lower]}
+)";
+} // namespace
+
+TEST(SurfaceToSurface, PatchTestMatchingMeshesExactNonMatchingWithinTheNodeToSegmentError)
+{
+    // Matching meshes (3 x 3 on 3 x 3): both passes pair coincident nodes, each spring carries its
+    // node's share of p A, and the stress is as uniform as in one block without contact (1.8e-6:
+    // the follower pressure acts on a face that grows by the lateral strain). Non-matching meshes (4 x 4
+    // below): node-to-segment contact does not pass the patch test (Taylor & Papadopoulos 1991,
+    // the forces at slave nodes do not integrate the master's shape functions exactly); here the
+    // element stress stays within 8% of -p at the default penalty and within 4% at penalty_scale 1
+    // (the stiffer the springs, the closer to the matching answer). The issue's 1% needs a
+    // segment-to-segment (mortar) integration, not built yet.
+    const real_t p = 10e6;
+    struct Case
+    {
+        const char* name;
+        std::vector<std::string> overrides;
+        real_t stress_bound;
+    };
+    const Case cases[] = {
+        {"matching 3x3 / 3x3", {"parts.lower.generator.divisions=[3, 3, 3]"}, 5e-6},
+        {"non-matching 4x4 / 3x3, penalty 0.1", {}, 0.08},
+        {"non-matching 4x4 / 3x3, penalty 1", {"contacts.0.penalty_scale=1"}, 0.04},
+    };
+    for (const Case& c : cases)
+    {
+        std::vector<std::string> ov = c.overrides;
+        ov.push_back("contacts.0.stiffness=segment");
+        Model m = test::model_from(patch_deck, ov);
+        RunOptions opt;
+        opt.progress = false;
+        const RunSummary s = run_simulation(m, opt);
+        ASSERT_EQ(s.status, "completed") << s.message;
+        real_t zz = 0.0, lateral = 0.0;
+        for (std::size_t b = 0; b < m.blocks.size(); ++b)
+            for (index_t e = 0; e < m.blocks[b].n_elements(); ++e)
+            {
+                const Sym6 sig = m.element_stress(static_cast<index_t>(b), e);
+                zz = std::max(zz, std::abs(sig[2] / -p - 1.0));
+                lateral = std::max(lateral, std::max(std::abs(sig[0]), std::abs(sig[1])) / p);
+            }
+        const Vec3 f = m.contacts[0]->resultant(); // on the upper block
+        std::printf("patch test, %s: sigma_zz within %.2e of -p in every element, lateral stress at most %.2e p, "
+                    "interface force %.9f p A, kinetic energy left %.1e J\n",
+                    c.name, zz, lateral, f[2] / (p * 1e-4), m.energy.kinetic);
+        EXPECT_LT(m.energy.kinetic, 1e-20); // relaxed to the static state
+        EXPECT_LT(zz, c.stress_bound);
+        EXPECT_LT(lateral, c.stress_bound);
+        // the interface carries the load: p on the top face, grown by the lateral strain nu p / E twice
+        EXPECT_NEAR(f[2] / (p * 1e-4), 1.0 + 2.0 * 0.3 * p / 200e9, 1e-6);
+    }
+}
