@@ -329,3 +329,152 @@ TEST(SurfaceToSurface, PatchTestMatchingMeshesExactNonMatchingWithinTheNodeToSeg
         EXPECT_NEAR(f[2] / (p * 1e-4), 1.0 + 2.0 * 0.3 * p / 200e9, 1e-6);
     }
 }
+
+TEST(SingleSurface, BarsExchangeVelocitiesAndAFreeBarNeverTouchesItself)
+{
+    // one surface over both bars: each bar's nodes meet the other's segments (and its own, which
+    // never face them closely enough): the same exchange as surface-to-surface
+    const real_t v0 = 10.0;
+    const ImpactRun r = impact(bars_deck, {"contacts.0.type=single-surface", "contacts.0.penalty_scale=0.5",
+                                           "contacts.0.stiffness=segment"});
+    ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
+    const real_t va = r.momentum[0][2] / r.mass[0], vb = r.momentum[1][2] / r.mass[1];
+    std::printf("single surface over both bars: after: a %.4f m/s, b %.4f m/s, momentum drift %.1e of p0\n", va, vb,
+                r.momentum_drift / (r.mass[0] * v0));
+    EXPECT_NEAR(va / v0, 0.0, 0.01);
+    EXPECT_NEAR(vb / v0, 1.0, 0.01);
+    EXPECT_LT(r.momentum_drift, 1e-10 * r.mass[0] * v0);
+
+    // a 3 x 3 x 12 block spinning and ringing: its edges and corners bend and its faces move, and
+    // the single surface on itself finds no contact at any step
+    Model m = test::model_from(R"(
+title: free block
+time: {end: 20 us, stepper: central-difference}
+parts:
+  block:
+    generator: {type: box, size: [3 mm, 3 mm, 12 mm], divisions: [3, 3, 12]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+contacts:
+  - {type: single-surface}
+)");
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+    {
+        // axial stretch plus a spin about z: every surface node moves, corners most
+        const real_t x = m.nodes.x0[3 * i] - 1.5e-3, y = m.nodes.x0[3 * i + 1] - 1.5e-3, z = m.nodes.x0[3 * i + 2];
+        m.nodes.v[3 * i] = -2e4 * y;
+        m.nodes.v[3 * i + 1] = 2e4 * x;
+        m.nodes.v[3 * i + 2] = 2e3 * (z - 6e-3);
+    }
+    index_t touched = 0;
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s =
+        run_simulation(m, opt, [&](const Model& mm, real_t, real_t, std::int64_t) { touched += mm.contacts[0]->active_nodes(); });
+    ASSERT_EQ(s.status, "completed") << s.message;
+    EXPECT_EQ(touched, 0);
+    EXPECT_GT(s.steps, 100);
+}
+
+TEST(ErodingContact, NewlyExposedFacesJoinTheSurface)
+{
+    // a plate pressed 1.1 mm into a block of 1 mm layers: deeper than max_penetration (0.5 of
+    // the top layer's depth), so the top surface releases it; once the top layer is eroded, the
+    // exposed faces of the second layer catch it 0.1 mm deep
+    Model m = test::model_from(R"(
+title: eroded layer
+time: {end: 1 us, stepper: central-difference}
+parts:
+  block:
+    generator: {type: box, size: [4 mm, 4 mm, 3 mm], divisions: [4, 4, 3]}
+    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 500 MPa, etan: 1 GPa}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    erosion: {effective_plastic_strain: 0.5}
+  plate:
+    generator: {type: box, origin: [1 mm, 1 mm, 1.9 mm], size: [2 mm, 2 mm, 0.5 mm], divisions: [2, 2, 1]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+contacts:
+  - {type: surface-to-surface, surfaces: [plate, block]}
+)");
+    const index_t segments_before = m.contact_surface({"block"}, {}).n_segments();
+    m.compute_forces(0.0, 0.0, 0);
+    EXPECT_EQ(m.contacts[0]->active_nodes(), 0);
+    std::vector<char> keep(static_cast<std::size_t>(m.blocks[0].n_elements()), 1);
+    for (index_t e = 32; e < 48; ++e) // the top layer (elements in z order)
+        keep[static_cast<std::size_t>(e)] = 0;
+    m.remove_elements(0, keep);
+    const index_t segments_after = m.contact_surface({"block"}, {}).n_segments();
+    m.compute_forces(0.0, 0.0, 0);
+    // the plate's 9 bottom nodes are inside the exposed faces, the block's 9 exposed nodes under
+    // the plate inside the plate: 18 new contacts, which start at zero force (no energy from the
+    // event)...
+    const index_t caught = m.contacts[0]->active_nodes();
+    const real_t f_caught = m.contacts[0]->resultant().norm();
+    // ...and resist the plate moving 0.05 mm further in one step of 0.1 us (at 500 m/s)
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (m.nodes.part[i] == 1)
+        {
+            m.nodes.u[3 * i + 2] -= 5e-5;
+            m.nodes.x[3 * i + 2] -= 5e-5;
+            m.nodes.v[3 * i + 2] = -500.0;
+        }
+    m.compute_forces(0.0, 0.0, 0);
+    const Vec3 f = m.contacts[0]->resultant(); // on the plate
+    std::printf("eroding contact: block surface %d -> %d segments, %d nodes caught at %.1e N, %d nodes push the "
+                "plate back with %.3e N after 0.05 mm more\n",
+                static_cast<int>(segments_before), static_cast<int>(segments_after), static_cast<int>(caught), f_caught,
+                static_cast<int>(m.contacts[0]->active_nodes()), f[2]);
+    EXPECT_EQ(segments_before, 2 * (16 + 12 + 12)); // 4x4 top and bottom, 4x3 on four sides
+    EXPECT_EQ(segments_after, 2 * (16 + 8 + 8));
+    EXPECT_EQ(caught, 18);
+    EXPECT_EQ(f_caught, 0.0);
+    EXPECT_EQ(m.contacts[0]->active_nodes(), 18);
+    EXPECT_GT(f[2], 0.0); // pushed up, out of the block
+}
+
+TEST(Projectile, FlatNosedFspIsStoppedByTheConcretePanelNotPassedThrough)
+{
+    // studies/decks/fsp_impact.yaml at smoke size (10 mm panel elements, 5 mm FSP elements, 40 us).
+    // Before contact the FSP passed through the panel at 820 m/s untouched. Now the panel pushes it
+    // back: it loses momentum to the panel, the panel's struck face moves with it, no FSP node
+    // ends up more than max_penetration inside the panel's remaining surface, and the ledger
+    // (with the contact springs and the eroded elements) closes within 2%.
+    const Deck deck = read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/fsp_impact.yaml",
+                                {"parts.panel.generator.element_size=10 mm", "parts.fsp.generator.element_size=2.5 mm",
+                                 "time.end=40 us"});
+    Model m = Model::build(deck);
+    real_t p0 = 0.0, mass = 0.0;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (m.nodes.part[i] == 0)
+        {
+            p0 += m.nodes.mass[i] * m.nodes.v[3 * i + 2];
+            mass += m.nodes.mass[i];
+        }
+    RunOptions opt;
+    opt.progress = false;
+    real_t worst_balance = 0.0;
+    const RunSummary s = run_simulation(m, opt,
+                                        [&](const Model& mm, real_t, real_t, std::int64_t)
+                                        { worst_balance = std::max(worst_balance, mm.energy.balance_error()); });
+    ASSERT_EQ(s.status, "completed") << s.message;
+    real_t p = 0.0, nose = 1e300;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (m.nodes.part[i] == 0)
+        {
+            p += m.nodes.mass[i] * m.nodes.v[3 * i + 2];
+            nose = std::min(nose, m.nodes.x[3 * i + 2]);
+        }
+    const real_t face = m.nodes.x[3 * m.probe_nodes[0] + 2]; // the panel's node under the impact point
+    std::printf("FSP (%.1f g): residual velocity %.1f m/s of %.0f, nose at z = %.2f mm, struck face node at %.2f mm, "
+                "%d panel elements eroded, largest balance error %.2e, %lld steps\n",
+                1e3 * mass, p / mass, p0 / mass, 1e3 * nose, 1e3 * face, static_cast<int>(m.eroded_elements()),
+                worst_balance, static_cast<long long>(s.steps));
+    EXPECT_GT(p / p0, 0.0);                   // still moving down...
+    EXPECT_LT(p / p0, 0.9);                   // ...having given the panel more than 10% of its momentum
+    EXPECT_LT(face, -1e-3);                   // the struck face moved with the nose
+    EXPECT_LT(worst_balance, 0.02);
+}

@@ -14,6 +14,15 @@ NodeToSegmentContact::NodeToSegmentContact(std::vector<ContactSurface> surfaces,
 
 void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
 {
+    // who was in contact, and how deep, before the surfaces change
+    before_.assign(passes_.size(), {});
+    for (std::size_t ip = 0; ip < passes_.size(); ++ip)
+    {
+        const ContactSurface& slave = surfaces_[static_cast<std::size_t>(passes_[ip].slave)];
+        for (std::size_t k = 0; k < passes_[ip].hits.size(); ++k)
+            if (passes_[ip].hits[k].segment >= 0)
+                before_[ip].push_back({slave.nodes[k], passes_[ip].last_penetration[k], passes_[ip].offset[k]});
+    }
     surfaces_ = std::move(surfaces);
     passes_.clear();
     if (surfaces_.size() == 1)
@@ -69,6 +78,7 @@ void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
     margin_ = n_seg > 0 ? 0.25 * std::sqrt(size / static_cast<real_t>(n_seg)) : 0.0;
     reach_ = margin_ + p_.max_penetration * deepest + p_.thickness;
     searched_ = false;
+    fresh_ = true;
     active_ = 0;
     resultant_ = Vec3::Zero();
 }
@@ -123,6 +133,8 @@ void NodeToSegmentContact::search(const PhysicalNodes& nodes)
             pass.offsets[k + 1] = static_cast<index_t>(pass.candidates.size());
         }
         pass.hits.resize(static_cast<std::size_t>(n_slave));
+        pass.offset.resize(static_cast<std::size_t>(n_slave), 0.0);
+        pass.last_penetration.resize(static_cast<std::size_t>(n_slave), 0.0);
     }
     searched_ = true;
     ++searches_;
@@ -184,8 +196,32 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                          h.segment = s;
                          at = sp;
                      }
+                     const std::size_t kk = static_cast<std::size_t>(k);
+                     real_t& offset = pass.offset[kk];
+                     real_t& last = pass.last_penetration[kk];
+                     if (fresh_)
+                     {
+                         // new surfaces: a node in contact before keeps its depth and offset
+                         const std::size_t ip = static_cast<std::size_t>(&pass - passes_.data());
+                         last = offset = 0.0;
+                         if (ip < before_.size())
+                         {
+                             const auto& was = before_[ip];
+                             const auto it = std::lower_bound(was.begin(), was.end(), Before{i, 0.0, 0.0},
+                                                              [](const Before& x, const Before& y) { return x.node < y.node; });
+                             if (it != was.end() && it->node == i)
+                             {
+                                 last = it->penetration;
+                                 offset = it->offset;
+                             }
+                         }
+                     }
                      if (h.segment < 0)
+                     {
+                         offset = last = 0.0;
                          return;
+                     }
+                     h.penetration = best;
                      const Quad& q = master.segments[h.segment];
                      real_t m_m = 0.0;
                      Vec3 v_m = Vec3::Zero();
@@ -195,6 +231,16 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                          m_m += at.N[a] * nodes.mass(q[a]);
                          v_m += at.N[a] * nodes.v(q[a]);
                      }
+                     const Vec3 v_rel = nodes.v(i) - v_m;
+                     // the growth of the depth one step of approach explains (room for a step up to
+                     // 1.5 dt0; none at the start) acts at once; more came in sideways, across a
+                     // segment's edge, or with an event, and is held as an offset, which shrinks
+                     // as the node moves out
+                     const real_t approach =
+                         fresh_ && !started_ ? 0.0 : 1.5 * dt0_ * std::max(0.0, -v_rel.dot(at.normal));
+                     offset = std::min(offset, best) + std::max(0.0, best - last - approach);
+                     last = best;
+                     best -= offset;
                      const real_t m_s = nodes.mass(i);
                      const real_t m_star = m_s * m_m / (m_s + m_m);
                      // the slave node's area that faces the segment
@@ -210,7 +256,6 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                      h.f = fn * at.normal;
                      if (p_.friction.active() && dt0_ > 0.0)
                      {
-                         const Vec3 v_rel = nodes.v(i) - v_m;
                          const Vec3 v_t = v_rel - v_rel.dot(at.normal) * at.normal;
                          h.f += p_.friction.force(v_t, fn, m_star, dt0_);
                      }
@@ -259,6 +304,13 @@ void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactC
             ++active_;
         }
     }
+    if (fresh_ && !started_)
+        for (const Pass& pass : passes_)
+            for (real_t o : pass.offset)
+                initial_penetrations_ += o > 0.0;
+    started_ = true;
+    fresh_ = false;
+    before_.clear();
     // A surface node's stiffest element mode is taken at most sqrt(2) / dt0 (the free end of a
     // 1-D bar at the critical step dt0, against 2 / dt0 inside); the contact spring adds k / m*,
     // and central difference needs omega dt <= 2: dt <= dt0 sqrt(2 / (1 + k dt0^2 / m*)). Below

@@ -23,7 +23,14 @@
 ///                 uniform penetration, and a node on an edge counts only its face that touches);
 ///       soft:     k = max(segment, soft_scale m* / dt0^2)  (LS-DYNA SOFT = 1), m* = m_s m_m / (m_s
 ///                 + m_m), m_m = sum N_a m_a, dt0 the first critical step the contact sees;
-///   - Coulomb friction on the relative tangential velocity (contact_algorithm.hpp, Friction).
+///   - Coulomb friction on the relative tangential velocity (contact_algorithm.hpp, Friction);
+///   - the depth acts as far as the node's approach explains it: per evaluation the depth may
+///     grow by 1.5 dt0 |v_rel . n| (one step of approach, with room); growth beyond that (a node
+///     that came in sideways across a segment's edge, penetrations at the start, faces an erosion
+///     event exposed with nodes already inside) is held as an offset the spring starts from
+///     (LS-DYNA's IGNORE = 1), which shrinks as the node moves out and is gone when it leaves. So
+///     the force never jumps up by more than one step of approach, and contact does not create
+///     energy.
 /// The step: with k dt0^2 / m* above 1 (a penalty stiffer than any default) the contact bounds the
 /// step at dt0 sqrt(2 / (1 + k dt0^2 / m*)) (node_to_segment.cpp says why).
 /// Forces are computed in parallel per slave node into a fixed slot each, then added to the
@@ -57,11 +64,14 @@ class NodeToSegmentContact final : public ContactAlgorithm
     index_t active_nodes() const override { return active_; }
     /// Searches done so far (the first evaluation's included).
     index_t searches() const { return searches_; }
+    /// Slave nodes found inside the other surface at the first evaluation (initial penetrations).
+    index_t initial_penetrations() const { return initial_penetrations_; }
 
   private:
     struct Hit
     {
         index_t segment = -1;
+        real_t penetration = 0.0;
         real_t N[4] = {0.0, 0.0, 0.0, 0.0};
         Vec3 f = Vec3::Zero(); ///< on the slave node
         real_t k_over_m = 0.0; ///< k / m* (stable step)
@@ -71,6 +81,8 @@ class NodeToSegmentContact final : public ContactAlgorithm
         int slave = 0, master = 0;
         std::vector<index_t> offsets, candidates; ///< per slave node (CSR)
         std::vector<Hit> hits;                    ///< per slave node
+        std::vector<real_t> offset;               ///< per slave node: penetration the spring starts from
+        std::vector<real_t> last_penetration;     ///< per slave node: geometric depth at the last evaluation
         SegmentBuckets buckets;
     };
     void search(const PhysicalNodes& nodes);
@@ -95,6 +107,17 @@ class NodeToSegmentContact final : public ContactAlgorithm
     index_t active_ = 0;
     index_t searches_ = 0;
     bool searched_ = false;
+    bool fresh_ = true; ///< the next evaluation is the first on these surfaces
+    index_t initial_penetrations_ = 0;
+    bool started_ = false;
+    /// per pass: the slave nodes in contact at the last evaluation before new surfaces, with their
+    /// penetration (sorted by node)
+    struct Before
+    {
+        index_t node;
+        real_t penetration, offset;
+    };
+    std::vector<std::vector<Before>> before_;
     std::vector<real_t> lo_, hi_; ///< scratch: segment boxes
 };
 } // namespace rkfem
