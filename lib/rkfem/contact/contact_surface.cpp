@@ -83,9 +83,10 @@ SegmentPoint project_on_segment(const Vec3 (&c)[4], const Vec3& p, real_t tolera
         const real_t dxi = (h22 * g1 - h12 * g2) / det, deta = (h11 * g2 - h12 * g1) / det;
         xi -= dxi;
         eta -= deta;
-        // a point far outside is clamped below; keep the iterate bounded so it converges
-        xi = std::clamp(xi, -2.0, 2.0);
-        eta = std::clamp(eta, -2.0, 2.0);
+        // a point far outside (beyond the neighbouring segment's width) is outside for certain:
+        // stop there, clamped below
+        if (std::abs(xi) > 3.0 || std::abs(eta) > 3.0)
+            break;
         if (std::abs(dxi) + std::abs(deta) < 1e-12)
             break;
     }

@@ -138,6 +138,7 @@ void NodeToSegmentContact::search(const PhysicalNodes& nodes)
     }
     searched_ = true;
     ++searches_;
+
 }
 
 void NodeToSegmentContact::update_node_normals(const PhysicalNodes& nodes)
@@ -145,22 +146,27 @@ void NodeToSegmentContact::update_node_normals(const PhysicalNodes& nodes)
     for (std::size_t k = 0; k < surfaces_.size(); ++k)
     {
         const ContactSurface& s = surfaces_[k];
+        std::vector<Vec3>& area = segment_area_[k];
+        parallel_for("rkfem::contact_segment_areas", s.n_segments(),
+                     [&](index_t f)
+                     {
+                         const Quad& q = s.segments[f];
+                         area[static_cast<std::size_t>(f)] =
+                             0.5 * (nodes.x(q[2]) - nodes.x(q[0])).cross(nodes.x(q[3]) - nodes.x(q[1]));
+                     });
+        // each node gathers its segments' area vectors (node -> segments CSR): no races
+        const std::vector<index_t>& off = node_segment_offsets_[k];
+        const std::vector<index_t>& seg = node_segments_[k];
         std::vector<Vec3>& nn = node_normal_[k];
-        std::fill(nn.begin(), nn.end(), Vec3::Zero());
-        for (index_t f = 0; f < s.n_segments(); ++f)
-        {
-            const Quad& q = s.segments[f];
-            const Vec3 a = 0.5 * (nodes.x(q[2]) - nodes.x(q[0])).cross(nodes.x(q[3]) - nodes.x(q[1]));
-            segment_area_[k][static_cast<std::size_t>(f)] = a;
-            for (int c = 0; c < 4; ++c)
-                nn[static_cast<std::size_t>(corner_slot_[k][4 * f + c])] += a;
-        }
-        for (Vec3& n : nn)
-        {
-            const real_t len = n.norm();
-            if (len > 0.0)
-                n /= len;
-        }
+        parallel_for("rkfem::contact_node_normals", static_cast<index_t>(nn.size()),
+                     [&](index_t i)
+                     {
+                         Vec3 n = Vec3::Zero();
+                         for (index_t j = off[i]; j < off[i + 1]; ++j)
+                             n += area[static_cast<std::size_t>(seg[j])];
+                         const real_t len = n.norm();
+                         nn[static_cast<std::size_t>(i)] = len > 0.0 ? Vec3(n / len) : Vec3::Zero();
+                     });
     }
 }
 
@@ -185,6 +191,12 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                          const index_t s = pass.candidates[c];
                          const Quad& q = master.segments[s];
                          const Vec3 corners[4] = {nodes.x(q[0]), nodes.x(q[1]), nodes.x(q[2]), nodes.x(q[3])};
+                         // the node must lie within the deepest reach of the segment's box
+                         const real_t reach = p_.max_penetration * master.depth[s] + p_.thickness;
+                         const Vec3 lo = corners[0].cwiseMin(corners[1]).cwiseMin(corners[2].cwiseMin(corners[3]));
+                         const Vec3 hi = corners[0].cwiseMax(corners[1]).cwiseMax(corners[2].cwiseMax(corners[3]));
+                         if ((xs.array() < lo.array() - reach).any() || (xs.array() > hi.array() + reach).any())
+                             continue;
                          const SegmentPoint sp = project_on_segment(corners, xs);
                          if (!sp.inside || !(sp.normal.dot(ns) < 0.0))
                              continue;
