@@ -114,7 +114,7 @@ Deck build(const YAML::Node& root, Context& ctx)
                         "expected top-level keys title, time, parts, ...");
     Section top(ctx, root, "",
                 {"title", "time", "parts", "node_sets", "face_sets", "boundary_conditions",
-                 "loads", "probes", "contacts"});
+                 "loads", "probes", "contacts", "impact"});
     Deck deck;
     deck.path = ctx.name;
     deck.title = top.text("title", "");
@@ -212,6 +212,37 @@ Deck build(const YAML::Node& root, Context& ctx)
                                 "expected a part or face-set name: " + join(names));
             }
         }
+    }
+
+    if (top.has("impact"))
+    {
+        Section s(ctx, top.node("impact"), "impact", {"target", "projectile", "point", "direction", "damage"});
+        ImpactSpec& im = deck.impact;
+        im.active = true;
+        im.target = s.text("target");
+        im.projectile = s.text("projectile", "");
+        im.point = s.vec3("point", dim::length);
+        im.direction = s.vec3("direction", dim::none, -Vec3::UnitZ());
+        if (!(im.direction.norm() > 0.0))
+            s.fail("direction", "is the zero vector", "expected the shot line's direction, into the target");
+        im.direction.normalize();
+        im.damage = s.quantity("damage", dim::none, 0.95);
+        if (!(im.damage > 0.0 && im.damage <= 1.0))
+            s.fail("damage", "is outside (0, 1]", "expected the damage at which material counts as gone (0.95)");
+        for (const char* key : {"target", "projectile"})
+        {
+            const std::string name = std::string(key) == "target" ? im.target : im.projectile;
+            if (name.empty() ||
+                std::any_of(deck.parts.begin(), deck.parts.end(), [&](const PartSpec& p) { return p.name == name; }))
+                continue;
+            std::vector<std::string> names;
+            for (const auto& p : deck.parts)
+                names.push_back(p.name);
+            s.fail(key, "unknown part '" + name + "'", "expected one of " + join(names));
+        }
+        if (im.target == im.projectile)
+            s.fail("projectile", "is the target", "expected the projectile's part, not the target's");
+        im.loc = s.loc();
     }
 
     const YAML::Node probes = root["probes"];

@@ -271,6 +271,19 @@ struct ContactSpec
     SourceLocation loc;
 };
 
+/// Impact measures (deck key impact): crater depths along the shot line, what the projectile
+/// keeps and gives (analysis/impact.hpp).
+struct ImpactSpec
+{
+    bool active = false;
+    std::string target;                   ///< the struck part
+    std::string projectile;               ///< optional
+    Vec3 point = Vec3::Zero();            ///< the point of impact on the target's original surface
+    Vec3 direction = -Vec3::UnitZ();      ///< the shot line, into the target (unit)
+    real_t damage = 0.95;                 ///< actual crater: material at or above this damage is gone
+    SourceLocation loc;
+};
+
 enum class StepperKind
 {
     CentralDifference, ///< hand-written kick-drift-kick
@@ -304,6 +317,7 @@ struct Deck
     std::vector<LoadSpec> loads;
     std::vector<ProbeSpec> probes;
     std::vector<ContactSpec> contacts;
+    ImpactSpec impact;
     SourceLocation time_loc;
 };
 

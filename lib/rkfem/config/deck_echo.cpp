@@ -333,6 +333,11 @@ std::string to_yaml(const Deck& d)
                << "}}\n";
         }
     }
+    if (d.impact.active)
+        os << "impact: {target: " << d.impact.target
+           << (d.impact.projectile.empty() ? "" : ", projectile: " + d.impact.projectile)
+           << ", point: " << vec(d.impact.point) << ", direction: " << vec(d.impact.direction)
+           << ", damage: " << d.impact.damage << "}\n";
     if (!d.probes.empty())
     {
         os << "probes:\n";

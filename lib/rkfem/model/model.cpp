@@ -446,6 +446,7 @@ Model Model::build(const Deck& deck)
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
     m.reaction_inertia_.assign(m.conditions.size(), 0.0);
     m.contact.resize(m.nodes.size());
+    m.eroded_.resize(m.blocks.size());
     m.build_contacts();
     m.plan_assembly();
     for (const DofCondition& c : m.conditions)

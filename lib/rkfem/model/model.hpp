@@ -177,6 +177,14 @@ class Model final : public ExplicitOperator
     /// the discretization changed.
     bool apply_events(real_t t, std::int64_t step);
     index_t eroded_elements() const { return eroded_elements_; }
+    /// The elements events removed from one block: 8 global node ids and the reference volume
+    /// of each (crater and eroded-mass measures, analysis/impact.hpp).
+    struct ErodedElements
+    {
+        std::vector<index_t> conn;
+        std::vector<real_t> volume0;
+    };
+    const ErodedElements& eroded(index_t block) const { return eroded_[static_cast<std::size_t>(block)]; }
     /// Incremented by every event that changes the cells (output writes a new mesh).
     int topology_version() const { return topology_version_; }
 
@@ -189,6 +197,7 @@ class Model final : public ExplicitOperator
     Deck deck_;
     int topology_version_ = 0;
     index_t eroded_elements_ = 0;
+    std::vector<ErodedElements> eroded_; ///< per block
     std::vector<char> block_adds_;                                 ///< per block
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;

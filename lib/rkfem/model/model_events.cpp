@@ -14,6 +14,15 @@ void Model::remove_elements(index_t block, const std::vector<char>& keep)
     RKFEM_REQUIRE(part_nodal[block] < 0, "remove_elements: part '" << parts[block].name
                                                                    << "' is integrated at its nodes; only Gauss-point "
                                                                       "FE parts lose elements");
+    eroded_.resize(blocks.size());
+    ErodedElements& gone = eroded_[static_cast<std::size_t>(block)];
+    const HexBlock& blk = blocks[block];
+    for (index_t e = 0; e < blk.n_elements(); ++e)
+        if (!keep[static_cast<std::size_t>(e)])
+        {
+            gone.conn.insert(gone.conn.end(), blk.conn.begin() + 8 * e, blk.conn.begin() + 8 * e + 8);
+            gone.volume0.push_back(blk.volume0[static_cast<std::size_t>(e)]);
+        }
     blocks[block].remove_elements(keep, nodes);
     index_t offset = 0;
     for (std::size_t ip = 0; ip < parts.size(); ++ip)

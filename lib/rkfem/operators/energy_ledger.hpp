@@ -35,6 +35,8 @@ struct Energies
     real_t balance_error() const;
     /// E_hg / (E_int + E_hg), 0 when there is no internal energy
     real_t hourglass_ratio() const;
+    /// E_hg / total(), the seed's Table 3 energy ratio (LS-DYNA's glstat hourglass over total)
+    real_t hourglass_to_total() const { return total() > 0 ? hourglass / total() : 0.0; }
 
     /// Records the initial energies from the current ones, the first time only: the start of a
     /// stepper calls it, and a restart in the middle of a run keeps the ledger's origin.

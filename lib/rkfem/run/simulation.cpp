@@ -12,6 +12,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/io/results_writer.hpp"
+#include "rkfem/analysis/impact.hpp"
 #include "rkfem/run/summary.hpp"
 #include "rkfem/time/central_difference.hpp"
 #include "rkfem/time/stepper.hpp"
@@ -22,8 +23,11 @@ namespace
 {
 std::vector<std::string> history_columns(const Model& m)
 {
-    std::vector<std::string> c{"time", "dt", "kinetic", "internal", "hourglass", "bulk_viscosity",
-                               "damping", "external_work", "contact", "eroded", "total", "balance_error", "hourglass_ratio"};
+    std::vector<std::string> c{"time",          "dt",       "kinetic", "internal", "hourglass",
+                               "bulk_viscosity", "damping", "external_work", "contact", "eroded",
+                               "total",         "balance_error", "hourglass_ratio", "hourglass_to_total"};
+    if (m.deck().impact.active)
+        c.insert(c.end(), {"apparent_depth", "actual_depth", "residual_velocity"});
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
@@ -34,11 +38,16 @@ std::vector<std::string> history_columns(const Model& m)
     return c;
 }
 
-void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows)
+/// impact: the analysis, with the actual depth as last computed (at field outputs)
+void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, const ImpactAnalysis* impact,
+                real_t actual_depth)
 {
     const Energies& e = m.energy;
     rows.insert(rows.end(), {t, dt, e.kinetic, e.internal, e.hourglass, e.bulk_viscosity, e.damping,
-                             e.external_work, e.contact, e.eroded, e.total(), e.balance_error(), e.hourglass_ratio()});
+                             e.external_work, e.contact, e.eroded, e.total(), e.balance_error(), e.hourglass_ratio(),
+                             e.hourglass_to_total()});
+    if (impact)
+        rows.insert(rows.end(), {impact->apparent_depth(m), actual_depth, impact->residual_velocity(m)});
     for (index_t n : m.probe_nodes)
     {
         const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);
@@ -142,6 +151,11 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         }
     };
 
+    std::unique_ptr<ImpactAnalysis> impact;
+    if (model.deck().impact.active)
+        impact = std::make_unique<ImpactAnalysis>(model, model.deck().impact);
+    real_t actual_depth = 0.0; // the crater's, at the last field output
+
     auto stepper = make_stepper(ts);
     Progress progress(opt.progress);
     real_t t = 0.0;
@@ -155,10 +169,13 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         StepReport rep = stepper->initialize(model, t);
         auto observe = [&](bool final_step)
         {
+            const bool output_now = (writer && t >= next_output - 1e-12 * ts.end) || final_step || step == 0;
+            if (impact && output_now)
+                actual_depth = impact->actual_depth(model); // a pass over the target: at outputs only
             if (t >= next_history - 1e-15 * ts.end || final_step)
             {
                 const std::size_t first = sum.history.size() / sum.history_columns.size();
-                append_row(model, t, dt_last, sum.history);
+                append_row(model, t, dt_last, sum.history, impact.get(), actual_depth);
                 flush_history_row(first);
                 if (ts.history_interval > 0)
                     advance_past(next_history, t, ts.history_interval);
@@ -239,6 +256,11 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     sum.ns_per_element_cycle = element_steps > 0 ? 1e9 * sum.wall_seconds / element_steps : 0.0;
     sum.energy = model.energy;
     sum.n_outputs = writer ? writer->n_steps() : 0;
+    if (impact)
+    {
+        sum.has_impact = true;
+        sum.impact = impact->measure(model);
+    }
     if (writer)
     {
         writer->write_history(sum.history_columns, sum.history);

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "rkfem/analysis/impact.hpp"
 #include "rkfem/model/model.hpp"
 
 namespace rkfem
@@ -32,6 +33,8 @@ struct RunSummary
     Energies energy;
     real_t max_balance_error = 0.0;
     int n_outputs = 0;
+    bool has_impact = false; ///< the deck has an impact key
+    ImpactMeasures impact;   ///< at the end
     std::vector<std::string> history_columns;
     std::vector<real_t> history; ///< rows x columns, row-major
 };

@@ -83,6 +83,17 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"balance_error\": " << num(e.balance_error()) << ",\n";
     o << "  \"max_balance_error\": " << num(s.max_balance_error) << ",\n";
     o << "  \"hourglass_ratio\": " << num(e.hourglass_ratio()) << ",\n";
+    o << "  \"hourglass_to_total\": " << num(e.hourglass_to_total()) << ",\n";
+    if (s.has_impact)
+    {
+        const ImpactMeasures& im = s.impact;
+        o << "  \"impact\": {\"apparent_depth\": " << num(im.apparent_depth) << ", \"actual_depth\": "
+          << num(im.actual_depth) << ", \"residual_velocity\": " << num(im.residual_velocity)
+          << ", \"projectile_mass\": " << num(im.projectile_mass) << ", \"target_momentum\": "
+          << num(im.target_momentum) << ", \"damaged_volume_0.5\": " << num(im.damaged_volume_half)
+          << ", \"damaged_volume_threshold\": " << num(im.damaged_volume_threshold)
+          << ", \"eroded_mass\": " << num(im.eroded_mass) << "},\n";
+    }
     o << "  \"probes\": {";
     const std::size_t nc = s.history_columns.size();
     const std::size_t nr = nc ? s.history.size() / nc : 0;
