@@ -155,6 +155,36 @@ TEST(KccConcrete, CrackBandScalingOfTheTensileDamage)
     }
 }
 
+TEST(KccConcrete, TabulatedCrackBandScalesHoldToTheExactSolves)
+{
+    // a graded mesh: 400 distinct lengths from 3 to 30 mm take the table (16 exact solves over
+    // the range); each interpolated scale against its own exact solve, and the energy it
+    // dissipates against G_f
+    KccModel m = KccModel::from_fc(35.0 * MPa, 2400);
+    m.fracture_energy = ceb_fracture_energy(35.0 * MPa);
+    std::vector<real_t> h;
+    for (int i = 0; i < 400; ++i)
+        h.push_back(0.003 * std::pow(10.0, i / 399.0) + 1e-7 * (i % 7)); // distinct to 1 nm
+    const std::vector<real_t> s = kcc_tension_scales(m, h);
+    real_t worst_scale = 0.0, worst_gf = 0.0;
+    for (int i = 0; i < 400; i += 79)
+    {
+        const real_t exact = kcc_tension_scale_for_length(m, h[static_cast<std::size_t>(i)]);
+        worst_scale = std::max(worst_scale, std::abs(s[static_cast<std::size_t>(i)] / exact - 1.0));
+        const real_t gf = h[static_cast<std::size_t>(i)] * kcc_tension_work(m, s[static_cast<std::size_t>(i)]);
+        worst_gf = std::max(worst_gf, std::abs(gf / m.fracture_energy - 1.0));
+    }
+    std::printf("tabulated crack-band scales: within %.2e of the exact solves, dissipation within %.2e of G_f\n",
+                worst_scale, worst_gf);
+    EXPECT_LT(worst_scale, 2e-3);
+    EXPECT_LT(worst_gf, 0.01); // the exact solves' own bound (CrackBandScalingOfTheTensileDamage)
+    // few distinct lengths: the exact solve for each, bit for bit
+    const std::vector<real_t> few = kcc_tension_scales(m, {0.01, 0.02, 0.01});
+    EXPECT_EQ(few[0], kcc_tension_scale_for_length(m, 0.01));
+    EXPECT_EQ(few[1], kcc_tension_scale_for_length(m, 0.02));
+    EXPECT_EQ(few[2], few[0]);
+}
+
 TEST(KccConcrete, VolumetricDamageB3InHydrostaticTension)
 {
     // equal tensile strain rates: once the pressure reaches the cutoff -f_t, lambda grows by

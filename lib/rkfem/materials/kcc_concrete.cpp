@@ -253,19 +253,129 @@ real_t kcc_tension_work(const KccModel& m, real_t scale)
     return work;
 }
 
+namespace
+{
+constexpr real_t kScaleLo = 1e-4, kScaleHi = 1e4;   // the widest bracket
+constexpr real_t kNarrowLo = 1e-2, kNarrowHi = 1e2; // holds crack bands of about 1 mm to 1 m
+
+/// The scale for length h in the bracket [scale_lo, scale_hi], given the works at its ends (they
+/// do not depend on h, and the slow low end costs the most: many lengths share them).
+real_t scale_for_length(const KccModel& m, real_t h, real_t scale_lo, real_t scale_hi, real_t work_lo, real_t work_hi)
+{
+    // root of f(x) = log W(e^x) - log(G_f / h), W decreasing in the scale e^x, bracketed:
+    // regula falsi with the Illinois modification (superlinear, about 8 evaluations of the
+    // tension test instead of bisection's 40), to |dx| < 1e-10
+    const real_t target = std::log(m.fracture_energy / h);
+    real_t a = std::log(scale_lo), b = std::log(scale_hi);
+    real_t fa = std::log(work_lo) - target;
+    if (fa <= 0.0)
+        return std::exp(a);
+    real_t fb = std::log(work_hi) - target;
+    if (fb >= 0.0)
+        return std::exp(b);
+    int side = 0;
+    real_t x = 0.5 * (a + b);
+    for (int it = 0; it < 100; ++it)
+    {
+        x = (a * fb - b * fa) / (fb - fa);
+        const real_t fx = std::log(kcc_tension_work(m, std::exp(x))) - target;
+        if (fx == 0.0 || b - a < 1e-10)
+            break;
+        if ((fx > 0.0) == (fa > 0.0))
+        {
+            a = x;
+            fa = fx;
+            if (side == -1)
+                fb *= 0.5;
+            side = -1;
+        }
+        else
+        {
+            b = x;
+            fb = fx;
+            if (side == +1)
+                fa *= 0.5;
+            side = +1;
+        }
+        if (std::abs(fx) < 1e-12)
+            break;
+    }
+    return std::exp(x);
+}
+} // namespace
+
 real_t kcc_tension_scale_for_length(const KccModel& m, real_t h)
 {
     const real_t target = m.fracture_energy / h;
-    real_t lo = std::log(1e-4), hi = std::log(1e4); // work decreases as the scale grows
-    if (kcc_tension_work(m, std::exp(lo)) <= target)
-        return std::exp(lo);
-    if (kcc_tension_work(m, std::exp(hi)) >= target)
-        return std::exp(hi);
-    for (int it = 0; it < 40; ++it)
+    const real_t lo = kcc_tension_work(m, kNarrowLo), hi = kcc_tension_work(m, kNarrowHi);
+    if (lo > target && hi < target)
+        return scale_for_length(m, h, kNarrowLo, kNarrowHi, lo, hi);
+    return scale_for_length(m, h, kScaleLo, kScaleHi, kcc_tension_work(m, kScaleLo), kcc_tension_work(m, kScaleHi));
+}
+} // namespace rkfem
+
+namespace rkfem
+{
+std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real_t>& h)
+{
+    // distinct lengths to 1 nm
+    std::vector<long long> keys(h.size());
+    for (std::size_t p = 0; p < h.size(); ++p)
+        keys[p] = std::llround(h[p] * 1e9);
+    std::vector<long long> distinct = keys;
+    std::sort(distinct.begin(), distinct.end());
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    std::vector<real_t> out(h.size(), 1.0);
+    if (distinct.empty())
+        return out;
+    const bool exact = distinct.size() <= static_cast<std::size_t>(kExactLengths);
+    // the lengths solved exactly: every distinct one, or kExactLengths spaced in log h
+    std::vector<real_t> lengths;
+    if (exact)
+        for (long long k : distinct)
+            lengths.push_back(1e-9 * static_cast<real_t>(k));
+    else
     {
-        const real_t mid = 0.5 * (lo + hi);
-        (kcc_tension_work(m, std::exp(mid)) > target ? lo : hi) = mid;
+        const real_t lo = std::log(1e-9 * static_cast<real_t>(distinct.front()));
+        const real_t hi = std::log(1e-9 * static_cast<real_t>(distinct.back()));
+        for (int i = 0; i < kExactLengths; ++i)
+            lengths.push_back(std::exp(lo + (hi - lo) * i / (kExactLengths - 1)));
     }
-    return std::exp(0.5 * (lo + hi));
+    std::vector<real_t> scales(lengths.size());
+    const int n = static_cast<int>(lengths.size());
+    // the narrow bracket's end works once; lengths outside it take the widest (rare)
+    real_t narrow[2];
+#pragma omp parallel for schedule(static)
+    for (int e = 0; e < 2; ++e)
+        narrow[e] = kcc_tension_work(m, e == 0 ? kNarrowLo : kNarrowHi);
+#pragma omp parallel for schedule(dynamic)
+    for (int i = 0; i < n; ++i)
+    {
+        const real_t len = lengths[static_cast<std::size_t>(i)];
+        const real_t target = m.fracture_energy / len;
+        scales[static_cast<std::size_t>(i)] =
+            narrow[0] > target && narrow[1] < target ? scale_for_length(m, len, kNarrowLo, kNarrowHi, narrow[0], narrow[1])
+                                                     : kcc_tension_scale_for_length(m, len);
+    }
+    for (std::size_t p = 0; p < h.size(); ++p)
+    {
+        if (exact)
+        {
+            const std::size_t i = static_cast<std::size_t>(std::lower_bound(distinct.begin(), distinct.end(), keys[p]) -
+                                                           distinct.begin());
+            out[p] = scales[i];
+            continue;
+        }
+        const real_t x = std::log(1e-9 * static_cast<real_t>(keys[p]));
+        const real_t lo = std::log(lengths.front()), hi = std::log(lengths.back());
+        const real_t u = hi > lo ? std::clamp((x - lo) / (hi - lo) * (kExactLengths - 1), 0.0,
+                                              static_cast<real_t>(kExactLengths - 1))
+                                 : 0.0;
+        const int i = std::min(static_cast<int>(u), kExactLengths - 2);
+        const real_t f = u - i;
+        out[p] = std::exp((1 - f) * std::log(scales[static_cast<std::size_t>(i)]) +
+                          f * std::log(scales[static_cast<std::size_t>(i) + 1]));
+    }
+    return out;
 }
 } // namespace rkfem

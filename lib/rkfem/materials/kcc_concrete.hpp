@@ -1,4 +1,5 @@
 #pragma once
+#include <vector>
 /// @file kcc_concrete.hpp
 /// K&C concrete, Release III (MAT_072R3 analog) stress update at one material point, following
 /// the per-point algorithm of ../shared/reference/materials.md section 1.12: pressure from the
@@ -61,8 +62,17 @@ real_t ceb_fracture_energy(real_t fc_pa);
 real_t kcc_tension_work(const KccModel& m, real_t scale);
 
 /// The tensile damage scale s such that h x kcc_tension_work(s) = G_f (crack band of width h,
-/// the element or nodal length); bisection in log s over [1e-4, 1e4].
+/// the element or nodal length); regula falsi (Illinois) on log W against log s over [1e-4, 1e4].
 real_t kcc_tension_scale_for_length(const KccModel& m, real_t h);
+
+/// The tensile damage scale for every crack-band length of h (one per point). Up to
+/// kExactLengths distinct lengths (to 1 nm) each gets kcc_tension_scale_for_length; more (a
+/// graded or distorted mesh, where nearly every element differs) get log s interpolated linearly
+/// in log h between the exact scales at kExactLengths lengths spaced evenly in log h over the
+/// range (the tabulation error is held to the exact solve in verification/materials/test_kcc).
+/// The exact solves run in parallel.
+inline constexpr int kExactLengths = 16;
+std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real_t>& h);
 
 /// Updates stress s (Voigt, tension positive) and state over dt; returns the plastic work
 /// density increment (>= 0).

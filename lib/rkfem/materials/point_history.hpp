@@ -188,8 +188,8 @@ struct PlasticPoints
             });
     }
     /// Crack-band lengths per point (element size, nodal spacing): with a fracture energy, each
-    /// K&C point gets the tensile damage scale that dissipates G_f over its length (one solve
-    /// per distinct length);
+    /// K&C point gets the tensile damage scale that dissipates G_f over its length
+    /// (kcc_tension_scales: one solve per distinct length, or a table over the range);
     /// each CSCM point gets the softening A, C of its length.
     void set_lengths(const std::vector<real_t>& h)
     {
@@ -205,15 +205,9 @@ struct PlasticPoints
         }
         if (kind != Kind::Kcc || !(kcc.fracture_energy > 0))
             return;
-        std::map<long long, real_t> cache; // length in units of 1e-9 m -> tensile damage scale
+        const std::vector<real_t> scale = kcc_tension_scales(kcc, h);
         for (std::size_t p = 0; p < h.size() && p < kcc_state.size(); ++p)
-        {
-            const long long key = std::llround(h[p] * 1e9);
-            auto it = cache.find(key);
-            if (it == cache.end())
-                it = cache.emplace(key, kcc_tension_scale_for_length(kcc, h[p])).first;
-            kcc_state[p].tension_scale = kcc_trial[p].tension_scale = it->second;
-        }
+            kcc_state[p].tension_scale = kcc_trial[p].tension_scale = scale[p];
     }
     void commit()
     {
