@@ -257,6 +257,23 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         else
             coef = 0.25 * qm * mat.rho * c * lc * lc;
         for (int a = 0; a < 4; ++a)
+        {
+            // stiffness form: the stored force turns with the element's spin first, Q += dt W Q
+            // (W = (L - L^T) / 2; the first-order rotation of the Jaumann stress update)
+            d8 Qrot[3];
+            if constexpr (HG == HourglassType::Stiffness)
+            {
+                d8 Qo[3];
+                for (int i = 0; i < 3; ++i)
+                    Qo[i] = load_lanes(blk.hg_force.data() + static_cast<std::size_t>(3 * a + i) * np);
+                for (int i = 0; i < 3; ++i)
+                {
+                    Qrot[i] = Qo[i];
+                    for (int j = 0; j < 3; ++j)
+                        if (j != i)
+                            Qrot[i] = mul_add((0.5 * dt) * (L[i][j] - L[j][i]), Qo[j], Qrot[i]);
+                }
+            }
             for (int i = 0; i < 3; ++i)
             {
                 const int k = mode_xi_eta + a;
@@ -267,11 +284,10 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                 if constexpr (HG == HourglassType::Stiffness)
                 {
                     const std::size_t slot = static_cast<std::size_t>(3 * a + i) * np;
-                    const d8 Qold = load_lanes(blk.hg_force.data() + slot);
-                    const d8 Qnew = mul_add(coef * dt, qd, Qold);
+                    const d8 Qnew = mul_add(coef * dt, qd, Qrot[i]);
                     store_lanes(blk.hg_force_trial.data() + slot, Qnew);
                     Q[a][i] = Qnew;
-                    de_hg = mul_add((Qold + Qnew) * qd, 0.5 * dt, de_hg);
+                    de_hg = mul_add((Qrot[i] + Qnew) * qd, 0.5 * dt, de_hg);
                 }
                 else
                 {
@@ -279,6 +295,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                     de_hg = mul_add(Q[a][i] * qd, dt, de_hg);
                 }
             }
+        }
         if constexpr (HG != HourglassType::ViscousPlain)
             for (int j = 0; j < 3; ++j)
                 for (int i = 0; i < 3; ++i)

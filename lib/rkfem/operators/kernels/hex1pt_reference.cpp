@@ -83,6 +83,21 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                                                          : 0.25 * qm * mat.rho * c * lc * lc;
         for (int a = 0; a < 4; ++a)
         {
+            // stiffness form: the stored force turns with the element's spin W first (Q += dt W Q,
+            // the first-order rotation the Jaumann stress update makes), so it is objective
+            real_t Q_rot[3] = {};
+            if (hg == HourglassType::Stiffness)
+            {
+                real_t Q_old[3];
+                for (int i = 0; i < 3; ++i)
+                    Q_old[i] = blk.hg_force[static_cast<std::size_t>(3 * a + i) * ne + static_cast<std::size_t>(e)];
+                for (int i = 0; i < 3; ++i)
+                {
+                    Q_rot[i] = Q_old[i];
+                    for (int j = 0; j < 3; ++j)
+                        Q_rot[i] += dt * 0.5 * (L[i][j] - L[j][i]) * Q_old[j];
+                }
+            }
             real_t h[3] = {}, g[3] = {};
             for (int J = 0; J < 8; ++J)
                 for (int d = 0; d < 3; ++d)
@@ -99,9 +114,8 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                 real_t& Q = out.hg_force[a][i];
                 if (hg == HourglassType::Stiffness)
                 {
-                    const real_t Q_old = blk.hg_force[static_cast<std::size_t>(3 * a + i) * ne + static_cast<std::size_t>(e)];
-                    Q = Q_old + ch * dt * qdot;
-                    out.d_hourglass += 0.5 * dt * (Q_old + Q) * qdot;
+                    Q = Q_rot[i] + ch * dt * qdot;
+                    out.d_hourglass += 0.5 * dt * (Q_rot[i] + Q) * qdot;
                 }
                 else
                 {
