@@ -194,3 +194,55 @@ TEST(PointState, MovesBetweenBlockKinds)
     NodalBlock elastic = build_nodal_block(test::steel_nodal_part(Formulation::FemNodal), mesh, 0);
     EXPECT_THROW(copy_point_state(src, 0, point_state(elastic), 0), Error);
 }
+
+TEST(Erosion, ShapeCriteriaPrincipalStrainVolumetricStrainAndTimeStep)
+{
+    // an elastic 1 x 1 x 4 bar (shape criteria need no material history) under an affine motion
+    // of all its nodes, so every element has the same F: each criterion erodes exactly when its
+    // measure passes the limit, on either side of the known value
+    const char* bar = R"(
+title: shape criteria
+time: {end: 1 us}
+parts:
+  bar:
+    generator: {type: box, size: [1 mm, 1 mm, 4 mm], divisions: [1, 1, 4]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    erosion: {principal_strain: 0.1}
+)";
+    auto eroded_after = [&](const std::string& criterion, real_t stretch_z, real_t stretch_x)
+    {
+        Model m = test::model_from(bar, {"parts.bar.erosion=~", "parts.bar.erosion." + criterion});
+        for (index_t i = 0; i < m.nodes.size(); ++i)
+        {
+            m.nodes.x[3 * i] = stretch_x * m.nodes.x0[3 * i];
+            m.nodes.x[3 * i + 2] = stretch_z * m.nodes.x0[3 * i + 2];
+        }
+        const Model::ElementShape g = m.element_shape(0, 2);
+        m.apply_events(0.0, 1);
+        return std::make_pair(m.eroded_elements(), g);
+    };
+    // uniaxial stretch 1.03: ln 1.03 = 0.02956, V / V0 - 1 = 0.03
+    const auto [n0, g] = eroded_after("principal_strain=0.0295", 1.03, 1.0);
+    std::printf("stretch 1.03: principal strain %.6f, volumetric strain %.6f, element step %.4e s\n", g.principal_strain,
+                g.volumetric_strain, g.time_step);
+    EXPECT_NEAR(g.principal_strain, std::log(1.03), 1e-14);
+    EXPECT_NEAR(g.volumetric_strain, 0.03, 1e-14);
+    EXPECT_EQ(n0, 4);
+    EXPECT_EQ(eroded_after("principal_strain=0.0296", 1.03, 1.0).first, 0);
+    EXPECT_EQ(eroded_after("volumetric_strain=0.0299", 1.03, 1.0).first, 4);
+    EXPECT_EQ(eroded_after("volumetric_strain=0.0301", 1.03, 1.0).first, 0);
+    // squeezed to half its width in x: V / A_max = 0.5 mm (the face normal to x stays 1 mm^2),
+    // step 0.5 mm / c; c = sqrt((lambda + 2 mu) / rho)
+    const real_t c = std::sqrt(200e9 * 0.7 / (1.3 * 0.4) / 7850.0);
+    const Model::ElementShape sq = eroded_after("time_step=1e-9 s", 1.0, 0.5).second;
+    EXPECT_NEAR(sq.time_step, 0.5e-3 / c, 1e-12 * sq.time_step);
+    auto seconds = [](real_t v)
+    {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%.9e s", v);
+        return std::string(buf);
+    };
+    EXPECT_EQ(eroded_after("time_step=" + seconds(1.01 * 0.5e-3 / c), 1.0, 0.5).first, 4);
+    EXPECT_EQ(eroded_after("time_step=" + seconds(0.99 * 0.5e-3 / c), 1.0, 0.5).first, 0);
+}

@@ -86,11 +86,18 @@ struct HourglassSpec
 
 /// Element erosion (LS-DYNA *MAT_ADD_EROSION analog): after each step, an element whose
 /// point-averaged committed value reaches a limit is removed (0: that criterion is off).
+/// Element erosion criteria (LS-DYNA *MAT_ADD_EROSION analog); an element erodes when any set
+/// criterion is met (0: off).
 struct ErosionSpec
 {
     real_t plastic_strain = 0.0; ///< effective plastic strain
     real_t damage = 0.0;         ///< 0..1 damage index (K&C: delta - 1; CSCM d; J2: failed)
-    bool active() const { return plastic_strain > 0 || damage > 0; }
+    real_t principal_strain = 0.0;  ///< largest principal logarithmic strain ln(lambda_max) (MXEPS)
+    real_t volumetric_strain = 0.0; ///< V / V0 - 1, tension (VOLEPS)
+    real_t time_step = 0.0;         ///< element step (V / A_max) / c below this [s] (DTMIN)
+    bool active() const { return plastic_strain > 0 || damage > 0 || geometric(); }
+    /// a criterion on the element's shape (a pass over its nodes per step)
+    bool geometric() const { return principal_strain > 0 || volumetric_strain > 0 || time_step > 0; }
 };
 
 struct BulkViscositySpec

@@ -260,6 +260,8 @@ std::string to_yaml(const Deck& d)
         os << "    initial_velocity: " << vec(p.initial_velocity) << "\n";
         if (p.erosion.active())
             os << "    erosion: {effective_plastic_strain: " << p.erosion.plastic_strain << ", damage: " << p.erosion.damage
+               << ", principal_strain: " << p.erosion.principal_strain
+               << ", volumetric_strain: " << p.erosion.volumetric_strain << ", time_step: " << p.erosion.time_step
                << "}\n";
     }
     sets(os, "node_sets", d.node_sets);

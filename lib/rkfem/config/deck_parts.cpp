@@ -479,18 +479,27 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         if (p.formulation != Formulation::Fem1pt && p.formulation != Formulation::Fem2x2x2)
             s.fail("erosion", "erodes elements of Gauss-point formulations only",
                    "expected formulation fem-1pt or fem-2x2x2 on a part with erosion");
-        if (p.material.model == "elastic")
-            s.fail("erosion", "needs a material with history (plastic strain, damage)",
-                   "expected material model j2, kcc or cscm");
-        Section e(ctx, s.node("erosion"), s.path("erosion"), {"effective_plastic_strain", "damage"});
+        Section e(ctx, s.node("erosion"), s.path("erosion"),
+                  {"effective_plastic_strain", "damage", "principal_strain", "volumetric_strain", "time_step"});
         p.erosion.plastic_strain = e.quantity("effective_plastic_strain", dim::none, 0.0);
         p.erosion.damage = e.quantity("damage", dim::none, 0.0);
+        p.erosion.principal_strain = e.quantity("principal_strain", dim::none, 0.0);
+        p.erosion.volumetric_strain = e.quantity("volumetric_strain", dim::none, 0.0);
+        p.erosion.time_step = e.quantity("time_step", dim::time, 0.0);
+        for (const char* key : {"principal_strain", "volumetric_strain", "time_step"})
+            if (e.has(key) && !(e.quantity(key, key == std::string("time_step") ? dim::time : dim::none) >= 0.0))
+                e.fail(key, "is negative", "expected a value > 0 (0: off)");
+        if (p.material.model == "elastic" && (p.erosion.plastic_strain > 0 || p.erosion.damage > 0))
+            s.fail("erosion", "effective_plastic_strain and damage need a material with history",
+                   "expected material model j2, kcc or cscm, or the criteria principal_strain, volumetric_strain, "
+                   "time_step");
         if (!(p.erosion.plastic_strain >= 0.0 && std::isfinite(p.erosion.plastic_strain)))
             e.fail("effective_plastic_strain", "is negative or not finite", "expected a strain > 0 (0: off)");
         if (!(p.erosion.damage >= 0.0 && p.erosion.damage <= 1.0))
             e.fail("damage", "is outside [0, 1]", "expected a damage index in (0, 1] (0: off)");
         if (!p.erosion.active())
-            s.fail("erosion", "has no criterion", "expected effective_plastic_strain and/or damage > 0");
+            s.fail("erosion", "has no criterion",
+                   "expected effective_plastic_strain, damage, principal_strain, volumetric_strain or time_step > 0");
     }
     return p;
 }

@@ -173,6 +173,14 @@ class Model final : public ExplicitOperator
     /// node no element holds any more flies free), and the output topology changes. The energy
     /// ledger continues: the removed elements' internal energy stays booked.
     void remove_elements(index_t block, const std::vector<char>& keep);
+    /// The shape measures the erosion criteria read, of element e of a block: the largest
+    /// principal logarithmic strain of its mean deformation gradient, V / V0 - 1, and its step
+    /// (V / A_max) / c.
+    struct ElementShape
+    {
+        real_t principal_strain = 0.0, volumetric_strain = 0.0, time_step = 0.0;
+    };
+    ElementShape element_shape(index_t block, index_t e) const;
     /// The model's own events after an accepted step (erosion by the parts' criteria); true when
     /// the discretization changed.
     bool apply_events(real_t t, std::int64_t step);

@@ -4,7 +4,11 @@
 
 #include <algorithm>
 
+#include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/error.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
 
 namespace rkfem
 {
@@ -35,6 +39,40 @@ void Model::remove_elements(index_t block, const std::vector<char>& keep)
     ++topology_version_;
 }
 
+Model::ElementShape Model::element_shape(index_t block, index_t e) const
+{
+    const HexBlock& blk = blocks[static_cast<std::size_t>(block)];
+    real_t x[8][3], X[8][3], b[8][3], b0[8][3];
+    for (int I = 0; I < 8; ++I)
+        for (int d = 0; d < 3; ++d)
+        {
+            const std::size_t j = 3 * static_cast<std::size_t>(blk.conn[8 * e + I]) + d;
+            x[I][d] = nodes.x[j];
+            X[I][d] = nodes.x0[j];
+        }
+    const real_t V = hex8_volume_gradient(x, b), V0 = hex8_volume_gradient(X, b0);
+    // the mean deformation gradient F = sum_I x_I (x) b0_I / V0; lambda_max^2 = largest eigenvalue of F^T F
+    Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
+    for (int I = 0; I < 8; ++I)
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                F(i, j) += x[I][i] * b0[I][j] / V0;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(F.transpose() * F, Eigen::EigenvaluesOnly);
+    ElementShape g;
+    g.principal_strain = 0.5 * std::log(std::max(eig.eigenvalues().maxCoeff(), 1e-300));
+    g.volumetric_strain = V / V0 - 1.0;
+    // the element step as the kernels take it: V over the largest face area, over the wave speed
+    real_t area = 0.0;
+    for (const auto& f : hex_faces)
+    {
+        const Vec3 p0(x[f[0]][0], x[f[0]][1], x[f[0]][2]), p1(x[f[1]][0], x[f[1]][1], x[f[1]][2]);
+        const Vec3 p2(x[f[2]][0], x[f[2]][1], x[f[2]][2]), p3(x[f[3]][0], x[f[3]][1], x[f[3]][2]);
+        area = std::max(area, 0.5 * (p2 - p0).cross(p3 - p1).norm());
+    }
+    g.time_step = area > 0.0 ? V / area / blk.material.wave_speed() : 0.0;
+    return g;
+}
+
 bool Model::apply_events(real_t, std::int64_t)
 {
     bool changed = false;
@@ -48,8 +86,15 @@ bool Model::apply_events(real_t, std::int64_t)
         index_t removed = 0;
         for (index_t e = 0; e < ne; ++e)
         {
-            const bool erode = (er.plastic_strain > 0 && element_history(b, e, History::PlasticStrain) >= er.plastic_strain) ||
-                               (er.damage > 0 && element_history(b, e, History::Damage) >= er.damage);
+            bool erode = (er.plastic_strain > 0 && element_history(b, e, History::PlasticStrain) >= er.plastic_strain) ||
+                         (er.damage > 0 && element_history(b, e, History::Damage) >= er.damage);
+            if (!erode && er.geometric())
+            {
+                const ElementShape g = element_shape(b, e);
+                erode = (er.principal_strain > 0 && g.principal_strain >= er.principal_strain) ||
+                        (er.volumetric_strain > 0 && g.volumetric_strain >= er.volumetric_strain) ||
+                        (er.time_step > 0 && g.time_step < er.time_step);
+            }
             keep[e] = !erode;
             removed += erode;
         }
