@@ -527,6 +527,32 @@ TEST(Decks, ContactsAreCheckedWithTheirLines)
     expect_rejected("contact_friction.yaml",
                     replace(pair, "surfaces: [col]", "surfaces: [col, col], friction: {static: -0.1}"),
                     ":13: contacts.0.friction.static", "is negative");
+    // two parts that overlap at the start: the run says how many nodes start inside (held at
+    // that depth, not pushed out) and summary.json records them
+    {
+        const std::string overlap = R"(title: overlap
+time: {end: 2 us}
+parts:
+  a:
+    generator: {type: box, size: [2 mm, 2 mm, 2 mm], divisions: [2, 2, 2]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+  b:
+    generator: {type: box, origin: [0, 0, 1.9 mm], size: [2 mm, 2 mm, 2 mm], divisions: [2, 2, 2]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+contacts:
+  - {type: surface-to-surface, surfaces: [a, b]}
+)";
+        const fs::path out = fs::temp_directory_path() / "rkfem_out_overlap";
+        fs::remove_all(out);
+        const Result r = run("run " + write_deck("overlap.yaml", overlap) + " --out " + out.string());
+        EXPECT_EQ(r.code, 0) << r.output;
+        // 9 nodes of each part's face lie 0.1 mm inside the other part
+        EXPECT_NE(r.output.find("warning: contacts.0: 18 node(s) start inside the other surface"), std::string::npos)
+            << r.output;
+        std::ifstream in(out / "summary.json");
+        const std::string summary((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        EXPECT_NE(summary.find("\"initial_penetrations\": 18"), std::string::npos);
+    }
     // a good contact deck runs, and check echoes the resolved contact
     const std::string deck = write_deck("contact_good.yaml", wall);
     const Result r = run("check " + deck);

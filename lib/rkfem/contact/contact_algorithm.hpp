@@ -90,5 +90,7 @@ class ContactAlgorithm
     virtual Vec3 resultant() const = 0;
     /// Nodes in contact in the last evaluation.
     virtual index_t active_nodes() const = 0;
+    /// Nodes found inside the other surface at the first evaluation (held, not pushed out).
+    virtual index_t initial_penetrations() const { return 0; }
 };
 } // namespace rkfem

@@ -65,7 +65,7 @@ class NodeToSegmentContact final : public ContactAlgorithm
     /// Searches done so far (the first evaluation's included).
     index_t searches() const { return searches_; }
     /// Slave nodes found inside the other surface at the first evaluation (initial penetrations).
-    index_t initial_penetrations() const { return initial_penetrations_; }
+    index_t initial_penetrations() const override { return initial_penetrations_; }
 
   private:
     struct Hit

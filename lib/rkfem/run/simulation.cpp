@@ -194,6 +194,12 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                 observer(model, t, dt_last, step);
         };
         observe(false);
+        for (std::size_t k = 0; k < model.contacts.size(); ++k)
+            if (const index_t n = model.contacts[k]->initial_penetrations(); n > 0 && opt.progress)
+                std::fprintf(stderr,
+                             "rkfem: warning: contacts.%zu: %lld node(s) start inside the other surface; they are held at "
+                             "that depth, not pushed out (summary.json: contacts)\n",
+                             k, static_cast<long long>(n));
         real_t dt_stable = rep.dt_stable;
         index_t ne = model.n_cells(); // elements, and the particles of cloud parts
         std::vector<real_t> event_a;  // accelerations before an event

@@ -84,6 +84,18 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"max_balance_error\": " << num(s.max_balance_error) << ",\n";
     o << "  \"hourglass_ratio\": " << num(e.hourglass_ratio()) << ",\n";
     o << "  \"hourglass_to_total\": " << num(e.hourglass_to_total()) << ",\n";
+    if (!model.contacts.empty())
+    {
+        o << "  \"contacts\": [";
+        for (std::size_t k = 0; k < model.contacts.size(); ++k)
+        {
+            const Vec3 f = model.contacts[k]->resultant();
+            o << (k ? ", " : "") << "{\"initial_penetrations\": " << model.contacts[k]->initial_penetrations()
+              << ", \"active_nodes\": " << model.contacts[k]->active_nodes() << ", \"resultant\": [" << num(f[0]) << ", "
+              << num(f[1]) << ", " << num(f[2]) << "]}";
+        }
+        o << "],\n";
+    }
     if (s.has_impact)
     {
         const ImpactMeasures& im = s.impact;
