@@ -53,8 +53,41 @@ int usage()
 }
 } // namespace
 
+/// `rkfem --help`, `rkfem SUBCOMMAND --help`: usage on stdout, exit 0.
+int help(const std::string& command)
+{
+    struct Entry
+    {
+        const char *name, *line, *what;
+    };
+    static const Entry entries[] = {
+        {"check", "rkfem check DECK [--set key.path=value ...]",
+         "Reads and validates DECK, builds the model, prints the resolved deck in SI units and the model's size."},
+        {"run", "rkfem run DECK --out DIR [--set key.path=value ...] [--quiet]",
+         "Runs DECK to time.end: DIR/results.h5 + results.xdmf (ParaView), history.csv, summary.json."},
+        {"convergence", "rkfem convergence SWEEP --out DIR [--quiet]",
+         "Manufactured-solution convergence sweep: DIR/convergence.csv and convergence.h5."},
+        {"material-point", "rkfem material-point DECK --out DIR [--quiet]",
+         "One material along a strain path: DIR/stress_strain.csv and stress_strain.h5."},
+    };
+    for (const Entry& e : entries)
+        if (command == e.name)
+        {
+            std::printf("usage: %s\n\n%s\n", e.line, e.what);
+            return 0;
+        }
+    std::printf("usage:\n");
+    for (const Entry& e : entries)
+        std::printf("  %s\n      %s\n", e.line, e.what);
+    std::printf("\nrkfem SUBCOMMAND --help describes one subcommand; README.md describes the decks.\n");
+    return 0;
+}
+
 int main(int argc, char** argv)
 {
+    for (int i = 1; i < argc; ++i)
+        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h")
+            return help(i > 1 ? argv[1] : "");
     if (argc < 3)
         return usage();
     const std::string command = argv[1];

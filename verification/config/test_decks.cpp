@@ -561,3 +561,16 @@ contacts:
               std::string::npos)
         << r.output;
 }
+
+TEST(Decks, HelpPrintsUsageAndExitsZero)
+{
+    const Result all = run("--help");
+    EXPECT_EQ(all.code, 0) << all.output;
+    for (const char* c : {"rkfem check DECK", "rkfem run DECK --out DIR", "rkfem convergence SWEEP", "rkfem material-point"})
+        EXPECT_NE(all.output.find(c), std::string::npos) << all.output;
+    const Result one = run("run --help");
+    EXPECT_EQ(one.code, 0) << one.output;
+    EXPECT_NE(one.output.find("usage: rkfem run DECK --out DIR"), std::string::npos) << one.output;
+    EXPECT_EQ(one.output.find("convergence"), std::string::npos) << one.output;
+    EXPECT_EQ(run("").code, 2); // no arguments: usage on stderr, exit 2
+}
