@@ -478,3 +478,70 @@ TEST(Projectile, FlatNosedFspIsStoppedByTheConcretePanelNotPassedThrough)
     EXPECT_LT(face, -1e-3);                   // the struck face moved with the nose
     EXPECT_LT(worst_balance, 0.02);
 }
+
+TEST(Friction, CoulombForceOpposesSlidingWithMuTimesTheNormalForce)
+{
+    // a block pressed onto a rigid wall by 10 MPa on its top, sliding along x at 20 m/s (fast
+    // enough that the stick regularization, m |v_t| / dt0, never binds): at every step in contact
+    // the wall's tangential force is mu N opposite the slip, mu = 0.3 + 0.2 exp(-1e4 |v_t|) =
+    // mu_d to round-off (mu_s = 0.5, mu_d = 0.3, decay 1e4 s/m), and the block's x momentum
+    // changes by exactly the friction impulse (trapezoid in time, as central difference applies it)
+    Model m = test::model_from(R"(
+title: sliding block
+time: {end: 3 us, stepper: central-difference}
+parts:
+  block:
+    generator: {type: box, size: [2 mm, 2 mm, 2 mm], divisions: [2, 2, 2]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    initial_velocity: [20 m/s, 0, 0]
+face_sets:
+  top: {part: block, select: {type: named, name: top}}
+loads:
+  - {type: pressure, face_set: top, pressure: 10 MPa}
+contacts:
+  - {type: rigid-wall, surfaces: [block], point: [0, 0, 0], normal: [0, 0, 1], penalty_scale: 0.5,
+     friction: {static: 0.5, dynamic: 0.3, decay: 1e4 s/m}}
+)");
+    real_t px0 = 0.0, mass = 0.0;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+    {
+        px0 += m.nodes.mass[i] * m.nodes.v[3 * i];
+        mass += m.nodes.mass[i];
+    }
+    real_t worst = 0.0, impulse = 0.0, prev_fx = 0.0;
+    int in_contact = 0;
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt,
+                                        [&](const Model& mm, real_t, real_t dt, std::int64_t)
+                                        {
+                                            // x forces: friction and the pressure on the top face,
+                                            // which tilts a little as friction shears the block
+                                            const Vec3 f = mm.contacts[0]->resultant();
+                                            real_t fx = f[0];
+                                            for (index_t i = 0; i < mm.nodes.size(); ++i)
+                                                fx += mm.nodes.f_ext[3 * i];
+                                            impulse += 0.5 * dt * (prev_fx + fx);
+                                            prev_fx = fx;
+                                            if (f[2] <= 0.0)
+                                                return;
+                                            ++in_contact;
+                                            const real_t ratio = std::hypot(f[0], f[1]) / f[2];
+                                            worst = std::max(worst, std::abs(ratio - 0.3));
+                                        });
+    ASSERT_EQ(s.status, "completed") << s.message;
+    real_t px = 0.0;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        px += m.nodes.mass[i] * m.nodes.v[3 * i];
+    std::printf("friction: %d steps in contact, |F_t| / N within %.2e of mu_d = 0.3, x momentum change %.9e vs "
+                "impulse of friction and pressure %.9e, block speed %.4f m/s\n",
+                in_contact, worst, px - px0, impulse, px / mass);
+    EXPECT_GT(in_contact, 10);
+    // each node's force is mu N along its own slip, which its lateral (Poisson) velocity turns
+    // by about 1e-3 rad: the resultant's ratio is mu to 1e-5
+    EXPECT_LT(worst, 1e-5);
+    EXPECT_NEAR(px - px0, impulse, 1e-9 * std::abs(impulse));
+    EXPECT_LT(px / mass, 20.0 - 0.5); // about mu p A t / M = 0.57 m/s slower
+}
