@@ -574,3 +574,19 @@ TEST(Decks, HelpPrintsUsageAndExitsZero)
     EXPECT_EQ(one.output.find("convergence"), std::string::npos) << one.output;
     EXPECT_EQ(run("").code, 2); // no arguments: usage on stderr, exit 2
 }
+
+TEST(Decks, RepeatedPartSetAndProbeNamesAreRefused)
+{
+    // names are mapping keys: a repeated one was read once and the second silently dropped (two
+    // probes of one name made the run fail at its end in HDF5)
+    const std::string part = "  col:\n    generator: {type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}\n"
+                             "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n";
+    expect_rejected("repeated_part.yaml", replace(good, "node_sets:", part + "node_sets:"), ":8: parts.col",
+                    "key 'col' given twice; each key once (first given on line 5)");
+    expect_rejected("repeated_set.yaml",
+                    replace(good, "boundary_conditions:",
+                            "  end: {part: col, select: {type: named, name: top}}\nboundary_conditions:"),
+                    ":10: node_sets.end", "key 'end' given twice");
+    expect_rejected("repeated_probe.yaml", good + "probes:\n  p: {point: [0, 0, 0]}\n  p: {point: [0, 0, 1 mm]}\n",
+                    ":14: probes.p", "key 'p' given twice; each key once (first given on line 13)");
+}

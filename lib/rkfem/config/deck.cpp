@@ -124,6 +124,7 @@ Deck build(const YAML::Node& root, Context& ctx)
     const YAML::Node parts = root["parts"];
     if (!parts.IsMap() || parts.size() == 0)
         top.fail("parts", "is empty or not a mapping", "expected name: {generator, material, ...}");
+    reject_repeated_keys(ctx, parts, "parts");
     for (const auto& kv : parts)
     {
         const std::string name = kv.first.as<std::string>();
@@ -250,6 +251,7 @@ Deck build(const YAML::Node& root, Context& ctx)
     {
         if (!probes.IsMap())
             top.fail("probes", "is not a mapping", "expected name: {point: [x, y, z]}");
+        reject_repeated_keys(ctx, probes, "probes");
         for (const auto& kv : probes)
         {
             const std::string name = kv.first.as<std::string>();

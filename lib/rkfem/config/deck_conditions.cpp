@@ -153,6 +153,7 @@ std::vector<SetSpec> read_sets(const Context& ctx, const YAML::Node& root, const
         return out;
     if (!n.IsMap())
         throw DeckError(locate(ctx, n, key), "is not a mapping", "expected name: {part, select}");
+    reject_repeated_keys(ctx, n, key);
     for (const auto& kv : n)
     {
         const std::string name = kv.first.as<std::string>();

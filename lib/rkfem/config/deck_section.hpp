@@ -46,6 +46,25 @@ inline std::string child_path(const std::string& parent, const std::string& key)
 /// Where a node of the deck (or the --set that gave it) is.
 SourceLocation locate(const Context& ctx, const YAML::Node& node, const std::string& path);
 
+/// Throws DeckError at the second of two equal keys of a mapping (yaml-cpp keeps both of a
+/// repeated key and [] reads the first): part, set and probe names, as any key, are given once.
+inline void reject_repeated_keys(const Context& ctx, const YAML::Node& map, const std::string& path)
+{
+    std::map<std::string, YAML::Node> seen;
+    for (const auto& kv : map)
+    {
+        const std::string key = kv.first.as<std::string>();
+        if (const auto [it, fresh] = seen.emplace(key, kv.first); !fresh)
+        {
+            const YAML::Mark first = it->second.Mark();
+            throw DeckError(locate(ctx, kv.first, child_path(path, key)), "key '" + key + "' given twice",
+                            "each key once" + (first.is_null() ? std::string()
+                                                               : " (first given on line " +
+                                                                     std::to_string(first.line + 1) + ")"));
+        }
+    }
+}
+
 /// A YAML mapping with a fixed set of allowed keys. Unknown keys are rejected at construction
 /// (with the closest allowed key suggested).
 class Section
@@ -59,18 +78,10 @@ class Section
             throw DeckError(locate(ctx_, node_, path_),
                             node_.IsNull() ? "is empty" : "is not a mapping",
                             "expected keys: " + join(allowed_));
-        std::map<std::string, YAML::Node> seen; // yaml-cpp keeps both of a repeated key; [] reads the first
+        reject_repeated_keys(ctx_, node_, path_);
         for (const auto& kv : node_)
         {
             const std::string key = kv.first.as<std::string>();
-            if (const auto [it, fresh] = seen.emplace(key, kv.first); !fresh)
-            {
-                const YAML::Mark first = it->second.Mark();
-                throw DeckError(locate(ctx_, kv.first, child_path(path_, key)), "key '" + key + "' given twice",
-                                "each key once" + (first.is_null() ? std::string()
-                                                                   : " (first given on line " +
-                                                                         std::to_string(first.line + 1) + ")"));
-            }
             if (std::find(allowed_.begin(), allowed_.end(), key) != allowed_.end())
                 continue;
             std::string best;
