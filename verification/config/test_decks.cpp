@@ -10,7 +10,9 @@
 #include <hdf5.h>
 #include <regex>
 #include <string>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -589,4 +591,28 @@ TEST(Decks, RepeatedPartSetAndProbeNamesAreRefused)
                     ":10: node_sets.end", "key 'end' given twice");
     expect_rejected("repeated_probe.yaml", good + "probes:\n  p: {point: [0, 0, 0]}\n  p: {point: [0, 0, 1 mm]}\n",
                     ":14: probes.p", "key 'p' given twice; each key once (first given on line 13)");
+}
+
+TEST(Decks, DevicesFifosAndDirectoriesAreRefusedNotRead)
+{
+    // check on /dev/zero or on a FIFO with no writer hung; a directory gave no line
+    ::unlink("/tmp/rkfem_test_fifo");
+    ASSERT_EQ(::mkfifo("/tmp/rkfem_test_fifo", 0600), 0);
+    for (const std::string f : {"/dev/zero", "/tmp/rkfem_test_fifo", "/tmp"})
+        for (const char* cmd : {"check ", "convergence ", "material-point "})
+        {
+            // run() with the executable behind timeout, so a regression fails instead of hanging
+            Result r;
+            const std::string line = std::string("timeout 20 ") + RKFEM_EXE + " " + cmd + f + " --out /tmp/rkfem_never 2>&1";
+            FILE* p = popen(line.c_str(), "r");
+            std::array<char, 4096> buf;
+            while (fgets(buf.data(), buf.size(), p))
+                r.output += buf.data();
+            const int status = pclose(p);
+            r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+            EXPECT_EQ(r.code, 2) << cmd << f << ": " << r.output;
+            EXPECT_NE(r.output.find(f + ": "), std::string::npos) << r.output;
+            EXPECT_NE(r.output.find("is not a regular file"), std::string::npos) << r.output;
+        }
+    ::unlink("/tmp/rkfem_test_fifo");
 }

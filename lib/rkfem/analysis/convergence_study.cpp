@@ -55,9 +55,10 @@ real_t number(const std::string& file, const YAML::Node& m, const std::string& k
 ConvergenceSweep read_sweep(const std::string& path)
 {
     YAML::Node root;
+    const std::string source = read_deck_text(path, "a YAML sweep definition"); // regular files only
     try
     {
-        root = YAML::LoadFile(path);
+        root = YAML::Load(source);
     }
     catch (const YAML::Exception& e)
     {

@@ -306,11 +306,8 @@ Deck parse_deck(const std::string& text, const std::string& name,
 
 MaterialPointDeck read_material_point_deck(const std::string& path)
 {
-    std::ifstream in(path);
-    if (!in)
-        throw DeckError({path, ""}, "cannot be opened", "expected a readable YAML material-point deck");
     std::stringstream ss;
-    ss << in.rdbuf();
+    ss << read_deck_text(path, "a readable YAML material-point deck");
     Context ctx{path, {}};
     const YAML::Node root = load_document(ss.str(), path);
     if (!root.IsMap())
@@ -343,13 +340,29 @@ MaterialPointDeck read_material_point_deck(const std::string& path)
     return d;
 }
 
-Deck read_deck(const std::string& path, const std::vector<std::string>& overrides)
+std::string read_deck_text(const std::string& path, const std::string& expected)
 {
+    // a device (/dev/zero), a FIFO without a writer or a directory would hang or fail the read:
+    // only regular files, and none past 64 MB (a deck is a few kB)
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (ec || !std::filesystem::exists(st))
+        throw DeckError({path, ""}, "cannot be opened (no such file)", "expected " + expected);
+    if (!std::filesystem::is_regular_file(st))
+        throw DeckError({path, ""}, "is not a regular file", "expected " + expected);
+    const auto size = std::filesystem::file_size(path, ec);
+    if (!ec && size > (64u << 20))
+        throw DeckError({path, ""}, "is " + std::to_string(size >> 20) + " MB", "expected " + expected + " under 64 MB");
     std::ifstream in(path);
     if (!in)
-        throw DeckError({path, ""}, "cannot be opened", "expected a readable YAML deck file");
+        throw DeckError({path, ""}, "cannot be opened", "expected " + expected);
     std::stringstream ss;
     ss << in.rdbuf();
-    return parse_deck(ss.str(), path, overrides);
+    return ss.str();
+}
+
+Deck read_deck(const std::string& path, const std::vector<std::string>& overrides)
+{
+    return parse_deck(read_deck_text(path, "a readable YAML deck file"), path, overrides);
 }
 } // namespace rkfem

@@ -349,6 +349,10 @@ struct MaterialPointDeck
     MaterialPathSpec load_path;
 };
 
+/// The text of a deck file: refuses, with a DeckError, what is not a regular file (devices,
+/// FIFOs, directories) or is past 64 MB. `expected` completes the message.
+std::string read_deck_text(const std::string& path, const std::string& expected);
+
 /// Reads a material-point deck (keys title, material, path). Throws DeckError.
 MaterialPointDeck read_material_point_deck(const std::string& path);
 
