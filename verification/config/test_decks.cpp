@@ -616,3 +616,15 @@ TEST(Decks, DevicesFifosAndDirectoriesAreRefusedNotRead)
         }
     ::unlink("/tmp/rkfem_test_fifo");
 }
+
+TEST(Decks, MeshesThatCannotFitAreRefusedBeforeAllocation)
+{
+    // element_size 1e-30 m overflowed the division count to one element; 0.1 mm (1e8 hexes,
+    // about 150 GB) ran until the allocator failed with "internal error: std::bad_alloc"
+    expect_rejected("tiny_elements.yaml", replace(good, "element_size: 1 mm", "element_size: 1e-30 m"),
+                    ":6: parts.col.generator", "cells; expected fewer than 2.5e8 cells per part");
+    // 2e8 hexes: within the 32-bit indices, about 300 GB
+    const std::string big = replace(replace(good, "size: [1 mm, 1 mm, 10 mm]", "size: [20 mm, 20 mm, 500 mm]"),
+                                    "element_size: 1 mm", "element_size: 0.1 mm");
+    expect_rejected("huge_mesh.yaml", big, ":6: parts.col.generator", "GB");
+}

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <sstream>
+#include <unistd.h>
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/core/error.hpp"
@@ -68,8 +70,72 @@ std::pair<index_t, index_t> Model::locate_element(index_t global) const
     return {-1, -1};
 }
 
+namespace
+{
+/// About how many cells (elements, or particles of a cloud) a generator makes, in floating point
+/// (no integer overflow for absurd sizes): box by divisions or size / element_size, cylinder and
+/// projectile by volume / element_size^3, clouds by volume / spacing^3 (0 for a points file).
+real_t estimated_cells(const GeneratorSpec& g)
+{
+    const real_t h = g.element_size;
+    switch (g.type)
+    {
+    case GeneratorSpec::Type::Box:
+    {
+        real_t n = 1.0;
+        for (int k = 0; k < 3; ++k)
+            n *= g.divisions[k] > 0 ? g.divisions[k] : std::max(1.0, std::round(g.size[k] / h));
+        return n;
+    }
+    case GeneratorSpec::Type::Cloud:
+        if (!g.points_file.empty())
+            return 0.0;
+        return (g.body == GeneratorSpec::Body::Box ? g.size[0] * g.size[1] * g.size[2] : M_PI * g.radius * g.radius * g.height) /
+               (h * h * h);
+    default:
+        return std::max(1.0, M_PI * g.radius * g.radius * g.height / (h * h * h));
+    }
+}
+
+/// Refuses, before anything is allocated, a deck whose meshes cannot fit: more cells than the
+/// 32-bit indices hold, or an estimated footprint (1.5 kB per 1-point hex, 4 kB per 2x2x2 hex,
+/// 45 kB per nodal point: measured) past the machine's memory.
+void check_size(const Deck& d)
+{
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    const real_t memory = pages > 0 && page > 0 ? static_cast<real_t>(pages) * static_cast<real_t>(page) : 1e300;
+    real_t total = 0.0, cells_total = 0.0;
+    for (const PartSpec& p : d.parts)
+    {
+        const real_t cells = estimated_cells(p.generator);
+        const real_t per = is_nodal(p.formulation) || p.coupled() ? 45e3
+                           : p.formulation == Formulation::Fem2x2x2 ? 4e3
+                                                                     : 1.5e3;
+        cells_total += cells;
+        total += cells * per;
+        std::ostringstream what;
+        what.precision(3);
+        if (!(cells < 2.5e8))
+        {
+            what << "makes about " << cells << " cells";
+            throw DeckError({p.generator.loc.where, "parts." + p.name + ".generator"}, what.str(),
+                            "expected fewer than 2.5e8 cells per part (a larger element_size or fewer divisions)");
+        }
+        if (!(total < 0.9 * memory))
+        {
+            what << "needs about " << total / 1e9 << " GB (" << cells_total << " cells so far)";
+            std::ostringstream mem;
+            mem.precision(3);
+            mem << "expected meshes that fit in this machine's " << memory / 1e9 << " GB";
+            throw DeckError({p.generator.loc.where, "parts." + p.name + ".generator"}, what.str(), mem.str());
+        }
+    }
+}
+} // namespace
+
 Model Model::build(const Deck& deck)
 {
+    check_size(deck);
     Model m;
     m.deck_ = deck;
     const Deck& d = m.deck_;
