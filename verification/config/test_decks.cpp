@@ -24,10 +24,10 @@ struct Result
     std::string output;
 };
 
-Result run(const std::string& args)
+/// Runs a shell command line and collects its stdout (callers add 2>&1 for stderr) and exit code.
+Result run_shell(const std::string& cmd)
 {
     Result r;
-    const std::string cmd = std::string(RKFEM_EXE) + " " + args + " 2>&1";
     FILE* p = popen(cmd.c_str(), "r");
     std::array<char, 4096> buf;
     while (fgets(buf.data(), buf.size(), p))
@@ -36,6 +36,9 @@ Result run(const std::string& args)
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return r;
 }
+
+/// Runs the rkfem executable with these arguments.
+Result run(const std::string& args) { return run_shell(std::string(RKFEM_EXE) + " " + args + " 2>&1"); }
 
 const std::string good = R"(title: small
 time:
@@ -601,15 +604,9 @@ TEST(Decks, DevicesFifosAndDirectoriesAreRefusedNotRead)
     for (const std::string f : {"/dev/zero", "/tmp/rkfem_test_fifo", "/tmp"})
         for (const char* cmd : {"check ", "convergence ", "material-point "})
         {
-            // run() with the executable behind timeout, so a regression fails instead of hanging
-            Result r;
-            const std::string line = std::string("timeout 20 ") + RKFEM_EXE + " " + cmd + f + " --out /tmp/rkfem_never 2>&1";
-            FILE* p = popen(line.c_str(), "r");
-            std::array<char, 4096> buf;
-            while (fgets(buf.data(), buf.size(), p))
-                r.output += buf.data();
-            const int status = pclose(p);
-            r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+            // the executable behind timeout, so a regression fails instead of hanging
+            const Result r =
+                run_shell(std::string("timeout 20 ") + RKFEM_EXE + " " + cmd + f + " --out /tmp/rkfem_never 2>&1");
             EXPECT_EQ(r.code, 2) << cmd << f << ": " << r.output;
             EXPECT_NE(r.output.find(f + ": "), std::string::npos) << r.output;
             EXPECT_NE(r.output.find("is not a regular file"), std::string::npos) << r.output;
