@@ -114,6 +114,18 @@ int main(int argc, char** argv)
     }
     if (command != "check" && command != "run" && command != "convergence" && command != "material-point")
         return usage();
+    // options a subcommand does not take are refused, not ignored
+    if (!overrides.empty() && (command == "material-point" || command == "convergence"))
+    {
+        std::fprintf(stderr, "rkfem: %s takes no --set (edit the file; --set applies to decks of check and run)\n",
+                     command.c_str());
+        return 2;
+    }
+    if (!out_dir.empty() && command == "check")
+    {
+        std::fprintf(stderr, "rkfem: check writes nothing and takes no --out (run writes DIR)\n");
+        return 2;
+    }
     if (command == "material-point")
     {
         if (out_dir.empty())

@@ -605,8 +605,8 @@ TEST(Decks, DevicesFifosAndDirectoriesAreRefusedNotRead)
         for (const char* cmd : {"check ", "convergence ", "material-point "})
         {
             // the executable behind timeout, so a regression fails instead of hanging
-            const Result r =
-                run_shell(std::string("timeout 20 ") + RKFEM_EXE + " " + cmd + f + " --out /tmp/rkfem_never 2>&1");
+            const std::string out = std::string(cmd) == "check " ? "" : " --out /tmp/rkfem_never";
+            const Result r = run_shell(std::string("timeout 20 ") + RKFEM_EXE + " " + cmd + f + out + " 2>&1");
             EXPECT_EQ(r.code, 2) << cmd << f << ": " << r.output;
             EXPECT_NE(r.output.find(f + ": "), std::string::npos) << r.output;
             EXPECT_NE(r.output.find("is not a regular file"), std::string::npos) << r.output;
@@ -624,4 +624,20 @@ TEST(Decks, MeshesThatCannotFitAreRefusedBeforeAllocation)
     const std::string big = replace(replace(good, "size: [1 mm, 1 mm, 10 mm]", "size: [20 mm, 20 mm, 500 mm]"),
                                     "element_size: 1 mm", "element_size: 0.1 mm");
     expect_rejected("huge_mesh.yaml", big, ":6: parts.col.generator", "GB");
+}
+
+TEST(Decks, OptionsASubcommandDoesNotTakeAreRefused)
+{
+    // material-point and convergence accepted and ignored --set; check ignored --out
+    const std::string mp = std::string(RKFEM_SOURCE_DIR) + "/studies/material_points/steel_uniaxial.yaml";
+    Result r = run("material-point " + mp + " --out /tmp/rkfem_never --set material.E=1");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("material-point takes no --set"), std::string::npos) << r.output;
+    r = run("convergence " + std::string(RKFEM_SOURCE_DIR) + "/studies/sweeps/mms_smoke.yaml --out /tmp/rkfem_never --set a=1");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("convergence takes no --set"), std::string::npos) << r.output;
+    r = run("check " + write_deck("good_check.yaml", good) + " --out /tmp/rkfem_never");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("check writes nothing and takes no --out"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists("/tmp/rkfem_never"));
 }
