@@ -268,8 +268,8 @@ struct ContactSpec
     /// single-surface and rigid-wall any number (their union; empty: every part)
     std::vector<std::string> surfaces;
     bool soft = true;               ///< stiffness: soft (max of segment and soft, SOFT = 1) | segment
-    real_t penalty_scale = 0.1;     ///< SLSFAC (segment stiffness K A / h)
-    real_t soft_scale = 0.1;        ///< SOFSCL (soft stiffness m* / dt^2); rigid wall: its penalty
+    real_t penalty_scale = 0.1;     ///< SLSFAC (segment stiffness K A / h); rigid wall: scale of m / dt0^2
+    real_t soft_scale = 0.1;        ///< SOFSCL (soft stiffness m* / dt^2)
     real_t thickness = 0.0;         ///< [m]
     real_t max_penetration = 0.5;   ///< of the element depth behind a segment
     real_t mu_static = 0.0, mu_dynamic = 0.0;

@@ -78,7 +78,7 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
         c.velocity = s.vec3("velocity", dim::velocity, Vec3::Zero());
         // k = scale m / dt0^2 with dt = 0.9 dt0: above 0.8 the wall's spring and the element's
         // frequency together pass the central-difference limit
-        c.soft_scale = scale("penalty_scale", 0.1, 0.8);
+        c.penalty_scale = scale("penalty_scale", 0.1, 0.8);
         c.loc = s.loc();
         return c;
     }

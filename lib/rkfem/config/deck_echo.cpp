@@ -326,7 +326,7 @@ std::string to_yaml(const Deck& d)
             }
             if (c.kind == ContactSpec::Kind::RigidWall)
                 os << ", point: " << vec(c.point) << ", normal: " << vec(c.normal) << ", velocity: " << vec(c.velocity)
-                   << ", penalty_scale: " << c.soft_scale;
+                   << ", penalty_scale: " << c.penalty_scale;
             else
                 os << ", stiffness: " << (c.soft ? "soft" : "segment") << ", penalty_scale: " << c.penalty_scale
                    << ", soft_scale: " << c.soft_scale << ", thickness: " << c.thickness

@@ -34,30 +34,24 @@ void ContactSurface::add(const std::vector<Quad>& faces, const std::vector<index
 {
     for (std::size_t f = 0; f < faces.size(); ++f)
     {
-        const real_t area = quad_normal(x0, faces[f]).norm();
-        real_t h = std::sqrt(area);
-        if (!owner.empty() && area > 0.0)
-            h = hex_volume(conn, owner[f], x0) / area;
+        const real_t face_area = quad_normal(x0, faces[f]).norm();
+        real_t h = std::sqrt(face_area);
+        if (!owner.empty() && face_area > 0.0)
+            h = hex_volume(conn, owner[f], x0) / face_area;
         segments.push_back(faces[f]);
         bulk_modulus.push_back(K);
         depth.push_back(h);
+        area += face_area;
     }
 }
 
-void ContactSurface::finish(const std::vector<real_t>& x0)
+void ContactSurface::finish()
 {
     nodes.clear();
     for (const Quad& q : segments)
         nodes.insert(nodes.end(), q.begin(), q.end());
     std::sort(nodes.begin(), nodes.end());
     nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-    node_area.assign(nodes.size(), 0.0);
-    for (const Quad& q : segments)
-    {
-        const real_t a = quad_normal(x0, q).norm();
-        for (index_t n : q)
-            node_area[std::lower_bound(nodes.begin(), nodes.end(), n) - nodes.begin()] += 0.25 * a;
-    }
 }
 
 SegmentPoint project_on_segment(const Vec3 (&c)[4], const Vec3& p, real_t tolerance)

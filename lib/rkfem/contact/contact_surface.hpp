@@ -17,7 +17,7 @@ struct ContactSurface
     std::vector<real_t> bulk_modulus; ///< per segment: K of the material behind it [Pa]
     std::vector<real_t> depth;        ///< per segment: V / A of the element behind it (reference) [m]
     std::vector<index_t> nodes;       ///< the segments' distinct nodes, ascending
-    std::vector<real_t> node_area;    ///< per entry of `nodes`: a quarter of each adjacent segment's area [m^2]
+    real_t area = 0.0;                ///< the segments' total area (reference) [m^2]
 
     index_t n_segments() const { return static_cast<index_t>(segments.size()); }
     /// Appends segments: faces of elements of a hex connectivity (owner[f]: the element of face
@@ -25,8 +25,8 @@ struct ContactSurface
     /// bulk modulus K for all of them. x0: reference coordinates of every node (3 n).
     void add(const std::vector<Quad>& faces, const std::vector<index_t>& owner, const std::vector<index_t>& conn,
              const std::vector<real_t>& x0, real_t K);
-    /// Computes `nodes` and `node_area` from the segments (call after the last add()).
-    void finish(const std::vector<real_t>& x0);
+    /// Collects `nodes` from the segments (call after the last add()).
+    void finish();
 };
 
 /// The closest point of a bilinear quadrilateral segment to a point.

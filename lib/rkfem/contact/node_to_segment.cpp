@@ -25,12 +25,18 @@ void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
     }
     surfaces_ = std::move(surfaces);
     passes_.clear();
+    auto add_pass = [&](int slave, int master)
+    {
+        passes_.emplace_back();
+        passes_.back().slave = slave;
+        passes_.back().master = master;
+    };
     if (surfaces_.size() == 1)
-        passes_.push_back(Pass{0, 0, {}, {}, {}, {}});
+        add_pass(0, 0);
     else
     {
-        passes_.push_back(Pass{0, 1, {}, {}, {}, {}});
-        passes_.push_back(Pass{1, 0, {}, {}, {}, {}});
+        add_pass(0, 1);
+        add_pass(1, 0);
     }
     all_nodes_.clear();
     real_t size = 0.0, deepest = 0.0;
@@ -40,8 +46,7 @@ void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
         all_nodes_.insert(all_nodes_.end(), s.nodes.begin(), s.nodes.end());
         for (index_t k = 0; k < s.n_segments(); ++k)
             deepest = std::max(deepest, s.depth[k]);
-        for (real_t a : s.node_area) // the tributary areas sum to the segments' area
-            size += a;
+        size += s.area;
         n_seg += s.n_segments();
     }
     std::sort(all_nodes_.begin(), all_nodes_.end());
@@ -138,7 +143,6 @@ void NodeToSegmentContact::search(const PhysicalNodes& nodes)
     }
     searched_ = true;
     ++searches_;
-
 }
 
 void NodeToSegmentContact::update_node_normals(const PhysicalNodes& nodes)
@@ -202,7 +206,7 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                              continue;
                          const real_t gap = (xs - sp.x).dot(sp.normal);
                          const real_t pen = p_.thickness - gap;
-                         if (!(pen > 0.0) || pen > p_.max_penetration * master.depth[s] + p_.thickness || pen >= best)
+                         if (!(pen > 0.0) || pen > reach || pen >= best)
                              continue;
                          best = pen;
                          h.segment = s;
@@ -233,7 +237,6 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                          offset = last = 0.0;
                          return;
                      }
-                     h.penetration = best;
                      const Quad& q = master.segments[h.segment];
                      real_t m_m = 0.0;
                      Vec3 v_m = Vec3::Zero();

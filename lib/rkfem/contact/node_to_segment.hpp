@@ -71,7 +71,6 @@ class NodeToSegmentContact final : public ContactAlgorithm
     struct Hit
     {
         index_t segment = -1;
-        real_t penetration = 0.0;
         real_t N[4] = {0.0, 0.0, 0.0, 0.0};
         Vec3 f = Vec3::Zero(); ///< on the slave node
         real_t k_over_m = 0.0; ///< k / m* (stable step)

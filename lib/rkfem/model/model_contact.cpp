@@ -50,7 +50,7 @@ ContactSurface Model::contact_surface(const std::vector<std::string>& names, con
             s.add({q}, {}, {}, nodes.x0, blocks[static_cast<std::size_t>(ip)].material.bulk_modulus());
         }
     }
-    s.finish(nodes.x0);
+    s.finish();
     return s;
 }
 
@@ -80,7 +80,7 @@ void Model::build_contacts()
             p.point = c.point;
             p.normal = c.normal;
             p.velocity = c.velocity;
-            p.scale = c.soft_scale;
+            p.scale = c.penalty_scale;
             p.friction = friction;
             contacts.push_back(std::make_unique<RigidWall>(contact_surfaces(c), p));
             continue;
