@@ -14,31 +14,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "../executable.hpp"
+
 namespace fs = std::filesystem;
 
 namespace
 {
-struct Result
-{
-    int code = -1;
-    std::string output;
-};
-
-/// Runs a shell command line and collects its stdout (callers add 2>&1 for stderr) and exit code.
-Result run_shell(const std::string& cmd)
-{
-    Result r;
-    FILE* p = popen(cmd.c_str(), "r");
-    std::array<char, 4096> buf;
-    while (fgets(buf.data(), buf.size(), p))
-        r.output += buf.data();
-    const int status = pclose(p);
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
-
-/// Runs the rkfem executable with these arguments.
-Result run(const std::string& args) { return run_shell(std::string(RKFEM_EXE) + " " + args + " 2>&1"); }
+using rkfem::test::Result;
+using rkfem::test::run;
+using rkfem::test::run_shell;
 
 const std::string good = R"(title: small
 time:

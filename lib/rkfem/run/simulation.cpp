@@ -215,6 +215,9 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             rep = stepper->step(model, t, dt, step);
             t = rep.t;
             dt_last = dt;
+            if (step == 1)
+                sum.dt_first = sum.dt_min = dt;
+            sum.dt_min = std::min(sum.dt_min, dt);
             dt_stable = rep.dt_stable;
             element_steps += static_cast<std::size_t>(ne);
             const bool own = model.apply_events(t, step);
@@ -261,6 +264,9 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     sum.wall_seconds = elapsed();
     sum.ns_per_element_cycle = element_steps > 0 ? 1e9 * sum.wall_seconds / element_steps : 0.0;
     sum.energy = model.energy;
+    for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
+        for (index_t e = 0; e < model.blocks[b].n_elements(); ++e)
+            sum.max_plastic_strain = std::max(sum.max_plastic_strain, model.element_plastic_strain(b, e));
     sum.n_outputs = writer ? writer->n_steps() : 0;
     if (impact)
     {

@@ -30,6 +30,9 @@ struct RunSummary
     real_t end_time = 0.0;
     real_t wall_seconds = 0.0;
     real_t ns_per_element_cycle = 0.0; ///< per output cell: elements, and particles of cloud parts
+    real_t dt_first = 0.0; ///< the first step [s]
+    real_t dt_min = 0.0;   ///< the smallest step taken [s]
+    real_t max_plastic_strain = 0.0; ///< largest element-average effective plastic strain at the end
     Energies energy;
     real_t max_balance_error = 0.0;
     int n_outputs = 0;

@@ -1,6 +1,9 @@
 #include "rkfem/run/summary.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
@@ -51,6 +54,19 @@ std::string num(double v)
 }
 } // namespace
 
+std::string resolved_deck_hash(const Deck& deck)
+{
+    std::uint64_t h = 14695981039346656037ull;
+    for (const unsigned char c : to_yaml(deck))
+    {
+        h ^= c;
+        h *= 1099511628211ull;
+    }
+    char text[17];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+    return text;
+}
+
 void write_summary_json(const std::string& path, const Model& model, const RunOptions& opt,
                         const RunSummary& s)
 {
@@ -64,6 +80,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
         o << (i ? ", " : "") << quote(opt.overrides[i]);
     o << "],\n";
     o << "  \"resolved_deck_si\": " << quote(to_yaml(model.deck())) << ",\n";
+    o << "  \"deck_hash\": " << quote(resolved_deck_hash(model.deck())) << ",\n";
     o << "  \"status\": " << quote(s.status) << ",\n";
     o << "  \"message\": " << quote(s.message) << ",\n";
     o << "  \"nodes\": " << model.nodes.size() << ",\n";
@@ -74,6 +91,11 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"end_time\": " << num(s.end_time) << ",\n";
     o << "  \"wall_seconds\": " << num(s.wall_seconds) << ",\n";
     o << "  \"ns_per_element_cycle\": " << num(s.ns_per_element_cycle) << ",\n";
+    o << "  \"seconds_per_step\": " << num(s.steps > 0 ? s.wall_seconds / s.steps : 0.0) << ",\n";
+    o << "  \"dt_first\": " << num(s.dt_first) << ",\n";
+    o << "  \"dt_min\": " << num(s.dt_min) << ",\n";
+    o << "  \"dt_mean\": " << num(s.steps > 0 ? s.end_time / s.steps : 0.0) << ",\n";
+    o << "  \"max_plastic_strain\": " << num(s.max_plastic_strain) << ",\n";
     o << "  \"outputs\": " << s.n_outputs << ",\n";
     o << "  \"energy\": {\"kinetic\": " << num(e.kinetic) << ", \"internal\": " << num(e.internal)
       << ", \"hourglass\": " << num(e.hourglass) << ", \"bulk_viscosity\": " << num(e.bulk_viscosity)
