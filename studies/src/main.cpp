@@ -207,6 +207,10 @@ int main(int argc, char** argv)
             return 1;
         }
         if (!quiet)
+            for (const auto& part : deck.parts)
+                for (const auto& note : part.ignored)
+                    std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
+        if (!quiet)
             std::fprintf(stderr, "rkfem: %s: %d nodes, %d elements, %d thread(s)\n",
                          deck_path.c_str(), model.nodes.size(), model.n_elements(),
                          rkfem::max_threads());

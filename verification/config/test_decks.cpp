@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <regex>
+#include <sstream>
 #include <string>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -192,13 +193,37 @@ TEST(Decks, IntegerRkSupportIsRejected)
                     ":9: parts.col.rk.normalized_support", "expected a non-integer value such as 2.01");
 }
 
-TEST(Decks, NodalIntegrationKeysNeedANodalFormulation)
+TEST(Decks, KeysOfAnotherFormulationAreCheckedThenIgnoredWithAWarning)
 {
-    expect_rejected("nodal_on_fem.yaml",
+    // a formulation sweep needs one override per case: nodal_integration on a fem-1pt part (or
+    // hourglass on an rkpm part) is read and checked, then ignored with a note in the resolved deck
+    const std::string with = replace(good, "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                                     "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
+                                     "    nodal_integration: {scheme: scni}\n    rk: {order: 1}\n");
+    const std::string f = write_deck("nodal_on_fem.yaml", with);
+    const Result c = run("check " + f);
+    ASSERT_EQ(c.code, 0) << c.output;
+    EXPECT_NE(c.output.find("# warning: parts.col.nodal_integration (" + f + ":8): formulation fem-1pt does not use it; ignored"),
+              std::string::npos) << c.output;
+    EXPECT_NE(c.output.find("# warning: parts.col.rk (" + f + ":9)"), std::string::npos) << c.output;
+    // the resolved deck is the one without those keys, plus the notes
+    const Result plain = run("check " + write_deck("plain.yaml", good));
+    std::string stripped;
+    std::istringstream lines(c.output);
+    for (std::string line; std::getline(lines, line);)
+        if (line.find("# warning:") == std::string::npos)
+            stripped += line + "\n";
+    EXPECT_EQ(stripped, plain.output);
+    const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "ignored_run";
+    const Result r = run("run " + f + " --out " + out.string());
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("rkfem: warning: parts.col.nodal_integration"), std::string::npos) << r.output;
+    // what is ignored is still checked
+    expect_rejected("hourglass_on_rkpm.yaml",
                     replace(good, "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
                             "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
-                            "    nodal_integration: {scheme: scni}\n"),
-                    ":8: parts.col.nodal_integration", "set formulation: rkpm");
+                            "    formulation: rkpm\n    hourglass: {type: stiffness, coefficient: -1}\n"),
+                    ":9: parts.col.hourglass.coefficient", "expected QM >= 0");
 }
 
 TEST(Decks, TooSmallRkSupportNamesTheKey)

@@ -201,6 +201,9 @@ struct PartSpec
     std::vector<SelectorSpec> regions;
     std::string transition = "mixed"; ///< mixed | ramp (coupled parts)
     SourceLocation regions_loc;       ///< where `regions` is given
+    /// Keys of another formulation given for this part (hourglass on rkpm, rk or
+    /// nodal_integration on fem-1pt): checked, then ignored; one note each, in the resolved deck
+    std::vector<std::string> ignored;
     SourceLocation loc;
 
     bool coupled() const { return !regions.empty(); }

@@ -131,7 +131,10 @@ std::string to_yaml(const Deck& d)
     for (const auto& p : d.parts)
     {
         const auto& g = p.generator;
-        os << "  " << p.name << ":\n    generator: {";
+        os << "  " << p.name << ":\n";
+        for (const auto& note : p.ignored)
+            os << "    # warning: " << note << "\n";
+        os << "    generator: {";
         switch (g.type)
         {
         case GeneratorSpec::Type::Box:

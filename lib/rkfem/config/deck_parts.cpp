@@ -351,6 +351,17 @@ MaterialSpec read_material(const Section& part)
                     "expected model: elastic | j2 | kcc | cscm");
 }
 
+namespace
+{
+/// A key that another formulation uses (hourglass on an rkpm part): read and checked, then
+/// ignored with a note in the resolved deck, so a formulation sweep needs one override per case.
+void ignore(PartSpec& p, const Section& s, const std::string& key, const std::string& formulation)
+{
+    p.ignored.push_back(s.path(key) + " (" + s.loc(key).where + "): formulation " + formulation +
+                        " does not use it; ignored");
+}
+} // namespace
+
 PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n,
                    const std::string& path)
 {
@@ -370,8 +381,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     if (s.has("nodal_integration"))
     {
         if (!is_nodal(p.formulation) && !s.has("regions"))
-            s.fail("nodal_integration", "is only used by formulations fem-nodal and rkpm (and parts with regions)",
-                   "remove it or set formulation: rkpm (or fem-nodal)");
+            ignore(p, s, "nodal_integration", f); // read (and checked) below, then not used
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
@@ -429,8 +439,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     if (s.has("rk"))
     {
         if (p.formulation != Formulation::Rkpm && !p.coupled())
-            s.fail("rk", "is only used by formulation rkpm and by parts with regions",
-                   "remove it or set formulation: rkpm");
+            ignore(p, s, "rk", f);
         Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support"});
         p.rk.loc = r.loc();
         const std::string order = r.choice("order", {"1", "2"}, "1");
@@ -449,8 +458,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     if (s.has("hourglass"))
     {
         if (p.formulation != Formulation::Fem1pt)
-            s.fail("hourglass", "is only used by formulation fem-1pt",
-                   "remove it or set formulation: fem-1pt");
+            ignore(p, s, "hourglass", f);
         Section h(ctx, s.node("hourglass"), s.path("hourglass"), {"type", "coefficient"});
         const std::string t =
             h.choice("type", {"viscous", "stiffness", "none", "viscous-plain"}, "viscous");
