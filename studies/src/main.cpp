@@ -51,7 +51,7 @@ int usage()
                  "       rkfem run DECK --out DIR [--set key.path=value ...] [--quiet]\n"
                  "       rkfem convergence SWEEP --out DIR [--quiet]\n"
                  "       rkfem material-point DECK --out DIR [--quiet]\n"
-                 "       rkfem study STUDY --out DIR [--quiet]\n");
+                 "       rkfem study STUDY --out DIR [--only CASE[,CASE...]] [--quiet]\n");
     return 2;
 }
 } // namespace
@@ -72,11 +72,12 @@ int help(const std::string& command)
          "Manufactured-solution convergence sweep: DIR/convergence.csv and convergence.h5."},
         {"material-point", "rkfem material-point DECK --out DIR [--quiet]",
          "One material along a strain path: DIR/stress_strain.csv and stress_strain.h5."},
-        {"study", "rkfem study STUDY --out DIR [--quiet]",
+        {"study", "rkfem study STUDY --out DIR [--only CASE[,CASE...]] [--quiet]",
          "Runs a study's cases (a base deck with overrides, or their own decks) into DIR/cases/NAME, extracts its\n"
          "metrics and writes DIR/table.csv, DIR/table.md (ours beside the published values) and DIR/study.h5.\n"
          "A case that fails is recorded and the study goes on; a rerun skips cases that completed with the\n"
-         "same resolved deck. Exit 0 when every case completed, 4 when some did not, 2 for a bad study file."},
+         "same resolved deck. --only runs (and tabulates) the named cases. Exit 0 when every case completed,\n"
+         "4 when some did not, 2 for a bad study file."},
     };
     for (const Entry& e : entries)
         if (command == e.name)
@@ -91,6 +92,8 @@ int help(const std::string& command)
     return 0;
 }
 
+bool command_takes_only(const char* command) { return std::string(command) == "study"; }
+
 int main(int argc, char** argv)
 {
     for (int i = 1; i < argc; ++i)
@@ -103,6 +106,7 @@ int main(int argc, char** argv)
     std::vector<std::string> overrides;
     std::string out_dir;
     bool quiet = false;
+    std::vector<std::string> only; // study: case names
     for (int i = 3; i < argc; ++i)
     {
         const std::string a = argv[i];
@@ -114,6 +118,8 @@ int main(int argc, char** argv)
             out_dir = argv[++i];
         else if (a == "--quiet")
             quiet = true;
+        else if (a == "--only" && i + 1 < argc && command_takes_only(argv[1]))
+            only.emplace_back(argv[++i]);
         else
         {
             std::fprintf(stderr, "rkfem: unknown argument '%s'\n", a.c_str());
@@ -164,7 +170,9 @@ int main(int argc, char** argv)
         const int rc = run_guarded(
             [&]
             {
-                const rkfem::Study st = rkfem::read_study(deck_path);
+                rkfem::Study st = rkfem::read_study(deck_path);
+                if (!only.empty())
+                    st = rkfem::select_cases(st, only);
                 for (const auto& r : rkfem::run_study(st, out_dir, !quiet))
                     incomplete += r.status != "completed" && r.status != "reused";
                 if (!quiet)

@@ -71,6 +71,20 @@ void check_wave(const std::vector<std::string>& overrides)
                 m.element_stress(0, 60)[ZZ] / plateau - 1);
     EXPECT_NEAR(front, c * t, 1.5 * h);
     EXPECT_LT(worst_balance_after_startup, 0.005);
+    // reactions (SPCFORC): the driven end carries rho c v A = 459.7 N into the column; the rollers'
+    // lateral reactions cancel
+    const Vec3 end = m.reaction(1), rollers = m.reaction(0);
+    EXPECT_NEAR(end[2], -plateau * h * h, 0.005 * std::abs(plateau) * h * h);
+    EXPECT_NEAR(end[0], 0.0, 1e-9 * end[2]);
+    EXPECT_NEAR(rollers[0], 0.0, 1e-9 * end[2]);
+    EXPECT_NEAR(rollers[1], 0.0, 1e-9 * end[2]);
+    EXPECT_EQ(rollers[2], 0.0); // z is free on the rollers
+    // the history carries them as columns reaction_end_{x,y,z}
+    const auto col = std::find(s.history_columns.begin(), s.history_columns.end(), "reaction_end_z");
+    ASSERT_NE(col, s.history_columns.end());
+    EXPECT_EQ(s.history[s.history.size() - s.history_columns.size() +
+                                                              (col - s.history_columns.begin())],
+              end[2]);
 }
 } // namespace
 

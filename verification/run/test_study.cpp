@@ -127,6 +127,18 @@ TEST(Study, CasesReproduceTheirOwnRunsRerunsSkipAndAChangedOverrideRerunsOne)
     EXPECT_TRUE(fs::file_size(d / "out/study.h5") > 0);
 }
 
+TEST(Study, OnlyRunsAndTabulatesTheNamedCases)
+{
+    const fs::path d = scratch("only");
+    const std::string study = write(d / "study.yaml", column_study("1 mm", "0.5 mm", true));
+    const auto r = run("study " + study + " --out " + (d / "out").string() + " --only b");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("[1/1] b: completed"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(d / "out/cases/a"));
+    EXPECT_FALSE(std::isnan(table_value(d / "out", "b", "steps")));
+    EXPECT_TRUE(std::isnan(table_value(d / "out", "a", "steps"))); // not in the table
+}
+
 TEST(Study, AFailingCaseIsRecordedAndTheStudyGoesOn)
 {
     const fs::path d = scratch("failing");
@@ -184,6 +196,13 @@ TEST(Study, BadStudyFilesGetOneLocatedLine)
         EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
         EXPECT_FALSE(fs::exists(d / "out")) << b.text;
     }
+    // --only names cases of the study
+    const std::string ok = write(d / "ok.yaml", column_study("1 mm", "1 mm", false));
+    const auto only = run("study " + ok + " --out " + (d / "out").string() + " --only a,zz");
+    EXPECT_EQ(only.code, 2) << only.output;
+    EXPECT_NE(only.output.find("--only zz: cases: 'zz' is not a case of " + ok + "; expected one of a, b"), std::string::npos)
+        << only.output;
+    EXPECT_FALSE(fs::exists(d / "out"));
     // --out is required and --set refused
     EXPECT_EQ(run("study " + (d / "study.yaml").string()).code, 2);
     EXPECT_EQ(run("study " + (d / "study.yaml").string() + " --out x --set a=1").code, 2);

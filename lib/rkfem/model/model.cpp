@@ -391,12 +391,14 @@ Model Model::build(const Deck& deck)
     }
     // boundary conditions (later entries override earlier ones on the same dof)
     std::map<index_t, std::size_t> dof_slot;
-    for (const auto& b : d.boundary_conditions)
+    for (index_t bi = 0; bi < static_cast<index_t>(d.boundary_conditions.size()); ++bi)
+    {
+        const auto& b = d.boundary_conditions[bi];
         for (index_t n : m.node_sets.at(b.node_set))
             for (int k = 0; k < 3; ++k)
                 if (b.active[k])
                 {
-                    const DofCondition c{3 * n + k, b.kind, &b.value[k]};
+                    const DofCondition c{3 * n + k, b.kind, &b.value[k], bi};
                     auto it = dof_slot.find(c.dof);
                     if (it == dof_slot.end())
                     {
@@ -406,6 +408,7 @@ Model Model::build(const Deck& deck)
                     else
                         m.conditions[it->second] = c;
                 }
+    }
     for (const auto& l : d.loads)
     {
         if (l.kind == LoadSpec::Kind::NodalForce)

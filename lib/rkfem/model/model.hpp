@@ -40,6 +40,7 @@ struct DofCondition
     index_t dof = 0;
     BoundarySpec::Kind kind = BoundarySpec::Kind::Fixed;
     const TimeFunction* value = nullptr; ///< velocity or displacement history
+    index_t source = 0; ///< the deck's boundary condition (index) that set it
 };
 
 /// Prescribed physical velocities on the particles of one rkpm part, one component: the mixed
@@ -145,6 +146,13 @@ class Model final : public ExplicitOperator
     Vec3 physical(const std::vector<real_t>& field, index_t node) const;
     /// The same for every node.
     void physical_field(const std::vector<real_t>& field, std::vector<real_t>& out) const;
+
+    /// Reaction of a deck boundary condition (index into deck().boundary_conditions): the sum over
+    /// its constrained dofs of f_int - f_ext - f_contact + m a_prescribed, the force the supports
+    /// put on the body (LS-DYNA's SPCFORC resultant), as of the last energy update. On rkpm parts
+    /// the sum runs over the generalized forces of the constrained particles, whose resultant is
+    /// the physical one when no other condition's particles share their kernels.
+    Vec3 reaction(index_t condition) const;
 
     /// Nodal stress (average of adjacent points) at node i, Voigt.
     Sym6 nodal_stress(index_t node) const;

@@ -265,4 +265,12 @@ std::vector<index_t> Model::velocity_driven_dofs() const
             dofs.push_back(c.dof);
     return dofs;
 }
+Vec3 Model::reaction(index_t condition) const
+{
+    Vec3 r = Vec3::Zero();
+    for (std::size_t k = 0; k < conditions.size() && k < reaction_prev_.size(); ++k)
+        if (conditions[k].source == condition)
+            r[conditions[k].dof % 3] += reaction_prev_[k];
+    return r;
+}
 } // namespace rkfem

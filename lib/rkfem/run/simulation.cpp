@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <unistd.h>
 
@@ -21,6 +22,26 @@ namespace rkfem
 {
 namespace
 {
+/// "reaction_SET" per deck boundary condition ("reaction_SET_2" for the second on one set).
+std::vector<std::string> reaction_names(const Deck& d)
+{
+    std::vector<std::string> names;
+    std::map<std::string, int> seen;
+    for (const auto& b : d.boundary_conditions)
+    {
+        const int n = ++seen[b.node_set];
+        std::string name = "reaction_";
+        name += b.node_set;
+        if (n > 1)
+        {
+            name += '_';
+            name += std::to_string(n);
+        }
+        names.push_back(name);
+    }
+    return names;
+}
+
 std::vector<std::string> history_columns(const Model& m)
 {
     std::vector<std::string> c{"time",          "dt",       "kinetic", "internal", "hourglass",
@@ -28,6 +49,9 @@ std::vector<std::string> history_columns(const Model& m)
                                "total",         "balance_error", "hourglass_ratio", "hourglass_to_total"};
     if (m.deck().impact.active)
         c.insert(c.end(), {"apparent_depth", "actual_depth", "residual_velocity"});
+    for (const std::string& name : reaction_names(m.deck()))
+        for (const char* q : {"_x", "_y", "_z"})
+            c.push_back(name + q);
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
@@ -48,6 +72,11 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
                              e.hourglass_to_total()});
     if (impact)
         rows.insert(rows.end(), {impact->apparent_depth(m), actual_depth, impact->residual_velocity(m)});
+    for (index_t b = 0; b < static_cast<index_t>(m.deck().boundary_conditions.size()); ++b)
+    {
+        const Vec3 r = m.reaction(b);
+        rows.insert(rows.end(), {r[0], r[1], r[2]});
+    }
     for (index_t n : m.probe_nodes)
     {
         const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);

@@ -95,7 +95,25 @@ StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML:
             s.fail(s.has("response") ? "response" : "fraction", "is used by kind event_load only",
                    "remove it, or use kind: event_load");
     }
-    m.scale = s.has("scale") ? s.quantity("scale", dim::none) : 1.0;
+    if (s.has("scale"))
+    {
+        // a factor of any dimension: -1, or "-35.37 1/in^2" (a reaction over an area is a stress)
+        const std::string text = s.scalar_text("scale", "a factor such as -1 or \"1.27 1/in^2\"");
+        char* end = nullptr;
+        m.scale = std::strtod(text.c_str(), &end);
+        std::string rest(end);
+        rest.erase(0, rest.find_first_not_of(' '));
+        if (end == text.c_str() || !std::isfinite(m.scale))
+            s.fail("scale", "'" + text + "' is not a number", "expected a factor such as -1 or \"1.27 1/in^2\"");
+        if (!rest.empty())
+        {
+            std::string error;
+            const auto u = parse_unit(rest, &error);
+            if (!u)
+                s.fail("scale", "'" + rest + "' is not a unit: " + error, "expected a factor such as -1 or \"1.27 1/in^2\"");
+            m.scale *= u->scale;
+        }
+    }
     if (m.scale == 0)
         s.fail("scale", "is zero", "expected a non-zero factor such as -1");
     const Unit u = display_unit(s, "unit");
@@ -277,8 +295,9 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                 if (it != st.cases[c].published.end())
                 {
                     const real_t pub = it->second.value;
-                    std::string tag = "[" + std::to_string(sources.size() + 1) + "]";
-                    sources.push_back(tag + " " + results[c].name + " / " + st.metrics[k].name + ": " + it->second.source);
+                    char tag[24]; // "[n]" (GCC 12 warns falsely about "[" + std::to_string(n))
+                    std::snprintf(tag, sizeof tag, "[%zu]", sources.size() + 1);
+                    sources.push_back(std::string(tag) + " " + results[c].name + " / " + st.metrics[k].name + ": " + it->second.source);
                     cell += " (" + fmt(pub) + tag;
                     if (std::isfinite(ours) && pub != 0)
                     {
@@ -589,6 +608,32 @@ Study read_study(const std::string& path)
     }
 }
 
+Study select_cases(const Study& st, const std::vector<std::string>& names)
+{
+    std::vector<std::string> wanted;
+    for (const auto& n : names)
+    {
+        std::stringstream ss(n);
+        for (std::string item; std::getline(ss, item, ',');)
+            if (!item.empty())
+                wanted.push_back(item);
+    }
+    Study out = st;
+    out.cases.clear();
+    for (const auto& w : wanted)
+        if (std::none_of(st.cases.begin(), st.cases.end(), [&](const StudyCase& c) { return c.name == w; }))
+        {
+            std::string known;
+            for (const auto& c : st.cases)
+                known += (known.empty() ? "" : ", ") + c.name;
+            throw DeckError({"--only " + w, "cases"}, "'" + w + "' is not a case of " + st.path, "expected one of " + known);
+        }
+    for (const auto& c : st.cases)
+        if (std::find(wanted.begin(), wanted.end(), c.name) != wanted.end())
+            out.cases.push_back(c);
+    return out;
+}
+
 std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_dir, bool progress)
 {
     const fs::path out(out_dir);
@@ -607,8 +652,6 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
         r.values.assign(st.metrics.size(), nan);
         const fs::path dir = out / "cases" / sc.name;
         const auto t0 = std::chrono::steady_clock::now();
-        if (progress)
-            std::fprintf(stderr, "study: [%zu/%zu] %s: ", c + 1, n, sc.name.c_str());
         try
         {
             const Deck deck = read_deck(sc.deck, sc.overrides);
@@ -632,7 +675,7 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
             else
             {
                 if (progress)
-                    std::fprintf(stderr, "running\n");
+                    std::fprintf(stderr, "study: [%zu/%zu] %s: running\n", c + 1, n, sc.name.c_str());
                 fs::remove_all(dir, ec);
                 fs::create_directories(dir, ec);
                 if (ec)
@@ -646,8 +689,6 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
                 const RunSummary s = run_simulation(model, opt);
                 r.status = s.status;
                 r.message = s.message;
-                if (progress)
-                    std::fprintf(stderr, "study: [%zu/%zu] %s: ", c + 1, n, sc.name.c_str());
             }
             if (r.status == "completed" || r.status == "reused")
             {
@@ -667,7 +708,8 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
         if (progress)
         {
             const real_t elapsed = std::chrono::duration<real_t>(std::chrono::steady_clock::now() - wall0).count();
-            std::fprintf(stderr, "%s in %.1f s%s%s (study %.0f s, ETA %.0f s)\n", r.status.c_str(), took,
+            std::fprintf(stderr, "study: [%zu/%zu] %s: %s in %.1f s%s%s (study %.0f s, ETA %.0f s)\n", c + 1, n,
+                         sc.name.c_str(), r.status.c_str(), took,
                          r.message.empty() ? "" : ": ", one_line(r.message).c_str(), elapsed,
                          elapsed / static_cast<real_t>(c + 1) * static_cast<real_t>(n - c - 1));
         }

@@ -79,6 +79,10 @@ struct Study
 /// overrides are checked when the cases run.
 Study read_study(const std::string& path);
 
+/// The study with only the named cases (comma-separated lists allowed), in the study's order.
+/// Throws DeckError naming an unknown case and the known ones.
+Study select_cases(const Study& study, const std::vector<std::string>& names);
+
 /// history.csv as columns.
 struct HistoryTable
 {
