@@ -19,6 +19,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/run/check_report.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/run/study.hpp"
 
@@ -202,6 +203,7 @@ int main(int argc, char** argv)
         if (command == "check")
         {
             std::cout << rkfem::to_yaml(deck);
+            std::cout << rkfem::check_report(model);
             std::cout << "# " << model.nodes.size() << " nodes, " << model.n_elements()
                       << " elements, " << model.parts.size() << " part(s)\n";
             return 0;

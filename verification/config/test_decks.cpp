@@ -2,7 +2,9 @@
 // "DECK:LINE: key.path: what is wrong; what is expected", exit code 2 and no output directory;
 // every deck in studies/decks passes `rkfem check`, and the resolved deck it prints is itself a
 // deck that resolves to the same text (round trip).
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -649,4 +651,74 @@ TEST(Decks, OptionsASubcommandDoesNotTakeAreRefused)
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("check writes nothing and takes no --out"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists("/tmp/rkfem_never"));
+}
+
+TEST(Decks, TubeKeysAreChecked)
+{
+    const std::string tube = replace(good, "generator: {type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
+                                     "generator: {type: cylinder, radius: 5 mm, inner_radius: 5 mm, height: 10 mm, element_size: 1 mm}");
+    expect_rejected("tube_r.yaml", tube, ":6: parts.col.generator.inner_radius", "expected 0 < inner_radius < radius");
+    expect_rejected("tube_core.yaml",
+                    replace(tube, "inner_radius: 5 mm", "inner_radius: 4 mm, core: ogrid"),
+                    ":6: parts.col.generator.core", "a tube has no core");
+}
+
+TEST(Decks, HistoryCarriesEachLoadsValue)
+{
+    // a pressure ramp on the tube of the P2 deck: the column load_outer is the curve at each row
+    const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "load_column";
+    const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/p2_implosion.yaml --out " + out.string() +
+                         " --quiet --set parts.tube.generator.element_size=0.8in --set time.end=0.2ms");
+    ASSERT_EQ(r.code, 0) << r.output;
+    std::ifstream csv(out / "history.csv");
+    std::string header;
+    std::getline(csv, header);
+    std::vector<std::string> cols;
+    std::stringstream hs(header);
+    for (std::string c; std::getline(hs, c, ',');)
+        cols.push_back(c);
+    const auto it = std::find(cols.begin(), cols.end(), "load_outer");
+    ASSERT_NE(it, cols.end()) << header;
+    const std::size_t k = static_cast<std::size_t>(it - cols.begin());
+    EXPECT_NE(std::find(cols.begin(), cols.end(), "load_end"), cols.end());
+    int rows = 0;
+    for (std::string line; std::getline(csv, line); ++rows)
+    {
+        std::stringstream ls(line);
+        std::vector<double> v;
+        for (std::string c; std::getline(ls, c, ',');)
+            v.push_back(std::stod(c));
+        // 4,000 psi over 20 ms
+        EXPECT_NEAR(v[k], 4000 * 6894.757293168361 * v[0] / 0.02, 1e-6 * 4000 * 6894.757) << "row " << rows;
+    }
+    EXPECT_GT(rows, 5);
+}
+
+TEST(Decks, CheckEchoesGeneratedParametersAndWhatSetsTheStep)
+{
+    // K&C f'c 45.6 MPa on 2.5 mm cubes (concrete_bar_kcc.yaml): the generated parameters with
+    // units, and the stable step of a cube, h / c_L with c_L from the printed K1 and G
+    const Result r = run("check " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/concrete_bar_kcc.yaml");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("#  part bar:\n#   K&C concrete Release III (MAT_072R3), generated from f'c:"), std::string::npos)
+        << r.output;
+    for (const char* key : {"fc = 4.56e+07 Pa", "a2 = ", "1/Pa", "b1 = ", "EOS_8 pressure [Pa]:", "eta(lambda):"})
+        EXPECT_NE(r.output.find(key), std::string::npos) << key;
+    auto number_after = [&](const std::string& key)
+    {
+        const auto p = r.output.find(key);
+        EXPECT_NE(p, std::string::npos) << key;
+        return p == std::string::npos ? 0.0 : std::stod(r.output.substr(p + key.size()));
+    };
+    const double K = number_after("K1 = "), G = number_after(" G = "), ft = number_after("ft = ");
+    // f_t = 1.58 (f'c^2)^(1/3) psi (Malvar et al.; materials.md)
+    const double psi = 6894.757293168361, fc_psi = 4.56e7 / psi;
+    EXPECT_NEAR(ft, 1.58 * std::cbrt(fc_psi * fc_psi) * psi, 1e-3 * ft);
+    const double dt = number_after("# time step: ");
+    EXPECT_NEAR(dt, 2.5e-3 / std::sqrt((K + 4 * G / 3) / 2400), 1e-5 * dt);
+    EXPECT_NE(r.output.find("x time.dt_scale 0.9 = "), std::string::npos);
+    EXPECT_NE(r.output.find(", set by part 'bar' element "), std::string::npos) << r.output;
+    // an elastic deck has nothing generated
+    const Result e = run("check " + write_deck("plain_check.yaml", good));
+    EXPECT_NE(e.output.find("#   none (every material's parameters are the deck's own)"), std::string::npos) << e.output;
 }

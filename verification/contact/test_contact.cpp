@@ -7,6 +7,8 @@
 // energy ledger closes with the penalty springs' energy in its contact term.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <random>
 
@@ -224,6 +226,25 @@ TEST(SurfaceToSurface, IdenticalBarsExchangeVelocitiesAndConserveMomentum)
         EXPECT_NEAR(vb / v0, 1.0, 0.01);
         EXPECT_LT(r.momentum_drift, 1e-10 * p0);
         EXPECT_LT(r.worst_balance, 0.01);
+        // per-part histories (MATSUM): the last row holds each bar's mass and momentum as summed
+        // here, and the parts' energies add up to the ledger's
+        const auto& cols = r.summary.history_columns;
+        const std::size_t nc = cols.size(), last = r.summary.history.size() - nc;
+        auto value = [&](const std::string& name)
+        {
+            const auto it = std::find(cols.begin(), cols.end(), name);
+            EXPECT_NE(it, cols.end()) << name;
+            return it == cols.end() ? 0.0 : r.summary.history[last + static_cast<std::size_t>(it - cols.begin())];
+        };
+        EXPECT_NEAR(value("part_a_mass"), r.mass[0], 1e-12 * r.mass[0]);
+        EXPECT_NEAR(value("part_b_momentum_z"), r.momentum[1][2], 1e-12 * p0);
+        EXPECT_NEAR(value("part_a_momentum_z") + value("part_b_momentum_z"), p0, 1e-10 * p0);
+        EXPECT_NEAR(value("part_a_kinetic") + value("part_b_kinetic"), value("kinetic"), 1e-12 * r.initial_kinetic);
+        EXPECT_NEAR(value("part_a_internal") + value("part_b_internal"), value("internal"), 1e-12 * r.initial_kinetic);
+        EXPECT_NEAR(value("part_a_hourglass") + value("part_b_hourglass"), value("hourglass"), 1e-12 * r.initial_kinetic);
+        // after the exchange the moving bar carries the energy: kinetic + internal about the initial kinetic
+        EXPECT_NEAR((value("part_b_kinetic") + value("part_b_internal")) / r.initial_kinetic, 1.0, 0.02);
+        EXPECT_LT(value("part_a_kinetic"), 1e-3 * r.initial_kinetic);
     }
 }
 

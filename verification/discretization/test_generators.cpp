@@ -78,6 +78,35 @@ TEST(Generators, CylinderCoresHaveNoDegenerateElementsAndConvergeToTheVolume)
     }
 }
 
+TEST(Generators, TubeHasThePolygonalAnnulusVolumeAndNamedFaces)
+{
+    // the seed's P2 tube (studies/decks/p2_implosion.yaml): 16 in OD, 1.6 in wall, 16 in high
+    const real_t R = 0.2032, Ri = 0.16256, H = 0.4064, h = 0.02032;
+    const HexMesh m = generate_tube(Vec3(0, 0, 0), R, Ri, H, h);
+    const int nr = 2, nz = 20, nt = 56; // (R - Ri) / h, H / h, 4 round(pi (R + Ri) / 4 / h)
+    EXPECT_EQ(m.n_elements(), nr * nt * nz);
+    EXPECT_EQ(m.n_nodes(), (nr + 1) * nt * (nz + 1));
+    real_t vol;
+    EXPECT_GT(min_jacobian_and_volume(m, vol), 0.0);
+    // a regular nt-gon annulus: area (nt / 2) sin(2 pi / nt) (R^2 - Ri^2), exactly
+    EXPECT_NEAR(vol, 0.5 * nt * std::sin(2 * M_PI / nt) * (R * R - Ri * Ri) * H, 1e-14);
+    EXPECT_EQ(m.named_faces.at("top").size(), static_cast<std::size_t>(nr * nt));
+    EXPECT_EQ(m.named_faces.at("bottom").size(), static_cast<std::size_t>(nr * nt));
+    EXPECT_EQ(m.named_faces.at("side").size(), static_cast<std::size_t>(nt * nz));
+    EXPECT_EQ(m.named_faces.at("inner").size(), static_cast<std::size_t>(nt * nz));
+    EXPECT_EQ(m.faces.size(), static_cast<std::size_t>(2 * nr * nt + 2 * nt * nz)); // closed in theta
+    for (const char* name : {"side", "inner"})
+        for (index_t f : m.named_faces.at(name))
+        {
+            // outward: away from the axis on the outer surface, towards it in the bore
+            const Vec3 n = quad_normal(m.x, m.faces[f]);
+            const Vec3 c = 0.25 * (m.node(m.faces[f][0]) + m.node(m.faces[f][1]) + m.node(m.faces[f][2]) + m.node(m.faces[f][3]));
+            EXPECT_GT((std::string(name) == "side" ? 1 : -1) * (n[0] * c[0] + n[1] * c[1]), 0.0);
+            for (index_t k : m.faces[f])
+                EXPECT_NEAR(std::hypot(m.x[3 * k], m.x[3 * k + 1]), std::string(name) == "side" ? R : Ri, 1e-12);
+        }
+}
+
 TEST(Generators, ProjectileNamesNoseAndTail)
 {
     GeneratorSpec g;

@@ -143,6 +143,7 @@ struct GeneratorSpec
     real_t radius = 0.0;
     real_t height = 0.0; ///< cylinder height / projectile length
     std::string core = "butterfly"; ///< cylinder core: butterfly | ogrid
+    real_t inner_radius = 0.0;      ///< cylinder: > 0 makes it a tube (faces top, bottom, side, inner)
     int direction = -1;  ///< projectile: nose points to -z (-1) or +z (+1); origin = nose centre
     real_t element_size = 0.0; ///< cloud: lattice spacing
     // cloud: the body is the box (origin, size) or the cylinder (origin = bottom centre, radius,

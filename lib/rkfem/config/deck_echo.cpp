@@ -147,8 +147,11 @@ std::string to_yaml(const Deck& d)
             break;
         case GeneratorSpec::Type::Cylinder:
             os << "type: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius
-               << ", height: " << g.height << ", element_size: " << g.element_size
-               << ", core: " << g.core;
+               << ", height: " << g.height << ", element_size: " << g.element_size;
+            if (g.inner_radius > 0)
+                os << ", inner_radius: " << g.inner_radius;
+            else
+                os << ", core: " << g.core;
             break;
         case GeneratorSpec::Type::Projectile:
             os << "type: projectile, origin: " << vec(g.origin) << ", radius: " << g.radius

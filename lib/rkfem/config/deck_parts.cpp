@@ -67,7 +67,7 @@ GeneratorSpec read_generator(const Section& part)
         const bool cyl = type == "cylinder";
         Section s(part.ctx(), gn, gp,
                   cyl ? std::vector<std::string>{"type", "origin", "radius", "height",
-                                                 "element_size", "core"}
+                                                 "element_size", "core", "inner_radius"}
                       : std::vector<std::string>{"type", "origin", "radius", "length",
                                                  "element_size", "direction"});
         g.type = cyl ? GeneratorSpec::Type::Cylinder : GeneratorSpec::Type::Projectile;
@@ -76,7 +76,17 @@ GeneratorSpec read_generator(const Section& part)
         g.height = s.positive(cyl ? "height" : "length", dim::length);
         g.element_size = s.positive("element_size", dim::length);
         if (cyl)
+        {
             g.core = s.choice("core", {"butterfly", "ogrid"}, "butterfly");
+            if (s.has("inner_radius"))
+            {
+                g.inner_radius = s.positive("inner_radius", dim::length);
+                if (!(g.inner_radius < g.radius))
+                    s.fail("inner_radius", "is not below the radius", "expected 0 < inner_radius < radius (a tube)");
+                if (s.has("core"))
+                    s.fail("core", "a tube has no core", "remove core, or inner_radius");
+            }
+        }
         else
             g.direction = s.choice("direction", {"-z", "+z"}, "-z") == "-z" ? -1 : +1;
         g.loc = s.loc();

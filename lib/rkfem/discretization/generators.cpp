@@ -195,6 +195,49 @@ HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real
     return m;
 }
 
+HexMesh generate_tube(const Vec3& origin, real_t R, real_t Ri, real_t height, real_t h)
+{
+    const int nr = divisions_for(R - Ri, h);
+    const int nt = std::max(8, 4 * divisions_for(M_PI * (R + Ri) / 4, h)); // mean circumference / h, by quarters
+    const int nz = divisions_for(height, h);
+    HexMesh m;
+    // node (i, j, k): radius i, angle j (periodic), height k
+    auto id = [&](int i, int j, int k) { return static_cast<index_t>(i + (nr + 1) * ((j % nt) + nt * k)); };
+    m.x.reserve(static_cast<std::size_t>(nr + 1) * nt * (nz + 1) * 3);
+    for (int k = 0; k <= nz; ++k)
+        for (int j = 0; j < nt; ++j)
+            for (int i = 0; i <= nr; ++i)
+            {
+                const real_t r = Ri + (R - Ri) * i / nr, a = 2 * M_PI * j / nt;
+                m.x.insert(m.x.end(), {origin[0] + r * std::cos(a), origin[1] + r * std::sin(a), origin[2] + height * k / nz});
+            }
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < nt; ++j)
+            for (int i = 0; i < nr; ++i)
+            {
+                // counter-clockwise in (r, theta) seen from +z: positive volume
+                const index_t e[8] = {id(i, j, k),         id(i + 1, j, k),     id(i + 1, j + 1, k),
+                                      id(i, j + 1, k),     id(i, j, k + 1),     id(i + 1, j, k + 1),
+                                      id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
+                m.conn.insert(m.conn.end(), e, e + 8);
+            }
+    m.faces = extract_boundary_faces(m.conn);
+    name_faces_by_normal(m, {{"top", Vec3::UnitZ()}, {"bottom", -Vec3::UnitZ()}}, "");
+    const real_t mid = 0.5 * (R + Ri);
+    for (index_t f = 0; f < static_cast<index_t>(m.faces.size()); ++f)
+    {
+        Vec3 c = Vec3::Zero();
+        for (index_t n : m.faces[f])
+            c += m.node(n);
+        c /= 4;
+        const Vec3 n = quad_normal(m.x, m.faces[f]).normalized();
+        if (std::abs(n[2]) > 0.999)
+            continue;
+        m.named_faces[std::hypot(c[0] - origin[0], c[1] - origin[1]) > mid ? "side" : "inner"].push_back(f);
+    }
+    return m;
+}
+
 HexMesh generate_cloud(const GeneratorSpec& g)
 {
     const bool cyl = g.body == GeneratorSpec::Body::Cylinder;
@@ -355,6 +398,8 @@ HexMesh generate(const GeneratorSpec& g)
         return generate_box(g.origin, g.size, n);
     }
     case GeneratorSpec::Type::Cylinder:
+        if (g.inner_radius > 0)
+            return generate_tube(g.origin, g.radius, g.inner_radius, g.height, g.element_size);
         return generate_cylinder(g.origin, g.radius, g.height, g.element_size, g.core == "ogrid");
     case GeneratorSpec::Type::Cloud:
         return generate_cloud(g);

@@ -15,6 +15,12 @@ HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int,
 HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t element_size,
                           bool ogrid_core);
 
+/// Tube along +z from `origin` (centre of the bottom face), radii inner < outer: a structured
+/// (r, theta, z) mesh of about element_size (theta divisions a multiple of 4, at least 8).
+/// Named faces: top, bottom, side (the outer surface), inner (the bore).
+HexMesh generate_tube(const Vec3& origin, real_t outer_radius, real_t inner_radius, real_t height,
+                      real_t element_size);
+
 /// The particles of a cloud part (`type: cloud`) as a mesh without elements. Box body (origin,
 /// size): a lattice of about `element_size` spacing, each coordinate jittered by a uniform
 /// +-jitter spacing (seeded) except where the particle lies on the box's face normal to it, so

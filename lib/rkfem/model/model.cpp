@@ -513,6 +513,8 @@ Model Model::build(const Deck& deck)
     }
     m.collect_loaded_dofs();
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
+    m.part_energy_.assign(m.parts.size(), {});
+    m.part_pending_.assign(m.parts.size(), {});
     m.reaction_inertia_.assign(m.conditions.size(), 0.0);
     m.contact.resize(m.nodes.size());
     m.eroded_.resize(m.blocks.size());

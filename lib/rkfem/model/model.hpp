@@ -154,6 +154,16 @@ class Model final : public ExplicitOperator
     /// the physical one when no other condition's particles share their kernels.
     Vec3 reaction(index_t condition) const;
 
+    /// Per-part sums (LS-DYNA's MATSUM): mass, momentum and kinetic energy of the part's nodes
+    /// (on rkpm parts of the generalized velocities, as the ledger), and the internal, hourglass
+    /// and bulk-viscosity energies its blocks booked. Summed over parts they are the ledger's.
+    struct PartSummary
+    {
+        real_t mass = 0, kinetic = 0, internal = 0, hourglass = 0, bulk_viscosity = 0;
+        Vec3 momentum = Vec3::Zero();
+    };
+    PartSummary part_summary(index_t part) const;
+
     /// Nodal stress (average of adjacent points) at node i, Voigt.
     Sym6 nodal_stress(index_t node) const;
     /// A point history value averaged over an element (its points; nodal parts: the points of
@@ -233,6 +243,11 @@ class Model final : public ExplicitOperator
     std::vector<real_t> reaction_inertia_; ///< per condition: m a_p of the last step
     std::vector<real_t> bc_v_prev_;
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;
+    struct PartEnergy
+    {
+        real_t internal = 0, hourglass = 0, bulk_viscosity = 0;
+    };
+    std::vector<PartEnergy> part_energy_, part_pending_; ///< per part: committed, this evaluation's
     std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;
     std::vector<std::pair<const LoadSpec*, const std::vector<Quad>*>> pressure_loads_;
     /// Per pressure load: its facets on cloud parts, Psi_I and grad Psi_I at each (CSR, reference

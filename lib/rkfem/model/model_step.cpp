@@ -36,11 +36,15 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
     pending_int_ = pending_hg_ = pending_bv_ = 0.0;
     index_t offset = 0;
     // energy increments and the controlling stable step of one block's pass
-    auto book = [&](const ForcePassResult& r, index_t dt_element)
+    std::fill(part_pending_.begin(), part_pending_.end(), PartEnergy{});
+    auto book = [&](const ForcePassResult& r, index_t dt_element, std::size_t part)
     {
         pending_int_ += r.d_internal;
         pending_hg_ += r.d_hourglass;
         pending_bv_ += r.d_bulk_viscosity;
+        part_pending_[part].internal += r.d_internal;
+        part_pending_[part].hourglass += r.d_hourglass;
+        part_pending_[part].bulk_viscosity += r.d_bulk_viscosity;
         if (r.dt_stable < rep.dt_stable)
         {
             rep.dt_stable = r.dt_stable;
@@ -68,7 +72,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
                    << nb.jacobian[r.bad_element] << " at t = " << t << " s, step " << step;
                 throw InstabilityError(os.str());
             }
-            book(r, offset); // first element of the part; nodal points are not elements
+            book(r, offset, ib); // first element of the part; nodal points are not elements
             assemble_nodal_forces(nb, nodes, add);
             if (part_fe_side[ib] >= 0)
             {
@@ -86,7 +90,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
                        << step;
                     throw InstabilityError(os.str());
                 }
-                book(rf, rf.dt_element >= 0 ? offset + part_element(rf.dt_element) : offset);
+                book(rf, rf.dt_element >= 0 ? offset + part_element(rf.dt_element) : offset, ib);
                 assemble_block_forces(side.block, nodes, true);
             }
             offset += blk.n_elements();
@@ -101,7 +105,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
                << element_volume(blk, nodes, r.bad_element) << " m^3 at t = " << t << " s, step " << step;
             throw InstabilityError(os.str());
         }
-        book(r, offset + r.dt_element);
+        book(r, offset + r.dt_element, ib);
         assemble_block_forces(blk, nodes, add);
         offset += blk.n_elements();
     }
@@ -161,6 +165,31 @@ void Model::commit()
     energy.hourglass += pending_hg_;
     energy.bulk_viscosity += pending_bv_;
     pending_int_ = pending_hg_ = pending_bv_ = 0.0;
+    for (std::size_t p = 0; p < part_pending_.size(); ++p)
+    {
+        part_energy_[p].internal += part_pending_[p].internal;
+        part_energy_[p].hourglass += part_pending_[p].hourglass;
+        part_energy_[p].bulk_viscosity += part_pending_[p].bulk_viscosity;
+        part_pending_[p] = PartEnergy{};
+    }
+}
+
+Model::PartSummary Model::part_summary(index_t part) const
+{
+    PartSummary s;
+    const PartInfo& pi = parts[part];
+    s.internal = part_energy_[part].internal;
+    s.hourglass = part_energy_[part].hourglass;
+    s.bulk_viscosity = part_energy_[part].bulk_viscosity;
+    for (index_t i = pi.node_begin; i < pi.node_end; ++i)
+    {
+        const real_t m = nodes.mass[i];
+        const Vec3 v(nodes.v[3 * i], nodes.v[3 * i + 1], nodes.v[3 * i + 2]);
+        s.mass += m;
+        s.momentum += m * v;
+        s.kinetic += 0.5 * m * v.squaredNorm();
+    }
+    return s;
 }
 
 void Model::update_energies(const real_t* u_prev, real_t dt)

@@ -22,16 +22,16 @@ namespace rkfem
 {
 namespace
 {
-/// "reaction_SET" per deck boundary condition ("reaction_SET_2" for the second on one set).
-std::vector<std::string> reaction_names(const Deck& d)
+/// PREFIX + SET per entry ("PREFIX SET_2" for the second entry on one set).
+std::vector<std::string> names_by_set(const std::vector<std::string>& sets, const char* prefix)
 {
     std::vector<std::string> names;
     std::map<std::string, int> seen;
-    for (const auto& b : d.boundary_conditions)
+    for (const auto& set : sets)
     {
-        const int n = ++seen[b.node_set];
-        std::string name = "reaction_";
-        name += b.node_set;
+        const int n = ++seen[set];
+        std::string name = prefix;
+        name += set;
         if (n > 1)
         {
             name += '_';
@@ -42,6 +42,19 @@ std::vector<std::string> reaction_names(const Deck& d)
     return names;
 }
 
+/// A load's value at t: the pressure [Pa], or the length of the nodal force vector [N] (per
+/// node, or the total with `total: true`), as the deck gives it.
+real_t load_value(const LoadSpec& l, real_t t)
+{
+    if (l.kind == LoadSpec::Kind::Pressure)
+        return l.pressure(t);
+    real_t f2 = 0;
+    for (int k = 0; k < 3; ++k)
+        if (l.active[k])
+            f2 += l.force[k](t) * l.force[k](t);
+    return std::sqrt(f2);
+}
+
 std::vector<std::string> history_columns(const Model& m)
 {
     std::vector<std::string> c{"time",          "dt",       "kinetic", "internal", "hourglass",
@@ -49,9 +62,20 @@ std::vector<std::string> history_columns(const Model& m)
                                "total",         "balance_error", "hourglass_ratio", "hourglass_to_total"};
     if (m.deck().impact.active)
         c.insert(c.end(), {"apparent_depth", "actual_depth", "residual_velocity"});
-    for (const std::string& name : reaction_names(m.deck()))
+    std::vector<std::string> sets;
+    for (const auto& b : m.deck().boundary_conditions)
+        sets.push_back(b.node_set);
+    for (const std::string& name : names_by_set(sets, "reaction_"))
         for (const char* q : {"_x", "_y", "_z"})
             c.push_back(name + q);
+    sets.clear();
+    for (const auto& l : m.deck().loads)
+        sets.push_back(l.set);
+    for (const std::string& name : names_by_set(sets, "load_"))
+        c.push_back(name);
+    for (const auto& p : m.parts)
+        for (const char* q : {"_mass", "_kinetic", "_internal", "_hourglass", "_momentum_x", "_momentum_y", "_momentum_z"})
+            c.push_back("part_" + p.name + q);
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
@@ -76,6 +100,13 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
     {
         const Vec3 r = m.reaction(b);
         rows.insert(rows.end(), {r[0], r[1], r[2]});
+    }
+    for (const LoadSpec& l : m.deck().loads)
+        rows.push_back(load_value(l, t));
+    for (index_t p = 0; p < static_cast<index_t>(m.parts.size()); ++p)
+    {
+        const Model::PartSummary s = m.part_summary(p);
+        rows.insert(rows.end(), {s.mass, s.kinetic, s.internal, s.hourglass, s.momentum[0], s.momentum[1], s.momentum[2]});
     }
     for (index_t n : m.probe_nodes)
     {

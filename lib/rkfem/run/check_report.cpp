@@ -1,0 +1,201 @@
+#include "rkfem/run/check_report.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "rkfem/model/model.hpp"
+
+namespace rkfem
+{
+namespace
+{
+/// "name = value unit" entries, wrapped at about 100 characters with a "#     " indent.
+class Lines
+{
+  public:
+    explicit Lines(std::ostringstream& os) : os_(os) {}
+    void add(const char* name, real_t value, const char* unit)
+    {
+        char b[96];
+        std::snprintf(b, sizeof b, "%s = %.6g%s%s", name, value, *unit ? " " : "", unit);
+        if (width_ + std::string(b).size() > 96)
+            flush();
+        line_ += (line_.empty() ? "" : ", ") + std::string(b);
+        width_ = line_.size();
+    }
+    void flush()
+    {
+        if (!line_.empty())
+            os_ << "#     " << line_ << "\n";
+        line_.clear();
+        width_ = 0;
+    }
+
+  private:
+    std::ostringstream& os_;
+    std::string line_;
+    std::size_t width_ = 0;
+};
+
+void kcc(std::ostringstream& os, const KccModel& m)
+{
+    const KccParameters& k = m.surfaces;
+    const real_t E = 9 * m.bulk * m.shear / (3 * m.bulk + m.shear);
+    os << "#   K&C concrete Release III (MAT_072R3), generated from f'c:\n";
+    Lines l(os);
+    l.add("fc", k.fc, "Pa");
+    l.add("ft", k.ft, "Pa");
+    l.add("E", E, "Pa");
+    l.add("nu", (3 * m.bulk - 2 * m.shear) / (2 * (3 * m.bulk + m.shear)), "");
+    l.add("K1", m.bulk, "Pa");
+    l.add("G", m.shear, "Pa");
+    l.add("a0", k.a0, "Pa");
+    l.add("a1", k.a1, "");
+    l.add("a2", k.a2, "1/Pa");
+    l.add("a0y", k.a0y, "Pa");
+    l.add("a1y", k.a1y, "");
+    l.add("a2y", k.a2y, "1/Pa");
+    l.add("a1f", k.a1f, "");
+    l.add("a2f", k.a2f, "1/Pa");
+    l.add("b1", k.b1, "");
+    l.add("b2", k.b2, "");
+    l.add("b3", k.b3, "");
+    l.add("omega", k.omega, "");
+    l.add("lambda_m", k.lambda_m, "");
+    l.add("lambda_z", k.lambda_z, "");
+    l.add("fbc/fc", k.alpha_biaxial, "");
+    l.add("fyc", k.fyc, "Pa");
+    l.add("psi_biaxial", k.psi_biaxial, "");
+    l.add("rate_effects", m.rate_effects ? 1 : 0, "");
+    l.add("fracture_energy", m.fracture_energy, "J/m^2");
+    l.flush();
+    os << "#     eta(lambda):";
+    for (const auto& [lam, eta] : k.eta_table)
+        os << " (" << lam << ", " << eta << ")";
+    os << "\n#     EOS_8 ln(V/V0):";
+    for (real_t v : m.eos_strain)
+        os << " " << v;
+    os << "\n#     EOS_8 pressure [Pa]:";
+    for (real_t v : m.eos_pressure)
+        os << " " << v;
+    os << "\n#     EOS_8 unloading bulk modulus [Pa]:";
+    for (real_t v : m.eos_unload)
+        os << " " << v;
+    os << "\n";
+}
+
+void cscm(std::ostringstream& os, const CscmModel& c)
+{
+    os << "#   continuous surface cap model (MAT_159), generated from f'c:\n";
+    Lines l(os);
+    l.add("fc", c.fc, "Pa");
+    l.add("E", c.E, "Pa");
+    l.add("K", c.bulk, "Pa");
+    l.add("G", c.shear, "Pa");
+    l.add("alpha", c.alpha, "Pa");
+    l.add("theta", c.theta, "");
+    l.add("lambda", c.lambda, "Pa");
+    l.add("beta", c.beta, "1/Pa");
+    l.add("alpha1", c.alpha1, "");
+    l.add("theta1", c.theta1, "1/Pa");
+    l.add("lambda1", c.lambda1, "");
+    l.add("beta1", c.beta1, "1/Pa");
+    l.add("alpha2", c.alpha2, "");
+    l.add("theta2", c.theta2, "1/Pa");
+    l.add("lambda2", c.lambda2, "");
+    l.add("beta2", c.beta2, "1/Pa");
+    l.add("R", c.R, "");
+    l.add("X0", c.X0, "Pa");
+    l.add("W", c.W, "");
+    l.add("D1", c.D1, "1/Pa");
+    l.add("D2", c.D2, "1/Pa^2");
+    l.add("B", c.B, "");
+    l.add("D", c.D, "");
+    l.add("Gfc", c.Gfc, "J/m^2");
+    l.add("Gft", c.Gft, "J/m^2");
+    l.add("Gfs", c.Gfs, "J/m^2");
+    l.add("fcu", c.fcu, "Pa");
+    l.add("ftu", c.ftu, "Pa");
+    l.flush();
+}
+
+void material(std::ostringstream& os, const PlasticPoints& p)
+{
+    switch (p.kind)
+    {
+    case PlasticPoints::Kind::Kcc:
+        kcc(os, p.kcc);
+        break;
+    case PlasticPoints::Kind::Cscm:
+        cscm(os, p.cscm);
+        break;
+    default:
+        break; // elastic and J2 parameters are the deck's own (above)
+    }
+}
+} // namespace
+
+std::string check_report(Model& model)
+{
+    std::ostringstream os;
+    os << "# generated material parameters (SI):\n";
+    bool any = false;
+    for (std::size_t p = 0; p < model.parts.size(); ++p)
+    {
+        const PlasticPoints* pts = nullptr;
+        if (model.part_nodal[p] >= 0)
+            pts = &model.nodal_blocks[model.part_nodal[p]].plastic;
+        else if (p < model.blocks.size())
+            pts = &model.blocks[p].plastic;
+        if (!pts || (pts->kind != PlasticPoints::Kind::Kcc && pts->kind != PlasticPoints::Kind::Cscm))
+            continue;
+        any = true;
+        os << "#  part " << model.parts[p].name << ":\n";
+        material(os, *pts);
+    }
+    if (!any)
+        os << "#   none (every material's parameters are the deck's own)\n";
+    // the stable step at t = 0 and what sets it
+    const ForceReport rep = model.internal_forces(0.0, 0.0, 0);
+    const real_t scale = model.deck().time.dt_scale;
+    char line[256];
+    std::snprintf(line, sizeof line, "# time step: %.6g s stable, x time.dt_scale %.3g = %.6g s", rep.dt_stable, scale,
+                  rep.dt_stable * scale);
+    os << line;
+    auto [b, e] = rep.dt_element >= 0 ? model.locate_element(rep.dt_element) : std::pair<index_t, index_t>{-1, -1};
+    if (b >= 0 && model.part_nodal[b] < 0)
+    {
+        // the kernels' reduction breaks ties by thread; name the first element of the smallest step
+        real_t best = 1e300;
+        for (index_t bb = 0; bb < static_cast<index_t>(model.blocks.size()); ++bb)
+            if (model.part_nodal[bb] < 0)
+                for (index_t ee = 0; ee < model.blocks[bb].n_elements(); ++ee)
+                    if (const real_t dt = model.element_shape(bb, ee).time_step; dt < best * (1 - 1e-12))
+                    {
+                        best = dt;
+                        b = bb;
+                        e = ee;
+                    }
+    }
+    if (b >= 0 && model.part_nodal[b] >= 0 && model.part_fe_side[b] < 0)
+        os << ", set by part '" << model.parts[b].name << "' (its nodal integration points)";
+    else if (b >= 0)
+    {
+        Vec3 c = Vec3::Zero();
+        for (int i = 0; i < 8; ++i)
+        {
+            const index_t n = model.blocks[b].conn[8 * e + i];
+            c += Vec3(model.nodes.x0[3 * n], model.nodes.x0[3 * n + 1], model.nodes.x0[3 * n + 2]) / 8;
+        }
+        for (int d = 0; d < 3; ++d)
+            if (std::abs(c[d]) < 1e-9)
+                c[d] = 0.0; // round-off of a coordinate on an axis, which a round trip changes
+        std::snprintf(line, sizeof line, ", set by part '%s' element %d (centroid %.6g, %.6g, %.6g m)",
+                      model.parts[b].name.c_str(), static_cast<int>(e), c[0], c[1], c[2]);
+        os << line;
+    }
+    os << "\n";
+    return os.str();
+}
+} // namespace rkfem

@@ -1,0 +1,15 @@
+#pragma once
+/// @file check_report.hpp
+/// What `rkfem check` prints after the resolved deck, as YAML comments (LS-DYNA's d3hsp analog):
+/// every generated material parameter (K&C, CSCM, J2) with its unit, per part, and which part and
+/// element set the time step.
+#include <string>
+
+namespace rkfem
+{
+class Model;
+
+/// The report; evaluates the internal forces once at t = 0 for the stable step (the model is
+/// left with that trial state, so call it on a model that will not run).
+std::string check_report(Model& model);
+} // namespace rkfem
