@@ -722,3 +722,14 @@ TEST(Decks, CheckEchoesGeneratedParametersAndWhatSetsTheStep)
     const Result e = run("check " + write_deck("plain_check.yaml", good));
     EXPECT_NE(e.output.find("#   none (every material's parameters are the deck's own)"), std::string::npos) << e.output;
 }
+
+TEST(Decks, SectionKeysAreChecked)
+{
+    expect_rejected("section_normal.yaml", good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 0]}\n",
+                    ":13: sections.s.normal", "expected the plane's normal");
+    expect_rejected("section_part.yaml", good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 1], part: nope}\n",
+                    ":13: sections.s.part", "expected the name of a part");
+    expect_rejected("section_twice.yaml",
+                    good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 1]}\n  s: {point: [0, 0, 6 mm], normal: [0, 0, 1]}\n",
+                    ":14: sections.s", "each key once");
+}

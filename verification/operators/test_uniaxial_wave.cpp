@@ -26,6 +26,9 @@ node_sets:
 boundary_conditions:
   - {node_set: all, fixed: [x, y]}
   - {node_set: end, velocity: {z: 10 m/s}}
+sections:
+  behind: {point: [0, 0, 50 mm], normal: [0, 0, 1]}
+  ahead: {point: [0, 0, 250 mm], normal: [0, 0, 1]}
 )";
 
 void check_wave(const std::vector<std::string>& overrides)
@@ -79,6 +82,12 @@ void check_wave(const std::vector<std::string>& overrides)
     EXPECT_NEAR(rollers[0], 0.0, 1e-9 * end[2]);
     EXPECT_NEAR(rollers[1], 0.0, 1e-9 * end[2]);
     EXPECT_EQ(rollers[2], 0.0); // z is free on the rollers
+    // sections (SECFORC) behind the front carry the plateau's force, rho c v A = 459.7 N; one
+    // ahead of it carries nothing
+    ASSERT_EQ(m.section_nodes.size(), 2u);
+    EXPECT_NEAR(m.section_force(0)[2], -plateau * h * h, 0.01 * std::abs(plateau) * h * h);
+    EXPECT_NEAR(m.section_force(0)[0], 0.0, 1e-9 * end[2]);
+    EXPECT_NEAR(m.section_force(1)[2], 0.0, 1e-6 * end[2]);
     // the history carries them as columns reaction_end_{x,y,z}
     const auto col = std::find(s.history_columns.begin(), s.history_columns.end(), "reaction_end_z");
     ASSERT_NE(col, s.history_columns.end());

@@ -114,7 +114,7 @@ Deck build(const YAML::Node& root, Context& ctx)
                         "expected top-level keys title, time, parts, ...");
     Section top(ctx, root, "",
                 {"title", "time", "parts", "node_sets", "face_sets", "boundary_conditions",
-                 "loads", "probes", "contacts", "impact"});
+                 "loads", "probes", "sections", "contacts", "impact"});
     Deck deck;
     deck.path = ctx.name;
     deck.title = top.text("title", "");
@@ -262,6 +262,31 @@ Deck build(const YAML::Node& root, Context& ctx)
             pr.part = s.text("part", "");
             pr.loc = s.loc();
             deck.probes.push_back(pr);
+        }
+    }
+    const YAML::Node sections = root["sections"];
+    if (sections.IsDefined() && !sections.IsNull())
+    {
+        if (!sections.IsMap())
+            top.fail("sections", "is not a mapping", "expected name: {point: [x, y, z], normal: [nx, ny, nz], part}");
+        reject_repeated_keys(ctx, sections, "sections");
+        for (const auto& kv : sections)
+        {
+            const std::string name = kv.first.as<std::string>();
+            Section s(ctx, kv.second, "sections." + name, {"point", "normal", "part", "tolerance"});
+            SectionSpec sc;
+            sc.name = name;
+            sc.point = s.vec3("point", dim::length);
+            sc.normal = s.vec3("normal", dim::none);
+            if (!(sc.normal.norm() > 0))
+                s.fail("normal", "is the zero vector", "expected the plane's normal, e.g. [0, 0, 1]");
+            sc.normal.normalize();
+            sc.part = s.text("part", "");
+            sc.tolerance = s.has("tolerance") ? s.quantity("tolerance", dim::length) : -1.0;
+            if (s.has("tolerance") && !(sc.tolerance >= 0))
+                s.fail("tolerance", "is negative", "expected a length >= 0");
+            sc.loc = s.loc();
+            deck.sections.push_back(sc);
         }
     }
     return deck;

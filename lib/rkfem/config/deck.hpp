@@ -257,6 +257,19 @@ struct ProbeSpec
     SourceLocation loc;
 };
 
+/// A cross-section (deck key sections, LS-DYNA's *DATABASE_CROSS_SECTION_PLANE / SECFORC): the
+/// nodes of `part` (all parts when empty) with (X - point) . normal >= -tolerance in the reference
+/// configuration form the positive side; its force is what the material on the negative side
+/// exerts on them.
+struct SectionSpec
+{
+    std::string name;
+    Vec3 point = Vec3::Zero(), normal = Vec3::UnitZ();
+    std::string part;
+    real_t tolerance = -1.0; ///< < 0: 1e-6 of the part's size
+    SourceLocation loc;
+};
+
 /// One contact definition (deck key contacts): LS-DYNA's *CONTACT_AUTOMATIC_SURFACE_TO_SURFACE,
 /// *CONTACT_AUTOMATIC_SINGLE_SURFACE and *RIGIDWALL_PLANAR (penalty) analogs.
 struct ContactSpec
@@ -327,6 +340,7 @@ struct Deck
     std::vector<BoundarySpec> boundary_conditions;
     std::vector<LoadSpec> loads;
     std::vector<ProbeSpec> probes;
+    std::vector<SectionSpec> sections;
     std::vector<ContactSpec> contacts;
     ImpactSpec impact;
     SourceLocation time_loc;

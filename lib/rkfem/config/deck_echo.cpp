@@ -353,6 +353,18 @@ std::string to_yaml(const Deck& d)
             os << "  " << p.name << ": {point: " << vec(p.point)
                << (p.part.empty() ? "" : ", part: " + p.part) << "}\n";
     }
+    if (!d.sections.empty())
+    {
+        os << "sections:\n";
+        for (const auto& s : d.sections)
+        {
+            os << "  " << s.name << ": {point: " << vec(s.point) << ", normal: " << vec(s.normal)
+               << (s.part.empty() ? "" : ", part: " + s.part);
+            if (s.tolerance >= 0)
+                os << ", tolerance: " << s.tolerance;
+            os << "}\n";
+        }
+    }
     return os.str();
 }
 } // namespace rkfem

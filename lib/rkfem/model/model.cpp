@@ -436,6 +436,24 @@ Model Model::build(const Deck& deck)
                             "expected the name of a part");
         m.probe_nodes.push_back(best);
     }
+    // sections: the nodes on the positive side of each plane
+    for (const auto& sc : d.sections)
+    {
+        std::vector<index_t> side;
+        bool known = sc.part.empty();
+        for (index_t ip : part_range(sc.part))
+        {
+            known = true;
+            const real_t tol = sc.tolerance >= 0 ? sc.tolerance
+                                                 : default_tolerance(m.nodes, m.parts[ip].node_begin, m.parts[ip].node_end);
+            for (index_t i = m.parts[ip].node_begin; i < m.parts[ip].node_end; ++i)
+                if ((Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - sc.point).dot(sc.normal) >= -tol)
+                    side.push_back(i);
+        }
+        if (!known)
+            throw DeckError({sc.loc.where, sc.loc.path + ".part"}, "unknown part '" + sc.part + "'", "expected the name of a part");
+        m.section_nodes.push_back(std::move(side));
+    }
     // the kinematic map: the RK rows of every nodal block, moved out of the block (it served
     // the build only)
     m.kinematics.reset(m.nodes.size());

@@ -89,6 +89,13 @@ class Model final : public ExplicitOperator
     std::map<std::string, std::vector<CloudFacet>> cloud_face_sets;
     std::vector<DofCondition> conditions;
     std::vector<index_t> probe_nodes; ///< one per deck probe
+    std::vector<std::vector<index_t>> section_nodes; ///< per deck section: the nodes on its positive side
+    /// Force across a deck section (LS-DYNA's SECFORC): what the material on the negative side
+    /// exerts on the nodes of the positive side, -sum of their internal forces (every element's
+    /// nodal forces sum to zero, so only the elements the plane cuts or touches contribute).
+    /// On rkpm parts the generalized forces of the particles (the physical resultant when the
+    /// kernels of the side's particles do not reach across the plane's other side).
+    Vec3 section_force(index_t section) const;
     Energies energy;
 
     index_t n_elements() const;

@@ -294,6 +294,14 @@ std::vector<index_t> Model::velocity_driven_dofs() const
             dofs.push_back(c.dof);
     return dofs;
 }
+Vec3 Model::section_force(index_t section) const
+{
+    Vec3 f = Vec3::Zero();
+    for (index_t i : section_nodes[section])
+        f -= Vec3(nodes.f_int[3 * i], nodes.f_int[3 * i + 1], nodes.f_int[3 * i + 2]);
+    return f;
+}
+
 Vec3 Model::reaction(index_t condition) const
 {
     Vec3 r = Vec3::Zero();

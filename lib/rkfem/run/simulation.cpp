@@ -73,6 +73,9 @@ std::vector<std::string> history_columns(const Model& m)
         sets.push_back(l.set);
     for (const std::string& name : names_by_set(sets, "load_"))
         c.push_back(name);
+    for (const auto& sc : m.deck().sections)
+        for (const char* q : {"_x", "_y", "_z"})
+            c.push_back("section_" + sc.name + q);
     for (const auto& p : m.parts)
         for (const char* q : {"_mass", "_kinetic", "_internal", "_hourglass", "_momentum_x", "_momentum_y", "_momentum_z"})
             c.push_back("part_" + p.name + q);
@@ -103,6 +106,11 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
     }
     for (const LoadSpec& l : m.deck().loads)
         rows.push_back(load_value(l, t));
+    for (index_t k = 0; k < static_cast<index_t>(m.section_nodes.size()); ++k)
+    {
+        const Vec3 f = m.section_force(k);
+        rows.insert(rows.end(), {f[0], f[1], f[2]});
+    }
     for (index_t p = 0; p < static_cast<index_t>(m.parts.size()); ++p)
     {
         const Model::PartSummary s = m.part_summary(p);

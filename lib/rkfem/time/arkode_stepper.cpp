@@ -21,7 +21,7 @@ namespace
 inline real_t* data(N_Vector v) { return NV_DATA_S(v); }
 
 void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const real_t* __restrict a, real_t h_prev,
-                   real_t h, real_t* __restrict v_full, real_t* __restrict du, real_t* __restrict dv, bool stream)
+                   real_t h, real_t* __restrict v_full, real_t* __restrict du, real_t* __restrict dv, [[maybe_unused]] bool stream)
 {
     const real_t inv_h = 1.0 / h;
 #if defined(__AVX512F__)
