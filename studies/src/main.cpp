@@ -7,6 +7,7 @@
 // Exit codes: 0 success, 2 bad input (one line naming deck, line and key), 3 run went unstable
 // (output so far kept), 4 a study with cases that did not complete (table written), 1 other failure.
 #include <cstdio>
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <iostream>
@@ -200,6 +201,7 @@ int main(int argc, char** argv)
     {
         const rkfem::Deck deck = rkfem::read_deck(deck_path, overrides);
         rkfem::Model model = rkfem::Model::build(deck); // all validation before any output
+        rkfem::check_step_budget(model);
         if (command == "check")
         {
             std::cout << rkfem::to_yaml(deck);
@@ -208,13 +210,26 @@ int main(int argc, char** argv)
                       << " elements, " << model.parts.size() << " part(s)\n";
             return 0;
         }
+        // the output directory must exist (or be made) and take a file, before the run starts
         std::error_code ec;
         std::filesystem::create_directories(out_dir, ec);
         if (ec)
         {
-            std::fprintf(stderr, "rkfem: cannot create output directory %s: %s\n", out_dir.c_str(),
-                         ec.message().c_str());
-            return 1;
+            std::fprintf(stderr, "rkfem: --out %s: cannot create the output directory (%s); expected a directory path\n",
+                         out_dir.c_str(), ec.message().c_str());
+            return 2;
+        }
+        {
+            const std::string probe = out_dir + "/.rkfem_write_test";
+            std::FILE* f = std::fopen(probe.c_str(), "w");
+            if (!f)
+            {
+                std::fprintf(stderr, "rkfem: --out %s: cannot write in the output directory (%s); expected a writable directory\n",
+                             out_dir.c_str(), std::strerror(errno));
+                return 2;
+            }
+            std::fclose(f);
+            std::remove(probe.c_str());
         }
         if (!quiet)
             for (const auto& part : deck.parts)

@@ -733,3 +733,90 @@ TEST(Decks, SectionKeysAreChecked)
                     good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 1]}\n  s: {point: [0, 0, 6 mm], normal: [0, 0, 1]}\n",
                     ":14: sections.s", "each key once");
 }
+
+TEST(Decks, UnitMismatchSaysWhatIsExpected)
+{
+    expect_rejected("unit_mismatch.yaml", replace(good, "E: 200 GPa", "E: 200 m"), ":7: parts.col.material.E",
+                    "not a pressure or stress (e.g. 5000 psi, 200 GPa); expected a pressure");
+    // and through --set
+    const Result r = run("check " + write_deck("unit_set.yaml", good) + " --set 'parts.col.material.rho=3 m/s'");
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.output.find("--set parts.col.material.rho=3 m/s: parts.col.material.rho: "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("; expected a density"), std::string::npos) << r.output;
+}
+
+TEST(Decks, AnOutputPathThatCannotBeADirectoryIsRefusedBeforeTheRun)
+{
+    const fs::path file = fs::temp_directory_path() / "rkfem_test_decks" / "a_file";
+    fs::create_directories(file.parent_path());
+    std::ofstream(file) << "x";
+    for (const std::string& out : std::vector<std::string>{file.string(), file.string() + "/below"})
+    {
+        const Result r = run("run " + write_deck("out_file.yaml", good) + " --out " + out);
+        EXPECT_EQ(r.code, 2) << r.output;
+        EXPECT_NE(r.output.find("rkfem: --out " + out + ": cannot create the output directory"), std::string::npos) << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    }
+}
+
+TEST(Decks, TheLastProgressLineShowsTheRunsEnergyRatio)
+{
+    // the final line used to print a constant 1.0000; it is the ledger's ratio, as summary.json's
+    const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "progress_ratio";
+    const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave.yaml --out " + out.string() +
+                         " --set 'parts.column.generator.size=[2 mm, 2 mm, 200 mm]'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const auto at = r.output.rfind("energy ratio ");
+    ASSERT_NE(at, std::string::npos) << r.output;
+    const double shown = std::stod(r.output.substr(at + 13));
+    std::ifstream js(out / "summary.json");
+    const std::string s((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+    auto field = [&](const std::string& key)
+    {
+        const auto p = s.find("\"" + key + "\": ");
+        EXPECT_NE(p, std::string::npos) << key;
+        return std::stod(s.substr(p + key.size() + 4));
+    };
+    const double total = field("kinetic") + field("internal") + field("hourglass") + field("bulk_viscosity") +
+                         field("contact") + field("eroded") + field("damping");
+    const double ref = field("kinetic0") + field("internal0") + field("external_work");
+    EXPECT_NEAR(shown, total / ref, 1e-4);
+    EXPECT_NE(r.output.substr(at + 13, 6), "1.0000") << r.output;
+}
+
+TEST(Decks, MaterialPointPathsThatLeaveFiniteNumbersAreRefused)
+{
+    // NaN / inf rows used to be written with exit 0, and steps past 2^31 wrapped around
+    const std::string head = "title: t\nmaterial: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 300 MPa, etan: 1 GPa}\n";
+    const std::pair<std::string, std::string> bad[] = {
+        {"path: {type: uniaxial-stress, strain: 1e300, rate: 1 1/s, steps: 10}\n", ":3: path: the point's state is not finite at step 1"},
+        {"path: {type: uniaxial-stress, strain: 0.01, rate: 4.9e-324 1/s, steps: 10}\n", ":3: path: the point's state is not finite"},
+        {"path: {type: rotation, strain: 0.01, rate: 1 1/s, steps: 10, angle: 1e300}\n", "check path.strain, path.rate, path.angle"},
+        {"path: {type: uniaxial-stress, strain: 0.01, rate: 1 1/s, steps: 4294967297}\n", ":3: path.steps: is above 10^8"},
+        {"path: {type: uniaxial-stress, strain: 0.01, rate: 1 1/s, steps: 2147483648}\n", ":3: path.steps: is above 10^8"},
+    };
+    const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "mp_bad_out";
+    for (const auto& [path, expect] : bad)
+    {
+        fs::remove_all(out);
+        const Result r = run("material-point " + write_deck("mp_bad.yaml", head + path) + " --out " + out.string());
+        EXPECT_EQ(r.code, 2) << path << r.output;
+        EXPECT_NE(r.output.find(expect), std::string::npos) << path << r.output;
+        EXPECT_FALSE(fs::exists(out / "stress_strain.csv")) << path;
+    }
+}
+
+TEST(Decks, AnEndTimeBeyondTenBillionStepsIsRefused)
+{
+    // end: 1e30 s used to run "forever"; max_steps bounds a run, so it lets the deck through
+    const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "endless";
+    fs::remove_all(out);
+    const std::string f = write_deck("endless.yaml", replace(good, "end: 1 us", "end: 1e30 s"));
+    const Result r = run_shell(std::string("timeout 60 ") + RKFEM_EXE + " run " + f + " --out " + out.string() + " 2>&1");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("time.end: 1e+30 s would take about"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("; expected an end time within 10^10 steps"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out));
+    const Result bounded = run("run " + f + " --out " + out.string() + " --quiet --set time.max_steps=5");
+    EXPECT_EQ(bounded.code, 0) << bounded.output;
+}

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
@@ -133,6 +134,19 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
         }
         rec.plastic_strain = ep;
         rec.failed = f;
+        bool finite = std::isfinite(rec.time) && std::isfinite(ep) && std::isfinite(f) && std::isfinite(rec.work);
+        for (int c = 0; c < 6; ++c)
+            finite = finite && std::isfinite(rec.strain[c]) && std::isfinite(rec.stress[c]);
+        if (!finite)
+        {
+            // nothing is written: a table with NaN or inf rows is not a result
+            std::ostringstream os;
+            os << "the point's state is not finite at step " << k + 1 << " of " << n_total << " (t = " << rec.time
+               << " s, strain xx " << rec.strain[0] << ", stress xx " << rec.stress[0] << " Pa)";
+            throw DeckError(lp.loc, os.str(),
+                            "expected a path the material can follow: check path.strain, path.rate, path.angle and "
+                            "the material's parameters");
+        }
         h.push_back(rec);
     }
     return h;

@@ -358,9 +358,10 @@ MaterialPointDeck read_material_point_deck(const std::string& path)
     lp.length = p.quantity("length", dim::length, 0.0);
     if (lp.length < 0)
         p.fail("length", "is negative", "expected a crack-band length > 0 (or omit it for the model default)");
-    lp.steps = static_cast<int>(p.integer("steps", 1000));
-    if (lp.steps < 1)
-        p.fail("steps", "is below 1", "expected a positive number of steps");
+    const long long steps = p.integer("steps", 1000);
+    if (steps < 1 || steps > 100000000)
+        p.fail("steps", steps < 1 ? "is below 1" : "is above 10^8", "expected a number of steps from 1 to 10^8");
+    lp.steps = static_cast<int>(steps);
     lp.loc = p.loc();
     return d;
 }

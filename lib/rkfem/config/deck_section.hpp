@@ -159,7 +159,7 @@ class Section
         }
         catch (const Error& e)
         {
-            throw DeckError(locate(ctx_, n, p), e.what(), "");
+            throw DeckError(locate(ctx_, n, p), e.what(), "expected " + describe(d));
         }
         if (!std::isfinite(v))
             throw DeckError(locate(ctx_, n, p), "'" + n.Scalar() + "' is not a finite number in SI units",

@@ -1,5 +1,6 @@
 #include "rkfem/run/check_report.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -135,6 +136,31 @@ void material(std::ostringstream& os, const PlasticPoints& p)
     }
 }
 } // namespace
+
+void check_step_budget(const Model& model)
+{
+    const TimeSpec& ts = model.deck().time;
+    if (ts.max_steps > 0)
+        return;
+    real_t dt = 1e300;
+    for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
+        if (model.part_nodal[b] < 0)
+            for (index_t e = 0; e < model.blocks[b].n_elements(); ++e)
+                dt = std::min(dt, model.element_shape(b, e).time_step);
+    dt *= ts.dt_scale;
+    if (ts.dt_max > 0)
+        dt = std::min(dt, ts.dt_max);
+    if (!(dt > 0 && dt < 1e300))
+        return; // no Gauss-point elements to estimate from
+    const real_t steps = ts.end / dt;
+    if (steps > 1e10)
+    {
+        char what[200];
+        std::snprintf(what, sizeof what, "%.6g s would take about %.3g steps of %.3g s", ts.end, steps, dt);
+        throw DeckError({model.deck().time_loc.where, "time.end"}, what,
+                        "expected an end time within 10^10 steps, or time.max_steps to bound the run");
+    }
+}
 
 std::string check_report(Model& model)
 {

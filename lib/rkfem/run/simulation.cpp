@@ -148,6 +148,13 @@ void advance_past(real_t& next, real_t limit, real_t interval)
     }
 }
 
+/// The progress line's energy ratio: the ledger's total over its origin plus the external work.
+real_t energy_ratio(const Energies& e)
+{
+    const real_t ref = e.kinetic0 + e.internal0 + e.external_work;
+    return ref > 0 ? e.total() / ref : 1.0;
+}
+
 class Progress
 {
   public:
@@ -312,11 +319,9 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                    << ts.energy_error_limit << " at t = " << t << " s, step " << step;
                 throw InstabilityError(os.str());
             }
-            const real_t total = model.energy.total();
-            const real_t ref = model.energy.kinetic0 + model.energy.internal0 + model.energy.external_work;
-            progress.update(t, ts.end, step, dt, ref > 0 ? total / ref : 1.0, elapsed());
+            progress.update(t, ts.end, step, dt, energy_ratio(model.energy), elapsed());
         }
-        progress.update(t, ts.end, step, dt_last, 1.0, elapsed(), true);
+        progress.update(t, ts.end, step, dt_last, energy_ratio(model.energy), elapsed(), true);
     }
     catch (const InstabilityError& e)
     {
