@@ -139,6 +139,20 @@ TEST(Study, OnlyRunsAndTabulatesTheNamedCases)
     EXPECT_TRUE(std::isnan(table_value(d / "out", "a", "steps"))); // not in the table
 }
 
+TEST(Study, TableRowsMetricsTransposesTableMd)
+{
+    const fs::path d = scratch("transposed");
+    std::string text = column_study("1 mm", "1 mm", false);
+    text.insert(text.find("metrics:"), "table_rows: metrics\n");
+    const std::string study = write(d / "study.yaml", text);
+    const auto r = run("study " + study + " --out " + (d / "out").string() + " --only a --quiet");
+    ASSERT_EQ(r.code, 0) << r.output;
+    std::ifstream md(d / "out/table.md");
+    const std::string t((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+    EXPECT_NE(t.find("| metric | a |\n|---|---:|\n| status | completed |\n| plateau [MPa] | -459."), std::string::npos) << t;
+    EXPECT_NE(t.find("(-459.7[1], "), std::string::npos) << t;
+}
+
 TEST(Study, AFailingCaseIsRecordedAndTheStudyGoesOn)
 {
     const fs::path d = scratch("failing");
@@ -182,6 +196,8 @@ TEST(Study, BadStudyFilesGetOneLocatedLine)
         {"deck: x.yaml\nmetrics:\n  p: {kind: summary, key: steps, time: 1 s}\ncases: [{name: a}]\n",
          "metrics.p.time: is not used by kind summary"},
         {"deck: x.yaml\nmetrics: {}\ncases: [{name: a}]\n", ":2: metrics: is empty"},
+        {"deck: x.yaml\ntable_rows: both\nmetrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n",
+         ":2: table_rows: 'both' is not a valid choice"},
         {"deck: x.yaml\nmetrics:\n  p: {kind: max, column: c}\n", "cases: missing required key"},
         {"metrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n", "cases.0.deck: missing, and the study has no deck"},
         {"? [a, b]\n: 1\n", "study.yaml:1"},

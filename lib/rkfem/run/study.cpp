@@ -18,6 +18,7 @@
 #include "rkfem/core/units.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/run/check_report.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/run/summary.hpp"
 
@@ -272,21 +273,12 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                     << results[c].status << "\n";
             }
     }
-    // table.md: cases as rows, metrics as columns; a cell "ours (published, diff)"
+    // table.md: a cell "ours (published[n], diff)" per case and metric; cases as rows (or, with
+    // table_rows: metrics, metrics as rows, the layout of the seed's Table 2)
     {
-        std::ofstream md(out / "table.md");
-        md << "# " << one_line(st.title) << "\n\n";
-        md << "Each cell: ours (published, relative difference). Study file: `" << st.path << "`.\n\n| case | status |";
-        for (const auto& m : st.metrics)
-            md << " " << m.name << (m.unit.empty() ? "" : " [" + m.unit + "]") << " |";
-        md << "\n|---|---|";
-        for (std::size_t k = 0; k < st.metrics.size(); ++k)
-            md << "---:|";
-        md << "\n";
+        std::vector<std::vector<std::string>> cells(results.size(), std::vector<std::string>(st.metrics.size()));
         std::vector<std::string> sources;
         for (std::size_t c = 0; c < results.size(); ++c)
-        {
-            md << "| " << results[c].name << " | " << results[c].status << " |";
             for (std::size_t k = 0; k < st.metrics.size(); ++k)
             {
                 const real_t ours = results[c].values[k];
@@ -307,9 +299,48 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                     }
                     cell += ")";
                 }
-                md << " " << cell << " |";
+                cells[c][k] = cell;
             }
+        auto metric_label = [&](const StudyMetric& m) { return m.name + (m.unit.empty() ? "" : " [" + m.unit + "]"); };
+        std::ofstream md(out / "table.md");
+        md << "# " << one_line(st.title) << "\n\n";
+        md << "Each cell: ours (published, relative difference). Study file: `" << st.path << "`.\n\n";
+        if (!st.rows_are_metrics)
+        {
+            md << "| case | status |";
+            for (const auto& m : st.metrics)
+                md << " " << metric_label(m) << " |";
+            md << "\n|---|---|";
+            for (std::size_t k = 0; k < st.metrics.size(); ++k)
+                md << "---:|";
             md << "\n";
+            for (std::size_t c = 0; c < results.size(); ++c)
+            {
+                md << "| " << results[c].name << " | " << results[c].status << " |";
+                for (std::size_t k = 0; k < st.metrics.size(); ++k)
+                    md << " " << cells[c][k] << " |";
+                md << "\n";
+            }
+        }
+        else
+        {
+            md << "| metric |";
+            for (const auto& r : results)
+                md << " " << r.name << " |";
+            md << "\n|---|";
+            for (std::size_t c = 0; c < results.size(); ++c)
+                md << "---:|";
+            md << "\n| status |";
+            for (const auto& r : results)
+                md << " " << r.status << " |";
+            md << "\n";
+            for (std::size_t k = 0; k < st.metrics.size(); ++k)
+            {
+                md << "| " << metric_label(st.metrics[k]) << " |";
+                for (std::size_t c = 0; c < results.size(); ++c)
+                    md << " " << cells[c][k] << " |";
+                md << "\n";
+            }
         }
         if (!sources.empty())
         {
@@ -573,8 +604,9 @@ Study read_study(const std::string& path)
     {
         Study st;
         st.path = path;
-        const Section s(ctx, root, "", {"title", "deck", "metrics", "cases"});
+        const Section s(ctx, root, "", {"title", "deck", "metrics", "cases", "table_rows"});
         st.title = s.text("title", fs::path(path).stem().string());
+        st.rows_are_metrics = s.choice("table_rows", {"cases", "metrics"}, "cases") == "metrics";
         const fs::path dir = fs::path(path).parent_path();
         const std::string base = s.has("deck") ? (dir / s.text("deck")).lexically_normal().string() : "";
         s.require("metrics", "a mapping of named metrics, e.g. {tip_peak: {kind: abs_max, column: tip_uz}}");
@@ -681,6 +713,7 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
                 if (ec)
                     throw Error("cannot create " + dir.string() + ": " + ec.message());
                 Model model = Model::build(deck);
+                check_step_budget(model);
                 RunOptions opt;
                 opt.out_dir = dir.string();
                 opt.progress = progress;

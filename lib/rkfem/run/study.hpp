@@ -9,6 +9,7 @@
 /// Study file:
 ///   title: Table 2 (seed), cantilever
 ///   deck: ../decks/p3_cantilever.yaml          # base deck, relative to the study file
+///   table_rows: metrics                        # table.md's rows (default cases)
 ///   metrics:
 ///     tip_peak: {kind: abs_max, column: tip_uz, unit: in}
 ///     dt: {kind: summary, key: dt_first, unit: us}
@@ -71,6 +72,7 @@ struct Study
 {
     std::string path;
     std::string title;
+    bool rows_are_metrics = false; ///< table_rows: metrics (table.md; the seed's Table 2 layout)
     std::vector<StudyMetric> metrics;
     std::vector<StudyCase> cases;
 };
