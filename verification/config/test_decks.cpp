@@ -820,3 +820,30 @@ TEST(Decks, AnEndTimeBeyondTenBillionStepsIsRefused)
     const Result bounded = run("run " + f + " --out " + out.string() + " --quiet --set time.max_steps=5");
     EXPECT_EQ(bounded.code, 0) << bounded.output;
 }
+
+TEST(Decks, OverridesThatDoNotFitTheDeckGetALine)
+{
+    // each used to end in exit 1 "internal error" (stoul, yaml-cpp) or blame the deck for the --set
+    const std::string f = write_deck("override_fit.yaml", good);
+    const std::pair<std::string, std::string> cases[] = {
+        {"boundary_conditions.foo=1", "--set boundary_conditions.foo=1: boundary_conditions.foo: 'foo' indexes a list; expected an index 0..0"},
+        {"boundary_conditions.0.x.y=1", "--set boundary_conditions.0.x.y=1: "},
+        {"title.x=1", "'title' is a value, not a section; expected a path through mappings and lists"},
+        {"time.end=", "--set time.end=: time.end: has no value after '='; expected a value"},
+        {"parts.col.generator.size.5=1", "index 5 is past the end; expected 0..2"},
+    };
+    for (const auto& [o, expect] : cases)
+    {
+        const Result r = run("check " + f + " --set '" + o + "'");
+        EXPECT_EQ(r.code, 2) << o << ": " << r.output;
+        EXPECT_NE(r.output.find(expect), std::string::npos) << o << ": " << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    }
+    const Result scalar = run("check " + write_deck("scalar_deck.yaml", "5\n") + " --set a.b=1");
+    EXPECT_EQ(scalar.code, 2) << scalar.output;
+    EXPECT_NE(scalar.output.find("the deck is a value, not a section"), std::string::npos) << scalar.output;
+    const Result key = run("check " + write_deck("complex_key.yaml", "? [a, b]\n: 1\n"));
+    EXPECT_EQ(key.code, 2) << key.output;
+    EXPECT_NE(key.output.find("complex_key.yaml:1"), std::string::npos) << key.output;
+    EXPECT_NE(key.output.find("expected mappings whose keys are plain names"), std::string::npos) << key.output;
+}

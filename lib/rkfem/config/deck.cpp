@@ -47,6 +47,9 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
                         "expected e.g. --set parts.column.material.E=\"210 GPa\"");
     const std::string path = text.substr(0, eq);
     const std::string value = text.substr(eq + 1);
+    if (value.find_first_not_of(" \t") == std::string::npos)
+        throw DeckError({"--set " + text, path}, "has no value after '='",
+                        "expected a value (~ removes the key, e.g. --set parts.column.hourglass=~)");
     std::vector<std::string> keys;
     std::stringstream ss(path);
     for (std::string k; std::getline(ss, k, '.');)
@@ -61,29 +64,25 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
         throw DeckError({"--set " + text, path}, "value is not valid YAML (" + e.msg + ")", "");
     }
     // Walk with fresh handles (yaml-cpp nodes are references into the tree).
+    auto list_index = [&](const YAML::Node& list, const std::string& k)
+    {
+        const std::string range = list.size() ? "0.." + std::to_string(list.size() - 1) : "none (the list is empty)";
+        std::size_t idx = 0;
+        if (k.empty() || k.find_first_not_of("0123456789") != std::string::npos || k.size() > 9)
+            throw DeckError({"--set " + text, path}, "'" + k + "' indexes a list", "expected an index " + range);
+        idx = std::stoul(k);
+        if (idx >= list.size())
+            throw DeckError({"--set " + text, path}, "index " + k + " is past the end", "expected " + range);
+        return idx;
+    };
+    auto owner = [&](std::size_t i) { return i == 0 ? std::string("the deck") : "'" + keys[i - 1] + "'"; };
     std::vector<YAML::Node> chain{root};
     for (std::size_t i = 0; i + 1 < keys.size(); ++i)
     {
         YAML::Node cur = chain.back();
         const std::string& k = keys[i];
         if (cur.IsSequence())
-        {
-            std::size_t idx = 0;
-            try
-            {
-                idx = std::stoul(k);
-            }
-            catch (const std::exception&)
-            {
-                throw DeckError({"--set " + text, path},
-                                "'" + k + "' indexes a list", "expected a number 0.." +
-                                    std::to_string(cur.size() - 1));
-            }
-            if (idx >= cur.size())
-                throw DeckError({"--set " + text, path}, "index " + k + " is past the end",
-                                "expected 0.." + std::to_string(cur.size() - 1));
-            chain.push_back(cur[idx]);
-        }
+            chain.push_back(cur[list_index(cur, k)]);
         else if (cur.IsMap() || cur.IsNull() || !cur.IsDefined())
         {
             if (!cur[k].IsDefined() || cur[k].IsNull())
@@ -91,19 +90,17 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
             chain.push_back(cur[k]);
         }
         else
-            throw DeckError({"--set " + text, path}, "'" + keys[i - 1] + "' is a value, not a section",
+            throw DeckError({"--set " + text, path}, owner(i) + " is a value, not a section",
                             "expected a path through mappings and lists");
     }
     YAML::Node last = chain.back();
     if (last.IsSequence())
-    {
-        const std::size_t idx = std::stoul(keys.back());
-        if (idx >= last.size())
-            throw DeckError({"--set " + text, path}, "index past the end", "");
-        last[idx] = value_node;
-    }
-    else
+        last[list_index(last, keys.back())] = value_node;
+    else if (last.IsMap() || last.IsNull() || !last.IsDefined())
         last[keys.back()] = value_node;
+    else
+        throw DeckError({"--set " + text, path}, owner(keys.size() - 1) + " is a value, not a section",
+                        "expected a path through mappings and lists");
     ctx.overridden[path] = text;
 }
 
@@ -324,9 +321,18 @@ Deck parse_deck(const std::string& text, const std::string& name,
 {
     Context ctx{name, {}};
     YAML::Node root = load_document(text, name);
-    for (const auto& o : overrides)
-        apply_override(root, o, ctx);
-    return build(root, ctx);
+    try
+    {
+        for (const auto& o : overrides)
+            apply_override(root, o, ctx);
+        return build(root, ctx);
+    }
+    catch (const YAML::Exception& e)
+    {
+        // a key that is not a plain name (`? [a, b]`), or a node of an unexpected kind
+        throw DeckError({e.mark.is_null() ? name : name + ":" + std::to_string(e.mark.line + 1), "(deck)"},
+                        e.msg, "expected mappings whose keys are plain names");
+    }
 }
 
 MaterialPointDeck read_material_point_deck(const std::string& path)

@@ -25,7 +25,13 @@ SourceLocation locate(const Context& ctx, const YAML::Node& node, const std::str
             return {"--set " + text, path};
     const YAML::Mark m = node.Mark();
     if (m.is_null() || m.line < 0)
+    {
+        // a node without a place in the file was made by a --set below it (--set a.x.y=1 makes a.x)
+        for (const auto& [p, text] : ctx.overridden)
+            if (p.rfind(path + ".", 0) == 0)
+                return {"--set " + text, path};
         return {ctx.name, path};
+    }
     return {ctx.name + ":" + std::to_string(m.line + 1), path};
 }
 } // namespace rkfem::deck_detail
