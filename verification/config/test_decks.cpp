@@ -847,3 +847,29 @@ TEST(Decks, OverridesThatDoNotFitTheDeckGetALine)
     EXPECT_NE(key.output.find("complex_key.yaml:1"), std::string::npos) << key.output;
     EXPECT_NE(key.output.find("expected mappings whose keys are plain names"), std::string::npos) << key.output;
 }
+
+TEST(Decks, ConvergenceSweepsThatCannotGiveARateAreRefused)
+{
+    // each used to run (rates -nan) or fail with exit 1 after writing convergence.csv
+    const std::pair<std::string, std::string> bad[] = {
+        {"resolutions: [2, 2]\ncases: [{formulation: rkpm}]\n", ":1: resolutions.1: 2 does not refine 2; expected increasing"},
+        {"resolutions: [4, 2]\ncases: [{formulation: rkpm}]\n", ":1: resolutions.1: 2 does not refine 4"},
+        {"resolutions: [2, 4]\ncases: [{formulation: rkpm, stabilization: -1}]\n", ":2: cases.0.stabilization: is negative"},
+        {"resolutions: [2, 3]\ncases: [{formulation: fem-nodal, scheme: dni}]\n",
+         ":2: cases.0.scheme: direct nodal integration of trilinear FE functions is undefined"},
+        {"resolutions: [2, 3]\ncases: [{formulation: rkpm, normalized_support: 0.5}]\n",
+         ":2: cases.0.normalized_support: is outside [1, 4]"},
+        {"5\n", ": (file): is not a YAML mapping"},
+        {"[1, 2]\n", ": (file): is not a YAML mapping"},
+        {"? [a, b]\n: 1\n", ":1: (file): bad conversion; expected a sweep whose keys are plain names"},
+    };
+    const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "sweep_out";
+    for (const auto& [text, expect] : bad)
+    {
+        fs::remove_all(out);
+        const Result r = run("convergence " + write_deck("sweep_bad.yaml", text) + " --out " + out.string());
+        EXPECT_EQ(r.code, 2) << text << r.output;
+        EXPECT_NE(r.output.find(expect), std::string::npos) << text << r.output;
+        EXPECT_FALSE(fs::exists(out / "convergence.csv")) << text;
+    }
+}

@@ -52,7 +52,9 @@ real_t number(const std::string& file, const YAML::Node& m, const std::string& k
 
 } // namespace
 
-ConvergenceSweep read_sweep(const std::string& path)
+namespace
+{
+ConvergenceSweep read_sweep_checked(const std::string& path)
 {
     YAML::Node root;
     const std::string source = read_deck_text(path, "a YAML sweep definition"); // regular files only
@@ -64,6 +66,9 @@ ConvergenceSweep read_sweep(const std::string& path)
     {
         throw DeckError({path + ":" + std::to_string(e.mark.line + 1), "(file)"}, e.msg, "expected a YAML sweep definition");
     }
+    if (!root.IsMap())
+        throw DeckError({path, "(file)"}, root.IsNull() ? "is empty" : "is not a YAML mapping",
+                        "expected keys title, resolutions, cases (studies/sweeps/mms_smoke.yaml is an example)");
     ConvergenceSweep s;
     for (auto it = root.begin(); it != root.end(); ++it)
     {
@@ -90,6 +95,10 @@ ConvergenceSweep read_sweep(const std::string& path)
         }
         if (v < 2)
             throw DeckError(at(path, res[i], "resolutions." + std::to_string(i)), "is below 2", "expected >= 2 elements per side");
+        if (!s.resolutions.empty() && v <= s.resolutions.back())
+            throw DeckError(at(path, res[i], "resolutions." + std::to_string(i)),
+                            std::to_string(v) + " does not refine " + std::to_string(s.resolutions.back()),
+                            "expected increasing resolutions (a rate needs two different h), e.g. [4, 8, 16]");
         s.resolutions.push_back(v);
     }
     const YAML::Node cases = root["cases"];
@@ -112,9 +121,19 @@ ConvergenceSweep read_sweep(const std::string& path)
         mc.formulation = text(path, c, "formulation", p, {"rkpm", "fem-nodal"}, "rkpm") == "rkpm" ? Formulation::Rkpm
                                                                                                 : Formulation::FemNodal;
         mc.scheme = text(path, c, "scheme", p, {"scni", "sd-scni", "dni"}, "scni");
+        if (mc.formulation == Formulation::FemNodal && mc.scheme == "dni")
+            throw DeckError(at(path, c["scheme"], p + ".scheme"),
+                            "direct nodal integration of trilinear FE functions is undefined (their gradient jumps at nodes)",
+                            "expected scheme scni or sd-scni with formulation fem-nodal");
         mc.stabilization = number(path, c, "stabilization", p, 0.0);
+        if (!(mc.stabilization >= 0))
+            throw DeckError(at(path, c["stabilization"], p + ".stabilization"), "is negative",
+                            "expected the MSCNI coefficient c_s >= 0 (0: none, 1: the RKPM2D default)");
         mc.rk.normalized_support = number(path, c, "normalized_support", p, 1.51);
         const real_t a = mc.rk.normalized_support;
+        if (!(a >= 1.0 && a <= 4.0))
+            throw DeckError(at(path, c["normalized_support"], p + ".normalized_support"), "is outside [1, 4]",
+                            "expected a / h between 1 and 4 (box 1.5-1.8, sphere 1.6-2.0)");
         if (std::abs(a - std::round(a)) < 1e-6)
             throw DeckError(at(path, c["normalized_support"], p + ".normalized_support"), "is an integer",
                             "expected a non-integer a/h such as 1.51");
@@ -139,6 +158,21 @@ ConvergenceSweep read_sweep(const std::string& path)
         s.cases.push_back(mc);
     }
     return s;
+}
+} // namespace
+
+ConvergenceSweep read_sweep(const std::string& path)
+{
+    try
+    {
+        return read_sweep_checked(path);
+    }
+    catch (const YAML::Exception& e)
+    {
+        // a key that is not a plain name (`? [a, b]`), or a node of an unexpected kind
+        throw DeckError({e.mark.is_null() ? path : path + ":" + std::to_string(e.mark.line + 1), "(file)"}, e.msg,
+                        "expected a sweep whose keys are plain names");
+    }
 }
 
 std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const std::string& out_dir, bool quiet)
