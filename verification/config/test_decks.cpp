@@ -873,3 +873,20 @@ TEST(Decks, ConvergenceSweepsThatCannotGiveARateAreRefused)
         EXPECT_FALSE(fs::exists(out / "convergence.csv")) << text;
     }
 }
+
+TEST(Decks, MessagesArePrintableAndShort)
+{
+    // control characters (and NUL, which cut the line) as \xNN; a 5 MB value cut in the middle
+    std::string ctl = replace(good, "end: 1 us", std::string("end: \"1 \x01\x07 us\""));
+    const Result c = run("check " + write_deck("control_chars.yaml", ctl));
+    EXPECT_EQ(c.code, 2) << c.output;
+    EXPECT_NE(c.output.find("unexpected character '\\x01' in unit '\\x01\\x07 us'"), std::string::npos) << c.output;
+    EXPECT_EQ(c.output.find('\x01'), std::string::npos);
+    // one "; expected": parse_quantity's own expectation is not repeated
+    EXPECT_EQ(c.output.find("; expected"), c.output.rfind("; expected")) << c.output;
+    const Result big = run("check " + write_deck("big_value.yaml", replace(good, "end: 1 us", "end: \"" + std::string(5000000, 'x') + "\"")));
+    EXPECT_EQ(big.code, 2);
+    EXPECT_LT(big.output.size(), 600u) << big.output.substr(0, 600);
+    EXPECT_NE(big.output.find("characters cut"), std::string::npos);
+    EXPECT_NE(big.output.find("; expected a time"), std::string::npos);
+}

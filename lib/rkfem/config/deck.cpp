@@ -2,6 +2,7 @@
 #include "rkfem/config/deck_section.hpp"
 #include "rkfem/config/erk_table_names.hpp"
 
+#include <cstdio>
 #include <filesystem>
 #include <algorithm>
 #include <fstream>
@@ -19,13 +20,33 @@ using namespace deck_detail;
 
 namespace
 {
+/// A message part as one printable line: control characters (NUL included) as \xNN, and a part
+/// past 300 characters cut in the middle (a 5 MB value is not echoed whole).
+std::string printable(const std::string& s)
+{
+    std::string out;
+    for (const unsigned char c : s)
+        if (c < 0x20 || c == 0x7f)
+        {
+            char b[8];
+            std::snprintf(b, sizeof b, "\\x%02x", c);
+            out += b;
+        }
+        else
+            out += static_cast<char>(c);
+    if (out.size() > 300)
+        out = out.substr(0, 200) + "... (" + std::to_string(out.size() - 260) + " characters cut) ..." +
+              out.substr(out.size() - 60);
+    return out;
+}
+
 std::string format_error(const SourceLocation& loc, const std::string& problem,
                          const std::string& expected)
 {
-    std::string msg = loc.where + ": " + (loc.path.empty() ? std::string("deck") : loc.path) +
-                      ": " + problem;
+    std::string msg = printable(loc.where) + ": " + (loc.path.empty() ? std::string("deck") : printable(loc.path)) +
+                      ": " + printable(problem);
     if (!expected.empty())
-        msg += "; " + expected;
+        msg += "; " + printable(expected);
     return msg;
 }
 } // namespace

@@ -159,7 +159,12 @@ class Section
         }
         catch (const Error& e)
         {
-            throw DeckError(locate(ctx_, n, p), e.what(), "expected " + describe(d));
+            // parse_quantity's message may already say what it expected
+            const std::string what = e.what();
+            const auto k = what.find("; expected ");
+            if (k != std::string::npos)
+                throw DeckError(locate(ctx_, n, p), what.substr(0, k), what.substr(k + 2));
+            throw DeckError(locate(ctx_, n, p), what, "expected " + describe(d));
         }
         if (!std::isfinite(v))
             throw DeckError(locate(ctx_, n, p), "'" + n.Scalar() + "' is not a finite number in SI units",
