@@ -137,21 +137,38 @@ void material(std::ostringstream& os, const PlasticPoints& p)
 }
 } // namespace
 
+namespace
+{
+/// The Gauss-point element with the smallest step (V / A_max) / c, the first of equals, from the
+/// mesh alone (dt 1e300 and block -1 when there is none).
+struct SmallestStep
+{
+    real_t dt = 1e300;
+    index_t block = -1, element = -1;
+};
+SmallestStep smallest_element_step(const Model& model)
+{
+    SmallestStep s;
+    for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
+        if (model.part_nodal[b] < 0)
+            for (index_t e = 0; e < model.blocks[b].n_elements(); ++e)
+                if (const real_t dt = model.element_shape(b, e).time_step; dt < s.dt * (1 - 1e-12))
+                    s = {dt, b, e};
+    return s;
+}
+} // namespace
+
 void check_step_budget(const Model& model)
 {
     const TimeSpec& ts = model.deck().time;
     if (ts.max_steps > 0)
         return;
-    real_t dt = 1e300;
-    for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
-        if (model.part_nodal[b] < 0)
-            for (index_t e = 0; e < model.blocks[b].n_elements(); ++e)
-                dt = std::min(dt, model.element_shape(b, e).time_step);
-    dt *= ts.dt_scale;
+    const SmallestStep smallest = smallest_element_step(model);
+    if (smallest.block < 0 || !(smallest.dt > 0))
+        return; // no Gauss-point elements to estimate from
+    real_t dt = smallest.dt * ts.dt_scale;
     if (ts.dt_max > 0)
         dt = std::min(dt, ts.dt_max);
-    if (!(dt > 0 && dt < 1e300))
-        return; // no Gauss-point elements to estimate from
     const real_t steps = ts.end / dt;
     if (steps > 1e10)
     {
@@ -193,16 +210,9 @@ std::string check_report(Model& model)
     if (b >= 0 && model.part_nodal[b] < 0)
     {
         // the kernels' reduction breaks ties by thread; name the first element of the smallest step
-        real_t best = 1e300;
-        for (index_t bb = 0; bb < static_cast<index_t>(model.blocks.size()); ++bb)
-            if (model.part_nodal[bb] < 0)
-                for (index_t ee = 0; ee < model.blocks[bb].n_elements(); ++ee)
-                    if (const real_t dt = model.element_shape(bb, ee).time_step; dt < best * (1 - 1e-12))
-                    {
-                        best = dt;
-                        b = bb;
-                        e = ee;
-                    }
+        const SmallestStep s = smallest_element_step(model);
+        b = s.block;
+        e = s.element;
     }
     if (b >= 0 && model.part_nodal[b] >= 0 && model.part_fe_side[b] < 0)
         os << ", set by part '" << model.parts[b].name << "' (its nodal integration points)";

@@ -392,10 +392,9 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
     const hid_t g = H5Gcreate2(file, "histories", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     for (const auto& r : results)
     {
-        const fs::path hist = out / "cases" / r.name / "history.csv";
-        if (!fs::exists(hist))
+        const HistoryTable& h = r.history;
+        if (h.columns.empty())
             continue;
-        const HistoryTable h = read_history_csv(hist.string());
         const hid_t cg = H5Gcreate2(g, r.name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
         write_strings(cg, "columns", h.columns);
         const std::size_t rows = h.values.empty() ? 0 : h.values[0].size();
@@ -411,38 +410,24 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
 }
 
 /// summary.json's number at a key path ("impact.actual_depth", "contacts.0.resultant.2").
-YAML::Node summary_node(const YAML::Node& summary, const std::string& key)
+YAML::Node summary_node(const YAML::Node& node, const std::string& key)
 {
-    YAML::Node n = YAML::Clone(summary);
-    std::size_t start = 0;
-    while (start <= key.size())
+    // recursion with fresh handles, never `n = n[part]`: assigning a yaml-cpp node writes through
+    // to the tree
+    const std::size_t dot = key.find('.');
+    const std::string part = key.substr(0, dot);
+    auto descend = [&](const YAML::Node& child)
+    { return dot == std::string::npos ? child : summary_node(child, key.substr(dot + 1)); };
+    if (node.IsSequence())
     {
-        const std::size_t dot = key.find('.', start);
-        const std::string part = key.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
-        if (n.IsSequence())
-        {
-            std::size_t i = 0;
-            try
-            {
-                i = std::stoul(part);
-            }
-            catch (const std::exception&)
-            {
-                return YAML::Node(YAML::NodeType::Undefined);
-            }
-            if (i >= n.size())
-                return YAML::Node(YAML::NodeType::Undefined);
-            n = n[i];
-        }
-        else if (n.IsMap() && n[part])
-            n = n[part];
-        else
+        if (part.empty() || part.size() > 9 || part.find_first_not_of("0123456789") != std::string::npos ||
+            std::stoul(part) >= node.size())
             return YAML::Node(YAML::NodeType::Undefined);
-        if (dot == std::string::npos)
-            break;
-        start = dot + 1;
+        return descend(node[std::stoul(part)]);
     }
-    return n;
+    if (node.IsMap() && node[part])
+        return descend(node[part]);
+    return YAML::Node(YAML::NodeType::Undefined);
 }
 } // namespace
 
@@ -726,9 +711,9 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
             if (r.status == "completed" || r.status == "reused")
             {
                 const YAML::Node summary = YAML::LoadFile((dir / "summary.json").string());
-                const HistoryTable h = read_history_csv((dir / "history.csv").string());
+                r.history = read_history_csv((dir / "history.csv").string());
                 for (std::size_t k = 0; k < st.metrics.size(); ++k)
-                    r.values[k] = extract_metric(st.metrics[k], h, summary) / st.metrics[k].unit_scale;
+                    r.values[k] = extract_metric(st.metrics[k], r.history, summary) / st.metrics[k].unit_scale;
                 r.wall_seconds = summary["wall_seconds"] ? summary["wall_seconds"].as<real_t>() : 0.0;
             }
         }
@@ -737,6 +722,9 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
             r.status = "failed";
             r.message = e.what();
         }
+        // what a case that stopped early left (study.h5 carries every history there is)
+        if (r.history.columns.empty() && fs::exists(dir / "history.csv"))
+            r.history = read_history_csv((dir / "history.csv").string());
         const real_t took = std::chrono::duration<real_t>(std::chrono::steady_clock::now() - t0).count();
         if (progress)
         {

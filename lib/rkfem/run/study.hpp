@@ -111,6 +111,7 @@ struct StudyCaseResult
     std::string status; ///< completed | reused | failed | unstable
     std::string message;
     std::vector<real_t> values; ///< per metric, display unit; NaN when missing
+    HistoryTable history;       ///< the case's history.csv (no columns when it has none)
     real_t wall_seconds = 0.0;
 };
 
