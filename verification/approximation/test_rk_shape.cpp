@@ -198,3 +198,88 @@ TEST(RkShape, SingularMomentMatrixIsANamedError)
     RkShapeFunctions rk2(x2, {2.5, 2.5, 2.5, 2.5}, {1, KernelType::CubicBSpline, SupportShape::Sphere, 2.5});
     EXPECT_THROW(rk2.evaluate(Vec3(1.5, 0.2, 0.0), false, s), SingularMomentError);
 }
+
+// Second derivatives (the NSNI stabilization's coefficients): the differences of the
+// reproducing identities keep sum_I H_I = 0 and sum_I H_I x_I = 0 to round-off for the linear
+// basis; the quadratic basis reproduces d2(x_a x_b)/dx_i dx_j = delta_ia delta_jb + delta_ib
+// delta_ja to the O(delta^2) truncation error (delta = 1e-3 a); and H is exactly symmetric.
+TEST(RkShape, HessiansReproduceWhatTheBasisReproduces)
+{
+    const real_t h = 0.1;
+    std::vector<index_t> nodes;
+    std::vector<Mat3> H;
+    {
+        Cloud cl = make_cloud(6, h, 0.3, {1, KernelType::CubicBSpline, SupportShape::Box, 1.51});
+        real_t zero = 0.0, linear = 0.0, asym = 0.0, scale = 0.0, second = 0.0;
+        for (const Vec3& x : sample_points(40, 0.1, 0.5, 13))
+        {
+            cl.rk.hessians(x, nodes, H);
+            Mat3 s = Mat3::Zero();
+            Mat3 sx[3] = {Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
+            for (std::size_t k = 0; k < nodes.size(); ++k)
+            {
+                s += H[k];
+                for (int a = 0; a < 3; ++a)
+                    sx[a] += H[k] * cl.rk.position(nodes[k])[a];
+                scale = std::max(scale, H[k].cwiseAbs().maxCoeff());
+                asym = std::max(asym, (H[k] - H[k].transpose()).cwiseAbs().maxCoeff());
+            }
+            zero = std::max(zero, s.cwiseAbs().maxCoeff());
+            for (int a = 0; a < 3; ++a)
+                linear = std::max(linear, sx[a].cwiseAbs().maxCoeff());
+            // d2 Psi / dx_d^2 from second differences of values, step 1e-3 h: the kernel's third
+            // derivative jumps at its knots, so their error is O(step) there (about 1e-4)
+            RkSample s0, sp, sm;
+            cl.rk.evaluate(x, false, s0);
+            for (int d = 0; d < 3; ++d)
+            {
+                const real_t step = 1e-3 * h;
+                Vec3 xp = x, xm = x;
+                xp[d] += step;
+                xm[d] -= step;
+                cl.rk.evaluate(xp, false, sp);
+                cl.rk.evaluate(xm, false, sm);
+                auto value = [](const RkSample& q, index_t n)
+                {
+                    for (index_t j = 0; j < q.size(); ++j)
+                        if (q.nodes[j] == n)
+                            return q.psi[j];
+                    return 0.0;
+                };
+                for (std::size_t k = 0; k < nodes.size(); ++k)
+                {
+                    const real_t fd = (value(sp, nodes[k]) - 2.0 * value(s0, nodes[k]) + value(sm, nodes[k])) / (step * step);
+                    second = std::max(second, std::abs(fd - H[k](d, d)));
+                }
+            }
+        }
+        std::printf("linear basis: max |d2 Psi from second differences - H_dd| / max |H| = %.1e\n", second / scale);
+        EXPECT_LT(second / scale, 1e-3);
+        std::printf("linear basis: max |sum H| / max |H| = %.1e, max |sum H x| / (h max |H|) = %.1e\n", zero / scale,
+                    linear / (h * scale));
+        EXPECT_LT(zero / scale, 1e-11);
+        EXPECT_LT(linear / (h * scale), 1e-11);
+        EXPECT_EQ(asym, 0.0);
+    }
+    {
+        Cloud cl = make_cloud(6, h, 0.3, {2, KernelType::CubicBSpline, SupportShape::Sphere, 2.51});
+        real_t worst = 0.0;
+        for (const Vec3& x : sample_points(40, 0.1, 0.5, 17))
+        {
+            cl.rk.hessians(x, nodes, H);
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b)
+                {
+                    Mat3 q = Mat3::Zero(); // d2 (x_a x_b) / dx_i dx_j
+                    for (std::size_t k = 0; k < nodes.size(); ++k)
+                        q += H[k] * (cl.rk.position(nodes[k])[a] * cl.rk.position(nodes[k])[b]);
+                    Mat3 exact = Mat3::Zero();
+                    exact(a, b) += 1.0;
+                    exact(b, a) += 1.0;
+                    worst = std::max(worst, (q - exact).cwiseAbs().maxCoeff());
+                }
+        }
+        std::printf("quadratic basis: max |sum H x_a x_b - d2(x_a x_b)| = %.1e\n", worst);
+        EXPECT_LT(worst, 1e-9);
+    }
+}

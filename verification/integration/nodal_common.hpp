@@ -20,6 +20,7 @@ enum class Scheme
     RkScni,
     RkSdScni,
     RkMscni, ///< SCNI points plus the MSCNI stabilization operator
+    RkNsni,  ///< SCNI points plus the NSNI stabilization operator (second moments of the cells)
     FemScni,
     FemSdScni,
     FemMscni,
@@ -33,6 +34,7 @@ inline const char* scheme_name(Scheme s)
     case Scheme::RkScni: return "rkpm_scni";
     case Scheme::RkSdScni: return "rkpm_sd_scni";
     case Scheme::RkMscni: return "rkpm_mscni";
+    case Scheme::RkNsni: return "rkpm_nsni";
     case Scheme::FemScni: return "fem_nodal_scni";
     case Scheme::FemSdScni: return "fem_nodal_sd_scni";
     case Scheme::FemMscni: return "fem_nodal_mscni";
@@ -79,6 +81,10 @@ inline Operators build(Scheme s, const HexMesh& mesh, const RkShapeFunctions& rk
     case Scheme::RkMscni:
         ops.points = build_scni(mesh, rks);
         ops.stabilization = build_mscni_stabilization(ops.points, build_sd_scni(mesh, rks));
+        break;
+    case Scheme::RkNsni:
+        ops.points = build_scni(mesh, rks);
+        ops.stabilization = build_nsni_stabilization(ops.points, rk, nodal_second_moments(mesh));
         break;
     case Scheme::FemScni: ops.points = build_scni(mesh, fes); break;
     case Scheme::FemSdScni: ops.points = build_sd_scni(mesh, fes); break;

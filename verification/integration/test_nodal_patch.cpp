@@ -38,7 +38,7 @@ PatchResult patch_test(Scheme scheme)
     RkShapes rks(rk);
     FemShapes fes(mesh);
     const bool is_rk = scheme == Scheme::RkDni || scheme == Scheme::RkScni || scheme == Scheme::RkSdScni ||
-                       scheme == Scheme::RkMscni;
+                       scheme == Scheme::RkMscni || scheme == Scheme::RkNsni;
     return linear_patch(mesh, 4 * h, ops, is_rk ? static_cast<const ShapeEvaluator&>(rks) : fes, mat, c_stab);
 }
 
@@ -79,7 +79,7 @@ TEST_P(LinearPatch, PassesToRoundOffOnJitteredNodes)
 }
 
 INSTANTIATE_TEST_SUITE_P(ConformingSchemes, LinearPatch,
-                         ::testing::Values(Scheme::RkScni, Scheme::RkSdScni, Scheme::RkMscni, Scheme::FemScni,
+                         ::testing::Values(Scheme::RkScni, Scheme::RkSdScni, Scheme::RkMscni, Scheme::RkNsni, Scheme::FemScni,
                                            Scheme::FemSdScni, Scheme::FemMscni),
                          [](const auto& info) { return std::string(scheme_name(info.param)); });
 
@@ -93,7 +93,7 @@ TEST(LinearPatch, DirectNodalIntegrationFails)
 
 TEST(SpuriousModes, StableSchemesHaveOnlyTheSixRigidBodyModes)
 {
-    for (Scheme s : {Scheme::RkMscni, Scheme::RkSdScni, Scheme::FemMscni, Scheme::FemSdScni})
+    for (Scheme s : {Scheme::RkMscni, Scheme::RkNsni, Scheme::RkSdScni, Scheme::FemMscni, Scheme::FemSdScni})
     {
         const Spectrum sp = spectrum(s, 0.2);
         std::printf("%-18s zero-energy modes: %d, first deformation mode / max: %.2e\n", scheme_name(s),
@@ -121,7 +121,7 @@ TEST(SpuriousModes, NodalSchemesWithoutStabilizationHaveNoExtraZeroMode)
     // saw-tooth modes vanish only at interior nodes and the boundary layer stiffens them): the
     // null space is the 6 rigid-body modes; their weakness shows as low-energy modes (printed),
     // which MSCNI stiffens
-    for (Scheme s : {Scheme::RkScni, Scheme::FemScni, Scheme::RkDni})
+    for (Scheme s : {Scheme::RkScni, Scheme::RkNsni, Scheme::RkMscni, Scheme::FemScni, Scheme::RkDni})
         for (int n_el : {4, 6})
         {
             const Spectrum sp = spectrum(s, 0.0, n_el);

@@ -31,7 +31,9 @@ namespace
 {
 PartSpec part(Formulation f, const std::string& scheme, const std::string& stab)
 {
-    return test::steel_nodal_part(f, scheme, stab);
+    PartSpec ps = test::steel_nodal_part(f, scheme, stab);
+    ps.nodal.stabilization_coefficient = stab == "nsni" ? kNsniCoefficient : 1.0; // the decks' defaults
+    return ps;
 }
 
 struct Fixture
@@ -97,6 +99,7 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValue)
         PartSpec ps;
     };
     const Row rows[] = {{"rkpm scni+mscni", part(Formulation::Rkpm, "scni", "mscni")},
+                        {"rkpm scni+nsni", part(Formulation::Rkpm, "scni", "nsni")},
                         {"rkpm scni", part(Formulation::Rkpm, "scni", "none")},
                         {"rkpm sd-scni", part(Formulation::Rkpm, "sd-scni", "none")},
                         {"fem-nodal scni+mscni", part(Formulation::FemNodal, "scni", "mscni")},
@@ -116,7 +119,7 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValue)
 TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValueOnClouds)
 {
     const PartSpec ps = part(Formulation::Rkpm, "scni", "none");
-    for (const auto& [scheme, stab] : {std::pair<const char*, const char*>{"scni", "none"}, {"scni", "mscni"}, {"sd-scni", "none"}})
+    for (const auto& [scheme, stab] : {std::pair<const char*, const char*>{"scni", "none"}, {"scni", "mscni"}, {"scni", "nsni"}, {"sd-scni", "none"}})
         for (const real_t jitter : {0.0, 0.25, 0.45})
             for (const int seed : {1, 2})
             {
@@ -332,12 +335,13 @@ TEST(DynamicPatchLarge, HoldsOnSharedStencils)
 
 INSTANTIATE_TEST_SUITE_P(NodalFormulations, DynamicPatch,
                          ::testing::Values(std::make_tuple(Formulation::Rkpm, std::string("mscni")),
+                                           std::make_tuple(Formulation::Rkpm, std::string("nsni")),
                                            std::make_tuple(Formulation::Rkpm, std::string("none")),
                                            std::make_tuple(Formulation::FemNodal, std::string("mscni"))));
 
 TEST(NodalMomentum, FreeBlockConservesLinearMomentum)
 {
-    for (const char* stab : {"mscni", "none"})
+    for (const char* stab : {"mscni", "nsni", "none"})
     {
         const PartSpec ps = part(Formulation::Rkpm, "scni", stab);
         Fixture fx(ps, 4, 0.01, 0.3);
@@ -435,6 +439,22 @@ TEST(NodalAssembly, ScatterAndGatherAgreeAndDoNotDependOnThreads)
     const real_t rel = test::assembly_difference(s1, s2, g1, g2);
     std::printf("scatter vs gather: max |f_s - f_g| / max |f| = %.2e over %zu dofs\n", rel, s1.size());
     EXPECT_LT(rel, 1e-13);
+
+    // NSNI: its sub-points run inside the stress points' chunks (scatter) or on their own (gather)
+    {
+        Fixture fn(part(Formulation::Rkpm, "scni", "nsni"), 13, 0.01, 0.3);
+        ASSERT_TRUE(fn.blk.scatter_assembly());
+        EXPECT_EQ(static_cast<index_t>(fn.blk.scatter.chunks.size()), fn.blk.n_point_chunks); // no chunks of its own
+        fn.nodes.u = fx.nodes.u;
+        fn.nodes.v = fx.nodes.v;
+        const std::vector<real_t> n1 = force_pass(fn.blk, fn.nodes, 1), n2 = force_pass(fn.blk, fn.nodes, 2);
+        NodalBlock ng = fn.blk;
+        ng.initialize(NodalBlock::Assembly::Gather);
+        const std::vector<real_t> m1 = force_pass(ng, fn.nodes, 1), m2 = force_pass(ng, fn.nodes, 2);
+        const real_t reln = test::assembly_difference(n1, n2, m1, m2);
+        std::printf("nsni: scatter vs gather: max |f_s - f_g| / max |f| = %.2e\n", reln);
+        EXPECT_LT(reln, 1e-13);
+    }
 
     // 9261 particles: chunks of 2048, each touching nearly every node when the order is random
     const HexMesh random_order = shuffled(distorted_box(20, 0.01, 0.3));

@@ -1,7 +1,7 @@
 // The fast kernels against their plain scalar twins (operators/kernels/*_reference.hpp), to
 // round-off, from a random committed state and random motion: the batched 1-point hex kernel
 // (mode basis, lane vectors, chunked scatter) against hex1pt_reference element by element for
-// every hourglass form; the nodal force pass (SCNI + MSCNI, own and shared stencils, whole-vector
+// every hourglass form; the nodal force pass (SCNI + MSCNI or NSNI, own and shared stencils, whole-vector
 // rows) against nodal_reference for RK and FE functions; both with bulk viscosity, scatter and
 // gather assembly.
 #include <gtest/gtest.h>
@@ -162,9 +162,11 @@ struct NodalCompared
 
 /// An rkpm block (SCNI + MSCNI) on a jittered (own stencils) or regular (shared stencils,
 /// whole-vector batches along rows) mesh, a random committed state and motion.
-NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, real_t bulk_linear, real_t bulk_quadratic)
+NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, real_t bulk_linear, real_t bulk_quadratic,
+                            const std::string& stab = "mscni")
 {
-    PartSpec ps = test::steel_nodal_part(form);
+    PartSpec ps = test::steel_nodal_part(form, "scni", stab);
+    ps.nodal.stabilization_coefficient = stab == "nsni" ? 0.25 : 1.0;
     ps.bulk_viscosity = {bulk_linear, bulk_quadratic};
     const HexMesh mesh = test::distorted_box(7, 0.01, jitter);
     NodeSet nodes;
@@ -217,14 +219,21 @@ TEST(NodalReference, FastPassEqualsThePlainOneToRoundOff)
     // the same algebra, with bulk viscosity; the fast pass takes J^(1/3) from two Newton steps
     // where |J - 1| < 0.25 (relative error below 1e-7 there, far less at these strains), so the
     // stable step is compared at 1e-6
-    for (Formulation form : {Formulation::Rkpm, Formulation::FemNodal})
+    // NSNI: the fast pass forms a point's three sub-points in its batch from the six distinct
+    // Hessian entries (nsni_batch), the plain one each sub-point by itself
+    struct Case
+    {
+        Formulation form;
+        const char* stab;
+    };
+    for (const Case& k : {Case{Formulation::Rkpm, "mscni"}, Case{Formulation::Rkpm, "nsni"}, Case{Formulation::FemNodal, "mscni"}})
         for (real_t jitter : {0.3, 0.0})
             for (Assembly a : {Assembly::Scatter, Assembly::Gather})
             {
-                const NodalCompared c = compare_nodal(form, jitter, a, 0.06, 1.5);
-                std::printf("%s, %s, %s: max relative difference force %.1e, stress %.1e, sub-cell stress %.1e, "
+                const NodalCompared c = compare_nodal(k.form, jitter, a, 0.06, 1.5, k.stab);
+                std::printf("%s + %s, %s, %s: max relative difference force %.1e, stress %.1e, sub-cell stress %.1e, "
                             "energies %.1e, stable step %.1e\n",
-                            form == Formulation::Rkpm ? "rkpm     " : "fem-nodal", jitter > 0 ? "jittered" : "regular ",
+                            k.form == Formulation::Rkpm ? "rkpm     " : "fem-nodal", k.stab, jitter > 0 ? "jittered" : "regular ",
                             a == Assembly::Scatter ? "scatter" : "gather ", c.force, c.stress, c.stab_stress, c.energy, c.dt);
                 EXPECT_LT(c.force, 1e-12);
                 EXPECT_LT(c.stress, 1e-12);

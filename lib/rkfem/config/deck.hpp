@@ -106,12 +106,18 @@ struct BulkViscositySpec
     real_t quadratic = 1.5; ///< Q1 (LS-DYNA), multiplies rho l^2 (tr D)^2
 };
 
+/// The NSNI stabilization's default coefficient: the largest power of 2 that keeps the critical
+/// step factor of a regular free block above rkpm's default alpha of 1 (1.039 at 0.25; 0.865 at
+/// 0.5, 0.640 at 1; verification/operators/test_nodal_dynamics.cpp prints them), so NSNI costs
+/// no step; it matches the P3 cantilever's Timoshenko peak as MSCNI does.
+inline constexpr real_t kNsniCoefficient = 0.25;
+
 /// Nodal integration of `fem-nodal` and `rkpm` parts.
 struct NodalIntegrationSpec
 {
     std::string scheme = "scni";        ///< dni | scni | sd-scni
-    std::string stabilization = "mscni"; ///< none | mscni (scheme scni only)
-    real_t stabilization_coefficient = 1.0; ///< c_s of MSCNI (1 = RKPM2D default)
+    std::string stabilization = "mscni"; ///< none | mscni | nsni (scheme scni only; nsni: rkpm only)
+    real_t stabilization_coefficient = 1.0; ///< c_s (MSCNI: 1 = RKPM2D default; NSNI: kNsniCoefficient)
     real_t dt_factor = 0.0; ///< alpha in dt = alpha J^(1/3) l0 / c (l0: shortest edge at the node); 0: calibrated default
 };
 

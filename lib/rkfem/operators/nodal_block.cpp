@@ -37,6 +37,23 @@ void NodalBlock::build_tables(Assembly assembly)
     const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     const index_t nn = node_end - node_begin;
 
+    if (stabilization_triplets)
+    {
+        // NSNI's layout (build_nsni_stabilization): sub-points 3 p + i of parent p, with one node list
+        RKFEM_REQUIRE(ns == 3 * np, "nodal block: " << ns << " NSNI sub-points for " << np << " points");
+        for (index_t t = 0; t < np; ++t)
+        {
+            const index_t k0 = stabilization.offsets[3 * t], n = stabilization.offsets[3 * t + 1] - k0;
+            for (int i = 0; i < 3; ++i)
+            {
+                const index_t ki = stabilization.offsets[3 * t + i];
+                RKFEM_REQUIRE(stabilization.parent[3 * t + i] == t && stabilization.offsets[3 * t + i + 1] - ki == n &&
+                                  std::equal(stabilization.nodes.begin() + k0, stabilization.nodes.begin() + k0 + n,
+                                             stabilization.nodes.begin() + ki),
+                              "nodal block: NSNI sub-point " << 3 * t + i << " does not share the nodes of its point " << t);
+            }
+        }
+    }
     // shared stencils first: they snap the operators' gradients, which the transpose copies
     point_stencils.clear();
     stab_stencils.clear();
@@ -55,6 +72,9 @@ void NodalBlock::build_tables(Assembly assembly)
     bool local = true;
     for (const IntegrationOperator* op : {&points, &stabilization})
     {
+        // NSNI triplets run in their point's batch (nsni_batch): the point chunks cover their nodes
+        if (op == &stabilization && stabilization_triplets)
+            continue;
         // stabilization chunks cover as many nodes as stress-point chunks (about 8 sub-cells
         // per node)
         const index_t n = op->n_points();
@@ -62,6 +82,14 @@ void NodalBlock::build_tables(Assembly assembly)
         const std::size_t added = scatter.add_chunks(n, size,
                                                      [&](index_t first, index_t last, index_t& lo, index_t& hi)
                                                      {
+                                                         const bool triplets = op == &points && stabilization_triplets;
+                                                         const index_t k0 = triplets ? stabilization.offsets[3 * first] : 0,
+                                                                       k1 = triplets ? stabilization.offsets[3 * last] : 0;
+                                                         for (index_t k = k0; k < k1; ++k)
+                                                         {
+                                                             lo = std::min(lo, stabilization.nodes[k]);
+                                                             hi = std::max(hi, stabilization.nodes[k] + 1);
+                                                         }
                                                          for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
                                                          {
                                                              RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,

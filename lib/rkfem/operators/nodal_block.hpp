@@ -6,7 +6,7 @@
 ///   F_p = 1 + sum_I u_I (x) G_pI,  Fdot_p = sum_I v_I (x) G_pI,  L_p = Fdot_p F_p^-1,
 /// updates the rate-form material with (D, W) = sym/skew L_p, and scatters
 ///   f_I += V0_p P_p G_pI,  P_p = J_p sigma_p F_p^-T.
-/// An optional stabilization operator (MSCNI) adds, per sub-cell s with parent point L,
+/// An optional stabilization operator (MSCNI or NSNI) adds, per sub-cell s with parent point L,
 ///   D_s = sym((sum_I v_I (x) g_sI) F_L^-1),  sigma_s += dt c_s C : D_s (rotated with W_L),
 ///   f_I += V0_s J_L sigma_s F_L^-T g_sI,
 /// which vanishes for linear fields (g_s = b_s - b_L) and so keeps the patch test.
@@ -44,7 +44,11 @@ struct NodalBlock
     real_t dt_factor = 1.0; ///< alpha in dt = alpha J^(1/3) l0 / c
     std::vector<real_t> length0; ///< per point: l0, the shortest mesh edge at the owner node [m]
     IntegrationOperator points;             ///< stress points (global node ids)
-    IntegrationOperator stabilization;      ///< MSCNI sub-cells (empty: none)
+    IntegrationOperator stabilization;      ///< MSCNI sub-cells or NSNI sub-points (empty: none)
+    /// NSNI: the stabilization's sub-points come in threes, 3 p + i with parent p and the same
+    /// nodes in the same order (build_nsni_stabilization); the force pass then forms a point's
+    /// three in one pass over their nodes. initialize() checks the layout.
+    bool stabilization_triplets = false;
     /// Shared stencils of `points` and `stabilization` (integration/stencil_table.hpp), built by
     /// initialize() when `share_stencils` is on and sharing pays (lattices, structured meshes);
     /// empty: the force pass reads the operators' own entries. initialize() snaps the operators

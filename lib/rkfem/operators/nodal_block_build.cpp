@@ -117,9 +117,12 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     try
     {
         nb.points = build_nodal(scheme, mesh, *shapes);
-        if (scheme == NodalScheme::Scni && ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        if (scheme == NodalScheme::Scni && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
         {
-            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
+            nb.stabilization = ps.nodal.stabilization == "nsni" && rk
+                                   ? build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh))
+                                   : build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
+            nb.stabilization_triplets = ps.nodal.stabilization == "nsni" && rk;
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
         if (rk)
@@ -355,9 +358,12 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         nb.points = ps.nodal.scheme == "dni"       ? build_dni_cells(cells.volume, cloud.x, shapes)
                     : ps.nodal.scheme == "sd-scni" ? build_sd_cells(cells, shapes)
                                                    : build_scni_cells(cells, cloud.x, shapes);
-        if (ps.nodal.scheme == "scni" && ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        if (ps.nodal.scheme == "scni" && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
         {
-            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
+            nb.stabilization = ps.nodal.stabilization == "nsni"
+                                   ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume))
+                                   : build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
+            nb.stabilization_triplets = ps.nodal.stabilization == "nsni";
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
         add_interpolation(nb, *rk, cloud.x, offset);

@@ -166,6 +166,77 @@ inline void scatter_point(const StencilView& st, const real_t P[9], real_t* buf,
 #endif
 }
 
+/// NSNI triplets (NodalBlock::stabilization_triplets): the sub-points 3 L + i (i = 0..2) of
+/// point L have the same nodes in the same order, and entry k's coefficients are the rows of
+/// one symmetric matrix, g_ikj = H_k(i, j) (RkShapeFunctions::hessians symmetrizes exactly), so
+/// one pass over the nodes forms G_i = sum_k v_k (x) g_ik for the three (G[i][a][j]) from the six
+/// sums A_ij = sum_k v_k H_k(i, j), i <= j. The plain twin is three gather_velocity_gradient calls.
+inline void gather_triplet(const StencilView st[3], const real_t* v, real_t G[3][3][3])
+{
+#if defined(__AVX2__) && defined(__FMA__)
+    __m256d a00 = _mm256_setzero_pd(), a01 = a00, a02 = a00, a11 = a00, a12 = a00, a22 = a00;
+    for (index_t k = 0; k < st[0].size; ++k)
+    {
+        const __m256d vv = _mm256_maskload_pd(v + 3 * static_cast<std::size_t>(st[0].base + st[0].offset[k]), lanes3);
+        const real_t* h0 = st[0].grad + 3 * static_cast<std::size_t>(k);
+        const real_t* h1 = st[1].grad + 3 * static_cast<std::size_t>(k);
+        const real_t* h2 = st[2].grad + 3 * static_cast<std::size_t>(k);
+        a00 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h0), a00);
+        a01 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h0 + 1), a01);
+        a02 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h0 + 2), a02);
+        a11 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h1 + 1), a11);
+        a12 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h1 + 2), a12);
+        a22 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h2 + 2), a22);
+    }
+    alignas(32) real_t c[6][4];
+    _mm256_store_pd(c[0], a00);
+    _mm256_store_pd(c[1], a01);
+    _mm256_store_pd(c[2], a02);
+    _mm256_store_pd(c[3], a11);
+    _mm256_store_pd(c[4], a12);
+    _mm256_store_pd(c[5], a22);
+    constexpr int sym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+    for (int i = 0; i < 3; ++i)
+        for (int a = 0; a < 3; ++a)
+            for (int j = 0; j < 3; ++j)
+                G[i][a][j] = c[sym[i][j]][a];
+#else
+    for (int i = 0; i < 3; ++i)
+        gather_velocity_gradient(st[i], v, G[i]);
+#endif
+}
+
+/// buf[4 (n - lo) + a] += sum_i sum_j (P_i)_aj H_k(i, j) over the shared entries of a triplet
+/// (each P_i by columns), as sum_{i <= j} Q_ij H_k(i, j) with Q_ii = P_i e_i, Q_ij = P_i e_j +
+/// P_j e_i; the plain twin is three scatter_point calls.
+inline void scatter_triplet(const StencilView st[3], const real_t P[3][9], real_t* buf, index_t lo)
+{
+#if defined(__AVX2__) && defined(__FMA__)
+    auto col = [&](int i, int j) { return _mm256_setr_pd(P[i][3 * j], P[i][3 * j + 1], P[i][3 * j + 2], 0.0); };
+    const __m256d q00 = col(0, 0), q11 = col(1, 1), q22 = col(2, 2), q01 = _mm256_add_pd(col(0, 1), col(1, 0)),
+                  q02 = _mm256_add_pd(col(0, 2), col(2, 0)), q12 = _mm256_add_pd(col(1, 2), col(2, 1));
+    real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(st[0].base - lo);
+    for (index_t k = 0; k < st[0].size; ++k)
+    {
+        real_t* f = b + 4 * static_cast<std::size_t>(st[0].offset[k]);
+        const real_t* h0 = st[0].grad + 3 * static_cast<std::size_t>(k);
+        const real_t* h1 = st[1].grad + 3 * static_cast<std::size_t>(k);
+        const real_t* h2 = st[2].grad + 3 * static_cast<std::size_t>(k);
+        // two independent chains, joined at the end
+        __m256d x = _mm256_mul_pd(q00, _mm256_broadcast_sd(h0));
+        __m256d y = _mm256_mul_pd(q11, _mm256_broadcast_sd(h1 + 1));
+        x = _mm256_fmadd_pd(q01, _mm256_broadcast_sd(h0 + 1), x);
+        y = _mm256_fmadd_pd(q12, _mm256_broadcast_sd(h1 + 2), y);
+        x = _mm256_fmadd_pd(q02, _mm256_broadcast_sd(h0 + 2), x);
+        y = _mm256_fmadd_pd(q22, _mm256_broadcast_sd(h2 + 2), y);
+        _mm256_storeu_pd(f, _mm256_add_pd(_mm256_loadu_pd(f), _mm256_add_pd(x, y)));
+    }
+#else
+    for (int i = 0; i < 3; ++i)
+        scatter_point(st[i], P[i], buf, lo);
+#endif
+}
+
 #if defined(__AVX512F__)
 /// A batch whose 8 points share one stencil and whose bases are consecutive (points along a
 /// lattice row): entry k of lane l touches node base + offset[k] + l, so each entry's nodes are 8
@@ -272,6 +343,89 @@ inline void first_piola(real_t VJ, real_t q, const real_t (&sn)[6][W], const rea
             P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
 }
 
+
+/// NSNI in the stress points' batch (NodalBlock::stabilization_triplets, chunked scatter): for
+/// the good lanes of points p0 .. p0 + nl - 1, the three sub-points 3 p + i get
+/// G_i = sum_k v_k (x) g_ik (gather_triplet), D_i = sym(G_i F_p^-1), sigma_i += dt c_s C : D_i
+/// (rotated with W_p) and V0_i J_p sigma_i F_p^-T g_ik into the chunk's buffer, which covers their
+/// nodes (build_tables). The algebra runs as lane loops like the points'; the plain twin is the
+/// separate stabilization pass (one sub-point at a time), which the gather assembly takes.
+template <int W>
+void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool (&good)[W],
+                const real_t (&Fi)[3][3][W], const real_t (&wl)[3][W], const real_t (&Jl)[W], real_t dt, real_t* buf,
+                index_t lo)
+{
+    const IntegrationOperator& st = blk.stabilization;
+    const std::size_t sns = static_cast<std::size_t>(blk.n_stab());
+    ElasticParams smat = blk.material;
+    smat.lambda *= blk.stabilization_coefficient;
+    smat.mu *= blk.stabilization_coefficient;
+    alignas(64) real_t G[3][3][3][W];
+    StencilView sv[W][3];
+    for (int l = 0; l < W; ++l)
+    {
+        const index_t t = p0 + (l < nl ? l : 0);
+        for (int i = 0; i < 3; ++i)
+            sv[l][i] = stencil_view(st, blk.stab_stencils, 3 * t + i);
+        real_t g[3][3][3];
+        gather_triplet(sv[l], v, g);
+        for (int i = 0; i < 3; ++i)
+            for (int a = 0; a < 3; ++a)
+                for (int j = 0; j < 3; ++j)
+                    G[i][a][j][l] = g[i][a][j];
+    }
+    const real_t* __restrict s_in = blk.stab_stress.data();
+    real_t* __restrict s_out = blk.stab_stress_trial.data();
+    real_t* __restrict energy = blk.stab_energy.data();
+    const real_t* __restrict weight = st.weight.data();
+    alignas(64) real_t P[3][9][W], sn[6][W], e[W];
+    for (int i = 0; i < 3; ++i)
+    {
+#pragma omp simd
+        for (int l = 0; l < W; ++l)
+        {
+            const std::size_t s = 3 * static_cast<std::size_t>(p0 + (l < nl ? l : 0)) + i;
+            real_t Ls[3][3];
+            for (int a = 0; a < 3; ++a)
+                for (int j = 0; j < 3; ++j)
+                    Ls[a][j] = G[i][a][0][l] * Fi[0][j][l] + G[i][a][1][l] * Fi[1][j][l] + G[i][a][2][l] * Fi[2][j][l];
+            const real_t d0 = Ls[0][0], d1 = Ls[1][1], d2 = Ls[2][2], d3 = 0.5 * (Ls[0][1] + Ls[1][0]),
+                         d4 = 0.5 * (Ls[1][2] + Ls[2][1]), d5 = 0.5 * (Ls[2][0] + Ls[0][2]);
+            const real_t o0 = s_in[s], o1 = s_in[sns + s], o2 = s_in[2 * sns + s], o3 = s_in[3 * sns + s],
+                         o4 = s_in[4 * sns + s], o5 = s_in[5 * sns + s];
+            real_t s0 = o0, s1 = o1, s2 = o2, s3 = o3, s4 = o4, s5 = o5;
+            elastic_update(smat, d0, d1, d2, d3, d4, d5, wl[0][l], wl[1][l], wl[2][l], dt, s0, s1, s2, s3, s4, s5);
+            sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
+            const real_t power = 0.5 * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2) + (o3 + s3) * d3 +
+                                 (o4 + s4) * d4 + (o5 + s5) * d5;
+            const real_t VJ = weight[s] * Jl[l];
+            e[l] = dt * VJ * power;
+            const real_t S[3][3] = {{s0, s3, s5}, {s3, s1, s4}, {s5, s4, s2}};
+            for (int a = 0; a < 3; ++a)
+                for (int j = 0; j < 3; ++j)
+                    P[i][3 * j + a][l] = VJ * (S[a][0] * Fi[j][0][l] + S[a][1] * Fi[j][1][l] + S[a][2] * Fi[j][2][l]);
+        }
+        for (int l = 0; l < nl; ++l)
+        {
+            if (!good[l])
+                continue;
+            const std::size_t s = 3 * static_cast<std::size_t>(p0 + l) + i;
+            for (int k = 0; k < 6; ++k)
+                s_out[k * sns + s] = sn[k][l];
+            energy[s] = e[l];
+        }
+    }
+    for (int l = 0; l < nl; ++l)
+    {
+        if (!good[l])
+            continue;
+        real_t Pl[3][9];
+        for (int i = 0; i < 3; ++i)
+            for (int k = 0; k < 9; ++k)
+                Pl[i][k] = P[i][k][l];
+        scatter_triplet(sv[l], Pl, buf, lo);
+    }
+}
 
 /// One batch of kPointLanes stress points: the stencil sums per point (gather_gradients), then
 /// the per-point algebra as lane loops over structure-of-arrays scratch (F^-1, L, stress
@@ -449,7 +603,8 @@ template <bool PLASTIC, bool FULL>
 
     // the batch's energies (summed in lane order), smallest step and first bad point: what the
     // step needs of its points, without per-point arrays to write and read back
-    const bool stabilized = blk.n_stab() > 0; // the stabilization of this point's sub-cells needs F^-1 and W
+    // the stabilization of this point's sub-cells needs F^-1 and W (unless it runs in this batch)
+    const bool stabilized = blk.n_stab() > 0 && !(blk.stabilization_triplets && buf);
     real_t sum_int = 0.0, sum_bv = 0.0, dt_min = std::numeric_limits<real_t>::max();
     index_t dt_point = p0, bad = -1;
     bool good[W] = {}; // the lane's point has J > 0 and a step (its forces are assembled)
@@ -482,6 +637,8 @@ template <bool PLASTIC, bool FULL>
                 blk.spin[3 * p + k] = wl[k][l];
         }
     }
+    if (blk.stabilization_triplets && buf)
+        nsni_batch<W>(blk, v, p0, nl, good, Fi, wl, Jl, dt, buf, lo);
     // V0 P g into the chunk's buffer (or V0 P out for the transpose gather), for the good points
 #if defined(__AVX512F__)
     if (uniform && buf && bad < 0)
@@ -562,40 +719,76 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
         ElasticParams smat = mat;
         smat.lambda *= blk.stabilization_coefficient;
         smat.mu *= blk.stabilization_coefficient;
-        // sub-cell s: stress update and V0 P (by columns)
-        auto sub_cell = [&](index_t s, real_t P[9])
+        // sub-point s with velocity gradient G: stress update and V0 J sigma F^-T (by columns);
+        // the block's arrays through restrict pointers (stores into the stress would otherwise
+        // make the compiler reload every other array's address)
+        const real_t* __restrict finv = blk.finv.data();
+        const real_t* __restrict spin = blk.spin.data();
+        const real_t* __restrict jac = blk.jacobian.data();
+        const real_t* __restrict s_in = blk.stab_stress.data();
+        real_t* __restrict s_out = blk.stab_stress_trial.data();
+        real_t* __restrict energy = blk.stab_energy.data();
+        const index_t* __restrict parent = st.parent.data();
+        const real_t* __restrict weight = st.weight.data();
+        auto sub_point = [=](index_t s, const real_t G[3][3], real_t P[9])
         {
-            const index_t L = st.parent[s];
-            real_t G[3][3];
-            gather_velocity_gradient(stencil_view(st, blk.stab_stencils, s), v, G);
-            const real_t* Fi = &blk.finv[9 * static_cast<std::size_t>(L)];
+            const index_t L = parent[s];
+            const real_t* Fi = finv + 9 * static_cast<std::size_t>(L);
             real_t Ls[3][3];
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j)
                     Ls[i][j] = G[i][0] * Fi[j] + G[i][1] * Fi[3 + j] + G[i][2] * Fi[6 + j];
             const real_t d[6] = {Ls[0][0], Ls[1][1], Ls[2][2], 0.5 * (Ls[0][1] + Ls[1][0]),
                                  0.5 * (Ls[1][2] + Ls[2][1]), 0.5 * (Ls[2][0] + Ls[0][2])};
-            const real_t* w = &blk.spin[3 * static_cast<std::size_t>(L)];
+            const real_t* w = spin + 3 * static_cast<std::size_t>(L);
             real_t s_old[6], sg[6];
             for (int k = 0; k < 6; ++k)
-                s_old[k] = sg[k] = blk.stab_stress[k * sns + s];
+                s_old[k] = sg[k] = s_in[k * sns + s];
             elastic_update(smat, d, w, dt, sg);
             for (int k = 0; k < 6; ++k)
-                blk.stab_stress_trial[k * sns + s] = sg[k];
+                s_out[k * sns + s] = sg[k];
             real_t power = 0.0;
             for (int k = 0; k < 3; ++k)
                 power += 0.5 * (s_old[k] + sg[k]) * d[k] + (s_old[k + 3] + sg[k + 3]) * d[k + 3];
-            const real_t J = blk.jacobian[L];
-            const real_t V0 = st.weight[s];
-            blk.stab_energy[s] = dt * V0 * J * power;
+            const real_t VJ = weight[s] * jac[L];
+            energy[s] = dt * VJ * power;
             const real_t S[3][3] = {{sg[0], sg[3], sg[5]}, {sg[3], sg[1], sg[4]}, {sg[5], sg[4], sg[2]}};
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j)
-                    P[3 * j + i] = V0 * J * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
+                    P[3 * j + i] = VJ * (S[i][0] * Fi[3 * j] + S[i][1] * Fi[3 * j + 1] + S[i][2] * Fi[3 * j + 2]);
         };
-        if (blk.scatter_assembly())
-            blk.scatter.run_chunks("rkfem::nodal_stabilization", blk.n_point_chunks,
-                                   static_cast<index_t>(blk.scatter.chunks.size()), 1,
+        auto sub_cell = [&](index_t s, real_t P[9])
+        {
+            real_t G[3][3];
+            gather_velocity_gradient(stencil_view(st, blk.stab_stencils, s), v, G);
+            sub_point(s, G, P);
+        };
+        // NSNI: the three sub-points of point t in one pass over their shared nodes
+        auto triplet = [&](index_t t, real_t P[3][9])
+        {
+            const StencilView sv[3] = {stencil_view(st, blk.stab_stencils, 3 * t),
+                                       stencil_view(st, blk.stab_stencils, 3 * t + 1),
+                                       stencil_view(st, blk.stab_stencils, 3 * t + 2)};
+            real_t G[3][3][3];
+            gather_triplet(sv, v, G);
+            for (int i = 0; i < 3; ++i)
+                sub_point(3 * t + i, G[i], P[i]);
+        };
+        const index_t chunk0 = blk.n_point_chunks, chunk1 = static_cast<index_t>(blk.scatter.chunks.size());
+        (void)chunk0, (void)chunk1;
+        if (blk.stabilization_triplets && blk.scatter_assembly())
+            ; // done in the stress points' batches (nsni_batch)
+        else if (blk.stabilization_triplets)
+            parallel_for("rkfem::nodal_stabilization", ns / 3,
+                         [&](index_t t)
+                         {
+                             real_t P[3][9];
+                             triplet(t, P);
+                             for (int i = 0; i < 3; ++i)
+                                 std::copy(P[i], P[i] + 9, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + 3 * t + i)]);
+                         });
+        else if (blk.scatter_assembly())
+            blk.scatter.run_chunks("rkfem::nodal_stabilization", chunk0, chunk1, 1,
                                    [&](index_t s, real_t* buf, index_t lo)
                                    {
                                        real_t P[9];

@@ -8,7 +8,9 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
+#include <utility>
 
 namespace rkfem
 {
@@ -175,6 +177,53 @@ void RkShapeFunctions::evaluate_impl(const Vec3& x, bool gradients, RkSample& ou
         solve_and_fill<4>(out, s, gradients, singular, others);
     else
         solve_and_fill<10>(out, s, gradients, singular, others);
+}
+
+void RkShapeFunctions::hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H) const
+{
+    thread_local RkSample at, plus, minus;
+    evaluate(x, false, at);
+    real_t a = std::numeric_limits<real_t>::max();
+    for (index_t n : at.nodes)
+        a = std::min(a, radius(n));
+    const real_t delta = 1e-3 * a;
+    // column j of H_I is (grad Psi_I(x + delta e_j) - grad Psi_I(x - delta e_j)) / (2 delta);
+    // the nodes are the union over the six samples, in ascending order
+    std::vector<std::pair<index_t, Mat3>> rows;
+    for (int j = 0; j < 3; ++j)
+    {
+        Vec3 d = Vec3::Zero();
+        d[j] = delta;
+        evaluate(x + d, true, plus);
+        evaluate(x - d, true, minus);
+        for (int side = 0; side < 2; ++side)
+        {
+            const RkSample& s = side == 0 ? plus : minus;
+            const real_t sign = side == 0 ? 1.0 : -1.0;
+            for (index_t k = 0; k < s.size(); ++k)
+            {
+                Mat3 m = Mat3::Zero();
+                m.col(j) = sign / (2.0 * delta) * s.grad[k];
+                rows.emplace_back(s.nodes[k], m);
+            }
+        }
+    }
+    std::stable_sort(rows.begin(), rows.end(), [](const auto& p, const auto& q) { return p.first < q.first; });
+    nodes.clear();
+    H.clear();
+    for (const auto& [n, m] : rows)
+    {
+        if (!nodes.empty() && nodes.back() == n)
+            H.back() += m;
+        else
+        {
+            nodes.push_back(n);
+            H.push_back(m);
+        }
+    }
+    // the exact Hessian is symmetric; the differences are to O(delta^2)
+    for (Mat3& m : H)
+        m = 0.5 * (m + m.transpose()).eval();
 }
 
 RkShapeFunctions rk_on_mesh(const HexMesh& mesh, const RkParams& params)

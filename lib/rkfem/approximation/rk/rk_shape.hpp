@@ -84,6 +84,14 @@ class RkShapeFunctions
     /// H(x - x_I) = H(0). Where the others reproduce the basis by themselves every Psi is 0 (and M
     /// is not needed). Values only.
     void evaluate_completing(const Vec3& x, const RkOthers& others, RkSample& out) const;
+    /// Second derivatives H_I = grad grad Psi_I(x) (symmetric, H_I(i, j) = d2 Psi_I / dx_i dx_j)
+    /// of every particle that covers x or a point within delta of it, by central differences of
+    /// the direct gradients with delta = 1e-3 times the smallest support radius covering x:
+    /// truncation error O(delta^2) (about 1e-6 relative), round-off about 1e-13 relative. The
+    /// differences of the reproducing identities keep sum_I H_I = 0 and sum_I H_I (x) x_I = 0 to
+    /// round-off (order 1 and 2), and order 2 reproduces the second derivatives of quadratics
+    /// to the truncation error. Set-up only (naturally stabilized nodal integration).
+    void hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H) const;
 
     index_t size() const { return static_cast<index_t>(a_.size()); }
     real_t radius(index_t i) const { return a_[static_cast<std::size_t>(i)]; }

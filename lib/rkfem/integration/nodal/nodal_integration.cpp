@@ -1,6 +1,7 @@
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <utility>
 
@@ -295,6 +296,96 @@ IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, c
         op.offsets.push_back(op.n_entries());
     }
     return op;
+}
+
+IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
+                                             const std::vector<real_t>& moments)
+{
+    const index_t np = points.n_points();
+    RKFEM_REQUIRE(moments.size() == 3 * static_cast<std::size_t>(np),
+                  "NSNI: " << moments.size() << " second moments for " << np << " points");
+    std::vector<std::vector<index_t>> nodes(static_cast<std::size_t>(np));
+    std::vector<std::vector<Mat3>> hess(static_cast<std::size_t>(np));
+    std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 64)
+    for (index_t p = 0; p < np; ++p)
+    {
+        try
+        {
+            rk.hessians(rk.position(points.owner[p]), nodes[p], hess[p]);
+        }
+        catch (...)
+        {
+#pragma omp critical(rkfem_nsni_build_error)
+            if (!error)
+                error = std::current_exception();
+        }
+    }
+    if (error)
+        std::rethrow_exception(error);
+    IntegrationOperator op;
+    op.offsets.assign(1, 0);
+    for (index_t p = 0; p < np; ++p)
+        for (int i = 0; i < 3; ++i)
+        {
+            op.weight.push_back(moments[3 * static_cast<std::size_t>(p) + i]);
+            for (int d = 0; d < 3; ++d)
+                op.position.push_back(points.position[3 * static_cast<std::size_t>(p) + d]);
+            op.owner.push_back(points.owner[p]);
+            op.parent.push_back(p);
+            for (std::size_t k = 0; k < nodes[p].size(); ++k)
+            {
+                op.nodes.push_back(nodes[p][k]);
+                const Mat3& H = hess[p][k];
+                op.grad.insert(op.grad.end(), {H(i, 0), H(i, 1), H(i, 2)});
+            }
+            op.offsets.push_back(op.n_entries());
+        }
+    return op;
+}
+
+std::vector<real_t> nodal_second_moments(const HexMesh& mesh)
+{
+    std::vector<real_t> m(3 * static_cast<std::size_t>(mesh.n_nodes()), 0.0);
+    const real_t g = 1.0 / std::sqrt(3.0);
+    real_t xe[8][3];
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        element_coordinates(mesh, e, xe);
+        for (int a = 0; a < 8; ++a)
+        {
+            // the sub-hex of local node a: xi_d between 0 and the node's natural coordinate
+            const index_t L = mesh.conn[8 * e + a];
+            for (int q = 0; q < 8; ++q)
+            {
+                real_t xi[3], N[8], dNdx[8][3];
+                for (int d = 0; d < 3; ++d)
+                    xi[d] = 0.5 * hex8_nodes[a][d] * (1.0 + g * hex8_nodes[q][d]);
+                hex8_shape(xi, N);
+                const real_t w = 0.125 * hex8_gradients(xe, xi, dNdx); // sub-hex Jacobian 1/8 of the element's
+                for (int d = 0; d < 3; ++d)
+                {
+                    real_t x = 0.0;
+                    for (int I = 0; I < 8; ++I)
+                        x += N[I] * xe[I][d];
+                    const real_t r = x - mesh.x[3 * static_cast<std::size_t>(L) + d];
+                    m[3 * static_cast<std::size_t>(L) + d] += w * r * r;
+                }
+            }
+        }
+    }
+    return m;
+}
+
+std::vector<real_t> cube_second_moments(const std::vector<real_t>& volume)
+{
+    std::vector<real_t> m(3 * volume.size());
+    for (std::size_t i = 0; i < volume.size(); ++i)
+    {
+        const real_t s = std::cbrt(volume[i]);
+        m[3 * i] = m[3 * i + 1] = m[3 * i + 2] = volume[i] * s * s / 12.0;
+    }
+    return m;
 }
 
 std::vector<BoundaryPoint> boundary_quadrature(const HexMesh& mesh)

@@ -7,7 +7,10 @@
 ///   SCNI    one point per node, smoothed gradient b_I(L) = (1/V_L) int_{dOmega_L} Psi_I n dA;
 ///   SD-SCNI one point per sub-hex (node, element), smoothed over the sub-hex;
 ///   MSCNI   stabilization operator: one sub-point per sub-hex with gradient b_I(s) - b_I(L) and
-///           parent = the SCNI point of its node (Puso, Chen, Zywicz & Elmer 2008).
+///           parent = the SCNI point of its node (Puso, Chen, Zywicz & Elmer 2008);
+///   NSNI    stabilization operator (the naturally stabilized term of Hillman & Chen 2016 on SCNI
+///           points, RK shapes): three sub-points per node, one per direction i, with gradient
+///           d/dx_i grad Psi_I(x_L) and weight M_iL = int_{Omega_L} (x_i - x_Li)^2 dOmega.
 /// Points of DNI/SCNI are in node order (point p belongs to node p); SD-SCNI and MSCNI points are
 /// in element order, 8 e + a. Positions and gradients are in the mesh's (reference) configuration.
 #include <vector>
@@ -46,6 +49,25 @@ IntegrationOperator build_dni_cells(const std::vector<real_t>& volume, const std
 
 /// MSCNI stabilization from an SCNI operator and the SD-SCNI operator of the same mesh.
 IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd);
+
+/// The NSNI stabilization of node-ordered points (point p at particle p, as build_scni and
+/// build_scni_cells make them): sub-point 3 p + i has parent p, weight moments[3 p + i] and the
+/// entries (J, d/dx_i grad Psi_J(x_p)) (RkShapeFunctions::hessians). Its strain is the gradient
+/// of the strain along x_i, so for linear fields it vanishes (patch test kept) and its
+/// quadratic form sum_i M_i eps_,i : C : eps_,i stiffens the modes SCNI leaves soft. Entries
+/// cover the particles around x_p only (27 on a lattice with support 1.51 h), about a fifth of
+/// MSCNI's (8 sub-cells of about 125 entries).
+IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
+                                             const std::vector<real_t>& moments);
+
+/// Second moments of the nodal (hex-dual) cells about their nodes, 3 per node:
+/// M_iL = int_{Omega_L} (x_i - X_Li)^2 dOmega, by 2 x 2 x 2 Gauss points on each sub-hex (exact
+/// on parallelepiped elements).
+std::vector<real_t> nodal_second_moments(const HexMesh& mesh);
+
+/// Second moments of cells known by their volume only (Voronoi cells of a cloud), as cubes of
+/// the same volume centred on the particle: M_i = V s^2 / 12, s = V^(1/3).
+std::vector<real_t> cube_second_moments(const std::vector<real_t>& volume);
 
 /// Facet quadrature of the mesh boundary (external facets of sub-hexes on boundary faces):
 /// the boundary integral that IC1 balances and that tractions use.
