@@ -6,6 +6,7 @@
 //   rkfem study STUDY --out DIR [--quiet]            cases of a deck -> DIR/table.{csv,md}, study.h5, cases/
 // Exit codes: 0 success, 2 bad input (one line naming deck, line and key), 3 run went unstable
 // (output so far kept), 4 a study with cases that did not complete (table written), 1 other failure.
+#include <chrono>
 #include <cstdio>
 #include <cerrno>
 #include <cstring>
@@ -199,6 +200,7 @@ int main(int argc, char** argv)
     }
     try
     {
+        const auto setup_start = std::chrono::steady_clock::now();
         const rkfem::Deck deck = rkfem::read_deck(deck_path, overrides);
         rkfem::Model model = rkfem::Model::build(deck); // all validation before any output
         rkfem::check_step_budget(model);
@@ -244,6 +246,7 @@ int main(int argc, char** argv)
         opt.progress = !quiet;
         opt.deck_path = deck_path;
         opt.overrides = overrides;
+        opt.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
         const rkfem::RunSummary s = rkfem::run_simulation(model, opt);
         if (s.status != "completed")
         {

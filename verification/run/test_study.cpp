@@ -330,3 +330,32 @@ TEST(Study, ExtractorsOnAKnownHistory)
     EXPECT_THROW(rkfem::extract_metric(sm, h, s), rkfem::Error);
     EXPECT_THROW(rkfem::extract_metric(metric("max", "nope"), h, none), rkfem::Error);
 }
+
+// summary.json splits the run's time (set-up, stepping, output) and counts the work items of
+// each formulation: elements for fem-1pt, particles for rkpm (it divided by the mesh's elements
+// before), so ns_per_element_cycle = stepping time / (steps x work items) and seconds_per_step =
+// stepping time / steps, exactly as written.
+TEST(Study, SummarySplitsTheRunTimeAndCountsTheRightWorkItems)
+{
+    const fs::path d = scratch("timing");
+    for (const char* f : {"fem-1pt", "rkpm"})
+    {
+        const fs::path out = d / f;
+        const auto r = run("run " + column_deck + " --out " + out.string() +
+                           " --quiet --set 'parts.column.generator.size=[2 mm, 2 mm, 40 mm]' --set time.end=4us" +
+                           " --set parts.column.formulation=" + f);
+        ASSERT_EQ(r.code, 0) << r.output;
+        const YAML::Node s = summary_of(out);
+        const real_t wall = s["wall_seconds"].as<real_t>(), setup = s["setup_seconds"].as<real_t>(),
+                     stepping = s["stepping_seconds"].as<real_t>(), output = s["output_seconds"].as<real_t>();
+        const long steps = s["steps"].as<long>(), items = s["work_items"].as<long>();
+        EXPECT_EQ(items, std::string(f) == "rkpm" ? s["nodes"].as<long>() : s["elements"].as<long>()) << f;
+        EXPECT_GT(setup, 0.0);
+        EXPECT_GT(stepping, 0.0);
+        EXPECT_GT(output, 0.0); // the mesh, the first and last frames and the history rows
+        EXPECT_LE(stepping + output, wall * (1 + 1e-9));
+        EXPECT_NEAR(s["ns_per_element_cycle"].as<real_t>(), 1e9 * stepping / (static_cast<real_t>(steps) * items),
+                    1e-9 * s["ns_per_element_cycle"].as<real_t>());
+        EXPECT_NEAR(s["seconds_per_step"].as<real_t>(), stepping / steps, 1e-9 * stepping / steps);
+    }
+}

@@ -188,6 +188,10 @@ class Model final : public ExplicitOperator
     bool is_cloud(index_t part) const;
     /// Output cells: every element, then (per part, in part order) the particles of cloud parts.
     index_t n_cells() const;
+    /// What a step's force pass works through: the elements of Gauss-point FE parts (and of
+    /// coupled parts' 1-point FE sides), the stress points of nodal parts (one per particle or
+    /// node under SCNI): the count that ns per element-cycle divides by.
+    index_t n_work_items() const;
     real_t element_plastic_strain(index_t block, index_t e) const { return element_history(block, e, History::PlasticStrain); }
     /// Element stress (average over its points), Voigt.
     Sym6 element_stress(index_t block, index_t e) const;

@@ -98,6 +98,16 @@ index_t Model::n_cells() const
     return n;
 }
 
+index_t Model::n_work_items() const
+{
+    index_t n = 0;
+    for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
+        n += part_nodal[b] >= 0 ? nodal_blocks[part_nodal[b]].n_points() : blocks[b].n_elements();
+    for (const FeSide& fs : fe_sides)
+        n += fs.block.n_elements();
+    return n;
+}
+
 Sym6 Model::element_stress(index_t b, index_t e) const
 {
     if (part_fe_side[b] >= 0 && fe_sides[part_fe_side[b]].local[e] >= 0)

@@ -201,18 +201,28 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     const auto wall0 = std::chrono::steady_clock::now();
     auto elapsed = [&]
     { return std::chrono::duration<real_t>(std::chrono::steady_clock::now() - wall0).count(); };
+    // output time: history rows and field frames (their clocks are read only when they run)
+    auto output_clock = [&sum](auto&& work)
+    {
+        const auto t0 = std::chrono::steady_clock::now();
+        work();
+        sum.output_seconds += std::chrono::duration<real_t>(std::chrono::steady_clock::now() - t0).count();
+    };
+    real_t start_seconds = 0.0; // the stepper's first start
 
     std::unique_ptr<ResultsWriter> writer;
     std::ofstream csv;
     if (!opt.out_dir.empty())
-    {
-        writer = std::make_unique<ResultsWriter>(opt.out_dir);
-        writer->write_mesh(model);
-        csv.open(opt.out_dir + "/history.csv");
-        for (std::size_t i = 0; i < sum.history_columns.size(); ++i)
-            csv << (i ? "," : "") << sum.history_columns[i];
-        csv << "\n" << std::setprecision(12);
-    }
+        output_clock(
+            [&]
+            {
+                writer = std::make_unique<ResultsWriter>(opt.out_dir);
+                writer->write_mesh(model);
+                csv.open(opt.out_dir + "/history.csv");
+                for (std::size_t i = 0; i < sum.history_columns.size(); ++i)
+                    csv << (i ? "," : "") << sum.history_columns[i];
+                csv << "\n" << std::setprecision(12);
+            });
     auto flush_history_row = [&](std::size_t first)
     {
         if (!csv.is_open())
@@ -242,29 +252,34 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     try
     {
         StepReport rep = stepper->initialize(model, t);
+        start_seconds = elapsed() - sum.output_seconds;
         auto observe = [&](bool final_step)
         {
             const bool output_now = (writer && t >= next_output - 1e-12 * ts.end) || final_step || step == 0;
             if (impact && output_now)
                 actual_depth = impact->actual_depth(model); // a pass over the target: at outputs only
             if (t >= next_history - 1e-15 * ts.end || final_step)
-            {
-                const std::size_t first = sum.history.size() / sum.history_columns.size();
-                append_row(model, t, dt_last, sum.history, impact.get(), actual_depth);
-                flush_history_row(first);
-                if (ts.history_interval > 0)
-                    advance_past(next_history, t, ts.history_interval);
-            }
+                output_clock(
+                    [&]
+                    {
+                        const std::size_t first = sum.history.size() / sum.history_columns.size();
+                        append_row(model, t, dt_last, sum.history, impact.get(), actual_depth);
+                        flush_history_row(first);
+                        if (ts.history_interval > 0)
+                            advance_past(next_history, t, ts.history_interval);
+                    });
             if (writer && (t >= next_output - 1e-12 * ts.end || final_step))
-            {
-                writer->write_step(model, t);
-                if (ts.output_interval > 0)
-                    advance_past(next_output, t + 1e-12 * ts.end, ts.output_interval);
-                else
-                    next_output = 2 * ts.end + 1; // start and end only
-                if (csv.is_open())
-                    csv.flush();
-            }
+                output_clock(
+                    [&]
+                    {
+                        writer->write_step(model, t);
+                        if (ts.output_interval > 0)
+                            advance_past(next_output, t + 1e-12 * ts.end, ts.output_interval);
+                        else
+                            next_output = 2 * ts.end + 1; // start and end only
+                        if (csv.is_open())
+                            csv.flush();
+                    });
             if (observer)
                 observer(model, t, dt_last, step);
         };
@@ -276,7 +291,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                              "that depth, not pushed out (summary.json: contacts)\n",
                              k, static_cast<long long>(n));
         real_t dt_stable = rep.dt_stable;
-        index_t ne = model.n_cells(); // elements, and the particles of cloud parts
+        index_t ne = model.n_work_items(); // elements, and the stress points of nodal parts
         std::vector<real_t> event_a;  // accelerations before an event
         while (t < ts.end * (1 - 1e-12))
         {
@@ -304,7 +319,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                 rep = stepper->initialize(model, t);
                 book_event_energy(model, event_a, dt);
                 dt_stable = rep.dt_stable;
-                ne = model.n_cells();
+                ne = model.n_work_items();
             }
             const real_t err = model.energy.balance_error();
             sum.max_balance_error = std::max(sum.max_balance_error, err);
@@ -329,13 +344,15 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         sum.message = e.what();
         // keep the last good state on disk: the fields written so far plus this state
         if (writer)
-            writer->write_step(model, t);
+            output_clock([&] { writer->write_step(model, t); });
     }
     progress.finish();
     sum.steps = step;
     sum.end_time = t;
     sum.wall_seconds = elapsed();
-    sum.ns_per_element_cycle = element_steps > 0 ? 1e9 * sum.wall_seconds / element_steps : 0.0;
+    sum.setup_seconds = opt.setup_seconds + start_seconds;
+    sum.stepping_seconds = std::max(0.0, sum.wall_seconds - sum.output_seconds - start_seconds);
+    sum.ns_per_element_cycle = element_steps > 0 ? 1e9 * sum.stepping_seconds / element_steps : 0.0;
     sum.energy = model.energy;
     for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
         for (index_t e = 0; e < model.blocks[b].n_elements(); ++e)

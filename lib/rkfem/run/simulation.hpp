@@ -20,6 +20,9 @@ struct RunOptions
     /// Events between steps: called after each accepted step; returns true when it changed the
     /// discretization (the stepper is then started again; the energy ledger continues).
     std::function<bool(Model&, real_t t, std::int64_t step)> events;
+    /// Seconds spent before run_simulation on this run (reading the deck, building the model),
+    /// reported in summary.json's set-up time.
+    real_t setup_seconds = 0.0;
 };
 
 struct RunSummary
@@ -28,8 +31,13 @@ struct RunSummary
     std::string message;
     std::int64_t steps = 0;
     real_t end_time = 0.0;
-    real_t wall_seconds = 0.0;
-    real_t ns_per_element_cycle = 0.0; ///< per output cell: elements, and particles of cloud parts
+    real_t wall_seconds = 0.0;   ///< run_simulation from start to end: stepper start, steps, output
+    real_t setup_seconds = 0.0;  ///< RunOptions::setup_seconds plus the stepper's first start
+    real_t output_seconds = 0.0; ///< history rows, field outputs, summary not included
+    real_t stepping_seconds = 0.0; ///< wall - output - the stepper's first start
+    /// stepping_seconds per (work item x step): FE elements of element-integrated blocks and
+    /// stress points (particles, nodes) of nodal blocks, as they were at each step
+    real_t ns_per_element_cycle = 0.0;
     real_t dt_first = 0.0; ///< the first step [s]
     real_t dt_min = 0.0;   ///< the smallest step taken [s]
     real_t max_plastic_strain = 0.0; ///< largest element-average effective plastic strain at the end

@@ -700,6 +700,7 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
                 Model model = Model::build(deck);
                 check_step_budget(model);
                 RunOptions opt;
+                opt.setup_seconds = std::chrono::duration<real_t>(std::chrono::steady_clock::now() - t0).count();
                 opt.out_dir = dir.string();
                 opt.progress = progress;
                 opt.deck_path = sc.deck;

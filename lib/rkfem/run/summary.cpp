@@ -90,8 +90,12 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"steps\": " << s.steps << ",\n";
     o << "  \"end_time\": " << num(s.end_time) << ",\n";
     o << "  \"wall_seconds\": " << num(s.wall_seconds) << ",\n";
+    o << "  \"setup_seconds\": " << num(s.setup_seconds) << ",\n";
+    o << "  \"stepping_seconds\": " << num(s.stepping_seconds) << ",\n";
+    o << "  \"output_seconds\": " << num(s.output_seconds) << ",\n";
+    o << "  \"work_items\": " << model.n_work_items() << ",\n";
     o << "  \"ns_per_element_cycle\": " << num(s.ns_per_element_cycle) << ",\n";
-    o << "  \"seconds_per_step\": " << num(s.steps > 0 ? s.wall_seconds / s.steps : 0.0) << ",\n";
+    o << "  \"seconds_per_step\": " << num(s.steps > 0 ? s.stepping_seconds / s.steps : 0.0) << ",\n";
     o << "  \"dt_first\": " << num(s.dt_first) << ",\n";
     o << "  \"dt_min\": " << num(s.dt_min) << ",\n";
     o << "  \"dt_mean\": " << num(s.steps > 0 ? s.end_time / s.steps : 0.0) << ",\n";
