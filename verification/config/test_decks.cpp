@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <regex>
@@ -889,4 +890,82 @@ TEST(Decks, MessagesArePrintableAndShort)
     EXPECT_LT(big.output.size(), 600u) << big.output.substr(0, 600);
     EXPECT_NE(big.output.find("characters cut"), std::string::npos);
     EXPECT_NE(big.output.find("; expected a time"), std::string::npos);
+}
+
+namespace
+{
+/// Dataset `name` of results.h5's last step: its values (as doubles), bytes per value and filter count.
+struct StoredField
+{
+    std::vector<double> values;
+    std::size_t bytes = 0;
+    int filters = 0;
+};
+StoredField last_step_field(const fs::path& out, const std::string& name)
+{
+    StoredField r;
+    const hid_t f = H5Fopen((out / "results.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    EXPECT_GE(f, 0);
+    const hid_t steps = H5Gopen2(f, "steps", H5P_DEFAULT);
+    hsize_t n = 0;
+    H5Gget_num_objs(steps, &n);
+    char last[16];
+    std::snprintf(last, sizeof last, "%06d", static_cast<int>(n) - 1);
+    const hid_t d = H5Dopen2(steps, (std::string(last) + "/" + name).c_str(), H5P_DEFAULT);
+    const hid_t type = H5Dget_type(d), space = H5Dget_space(d), dcpl = H5Dget_create_plist(d);
+    r.bytes = H5Tget_size(type);
+    r.filters = H5Pget_nfilters(dcpl);
+    r.values.resize(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+    H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, r.values.data());
+    H5Pclose(dcpl);
+    H5Sclose(space);
+    H5Tclose(type);
+    H5Dclose(d);
+    H5Gclose(steps);
+    H5Fclose(f);
+    return r;
+}
+} // namespace
+
+// output: {precision, compression}. The same run stored three ways: double (the values), single
+// (each value is the double rounded to float, exactly; coordinates stay double), single with gzip
+// (the same floats, bitwise, from a chunked and filtered dataset); the XDMF index states each
+// dataset's precision so ParaView reads it; a level outside 0-9 is refused with its key.
+TEST(Decks, OutputPrecisionAndCompression)
+{
+    std::map<std::string, fs::path> outs;
+    for (const auto& [name, sets] : std::vector<std::pair<std::string, std::string>>{
+             {"double", "--set output.precision=double"},
+             {"single", ""},
+             {"gzip", "--set output.compression=4"}})
+    {
+        outs[name] = fs::temp_directory_path() / ("rkfem_out_storage_" + name);
+        fs::remove_all(outs[name]);
+        const Result r = run("run " + write_deck("storage.yaml", good) + " --out " + outs[name].string() + " --quiet " + sets);
+        ASSERT_EQ(r.code, 0) << r.output;
+    }
+    const StoredField d = last_step_field(outs["double"], "velocity"), s = last_step_field(outs["single"], "velocity"),
+                      g = last_step_field(outs["gzip"], "velocity");
+    EXPECT_EQ(d.bytes, 8u);
+    EXPECT_EQ(s.bytes, 4u);
+    EXPECT_EQ(g.bytes, 4u);
+    EXPECT_EQ(s.filters, 0);
+    EXPECT_EQ(g.filters, 2); // shuffle, deflate
+    ASSERT_EQ(d.values.size(), s.values.size());
+    double vmax = 0.0;
+    for (std::size_t i = 0; i < d.values.size(); ++i)
+    {
+        EXPECT_EQ(s.values[i], static_cast<double>(static_cast<float>(d.values[i]))) << i;
+        EXPECT_EQ(g.values[i], s.values[i]) << i;
+        vmax = std::max(vmax, std::abs(d.values[i]));
+    }
+    EXPECT_GT(vmax, 0.0); // the driven end moves: the comparison is not of zeros
+    EXPECT_EQ(last_step_field(outs["single"], "coordinates").bytes, 8u);
+    EXPECT_EQ(last_step_field(outs["gzip"], "coordinates").values, last_step_field(outs["double"], "coordinates").values);
+    std::ifstream x(outs["single"] / "results.xdmf");
+    const std::string xdmf((std::istreambuf_iterator<char>(x)), std::istreambuf_iterator<char>());
+    EXPECT_NE(xdmf.find("Precision=\"4\" Format=\"HDF\">results.h5:/steps/000000/velocity"), std::string::npos) << xdmf;
+    EXPECT_NE(xdmf.find("Precision=\"8\" Format=\"HDF\">results.h5:/steps/000000/coordinates"), std::string::npos);
+    expect_rejected("storage_level.yaml", good + "output: {compression: 12}\n", ":" + std::to_string(std::count(good.begin(), good.end(), '\n') + 1) + ": output.compression",
+                    "expected a gzip level from 0 (none) to 9 (smallest)");
 }

@@ -131,13 +131,22 @@ Deck build(const YAML::Node& root, Context& ctx)
         throw DeckError({ctx.name, ""}, "is not a YAML mapping",
                         "expected top-level keys title, time, parts, ...");
     Section top(ctx, root, "",
-                {"title", "time", "parts", "node_sets", "face_sets", "boundary_conditions",
+                {"title", "time", "output", "parts", "node_sets", "face_sets", "boundary_conditions",
                  "loads", "probes", "sections", "contacts", "impact"});
     Deck deck;
     deck.path = ctx.name;
     deck.title = top.text("title", "");
     deck.time = read_time(ctx, root);
     deck.time_loc = locate(ctx, root["time"], "time");
+    if (root["output"].IsDefined() && !root["output"].IsNull())
+    {
+        Section o(ctx, root["output"], "output", {"precision", "compression"});
+        deck.output.single = o.choice("precision", {"single", "double"}, "single") == "single";
+        const std::int64_t level = o.integer("compression", 0);
+        if (level < 0 || level > 9)
+            o.fail("compression", "is outside 0-9", "expected a gzip level from 0 (none) to 9 (smallest)");
+        deck.output.compression = static_cast<int>(level);
+    }
     top.require("parts", "a mapping of part names to parts");
     const YAML::Node parts = root["parts"];
     if (!parts.IsMap() || parts.size() == 0)

@@ -335,11 +335,19 @@ struct TimeSpec
     real_t mass_damping = 0.0; ///< dynamic-relaxation damping coefficient [1/s] (a -= c v)
 };
 
+/// Field output storage (results.h5): `output: {precision, compression}`.
+struct OutputSpec
+{
+    bool single = true; ///< fields as 32-bit floats (coordinates stay 64-bit); false: all 64-bit
+    int compression = 0; ///< gzip level 0-9 (with byte shuffle); 0: none
+};
+
 struct Deck
 {
     std::string path;
     std::string title;
     TimeSpec time;
+    OutputSpec output;
     std::vector<PartSpec> parts;
     std::vector<SetSpec> node_sets;
     std::vector<SetSpec> face_sets;

@@ -127,6 +127,8 @@ std::string to_yaml(const Deck& d)
        << (d.time.stepper == StepperKind::ArkodeErk ? ", erk_table: " + d.time.erk_table : std::string())
        << ", energy_error_limit: " << d.time.energy_error_limit
        << ", mass_damping: " << d.time.mass_damping << "}\n";
+    os << "output: {precision: " << (d.output.single ? "single" : "double") << ", compression: " << d.output.compression
+       << "}\n";
     os << "parts:\n";
     for (const auto& p : d.parts)
     {

@@ -23,7 +23,8 @@ std::string step_name(int i)
 }
 } // namespace
 
-ResultsWriter::ResultsWriter(const std::string& directory) : dir_(directory)
+ResultsWriter::ResultsWriter(const std::string& directory, const OutputSpec& storage)
+    : dir_(directory), storage_(storage)
 {
     const std::string path = dir_ + "/results.h5";
     file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
@@ -37,6 +38,12 @@ ResultsWriter::~ResultsWriter()
         H5Fclose(static_cast<hid_t>(file_));
 }
 
+void ResultsWriter::write_field(long long group, const char* name, const real_t* data, long long rows, long long cols) const
+{
+    write_dataset_as(static_cast<hid_t>(group), name, data, static_cast<hsize_t>(rows), static_cast<hsize_t>(cols),
+                     storage_.single ? H5T_IEEE_F32LE : H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, storage_.compression);
+}
+
 void ResultsWriter::write_mesh(const Model& model)
 {
     const hid_t f = static_cast<hid_t>(file_);
@@ -46,14 +53,16 @@ void ResultsWriter::write_mesh(const Model& model)
     const hid_t g = H5Gcreate2(f, mesh.group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     mesh.n_nodes = model.nodes.size();
     mesh.n_elements = model.n_elements();
-    write_dataset(g, "coordinates", model.nodes.x0.data(), mesh.n_nodes, 3);
+    write_dataset_as(g, "coordinates", model.nodes.x0.data(), mesh.n_nodes, 3, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE,
+                     storage_.compression);
     std::vector<index_t> conn, part;
     for (const auto& b : model.blocks)
     {
         conn.insert(conn.end(), b.conn.begin(), b.conn.end());
         part.insert(part.end(), b.n_elements(), b.part);
     }
-    write_dataset_int(g, "connectivity", conn.data(), mesh.n_elements, 8);
+    write_dataset_as(g, "connectivity", conn.data(), mesh.n_elements, 8, H5T_STD_I32LE, H5T_NATIVE_INT32,
+                     storage_.compression);
     // cloud parts: each particle is a vertex cell; with any, the XDMF topology is mixed
     // (XDMF cell codes: 9 hexahedron + 8 ids, 1 polyvertex + count 1 + id)
     mesh.n_cells = model.n_cells();
@@ -124,9 +133,9 @@ void ResultsWriter::write_step(const Model& model, real_t time)
     model.physical_field(model.nodes.v, v);
     for (std::size_t i = 0; i < x.size(); ++i)
         x[i] = model.nodes.x0[i] + u[i];
-    write_dataset(g, "coordinates", x.data(), n_nodes, 3);
-    write_dataset(g, "displacement", u.data(), n_nodes, 3);
-    write_dataset(g, "velocity", v.data(), n_nodes, 3);
+    write_dataset_as(g, "coordinates", x.data(), n_nodes, 3, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, storage_.compression);
+    write_field(g, "displacement", u.data(), n_nodes, 3);
+    write_field(g, "velocity", v.data(), n_nodes, 3);
     std::vector<real_t> stress(6 * n_cells), pressure(n_cells), eps(n_cells, 0.0), volume(n_cells),
         damage(n_cells, 0.0), delta(n_cells, 0.0);
     std::size_t c = 0;
@@ -165,12 +174,12 @@ void ResultsWriter::write_step(const Model& model, real_t time)
             delta[c] = model.nodal_history(i, Model::History::KccDelta);
         }
     }
-    write_dataset(g, "stress", stress.data(), n_cells, 6);
-    write_dataset(g, "pressure", pressure.data(), n_cells, 1);
-    write_dataset(g, "effective_plastic_strain", eps.data(), n_cells, 1);
-    write_dataset(g, "volume", volume.data(), n_cells, 1);
-    write_dataset(g, "damage", damage.data(), n_cells, 1);
-    write_dataset(g, "kcc_scaled_damage", delta.data(), n_cells, 1);
+    write_field(g, "stress", stress.data(), n_cells, 6);
+    write_field(g, "pressure", pressure.data(), n_cells, 1);
+    write_field(g, "effective_plastic_strain", eps.data(), n_cells, 1);
+    write_field(g, "volume", volume.data(), n_cells, 1);
+    write_field(g, "damage", damage.data(), n_cells, 1);
+    write_field(g, "kcc_scaled_damage", delta.data(), n_cells, 1);
     H5Gclose(g);
     H5Fflush(f, H5F_SCOPE_GLOBAL);
     times_.push_back(time);
@@ -235,14 +244,15 @@ void ResultsWriter::write_xdmf() const
               << "</Topology>\n"
               << "  <Geometry GeometryType=\"XYZ\">" << item((g + "/coordinates").c_str(), n_nodes, 3)
               << "</Geometry>\n";
+            const int fp = storage_.single ? 4 : 8; // the fields' bytes per value
             for (const char* v : {"displacement", "velocity"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
-                  << item((g + "/" + v).c_str(), n_nodes, 3) << "</Attribute>\n";
+                  << item((g + "/" + v).c_str(), n_nodes, 3, "Float", fp) << "</Attribute>\n";
             x << "  <Attribute Name=\"stress\" AttributeType=\"Tensor6\" Center=\"Cell\">"
-              << item((g + "/stress").c_str(), n_cells, 6) << "</Attribute>\n";
+              << item((g + "/stress").c_str(), n_cells, 6, "Float", fp) << "</Attribute>\n";
             for (const char* v : {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Scalar\" Center=\"Cell\">"
-                  << item((g + "/" + v).c_str(), n_cells, 1) << "</Attribute>\n";
+                  << item((g + "/" + v).c_str(), n_cells, 1, "Float", fp) << "</Attribute>\n";
             x << "  <Attribute Name=\"part\" AttributeType=\"Scalar\" Center=\"Cell\">"
               << item((m + "/part").c_str(), n_cells, 1, "Int", 4) << "</Attribute>\n";
             x << " </Grid>\n";

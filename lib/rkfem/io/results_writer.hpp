@@ -9,6 +9,8 @@
 ///       coordinates, displacement, velocity   n_nodes x 3
 ///       stress                                n_elem x 6  (xx yy zz xy yz zx) [Pa]
 ///       pressure, effective_plastic_strain, volume   n_elem
+/// Coordinates are 64-bit floats; the fields 32-bit (OutputSpec::single, the default) or 64-bit;
+/// with OutputSpec::compression every dataset is chunked, shuffled and gzipped at that level.
 /// The file is flushed and the XDMF index rewritten after every output, so a run that stops
 /// keeps everything written so far. When an event changes the topology (Model::
 /// topology_version), the next output first writes the new mesh as /mesh_NNNNNN (same layout);
@@ -16,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "rkfem/config/deck.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
@@ -25,7 +28,7 @@ class Model;
 class ResultsWriter
 {
   public:
-    explicit ResultsWriter(const std::string& directory);
+    explicit ResultsWriter(const std::string& directory, const OutputSpec& storage = {});
     ~ResultsWriter();
     ResultsWriter(const ResultsWriter&) = delete;
     ResultsWriter& operator=(const ResultsWriter&) = delete;
@@ -38,7 +41,10 @@ class ResultsWriter
 
   private:
     void write_xdmf() const;
+    /// A field dataset (rows x cols) at the deck's precision and compression.
+    void write_field(long long group, const char* name, const real_t* data, long long rows, long long cols) const;
     std::string dir_;
+    OutputSpec storage_;
     long long file_ = -1; // hid_t
     std::vector<real_t> times_;
     struct Mesh

@@ -216,7 +216,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         output_clock(
             [&]
             {
-                writer = std::make_unique<ResultsWriter>(opt.out_dir);
+                writer = std::make_unique<ResultsWriter>(opt.out_dir, model.deck().output);
                 writer->write_mesh(model);
                 csv.open(opt.out_dir + "/history.csv");
                 for (std::size_t i = 0; i < sum.history_columns.size(); ++i)
