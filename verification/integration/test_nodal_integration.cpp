@@ -225,3 +225,56 @@ TEST(NodalIntegration, ScniGradientsAgreeWithBruteForceQuadrature)
     EXPECT_LT(worst_div, 1e-4);
     EXPECT_LT(worst_2x2, 1e-2); // quadrature error of the 2x2 rule on RK functions (3.4e-3 here)
 }
+
+// The drop tolerance (rk.drop_tolerance, RkShapes): SCNI with the functions below 1e-5 of the
+// largest dropped at each facet point, the rest corrected to reproduce 1 and x there. IC1 and
+// linear gradient reproduction stay at round-off (a facet point shared by two cells gets the same
+// values from both); on a regular lattice at a/h = 1.51 an interior node's stencil falls
+// to 27 entries (81 non-zero before: the dropped ones reach the cell's faces from 1.5 h away,
+// with values below 1e-6 of the largest; jittered 0.3 h, 124 -> 117), and no gradient moves by
+// more than 1e-4 of the largest.
+TEST(NodalIntegration, DropToleranceKeepsTheConstraintAndShrinksTheStencil)
+{
+    for (const real_t jitter : {0.0, 0.3})
+    {
+        const HexMesh mesh = distorted_box(6, h, jitter);
+        const RkShapeFunctions rk = rk_on_mesh(mesh);
+        const RkShapes full(rk), dropped(rk, 1e-5);
+        const IntegrationOperator a = build_scni(mesh, full), b = build_scni(mesh, dropped);
+        const real_t ic = ic1_error(mesh, b, dropped), lin = linear_gradient_error(mesh, b, h);
+        // the interior node (3, 3, 3): its stencils, and the largest change of any gradient
+        const index_t centre = 3 + 7 * (3 + 7 * 3);
+        real_t change = 0.0, scale = 0.0;
+        for (index_t p = 0; p < a.n_points(); ++p)
+        {
+            std::map<index_t, Vec3> g; // a's entries minus b's, by node (zero where absent)
+            for (index_t k = a.offsets[p]; k < a.offsets[p + 1]; ++k)
+                g.emplace(a.nodes[k], Vec3::Zero());
+            for (index_t k = b.offsets[p]; k < b.offsets[p + 1]; ++k)
+                g.emplace(b.nodes[k], Vec3::Zero());
+            for (index_t k = a.offsets[p]; k < a.offsets[p + 1]; ++k)
+            {
+                g[a.nodes[k]] += a.gradient(k);
+                scale = std::max(scale, a.gradient(k).norm());
+            }
+            for (index_t k = b.offsets[p]; k < b.offsets[p + 1]; ++k)
+                g[b.nodes[k]] -= b.gradient(k);
+            for (const auto& [n, d] : g)
+                change = std::max(change, d.norm());
+        }
+        const index_t na = a.offsets[centre + 1] - a.offsets[centre], nb = b.offsets[centre + 1] - b.offsets[centre];
+        std::printf("jitter %.1f: IC1 error %.2e, linear gradient error %.2e, centre stencil %d -> %d entries, "
+                    "entries %d -> %d, largest gradient change / largest gradient %.2e\n",
+                    jitter, ic, lin, na, nb, a.n_entries(), b.n_entries(), change / scale);
+        EXPECT_LT(ic, 1e-13);
+        EXPECT_LT(lin, 1e-12);
+        EXPECT_LT(change / scale, 1e-4); // a few times the tolerance: 4e-6 regular, 2e-5 jittered
+        if (jitter == 0.0)
+        {
+            EXPECT_EQ(na, 81);
+            EXPECT_EQ(nb, 27);
+        }
+        else
+            EXPECT_LT(b.n_entries(), a.n_entries());
+    }
+}

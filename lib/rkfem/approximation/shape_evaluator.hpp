@@ -43,11 +43,17 @@ class FemShapes final : public ShapeEvaluator
     const HexMesh& mesh_;
 };
 
-/// RK shape functions (the element and xi are not needed).
+/// RK shape functions (the element and xi are not needed). With a drop tolerance tau > 0 the
+/// values at a point lose the functions below tau times the largest there, and the rest are
+/// corrected to reproduce 1 and x at the point again (prune_rk_values): the smoothed gradients
+/// built from them keep linear consistency and, since a facet point shared by two cells gets the
+/// same values from both, the integration constraint; their stencils shrink (at a/h = 1.51 on a
+/// lattice the 98 of 125 SCNI neighbours that only touch a cell's faces from 1.5 h away, with
+/// values about 6e-7 of the largest, go: 27 are left).
 class RkShapes final : public ShapeEvaluator
 {
   public:
-    explicit RkShapes(const RkShapeFunctions& rk) : rk_(rk) {}
+    explicit RkShapes(const RkShapeFunctions& rk, real_t drop_tolerance = 0.0) : rk_(rk), tau_(drop_tolerance) {}
     void values(index_t, const Vec3&, const Vec3& x, std::vector<index_t>& nodes,
                 std::vector<real_t>& psi) const override
     {
@@ -55,6 +61,8 @@ class RkShapes final : public ShapeEvaluator
         rk_.evaluate(x, false, s);
         nodes = s.nodes;
         psi = s.psi;
+        if (tau_ > 0.0)
+            prune_rk_values(rk_, x, tau_, nodes, psi);
     }
     void gradients_at_node(index_t i, std::vector<index_t>& nodes, std::vector<Vec3>& grad) const override
     {
@@ -66,5 +74,6 @@ class RkShapes final : public ShapeEvaluator
 
   private:
     const RkShapeFunctions& rk_;
+    real_t tau_ = 0.0;
 };
 } // namespace rkfem

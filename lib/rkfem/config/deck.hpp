@@ -128,6 +128,9 @@ struct RkSpec
     std::string kernel = "cubic-bspline"; ///< cubic-bspline | quintic-bspline | gaussian
     std::string support = "box";          ///< box | sphere
     real_t normalized_support = 1.51;     ///< a / h, h = longest incident mesh edge
+    /// Smoothed-gradient stencils drop the functions below this fraction of the largest at each
+    /// facet point (RkShapes, prune_rk_values; order 1 only): 0 keeps them all
+    real_t drop_tolerance = 1e-5;
     SourceLocation loc;
 };
 

@@ -253,7 +253,7 @@ std::string to_yaml(const Deck& d)
         }
         if (p.formulation == Formulation::Rkpm || p.coupled())
             os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
-               << ", normalized_support: " << p.rk.normalized_support << "}\n";
+               << ", normalized_support: " << p.rk.normalized_support << ", drop_tolerance: " << p.rk.drop_tolerance << "}\n";
         if (p.formulation == Formulation::Fem1pt)
         {
             const char* t = p.hourglass.type == HourglassType::Viscous     ? "viscous"

@@ -460,13 +460,18 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     {
         if (p.formulation != Formulation::Rkpm && !p.coupled())
             ignore(p, s, "rk", f);
-        Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support"});
+        Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support", "drop_tolerance"});
         p.rk.loc = r.loc();
         const std::string order = r.choice("order", {"1", "2"}, "1");
         p.rk.order = order == "1" ? 1 : 2;
         p.rk.kernel = r.choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
         p.rk.support = r.choice("support", {"box", "sphere"}, "box");
         p.rk.normalized_support = r.quantity("normalized_support", dim::none, 1.51);
+        p.rk.drop_tolerance = r.quantity("drop_tolerance", dim::none, p.rk.order == 1 ? 1e-5 : 0.0);
+        if (!(p.rk.drop_tolerance >= 0.0 && p.rk.drop_tolerance <= 1e-2))
+            r.fail("drop_tolerance", "is outside [0, 0.01]", "expected a small fraction such as 1e-5 (0: keep every function)");
+        if (p.rk.drop_tolerance > 0.0 && p.rk.order != 1)
+            r.fail("drop_tolerance", "restores linear reproduction only", "expected drop_tolerance: 0 with order 2");
         const real_t c = p.rk.normalized_support;
         if (!(c >= 1.0 && c <= 4.0))
             r.fail("normalized_support", "is outside [1, 4]", "expected a / h between 1 and 4 (box 1.5-1.8, sphere 1.6-2.0)");

@@ -109,7 +109,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     if (ps.formulation == Formulation::Rkpm)
     {
         rk = std::make_shared<const RkShapeFunctions>(rk_on_mesh(mesh, rk_params(ps.rk)));
-        shapes = std::make_unique<RkShapes>(*rk);
+        shapes = std::make_unique<RkShapes>(*rk, ps.rk.drop_tolerance);
         nb.rk = rk;
     }
     else
@@ -352,7 +352,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     nb.rk = rk;
     try
     {
-        const RkShapes shapes(*rk);
+        const RkShapes shapes(*rk, ps.rk.drop_tolerance);
         // SD-SCNI on a cloud: each Voronoi cell's pyramids (VoronoiCells::sub_cells, the sub-cells
         // MSCNI uses) are stress points of their own, owned by the cell's particle
         nb.points = ps.nodal.scheme == "dni"       ? build_dni_cells(cells.volume, cloud.x, shapes)

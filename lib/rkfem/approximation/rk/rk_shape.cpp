@@ -226,6 +226,43 @@ void RkShapeFunctions::hessians(const Vec3& x, std::vector<index_t>& nodes, std:
         m = 0.5 * (m + m.transpose()).eval();
 }
 
+void prune_rk_values(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
+                     std::vector<real_t>& psi)
+{
+    real_t big = 0.0;
+    for (real_t v : psi)
+        big = std::max(big, std::abs(v));
+    std::size_t w = 0;
+    real_t s = 0.0;
+    for (std::size_t k = 0; k < psi.size(); ++k)
+        if (std::abs(psi[k]) >= tau * big)
+        {
+            nodes[w] = nodes[k];
+            psi[w++] = psi[k];
+            s = std::max(s, (rk.position(nodes[k]) - x).cwiseAbs().maxCoeff());
+        }
+    if (w == psi.size())
+        return;
+    nodes.resize(w);
+    psi.resize(w);
+    // residual of the reproducing conditions, then the weighted correction
+    Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d r(1.0, 0.0, 0.0, 0.0);
+    std::vector<Eigen::Vector4d> H(w);
+    for (std::size_t k = 0; k < w; ++k)
+    {
+        const Vec3 d = (rk.position(nodes[k]) - x) / s;
+        H[k] = Eigen::Vector4d(1.0, d[0], d[1], d[2]);
+        r -= psi[k] * H[k];
+        M += std::abs(psi[k]) * H[k] * H[k].transpose();
+    }
+    const Eigen::Vector4d c = M.ldlt().solve(r);
+    RKFEM_REQUIRE(c.allFinite(), "RK drop tolerance: the functions left at (" << x.transpose()
+                                                                              << ") do not span a linear field");
+    for (std::size_t k = 0; k < w; ++k)
+        psi[k] += std::abs(psi[k]) * H[k].dot(c);
+}
+
 RkShapeFunctions rk_on_mesh(const HexMesh& mesh, const RkParams& params)
 {
     std::vector<real_t> a = nodal_spacing(mesh);

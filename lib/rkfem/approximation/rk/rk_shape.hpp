@@ -105,6 +105,12 @@ class RkShapeFunctions
     CellList cells_;
 };
 
+/// Drops the values psi_k < tau max |psi| of the functions at x (nodes, psi from evaluate) and
+/// corrects the rest, psi_k += |psi_k| H_k . c with H_k = (1, (x_k - x) / s), so that they
+/// reproduce 1 and x at x again (a 4 x 4 solve). Nothing changes when nothing is dropped.
+void prune_rk_values(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
+                     std::vector<real_t>& psi);
+
 /// h_I = the longest (or, with longest = false, the shortest) mesh edge incident to node I, per
 /// node, in the mesh's configuration.
 std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest = true);
