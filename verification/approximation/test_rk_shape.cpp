@@ -4,6 +4,7 @@
 // zero weight on the support boundary, and a named error for a singular moment matrix.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <random>
 
@@ -282,4 +283,47 @@ TEST(RkShape, HessiansReproduceWhatTheBasisReproduces)
         std::printf("quadratic basis: max |sum H x_a x_b - d2(x_a x_b)| = %.1e\n", worst);
         EXPECT_LT(worst, 1e-9);
     }
+}
+
+// prune_rk_hessians (NSNI with rk.drop_tolerance): the second derivatives left after dropping
+// those below tau of the largest, corrected, still sum to zero and annihilate x_I to round-off,
+// stay exactly symmetric, and move by a few tau of the largest.
+TEST(RkShape, DroppedHessiansKeepTheirIdentities)
+{
+    const real_t h = 0.1, tau = 1e-3;
+    Cloud cl = make_cloud(6, h, 0.3, {1, KernelType::CubicBSpline, SupportShape::Box, 1.51});
+    std::vector<index_t> nodes, kept;
+    std::vector<Mat3> H, Hk;
+    real_t identities = 0.0, change = 0.0;
+    std::size_t before = 0, after = 0;
+    for (const Vec3& x : sample_points(40, 0.1, 0.5, 19))
+    {
+        cl.rk.hessians(x, nodes, H);
+        kept = nodes;
+        Hk = H;
+        prune_rk_hessians(cl.rk, x, tau, kept, Hk);
+        before += nodes.size();
+        after += kept.size();
+        real_t scale = 0.0;
+        for (const Mat3& m : H)
+            scale = std::max(scale, m.cwiseAbs().maxCoeff());
+        Mat3 sum = Mat3::Zero(), sx[3] = {Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
+        for (std::size_t k = 0; k < kept.size(); ++k)
+        {
+            sum += Hk[k];
+            for (int a = 0; a < 3; ++a)
+                sx[a] += Hk[k] * (cl.rk.position(kept[k])[a] - x[a]);
+            EXPECT_EQ((Hk[k] - Hk[k].transpose()).cwiseAbs().maxCoeff(), 0.0);
+            const auto it = std::find(nodes.begin(), nodes.end(), kept[k]);
+            change = std::max(change, (Hk[k] - H[static_cast<std::size_t>(it - nodes.begin())]).cwiseAbs().maxCoeff() / scale);
+        }
+        identities = std::max(identities, sum.cwiseAbs().maxCoeff() / scale);
+        for (int a = 0; a < 3; ++a)
+            identities = std::max(identities, sx[a].cwiseAbs().maxCoeff() / (h * scale));
+    }
+    std::printf("dropped Hessians: %zu -> %zu entries, identities %.1e, largest change / largest %.1e\n", before, after,
+                identities, change);
+    EXPECT_LT(after, before);
+    EXPECT_LT(identities, 1e-12);
+    EXPECT_LT(change, 10 * tau);
 }

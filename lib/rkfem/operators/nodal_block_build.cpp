@@ -120,7 +120,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
         if (scheme == NodalScheme::Scni && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
         {
             nb.stabilization = ps.nodal.stabilization == "nsni" && rk
-                                   ? build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh))
+                                   ? build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh), ps.rk.drop_tolerance)
                                    : build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
             nb.stabilization_triplets = ps.nodal.stabilization == "nsni" && rk;
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
@@ -361,7 +361,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         if (ps.nodal.scheme == "scni" && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
         {
             nb.stabilization = ps.nodal.stabilization == "nsni"
-                                   ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume))
+                                   ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume), ps.rk.drop_tolerance)
                                    : build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
             nb.stabilization_triplets = ps.nodal.stabilization == "nsni";
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;

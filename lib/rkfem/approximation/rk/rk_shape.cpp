@@ -263,6 +263,51 @@ void prune_rk_values(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std:
         psi[k] += std::abs(psi[k]) * H[k].dot(c);
 }
 
+void prune_rk_hessians(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
+                       std::vector<Mat3>& H)
+{
+    real_t big = 0.0;
+    for (const Mat3& m : H)
+        big = std::max(big, m.cwiseAbs().maxCoeff());
+    std::size_t w = 0;
+    real_t s = 0.0;
+    for (std::size_t k = 0; k < H.size(); ++k)
+        if (H[k].cwiseAbs().maxCoeff() >= tau * big)
+        {
+            s = std::max(s, (rk.position(nodes[k]) - x).cwiseAbs().maxCoeff());
+            nodes[w] = nodes[k];
+            H[w++] = H[k];
+        }
+    if (w == H.size())
+        return;
+    nodes.resize(w);
+    H.resize(w);
+    // residuals of sum H = 0 and sum H (x_k - x) = 0, per component, and the weighted correction
+    Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+    Mat3 r[4] = {Mat3::Zero(), Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
+    std::vector<Eigen::Vector4d> B(w);
+    std::vector<real_t> weight(w);
+    for (std::size_t k = 0; k < w; ++k)
+    {
+        const Vec3 d = (rk.position(nodes[k]) - x) / s;
+        B[k] = Eigen::Vector4d(1.0, d[0], d[1], d[2]);
+        weight[k] = H[k].cwiseAbs().maxCoeff();
+        for (int a = 0; a < 4; ++a)
+            r[a] -= B[k][a] * H[k];
+        M += weight[k] * B[k] * B[k].transpose();
+    }
+    const Eigen::Matrix4d Mi = M.inverse();
+    RKFEM_REQUIRE(Mi.allFinite(), "RK drop tolerance: the second derivatives left at (" << x.transpose()
+                                                                                        << ") do not span a linear field");
+    Mat3 c[4];
+    for (int a = 0; a < 4; ++a)
+        c[a] = Mi(a, 0) * r[0] + Mi(a, 1) * r[1] + Mi(a, 2) * r[2] + Mi(a, 3) * r[3];
+    for (std::size_t k = 0; k < w; ++k)
+        H[k] += weight[k] * (B[k][0] * c[0] + B[k][1] * c[1] + B[k][2] * c[2] + B[k][3] * c[3]);
+    for (Mat3& m : H)
+        m = 0.5 * (m + m.transpose()).eval(); // exactly symmetric again
+}
+
 RkShapeFunctions rk_on_mesh(const HexMesh& mesh, const RkParams& params)
 {
     std::vector<real_t> a = nodal_spacing(mesh);

@@ -111,6 +111,12 @@ class RkShapeFunctions
 void prune_rk_values(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
                      std::vector<real_t>& psi);
 
+/// The same for second derivatives (hessians): drops H_k with max |H_k| < tau max_k max |H_k| and
+/// corrects the rest, H_k += w_k sum_a B_ka C_a (w_k = max |H_k|, B_k = (1, (x_k - x) / s)), so
+/// that sum H = 0 and sum H (x) x_k = 0 hold again; H stays symmetric.
+void prune_rk_hessians(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
+                       std::vector<Mat3>& H);
+
 /// h_I = the longest (or, with longest = false, the shortest) mesh edge incident to node I, per
 /// node, in the mesh's configuration.
 std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest = true);

@@ -97,7 +97,13 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
     op.position = std::move(position);
     op.owner = std::move(owner);
     op.offsets.assign(1, 0);
+    std::size_t total = 0;
     for (const auto& e : entries)
+        total += e.size();
+    op.nodes.reserve(total);
+    op.grad.reserve(3 * total);
+    op.offsets.reserve(entries.size() + 1);
+    for (auto& e : entries)
     {
         for (const auto& [n, g] : e)
         {
@@ -105,6 +111,7 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
             op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
         }
         op.offsets.push_back(op.n_entries());
+        Entries().swap(e); // free as we go
     }
     return op;
 }
@@ -299,7 +306,7 @@ IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, c
 }
 
 IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
-                                             const std::vector<real_t>& moments)
+                                             const std::vector<real_t>& moments, real_t drop_tolerance)
 {
     const index_t np = points.n_points();
     RKFEM_REQUIRE(moments.size() == 3 * static_cast<std::size_t>(np),
@@ -312,7 +319,12 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
     {
         try
         {
-            rk.hessians(rk.position(points.owner[p]), nodes[p], hess[p]);
+            const Vec3 x = rk.position(points.owner[p]);
+            rk.hessians(x, nodes[p], hess[p]);
+            if (drop_tolerance > 0.0)
+                prune_rk_hessians(rk, x, drop_tolerance, nodes[p], hess[p]);
+            nodes[p].shrink_to_fit();
+            hess[p].shrink_to_fit();
         }
         catch (...)
         {
@@ -325,6 +337,16 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
         std::rethrow_exception(error);
     IntegrationOperator op;
     op.offsets.assign(1, 0);
+    std::size_t entries = 0;
+    for (const auto& n : nodes)
+        entries += 3 * n.size();
+    op.nodes.reserve(entries);
+    op.grad.reserve(3 * entries);
+    op.offsets.reserve(3 * static_cast<std::size_t>(np) + 1);
+    op.weight.reserve(3 * static_cast<std::size_t>(np));
+    op.position.reserve(9 * static_cast<std::size_t>(np));
+    op.owner.reserve(3 * static_cast<std::size_t>(np));
+    op.parent.reserve(3 * static_cast<std::size_t>(np));
     for (index_t p = 0; p < np; ++p)
         for (int i = 0; i < 3; ++i)
         {
@@ -340,6 +362,11 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
                 op.grad.insert(op.grad.end(), {H(i, 0), H(i, 1), H(i, 2)});
             }
             op.offsets.push_back(op.n_entries());
+            if (i == 2)
+            {
+                std::vector<index_t>().swap(nodes[p]); // free as we go: the peak is the operator
+                std::vector<Mat3>().swap(hess[p]);
+            }
         }
     return op;
 }

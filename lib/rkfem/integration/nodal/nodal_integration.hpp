@@ -57,8 +57,9 @@ IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, c
 /// quadratic form sum_i M_i eps_,i : C : eps_,i stiffens the modes SCNI leaves soft. Entries
 /// cover the particles around x_p only (27 on a lattice with support 1.51 h), about a fifth of
 /// MSCNI's (8 sub-cells of about 125 entries).
+/// With drop_tolerance > 0 the second derivatives go through prune_rk_hessians.
 IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
-                                             const std::vector<real_t>& moments);
+                                             const std::vector<real_t>& moments, real_t drop_tolerance = 0.0);
 
 /// Second moments of the nodal (hex-dual) cells about their nodes, 3 per node:
 /// M_iL = int_{Omega_L} (x_i - X_Li)^2 dOmega, by 2 x 2 x 2 Gauss points on each sub-hex (exact
