@@ -1,0 +1,73 @@
+// Whole steps of the seed's own decks (studies/decks): the P3 cantilever (1 in hexes / 1,400
+// particles, J2 steel) and the P1 cylinder (K&C concrete, 0.5 in), each as fem-1pt and rkpm (its
+// defaults: SCNI + NSNI, rk.drop_tolerance 1e-5), one arkode-cd step per iteration with every
+// per-step pass the driver runs (no output). Counters: ns per node-step (the comparison:
+// both formulations have the same nodes), over the first 600 steps, ns per work item (elements or particles) and the
+// resident bytes the model added per work item (the process's RSS before and after Model::build,
+// so set-up scratch that was freed does not count).
+#include <benchmark/benchmark.h>
+
+#include <fstream>
+#include <omp.h>
+#include <string>
+#include <unistd.h>
+
+#include "rkfem/config/deck.hpp"
+#include "rkfem/model/model.hpp"
+#include "rkfem/time/stepper.hpp"
+
+using namespace rkfem;
+
+namespace
+{
+double resident_bytes()
+{
+    std::ifstream statm("/proc/self/statm");
+    long pages = 0, resident = 0;
+    statm >> pages >> resident;
+    return static_cast<double>(resident) * static_cast<double>(sysconf(_SC_PAGESIZE));
+}
+
+const char* deck_path(int deck) { return deck == 0 ? "p3_cantilever.yaml" : "p1_uuc_cylinder.yaml"; }
+
+void BM_SeedDeckStep(benchmark::State& state)
+{
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(static_cast<int>(state.range(2)));
+    const int deck = static_cast<int>(state.range(0));
+    const bool rk = state.range(1) == 1;
+    const std::string part = deck == 0 ? "beam" : "cylinder";
+    const double rss0 = resident_bytes();
+    Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/" + deck_path(deck),
+                                     {"parts." + part + ".formulation=" + (rk ? "rkpm" : "fem-1pt")}));
+    const double bytes = resident_bytes() - rss0;
+    auto stepper = make_stepper(m.deck().time);
+    StepReport r = stepper->initialize(m, 0.0);
+    real_t t = 0.0;
+    std::int64_t k = 0;
+    for (auto _ : state)
+    {
+        r = stepper->step(m, t, m.deck().time.dt_scale * r.dt_stable, ++k); // the driver's step
+        t = r.t;
+        benchmark::DoNotOptimize(m.nodes.u.data());
+    }
+    const double nn = m.nodes.size(), items = m.n_work_items();
+    state.counters["nodes"] = nn;
+    state.counters["work_items"] = items;
+    state.counters["ns_per_node_step"] =
+        benchmark::Counter(nn * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    state.counters["ns_per_item_step"] =
+        benchmark::Counter(items * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    state.counters["bytes_per_item"] = bytes / items;
+    omp_set_num_threads(saved);
+}
+} // namespace
+
+// deck 0: P3 cantilever, 1: P1 cylinder (0.5 in); form 0: fem-1pt, 1: rkpm
+BENCHMARK(BM_SeedDeckStep)
+    ->ArgNames({"deck", "rkpm", "threads"})
+    ->ArgsProduct({{0, 1}, {0, 1}, {1}})
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(600); // the first 600 steps: within each deck's end time
+
+BENCHMARK_MAIN();
