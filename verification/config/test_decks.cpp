@@ -301,6 +301,9 @@ TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
     const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
     EXPECT_EQ(r.code, 3) << r.output;
     EXPECT_NE(r.output.find("run stopped"), std::string::npos) << r.output;
+    // one line: ARKODE's own error lines (it printed them even with --quiet) are not echoed
+    EXPECT_EQ(r.output.find("ARKODE ERROR"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     EXPECT_TRUE(fs::exists(out / "results.xdmf"));
     std::ifstream summary(out / "summary.json");
     std::string text((std::istreambuf_iterator<char>(summary)), std::istreambuf_iterator<char>());

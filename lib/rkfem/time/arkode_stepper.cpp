@@ -1,6 +1,7 @@
 #include "rkfem/time/arkode_stepper.hpp"
 
 #include <algorithm>
+#include <string>
 #include <arkode/arkode_erkstep.h>
 #include <cmath>
 #include <exception>
@@ -109,6 +110,14 @@ struct ArkodeStepper::Impl
     std::vector<real_t> state; ///< (u, v), 6 n: the serial vector's values
     ExplicitOperator* model = nullptr;
     index_t n3 = 0;
+    /// ARKODE's own last error line: kept for rkfem's message instead of printed to stderr
+    std::string arkode_message;
+    static void error_handler(int code, const char* module, const char* function, char* msg, void* data)
+    {
+        auto* im = static_cast<Impl*>(data);
+        im->arkode_message = std::string(module ? module : "ARKODE") + " " + (function ? function : "") + " (" +
+                             std::to_string(code) + "): " + (msg ? msg : "");
+    }
     // central difference
     real_t h_prev = 0.0, h_pending = 0.0;
     real_t h_next = 0.0;          ///< the step the last evaluation's kick was formed with
@@ -292,7 +301,8 @@ struct ArkodeStepper::Impl
             error = nullptr;
             std::rethrow_exception(e);
         }
-        RKFEM_REQUIRE(flag >= 0, "ARKODE " << what << " failed with flag " << flag);
+        RKFEM_REQUIRE(flag >= 0, "ARKODE " << what << " failed with flag " << flag
+                                           << (arkode_message.empty() ? "" : ": " + arkode_message));
     }
 };
 
@@ -341,6 +351,8 @@ StepReport ArkodeStepper::initialize(ExplicitOperator& model, real_t t)
     im.mem = ERKStepCreate(Impl::rhs, t, im.y, im.ctx);
     RKFEM_REQUIRE(im.mem != nullptr, "ARKODE: ERKStepCreate failed");
     im.check(ERKStepSetUserData(im.mem, &im), "ERKStepSetUserData");
+    // ARKODE's error lines go into the failure's message (it printed them to stderr, --quiet too)
+    im.check(ERKStepSetErrHandlerFn(im.mem, Impl::error_handler, &im), "ERKStepSetErrHandlerFn");
     im.table = static_cast<ARKodeButcherTable>(
         make_erk_table(mode_ == Mode::CentralDifference ? "FORWARD_EULER" : ts_.erk_table));
     im.check(ERKStepSetTable(im.mem, im.table), "ERKStepSetTable");
