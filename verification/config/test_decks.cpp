@@ -972,3 +972,11 @@ TEST(Decks, OutputPrecisionAndCompression)
     expect_rejected("storage_level.yaml", good + "output: {compression: 12}\n", ":" + std::to_string(std::count(good.begin(), good.end(), '\n') + 1) + ": output.compression",
                     "expected a gzip level from 0 (none) to 9 (smallest)");
 }
+
+// Nesting past yaml-cpp's depth guard: one located line that says so (it said "YAML syntax error:
+// bad file").
+TEST(Decks, DeepNestingIsNamed)
+{
+    const std::string deep = "title: x\ntime: {end: 1 us}\nparts: " + std::string(2100, '[') + std::string(2100, ']') + "\n";
+    expect_rejected("deep_nesting.yaml", deep, ":3: deck", "nested deeper than the YAML reader allows");
+}

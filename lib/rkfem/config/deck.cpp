@@ -9,6 +9,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include "rkfem/core/error.hpp"
@@ -329,6 +330,13 @@ YAML::Node load_document(const std::string& text, const std::string& name)
     try
     {
         docs = YAML::LoadAll(text);
+    }
+    catch (const YAML::DeepRecursion& e)
+    {
+        // yaml-cpp stops at a fixed depth and says only "bad file"
+        throw DeckError({name + ":" + std::to_string(e.mark.line + 1), ""},
+                        "nested deeper than the YAML reader allows (" + std::to_string(e.depth()) + " levels)",
+                        "expected a deck nested a few levels deep");
     }
     catch (const YAML::Exception& e)
     {
