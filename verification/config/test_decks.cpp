@@ -308,6 +308,36 @@ TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
     std::ifstream summary(out / "summary.json");
     std::string text((std::istreambuf_iterator<char>(summary)), std::istreambuf_iterator<char>());
     EXPECT_NE(text.find("\"status\": \"unstable\""), std::string::npos) << text;
+
+    // the step that failed is not counted (steps and end_time are the last good step's, here the
+    // start), and the state it failed in is the last frame, at its own time (it was written at the
+    // last good time: two frames at t = 0), with both steppers
+    for (const char* stepper : {"arkode-cd", "central-difference"})
+    {
+        const fs::path o = fs::temp_directory_path() / (std::string("rkfem_out_unstable_") + stepper);
+        fs::remove_all(o);
+        const Result rs = run("run " + deck + " --out " + o.string() + " --quiet --set time.stepper=" + stepper);
+        ASSERT_EQ(rs.code, 3) << rs.output;
+        std::ifstream js(o / "summary.json");
+        const std::string sj((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+        std::smatch m;
+        ASSERT_TRUE(std::regex_search(sj, m, std::regex("\"steps\": ([0-9]+),"))) << sj;
+        EXPECT_EQ(m[1].str(), "0") << stepper;
+        ASSERT_TRUE(std::regex_search(sj, m, std::regex("\"end_time\": ([-0-9.e+]+),"))) << sj;
+        EXPECT_EQ(std::stod(m[1].str()), 0.0) << stepper;
+        ASSERT_TRUE(std::regex_search(sj, m, std::regex("\"failed_time\": ([-0-9.e+]+),"))) << sj;
+        const double failed = std::stod(m[1].str());
+        EXPECT_GT(failed, 0.0) << stepper;
+        std::ifstream xf(o / "results.xdmf");
+        const std::string xdmf((std::istreambuf_iterator<char>(xf)), std::istreambuf_iterator<char>());
+        std::vector<double> times;
+        const std::regex tv("<Time Value=\"([^\"]+)\"");
+        for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), tv); it != std::sregex_iterator(); ++it)
+            times.push_back(std::stod((*it)[1].str()));
+        ASSERT_EQ(times.size(), 2u) << xdmf;
+        EXPECT_EQ(times[0], 0.0);
+        EXPECT_NEAR(times[1], failed, 1e-10 * failed) << stepper; // summary.json has 12 digits
+    }
 }
 
 TEST(Decks, ConcreteRunsWriteDamageFields)

@@ -3,6 +3,7 @@
 /// Two tiers of checks: RKFEM_REQUIRE (always on; user-facing; throws rkfem::Error with the
 /// message streamed from the offending values) and RKFEM_ASSERT (debug-only internal invariant).
 #include <sstream>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -20,6 +21,9 @@ class InstabilityError : public Error
 {
   public:
     explicit InstabilityError(const std::string& what) : Error(what) {}
+    /// `state_time`: the time of the state that failed (a step's end or a stage), when known
+    InstabilityError(const std::string& what, double state_time) : Error(what), time(state_time) {}
+    double time = std::numeric_limits<double>::quiet_NaN();
 };
 } // namespace rkfem
 

@@ -70,7 +70,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
                 os << "integration point " << r.bad_element << " (owner node " << nb.points.owner[r.bad_element]
                    << ", part '" << parts[ib].name << "') has non-positive or NaN det F = "
                    << nb.jacobian[r.bad_element] << " at t = " << t << " s, step " << step;
-                throw InstabilityError(os.str());
+                throw InstabilityError(os.str(), t);
             }
             book(r, offset, ib); // first element of the part; nodal points are not elements
             assemble_nodal_forces(nb, nodes, add);
@@ -88,7 +88,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
                        << "', local " << part_element(rf.bad_element) << ") has non-positive or NaN volume "
                        << element_volume(side.block, nodes, rf.bad_element) << " m^3 at t = " << t << " s, step "
                        << step;
-                    throw InstabilityError(os.str());
+                    throw InstabilityError(os.str(), t);
                 }
                 book(rf, rf.dt_element >= 0 ? offset + part_element(rf.dt_element) : offset, ib);
                 assemble_block_forces(side.block, nodes, true);
@@ -103,7 +103,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
             os << "element " << offset + r.bad_element << " (part '" << parts[ib].name
                << "', local " << r.bad_element << ") has non-positive or NaN volume "
                << element_volume(blk, nodes, r.bad_element) << " m^3 at t = " << t << " s, step " << step;
-            throw InstabilityError(os.str());
+            throw InstabilityError(os.str(), t);
         }
         book(r, offset + r.dt_element, ib);
         assemble_block_forces(blk, nodes, add);
@@ -283,7 +283,7 @@ void Model::check(real_t t, std::int64_t step) const
     std::ostringstream os;
     os << "non-finite acceleration or displacement at node " << bad << " (part '" << parts[nodes.part[bad]].name
        << "') at t = " << t << " s, step " << step;
-    throw InstabilityError(os.str());
+    throw InstabilityError(os.str(), t);
 }
 
 std::vector<index_t> Model::velocity_driven_dofs() const

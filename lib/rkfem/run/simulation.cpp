@@ -249,6 +249,8 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     real_t next_history = 0.0;
     real_t dt_last = 0.0;
     std::size_t element_steps = 0;
+    bool in_step = false; // a step is under way: a failure in it leaves t and step at the last good one
+    real_t failed_time = -1.0;
     try
     {
         StepReport rep = stepper->initialize(model, t);
@@ -302,7 +304,9 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                 throw InstabilityError("time step collapsed to " + std::to_string(dt) + " s at t = " +
                                        std::to_string(t) + " s, step " + std::to_string(step));
             ++step;
+            in_step = true;
             rep = stepper->step(model, t, dt, step);
+            in_step = false;
             t = rep.t;
             dt_last = dt;
             if (step == 1)
@@ -342,13 +346,19 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     {
         sum.status = "unstable";
         sum.message = e.what();
-        // keep the last good state on disk: the fields written so far plus this state
+        // the fields written so far stay; the state the run failed in is written as a last frame
+        // at its own time (a step's end, or an ERK stage), so that the frame can be inspected
+        // and is never labelled with the last good time
+        failed_time = std::isfinite(e.time) ? e.time : t;
         if (writer)
-            output_clock([&] { writer->write_step(model, t); });
+            output_clock([&] { writer->write_step(model, failed_time); });
+        if (in_step)
+            --step; // the failed step is not counted: steps and end_time are the last good step's
     }
     progress.finish();
     sum.steps = step;
     sum.end_time = t;
+    sum.failed_time = failed_time;
     sum.wall_seconds = elapsed();
     sum.setup_seconds = opt.setup_seconds + start_seconds;
     sum.stepping_seconds = std::max(0.0, sum.wall_seconds - sum.output_seconds - start_seconds);

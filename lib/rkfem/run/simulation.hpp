@@ -31,6 +31,7 @@ struct RunSummary
     std::string message;
     std::int64_t steps = 0;
     real_t end_time = 0.0;
+    real_t failed_time = -1.0;   ///< unstable runs: the time of the state written as the last frame (-1: none)
     real_t wall_seconds = 0.0;   ///< run_simulation from start to end: stepper start, steps, output
     real_t setup_seconds = 0.0;  ///< RunOptions::setup_seconds plus the stepper's first start
     real_t output_seconds = 0.0; ///< history rows, field outputs, summary not included

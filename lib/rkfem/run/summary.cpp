@@ -89,6 +89,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"threads\": " << max_threads() << ",\n";
     o << "  \"steps\": " << s.steps << ",\n";
     o << "  \"end_time\": " << num(s.end_time) << ",\n";
+    if (s.failed_time >= 0.0)
+        o << "  \"failed_time\": " << num(s.failed_time) << ",\n";
     o << "  \"wall_seconds\": " << num(s.wall_seconds) << ",\n";
     o << "  \"setup_seconds\": " << num(s.setup_seconds) << ",\n";
     o << "  \"stepping_seconds\": " << num(s.stepping_seconds) << ",\n";
