@@ -390,7 +390,8 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                                        : Formulation::Rkpm;
     // the default stabilization of scheme scni: NSNI for RK parts (about a third of MSCNI's cost
     // per step, the same stable step and the same answers on the seed's P1 and P3; README,
-    // "Stabilization"), MSCNI where there are no RK second derivatives (fem-nodal, coupled parts)
+    // "Stabilization"), on meshes and clouds; MSCNI where there are no RK second derivatives
+    // (fem-nodal, coupled parts)
     const std::string default_stab = p.formulation == Formulation::Rkpm && !s.has("regions") ? "nsni" : "mscni";
     p.nodal.stabilization = default_stab;
     p.nodal.stabilization_coefficient = default_stab == "nsni" ? kNsniCoefficient : 1.0;
@@ -401,9 +402,8 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
-        const bool cloud = p.generator.type == GeneratorSpec::Type::Cloud;
         p.nodal.stabilization =
-            ni.choice("stabilization", {"mscni", "nsni", "none"}, p.nodal.scheme == "scni" && !cloud ? default_stab : "none");
+            ni.choice("stabilization", {"mscni", "nsni", "none"}, p.nodal.scheme == "scni" ? default_stab : "none");
         if (p.nodal.stabilization != "none" && p.nodal.scheme != "scni")
             ni.fail("stabilization", p.nodal.stabilization + " stabilizes scheme scni only",
                     "expected stabilization: none with scheme " + p.nodal.scheme);
@@ -423,8 +423,6 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         // a cloud has no elements: RK particles integrated on their Voronoi cells
         if (p.formulation != Formulation::Rkpm)
             s.fail("formulation", "'" + f + "' needs elements, and a cloud part has none", "expected formulation: rkpm");
-        if (!s.has("nodal_integration"))
-            p.nodal.stabilization = "none";
     }
     if (s.has("regions"))
     {
