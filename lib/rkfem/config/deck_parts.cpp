@@ -390,7 +390,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                                        : Formulation::Rkpm;
     // the default stabilization of scheme scni: NSNI for RK parts (about a third of MSCNI's cost
     // per step, the same stable step and the same answers on the seed's P1 and P3; README,
-    // "Stabilization"), on meshes and clouds; MSCNI where there are no RK second derivatives
+    // nodal_integration), on meshes and clouds; MSCNI where there are no RK second derivatives
     // (fem-nodal, coupled parts)
     const std::string default_stab = p.formulation == Formulation::Rkpm && !s.has("regions") ? "nsni" : "mscni";
     p.nodal.stabilization = default_stab;
