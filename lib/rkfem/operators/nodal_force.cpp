@@ -712,7 +712,9 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
         }
     }
 
-    if (ns > 0)
+    // the stabilization's own pass; NSNI with the chunked scatter ran in the points' batches
+    // (nsni_batch)
+    if (ns > 0 && !(blk.stabilization_triplets && blk.scatter_assembly()))
     {
         const IntegrationOperator& st = blk.stabilization;
         const std::size_t sns = static_cast<std::size_t>(ns);
@@ -774,11 +776,7 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
             for (int i = 0; i < 3; ++i)
                 sub_point(3 * t + i, G[i], P[i]);
         };
-        const index_t chunk0 = blk.n_point_chunks, chunk1 = static_cast<index_t>(blk.scatter.chunks.size());
-        (void)chunk0, (void)chunk1;
-        if (blk.stabilization_triplets && blk.scatter_assembly())
-            ; // done in the stress points' batches (nsni_batch)
-        else if (blk.stabilization_triplets)
+        if (blk.stabilization_triplets)
             parallel_for("rkfem::nodal_stabilization", ns / 3,
                          [&](index_t t)
                          {
@@ -788,7 +786,8 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                                  std::copy(P[i], P[i] + 9, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + 3 * t + i)]);
                          });
         else if (blk.scatter_assembly())
-            blk.scatter.run_chunks("rkfem::nodal_stabilization", chunk0, chunk1, 1,
+            blk.scatter.run_chunks("rkfem::nodal_stabilization", blk.n_point_chunks,
+                                   static_cast<index_t>(blk.scatter.chunks.size()), 1,
                                    [&](index_t s, real_t* buf, index_t lo)
                                    {
                                        real_t P[9];

@@ -226,83 +226,87 @@ void RkShapeFunctions::hessians(const Vec3& x, std::vector<index_t>& nodes, std:
         m = 0.5 * (m + m.transpose()).eval();
 }
 
-void prune_rk_values(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
-                     std::vector<real_t>& psi)
+namespace
+{
+/// The drop both prune_rk_* share: keeps the entries whose magnitude is at least tau times the
+/// largest (nodes and values compacted in place) and, when any went, gives for the kept ones
+/// their magnitudes w_k, the linear basis B_k = (1, (x_k - x) / s) (s: the farthest kept offset
+/// along an axis) and M = sum_k w_k B_k B_k^T, which the callers' corrections solve with.
+/// Returns false when nothing was dropped.
+template <class T, class Magnitude>
+bool drop_small(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
+                std::vector<T>& values, Magnitude magnitude, std::vector<real_t>& weight,
+                std::vector<Eigen::Vector4d>& B, Eigen::Matrix4d& M)
 {
     real_t big = 0.0;
-    for (real_t v : psi)
-        big = std::max(big, std::abs(v));
+    for (const T& v : values)
+        big = std::max(big, magnitude(v));
     std::size_t w = 0;
     real_t s = 0.0;
-    for (std::size_t k = 0; k < psi.size(); ++k)
-        if (std::abs(psi[k]) >= tau * big)
+    for (std::size_t k = 0; k < values.size(); ++k)
+        if (magnitude(values[k]) >= tau * big)
         {
-            nodes[w] = nodes[k];
-            psi[w++] = psi[k];
             s = std::max(s, (rk.position(nodes[k]) - x).cwiseAbs().maxCoeff());
+            nodes[w] = nodes[k];
+            values[w++] = values[k];
         }
-    if (w == psi.size())
-        return;
+    if (w == values.size())
+        return false;
     nodes.resize(w);
-    psi.resize(w);
-    // residual of the reproducing conditions, then the weighted correction
-    Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
-    Eigen::Vector4d r(1.0, 0.0, 0.0, 0.0);
-    std::vector<Eigen::Vector4d> H(w);
+    values.resize(w);
+    weight.resize(w);
+    B.resize(w);
+    M.setZero();
     for (std::size_t k = 0; k < w; ++k)
     {
         const Vec3 d = (rk.position(nodes[k]) - x) / s;
-        H[k] = Eigen::Vector4d(1.0, d[0], d[1], d[2]);
-        r -= psi[k] * H[k];
-        M += std::abs(psi[k]) * H[k] * H[k].transpose();
+        B[k] = Eigen::Vector4d(1.0, d[0], d[1], d[2]);
+        weight[k] = magnitude(values[k]);
+        M += weight[k] * B[k] * B[k].transpose();
     }
+    return true;
+}
+} // namespace
+
+void prune_rk_values(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
+                     std::vector<real_t>& psi)
+{
+    std::vector<real_t> weight;
+    std::vector<Eigen::Vector4d> H;
+    Eigen::Matrix4d M;
+    if (!drop_small(rk, x, tau, nodes, psi, [](real_t v) { return std::abs(v); }, weight, H, M))
+        return;
+    // residual of the reproducing conditions, then the weighted correction
+    Eigen::Vector4d r(1.0, 0.0, 0.0, 0.0);
+    for (std::size_t k = 0; k < psi.size(); ++k)
+        r -= psi[k] * H[k];
     const Eigen::Vector4d c = M.ldlt().solve(r);
     RKFEM_REQUIRE(c.allFinite(), "RK drop tolerance: the functions left at (" << x.transpose()
                                                                               << ") do not span a linear field");
-    for (std::size_t k = 0; k < w; ++k)
-        psi[k] += std::abs(psi[k]) * H[k].dot(c);
+    for (std::size_t k = 0; k < psi.size(); ++k)
+        psi[k] += weight[k] * H[k].dot(c);
 }
 
 void prune_rk_hessians(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std::vector<index_t>& nodes,
                        std::vector<Mat3>& H)
 {
-    real_t big = 0.0;
-    for (const Mat3& m : H)
-        big = std::max(big, m.cwiseAbs().maxCoeff());
-    std::size_t w = 0;
-    real_t s = 0.0;
-    for (std::size_t k = 0; k < H.size(); ++k)
-        if (H[k].cwiseAbs().maxCoeff() >= tau * big)
-        {
-            s = std::max(s, (rk.position(nodes[k]) - x).cwiseAbs().maxCoeff());
-            nodes[w] = nodes[k];
-            H[w++] = H[k];
-        }
-    if (w == H.size())
+    std::vector<real_t> weight;
+    std::vector<Eigen::Vector4d> B;
+    Eigen::Matrix4d M;
+    if (!drop_small(rk, x, tau, nodes, H, [](const Mat3& m) { return m.cwiseAbs().maxCoeff(); }, weight, B, M))
         return;
-    nodes.resize(w);
-    H.resize(w);
     // residuals of sum H = 0 and sum H (x_k - x) = 0, per component, and the weighted correction
-    Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
     Mat3 r[4] = {Mat3::Zero(), Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
-    std::vector<Eigen::Vector4d> B(w);
-    std::vector<real_t> weight(w);
-    for (std::size_t k = 0; k < w; ++k)
-    {
-        const Vec3 d = (rk.position(nodes[k]) - x) / s;
-        B[k] = Eigen::Vector4d(1.0, d[0], d[1], d[2]);
-        weight[k] = H[k].cwiseAbs().maxCoeff();
+    for (std::size_t k = 0; k < H.size(); ++k)
         for (int a = 0; a < 4; ++a)
             r[a] -= B[k][a] * H[k];
-        M += weight[k] * B[k] * B[k].transpose();
-    }
     const Eigen::Matrix4d Mi = M.inverse();
     RKFEM_REQUIRE(Mi.allFinite(), "RK drop tolerance: the second derivatives left at (" << x.transpose()
                                                                                         << ") do not span a linear field");
     Mat3 c[4];
     for (int a = 0; a < 4; ++a)
         c[a] = Mi(a, 0) * r[0] + Mi(a, 1) * r[1] + Mi(a, 2) * r[2] + Mi(a, 3) * r[3];
-    for (std::size_t k = 0; k < w; ++k)
+    for (std::size_t k = 0; k < H.size(); ++k)
         H[k] += weight[k] * (B[k][0] * c[0] + B[k][1] * c[1] + B[k][2] * c[2] + B[k][3] * c[3]);
     for (Mat3& m : H)
         m = 0.5 * (m + m.transpose()).eval(); // exactly symmetric again
