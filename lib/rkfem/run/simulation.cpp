@@ -250,7 +250,6 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     real_t dt_last = 0.0;
     std::size_t element_steps = 0;
     bool in_step = false; // a step is under way: a failure in it leaves t and step at the last good one
-    real_t failed_time = -1.0;
     try
     {
         StepReport rep = stepper->initialize(model, t);
@@ -349,16 +348,15 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         // the fields written so far stay; the state the run failed in is written as a last frame
         // at its own time (a step's end, or an ERK stage), so that the frame can be inspected
         // and is never labelled with the last good time
-        failed_time = std::isfinite(e.time) ? e.time : t;
+        sum.failed_time = std::isfinite(e.time) ? e.time : t;
         if (writer)
-            output_clock([&] { writer->write_step(model, failed_time); });
+            output_clock([&] { writer->write_step(model, sum.failed_time); });
         if (in_step)
             --step; // the failed step is not counted: steps and end_time are the last good step's
     }
     progress.finish();
     sum.steps = step;
     sum.end_time = t;
-    sum.failed_time = failed_time;
     sum.wall_seconds = elapsed();
     sum.setup_seconds = opt.setup_seconds + start_seconds;
     sum.stepping_seconds = std::max(0.0, sum.wall_seconds - sum.output_seconds - start_seconds);
