@@ -409,6 +409,17 @@ TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
     EXPECT_EQ(r.code, 0) << r.output;
     EXPECT_TRUE(fs::exists(out / "results.xdmf"));
 
+    // a plate thinner than its spacing, thin in z and in x: CGAL's hull aborted on the first
+    // (munmap_chunk) and did not return on the second; both check now
+    for (const char* size : {"[4 mm, 4 mm, 12 um]", "[12 um, 4 mm, 4 mm]"})
+    {
+        const std::string thin = write_deck(
+            "cloud_thin.yaml", replace(cloud_deck(", spacing: 1 mm, jitter: 0.25, seed: 1", "    formulation: rkpm\n"),
+                                       "size: [1 mm, 1 mm, 10 mm]", std::string("size: ") + size));
+        const Result t = run("check " + thin);
+        EXPECT_EQ(t.code, 0) << size << ": " << t.output;
+    }
+
     expect_rejected("cloud_fem.yaml", cloud_deck(", spacing: 1 mm", ""), ":6: parts.col.formulation",
                     "expected formulation: rkpm");
     expect_rejected("cloud_sd.yaml",

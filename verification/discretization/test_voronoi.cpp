@@ -213,6 +213,73 @@ TEST(VoronoiCells, CylinderBodyCellsTileTheTangentPrism)
     }
 }
 
+// A body thinner than its spacing (a plate one layer of particles thick, with the in-plane
+// spacing 80x its thickness): the start point pushed off the faces would leave the body, which
+// made CGAL's hull free an invalid pointer (box thin in z) or never return (thin in x). The cells
+// start from their deepest point instead; they must tile the plate, stay closed, and SCNI on them
+// must satisfy IC1. Box and cylinder bodies.
+TEST(VoronoiCells, PlatesThinnerThanTheSpacingTileTheBody)
+{
+    for (int body_kind = 0; body_kind < 3; ++body_kind)
+    {
+        GeneratorSpec g;
+        g.type = GeneratorSpec::Type::Cloud;
+        g.element_size = 1e-3;
+        g.jitter = 0.25;
+        g.seed = 1;
+        real_t body_volume = 0.0;
+        if (body_kind < 2) // box thin in z, then in x
+        {
+            g.size = body_kind == 0 ? Vec3(4e-3, 4e-3, 12e-6) : Vec3(12e-6, 4e-3, 4e-3);
+            body_volume = g.size.prod();
+        }
+        else
+        {
+            g.body = GeneratorSpec::Body::Cylinder;
+            g.radius = 3e-3;
+            g.height = 12e-6;
+        }
+        VoronoiSetup s;
+        s.x = generate_cloud(g).x;
+        const index_t n = static_cast<index_t>(s.x.size() / 3);
+        const std::vector<HalfSpace> body = cloud_body(g, n);
+        if (body_kind == 2) // the tangent prism
+        {
+            const int sides = static_cast<int>(body.size()) - 2;
+            body_volume = M_PI * g.radius * g.radius * g.height * sides * std::tan(M_PI / sides) / M_PI;
+        }
+        s.cells = voronoi_cells(s.x, body);
+        real_t vol = 0.0, vmin = 1e300, open = 0.0, outside = 0.0;
+        for (index_t i = 0; i < s.cells.size(); ++i)
+        {
+            vol += s.cells.volume[i];
+            vmin = std::min(vmin, s.cells.volume[i]);
+            Vec3 nda = Vec3::Zero();
+            for (index_t k = s.cells.offsets[i]; k < s.cells.offsets[i + 1]; ++k)
+                nda += s.cells.points[k].nda;
+            open = std::max(open, nda.norm() / std::pow(s.cells.volume[i], 2.0 / 3.0));
+        }
+        for (const CellFacetPoint& p : s.cells.points)
+            for (const HalfSpace& h : body)
+                outside = std::max(outside, h.normal.dot(p.x) - h.offset);
+        std::vector<real_t> a = s.cells.spacing;
+        for (auto& v : a)
+            v *= 1.6;
+        s.rk = RkShapeFunctions(s.x, a, {1, KernelType::CubicBSpline, SupportShape::Sphere, 1.6});
+        s.op = build_scni_cells(s.cells, s.x, RkShapes(s.rk));
+        const auto [ic, lin] = scni_consistency(s);
+        std::printf("plate %d: %d cells, volume / body - 1 = %.2e, smallest cell %.2e of the mean, largest "
+                    "|sum n dA| / V^(2/3) %.1e, farthest outside %.1e m; IC1 %.2e, linear gradient %.2e\n",
+                    body_kind, n, vol / body_volume - 1.0, vmin * n / vol, open, outside, ic, lin);
+        EXPECT_NEAR(vol / body_volume, 1.0, 1e-12);
+        EXPECT_GT(vmin, 0.0);
+        EXPECT_LT(open, 1e-12);
+        EXPECT_LE(outside, 1e-15);
+        EXPECT_LT(ic, 1e-12 * g.element_size * g.element_size);
+        EXPECT_LT(lin, 1e-11);
+    }
+}
+
 namespace
 {
 /// Static linear patch test with the stiffness of `op` on the cloud of `s`: the error of the

@@ -5,6 +5,9 @@
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polyhedron_3.h>
+#include <CGAL/QP_functions.h>
+#include <CGAL/QP_models.h>
+#include <CGAL/Exact_rational.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <algorithm>
 #include <cmath>
@@ -54,6 +57,47 @@ std::vector<HalfSpace> cylinder_halfspaces(const Vec3& origin, real_t radius, re
     h.push_back({-Vec3::UnitZ(), -origin[2]});
     return h;
 }
+
+namespace
+{
+/// The centre of the largest ball inside the bisectors and the whole body around x_i: maximize r
+/// subject to n_k . p + r <= c_k for every unit-normal plane (CGAL's LP solver, exact). Throws
+/// when the cell has no interior.
+Vec3 deepest_point(const std::vector<EK::Plane_3>& bisectors, const std::vector<HalfSpace>& body, const Vec3& xi, index_t i)
+{
+    CGAL::Quadratic_program<double> lp(CGAL::SMALLER, false, 0, false, 0);
+    int row = 0;
+    auto add = [&](const Vec3& n, real_t c) // n . p <= c, |n| = 1
+    {
+        for (int d = 0; d < 3; ++d)
+            lp.set_a(d, row, n[d]);
+        lp.set_a(3, row, 1.0);
+        lp.set_b(row, c);
+        ++row;
+    };
+    // in coordinates relative to x_i (the cell's size sets the scale, not its position)
+    for (const EK::Plane_3& q : bisectors)
+    {
+        const Vec3 n(CGAL::to_double(q.a()), CGAL::to_double(q.b()), CGAL::to_double(q.c()));
+        const real_t len = n.norm();
+        add(n / len, -(CGAL::to_double(q.d()) + n.dot(xi)) / len);
+    }
+    for (const HalfSpace& h : body)
+        add(h.normal, h.offset - h.normal.dot(xi));
+    lp.set_c(3, -1.0); // maximize r
+    const auto solution = CGAL::solve_linear_program(lp, CGAL::Exact_rational());
+    RKFEM_REQUIRE(solution.is_optimal(), "Voronoi cells: the cell of point " << i << " (" << xi.transpose()
+                                                                           << ") has no interior");
+    real_t v[4];
+    int k = 0;
+    for (auto it = solution.variable_values_begin(); it != solution.variable_values_end() && k < 4; ++it)
+        v[k++] = CGAL::to_double(*it);
+    const Vec3 p(v[0], v[1], v[2]);
+    RKFEM_REQUIRE(v[3] > 0.0, "Voronoi cells: the cell of point " << i << " (" << xi.transpose()
+                                                                                   << ") is flat: no room inside the body");
+    return xi + p;
+}
+} // namespace
 
 VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body)
 {
@@ -135,6 +179,13 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
         // made the construction ill-conditioned: an unoptimized build got cells reaching outside
         // the body. The push is at most about sqrt(3) 0.2 d_min (a box corner), inside the
         // bisectors (d_min / 2 away).
+        auto min_body_distance = [&](const Vec3& p)
+        {
+            real_t d = 1e300;
+            for (const HalfSpace& h : body)
+                d = std::min(d, h.offset - h.normal.dot(p));
+            return d;
+        };
         Vec3 xin = xi;
         for (int pass = 0; pass < 8; ++pass)
         {
@@ -153,6 +204,13 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 break;
             xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
         }
+        // a body thinner than 0.2 d_min across (a cloud one spacing thick, a point file of a
+        // plate) has no room for that push: it left the start point outside a face, a broken
+        // precondition on which CGAL's hull freed an invalid pointer or never returned. There the
+        // start point is the centre of the largest ball in the cell (a small linear programme on
+        // the normalized planes, exact)
+        if (min_body_distance(xin) < 0.1 * dmin)
+            xin = deepest_point(planes, body, xi, i);
         Polyhedron P;
         add_body_planes(false);
         CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
