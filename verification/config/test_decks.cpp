@@ -340,6 +340,87 @@ TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
     }
 }
 
+namespace
+{
+/// A field of frame `frame` of results.h5 in `dir` (-1: the last), as doubles.
+std::vector<double> frame_field(const fs::path& dir, int frame, const std::string& field)
+{
+    const hid_t f = H5Fopen((dir / "results.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    EXPECT_GE(f, 0) << dir;
+    hsize_t n_steps = 0;
+    const hid_t steps = H5Gopen2(f, "steps", H5P_DEFAULT);
+    H5Gget_num_objs(steps, &n_steps);
+    H5Gclose(steps);
+    char name[96];
+    std::snprintf(name, sizeof name, "steps/%06d/%s", frame < 0 ? static_cast<int>(n_steps) - 1 : frame, field.c_str());
+    const hid_t d = H5Dopen2(f, name, H5P_DEFAULT);
+    const hid_t sp = H5Dget_space(d);
+    std::vector<double> v(static_cast<std::size_t>(H5Sget_simple_extent_npoints(sp)));
+    H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
+    H5Sclose(sp);
+    H5Dclose(d);
+    H5Fclose(f);
+    return v;
+}
+} // namespace
+
+// A column whose end is driven at 30 km/s crushes its first element in the second step. The
+// output holds the start, then the last good state (step 1, between outputs) at its time, then
+// the failed state at its own time (a stage of arkode-erk): the last good frame is, bit for bit,
+// the last frame of the same run stopped after step 1 (time.max_steps), with each stepper; the
+// failed frame has the crushed element (non-positive volume), the last good one has none. The
+// summary's steps and end_time are the last good step's.
+TEST(Decks, UnstableRunWritesTheLastGoodStateThenTheFailedOne)
+{
+    const std::string deck = write_deck(
+        "unstable_crush.yaml",
+        replace(replace(good, "velocity: {z: 10 m/s}", "velocity: {z: 30000 m/s}"), "  end: 1 us\n",
+                "  end: 2 us\n  output_interval: 10 us\n"));
+    for (const char* stepper : {"central-difference", "arkode-cd", "arkode-erk"})
+    {
+        const fs::path o = fs::temp_directory_path() / (std::string("rkfem_out_crush_") + stepper);
+        const fs::path m = fs::temp_directory_path() / (std::string("rkfem_out_crush_stop_") + stepper);
+        fs::remove_all(o);
+        fs::remove_all(m);
+        const std::string common = " --quiet --set output.precision=double --set time.stepper=" + std::string(stepper);
+        const Result rs = run("run " + deck + " --out " + o.string() + common);
+        ASSERT_EQ(rs.code, 3) << rs.output;
+        std::ifstream js(o / "summary.json");
+        const std::string sj((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+        std::smatch mt;
+        ASSERT_TRUE(std::regex_search(sj, mt, std::regex("\"steps\": ([0-9]+),"))) << sj;
+        const std::string steps = mt[1].str();
+        ASSERT_TRUE(std::regex_search(sj, mt, std::regex("\"end_time\": ([-0-9.e+]+),"))) << sj;
+        const double end_time = std::stod(mt[1].str());
+        ASSERT_TRUE(std::regex_search(sj, mt, std::regex("\"failed_time\": ([-0-9.e+]+),"))) << sj;
+        const double failed = std::stod(mt[1].str());
+        EXPECT_EQ(steps, "1") << stepper;
+        std::ifstream xf(o / "results.xdmf");
+        const std::string xdmf((std::istreambuf_iterator<char>(xf)), std::istreambuf_iterator<char>());
+        std::vector<double> times;
+        const std::regex tv("<Time Value=\"([^\"]+)\"");
+        for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), tv); it != std::sregex_iterator(); ++it)
+            times.push_back(std::stod((*it)[1].str()));
+        ASSERT_EQ(times.size(), 3u) << stepper << "\n" << xdmf;
+        EXPECT_EQ(times[0], 0.0);
+        EXPECT_NEAR(times[1], end_time, 1e-10 * end_time) << stepper;
+        EXPECT_NEAR(times[2], failed, 1e-10 * failed) << stepper;
+        EXPECT_GT(failed, end_time);
+
+        const Result rm = run("run " + deck + " --out " + m.string() + common + " --set time.max_steps=" + steps);
+        ASSERT_EQ(rm.code, 0) << rm.output;
+        for (const char* field : {"coordinates", "displacement", "velocity", "stress", "volume"})
+            EXPECT_EQ(frame_field(o, 1, field), frame_field(m, -1, field)) << stepper << ": " << field;
+        const std::vector<double> good_volume = frame_field(o, 1, "volume"), failed_volume = frame_field(o, 2, "volume");
+        std::printf("%s: last good frame at %.4e s (smallest element volume %.3e m^3), failed frame at %.4e s "
+                    "(%.3e m^3)\n",
+                    stepper, times[1], *std::min_element(good_volume.begin(), good_volume.end()), times[2],
+                    *std::min_element(failed_volume.begin(), failed_volume.end()));
+        EXPECT_GT(*std::min_element(good_volume.begin(), good_volume.end()), 0.0) << stepper;
+        EXPECT_LE(*std::min_element(failed_volume.begin(), failed_volume.end()), 0.0) << stepper;
+    }
+}
+
 TEST(Decks, ConcreteRunsWriteDamageFields)
 {
     // the struck K&C bar crushes its end: the 0..1 damage index and the K&C delta (0..2) are

@@ -16,6 +16,7 @@
 /// topology_version), the next output first writes the new mesh as /mesh_NNNNNN (same layout);
 /// each step's attribute `mesh` names the group of its mesh, and each XDMF time step points at it.
 #include <string>
+#include <limits>
 #include <vector>
 
 #include "rkfem/config/deck.hpp"
@@ -38,6 +39,8 @@ class ResultsWriter
     /// Time history table (same content as history.csv).
     void write_history(const std::vector<std::string>& columns, const std::vector<real_t>& rows);
     int n_steps() const { return static_cast<int>(times_.size()); }
+    /// Time of the last frame written (-inf before the first).
+    real_t last_time() const { return times_.empty() ? -std::numeric_limits<real_t>::infinity() : times_.back(); }
 
   private:
     void write_xdmf() const;

@@ -345,12 +345,35 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     {
         sum.status = "unstable";
         sum.message = e.what();
-        // the fields written so far stay; the state the run failed in is written as a last frame
-        // at its own time (a step's end, or an ERK stage), so that the frame can be inspected
-        // and is never labelled with the last good time
+        // the fields written so far stay; then the last good state (the last accepted step's,
+        // when it was not written yet) and the state the run failed in, each at its own time (a
+        // step's end, or an ERK stage): the failed frame can be inspected and is never labelled
+        // with the last good time. The failed frame's stresses and histories are the committed
+        // (last good) ones: only its motion is the failed step's. The summary measures the last good
+        // state.
         sum.failed_time = std::isfinite(e.time) ? e.time : t;
+        NodeSet& n = model.nodes;
+        std::vector<real_t> u_other = n.u, v_other = n.v; // the failed state
+        const bool restored = in_step && stepper->restore_last_good(model);
+        auto swap_state = [&]
+        {
+            n.u.swap(u_other);
+            n.v.swap(v_other);
+            model.update_coordinates();
+        };
         if (writer)
-            output_clock([&] { writer->write_step(model, sum.failed_time); });
+            output_clock(
+                [&]
+                {
+                    if (restored && writer->last_time() < t)
+                        writer->write_step(model, t);
+                    if (restored)
+                        swap_state(); // the failed state, for its frame
+                    if (writer->last_time() < sum.failed_time)
+                        writer->write_step(model, sum.failed_time);
+                    if (restored)
+                        swap_state(); // the last good state again, for the summary
+                });
         if (in_step)
             --step; // the failed step is not counted: steps and end_time are the last good step's
     }

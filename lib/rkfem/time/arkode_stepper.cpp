@@ -133,6 +133,8 @@ struct ArkodeStepper::Impl
     std::vector<index_t> fixup_dofs;
     StatePool::Ref y_start;     ///< y(n) held across a step: its u is the step's u_prev
     std::vector<real_t> u_prev; ///< the same, copied (serial vector)
+    std::vector<real_t> v_prev; ///< nodes.v at the start of a step: v(n), for a failure in it
+    bool in_step = false;       ///< a step began and did not finish
     // Runge-Kutta
     real_t t_n = 0.0;
     std::vector<real_t> u_n;
@@ -374,6 +376,8 @@ StepReport ArkodeStepper::step(ExplicitOperator& model, real_t t, real_t dt, std
     NodeSet& n = model.state();
     im.step_index = step_index;
     im.h_pending = dt;
+    im.v_prev.assign(n.v.begin(), n.v.end()); // v(n): the central difference's is in no ARKODE vector
+    im.in_step = true;
     if (im.pool)
         im.y_start = StatePool::Ref(im.y); // y(n): ARKODE's writes go to fresh storages
     else
@@ -420,12 +424,33 @@ StepReport ArkodeStepper::step(ExplicitOperator& model, real_t t, real_t dt, std
     model.commit();
     model.update_energies(im.pool ? im.y_start.half(0).data() : im.u_prev.data(), dt);
     im.y_start.reset();
+    im.in_step = false;
     StepReport r;
     r.t = tret;
     r.dt = dt;
     r.dt_stable = im.force.dt_stable;
     r.dt_element = im.force.dt_element;
     return r;
+}
+
+bool ArkodeStepper::restore_last_good(ExplicitOperator& model)
+{
+    if (!impl_ || !impl_->in_step)
+        return false;
+    Impl& im = *impl_;
+    NodeSet& n = model.state();
+    if (im.pool)
+    {
+        const std::vector<real_t>& u0 = im.y_start.half(0); // y(n)'s u, its storage taken back if lent
+        im.pool->reclaim();                                 // nodes.u and nodes.v hold their own arrays again
+        n.u.assign(u0.begin(), u0.end());
+    }
+    else
+        n.u = im.u_prev;
+    n.v = im.v_prev;
+    model.update_coordinates();
+    im.in_step = false;
+    return true;
 }
 
 const StatePool* ArkodeStepper::state_pool() const { return impl_ ? impl_->pool.get() : nullptr; }

@@ -52,6 +52,7 @@ class ArkodeStepper final : public TimeStepper
     StepReport initialize(ExplicitOperator& model, real_t t) override;
     StepReport step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index) override;
     const char* name() const override { return mode_ == Mode::CentralDifference ? "arkode-cd" : "arkode-erk"; }
+    bool restore_last_good(ExplicitOperator& model) override;
 
     long rhs_evaluations() const { return n_rhs_; }
     /// rkfem's state vectors of the current run (null before initialize() and with Debian's).

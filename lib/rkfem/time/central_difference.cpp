@@ -10,16 +10,32 @@
 
 namespace rkfem
 {
-void central_difference_kick(NodeSet& n, real_t h)
+void central_difference_kick(NodeSet& n, real_t h, real_t* v_before)
 {
     const index_t n3 = 3 * n.size();
-    parallel_for("rkfem::cd::kick", n3, [&](index_t j) { n.v[j] += h * n.a[j]; });
+    if (v_before == nullptr)
+        parallel_for("rkfem::cd::kick", n3, [&](index_t j) { n.v[j] += h * n.a[j]; });
+    else
+        parallel_for("rkfem::cd::kick", n3,
+                     [&](index_t j)
+                     {
+                         v_before[j] = n.v[j];
+                         n.v[j] += h * n.a[j];
+                     });
 }
 
-void central_difference_drift(NodeSet& n, real_t dt)
+void central_difference_drift(NodeSet& n, real_t dt, real_t* u_before)
 {
     const index_t n3 = 3 * n.size();
-    parallel_for("rkfem::cd::drift", n3, [&](index_t j) { n.u[j] += dt * n.v[j]; });
+    if (u_before == nullptr)
+        parallel_for("rkfem::cd::drift", n3, [&](index_t j) { n.u[j] += dt * n.v[j]; });
+    else
+        parallel_for("rkfem::cd::drift", n3,
+                     [&](index_t j)
+                     {
+                         u_before[j] = n.u[j];
+                         n.u[j] += dt * n.v[j];
+                     });
 }
 
 void book_event_energy(ExplicitOperator& model, const std::vector<real_t>& a_old, real_t dt)
@@ -65,10 +81,14 @@ StepReport CentralDifference::initialize(ExplicitOperator& model, real_t t) { re
 StepReport CentralDifference::step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index)
 {
     NodeSet& n = model.state();
-    u_prev_ = n.u; // capacity is reused after the first step
-    central_difference_kick(n, 0.5 * dt);
+    // the start of the step, copied in the passes that move it (capacity is reused after the
+    // first step): u(n) for the work of the step, u(n) and v(n) for a failure in it
+    u_prev_.resize(n.u.size());
+    v_prev_.resize(n.v.size());
+    in_step_ = true;
+    central_difference_kick(n, 0.5 * dt, v_prev_.data());
     model.impose_velocity(t, dt, true, n.v.data());
-    central_difference_drift(n, dt);
+    central_difference_drift(n, dt, u_prev_.data());
     model.update_coordinates();
     const ForceReport fr = model.compute_forces(t + dt, dt, step_index);
     model.accelerations();
@@ -77,12 +97,25 @@ StepReport CentralDifference::step(ExplicitOperator& model, real_t t, real_t dt,
     model.impose_velocity(t + dt, dt, false, n.v.data());
     model.commit();
     model.update_energies(u_prev_.data(), dt);
+    in_step_ = false;
     StepReport r;
     r.t = t + dt;
     r.dt = dt;
     r.dt_stable = fr.dt_stable;
     r.dt_element = fr.dt_element;
     return r;
+}
+
+bool CentralDifference::restore_last_good(ExplicitOperator& model)
+{
+    if (!in_step_)
+        return false;
+    NodeSet& n = model.state();
+    n.u = u_prev_;
+    n.v = v_prev_;
+    model.update_coordinates();
+    in_step_ = false;
+    return true;
 }
 
 std::unique_ptr<TimeStepper> make_stepper(const TimeSpec& ts)

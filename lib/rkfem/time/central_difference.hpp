@@ -18,10 +18,10 @@ class ExplicitOperator;
 /// no material increment, committed state, initial energies; reports the stable step.
 StepReport start_model(ExplicitOperator& model, real_t t);
 
-/// v += h a over all nodes (one half kick).
-void central_difference_kick(NodeSet& nodes, real_t h);
-/// u += dt v over all nodes.
-void central_difference_drift(NodeSet& nodes, real_t dt);
+/// v += h a over all nodes (one half kick); v before it into v_before when given (3 n values).
+void central_difference_kick(NodeSet& nodes, real_t h, real_t* v_before = nullptr);
+/// u += dt v over all nodes; u before it into u_before when given (3 n values).
+void central_difference_drift(NodeSet& nodes, real_t dt, real_t* u_before = nullptr);
 
 /// After an event that changed the forces at t(n+1) (accelerations a_old before, nodes.a after
 /// the stepper started again): the leapfrog-consistent kinetic energy 1/2 m v(n+1/2).v(n+3/2)
@@ -36,8 +36,11 @@ class CentralDifference final : public TimeStepper
     StepReport initialize(ExplicitOperator& model, real_t t) override;
     StepReport step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index) override;
     const char* name() const override { return "central-difference"; }
+    bool restore_last_good(ExplicitOperator& model) override;
 
   private:
     std::vector<real_t> u_prev_; ///< displacement at the start of the step (work bookkeeping)
+    std::vector<real_t> v_prev_; ///< velocity at the start of the step (the last good state)
+    bool in_step_ = false;       ///< a step began and did not finish: u_prev_, v_prev_ hold its start
 };
 } // namespace rkfem

@@ -32,6 +32,10 @@ class TimeStepper
     /// Throws InstabilityError when the step cannot be completed.
     virtual StepReport step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index) = 0;
     virtual const char* name() const = 0;
+    /// After step() threw: puts the state the failed step started from (u, v and x of the last
+    /// accepted step) back into the operator's nodes; the material's committed state is already
+    /// that step's. False when there is no failed step to undo. The stepper is not used again.
+    virtual bool restore_last_good(ExplicitOperator& /*model*/) { return false; }
 };
 
 /// The step the run loop takes next: dt_scale * dt_stable, capped by dt_max and by the end time.
