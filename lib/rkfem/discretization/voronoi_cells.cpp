@@ -10,6 +10,8 @@
 #include <CGAL/Exact_rational.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <algorithm>
+#include <array>
+#include <unordered_map>
 #include <cmath>
 
 #include "rkfem/core/error.hpp"
@@ -60,6 +62,48 @@ std::vector<HalfSpace> cylinder_halfspaces(const Vec3& origin, real_t radius, re
 
 namespace
 {
+/// A vertex of a cell, from CGAL's approximation p: the intersection of the three planes through
+/// it (within tol) that meet at the widest angles (the largest |det| of their unit normals; the
+/// first such triple in the planes' order), solved in doubles. The same planes give the same
+/// bits whatever CGAL computed before; p itself when fewer than three independent planes pass.
+Vec3 corner_point(const Vec3& p, const std::vector<EK::Plane_3>& planes, real_t tol)
+{
+    std::vector<std::pair<Vec3, real_t>> through; // unit normal, offset: n . x = c
+    for (const EK::Plane_3& q : planes)
+    {
+        const Vec3 n(CGAL::to_double(q.a()), CGAL::to_double(q.b()), CGAL::to_double(q.c()));
+        const real_t len = n.norm();
+        const real_t c = -CGAL::to_double(q.d()) / len;
+        if (std::abs(n.dot(p) / len - c) <= tol)
+            through.emplace_back(n / len, c);
+    }
+    real_t best = 1e-6;
+    std::array<std::size_t, 3> pick{0, 0, 0};
+    bool found = false;
+    for (std::size_t a = 0; a < through.size(); ++a)
+        for (std::size_t b = a + 1; b < through.size(); ++b)
+            for (std::size_t c = b + 1; c < through.size(); ++c)
+            {
+                const real_t det = std::abs(through[a].first.dot(through[b].first.cross(through[c].first)));
+                if (det > best)
+                {
+                    best = det;
+                    pick = {a, b, c};
+                    found = true;
+                }
+            }
+    if (!found)
+        return p;
+    Mat3 A;
+    Vec3 rhs;
+    for (int r = 0; r < 3; ++r)
+    {
+        A.row(r) = through[pick[r]].first.transpose();
+        rhs[r] = through[pick[r]].second;
+    }
+    return A.partialPivLu().solve(rhs);
+}
+
 /// The centre of the largest ball inside the bisectors and the whole body around x_i: maximize r
 /// subject to n_k . p + r <= c_k for every unit-normal plane (CGAL's LP solver, exact). Throws
 /// when the cell has no interior.
@@ -136,6 +180,10 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
         const Vec3 xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
         adj.clear();
         dt.finite_adjacent_vertices(vh[i], std::back_inserter(adj));
+        // in the order of the points: CGAL lists them in an order that follows their addresses,
+        // which vary from run to run (address-space randomization), and so did the planes'
+        // order, the cells' facets and the round-off of every sum over them
+        std::sort(adj.begin(), adj.end(), [](const auto& a, const auto& b) { return a->info() < b->info(); });
         // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
         std::vector<EK::Plane_3> planes;
         std::vector<index_t> owner; // neighbour per plane, -1 body
@@ -229,20 +277,47 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
         }
         real_t vol = 0.0;
-        // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
-        Vec3 apex = Vec3::Zero();
+        // The cell in an order of its own: CGAL's hull lists vertices and facets, and starts each
+        // facet, in an order that follows memory addresses, which vary from run to run
+        // (address-space randomization), and a vertex's double (its lazy construction's interval)
+        // depended on which of the planes through it the hull used; every sum below then rounded
+        // differently from run to run. Each vertex is solved again from the planes through it
+        // (corner_point), facets start at their smallest vertex, and both are sorted.
+        auto before = [](const Vec3& a, const Vec3& b) { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end()); };
+        std::vector<Vec3> corners;
+        std::unordered_map<const void*, std::size_t> corner_of;
         for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
-            apex += vec(v->point());
-        apex /= static_cast<real_t>(P.size_of_vertices());
-        std::vector<std::vector<CellFacetPoint>> pyramids; // per facet polygon: its pyramid's boundary
+        {
+            corner_of[&*v] = corners.size();
+            corners.push_back(corner_point(vec(v->point()), planes, 1e-9 * dmax));
+        }
+        std::vector<std::vector<Vec3>> polygons;
         for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
         {
             std::vector<Vec3> poly;
             auto h = f->facet_begin();
             do
             {
-                poly.push_back(vec(h->vertex()->point()));
+                poly.push_back(corners[corner_of.at(&*h->vertex())]);
             } while (++h != f->facet_begin());
+            std::rotate(poly.begin(), std::min_element(poly.begin(), poly.end(), before), poly.end());
+            polygons.push_back(std::move(poly));
+        }
+        std::sort(polygons.begin(), polygons.end(),
+                  [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b)
+                  {
+                      return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), before);
+                  });
+        // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
+        std::vector<Vec3> sorted_corners = corners;
+        std::sort(sorted_corners.begin(), sorted_corners.end(), before);
+        Vec3 apex = Vec3::Zero();
+        for (const Vec3& p : sorted_corners)
+            apex += p;
+        apex /= static_cast<real_t>(corners.size());
+        std::vector<std::vector<CellFacetPoint>> pyramids; // per facet polygon: its pyramid's boundary
+        for (const std::vector<Vec3>& poly : polygons)
+        {
             Vec3 c = Vec3::Zero();
             for (const Vec3& p : poly)
                 c += p;
