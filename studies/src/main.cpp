@@ -1,6 +1,9 @@
 // rkfem: command-line driver.
 //   rkfem check DECK [--set key.path=value ...]      validate, print the resolved deck in SI
-//   rkfem run DECK --out DIR [--set ...] [--quiet]   run, write DIR/results.h5 + .xdmf, history, summary
+//   rkfem run DECK --out DIR [--set ...] [--quiet] [--checkpoint-interval T [--checkpoint-keep N]]
+//                                                    run, write DIR/results.h5 + .xdmf, history, summary
+//   rkfem restart DIR [--until T] [--from FILE] [--quiet] [--checkpoint-interval T]
+//                                                    continue a run from its checkpoint
 //   rkfem convergence SWEEP --out DIR [--quiet]      manufactured-solution sweep -> DIR/convergence.{csv,h5}
 //   rkfem material-point DECK --out DIR [--quiet]    one material along a strain path -> DIR/stress_strain.csv
 //   rkfem study STUDY --out DIR [--quiet]            cases of a deck -> DIR/table.{csv,md}, study.h5, cases/
@@ -11,7 +14,9 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <cmath>
 #include <iostream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -19,11 +24,15 @@
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/config/deck.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/state_archive.hpp"
+#include "rkfem/core/units.hpp"
+#include "rkfem/io/checkpoint.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/run/check_report.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/run/study.hpp"
+#include "rkfem/time/stepper.hpp"
 
 namespace
 {
@@ -51,7 +60,8 @@ int usage()
 {
     std::fprintf(stderr,
                  "usage: rkfem check DECK [--set key.path=value ...]\n"
-                 "       rkfem run DECK --out DIR [--set key.path=value ...] [--quiet]\n"
+                 "       rkfem run DECK --out DIR [--set key.path=value ...] [--quiet] [--checkpoint-interval T]\n"
+                 "       rkfem restart DIR [--until T] [--from FILE] [--quiet] [--checkpoint-interval T]\n"
                  "       rkfem convergence SWEEP --out DIR [--quiet]\n"
                  "       rkfem material-point DECK --out DIR [--quiet]\n"
                  "       rkfem study STUDY --out DIR [--only CASE[,CASE...]] [--quiet]\n");
@@ -69,8 +79,15 @@ int help(const std::string& command)
     static const Entry entries[] = {
         {"check", "rkfem check DECK [--set key.path=value ...]",
          "Reads and validates DECK, builds the model, prints the resolved deck in SI units and the model's size."},
-        {"run", "rkfem run DECK --out DIR [--set key.path=value ...] [--quiet]",
-         "Runs DECK to time.end: DIR/results.h5 + results.xdmf (ParaView), history.csv, summary.json."},
+        {"run", "rkfem run DECK --out DIR [--set key.path=value ...] [--quiet] [--checkpoint-interval T [--checkpoint-keep N]]",
+         "Runs DECK to time.end: DIR/results.h5 + results.xdmf (ParaView), history.csv, summary.json.\n"
+         "--checkpoint-interval T (a time with its unit, e.g. '10 us') writes DIR/checkpoint.h5 every T of\n"
+         "simulated time and at the end (central-difference runs without contacts); --checkpoint-keep N keeps\n"
+         "the N newest (checkpoint.1.h5 the one before the newest, ...)."},
+        {"restart", "rkfem restart DIR [--until T] [--from FILE] [--quiet] [--checkpoint-interval T]",
+         "Continues the run in DIR from DIR/checkpoint.h5 (or FILE) to time.end, or to T: the same bits as the\n"
+         "run that was not interrupted. The deck stored in the checkpoint rebuilds the model; output after the\n"
+         "checkpoint is replaced. Checkpoints go on at the stored interval unless one is given."},
         {"convergence", "rkfem convergence SWEEP --out DIR [--quiet]",
          "Manufactured-solution convergence sweep: DIR/convergence.csv and convergence.h5."},
         {"material-point", "rkfem material-point DECK --out DIR [--quiet]",
@@ -110,10 +127,31 @@ int main(int argc, char** argv)
     std::string out_dir;
     bool quiet = false;
     std::vector<std::string> only; // study: case names
+    std::string checkpoint_interval, until, from; // times with units, as typed; a checkpoint file
+    int checkpoint_keep = 1;
+    const bool runs = command == "run" || command == "restart";
     for (int i = 3; i < argc; ++i)
     {
         const std::string a = argv[i];
-        if (a == "--set" && i + 1 < argc)
+        if (a == "--checkpoint-interval" && i + 1 < argc && runs)
+            checkpoint_interval = argv[++i];
+        else if (a == "--checkpoint-keep" && i + 1 < argc && command == "run")
+        {
+            const std::string n = argv[++i];
+            char* end = nullptr;
+            const long k = std::strtol(n.c_str(), &end, 10);
+            if (n.empty() || *end != '\0' || k < 1 || k > 1000)
+            {
+                std::fprintf(stderr, "rkfem: --checkpoint-keep %s: expected a whole number from 1 to 1000\n", n.c_str());
+                return 2;
+            }
+            checkpoint_keep = static_cast<int>(k);
+        }
+        else if (a == "--until" && i + 1 < argc && command == "restart")
+            until = argv[++i];
+        else if (a == "--from" && i + 1 < argc && command == "restart")
+            from = argv[++i];
+        else if (a == "--set" && i + 1 < argc)
             overrides.emplace_back(argv[++i]);
         else if (a.rfind("--set=", 0) == 0)
             overrides.emplace_back(a.substr(6));
@@ -130,8 +168,38 @@ int main(int argc, char** argv)
         }
     }
     if (command != "check" && command != "run" && command != "convergence" && command != "material-point" &&
-        command != "study")
+        command != "study" && command != "restart")
         return usage();
+    // a time typed on the command line, with its unit
+    auto parse_time = [](const char* option, const std::string& text, double& value)
+    {
+        try
+        {
+            value = rkfem::parse_quantity(text, rkfem::dim::time).value_si;
+        }
+        catch (const rkfem::Error& e)
+        {
+            std::fprintf(stderr, "rkfem: %s %s: %s; expected a time such as '10 us'\n", option, text.c_str(), e.what());
+            return false;
+        }
+        if (!(value > 0) || !std::isfinite(value))
+        {
+            std::fprintf(stderr, "rkfem: %s %s: expected a positive, finite time\n", option, text.c_str());
+            return false;
+        }
+        return true;
+    };
+    double checkpoint_seconds = 0.0, until_seconds = 0.0;
+    if (!checkpoint_interval.empty() && !parse_time("--checkpoint-interval", checkpoint_interval, checkpoint_seconds))
+        return 2;
+    if (!until.empty() && !parse_time("--until", until, until_seconds))
+        return 2;
+    if (command == "restart" && (!overrides.empty() || !out_dir.empty()))
+    {
+        std::fprintf(stderr, "rkfem: restart takes no --set or --out: it continues DIR with the deck its checkpoint "
+                             "holds (--until T changes the end time)\n");
+        return 2;
+    }
     // options a subcommand does not take are refused, not ignored
     if (!overrides.empty() && (command == "material-point" || command == "convergence" || command == "study"))
     {
@@ -201,8 +269,72 @@ int main(int argc, char** argv)
     try
     {
         const auto setup_start = std::chrono::steady_clock::now();
-        const rkfem::Deck deck = rkfem::read_deck(deck_path, overrides);
+        // restart: the deck, its overrides and the state come from the checkpoint
+        rkfem::StateArchive checkpoint;
+        std::string deck_text;
+        if (command == "restart")
+        {
+            out_dir = deck_path; // restart DIR
+            try
+            {
+                checkpoint = rkfem::read_checkpoint(from.empty() ? rkfem::checkpoint_path(out_dir) : from);
+                deck_text = checkpoint.text("run.deck_text");
+                overrides.clear();
+                std::istringstream os(checkpoint.text("run.overrides"));
+                for (std::string line; std::getline(os, line);)
+                    overrides.push_back(line);
+                if (checkpoint_seconds == 0.0)
+                    checkpoint_seconds = checkpoint.value<double>("run.checkpoint_interval");
+            }
+            catch (const rkfem::Error& e)
+            {
+                std::fprintf(stderr, "rkfem: restart %s: %s\n", out_dir.c_str(), e.what());
+                return 2;
+            }
+            if (!until.empty())
+                overrides.push_back("time.end=" + until);
+        }
+        else if (command == "run" && checkpoint_seconds > 0)
+            deck_text = rkfem::read_deck_text(deck_path, "expected a deck file");
+        const std::string deck_name = command == "restart" ? checkpoint.text("run.deck_path") : deck_path;
+        const rkfem::Deck deck = command == "restart" ? rkfem::parse_deck(deck_text, deck_name, overrides)
+                                                      : rkfem::read_deck(deck_path, overrides);
         rkfem::Model model = rkfem::Model::build(deck); // all validation before any output
+        if (checkpoint_seconds > 0)
+        {
+            // what checkpoints cannot cover is refused before the run
+            try
+            {
+                rkfem::StateArchive probe;
+                model.save_state(probe);
+                rkfem::make_stepper(deck.time)->save_state(probe);
+            }
+            catch (const rkfem::Error& e)
+            {
+                std::fprintf(stderr, "rkfem: --checkpoint-interval: %s\n", e.what());
+                return 2;
+            }
+        }
+        if (command == "restart")
+        {
+            try
+            {
+                model.load_state(checkpoint);
+            }
+            catch (const rkfem::Error& e)
+            {
+                std::fprintf(stderr, "rkfem: restart %s: %s\n", out_dir.c_str(), e.what());
+                return 2;
+            }
+            const double t = checkpoint.value<double>("run.t");
+            if (!(deck.time.end > t))
+            {
+                std::fprintf(stderr, "rkfem: restart %s: the checkpoint is at t = %.9g s, and the run ends at %.9g s; "
+                                     "expected --until past the checkpoint\n",
+                             out_dir.c_str(), t, deck.time.end);
+                return 2;
+            }
+        }
         rkfem::check_step_budget(model);
         if (command == "check")
         {
@@ -244,8 +376,17 @@ int main(int argc, char** argv)
         rkfem::RunOptions opt;
         opt.out_dir = out_dir;
         opt.progress = !quiet;
-        opt.deck_path = deck_path;
+        opt.deck_path = deck_name;
         opt.overrides = overrides;
+        opt.checkpoint_interval = checkpoint_seconds;
+        opt.checkpoint_keep = checkpoint_keep;
+        opt.deck_text = deck_text;
+        if (command == "restart")
+        {
+            opt.resume = &checkpoint;
+            if (!until.empty()) // the stored overrides stay those of the run; --until is this restart's
+                opt.overrides.pop_back();
+        }
         opt.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
         const rkfem::RunSummary s = rkfem::run_simulation(model, opt);
         if (s.status != "completed")

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/state_archive.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/model/model.hpp"
 
@@ -30,6 +31,84 @@ ResultsWriter::ResultsWriter(const std::string& directory, const OutputSpec& sto
     file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (file_ < 0)
         throw Error("cannot create " + path);
+}
+
+ResultsWriter::ResultsWriter(const std::string& directory, const OutputSpec& storage, const StateArchive& a)
+    : dir_(directory), storage_(storage)
+{
+    a.get("output.times", times_);
+    a.get("output.step_mesh", step_mesh_);
+    std::vector<long long> sizes; // per mesh: version, nodes, elements, cells, topology size
+    a.get("output.mesh_sizes", sizes);
+    std::istringstream groups(a.text("output.mesh_groups"));
+    for (std::size_t m = 0; 5 * m + 4 < sizes.size(); ++m)
+    {
+        Mesh mesh;
+        std::getline(groups, mesh.group);
+        mesh.version = static_cast<int>(sizes[5 * m]);
+        mesh.n_nodes = sizes[5 * m + 1];
+        mesh.n_elements = sizes[5 * m + 2];
+        mesh.n_cells = sizes[5 * m + 3];
+        mesh.topology_size = sizes[5 * m + 4];
+        meshes_.push_back(mesh);
+    }
+    const std::string path = dir_ + "/results.h5";
+    H5E_auto2_t func = nullptr;
+    void* data = nullptr;
+    H5Eget_auto2(H5E_DEFAULT, &func, &data);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); // a missing or damaged file: one line, below
+    file_ = std::filesystem::is_regular_file(path) ? H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT) : -1;
+    bool ok = file_ >= 0;
+    const hid_t f = static_cast<hid_t>(file_);
+    for (std::size_t m = 0; ok && m < meshes_.size(); ++m)
+        ok = H5Lexists(f, meshes_[m].group.c_str(), H5P_DEFAULT) > 0;
+    ok = ok && H5Lexists(f, "steps", H5P_DEFAULT) > 0;
+    for (std::size_t i = 0; ok && i < times_.size(); ++i)
+        ok = H5Lexists(f, ("steps/" + step_name(static_cast<int>(i))).c_str(), H5P_DEFAULT) > 0;
+    if (ok)
+    {
+        // what the run wrote after the checkpoint
+        for (int i = static_cast<int>(times_.size());; ++i)
+        {
+            const std::string g = "steps/" + step_name(i);
+            if (H5Lexists(f, g.c_str(), H5P_DEFAULT) <= 0)
+                break;
+            H5Ldelete(f, g.c_str(), H5P_DEFAULT);
+        }
+        for (int m = static_cast<int>(meshes_.size());; ++m)
+        {
+            const std::string g = "mesh_" + step_name(m);
+            if (H5Lexists(f, g.c_str(), H5P_DEFAULT) <= 0)
+                break;
+            H5Ldelete(f, g.c_str(), H5P_DEFAULT);
+        }
+    }
+    H5Eset_auto2(H5E_DEFAULT, func, data);
+    if (!ok)
+    {
+        if (file_ >= 0)
+            H5Fclose(f);
+        file_ = -1;
+        throw Error("cannot continue " + path + ": missing, damaged, or without the " + std::to_string(times_.size()) +
+                    " frame(s) the checkpoint lists");
+    }
+    H5Fflush(f, H5F_SCOPE_GLOBAL);
+    write_xdmf();
+}
+
+void ResultsWriter::save(StateArchive& a) const
+{
+    a.put("output.times", times_);
+    a.put("output.step_mesh", step_mesh_);
+    std::vector<long long> sizes;
+    std::string groups;
+    for (const Mesh& m : meshes_)
+    {
+        sizes.insert(sizes.end(), {m.version, m.n_nodes, m.n_elements, m.n_cells, m.topology_size});
+        groups += m.group + "\n";
+    }
+    a.put("output.mesh_sizes", sizes);
+    a.put_text("output.mesh_groups", groups);
 }
 
 ResultsWriter::~ResultsWriter()

@@ -25,11 +25,18 @@
 namespace rkfem
 {
 class Model;
+class StateArchive;
 
 class ResultsWriter
 {
   public:
     explicit ResultsWriter(const std::string& directory, const OutputSpec& storage = {});
+    /// Continues DIR/results.h5 where a checkpoint (save()) left it: frames and meshes written
+    /// after the checkpoint are removed, and the XDMF index is written again. Throws Error when the
+    /// file cannot be opened or lacks what the checkpoint lists.
+    ResultsWriter(const std::string& directory, const OutputSpec& storage, const StateArchive& checkpoint);
+    /// What resuming needs: the frames' times and meshes, and the meshes' groups and sizes.
+    void save(StateArchive& archive) const;
     ~ResultsWriter();
     ResultsWriter(const ResultsWriter&) = delete;
     ResultsWriter& operator=(const ResultsWriter&) = delete;

@@ -146,6 +146,15 @@ struct PlasticPoints
         f(ev, ev_trial);
         f(energy, energy_trial);
     }
+    template <class F> void each_array(F&& f) const
+    {
+        f(eps_p, eps_p_trial);
+        f(failed, failed_trial);
+        f(kcc_state, kcc_trial);
+        f(cscm_state, cscm_trial);
+        f(ev, ev_trial);
+        f(energy, energy_trial);
+    }
     template <class F> void each_array(const PlasticPoints& other, F&& f)
     {
         f(eps_p, eps_p_trial, other.eps_p);

@@ -24,6 +24,7 @@
 
 namespace rkfem
 {
+class StateArchive;
 struct PartInfo
 {
     std::string name;
@@ -224,6 +225,16 @@ class Model final : public ExplicitOperator
     const ErodedElements& eroded(index_t block) const { return eroded_[static_cast<std::size_t>(block)]; }
     /// Incremented by every event that changes the cells (output writes a new mesh).
     int topology_version() const { return topology_version_; }
+
+    // ---- checkpoints ----
+    /// The state between two steps that a checkpoint holds: nodal kinematics and masses, every
+    /// block's committed material state, the energy ledger and its per-part and previous-step
+    /// terms, and what erosion removed. load_state puts it back into a model freshly built from
+    /// the same deck (erosion replayed on the rebuilt blocks), after which the run continues with
+    /// the same bits. Models with contacts are refused (their search and penalty state is not
+    /// covered yet): Error.
+    void save_state(StateArchive& archive) const;
+    void load_state(const StateArchive& archive);
 
     /// Decides how the blocks assemble f_int: a block whose node range overlaps another's adds
     /// into it, and those ranges are zeroed once per evaluation; a block alone on its nodes

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <limits>
@@ -12,6 +13,8 @@
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/state_archive.hpp"
+#include "rkfem/io/checkpoint.hpp"
 #include "rkfem/io/results_writer.hpp"
 #include "rkfem/analysis/impact.hpp"
 #include "rkfem/run/summary.hpp"
@@ -193,6 +196,11 @@ class Progress
 };
 } // namespace
 
+std::string checkpoint_path(const std::string& dir, int k)
+{
+    return dir + (k == 0 ? "/checkpoint.h5" : "/checkpoint." + std::to_string(k) + ".h5");
+}
+
 RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserver& observer)
 {
     const TimeSpec& ts = model.deck().time;
@@ -210,19 +218,31 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     };
     real_t start_seconds = 0.0; // the stepper's first start
 
+    const StateArchive* resume = opt.resume;
+    if (resume)
+    {
+        RKFEM_REQUIRE(!opt.out_dir.empty(), "a restart continues a run's directory: out_dir is empty");
+        resume->get("run.history", sum.history);
+    }
     std::unique_ptr<ResultsWriter> writer;
     std::ofstream csv;
     if (!opt.out_dir.empty())
         output_clock(
             [&]
             {
-                writer = std::make_unique<ResultsWriter>(opt.out_dir, model.deck().output);
-                writer->write_mesh(model);
+                if (resume)
+                    writer = std::make_unique<ResultsWriter>(opt.out_dir, model.deck().output, *resume);
+                else
+                {
+                    writer = std::make_unique<ResultsWriter>(opt.out_dir, model.deck().output);
+                    writer->write_mesh(model);
+                }
                 csv.open(opt.out_dir + "/history.csv");
                 for (std::size_t i = 0; i < sum.history_columns.size(); ++i)
                     csv << (i ? "," : "") << sum.history_columns[i];
                 csv << "\n" << std::setprecision(12);
             });
+
     auto flush_history_row = [&](std::size_t first)
     {
         if (!csv.is_open())
@@ -235,6 +255,8 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             csv << "\n";
         }
     };
+    if (resume)
+        flush_history_row(0); // the rows before the checkpoint, as the run wrote them
 
     std::unique_ptr<ImpactAnalysis> impact;
     if (model.deck().impact.active)
@@ -249,10 +271,88 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     real_t next_history = 0.0;
     real_t dt_last = 0.0;
     std::size_t element_steps = 0;
+    const bool checkpointing = opt.checkpoint_interval > 0 && !opt.out_dir.empty();
+    real_t next_checkpoint = opt.checkpoint_interval;
+    real_t dt_stable = 0.0;
+    if (resume)
+    {
+        RKFEM_REQUIRE(resume->text("run.stepper") == stepper->name(),
+                      "the checkpoint was written with time.stepper " << resume->text("run.stepper")
+                                                                      << "; the deck now has " << stepper->name());
+        t = resume->value<real_t>("run.t");
+        step = resume->value<std::int64_t>("run.step");
+        next_output = resume->value<real_t>("run.next_output");
+        next_history = resume->value<real_t>("run.next_history");
+        dt_last = resume->value<real_t>("run.dt_last");
+        dt_stable = resume->value<real_t>("run.dt_stable");
+        element_steps = resume->value<std::size_t>("run.element_steps");
+        sum.dt_first = resume->value<real_t>("run.dt_first");
+        sum.dt_min = resume->value<real_t>("run.dt_min");
+        sum.max_balance_error = resume->value<real_t>("run.max_balance_error");
+        actual_depth = resume->value<real_t>("run.actual_depth");
+        if (checkpointing)
+        {
+            next_checkpoint = resume->value<real_t>("run.next_checkpoint");
+            if (resume->value<real_t>("run.checkpoint_interval") != opt.checkpoint_interval)
+                next_checkpoint = t; // a new interval: the clock starts again from here
+            advance_past(next_checkpoint, t, opt.checkpoint_interval);
+        }
+    }
+    // a checkpoint of the state between steps: the model's, the stepper's, the loop's and the
+    // output's, with the deck that built the model; the oldest kept ones rotate out
+    auto write_checkpoint_now = [&]
+    {
+        StateArchive a;
+        a.put_text("run.deck_text", opt.deck_text);
+        a.put_text("run.deck_path", opt.deck_path);
+        std::string overrides;
+        for (const auto& o : opt.overrides)
+            overrides += o + "\n";
+        a.put_text("run.overrides", overrides);
+        a.put_text("run.stepper", stepper->name());
+        a.put_value("run.t", t);
+        a.put_value("run.step", step);
+        a.put_value("run.next_output", next_output);
+        a.put_value("run.next_history", next_history);
+        a.put_value("run.dt_last", dt_last);
+        a.put_value("run.dt_stable", dt_stable);
+        a.put_value("run.element_steps", element_steps);
+        a.put_value("run.dt_first", sum.dt_first);
+        a.put_value("run.dt_min", sum.dt_min);
+        a.put_value("run.max_balance_error", sum.max_balance_error);
+        a.put_value("run.actual_depth", actual_depth);
+        a.put_value("run.next_checkpoint", next_checkpoint);
+        a.put_value("run.checkpoint_interval", opt.checkpoint_interval);
+        a.put("run.history", sum.history);
+        model.save_state(a);
+        stepper->save_state(a);
+        writer->save(a);
+        for (int k = opt.checkpoint_keep - 1; k > 0; --k)
+        {
+            std::error_code ec;
+            if (std::filesystem::exists(checkpoint_path(opt.out_dir, k - 1)))
+                std::filesystem::rename(checkpoint_path(opt.out_dir, k - 1), checkpoint_path(opt.out_dir, k), ec);
+        }
+        write_checkpoint(checkpoint_path(opt.out_dir), a);
+    };
+    if (checkpointing) // what a checkpoint cannot cover fails before the run
+    {
+        StateArchive probe;
+        model.save_state(probe);
+        stepper->save_state(probe);
+    }
     bool in_step = false; // a step is under way: a failure in it leaves t and step at the last good one
     try
     {
-        StepReport rep = stepper->initialize(model, t);
+        StepReport rep;
+        if (resume)
+        {
+            stepper->load_state(model, t, *resume);
+            rep.t = t;
+            rep.dt_stable = dt_stable;
+        }
+        else
+            rep = stepper->initialize(model, t);
         start_seconds = elapsed() - sum.output_seconds;
         auto observe = [&](bool final_step)
         {
@@ -284,14 +384,17 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             if (observer)
                 observer(model, t, dt_last, step);
         };
-        observe(false);
-        for (std::size_t k = 0; k < model.contacts.size(); ++k)
-            if (const index_t n = model.contacts[k]->initial_penetrations(); n > 0 && opt.progress)
-                std::fprintf(stderr,
-                             "rkfem: warning: contacts.%zu: %lld node(s) start inside the other surface; they are held at "
-                             "that depth, not pushed out (summary.json: contacts)\n",
-                             k, static_cast<long long>(n));
-        real_t dt_stable = rep.dt_stable;
+        if (!resume) // a restart's state at t is already in the output
+        {
+            observe(false);
+            for (std::size_t k = 0; k < model.contacts.size(); ++k)
+                if (const index_t n = model.contacts[k]->initial_penetrations(); n > 0 && opt.progress)
+                    std::fprintf(stderr,
+                                 "rkfem: warning: contacts.%zu: %lld node(s) start inside the other surface; they are "
+                                 "held at that depth, not pushed out (summary.json: contacts)\n",
+                                 k, static_cast<long long>(n));
+        }
+        dt_stable = rep.dt_stable;
         index_t ne = model.n_work_items(); // elements, and the stress points of nodal parts
         std::vector<real_t> event_a;  // accelerations before an event
         while (t < ts.end * (1 - 1e-12))
@@ -337,6 +440,13 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                    << ts.energy_error_limit << " at t = " << t << " s, step " << step;
                 throw InstabilityError(os.str());
             }
+            if (checkpointing && (t >= next_checkpoint - 1e-12 * ts.end || last))
+                output_clock(
+                    [&]
+                    {
+                        advance_past(next_checkpoint, t + 1e-12 * ts.end, opt.checkpoint_interval);
+                        write_checkpoint_now();
+                    });
             progress.update(t, ts.end, step, dt, energy_ratio(model.energy), elapsed());
         }
         progress.update(t, ts.end, step, dt_last, energy_ratio(model.energy), elapsed(), true);

@@ -23,7 +23,21 @@ struct RunOptions
     /// Seconds spent before run_simulation on this run (reading the deck, building the model),
     /// reported in summary.json's set-up time.
     real_t setup_seconds = 0.0;
+    /// > 0 (with out_dir): a checkpoint every this much simulated time and at the end of the
+    /// run, out_dir/checkpoint.h5 (io/checkpoint.hpp), from which `rkfem restart` continues with
+    /// the same bits. deck_text is stored in it (the deck as read, with deck_path and overrides).
+    real_t checkpoint_interval = 0.0;
+    /// Checkpoints kept: checkpoint.h5 the newest, checkpoint.1.h5 the one before, ...
+    int checkpoint_keep = 1;
+    std::string deck_text;
+    /// Continue from this checkpoint (restart): the model was built from its deck and has loaded
+    /// its state (Model::load_state); the loop, the output cursors, results.h5 and the history
+    /// go on from where it was written.
+    const StateArchive* resume = nullptr;
 };
+
+/// The file of checkpoint k in a run's directory (0: the newest, checkpoint.h5).
+std::string checkpoint_path(const std::string& dir, int k = 0);
 
 struct RunSummary
 {

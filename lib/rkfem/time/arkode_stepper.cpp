@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/stream_stores.hpp"
 #include "rkfem/time/central_difference.hpp"
@@ -144,6 +145,9 @@ struct ArkodeStepper::Impl
     std::int64_t step_index = 0;
     std::exception_ptr error;
     bool ewt_set = false;
+    /// The next evaluation is the one a checkpoint was written after (ARKODE evaluates f(y(n))
+    /// again when it starts): its forces and accelerations are the model's, restored with it.
+    bool replay = false;
 
     ~Impl()
     {
@@ -233,9 +237,14 @@ struct ArkodeStepper::Impl
                 const StatePool::Halves y = values(yv);
                 m.set_state(y.u, y.v);
             }
-            force = m.compute_forces(t, state_committed ? 0.0 : h_prev, step_index);
-            state_committed = false;
-            m.accelerations();
+            if (replay)
+                replay = false;
+            else
+            {
+                force = m.compute_forces(t, state_committed ? 0.0 : h_prev, step_index);
+                state_committed = false;
+                m.accelerations();
+            }
             real_t h = forced_h > 0 ? forced_h : next_time_step(self->ts_, t, force.dt_stable);
             if (!(h > 0))
                 h = h_prev > 0 ? h_prev : force.dt_stable; // at the end time: any positive step
@@ -275,8 +284,13 @@ struct ArkodeStepper::Impl
         else
             std::copy(v, v + n3, nodes.v.begin());
         m.update_coordinates();
-        force = m.compute_forces(t, dtm, step_index);
-        m.accelerations();
+        if (replay)
+            replay = false;
+        else
+        {
+            force = m.compute_forces(t, dtm, step_index);
+            m.accelerations();
+        }
         const real_t* a = nodes.a.data();
         const StatePool::Halves yd = overwrite(ydot);
         parallel_for("rkfem::arkode_erk::rhs", n3,
@@ -326,14 +340,20 @@ StepReport ArkodeStepper::initialize(ExplicitOperator& model, real_t t)
     im.n3 = 3 * n.size();
     // the same start as the hand-written central difference
     const StepReport start = start_model(model, t);
+    im.h_prev = im.h_pending = 0.0;
+    im.t_n = t;
+    create(model, t, n.u.data(), n.v.data());
+    return start;
+}
 
+void ArkodeStepper::create(ExplicitOperator& model, real_t t, const real_t* y_u, const real_t* y_v)
+{
+    Impl& im = *impl_;
     if (!project_ops_)
     {
         im.v_full.assign(static_cast<std::size_t>(im.n3), 0.0);
         im.fixup_dofs = model.velocity_driven_dofs();
     }
-    im.h_prev = im.h_pending = 0.0;
-    im.t_n = t;
 
     im.check(SUNContext_Create(nullptr, &im.ctx), "SUNContext_Create");
     if (project_ops_)
@@ -348,8 +368,8 @@ StepReport ArkodeStepper::initialize(ExplicitOperator& model, real_t t)
     }
     RKFEM_REQUIRE(im.y != nullptr, "ARKODE: the state vector could not be made");
     const StatePool::Halves y = im.overwrite(im.y);
-    std::copy(n.u.begin(), n.u.end(), y.u);
-    std::copy(n.v.begin(), n.v.end(), y.v);
+    std::copy(y_u, y_u + im.n3, y.u);
+    std::copy(y_v, y_v + im.n3, y.v);
     im.mem = ERKStepCreate(Impl::rhs, t, im.y, im.ctx);
     RKFEM_REQUIRE(im.mem != nullptr, "ARKODE: ERKStepCreate failed");
     im.check(ERKStepSetUserData(im.mem, &im), "ERKStepSetUserData");
@@ -367,7 +387,54 @@ StepReport ArkodeStepper::initialize(ExplicitOperator& model, real_t t)
     // (the module cannot be switched off before SUNDIALS 7.1; rkfem's vectors share the copy)
     im.check(ERKStepSetInterpolantType(im.mem, ARK_INTERP_LAGRANGE), "ERKStepSetInterpolantType");
     im.check(ERKStepSetInterpolantDegree(im.mem, 0), "ERKStepSetInterpolantDegree");
-    return start;
+}
+
+void ArkodeStepper::save_state(StateArchive& a) const
+{
+    if (!impl_ || !impl_->mem) // not started: nothing to save (the probe before a run)
+        return;
+    Impl& im = *impl_;
+    // y(n): for the central difference its v half is v(n - 1/2), which the model does not hold.
+    // Reading y takes a lent half back; the model's u is then lent to it again as the next
+    // evaluation expects (nothing else changes)
+    const StatePool::Halves y = im.values(im.y);
+    a.put_bytes("arkode.y_u", y.u, static_cast<std::size_t>(im.n3) * sizeof(real_t));
+    a.put_bytes("arkode.y_v", y.v, static_cast<std::size_t>(im.n3) * sizeof(real_t));
+    if (im.pool && mode_ == Mode::CentralDifference)
+    {
+        NodeSet& n = im.model->state();
+        im.pool->lend(im.y, n.u, n.v);
+        im.pool->return_v();
+    }
+    a.put_value("arkode.h_prev", im.h_prev);
+    a.put_value("arkode.h_pending", im.h_pending);
+    a.put_value("arkode.h_next", im.h_next);
+    a.put_value("arkode.forced_h", im.forced_h);
+    a.put_value("arkode.t_n", im.t_n);
+    a.put_value("arkode.force", im.force);
+    a.put_value("arkode.state_committed", im.state_committed);
+}
+
+void ArkodeStepper::load_state(ExplicitOperator& model, real_t t, const StateArchive& a)
+{
+    impl_.reset();
+    impl_ = std::make_unique<Impl>();
+    Impl& im = *impl_;
+    im.self = this;
+    im.model = &model;
+    im.n3 = 3 * model.state().size();
+    std::vector<real_t> y_u(static_cast<std::size_t>(im.n3)), y_v(y_u.size());
+    a.get_same_size("arkode.y_u", y_u);
+    a.get_same_size("arkode.y_v", y_v);
+    im.h_prev = a.value<real_t>("arkode.h_prev");
+    im.h_pending = a.value<real_t>("arkode.h_pending");
+    im.h_next = a.value<real_t>("arkode.h_next");
+    im.forced_h = a.value<real_t>("arkode.forced_h");
+    im.t_n = a.value<real_t>("arkode.t_n");
+    im.force = a.value<ForceReport>("arkode.force");
+    im.state_committed = a.value<bool>("arkode.state_committed");
+    create(model, t, y_u.data(), y_v.data());
+    im.replay = true;
 }
 
 StepReport ArkodeStepper::step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index)

@@ -53,6 +53,12 @@ class ArkodeStepper final : public TimeStepper
     StepReport step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index) override;
     const char* name() const override { return mode_ == Mode::CentralDifference ? "arkode-cd" : "arkode-erk"; }
     bool restore_last_good(ExplicitOperator& model) override;
+    /// y(n) (its v half is v(n - 1/2) for the central difference), the step sizes and the last
+    /// force report. load_state makes a fresh ARKODE from them whose first evaluation, at y(n),
+    /// reuses the model's restored accelerations instead of a force pass: the evaluation the
+    /// checkpoint was written after, which the uninterrupted run did once.
+    void save_state(StateArchive& archive) const override;
+    void load_state(ExplicitOperator& model, real_t t, const StateArchive& archive) override;
 
     long rhs_evaluations() const { return n_rhs_; }
     /// rkfem's state vectors of the current run (null before initialize() and with Debian's).
@@ -61,6 +67,8 @@ class ArkodeStepper final : public TimeStepper
     struct Impl;
 
   private:
+    /// ARKODE (context, state vector y = (y_u, y_v), ERKStep and its settings) at t.
+    void create(ExplicitOperator& model, real_t t, const real_t* y_u, const real_t* y_v);
     Mode mode_;
     TimeSpec ts_;
     bool project_ops_;

@@ -5,13 +5,16 @@
 /// interface.
 #include <cstdint>
 #include <memory>
+#include <string>
 
 #include "rkfem/config/deck.hpp"
+#include "rkfem/core/error.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
 {
 class ExplicitOperator;
+class StateArchive;
 
 struct StepReport
 {
@@ -36,6 +39,18 @@ class TimeStepper
     /// accepted step) back into the operator's nodes; the material's committed state is already
     /// that step's. False when there is no failed step to undo. The stepper is not used again.
     virtual bool restore_last_good(ExplicitOperator& /*model*/) { return false; }
+    /// A checkpoint's share of the stepper's state between steps (save_state), and continuing
+    /// from it in place of initialize() (load_state, after the model loaded its own state): the
+    /// next step() then takes the same bits as the run that wrote it. Steppers whose state is
+    /// not covered throw Error.
+    virtual void save_state(StateArchive& /*archive*/) const
+    {
+        throw Error(std::string("checkpoints do not cover time.stepper ") + name() + " yet; expected central-difference");
+    }
+    virtual void load_state(ExplicitOperator& /*model*/, real_t /*t*/, const StateArchive& /*archive*/)
+    {
+        throw Error(std::string("checkpoints do not cover time.stepper ") + name() + " yet; expected central-difference");
+    }
 };
 
 /// The step the run loop takes next: dt_scale * dt_stable, capped by dt_max and by the end time.

@@ -1,0 +1,22 @@
+#pragma once
+/// @file checkpoint.hpp
+/// A checkpoint file: a StateArchive as HDF5 (one 1-D byte dataset per entry, under /state,
+/// attribute `format` on the root). Written to PATH.tmp, closed, then renamed over PATH, so a
+/// run killed while writing leaves the previous checkpoint whole and never a partial one under
+/// the name restart reads.
+#include <string>
+
+#include "rkfem/core/state_archive.hpp"
+
+namespace rkfem
+{
+/// The format written and the only one read.
+inline constexpr int kCheckpointFormat = 1;
+
+/// Writes `archive` to `path` (through path + ".tmp" and a rename). Throws Error.
+void write_checkpoint(const std::string& path, const StateArchive& archive);
+
+/// Reads a checkpoint written by write_checkpoint. Throws Error naming the file when it cannot be
+/// opened, is not a checkpoint, or has another format.
+StateArchive read_checkpoint(const std::string& path);
+} // namespace rkfem

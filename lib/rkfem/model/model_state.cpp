@@ -1,0 +1,168 @@
+// The model's state between steps, into and out of a checkpoint (StateArchive). What is built
+// from the deck (tables, masses' layout, conditions) is built again; what a run changed is saved:
+// nodal kinematics and masses, committed material state, the ledger and its previous-step terms,
+// and the elements erosion removed.
+#include <string>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/state_archive.hpp"
+#include "rkfem/model/model.hpp"
+
+namespace rkfem
+{
+namespace
+{
+void save_plastic(StateArchive& a, const std::string& prefix, const PlasticPoints& p)
+{
+    int k = 0;
+    p.each_array([&](const auto& committed, const auto&) { a.put(prefix + "plastic." + std::to_string(k++), committed); });
+}
+
+void load_plastic(const StateArchive& a, const std::string& prefix, PlasticPoints& p)
+{
+    int k = 0;
+    p.each_array(
+        [&](auto& committed, auto& trial)
+        {
+            a.get_same_size(prefix + "plastic." + std::to_string(k++), committed);
+            trial = committed;
+        });
+}
+
+/// A HexBlock's committed state (the tables are rebuilt from the deck).
+void save_hex(StateArchive& a, const std::string& prefix, const HexBlock& b)
+{
+    a.put(prefix + "conn", b.conn);
+    a.put(prefix + "stress", b.stress);
+    a.put(prefix + "hg_force", b.hg_force);
+    save_plastic(a, prefix, b.plastic);
+}
+
+void load_hex_state(const StateArchive& a, const std::string& prefix, HexBlock& b)
+{
+    a.get_same_size(prefix + "stress", b.stress);
+    b.stress_trial = b.stress;
+    a.get_same_size(prefix + "hg_force", b.hg_force);
+    b.hg_force_trial = b.hg_force;
+    load_plastic(a, prefix, b.plastic);
+}
+
+/// The elements of `built` (as the deck builds them) that remain in `saved` (a block after
+/// erosion): removal keeps the order, so one pass matches them.
+std::vector<char> kept_elements(const std::vector<index_t>& built, const std::vector<index_t>& saved, const std::string& what)
+{
+    const std::size_t ne = built.size() / 8;
+    std::vector<char> keep(ne, 0);
+    std::size_t s = 0;
+    for (std::size_t e = 0; e < ne && s < saved.size() / 8; ++e)
+        if (std::equal(built.begin() + 8 * e, built.begin() + 8 * e + 8, saved.begin() + 8 * s))
+        {
+            keep[e] = 1;
+            ++s;
+        }
+    if (s != saved.size() / 8)
+        throw Error("checkpoint: " + what + "'s elements are not those of the deck's mesh (a checkpoint of another deck)");
+    return keep;
+}
+} // namespace
+
+void Model::save_state(StateArchive& a) const
+{
+    RKFEM_REQUIRE(contacts.empty(), "checkpoints do not cover contacts yet (their search and penalty state): the deck "
+                                    "has " << contacts.size() << " contact definition(s)");
+    a.put("nodes.u", nodes.u);
+    a.put("nodes.v", nodes.v);
+    a.put("nodes.a", nodes.a);
+    a.put("nodes.mass", nodes.mass);
+    for (std::size_t b = 0; b < blocks.size(); ++b)
+        save_hex(a, "block." + std::to_string(b) + ".", blocks[b]);
+    for (std::size_t b = 0; b < fe_sides.size(); ++b)
+        save_hex(a, "fe_side." + std::to_string(b) + ".", fe_sides[b].block);
+    for (std::size_t b = 0; b < nodal_blocks.size(); ++b)
+    {
+        const NodalBlock& nb = nodal_blocks[b];
+        const std::string prefix = "nodal." + std::to_string(b) + ".";
+        a.put(prefix + "stress", nb.stress);
+        a.put(prefix + "stab_stress", nb.stab_stress);
+        a.put(prefix + "jacobian", nb.jacobian);
+        save_plastic(a, prefix, nb.plastic);
+    }
+    a.put_value("energy", energy);
+    a.put("part_energy", part_energy_);
+    a.put("f_ext_prev", f_ext_prev_);
+    a.put("reaction_prev", reaction_prev_);
+    a.put("reaction_inertia", reaction_inertia_);
+    a.put("bc_v_prev", bc_v_prev_);
+    a.put_value("dt_critical", dt_critical_);
+    a.put_value("topology_version", topology_version_);
+    a.put_value("eroded_elements", eroded_elements_);
+    a.put_value("eroded_blocks", static_cast<index_t>(eroded_.size()));
+    for (std::size_t b = 0; b < eroded_.size(); ++b)
+    {
+        a.put("eroded." + std::to_string(b) + ".conn", eroded_[b].conn);
+        a.put("eroded." + std::to_string(b) + ".volume0", eroded_[b].volume0);
+    }
+}
+
+void Model::load_state(const StateArchive& a)
+{
+    RKFEM_REQUIRE(contacts.empty(), "checkpoints do not cover contacts yet (their search and penalty state)");
+    // erosion first: the blocks take the saved element lists, then their state
+    bool eroded_any = false;
+    for (std::size_t b = 0; b < blocks.size(); ++b)
+    {
+        std::vector<index_t> conn;
+        a.get("block." + std::to_string(b) + ".conn", conn);
+        if (conn == blocks[b].conn)
+            continue;
+        const std::vector<char> keep = kept_elements(blocks[b].conn, conn, "part '" + parts[b].name + "'");
+        blocks[b].remove_elements(keep, nodes);
+        eroded_any = true;
+    }
+    if (eroded_any)
+    {
+        index_t offset = 0;
+        for (std::size_t ip = 0; ip < parts.size(); ++ip)
+        {
+            parts[ip].element_offset = offset;
+            offset += blocks[ip].n_elements();
+        }
+        plan_assembly();
+    }
+    a.get_same_size("nodes.u", nodes.u);
+    a.get_same_size("nodes.v", nodes.v);
+    a.get_same_size("nodes.a", nodes.a);
+    a.get_same_size("nodes.mass", nodes.mass);
+    update_coordinates();
+    for (std::size_t b = 0; b < blocks.size(); ++b)
+        load_hex_state(a, "block." + std::to_string(b) + ".", blocks[b]);
+    for (std::size_t b = 0; b < fe_sides.size(); ++b)
+        load_hex_state(a, "fe_side." + std::to_string(b) + ".", fe_sides[b].block);
+    for (std::size_t b = 0; b < nodal_blocks.size(); ++b)
+    {
+        NodalBlock& nb = nodal_blocks[b];
+        const std::string prefix = "nodal." + std::to_string(b) + ".";
+        a.get_same_size(prefix + "stress", nb.stress);
+        nb.stress_trial = nb.stress;
+        a.get_same_size(prefix + "stab_stress", nb.stab_stress);
+        nb.stab_stress_trial = nb.stab_stress;
+        a.get_same_size(prefix + "jacobian", nb.jacobian);
+        load_plastic(a, prefix, nb.plastic);
+    }
+    energy = a.value<Energies>("energy");
+    a.get("part_energy", part_energy_);
+    a.get("f_ext_prev", f_ext_prev_);
+    a.get("reaction_prev", reaction_prev_);
+    a.get("reaction_inertia", reaction_inertia_);
+    a.get("bc_v_prev", bc_v_prev_);
+    dt_critical_ = a.value<real_t>("dt_critical");
+    topology_version_ = a.value<int>("topology_version");
+    eroded_elements_ = a.value<index_t>("eroded_elements");
+    eroded_.assign(static_cast<std::size_t>(a.value<index_t>("eroded_blocks")), ErodedElements{});
+    for (std::size_t b = 0; b < eroded_.size(); ++b)
+    {
+        a.get("eroded." + std::to_string(b) + ".conn", eroded_[b].conn);
+        a.get("eroded." + std::to_string(b) + ".volume0", eroded_[b].volume0);
+    }
+}
+} // namespace rkfem

@@ -1,0 +1,210 @@
+// Checkpoints and restart through the executable: `rkfem run DECK --checkpoint-interval T` writes
+// DIR/checkpoint.h5 (the newest N kept), and `rkfem restart DIR --from FILE` continues from any
+// of them with the same bits as the run that was not interrupted: every field of every frame,
+// history.csv byte for byte, summary.json but for its clocks. Erosion (J2 elements removed
+// mid-run), K&C, RK particles on a mesh and on a Voronoi cloud (pressure on cloud facets, RK
+// collocation of the rollers), with the three steppers. A run killed while writing a checkpoint
+// leaves a .tmp file that restart never reads; a damaged or missing checkpoint, a deck
+// checkpoints cannot cover (contacts) and bad times are refused with one line, exit 2.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <hdf5.h>
+#include <iterator>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "../executable.hpp"
+
+namespace fs = std::filesystem;
+using rkfem::test::Result;
+using rkfem::test::run;
+
+namespace
+{
+std::string slurp(const fs::path& p)
+{
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// summary.json without the lines that hold wall-clock times (they differ from run to run).
+std::string summary_without_clocks(const fs::path& dir)
+{
+    std::istringstream in(slurp(dir / "summary.json"));
+    std::string out;
+    for (std::string line; std::getline(in, line);)
+        if (line.find("seconds") == std::string::npos && line.find("ns_per_element_cycle") == std::string::npos)
+            out += line + "\n";
+    return out;
+}
+
+/// Every frame's datasets of results.h5, as raw bytes, frame by frame; the frames' times.
+struct Frames
+{
+    std::vector<std::string> data;
+    std::vector<double> times;
+};
+
+Frames read_frames(const fs::path& dir)
+{
+    Frames f;
+    const hid_t file = H5Fopen((dir / "results.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    EXPECT_GE(file, 0) << dir;
+    if (file < 0)
+        return f;
+    const hid_t steps = H5Gopen2(file, "steps", H5P_DEFAULT);
+    hsize_t n = 0;
+    H5Gget_num_objs(steps, &n);
+    for (hsize_t i = 0; i < n; ++i)
+    {
+        char name[64];
+        H5Gget_objname_by_idx(steps, i, name, sizeof name);
+        const hid_t g = H5Gopen2(steps, name, H5P_DEFAULT);
+        double t = 0;
+        const hid_t a = H5Aopen(g, "time", H5P_DEFAULT);
+        H5Aread(a, H5T_NATIVE_DOUBLE, &t);
+        H5Aclose(a);
+        f.times.push_back(t);
+        std::string bytes;
+        hsize_t m = 0;
+        H5Gget_num_objs(g, &m);
+        for (hsize_t k = 0; k < m; ++k)
+        {
+            char field[64];
+            H5Gget_objname_by_idx(g, k, field, sizeof field);
+            const hid_t d = H5Dopen2(g, field, H5P_DEFAULT);
+            const hid_t s = H5Dget_space(d);
+            std::vector<double> v(static_cast<std::size_t>(H5Sget_simple_extent_npoints(s)));
+            H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
+            bytes += std::string(field) + ":" +
+                     std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(double));
+            H5Sclose(s);
+            H5Dclose(d);
+        }
+        f.data.push_back(bytes);
+        H5Gclose(g);
+    }
+    H5Gclose(steps);
+    H5Fclose(file);
+    return f;
+}
+
+std::string deck_path(const char* name) { return (fs::path(RKFEM_SOURCE_DIR) / "studies/decks" / name).string(); }
+
+/// Runs DECK uninterrupted with checkpoints every `interval` (all kept), then restarts a copy of
+/// its directory from each checkpoint but the last (the end of the run) and compares.
+void expect_restarts_reproduce(const std::string& label, const std::string& deck, const std::string& sets,
+                               const std::string& interval)
+{
+    const fs::path u = fs::temp_directory_path() / ("rkfem_ckpt_" + label);
+    fs::remove_all(u);
+    const Result r = run("run " + deck + " --out " + u.string() + " --quiet --set output.precision=double " + sets +
+                         " --checkpoint-interval '" + interval + "' --checkpoint-keep 50");
+    ASSERT_EQ(r.code, 0) << label << ": " << r.output;
+    int n = 0;
+    while (fs::exists(u / ("checkpoint." + std::to_string(n + 1) + ".h5")))
+        ++n;
+    ASSERT_GE(n, 2) << label << ": expected at least two checkpoints before the end";
+    const Frames whole = read_frames(u);
+    const std::string history = slurp(u / "history.csv"), summary = summary_without_clocks(u);
+    for (int k = 1; k <= n; ++k)
+    {
+        const fs::path c = fs::temp_directory_path() / ("rkfem_ckpt_" + label + "_restart");
+        fs::remove_all(c);
+        fs::copy(u, c);
+        // a checkpoint that a killed run was writing: never read
+        std::ofstream(c / "checkpoint.h5.tmp") << "half a file";
+        const Result rs = run("restart " + c.string() + " --quiet --from " +
+                              (u / ("checkpoint." + std::to_string(k) + ".h5")).string());
+        ASSERT_EQ(rs.code, 0) << label << " from checkpoint." << k << ": " << rs.output;
+        const Frames again = read_frames(c);
+        ASSERT_EQ(again.times, whole.times) << label << " from checkpoint." << k;
+        std::size_t differ = 0;
+        for (std::size_t f = 0; f < whole.data.size(); ++f)
+            differ += whole.data[f] != again.data[f];
+        std::printf("%s: restarted from checkpoint.%d.h5: %zu frames, %zu differ; history %s, summary %s\n",
+                    label.c_str(), k, whole.data.size(), differ,
+                    slurp(c / "history.csv") == history ? "same bytes" : "DIFFERS",
+                    summary_without_clocks(c) == summary ? "same" : "DIFFERS");
+        EXPECT_EQ(differ, 0u) << label << " from checkpoint." << k;
+        EXPECT_EQ(slurp(c / "history.csv"), history) << label << " from checkpoint." << k;
+        EXPECT_EQ(summary_without_clocks(c), summary) << label << " from checkpoint." << k;
+    }
+}
+} // namespace
+
+TEST(Checkpoint, ErodingJ2BarRestartsWithTheSameBitsWithEachStepper)
+{
+    for (const char* stepper : {"central-difference", "arkode-cd", "arkode-erk"})
+        expect_restarts_reproduce(std::string("erosion_") + stepper, deck_path("bar_erosion.yaml"),
+                                  std::string("--set time.stepper=") + stepper, "3 us");
+}
+
+TEST(Checkpoint, ConcreteBarRestartsWithTheSameBits)
+{
+    expect_restarts_reproduce("kcc", deck_path("concrete_bar_kcc.yaml"), "", "10 us");
+}
+
+TEST(Checkpoint, RkParticlesOnAMeshAndOnACloudRestartWithTheSameBits)
+{
+    expect_restarts_reproduce("rkpm_mesh", deck_path("column_wave_rkpm.yaml"),
+                              "--set time.end=3us --set time.stepper=central-difference", "1 us");
+    expect_restarts_reproduce("rkpm_cloud", deck_path("cylinder_cloud_pressure.yaml"), "--set time.end=3us", "1 us");
+}
+
+TEST(Checkpoint, RestartContinuesPastTheEndWithUntil)
+{
+    // a run that ended (its checkpoint at the end) goes on to a later time: the frames and
+    // history rows before the checkpoint stay, new ones follow
+    const fs::path u = fs::temp_directory_path() / "rkfem_ckpt_until";
+    fs::remove_all(u);
+    ASSERT_EQ(run("run " + deck_path("bar_erosion.yaml") + " --out " + u.string() +
+                  " --quiet --set time.end=4us --checkpoint-interval '10 us'")
+                  .code,
+              0);
+    const Frames before = read_frames(u);
+    const Result r = run("restart " + u.string() + " --quiet --until '6 us'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const Frames after = read_frames(u);
+    ASSERT_EQ(before.times.size(), 5u); // 0 .. 4 us
+    ASSERT_EQ(after.times.size(), 7u);  // .. 6 us
+    for (std::size_t f = 0; f < before.data.size(); ++f)
+        EXPECT_EQ(after.data[f], before.data[f]) << "frame " << f;
+    EXPECT_DOUBLE_EQ(after.times.back(), 6e-6);
+    EXPECT_NE(summary_without_clocks(u).find("\"end_time\": 6e-06"), std::string::npos) << summary_without_clocks(u);
+}
+
+TEST(Checkpoint, WhatCannotBeRestartedIsRefusedWithOneLine)
+{
+    const fs::path u = fs::temp_directory_path() / "rkfem_ckpt_errors";
+    fs::remove_all(u);
+    fs::create_directories(u);
+    auto expect_refused = [](const std::string& args, const std::string& needle)
+    {
+        const Result r = run(args);
+        EXPECT_EQ(r.code, 2) << args << "\n" << r.output;
+        EXPECT_NE(r.output.find(needle), std::string::npos) << args << "\n" << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    };
+    expect_refused("restart " + u.string(), "no checkpoint");
+    std::ofstream(u / "checkpoint.h5") << "not an HDF5 file";
+    expect_refused("restart " + u.string(), "cannot open checkpoint");
+    expect_refused("run " + deck_path("fsp_impact.yaml") + " --out " + u.string() + " --checkpoint-interval '1 us'",
+                   "do not cover contacts");
+    expect_refused("run " + deck_path("bar_erosion.yaml") + " --out " + u.string() + " --checkpoint-interval 2m",
+                   "expected a time");
+    expect_refused("run " + deck_path("bar_erosion.yaml") + " --out " + u.string() + " --checkpoint-interval -1s",
+                   "expected a positive, finite time");
+    expect_refused("restart " + u.string() + " --set time.end=1s", "takes no --set");
+    // a checkpoint at the end of a run, restarted to an earlier time
+    const fs::path d = fs::temp_directory_path() / "rkfem_ckpt_done";
+    fs::remove_all(d);
+    ASSERT_EQ(run("run " + deck_path("bar_erosion.yaml") + " --out " + d.string() +
+                  " --quiet --set time.end=2us --checkpoint-interval '10 us'")
+                  .code,
+              0);
+    expect_refused("restart " + d.string() + " --until '1 us'", "expected --until past the checkpoint");
+}
