@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 #include <yaml-cpp/depthguard.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include "rkfem/core/error.hpp"
@@ -323,13 +324,45 @@ Deck build(const YAML::Node& root, Context& ctx)
 
 namespace
 {
-/// The one YAML document of a deck; a second one (after `---`) is refused, not ignored.
+/// Sees the documents of a stream and nothing else: where the second one starts.
+class DocumentCounter : public YAML::EventHandler
+{
+  public:
+    void OnDocumentStart(const YAML::Mark& mark) override
+    {
+        if (++documents == 2)
+            second = mark;
+    }
+    void OnDocumentEnd() override {}
+    void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+    void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+    void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+    void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+    void OnSequenceEnd() override {}
+    void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+    void OnMapEnd() override {}
+    int documents = 0;
+    YAML::Mark second = YAML::Mark::null_mark();
+};
+
+/// The one YAML document of a deck; a second one (after `---`) is refused, not ignored. The
+/// documents are counted up to two: yaml-cpp 0.7's LoadAll never returns on some malformed
+/// input (its parser hands out empty documents without reading on, found by the deck fuzzer).
 YAML::Node load_document(const std::string& text, const std::string& name)
 {
-    std::vector<YAML::Node> docs;
+    YAML::Node doc;
     try
     {
-        docs = YAML::LoadAll(text);
+        std::istringstream in(text);
+        YAML::Parser parser(in);
+        DocumentCounter counter;
+        while (counter.documents < 2 && parser.HandleNextDocument(counter))
+        {
+        }
+        if (counter.documents > 1)
+            throw DeckError({counter.second.is_null() ? name : name + ":" + std::to_string(counter.second.line + 1), ""},
+                            "holds more than one YAML document", "expected one document (remove the second after ---)");
+        doc = YAML::Load(text);
     }
     catch (const YAML::DeepRecursion& e)
     {
@@ -343,14 +376,7 @@ YAML::Node load_document(const std::string& text, const std::string& name)
         throw DeckError({name + ":" + std::to_string(e.mark.line + 1), ""},
                         "YAML syntax error: " + e.msg, "expected a valid YAML document");
     }
-    if (docs.size() > 1)
-    {
-        const YAML::Mark m = docs[1].Mark();
-        throw DeckError({m.is_null() ? name : name + ":" + std::to_string(m.line + 1), ""},
-                        "holds " + std::to_string(docs.size()) + " YAML documents",
-                        "expected one document (remove the second after ---)");
-    }
-    return docs.empty() ? YAML::Node() : docs.front();
+    return doc;
 }
 } // namespace
 

@@ -1,3 +1,5 @@
+#include <cctype>
+#include <cstdio>
 #include <sstream>
 
 #include "rkfem/config/deck.hpp"
@@ -6,6 +8,42 @@ namespace rkfem
 {
 namespace
 {
+/// A string as a YAML scalar that reads back as the same string: plain when it is a simple name
+/// (letters, digits, _ . - / not starting with a digit, - or .) and `quoted` is false; otherwise
+/// double-quoted, with backslash, quote and control characters escaped.
+std::string scalar(const std::string& s, bool quoted = false)
+{
+    bool plain = !quoted && !s.empty() && (std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_' || s[0] == '/');
+    for (const char c : s)
+        plain = plain && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '-' || c == '/');
+    static const char* const reserved[] = {"true", "false", "yes", "no", "on", "off", "null", "y", "n"};
+    for (const char* r : reserved)
+    {
+        std::string lower = s;
+        for (char& c : lower)
+            c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        plain = plain && lower != r;
+    }
+    if (plain)
+        return s;
+    std::string out = "\"";
+    for (const char c : s)
+    {
+        const auto u = static_cast<unsigned char>(c);
+        if (c == '"' || c == '\\')
+            out += std::string("\\") + c;
+        else if (u < 0x20 || u == 0x7f)
+        {
+            char buf[8];
+            std::snprintf(buf, sizeof buf, "\\x%02x", u);
+            out += buf;
+        }
+        else
+            out += c;
+    }
+    return out + "\"";
+}
+
 std::string vec(const Vec3& v)
 {
     std::ostringstream os;
@@ -61,7 +99,7 @@ void selector(std::ostringstream& os, const SelectorSpec& sel)
     switch (sel.type)
     {
     case SelectorSpec::Type::Named:
-        os << ", name: " << sel.name;
+        os << ", name: " << scalar(sel.name);
         break;
     case SelectorSpec::Type::Plane:
         os << ", point: " << vec(sel.point) << ", normal: " << vec(sel.normal);
@@ -88,9 +126,9 @@ void sets(std::ostringstream& os, const char* key, const std::vector<SetSpec>& v
     os << key << ":\n";
     for (const auto& s : v)
     {
-        os << "  " << s.name << ": {";
+        os << "  " << scalar(s.name) << ": {";
         if (!s.part.empty())
-            os << "part: " << s.part << ", ";
+            os << "part: " << scalar(s.part) << ", ";
         selector(os, s.select);
         os << "}\n";
     }
@@ -116,7 +154,7 @@ std::string to_yaml(const Deck& d)
     std::ostringstream os;
     os.precision(10);
     os << "# resolved deck, SI units (kg, m, s, N, Pa)\n";
-    os << "title: \"" << d.title << "\"\n";
+    os << "title: " << scalar(d.title, true) << "\n";
     os << "time: {end: " << d.time.end << ", output_interval: " << d.time.output_interval
        << ", history_interval: " << d.time.history_interval << ", dt_scale: " << d.time.dt_scale
        << ", dt_max: " << d.time.dt_max << ", max_steps: " << d.time.max_steps
@@ -133,7 +171,7 @@ std::string to_yaml(const Deck& d)
     for (const auto& p : d.parts)
     {
         const auto& g = p.generator;
-        os << "  " << p.name << ":\n";
+        os << "  " << scalar(p.name) << ":\n";
         for (const auto& note : p.ignored)
             os << "    # warning: " << note << "\n";
         os << "    generator: {";
@@ -169,7 +207,7 @@ std::string to_yaml(const Deck& d)
             if (g.points_file.empty())
                 os << ", spacing: " << g.element_size << ", jitter: " << g.jitter << ", seed: " << g.seed;
             else
-                os << ", points: " << g.points_file << ", points_unit: " << g.points_unit << " m";
+                os << ", points: " << scalar(g.points_file) << ", points_unit: " << g.points_unit << " m";
             break;
         }
         os << "}\n";
@@ -279,7 +317,7 @@ std::string to_yaml(const Deck& d)
         os << "boundary_conditions:\n";
         for (const auto& b : d.boundary_conditions)
         {
-            os << "  - {node_set: " << b.node_set << ", ";
+            os << "  - {node_set: " << scalar(b.node_set) << ", ";
             if (b.kind == BoundarySpec::Kind::Fixed)
             {
                 os << "fixed: [";
@@ -307,12 +345,12 @@ std::string to_yaml(const Deck& d)
         {
             if (l.kind == LoadSpec::Kind::NodalForce)
             {
-                os << "  - {type: nodal_force, node_set: " << l.set << ", force: ";
+                os << "  - {type: nodal_force, node_set: " << scalar(l.set) << ", force: ";
                 components(os, l.active, l.force);
                 os << ", total: " << (l.total ? "true" : "false") << "}\n";
             }
             else
-                os << "  - {type: pressure, face_set: " << l.set << ", pressure: " << fn(l.pressure)
+                os << "  - {type: pressure, face_set: " << scalar(l.set) << ", pressure: " << fn(l.pressure)
                    << "}\n";
         }
     }
@@ -329,7 +367,7 @@ std::string to_yaml(const Deck& d)
             {
                 os << ", surfaces: [";
                 for (std::size_t k = 0; k < c.surfaces.size(); ++k)
-                    os << (k ? ", " : "") << c.surfaces[k];
+                    os << (k ? ", " : "") << scalar(c.surfaces[k]);
                 os << "]";
             }
             if (c.kind == ContactSpec::Kind::RigidWall)
@@ -344,24 +382,24 @@ std::string to_yaml(const Deck& d)
         }
     }
     if (d.impact.active)
-        os << "impact: {target: " << d.impact.target
-           << (d.impact.projectile.empty() ? "" : ", projectile: " + d.impact.projectile)
+        os << "impact: {target: " << scalar(d.impact.target)
+           << (d.impact.projectile.empty() ? "" : ", projectile: " + scalar(d.impact.projectile))
            << ", point: " << vec(d.impact.point) << ", direction: " << vec(d.impact.direction)
            << ", damage: " << d.impact.damage << "}\n";
     if (!d.probes.empty())
     {
         os << "probes:\n";
         for (const auto& p : d.probes)
-            os << "  " << p.name << ": {point: " << vec(p.point)
-               << (p.part.empty() ? "" : ", part: " + p.part) << "}\n";
+            os << "  " << scalar(p.name) << ": {point: " << vec(p.point)
+               << (p.part.empty() ? "" : ", part: " + scalar(p.part)) << "}\n";
     }
     if (!d.sections.empty())
     {
         os << "sections:\n";
         for (const auto& s : d.sections)
         {
-            os << "  " << s.name << ": {point: " << vec(s.point) << ", normal: " << vec(s.normal)
-               << (s.part.empty() ? "" : ", part: " + s.part);
+            os << "  " << scalar(s.name) << ": {point: " << vec(s.point) << ", normal: " << vec(s.normal)
+               << (s.part.empty() ? "" : ", part: " + scalar(s.part));
             if (s.tolerance >= 0)
                 os << ", tolerance: " << s.tolerance;
             os << "}\n";
