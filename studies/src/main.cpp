@@ -82,7 +82,7 @@ int help(const std::string& command)
         {"run", "rkfem run DECK --out DIR [--set key.path=value ...] [--quiet] [--checkpoint-interval T [--checkpoint-keep N]]",
          "Runs DECK to time.end: DIR/results.h5 + results.xdmf (ParaView), history.csv, summary.json.\n"
          "--checkpoint-interval T (a time with its unit, e.g. '10 us') writes DIR/checkpoint.h5 every T of\n"
-         "simulated time and at the end (central-difference runs without contacts); --checkpoint-keep N keeps\n"
+         "simulated time and at the end; --checkpoint-keep N keeps\n"
          "the N newest (checkpoint.1.h5 the one before the newest, ...)."},
         {"restart", "rkfem restart DIR [--until T] [--from FILE] [--quiet] [--checkpoint-interval T]",
          "Continues the run in DIR from DIR/checkpoint.h5 (or FILE) to time.end, or to T: the same bits as the\n"

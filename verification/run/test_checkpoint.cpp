@@ -3,9 +3,10 @@
 // of them with the same bits as the run that was not interrupted: every field of every frame,
 // history.csv byte for byte, summary.json but for its clocks. Erosion (J2 elements removed
 // mid-run), K&C, RK particles on a mesh and on a Voronoi cloud (pressure on cloud facets, RK
-// collocation of the rollers), with the three steppers. A run killed while writing a checkpoint
-// leaves a .tmp file that restart never reads; a damaged or missing checkpoint, a deck
-// checkpoints cannot cover (contacts) and bad times are refused with one line, exit 2.
+// collocation of the rollers), a projectile eroding its way into a block through penalty contact,
+// with the three steppers. A run killed while writing a checkpoint leaves a .tmp file that
+// restart never reads; a damaged or missing checkpoint and bad times are refused with one line,
+// exit 2.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -155,6 +156,17 @@ TEST(Checkpoint, RkParticlesOnAMeshAndOnACloudRestartWithTheSameBits)
     expect_restarts_reproduce("rkpm_cloud", deck_path("cylinder_cloud_pressure.yaml"), "--set time.end=3us", "1 us");
 }
 
+// A projectile into an eroding K&C block: penalty contact (search lists, spring offsets, the soft
+// penalty's step) and elements eroding throughout; the checkpoint at 40 us falls on a step whose
+// erosion restarted the stepper, so ARKODE's first evaluation after the restart is a real one.
+TEST(Checkpoint, ErodingContactImpactRestartsWithTheSameBits)
+{
+    expect_restarts_reproduce("impact_arkode-cd", deck_path("fsp_impact.yaml"),
+                              "--set time.end=45us --set time.stepper=arkode-cd", "20 us");
+    expect_restarts_reproduce("impact_central-difference", deck_path("fsp_impact.yaml"),
+                              "--set time.end=25us --set time.stepper=central-difference", "10 us");
+}
+
 TEST(Checkpoint, RestartContinuesPastTheEndWithUntil)
 {
     // a run that ended (its checkpoint at the end) goes on to a later time: the frames and
@@ -192,8 +204,6 @@ TEST(Checkpoint, WhatCannotBeRestartedIsRefusedWithOneLine)
     expect_refused("restart " + u.string(), "no checkpoint");
     std::ofstream(u / "checkpoint.h5") << "not an HDF5 file";
     expect_refused("restart " + u.string(), "cannot open checkpoint");
-    expect_refused("run " + deck_path("fsp_impact.yaml") + " --out " + u.string() + " --checkpoint-interval '1 us'",
-                   "do not cover contacts");
     expect_refused("run " + deck_path("bar_erosion.yaml") + " --out " + u.string() + " --checkpoint-interval 2m",
                    "expected a time");
     expect_refused("run " + deck_path("bar_erosion.yaml") + " --out " + u.string() + " --checkpoint-interval -1s",

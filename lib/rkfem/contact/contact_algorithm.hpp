@@ -5,15 +5,18 @@
 /// bound the stable step.
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "rkfem/approximation/rk/kinematic_map.hpp"
 #include "rkfem/contact/contact_surface.hpp"
+#include "rkfem/core/error.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/operators/contact_channel.hpp"
 
 namespace rkfem
 {
+class StateArchive;
 /// The physical positions and velocities of the nodes (through the kinematic map on RK
 /// particles; the node set's own x and v elsewhere), as contact sees them.
 class PhysicalNodes
@@ -85,6 +88,18 @@ class ContactAlgorithm
     /// The surfaces again, after an event changed them (erosion exposes new faces); the same
     /// number and order as at construction.
     virtual void set_surfaces(std::vector<ContactSurface> surfaces) = 0;
+    /// What a checkpoint holds between steps, under `prefix` (search lists and the positions they
+    /// were found at, spring offsets, the soft penalty's step, the last forces and counts), and
+    /// putting it back into the same definition built from the same deck.
+    /// (A definition without them cannot be checkpointed: Error.)
+    virtual void save_state(StateArchive& /*archive*/, const std::string& /*prefix*/) const
+    {
+        throw Error("checkpoints do not cover this contact definition");
+    }
+    virtual void load_state(const StateArchive& /*archive*/, const std::string& /*prefix*/)
+    {
+        throw Error("checkpoints do not cover this contact definition");
+    }
     /// The resultant force the contact put on its first surface's nodes in the last evaluation
     /// (slave side of a wall), for histories (LS-DYNA's RCFORC / RWFORC).
     virtual Vec3 resultant() const = 0;

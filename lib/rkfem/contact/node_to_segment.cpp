@@ -1,5 +1,7 @@
 #include "rkfem/contact/node_to_segment.hpp"
 
+#include "rkfem/core/state_archive.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -331,5 +333,61 @@ void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactC
     // and central difference needs omega dt <= 2: dt <= dt0 sqrt(2 / (1 + k dt0^2 / m*)). Below
     // k dt0^2 / m* = 1 (every default) the elements' step stands.
     dt_bound_ = k_over_m > 0.0 && dt0_ > 0.0 ? dt0_ * std::sqrt(2.0 / (1.0 + k_over_m * dt0_ * dt0_)) : 1e300;
+}
+
+void NodeToSegmentContact::save_state(StateArchive& a, const std::string& prefix) const
+{
+    for (std::size_t k = 0; k < passes_.size(); ++k)
+    {
+        const Pass& pass = passes_[k];
+        const std::string pp = prefix + "pass." + std::to_string(k) + ".";
+        a.put(pp + "offsets", pass.offsets);
+        a.put(pp + "candidates", pass.candidates);
+        a.put_raw(pp + "hits", pass.hits);
+        a.put(pp + "offset", pass.offset);
+        a.put(pp + "last_penetration", pass.last_penetration);
+    }
+    a.put(prefix + "x_search", x_search_);
+    a.put_value(prefix + "margin", margin_);
+    a.put_value(prefix + "reach", reach_);
+    a.put_value(prefix + "dt0", dt0_);
+    a.put_value(prefix + "dt_bound", dt_bound_);
+    a.put_bytes(prefix + "resultant", resultant_.data(), sizeof(real_t) * 3);
+    a.put_value(prefix + "active", active_);
+    a.put_value(prefix + "searches", searches_);
+    a.put_value(prefix + "searched", searched_);
+    a.put_value(prefix + "fresh", fresh_);
+    a.put_value(prefix + "initial_penetrations", initial_penetrations_);
+    a.put_value(prefix + "started", started_);
+}
+
+void NodeToSegmentContact::load_state(const StateArchive& a, const std::string& prefix)
+{
+    for (std::size_t k = 0; k < passes_.size(); ++k)
+    {
+        Pass& pass = passes_[k];
+        const std::string pp = prefix + "pass." + std::to_string(k) + ".";
+        a.get(pp + "offsets", pass.offsets);
+        a.get(pp + "candidates", pass.candidates);
+        a.get_raw(pp + "hits", pass.hits);
+        a.get(pp + "offset", pass.offset);
+        a.get(pp + "last_penetration", pass.last_penetration);
+    }
+    a.get(prefix + "x_search", x_search_);
+    margin_ = a.value<real_t>(prefix + "margin");
+    reach_ = a.value<real_t>(prefix + "reach");
+    dt0_ = a.value<real_t>(prefix + "dt0");
+    dt_bound_ = a.value<real_t>(prefix + "dt_bound");
+    std::vector<real_t> r;
+    a.get(prefix + "resultant", r);
+    RKFEM_REQUIRE(r.size() == 3, "checkpoint entry '" << prefix << "resultant' is not 3 values");
+    resultant_ = Vec3(r[0], r[1], r[2]);
+    active_ = a.value<index_t>(prefix + "active");
+    searches_ = a.value<index_t>(prefix + "searches");
+    searched_ = a.value<bool>(prefix + "searched");
+    fresh_ = a.value<bool>(prefix + "fresh");
+    initial_penetrations_ = a.value<index_t>(prefix + "initial_penetrations");
+    started_ = a.value<bool>(prefix + "started");
+    before_.clear();
 }
 } // namespace rkfem

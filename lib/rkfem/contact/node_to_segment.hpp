@@ -60,6 +60,8 @@ class NodeToSegmentContact final : public ContactAlgorithm
     void add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel) override;
     real_t stable_step() const override { return dt_bound_; }
     void set_surfaces(std::vector<ContactSurface> surfaces) override;
+    void save_state(StateArchive& archive, const std::string& prefix) const override;
+    void load_state(const StateArchive& archive, const std::string& prefix) override;
     Vec3 resultant() const override { return resultant_; }
     index_t active_nodes() const override { return active_; }
     /// Searches done so far (the first evaluation's included).

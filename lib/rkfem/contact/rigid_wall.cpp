@@ -1,5 +1,7 @@
 #include "rkfem/contact/rigid_wall.hpp"
 
+#include "rkfem/core/state_archive.hpp"
+
 #include <algorithm>
 
 #include "rkfem/core/parallel.hpp"
@@ -55,5 +57,24 @@ void RigidWall::add_forces(const PhysicalNodes& nodes, const ContactClock& clock
             resultant_ += f_[k];
             ++active_;
         }
+}
+
+void RigidWall::save_state(StateArchive& a, const std::string& prefix) const
+{
+    a.put_raw(prefix + "f", f_);
+    a.put_value(prefix + "dt0", dt0_);
+    a.put_bytes(prefix + "resultant", resultant_.data(), sizeof(real_t) * 3);
+    a.put_value(prefix + "active", active_);
+}
+
+void RigidWall::load_state(const StateArchive& a, const std::string& prefix)
+{
+    a.get_raw(prefix + "f", f_);
+    dt0_ = a.value<real_t>(prefix + "dt0");
+    std::vector<real_t> r;
+    a.get(prefix + "resultant", r);
+    RKFEM_REQUIRE(r.size() == 3, "checkpoint entry '" << prefix << "resultant' is not 3 values");
+    resultant_ = Vec3(r[0], r[1], r[2]);
+    active_ = a.value<index_t>(prefix + "active");
 }
 } // namespace rkfem

@@ -30,6 +30,8 @@ class RigidWall final : public ContactAlgorithm
     RigidWall(std::vector<ContactSurface> surfaces, const RigidWallParameters& p);
     void add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel) override;
     void set_surfaces(std::vector<ContactSurface> surfaces) override;
+    void save_state(StateArchive& archive, const std::string& prefix) const override;
+    void load_state(const StateArchive& archive, const std::string& prefix) override;
     Vec3 resultant() const override { return resultant_; }
     index_t active_nodes() const override { return active_; }
 

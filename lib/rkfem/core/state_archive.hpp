@@ -53,6 +53,24 @@ class StateArchive
         if (!b.empty())
             std::memcpy(static_cast<void*>(c.data()), b.data(), b.size());
     }
+    /// An array of plain structs that hold fixed-size Eigen vectors (Eigen declares copy
+    /// constructors, so they are not trivially copyable, but they are their bytes).
+    template <class T> void put_raw(const std::string& name, const std::vector<T>& v)
+    {
+        static_assert(std::is_standard_layout_v<T> && std::is_trivially_destructible_v<T>);
+        put_bytes(name, v.data(), v.size() * sizeof(T));
+    }
+    template <class T> void get_raw(const std::string& name, std::vector<T>& v) const
+    {
+        static_assert(std::is_standard_layout_v<T> && std::is_trivially_destructible_v<T>);
+        const std::vector<unsigned char>& b = bytes(name);
+        if (b.size() % sizeof(T) != 0)
+            throw Error("checkpoint entry '" + name + "' has " + std::to_string(b.size()) + " bytes, not a whole number of " +
+                        std::to_string(sizeof(T)) + "-byte values");
+        v.resize(b.size() / sizeof(T));
+        if (!b.empty())
+            std::memcpy(static_cast<void*>(v.data()), b.data(), b.size());
+    }
     /// An array that must keep its size (state sized by the model the deck builds).
     template <class C> void get_same_size(const std::string& name, C& c) const
     {

@@ -230,9 +230,9 @@ class Model final : public ExplicitOperator
     /// The state between two steps that a checkpoint holds: nodal kinematics and masses, every
     /// block's committed material state, the energy ledger and its per-part and previous-step
     /// terms, and what erosion removed. load_state puts it back into a model freshly built from
-    /// the same deck (erosion replayed on the rebuilt blocks), after which the run continues with
-    /// the same bits. Models with contacts are refused (their search and penalty state is not
-    /// covered yet): Error.
+    /// the same deck (erosion replayed on the rebuilt blocks, contact surfaces with it), after
+    /// which the run continues with the same bits; contacts keep their search lists, spring
+    /// offsets and penalty step, the contact channel its last forces.
     void save_state(StateArchive& archive) const;
     void load_state(const StateArchive& archive);
 

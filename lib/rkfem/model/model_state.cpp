@@ -68,8 +68,6 @@ std::vector<char> kept_elements(const std::vector<index_t>& built, const std::ve
 
 void Model::save_state(StateArchive& a) const
 {
-    RKFEM_REQUIRE(contacts.empty(), "checkpoints do not cover contacts yet (their search and penalty state): the deck "
-                                    "has " << contacts.size() << " contact definition(s)");
     a.put("nodes.u", nodes.u);
     a.put("nodes.v", nodes.v);
     a.put("nodes.a", nodes.a);
@@ -102,11 +100,13 @@ void Model::save_state(StateArchive& a) const
         a.put("eroded." + std::to_string(b) + ".conn", eroded_[b].conn);
         a.put("eroded." + std::to_string(b) + ".volume0", eroded_[b].volume0);
     }
+    contact.save_state(a);
+    for (std::size_t k = 0; k < contacts.size(); ++k)
+        contacts[k]->save_state(a, "contact." + std::to_string(k) + ".");
 }
 
 void Model::load_state(const StateArchive& a)
 {
-    RKFEM_REQUIRE(contacts.empty(), "checkpoints do not cover contacts yet (their search and penalty state)");
     // erosion first: the blocks take the saved element lists, then their state
     bool eroded_any = false;
     for (std::size_t b = 0; b < blocks.size(); ++b)
@@ -128,6 +128,7 @@ void Model::load_state(const StateArchive& a)
             offset += blocks[ip].n_elements();
         }
         plan_assembly();
+        refresh_contact_surfaces(); // the faces erosion exposed (their state is loaded below)
     }
     a.get_same_size("nodes.u", nodes.u);
     a.get_same_size("nodes.v", nodes.v);
@@ -164,5 +165,8 @@ void Model::load_state(const StateArchive& a)
         a.get("eroded." + std::to_string(b) + ".conn", eroded_[b].conn);
         a.get("eroded." + std::to_string(b) + ".volume0", eroded_[b].volume0);
     }
+    contact.load_state(a);
+    for (std::size_t k = 0; k < contacts.size(); ++k)
+        contacts[k]->load_state(a, "contact." + std::to_string(k) + ".");
 }
 } // namespace rkfem

@@ -1,5 +1,7 @@
 #include "rkfem/operators/contact_channel.hpp"
 
+#include "rkfem/core/state_archive.hpp"
+
 #include "rkfem/approximation/rk/kinematic_map.hpp"
 
 namespace rkfem
@@ -68,5 +70,23 @@ void ContactChannel::commit()
     for (std::size_t k = 0; k < touched_.size(); ++k)
         for (int d = 0; d < 3; ++d)
             prev_f_[3 * k + d] = f[3 * static_cast<std::size_t>(touched_[k]) + d];
+}
+
+void ContactChannel::save_state(StateArchive& a) const
+{
+    a.put("contact_channel.f", f);
+    a.put("contact_channel.touched", touched_);
+    a.put("contact_channel.mark", mark_);
+    a.put("contact_channel.prev_nodes", prev_nodes_);
+    a.put("contact_channel.prev_f", prev_f_);
+}
+
+void ContactChannel::load_state(const StateArchive& a)
+{
+    a.get_same_size("contact_channel.f", f);
+    a.get("contact_channel.touched", touched_);
+    a.get_same_size("contact_channel.mark", mark_);
+    a.get("contact_channel.prev_nodes", prev_nodes_);
+    a.get("contact_channel.prev_f", prev_f_);
 }
 } // namespace rkfem

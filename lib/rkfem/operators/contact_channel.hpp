@@ -12,6 +12,7 @@
 
 namespace rkfem
 {
+class StateArchive;
 class KinematicMap;
 
 class ContactChannel
@@ -37,6 +38,9 @@ class ContactChannel
     real_t step_work(const real_t* u, const real_t* u_prev) const;
     /// The current pass's forces become the step's start for the next step's work.
     void commit();
+    /// The forces of this pass and of the last commit (a checkpoint's), and back.
+    void save_state(StateArchive& archive) const;
+    void load_state(const StateArchive& archive);
 
     std::vector<real_t> f; ///< 3 n, node-major, on the unknowns; zero on every node not in nodes()
 

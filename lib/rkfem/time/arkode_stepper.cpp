@@ -148,6 +148,10 @@ struct ArkodeStepper::Impl
     /// The next evaluation is the one a checkpoint was written after (ARKODE evaluates f(y(n))
     /// again when it starts): its forces and accelerations are the model's, restored with it.
     bool replay = false;
+    /// An evaluation happened since ARKODE was made: its f(y(n)) is then ARKODE's, to be replayed
+    /// after a restart; a checkpoint written right after a start (an event) has none, and the
+    /// first evaluation after the restart is a real one, as it was in the run
+    bool evaluated = false;
 
     ~Impl()
     {
@@ -220,6 +224,7 @@ struct ArkodeStepper::Impl
 
     void evaluate(real_t t, N_Vector yv, N_Vector ydot)
     {
+        evaluated = true;
         ExplicitOperator& m = *model;
         NodeSet& nodes = m.state();
         if (self->mode_ == Mode::CentralDifference)
@@ -413,6 +418,7 @@ void ArkodeStepper::save_state(StateArchive& a) const
     a.put_value("arkode.t_n", im.t_n);
     a.put_value("arkode.force", im.force);
     a.put_value("arkode.state_committed", im.state_committed);
+    a.put_value("arkode.evaluated", im.evaluated);
 }
 
 void ArkodeStepper::load_state(ExplicitOperator& model, real_t t, const StateArchive& a)
@@ -434,7 +440,7 @@ void ArkodeStepper::load_state(ExplicitOperator& model, real_t t, const StateArc
     im.force = a.value<ForceReport>("arkode.force");
     im.state_committed = a.value<bool>("arkode.state_committed");
     create(model, t, y_u.data(), y_v.data());
-    im.replay = true;
+    im.replay = im.evaluated = a.value<bool>("arkode.evaluated");
 }
 
 StepReport ArkodeStepper::step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index)
