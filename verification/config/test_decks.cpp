@@ -297,6 +297,25 @@ TEST(Decks, EveryStudyDeckChecksAndRoundTrips)
     EXPECT_GE(n, 2);
 }
 
+namespace
+{
+std::string xdmf_text(const fs::path& dir)
+{
+    std::ifstream xf(dir / "results.xdmf");
+    return {std::istreambuf_iterator<char>(xf), std::istreambuf_iterator<char>()};
+}
+
+/// The times of an XDMF index's time steps.
+std::vector<double> xdmf_times(const std::string& xdmf)
+{
+    std::vector<double> times;
+    const std::regex tv("<Time Value=\"([^\"]+)\"");
+    for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), tv); it != std::sregex_iterator(); ++it)
+        times.push_back(std::stod((*it)[1].str()));
+    return times;
+}
+} // namespace
+
 TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
 {
     const fs::path out = fs::temp_directory_path() / "rkfem_out_unstable";
@@ -336,12 +355,8 @@ TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
         ASSERT_TRUE(std::regex_search(sj, m, std::regex("\"failed_time\": ([-0-9.e+]+),"))) << sj;
         const double failed = std::stod(m[1].str());
         EXPECT_GT(failed, 0.0) << stepper;
-        std::ifstream xf(o / "results.xdmf");
-        const std::string xdmf((std::istreambuf_iterator<char>(xf)), std::istreambuf_iterator<char>());
-        std::vector<double> times;
-        const std::regex tv("<Time Value=\"([^\"]+)\"");
-        for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), tv); it != std::sregex_iterator(); ++it)
-            times.push_back(std::stod((*it)[1].str()));
+        const std::string xdmf = xdmf_text(o);
+        const std::vector<double> times = xdmf_times(xdmf);
         ASSERT_EQ(times.size(), 2u) << xdmf;
         EXPECT_EQ(times[0], 0.0);
         EXPECT_NEAR(times[1], failed, 1e-10 * failed) << stepper; // summary.json has 12 digits
@@ -403,12 +418,8 @@ TEST(Decks, UnstableRunWritesTheLastGoodStateThenTheFailedOne)
         ASSERT_TRUE(std::regex_search(sj, mt, std::regex("\"failed_time\": ([-0-9.e+]+),"))) << sj;
         const double failed = std::stod(mt[1].str());
         EXPECT_EQ(steps, "1") << stepper;
-        std::ifstream xf(o / "results.xdmf");
-        const std::string xdmf((std::istreambuf_iterator<char>(xf)), std::istreambuf_iterator<char>());
-        std::vector<double> times;
-        const std::regex tv("<Time Value=\"([^\"]+)\"");
-        for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), tv); it != std::sregex_iterator(); ++it)
-            times.push_back(std::stod((*it)[1].str()));
+        const std::string xdmf = xdmf_text(o);
+        const std::vector<double> times = xdmf_times(xdmf);
         ASSERT_EQ(times.size(), 3u) << stepper << "\n" << xdmf;
         EXPECT_EQ(times[0], 0.0);
         EXPECT_NEAR(times[1], end_time, 1e-10 * end_time) << stepper;

@@ -52,16 +52,22 @@ struct VoronoiSetup
     IntegrationOperator op;
 };
 
-VoronoiSetup make_setup()
+/// RK shape functions (support 1.6 x each cell's spacing) and SCNI on the cells of `s`.
+void build_scni(VoronoiSetup& s)
 {
-    VoronoiSetup s;
-    s.x = cloud();
-    s.cells = voronoi_cells(s.x, box_halfspaces(Vec3::Zero(), Vec3::Ones()));
     std::vector<real_t> a = s.cells.spacing;
     for (auto& v : a)
         v *= 1.6;
     s.rk = RkShapeFunctions(s.x, a, {1, KernelType::CubicBSpline, SupportShape::Sphere, 1.6});
     s.op = build_scni_cells(s.cells, s.x, RkShapes(s.rk));
+}
+
+VoronoiSetup make_setup()
+{
+    VoronoiSetup s;
+    s.x = cloud();
+    s.cells = voronoi_cells(s.x, box_halfspaces(Vec3::Zero(), Vec3::Ones()));
+    build_scni(s);
     return s;
 }
 } // namespace
@@ -197,11 +203,7 @@ TEST(VoronoiCells, CylinderBodyCellsTileTheTangentPrism)
             vol += v;
         const real_t cylinder = M_PI * g.radius * g.radius * g.height;
         const real_t prism = cylinder * sides * std::tan(M_PI / sides) / M_PI;
-        std::vector<real_t> a = s.cells.spacing;
-        for (auto& v : a)
-            v *= 1.6;
-        s.rk = RkShapeFunctions(s.x, a, {1, KernelType::CubicBSpline, SupportShape::Sphere, 1.6});
-        s.op = build_scni_cells(s.cells, s.x, RkShapes(s.rk));
+        build_scni(s);
         const auto [ic, lin] = scni_consistency(s);
         std::printf("%s cylinder cloud, %d cells, %d sides: volume / prism - 1 = %.2e (prism / cylinder - 1 = %.2e); "
                     "IC1 error %.2e, linear gradient error %.2e\n",
@@ -262,11 +264,7 @@ TEST(VoronoiCells, PlatesThinnerThanTheSpacingTileTheBody)
         for (const CellFacetPoint& p : s.cells.points)
             for (const HalfSpace& h : body)
                 outside = std::max(outside, h.normal.dot(p.x) - h.offset);
-        std::vector<real_t> a = s.cells.spacing;
-        for (auto& v : a)
-            v *= 1.6;
-        s.rk = RkShapeFunctions(s.x, a, {1, KernelType::CubicBSpline, SupportShape::Sphere, 1.6});
-        s.op = build_scni_cells(s.cells, s.x, RkShapes(s.rk));
+        build_scni(s);
         const auto [ic, lin] = scni_consistency(s);
         std::printf("plate %d: %d cells, volume / body - 1 = %.2e, smallest cell %.2e of the mean, largest "
                     "|sum n dA| / V^(2/3) %.1e, farthest outside %.1e m; IC1 %.2e, linear gradient %.2e\n",

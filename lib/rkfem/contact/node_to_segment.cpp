@@ -2,6 +2,8 @@
 
 #include "rkfem/core/state_archive.hpp"
 
+#include <array>
+
 #include <algorithm>
 #include <cmath>
 
@@ -352,7 +354,7 @@ void NodeToSegmentContact::save_state(StateArchive& a, const std::string& prefix
     a.put_value(prefix + "reach", reach_);
     a.put_value(prefix + "dt0", dt0_);
     a.put_value(prefix + "dt_bound", dt_bound_);
-    a.put_bytes(prefix + "resultant", resultant_.data(), sizeof(real_t) * 3);
+    a.put_value(prefix + "resultant", std::array<real_t, 3>{resultant_[0], resultant_[1], resultant_[2]});
     a.put_value(prefix + "active", active_);
     a.put_value(prefix + "searches", searches_);
     a.put_value(prefix + "searched", searched_);
@@ -378,9 +380,7 @@ void NodeToSegmentContact::load_state(const StateArchive& a, const std::string& 
     reach_ = a.value<real_t>(prefix + "reach");
     dt0_ = a.value<real_t>(prefix + "dt0");
     dt_bound_ = a.value<real_t>(prefix + "dt_bound");
-    std::vector<real_t> r;
-    a.get(prefix + "resultant", r);
-    RKFEM_REQUIRE(r.size() == 3, "checkpoint entry '" << prefix << "resultant' is not 3 values");
+    const auto r = a.value<std::array<real_t, 3>>(prefix + "resultant");
     resultant_ = Vec3(r[0], r[1], r[2]);
     active_ = a.value<index_t>(prefix + "active");
     searches_ = a.value<index_t>(prefix + "searches");

@@ -2,6 +2,8 @@
 
 #include "rkfem/core/state_archive.hpp"
 
+#include <array>
+
 #include <algorithm>
 
 #include "rkfem/core/parallel.hpp"
@@ -63,7 +65,7 @@ void RigidWall::save_state(StateArchive& a, const std::string& prefix) const
 {
     a.put_raw(prefix + "f", f_);
     a.put_value(prefix + "dt0", dt0_);
-    a.put_bytes(prefix + "resultant", resultant_.data(), sizeof(real_t) * 3);
+    a.put_value(prefix + "resultant", std::array<real_t, 3>{resultant_[0], resultant_[1], resultant_[2]});
     a.put_value(prefix + "active", active_);
 }
 
@@ -71,9 +73,7 @@ void RigidWall::load_state(const StateArchive& a, const std::string& prefix)
 {
     a.get_raw(prefix + "f", f_);
     dt0_ = a.value<real_t>(prefix + "dt0");
-    std::vector<real_t> r;
-    a.get(prefix + "resultant", r);
-    RKFEM_REQUIRE(r.size() == 3, "checkpoint entry '" << prefix << "resultant' is not 3 values");
+    const auto r = a.value<std::array<real_t, 3>>(prefix + "resultant");
     resultant_ = Vec3(r[0], r[1], r[2]);
     active_ = a.value<index_t>(prefix + "active");
 }

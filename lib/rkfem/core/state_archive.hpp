@@ -45,13 +45,7 @@ class StateArchive
     {
         using T = std::remove_cv_t<std::remove_reference_t<decltype(*c.data())>>;
         static_assert(std::is_trivially_copyable_v<T>);
-        const std::vector<unsigned char>& b = bytes(name);
-        if (b.size() % sizeof(T) != 0)
-            throw Error("checkpoint entry '" + name + "' has " + std::to_string(b.size()) + " bytes, not a whole number of " +
-                        std::to_string(sizeof(T)) + "-byte values");
-        c.resize(b.size() / sizeof(T));
-        if (!b.empty())
-            std::memcpy(static_cast<void*>(c.data()), b.data(), b.size());
+        copy_out(name, c);
     }
     /// An array of plain structs that hold fixed-size Eigen vectors (Eigen declares copy
     /// constructors, so they are not trivially copyable, but they are their bytes).
@@ -63,13 +57,7 @@ class StateArchive
     template <class T> void get_raw(const std::string& name, std::vector<T>& v) const
     {
         static_assert(std::is_standard_layout_v<T> && std::is_trivially_destructible_v<T>);
-        const std::vector<unsigned char>& b = bytes(name);
-        if (b.size() % sizeof(T) != 0)
-            throw Error("checkpoint entry '" + name + "' has " + std::to_string(b.size()) + " bytes, not a whole number of " +
-                        std::to_string(sizeof(T)) + "-byte values");
-        v.resize(b.size() / sizeof(T));
-        if (!b.empty())
-            std::memcpy(static_cast<void*>(v.data()), b.data(), b.size());
+        copy_out(name, v);
     }
     /// An array that must keep its size (state sized by the model the deck builds).
     template <class C> void get_same_size(const std::string& name, C& c) const
@@ -106,6 +94,18 @@ class StateArchive
     const std::map<std::string, std::vector<unsigned char>>& entries() const { return entries_; }
 
   private:
+    /// The entry's bytes into c, resized to a whole number of its values.
+    template <class C> void copy_out(const std::string& name, C& c) const
+    {
+        using T = std::remove_cv_t<std::remove_reference_t<decltype(*c.data())>>;
+        const std::vector<unsigned char>& b = bytes(name);
+        if (b.size() % sizeof(T) != 0)
+            throw Error("checkpoint entry '" + name + "' has " + std::to_string(b.size()) + " bytes, not a whole number of " +
+                        std::to_string(sizeof(T)) + "-byte values");
+        c.resize(b.size() / sizeof(T));
+        if (!b.empty())
+            std::memcpy(static_cast<void*>(c.data()), b.data(), b.size());
+    }
     std::map<std::string, std::vector<unsigned char>> entries_;
 };
 } // namespace rkfem

@@ -137,23 +137,17 @@ struct PlasticPoints
     }
     /// Calls f(committed, trial) for each history array pair, and with `other` (a block of the
     /// same model) f(committed, trial, other's committed): the one list of the state's arrays.
-    template <class F> void each_array(F&& f)
+    template <class F> void each_array(F&& f) { each_array_of(*this, f); }
+    template <class F> void each_array(F&& f) const { each_array_of(*this, f); }
+    /// Every committed and trial array of `self` (const or not), in one order.
+    template <class Self, class F> static void each_array_of(Self& self, F& f)
     {
-        f(eps_p, eps_p_trial);
-        f(failed, failed_trial);
-        f(kcc_state, kcc_trial);
-        f(cscm_state, cscm_trial);
-        f(ev, ev_trial);
-        f(energy, energy_trial);
-    }
-    template <class F> void each_array(F&& f) const
-    {
-        f(eps_p, eps_p_trial);
-        f(failed, failed_trial);
-        f(kcc_state, kcc_trial);
-        f(cscm_state, cscm_trial);
-        f(ev, ev_trial);
-        f(energy, energy_trial);
+        f(self.eps_p, self.eps_p_trial);
+        f(self.failed, self.failed_trial);
+        f(self.kcc_state, self.kcc_trial);
+        f(self.cscm_state, self.cscm_trial);
+        f(self.ev, self.ev_trial);
+        f(self.energy, self.energy_trial);
     }
     template <class F> void each_array(const PlasticPoints& other, F&& f)
     {
