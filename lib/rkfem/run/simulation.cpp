@@ -327,13 +327,17 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         model.save_state(a);
         stepper->save_state(a);
         writer->save(a);
+        // the new one whole first (a failed write leaves the others as they were), then the
+        // older ones move down, then the new one takes the newest name
+        const std::string fresh = opt.out_dir + "/checkpoint.new.h5";
+        write_checkpoint(fresh, a);
+        std::error_code ec;
         for (int k = opt.checkpoint_keep - 1; k > 0; --k)
-        {
-            std::error_code ec;
             if (std::filesystem::exists(checkpoint_path(opt.out_dir, k - 1)))
                 std::filesystem::rename(checkpoint_path(opt.out_dir, k - 1), checkpoint_path(opt.out_dir, k), ec);
-        }
-        write_checkpoint(checkpoint_path(opt.out_dir), a);
+        std::filesystem::rename(fresh, checkpoint_path(opt.out_dir), ec);
+        if (ec)
+            throw Error("cannot rename " + fresh + " to " + checkpoint_path(opt.out_dir) + ": " + ec.message());
     };
     if (checkpointing) // what a checkpoint cannot cover fails before the run
     {
