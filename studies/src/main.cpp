@@ -32,7 +32,6 @@
 #include "rkfem/run/check_report.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/run/study.hpp"
-#include "rkfem/time/stepper.hpp"
 
 namespace
 {
@@ -300,21 +299,6 @@ int main(int argc, char** argv)
         const rkfem::Deck deck = command == "restart" ? rkfem::parse_deck(deck_text, deck_name, overrides)
                                                       : rkfem::read_deck(deck_path, overrides);
         rkfem::Model model = rkfem::Model::build(deck); // all validation before any output
-        if (checkpoint_seconds > 0)
-        {
-            // what checkpoints cannot cover is refused before the run
-            try
-            {
-                rkfem::StateArchive probe;
-                model.save_state(probe);
-                rkfem::make_stepper(deck.time)->save_state(probe);
-            }
-            catch (const rkfem::Error& e)
-            {
-                std::fprintf(stderr, "rkfem: --checkpoint-interval: %s\n", e.what());
-                return 2;
-            }
-        }
         if (command == "restart")
         {
             try

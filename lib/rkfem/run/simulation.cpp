@@ -339,12 +339,6 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         if (ec)
             throw Error("cannot rename " + fresh + " to " + checkpoint_path(opt.out_dir) + ": " + ec.message());
     };
-    if (checkpointing) // what a checkpoint cannot cover fails before the run
-    {
-        StateArchive probe;
-        model.save_state(probe);
-        stepper->save_state(probe);
-    }
     bool in_step = false; // a step is under way: a failure in it leaves t and step at the last good one
     try
     {
