@@ -215,10 +215,34 @@ struct PlasticPoints
     {
         each_array([](auto& committed, auto& trial) { committed.swap(trial); });
     }
+    /// Trial history of point p = its committed history.
+    void keep(std::size_t p)
+    {
+        eps_p_trial[p] = eps_p[p];
+        failed_trial[p] = failed[p];
+        if (kind == Kind::Kcc)
+            kcc_trial[p] = kcc_state[p];
+        else if (kind == Kind::Cscm)
+            cscm_trial[p] = cscm_state[p];
+        else if (!ev.empty())
+        {
+            ev_trial[p] = ev[p];
+            energy_trial[p] = energy[p];
+        }
+    }
     /// Updates point p from its committed history into the trial arrays; returns the plastic
-    /// work density increment (K&C and CSCM; 0 for J2).
+    /// work density increment (K&C and CSCM; 0 for J2). With dt = 0 (a stepper starting again
+    /// after an event or a restart evaluates forces without a step) the trial history is the
+    /// committed one and s is left as it is: a rate-dependent surface seen at the new state's
+    /// strain rate would otherwise return the stress with no strain increment, adding damage at
+    /// every restart.
     real_t update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
     {
+        if (dt == 0.0)
+        {
+            keep(p);
+            return 0.0;
+        }
         if (kind == Kind::Kcc)
         {
             KccState st = kcc_state[p];

@@ -27,7 +27,8 @@ void central_difference_drift(NodeSet& nodes, real_t dt, real_t* u_before = null
 /// the stepper started again): the leapfrog-consistent kinetic energy 1/2 m v(n+1/2).v(n+3/2)
 /// now takes a_new where the ledger booked a_old, a change no work term accounts for. Books
 /// -1/2 sum m v(n+1/2) . (dt/2)(a_new - a_old) into ledger().eroded, v(n+1/2) = v - dt/2 a_old,
-/// dt the step that ended at the event.
+/// dt the step that ended at the event; and sets the leapfrog correction of the kinetic energy
+/// from a_new (the restart measured it without one).
 void book_event_energy(ExplicitOperator& model, const std::vector<real_t>& a_old, real_t dt);
 
 class CentralDifference final : public TimeStepper
