@@ -622,7 +622,7 @@ TEST(Decks, CoupledPartsRunAndTheirMistakesNameTheKey)
                     ":10: parts.col.regions", "leaving no FE region");
 }
 
-TEST(Decks, ErosionMistakesNameTheKey)
+TEST(Decks, ErosionAndConversionMistakesNameTheKey)
 {
     const std::string part = "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n";
     const std::string j2 = "    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 500 MPa, etan: 1 GPa}\n";
@@ -635,6 +635,18 @@ TEST(Decks, ErosionMistakesNameTheKey)
                     ":8: parts.col.erosion.damage", "is outside [0, 1]");
     expect_rejected("erosion_none.yaml", replace(good, part, j2 + "    erosion: {damage: 0}\n"), ":8: parts.col.erosion",
                     "has no criterion");
+    // conversion: the same criteria, on nodal-integrated FE only
+    expect_rejected("conversion_1pt.yaml", replace(good, part, j2 + "    conversion: {damage: 0.5}\n"),
+                    ":8: parts.col.conversion", "expected formulation: fem-nodal on a part with conversion");
+    expect_rejected("conversion_elastic.yaml",
+                    replace(good, part, part + "    formulation: fem-nodal\n    conversion: {damage: 0.5}\n"),
+                    ":9: parts.col.conversion", "expected material model j2, kcc or cscm");
+    expect_rejected("conversion_none.yaml",
+                    replace(good, part, j2 + "    formulation: fem-nodal\n    conversion: {time_step: 0 s}\n"),
+                    ":9: parts.col.conversion", "has no criterion");
+    expect_rejected("conversion_negative.yaml",
+                    replace(good, part, j2 + "    formulation: fem-nodal\n    conversion: {principal_strain: -0.1}\n"),
+                    ":9: parts.col.conversion.principal_strain", "expected a value > 0");
 }
 
 TEST(Decks, TinyOutputIntervalsWriteEveryStepAndEnd)

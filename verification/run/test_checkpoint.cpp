@@ -149,6 +149,18 @@ TEST(Checkpoint, ConcreteBarRestartsWithTheSameBits)
     expect_restarts_reproduce("kcc", deck_path("concrete_bar_kcc.yaml"), "", "10 us");
 }
 
+// Evolutionary coupling: the restart converts the elements the run had converted (the points'
+// state then loads as it was saved), and conversion goes on after it
+TEST(Checkpoint, ConvertingConcreteBarRestartsWithTheSameBits)
+{
+    for (const char* stepper : {"central-difference", "arkode-cd"})
+        expect_restarts_reproduce(std::string("conversion_") + stepper, deck_path("concrete_bar_conversion.yaml"),
+                                  std::string("--set parts.bar.generator.element_size=5mm --set time.end=20us "
+                                              "--set time.stepper=") +
+                                      stepper,
+                                  "5 us");
+}
+
 TEST(Checkpoint, RkParticlesOnAMeshAndOnACloudRestartWithTheSameBits)
 {
     expect_restarts_reproduce("rkpm_mesh", deck_path("column_wave_rkpm.yaml"),

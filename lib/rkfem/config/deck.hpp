@@ -84,11 +84,11 @@ struct HourglassSpec
     real_t coefficient = 0.1; ///< QM
 };
 
-/// Element erosion (LS-DYNA *MAT_ADD_EROSION analog): after each step, an element whose
-/// point-averaged committed value reaches a limit is removed (0: that criterion is off).
-/// Element erosion criteria (LS-DYNA *MAT_ADD_EROSION analog); an element erodes when any set
-/// criterion is met (0: off).
-struct ErosionSpec
+/// Per-element criteria read after each step from committed values (point averages over the
+/// element, its nodes' points on nodal parts) and the element's shape; an element meets them
+/// when any set criterion is met (0: off). Erosion removes such elements (LS-DYNA
+/// *MAT_ADD_EROSION analog); conversion turns them into RK particles (seed Table 1, feature 4).
+struct ElementCriteria
 {
     real_t plastic_strain = 0.0; ///< effective plastic strain
     real_t damage = 0.0;         ///< 0..1 damage index (K&C: delta - 1; CSCM d; J2: failed)
@@ -207,7 +207,11 @@ struct PartSpec
     Vec3 initial_velocity = Vec3::Zero();
     /// RK regions of an FE part (FE-RK coupling): elements whose centroid lies in any of them
     /// are RK (box, cylinder: within radius of the axis, sphere); empty: a single-kind part.
-    ErosionSpec erosion;
+    ElementCriteria erosion;
+    /// Evolutionary coupling (seed Table 1, feature 4): elements that meet these criteria turn
+    /// into RK particles between steps (fem-nodal parts: the state stays at the nodes).
+    ElementCriteria conversion;
+    bool converts() const { return conversion.active(); }
     std::vector<SelectorSpec> regions;
     std::string transition = "mixed"; ///< mixed | ramp (coupled parts)
     SourceLocation regions_loc;       ///< where `regions` is given
@@ -216,7 +220,8 @@ struct PartSpec
     std::vector<std::string> ignored;
     SourceLocation loc;
 
-    bool coupled() const { return !regions.empty(); }
+    /// FE and RK in one part: RK regions, or conversion that makes them during the run.
+    bool coupled() const { return !regions.empty() || converts(); }
 };
 
 struct SetSpec

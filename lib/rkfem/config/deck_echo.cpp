@@ -278,7 +278,7 @@ std::string to_yaml(const Deck& d)
             os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
                << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
                << ", dt_factor: " << p.nodal.dt_factor << "}\n";
-        if (p.coupled())
+        if (!p.regions.empty())
         {
             os << "    regions:\n";
             for (const auto& r : p.regions)
@@ -287,8 +287,9 @@ std::string to_yaml(const Deck& d)
                 selector(os, r);
                 os << "}\n";
             }
-            os << "    transition: " << p.transition << "\n";
         }
+        if (p.coupled())
+            os << "    transition: " << p.transition << "\n";
         if (p.formulation == Formulation::Rkpm || p.coupled())
             os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
                << ", normalized_support: " << p.rk.normalized_support << ", drop_tolerance: " << p.rk.drop_tolerance << "}\n";
@@ -304,11 +305,11 @@ std::string to_yaml(const Deck& d)
         os << "    bulk_viscosity: {linear: " << p.bulk_viscosity.linear
            << ", quadratic: " << p.bulk_viscosity.quadratic << "}\n";
         os << "    initial_velocity: " << vec(p.initial_velocity) << "\n";
-        if (p.erosion.active())
-            os << "    erosion: {effective_plastic_strain: " << p.erosion.plastic_strain << ", damage: " << p.erosion.damage
-               << ", principal_strain: " << p.erosion.principal_strain
-               << ", volumetric_strain: " << p.erosion.volumetric_strain << ", time_step: " << p.erosion.time_step
-               << "}\n";
+        for (const auto& [key, c] : {std::pair{"erosion", &p.erosion}, std::pair{"conversion", &p.conversion}})
+            if (c->active())
+                os << "    " << key << ": {effective_plastic_strain: " << c->plastic_strain << ", damage: " << c->damage
+                   << ", principal_strain: " << c->principal_strain << ", volumetric_strain: " << c->volumetric_strain
+                   << ", time_step: " << c->time_step << "}\n";
     }
     sets(os, "node_sets", d.node_sets);
     sets(os, "face_sets", d.face_sets);

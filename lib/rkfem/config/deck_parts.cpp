@@ -370,6 +370,34 @@ void ignore(PartSpec& p, const Section& s, const std::string& key, const std::st
     p.ignored.push_back(s.path(key) + " (" + s.loc(key).where + "): formulation " + formulation +
                         " does not use it; ignored");
 }
+
+/// The element criteria under `key` (erosion, conversion): at least one set, none negative.
+ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::string& key, const PartSpec& p)
+{
+    Section e(ctx, s.node(key), s.path(key),
+              {"effective_plastic_strain", "damage", "principal_strain", "volumetric_strain", "time_step"});
+    ElementCriteria c;
+    c.plastic_strain = e.quantity("effective_plastic_strain", dim::none, 0.0);
+    c.damage = e.quantity("damage", dim::none, 0.0);
+    c.principal_strain = e.quantity("principal_strain", dim::none, 0.0);
+    c.volumetric_strain = e.quantity("volumetric_strain", dim::none, 0.0);
+    c.time_step = e.quantity("time_step", dim::time, 0.0);
+    for (const char* k : {"principal_strain", "volumetric_strain", "time_step"})
+        if (e.has(k) && !(e.quantity(k, k == std::string("time_step") ? dim::time : dim::none) >= 0.0))
+            e.fail(k, "is negative", "expected a value > 0 (0: off)");
+    if (p.material.model == "elastic" && (c.plastic_strain > 0 || c.damage > 0))
+        s.fail(key, "effective_plastic_strain and damage need a material with history",
+               "expected material model j2, kcc or cscm, or the criteria principal_strain, volumetric_strain, "
+               "time_step");
+    if (!(c.plastic_strain >= 0.0 && std::isfinite(c.plastic_strain)))
+        e.fail("effective_plastic_strain", "is negative or not finite", "expected a strain > 0 (0: off)");
+    if (!(c.damage >= 0.0 && c.damage <= 1.0))
+        e.fail("damage", "is outside [0, 1]", "expected a damage index in (0, 1] (0: off)");
+    if (!c.active())
+        s.fail(key, "has no criterion",
+               "expected effective_plastic_strain, damage, principal_strain, volumetric_strain or time_step > 0");
+    return c;
+}
 } // namespace
 
 PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n,
@@ -377,7 +405,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
 {
     Section s(ctx, n, path,
               {"generator", "material", "formulation", "hourglass", "bulk_viscosity",
-               "nodal_integration", "rk", "initial_velocity", "regions", "transition", "erosion"});
+               "nodal_integration", "rk", "initial_velocity", "regions", "transition", "erosion", "conversion"});
     PartSpec p;
     p.name = name;
     p.loc = s.loc();
@@ -388,6 +416,14 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                     : f == "fem-2x2x2" ? Formulation::Fem2x2x2
                     : f == "fem-nodal" ? Formulation::FemNodal
                                        : Formulation::Rkpm;
+    if (s.has("conversion"))
+    {
+        // evolutionary coupling: state lives at the nodes on both sides, so conversion moves none
+        if (p.formulation != Formulation::FemNodal)
+            s.fail("conversion", "turns elements of nodal-integrated FE into RK particles (the state stays at the nodes)",
+                   "expected formulation: fem-nodal on a part with conversion");
+        p.conversion = read_criteria(ctx, s, "conversion", p);
+    }
     // the default stabilization of scheme scni: NSNI for RK parts (about a third of MSCNI's cost
     // per step, the same stable step and the same answers on the seed's P1 and P3; README,
     // nodal_integration), on meshes and clouds; MSCNI where there are no RK second derivatives
@@ -446,6 +482,9 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                 r.fail("select", "a region is a volume", "expected select type box, cylinder or sphere");
             p.regions.push_back(sel);
         }
+    }
+    if (p.coupled())
+    {
         p.transition = s.choice("transition", {"mixed", "ramp"}, "mixed");
         p.nodal.scheme = s.has("nodal_integration") ? p.nodal.scheme : "scni";
         if (p.nodal.scheme != "scni")
@@ -453,7 +492,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                    "expected nodal_integration.scheme: scni");
     }
     else if (s.has("transition"))
-        s.fail("transition", "is only used by parts with regions", "remove it or add regions");
+        s.fail("transition", "is only used by parts with regions or conversion", "remove it or add regions");
     if (s.has("rk"))
     {
         if (p.formulation != Formulation::Rkpm && !p.coupled())
@@ -510,27 +549,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         if (p.formulation != Formulation::Fem1pt && p.formulation != Formulation::Fem2x2x2)
             s.fail("erosion", "erodes elements of Gauss-point formulations only",
                    "expected formulation fem-1pt or fem-2x2x2 on a part with erosion");
-        Section e(ctx, s.node("erosion"), s.path("erosion"),
-                  {"effective_plastic_strain", "damage", "principal_strain", "volumetric_strain", "time_step"});
-        p.erosion.plastic_strain = e.quantity("effective_plastic_strain", dim::none, 0.0);
-        p.erosion.damage = e.quantity("damage", dim::none, 0.0);
-        p.erosion.principal_strain = e.quantity("principal_strain", dim::none, 0.0);
-        p.erosion.volumetric_strain = e.quantity("volumetric_strain", dim::none, 0.0);
-        p.erosion.time_step = e.quantity("time_step", dim::time, 0.0);
-        for (const char* key : {"principal_strain", "volumetric_strain", "time_step"})
-            if (e.has(key) && !(e.quantity(key, key == std::string("time_step") ? dim::time : dim::none) >= 0.0))
-                e.fail(key, "is negative", "expected a value > 0 (0: off)");
-        if (p.material.model == "elastic" && (p.erosion.plastic_strain > 0 || p.erosion.damage > 0))
-            s.fail("erosion", "effective_plastic_strain and damage need a material with history",
-                   "expected material model j2, kcc or cscm, or the criteria principal_strain, volumetric_strain, "
-                   "time_step");
-        if (!(p.erosion.plastic_strain >= 0.0 && std::isfinite(p.erosion.plastic_strain)))
-            e.fail("effective_plastic_strain", "is negative or not finite", "expected a strain > 0 (0: off)");
-        if (!(p.erosion.damage >= 0.0 && p.erosion.damage <= 1.0))
-            e.fail("damage", "is outside [0, 1]", "expected a damage index in (0, 1] (0: off)");
-        if (!p.erosion.active())
-            s.fail("erosion", "has no criterion",
-                   "expected effective_plastic_strain, damage, principal_strain, volumetric_strain or time_step > 0");
+        p.erosion = read_criteria(ctx, s, "erosion", p);
     }
     return p;
 }

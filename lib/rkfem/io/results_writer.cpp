@@ -216,7 +216,7 @@ void ResultsWriter::write_step(const Model& model, real_t time)
     write_field(g, "displacement", u.data(), n_nodes, 3);
     write_field(g, "velocity", v.data(), n_nodes, 3);
     std::vector<real_t> stress(6 * n_cells), pressure(n_cells), eps(n_cells, 0.0), volume(n_cells),
-        damage(n_cells, 0.0), delta(n_cells, 0.0);
+        damage(n_cells, 0.0), delta(n_cells, 0.0), zone(n_cells, 2.0);
     std::size_t c = 0;
     auto put_stress = [&](const Sym6& s)
     {
@@ -235,6 +235,7 @@ void ResultsWriter::write_step(const Model& model, real_t time)
             eps[c] = model.element_plastic_strain(static_cast<index_t>(b), e);
             damage[c] = model.element_history(static_cast<index_t>(b), e, Model::History::Damage);
             delta[c] = model.element_history(static_cast<index_t>(b), e, Model::History::KccDelta);
+            zone[c] = model.element_zone(static_cast<index_t>(b), e);
         }
     for (index_t ip = 0; ip < static_cast<index_t>(model.parts.size()); ++ip)
     {
@@ -259,6 +260,7 @@ void ResultsWriter::write_step(const Model& model, real_t time)
     write_field(g, "volume", volume.data(), n_cells, 1);
     write_field(g, "damage", damage.data(), n_cells, 1);
     write_field(g, "kcc_scaled_damage", delta.data(), n_cells, 1);
+    write_field(g, "zone", zone.data(), n_cells, 1); // 0 FE, 1 transition, 2 RK
     H5Gclose(g);
     H5Fflush(f, H5F_SCOPE_GLOBAL);
     times_.push_back(time);
@@ -329,7 +331,7 @@ void ResultsWriter::write_xdmf() const
                   << item((g + "/" + v).c_str(), n_nodes, 3, "Float", fp) << "</Attribute>\n";
             x << "  <Attribute Name=\"stress\" AttributeType=\"Tensor6\" Center=\"Cell\">"
               << item((g + "/stress").c_str(), n_cells, 6, "Float", fp) << "</Attribute>\n";
-            for (const char* v : {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage"})
+            for (const char* v : {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage", "zone"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Scalar\" Center=\"Cell\">"
                   << item((g + "/" + v).c_str(), n_cells, 1, "Float", fp) << "</Attribute>\n";
             x << "  <Attribute Name=\"part\" AttributeType=\"Scalar\" Center=\"Cell\">"

@@ -196,6 +196,7 @@ Model Model::build(const Deck& deck)
         }
         m.part_nodal.push_back(-1);
         m.part_fe_side.push_back(-1);
+        m.rk_elements_.push_back(ps.coupled() ? rk_region_elements(ps, mesh) : std::vector<char>{});
         if (is_nodal(ps.formulation) || ps.coupled())
         {
             NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(ps, mesh, offset)
@@ -479,14 +480,9 @@ Model Model::build(const Deck& deck)
         for (const Quad& q : *faces)
         {
             const index_t ip = m.nodes.part[q[0]];
+            // faces of coupled parts: lumped at the corners like FE faces, each corner's force
+            // at its physical point, spread to the coefficients through the kinematic map
             const bool is_rk = d.parts[ip].formulation == Formulation::Rkpm;
-            if (d.parts[ip].coupled())
-                for (index_t node : q)
-                    if (m.carries_coefficients(node))
-                        throw DeckError({load->loc.where, load->loc.path + ".set"},
-                                        "face set '" + load->set + "' reaches the RK region of coupled part '" +
-                                            d.parts[ip].name + "', where pressure is not distributed yet",
-                                        "expected a pressure on faces of the FE region");
             rl.is_rk.push_back(is_rk);
             if (!is_rk)
             {

@@ -211,10 +211,30 @@ class Model final : public ExplicitOperator
         real_t principal_strain = 0.0, volumetric_strain = 0.0, time_step = 0.0;
     };
     ElementShape element_shape(index_t block, index_t e) const;
-    /// The model's own events after an accepted step (erosion by the parts' criteria); true when
-    /// the discretization changed.
+    /// The model's own events after an accepted step (erosion and conversion by the parts'
+    /// criteria); true when the discretization changed.
     bool apply_events(real_t t, std::int64_t step);
+    /// Does element e of a block meet the criteria (committed point values, current shape)?
+    bool meets(const ElementCriteria& c, index_t block, index_t e) const;
     index_t eroded_elements() const { return eroded_elements_; }
+
+    /// Evolutionary coupling (seed Table 1, feature 4; ../shared/reference/rkpm-methods.md
+    /// s. 4.2, 4.6): the elements of a fem-nodal part with convert[e] != 0 become RK. Their nodes
+    /// become particles whose coefficients take the nodes' current values (exact for linear
+    /// fields: the new approximation reproduces them), neighbouring FE elements become transition
+    /// elements (mixed interpolation or ramp, the part's `transition`), and the part's tables,
+    /// kinematic map, RK constraints and loaded dofs are rebuilt in the reference configuration.
+    /// No state moves: every point (one per node, then the MSCNI sub-cells) keeps its stress,
+    /// history and weight, the nodes keep mass, u and v, so momentum and the energy ledger carry
+    /// over exactly. Returns how many elements became RK.
+    index_t convert_elements(index_t part, const std::vector<char>& convert);
+    /// Per element of a coupled part: 1 where it is RK (regions, then conversion); empty for
+    /// other parts.
+    const std::vector<char>& rk_elements(index_t part) const { return rk_elements_[static_cast<std::size_t>(part)]; }
+    index_t converted_elements() const { return converted_elements_; }
+    /// The output cell's discretization: 0 FE, 1 transition (an FE element with particle
+    /// nodes), 2 RK (RK elements, rkpm parts, cloud particles).
+    int element_zone(index_t block, index_t e) const;
     /// The elements events removed from one block: 8 global node ids and the reference volume
     /// of each (crater and eroded-mass measures, analysis/impact.hpp).
     struct ErodedElements
@@ -245,6 +265,13 @@ class Model final : public ExplicitOperator
     Deck deck_;
     int topology_version_ = 0;
     index_t eroded_elements_ = 0;
+    index_t converted_elements_ = 0;
+    std::vector<std::vector<char>> rk_elements_; ///< per part (coupled parts; empty otherwise)
+    /// A coupled part's tables, map and the conditions' and loads' use of it rebuilt for a new
+    /// set of RK elements; the points' state carries over.
+    void set_rk_elements(index_t part, const std::vector<char>& rk);
+    /// The part's mesh in the reference configuration, local node numbering.
+    HexMesh part_mesh(index_t part) const;
     std::vector<ErodedElements> eroded_; ///< per block
     std::vector<char> block_adds_;                                 ///< per block
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add

@@ -1,4 +1,5 @@
-// Events between steps that change the discretization (erosion), and the assembly plan
+// Events between steps that change the discretization (erosion; conversion in
+// model_conversion.cpp), and the assembly plan
 // they keep up to date.
 #include "rkfem/model/model.hpp"
 
@@ -50,6 +51,13 @@ Model::ElementShape Model::element_shape(index_t block, index_t e) const
             x[I][d] = nodes.x[j];
             X[I][d] = nodes.x0[j];
         }
+    for (int I = 0; I < 8; ++I)
+        if (kinematics.carries_coefficients(blk.conn[8 * e + I])) // a particle of a coupled part
+        {
+            const Vec3 p = kinematics.position(nodes.x0, nodes.u, blk.conn[8 * e + I]);
+            for (int d = 0; d < 3; ++d)
+                x[I][d] = p[d];
+        }
     const real_t V = hex8_volume_gradient(x, b), V0 = hex8_volume_gradient(X, b0);
     // the mean deformation gradient F = sum_I x_I (x) b0_I / V0; lambda_max^2 = largest eigenvalue of F^T F
     Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
@@ -73,28 +81,49 @@ Model::ElementShape Model::element_shape(index_t block, index_t e) const
     return g;
 }
 
+bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
+{
+    if ((c.plastic_strain > 0 && element_history(b, e, History::PlasticStrain) >= c.plastic_strain) ||
+        (c.damage > 0 && element_history(b, e, History::Damage) >= c.damage))
+        return true;
+    if (!c.geometric())
+        return false;
+    const ElementShape g = element_shape(b, e);
+    return (c.principal_strain > 0 && g.principal_strain >= c.principal_strain) ||
+           (c.volumetric_strain > 0 && g.volumetric_strain >= c.volumetric_strain) ||
+           (c.time_step > 0 && g.time_step < c.time_step);
+}
+
 bool Model::apply_events(real_t, std::int64_t)
 {
     bool changed = false;
     for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
     {
-        const ErosionSpec& er = deck_.parts[static_cast<std::size_t>(b)].erosion;
-        if (!er.active() || part_nodal[b] >= 0)
-            continue;
+        const PartSpec& ps = deck_.parts[static_cast<std::size_t>(b)];
         const index_t ne = blocks[b].n_elements();
+        if (ps.converts())
+        {
+            // evolutionary coupling: FE and transition elements that meet the criteria turn RK
+            const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(b)];
+            std::vector<char> convert(static_cast<std::size_t>(ne), 0);
+            bool any = false;
+            for (index_t e = 0; e < ne; ++e)
+                if (!rk[e] && meets(ps.conversion, b, e))
+                {
+                    convert[e] = 1;
+                    any = true;
+                }
+            if (any && convert_elements(b, convert) > 0)
+                changed = true;
+            continue;
+        }
+        if (!ps.erosion.active() || part_nodal[b] >= 0)
+            continue;
         std::vector<char> keep(static_cast<std::size_t>(ne), 1);
         index_t removed = 0;
         for (index_t e = 0; e < ne; ++e)
         {
-            bool erode = (er.plastic_strain > 0 && element_history(b, e, History::PlasticStrain) >= er.plastic_strain) ||
-                         (er.damage > 0 && element_history(b, e, History::Damage) >= er.damage);
-            if (!erode && er.geometric())
-            {
-                const ElementShape g = element_shape(b, e);
-                erode = (er.principal_strain > 0 && g.principal_strain >= er.principal_strain) ||
-                        (er.volumetric_strain > 0 && g.volumetric_strain >= er.volumetric_strain) ||
-                        (er.time_step > 0 && g.time_step < er.time_step);
-            }
+            const bool erode = meets(ps.erosion, b, e);
             keep[e] = !erode;
             removed += erode;
         }

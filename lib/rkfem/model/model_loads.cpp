@@ -27,7 +27,7 @@ void Model::collect_loaded_dofs()
         for (std::size_t fi = 0; fi < faces.size(); ++fi)
             if (!rl.is_rk[fi])
                 for (index_t n : faces[fi])
-                    node_dofs(n);
+                    kinematics.for_row(n, [&](index_t j, real_t) { node_dofs(j); });
         for (index_t n : rl.nodes)
             node_dofs(n);
     }
@@ -86,10 +86,19 @@ void Model::apply_external_forces(real_t t)
             const Quad& q = (*faces)[fi];
             if (!rl.is_rk[fi])
             {
-                const Vec3 n = quad_normal(nodes.x, q); // area-weighted, outward
+                // area-weighted, outward, on the physical corners (coupled parts' particles carry
+                // coefficients)
+                Vec3 n = quad_normal(nodes.x, q);
+                if (kinematics.carries_coefficients(q[0]) || kinematics.carries_coefficients(q[1]) ||
+                    kinematics.carries_coefficients(q[2]) || kinematics.carries_coefficients(q[3]))
+                {
+                    Vec3 xc[4];
+                    for (int c = 0; c < 4; ++c)
+                        xc[c] = kinematics.position(nodes.x0, nodes.u, q[c]);
+                    n = 0.5 * (xc[2] - xc[0]).cross(xc[3] - xc[1]);
+                }
                 for (index_t node : q)
-                    for (int k = 0; k < 3; ++k)
-                        nodes.f_ext[3 * node + k] -= 0.25 * p * n[k];
+                    kinematics.spread(node, -0.25 * p * n, nodes.f_ext.data()); // the node itself on FE parts
                 continue;
             }
             // RK face: bilinear patch through the physical corner positions, 2x2 Gauss points,

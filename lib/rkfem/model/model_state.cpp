@@ -1,7 +1,7 @@
 // The model's state between steps, into and out of a checkpoint (StateArchive). What is built
 // from the deck (tables, masses' layout, conditions) is built again; what a run changed is saved:
 // nodal kinematics and masses, committed material state, the ledger and its previous-step terms,
-// and the elements erosion removed.
+// the elements erosion removed and those conversion made RK.
 #include <string>
 
 #include "rkfem/core/error.hpp"
@@ -94,6 +94,10 @@ void Model::save_state(StateArchive& a) const
     a.put_value("dt_critical", dt_critical_);
     a.put_value("topology_version", topology_version_);
     a.put_value("eroded_elements", eroded_elements_);
+    a.put_value("converted_elements", converted_elements_);
+    for (std::size_t p = 0; p < rk_elements_.size(); ++p)
+        if (!rk_elements_[p].empty())
+            a.put("rk_elements." + std::to_string(p), rk_elements_[p]);
     a.put_value("eroded_blocks", static_cast<index_t>(eroded_.size()));
     for (std::size_t b = 0; b < eroded_.size(); ++b)
     {
@@ -130,6 +134,19 @@ void Model::load_state(const StateArchive& a)
         plan_assembly();
         refresh_contact_surfaces(); // the faces erosion exposed (their state is loaded below)
     }
+    // conversion: the parts' RK elements, then the points' state below (the points are the same)
+    for (std::size_t p = 0; p < rk_elements_.size(); ++p)
+    {
+        if (rk_elements_[p].empty())
+            continue;
+        std::vector<char> rk;
+        a.get("rk_elements." + std::to_string(p), rk);
+        if (rk.size() != rk_elements_[p].size())
+            throw Error("checkpoint: part '" + parts[p].name + "' has " + std::to_string(rk.size()) +
+                        " RK element flags for " + std::to_string(rk_elements_[p].size()) + " elements");
+        if (rk != rk_elements_[p])
+            set_rk_elements(static_cast<index_t>(p), rk);
+    }
     a.get_same_size("nodes.u", nodes.u);
     a.get_same_size("nodes.v", nodes.v);
     a.get_same_size("nodes.a", nodes.a);
@@ -159,6 +176,7 @@ void Model::load_state(const StateArchive& a)
     dt_critical_ = a.value<real_t>("dt_critical");
     topology_version_ = a.value<int>("topology_version");
     eroded_elements_ = a.value<index_t>("eroded_elements");
+    converted_elements_ = a.value<index_t>("converted_elements");
     eroded_.assign(static_cast<std::size_t>(a.value<index_t>("eroded_blocks")), ErodedElements{});
     for (std::size_t b = 0; b < eroded_.size(); ++b)
     {

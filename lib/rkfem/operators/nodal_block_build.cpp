@@ -198,13 +198,38 @@ class SubMeshShapes final : public ShapeEvaluator
 };
 } // namespace
 
-NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset)
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                               const std::vector<char>* rk_set)
 {
-    const std::vector<char> rk_elements = rk_region_elements(ps, mesh);
+    const std::vector<char> rk_elements = rk_set ? *rk_set : rk_region_elements(ps, mesh);
     index_t n_rk = 0;
     for (char c : rk_elements)
         n_rk += c;
-    if (n_rk == 0 || n_rk == mesh.n_elements())
+    if (n_rk == 0 && ps.converts() && ps.formulation == Formulation::FemNodal)
+    {
+        // no RK element yet: nodal-integrated FE on the same cells as a coupled block's
+        NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+        const FemShapes shapes(mesh);
+        nb.points = build_scni(mesh, shapes);
+        if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, shapes));
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
+        nb.particle.assign(static_cast<std::size_t>(mesh.n_nodes()), 0);
+        nb.fe_element.assign(static_cast<std::size_t>(mesh.n_elements()), 1);
+        // physical values: identity rows
+        nb.interp_offsets.resize(static_cast<std::size_t>(mesh.n_nodes()) + 1);
+        for (index_t i = 0; i <= mesh.n_nodes(); ++i)
+            nb.interp_offsets[i] = i;
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+            nb.interp_nodes.push_back(i + offset);
+        nb.interp_values.assign(static_cast<std::size_t>(mesh.n_nodes()), 1.0);
+        const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+        finish_block(nb, offset, l0, l0);
+        return nb;
+    }
+    if (!rk_set && (n_rk == 0 || n_rk == mesh.n_elements()))
         throw DeckError(ps.regions_loc,
                         n_rk == 0 ? "contain no element centroid of the part"
                                   : "contain every element of the part, leaving no FE region",

@@ -23,10 +23,15 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
 /// Per element of a part's mesh: 1 if its centroid lies in one of the part's RK regions.
 std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh);
 
-/// Builds the block of a coupled FE-RK part (a fem-nodal part with regions): the mixed or ramp
-/// approximation of approximation/coupling/coupled_shapes.hpp over the whole mesh, SCNI on its
-/// node-dual cells (+ MSCNI), physical values at the nodes (identity at FE nodes).
-NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset);
+/// Builds the block of a coupled FE-RK part (a fem-nodal part with regions or conversion): the
+/// mixed or ramp approximation of approximation/coupling/coupled_shapes.hpp over the whole mesh,
+/// SCNI on its node-dual cells (+ MSCNI), physical values at the nodes (identity at FE nodes).
+/// `rk_elements` (per element, 1: RK) overrides the part's regions: a conversion event's set,
+/// which may hold no element (all FE) or every element. With a fem-nodal FE side the points
+/// (one per node, then MSCNI's sub-cells) and their weights do not depend on the set, so a
+/// block rebuilt for another set takes over the state of the old one point for point.
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                               const std::vector<char>* rk_elements = nullptr);
 
 /// The convex body a cloud part's Voronoi cells are clipped to: its box, or the prism of planes
 /// tangent to its cylinder (at least 128, about 8 pi radius / mean spacing of n_particles).

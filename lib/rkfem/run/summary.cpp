@@ -86,6 +86,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"nodes\": " << model.nodes.size() << ",\n";
     o << "  \"elements\": " << model.n_elements() << ",\n";
     o << "  \"eroded_elements\": " << model.eroded_elements() << ",\n";
+    o << "  \"converted_elements\": " << model.converted_elements() << ",\n";
     o << "  \"threads\": " << max_threads() << ",\n";
     o << "  \"steps\": " << s.steps << ",\n";
     o << "  \"end_time\": " << num(s.end_time) << ",\n";

@@ -45,7 +45,7 @@ class CoupledShapes final : public ShapeEvaluator
     static constexpr real_t kInterfaceSupport = 2.2;
 
     /// mesh: the whole part (local numbering); rk_element[e] != 0: element e lies in an RK region.
-    /// Throws Error when no element, or every element, is RK.
+    /// Throws Error when no element is RK (every element may be: conversion can get there).
     CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params,
                   Transition transition);
 

@@ -1,0 +1,113 @@
+// Evolutionary coupling (seed Table 1, feature 4): elements of a fem-nodal part turn into RK
+// between steps. The state stays where it is integrated (at the nodes), so an event rebuilds
+// tables only.
+#include <cmath>
+#include <string>
+
+#include "rkfem/core/error.hpp"
+#include "rkfem/model/model.hpp"
+#include "rkfem/operators/nodal_block_build.hpp"
+
+namespace rkfem
+{
+HexMesh Model::part_mesh(index_t part) const
+{
+    const PartInfo& info = parts[static_cast<std::size_t>(part)];
+    HexMesh mesh;
+    mesh.x.assign(nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_begin),
+                  nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_end));
+    mesh.conn = blocks[static_cast<std::size_t>(part)].conn;
+    for (index_t& n : mesh.conn)
+        n -= info.node_begin;
+    mesh.faces = extract_boundary_faces(mesh.conn);
+    return mesh;
+}
+
+void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
+{
+    const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
+    NodalBlock& old = nodal_blocks[static_cast<std::size_t>(part_nodal[part])];
+    const HexMesh mesh = part_mesh(part);
+    NodalBlock nb;
+    try
+    {
+        nb = build_coupled_block(ps, mesh, parts[part].node_begin, &rk);
+    }
+    catch (const DeckError& e)
+    {
+        throw Error("converting elements of part '" + ps.name + "' to RK: " + e.what() +
+                    " (a larger rk.normalized_support covers the new particles better)");
+    }
+    // the same points with the same weights, whatever the shapes: the state carries over
+    auto same_points = [](const IntegrationOperator& a, const IntegrationOperator& b)
+    {
+        if (a.n_points() != b.n_points())
+            return false;
+        for (index_t p = 0; p < a.n_points(); ++p)
+            if (a.owner[p] != b.owner[p] || std::abs(a.weight[p] - b.weight[p]) > 1e-12 * std::abs(b.weight[p]))
+                return false;
+        return true;
+    };
+    RKFEM_REQUIRE(same_points(nb.points, old.points) && same_points(nb.stabilization, old.stabilization),
+                  "conversion in part '" << ps.name << "': the rebuilt block's points differ from the old ones");
+    nb.part = old.part;
+    nb.stress = std::move(old.stress);
+    nb.stress_trial = std::move(old.stress_trial);
+    nb.stab_stress = std::move(old.stab_stress);
+    nb.stab_stress_trial = std::move(old.stab_stress_trial);
+    nb.jacobian = std::move(old.jacobian);
+    nb.plastic = std::move(old.plastic);
+    kinematics.set_rows(nb.node_begin, nb.node_end, nb.interp_offsets, nb.interp_nodes, nb.interp_values, &nb.particle);
+    std::vector<index_t>().swap(nb.interp_offsets);
+    std::vector<index_t>().swap(nb.interp_nodes);
+    std::vector<real_t>().swap(nb.interp_values);
+    old = std::move(nb);
+    rk_elements_[static_cast<std::size_t>(part)] = rk;
+    // conditions on new particles act through the map; loads reach the coefficients through it
+    rk_constraints_.clear();
+    build_rk_constraints();
+    collect_loaded_dofs();
+    plan_assembly();
+}
+
+index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
+{
+    RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), "convert_elements: no part " << part);
+    const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
+    RKFEM_REQUIRE(ps.coupled() && ps.formulation == Formulation::FemNodal,
+                  "convert_elements: part '" << ps.name << "' is not a fem-nodal part with regions or conversion");
+    std::vector<char> rk = rk_elements_[static_cast<std::size_t>(part)];
+    RKFEM_REQUIRE(convert.size() == rk.size(), "convert_elements: " << convert.size() << " flags for " << rk.size()
+                                                                    << " elements of part '" << ps.name << "'");
+    index_t added = 0;
+    for (std::size_t e = 0; e < rk.size(); ++e)
+        if (convert[e] && !rk[e])
+        {
+            rk[e] = 1;
+            ++added;
+        }
+    if (added == 0)
+        return 0;
+    set_rk_elements(part, rk);
+    converted_elements_ += added;
+    return added;
+}
+
+int Model::element_zone(index_t block, index_t e) const
+{
+    if (part_nodal[block] < 0)
+        return 0;
+    if (deck_.parts[static_cast<std::size_t>(block)].formulation == Formulation::Rkpm)
+        return 2;
+    const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(block)];
+    if (rk.empty())
+        return 0;
+    if (rk[static_cast<std::size_t>(e)])
+        return 2;
+    const HexBlock& blk = blocks[static_cast<std::size_t>(block)];
+    for (int a = 0; a < 8; ++a)
+        if (kinematics.carries_coefficients(blk.conn[8 * static_cast<std::size_t>(e) + a]))
+            return 1;
+    return 0;
+}
+} // namespace rkfem
