@@ -232,6 +232,9 @@ class Model final : public ExplicitOperator
     /// other parts.
     const std::vector<char>& rk_elements(index_t part) const { return rk_elements_[static_cast<std::size_t>(part)]; }
     index_t converted_elements() const { return converted_elements_; }
+    /// Conversion events rebuild the whole part (true) or only the points where the
+    /// approximation changed (false, the default); the same operators either way.
+    void set_rebuild_whole_part(bool whole) { rebuild_whole_part_ = whole; }
     /// The output cell's discretization: 0 FE, 1 transition (an FE element with particle
     /// nodes), 2 RK (RK elements, rkpm parts, cloud particles).
     int element_zone(index_t block, index_t e) const;
@@ -267,6 +270,9 @@ class Model final : public ExplicitOperator
     index_t eroded_elements_ = 0;
     index_t converted_elements_ = 0;
     std::vector<std::vector<char>> rk_elements_; ///< per part (coupled parts; empty otherwise)
+    /// Conversion rebuilds the whole part's block (the plain path the incremental update is
+    /// held to) instead of the points where the approximation changed.
+    bool rebuild_whole_part_ = false;
     /// A coupled part's tables, map and the conditions' and loads' use of it rebuilt for a new
     /// set of RK elements; the points' state carries over.
     void set_rk_elements(index_t part, const std::vector<char>& rk);

@@ -26,42 +26,82 @@ HexMesh Model::part_mesh(index_t part) const
 void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
 {
     const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
-    NodalBlock& old = nodal_blocks[static_cast<std::size_t>(part_nodal[part])];
+    NodalBlock& nb = nodal_blocks[static_cast<std::size_t>(part_nodal[part])];
     const HexMesh mesh = part_mesh(part);
-    NodalBlock nb;
+    const index_t begin = parts[part].node_begin, n = parts[part].node_end - begin;
+    ChangedRows changed;
     try
     {
-        nb = build_coupled_block(ps, mesh, parts[part].node_begin, &rk);
+        if (rebuild_whole_part_)
+        {
+            // the plain way: the whole block again, the state handed over point for point
+            NodalBlock fresh = build_coupled_block(ps, mesh, begin, &rk);
+            auto same_points = [](const IntegrationOperator& a, const IntegrationOperator& b)
+            {
+                if (a.n_points() != b.n_points())
+                    return false;
+                for (index_t p = 0; p < a.n_points(); ++p)
+                    if (a.owner[p] != b.owner[p] || std::abs(a.weight[p] - b.weight[p]) > 1e-12 * std::abs(b.weight[p]))
+                        return false;
+                return true;
+            };
+            RKFEM_REQUIRE(same_points(fresh.points, nb.points) && same_points(fresh.stabilization, nb.stabilization),
+                          "conversion in part '" << ps.name << "': the rebuilt block's points differ from the old ones");
+            fresh.part = nb.part;
+            fresh.stress = std::move(nb.stress);
+            fresh.stress_trial = std::move(nb.stress_trial);
+            fresh.stab_stress = std::move(nb.stab_stress);
+            fresh.stab_stress_trial = std::move(nb.stab_stress_trial);
+            fresh.jacobian = std::move(nb.jacobian);
+            fresh.plastic = std::move(nb.plastic);
+            for (index_t i = 0; i < n; ++i)
+            {
+                changed.node.push_back(i);
+                for (index_t k = fresh.interp_offsets[i]; k < fresh.interp_offsets[i + 1]; ++k)
+                {
+                    changed.columns.push_back(fresh.interp_nodes[k]);
+                    changed.values.push_back(fresh.interp_values[k]);
+                }
+                changed.offsets.push_back(static_cast<index_t>(changed.columns.size()));
+            }
+            std::vector<index_t>().swap(fresh.interp_offsets);
+            std::vector<index_t>().swap(fresh.interp_nodes);
+            std::vector<real_t>().swap(fresh.interp_values);
+            nb = std::move(fresh);
+        }
+        else
+            changed = update_coupled_block(ps, mesh, begin, rk_elements_[static_cast<std::size_t>(part)], rk, nb);
     }
     catch (const DeckError& e)
     {
         throw Error("converting elements of part '" + ps.name + "' to RK: " + e.what() +
                     " (a larger rk.normalized_support covers the new particles better)");
     }
-    // the same points with the same weights, whatever the shapes: the state carries over
-    auto same_points = [](const IntegrationOperator& a, const IntegrationOperator& b)
+    // the part's rows of the kinematic map: the changed ones, the others as they were
+    std::vector<index_t> offsets{0}, columns;
+    std::vector<real_t> values;
+    std::size_t c = 0;
+    for (index_t i = 0; i < n; ++i)
     {
-        if (a.n_points() != b.n_points())
-            return false;
-        for (index_t p = 0; p < a.n_points(); ++p)
-            if (a.owner[p] != b.owner[p] || std::abs(a.weight[p] - b.weight[p]) > 1e-12 * std::abs(b.weight[p]))
-                return false;
-        return true;
-    };
-    RKFEM_REQUIRE(same_points(nb.points, old.points) && same_points(nb.stabilization, old.stabilization),
-                  "conversion in part '" << ps.name << "': the rebuilt block's points differ from the old ones");
-    nb.part = old.part;
-    nb.stress = std::move(old.stress);
-    nb.stress_trial = std::move(old.stress_trial);
-    nb.stab_stress = std::move(old.stab_stress);
-    nb.stab_stress_trial = std::move(old.stab_stress_trial);
-    nb.jacobian = std::move(old.jacobian);
-    nb.plastic = std::move(old.plastic);
-    kinematics.set_rows(nb.node_begin, nb.node_end, nb.interp_offsets, nb.interp_nodes, nb.interp_values, &nb.particle);
-    std::vector<index_t>().swap(nb.interp_offsets);
-    std::vector<index_t>().swap(nb.interp_nodes);
-    std::vector<real_t>().swap(nb.interp_values);
-    old = std::move(nb);
+        if (c < changed.node.size() && changed.node[c] == i)
+        {
+            for (index_t k = changed.offsets[c]; k < changed.offsets[c + 1]; ++k)
+            {
+                columns.push_back(changed.columns[k]);
+                values.push_back(changed.values[k]);
+            }
+            ++c;
+        }
+        else
+            kinematics.for_row(begin + i,
+                               [&](index_t j, real_t w)
+                               {
+                                   columns.push_back(j);
+                                   values.push_back(w);
+                               });
+        offsets.push_back(static_cast<index_t>(columns.size()));
+    }
+    kinematics.set_rows(begin, begin + n, offsets, columns, values, &nb.particle);
     rk_elements_[static_cast<std::size_t>(part)] = rk;
     // conditions on new particles act through the map; loads reach the coefficients through it
     rk_constraints_.clear();

@@ -8,6 +8,7 @@
 #include "rkfem/approximation/coupling/coupled_shapes.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 
@@ -315,6 +316,201 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
     const std::vector<real_t> l0 = nodal_spacing(mesh, false);
     finish_block(nb, offset, l0, l0);
     return nb;
+}
+
+namespace
+{
+/// Replaces the rows of op's points with replace[p] by rows of `from` (point from_point[p]).
+void splice_rows(IntegrationOperator& op, const std::vector<char>& replace, const IntegrationOperator& from,
+                 const std::vector<index_t>& from_point)
+{
+    IntegrationOperator out;
+    out.weight = op.weight;
+    out.position = op.position;
+    out.owner = op.owner;
+    out.parent = op.parent;
+    out.offsets.reserve(op.offsets.size());
+    out.nodes.reserve(op.nodes.size());
+    out.grad.reserve(op.grad.size());
+    for (index_t p = 0; p < op.n_points(); ++p)
+    {
+        const IntegrationOperator& src = replace[p] ? from : op;
+        const index_t q = replace[p] ? from_point[p] : p;
+        for (index_t k = src.offsets[q]; k < src.offsets[q + 1]; ++k)
+        {
+            out.nodes.push_back(src.nodes[k]);
+            out.grad.insert(out.grad.end(), {src.grad[3 * k], src.grad[3 * k + 1], src.grad[3 * k + 2]});
+        }
+        out.offsets.push_back(out.n_entries());
+        if (replace[p])
+        {
+            out.weight[p] = from.weight[q];
+            for (int d = 0; d < 3; ++d)
+                out.position[3 * p + d] = from.position[3 * q + d];
+        }
+    }
+    op = std::move(out);
+}
+} // namespace
+
+ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                                 const std::vector<char>& rk_old, const std::vector<char>& rk_new, NodalBlock& nb)
+{
+    const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
+    const RkParams params = rk_params(ps.rk);
+    auto layout = [&](const std::vector<char>& rk)
+    {
+        for (char c : rk)
+            if (c)
+                return coupled_layout(mesh, rk, params);
+        CoupledLayout all_fe;
+        all_fe.kind.assign(static_cast<std::size_t>(ne), CoupledShapes::Kind::Fe);
+        all_fe.radius.assign(static_cast<std::size_t>(nn), 0.0);
+        return all_fe;
+    };
+    const CoupledLayout before = layout(rk_old), after = layout(rk_new);
+    // particles that appear, disappear or change their support, with the larger radius
+    std::vector<index_t> changed;
+    std::vector<real_t> changed_x, reach;
+    real_t reach_max = 0.0;
+    for (index_t i = 0; i < nn; ++i)
+        if (before.radius[i] != after.radius[i])
+        {
+            changed.push_back(i);
+            for (int d = 0; d < 3; ++d)
+                changed_x.push_back(mesh.x[3 * i + d]);
+            reach.push_back(std::max(before.radius[i], after.radius[i]));
+            reach_max = std::max(reach_max, reach.back());
+        }
+    // elements whose approximation changes: another kind, or a transition or RK element whose
+    // box meets a changed particle's support box (a box contains the sphere of a sphere support)
+    std::vector<char> affected(static_cast<std::size_t>(ne), 0);
+    std::vector<Vec3> lo(static_cast<std::size_t>(ne)), hi(static_cast<std::size_t>(ne));
+    real_t half_max = 0.0;
+    for (index_t e = 0; e < ne; ++e)
+    {
+        lo[e] = hi[e] = mesh.node(mesh.conn[8 * e]);
+        for (int a = 1; a < 8; ++a)
+        {
+            lo[e] = lo[e].cwiseMin(mesh.node(mesh.conn[8 * e + a]));
+            hi[e] = hi[e].cwiseMax(mesh.node(mesh.conn[8 * e + a]));
+        }
+        half_max = std::max(half_max, 0.5 * (hi[e] - lo[e]).maxCoeff());
+        affected[e] = before.kind[e] != after.kind[e];
+    }
+    if (!changed.empty())
+    {
+        const CellList bins(changed_x, reach_max + half_max);
+        for (index_t e = 0; e < ne; ++e)
+        {
+            if (affected[e] || after.kind[e] == CoupledShapes::Kind::Fe)
+                continue;
+            bins.for_each_candidate(0.5 * (lo[e] + hi[e]),
+                                    [&](index_t j)
+                                    {
+                                        const Vec3 x(changed_x[3 * j], changed_x[3 * j + 1], changed_x[3 * j + 2]);
+                                        if (((lo[e].array() - reach[j]) <= x.array()).all() &&
+                                            (x.array() <= (hi[e].array() + reach[j])).all())
+                                            affected[e] = 1;
+                                    });
+        }
+    }
+    // the nodes whose points change, and every element around them
+    std::vector<char> node_changes(static_cast<std::size_t>(nn), 0);
+    for (index_t e = 0; e < ne; ++e)
+        if (affected[e])
+            for (int a = 0; a < 8; ++a)
+                node_changes[mesh.conn[8 * e + a]] = 1;
+    std::vector<index_t> elements, sub_to_part, part_to_sub(static_cast<std::size_t>(nn), -1),
+        element_to_sub(static_cast<std::size_t>(ne), -1);
+    HexMesh sub;
+    for (index_t e = 0; e < ne; ++e)
+    {
+        bool around = false;
+        for (int a = 0; a < 8; ++a)
+            around = around || node_changes[mesh.conn[8 * e + a]];
+        if (!around)
+            continue;
+        element_to_sub[e] = static_cast<index_t>(elements.size());
+        elements.push_back(e);
+        for (int a = 0; a < 8; ++a)
+        {
+            const index_t i = mesh.conn[8 * e + a];
+            if (part_to_sub[i] < 0)
+            {
+                part_to_sub[i] = static_cast<index_t>(sub_to_part.size());
+                sub_to_part.push_back(i);
+                for (int d = 0; d < 3; ++d)
+                    sub.x.push_back(mesh.x[3 * i + d]);
+            }
+            sub.conn.push_back(part_to_sub[i]);
+        }
+    }
+    ChangedRows rows;
+    if (elements.empty())
+        return rows;
+    sub.faces = extract_boundary_faces(sub.conn);
+    const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
+    try
+    {
+        const CoupledShapes shapes(mesh, rk_new, params, t);
+        const SubMeshShapes sub_shapes(shapes, elements);
+        IntegrationOperator scni = build_scni(sub, sub_shapes);
+        for (auto& n : scni.nodes)
+            n += offset;
+        // SCNI: point p is node p
+        std::vector<index_t> from(static_cast<std::size_t>(nn), -1);
+        for (index_t i = 0; i < nn; ++i)
+            if (node_changes[i])
+                from[i] = part_to_sub[i];
+        splice_rows(nb.points, node_changes, scni, from);
+        if (nb.n_stab() > 0)
+        {
+            // MSCNI: sub-cell 8 e + a of the node conn[8 e + a]; the sub-mesh's 8 k + a
+            IntegrationOperator sd = build_sd_scni(sub, sub_shapes);
+            for (auto& n : sd.nodes)
+                n += offset;
+            const IntegrationOperator stab = build_mscni_stabilization(scni, sd);
+            std::vector<char> replace(static_cast<std::size_t>(nb.n_stab()), 0);
+            std::vector<index_t> from_stab(replace.size(), -1);
+            for (index_t e = 0; e < ne; ++e)
+                for (int a = 0; a < 8; ++a)
+                    if (node_changes[mesh.conn[8 * e + a]])
+                    {
+                        replace[8 * e + a] = 1;
+                        from_stab[8 * e + a] = 8 * element_to_sub[e] + a;
+                    }
+            splice_rows(nb.stabilization, replace, stab, from_stab);
+        }
+        // physical values at the nodes whose rows changed
+        std::vector<index_t> row_nodes;
+        std::vector<real_t> row_values;
+        for (index_t i = 0; i < nn; ++i)
+        {
+            if (!node_changes[i])
+                continue;
+            row_nodes.clear();
+            row_values.clear();
+            shapes.node_row(i, row_nodes, row_values);
+            rows.node.push_back(i);
+            for (std::size_t k = 0; k < row_nodes.size(); ++k)
+            {
+                rows.columns.push_back(row_nodes[k] + offset);
+                rows.values.push_back(row_values[k]);
+            }
+            rows.offsets.push_back(static_cast<index_t>(rows.columns.size()));
+        }
+        for (index_t i = 0; i < nn; ++i)
+            nb.particle[i] = shapes.is_particle(i);
+        for (index_t e = 0; e < ne; ++e)
+            nb.fe_element[e] = shapes.kind(e) == CoupledShapes::Kind::Fe;
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    nb.build_tables();
+    return rows;
 }
 
 std::vector<HalfSpace> cloud_body(const GeneratorSpec& g, index_t n_particles)

@@ -33,6 +33,26 @@ std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh);
 NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
                                const std::vector<char>* rk_elements = nullptr);
 
+/// A coupled block (fem-nodal FE side, built by build_coupled_block for `rk_old`) brought to the
+/// RK set `rk_new` in place, where the approximation changed only: elements whose kind changes
+/// and elements of the transition and RK regions that the support of a particle that appears,
+/// disappears or changes its radius reaches (both radii). The points of the nodes of those
+/// elements (SCNI), and their MSCNI sub-cells, are built again on the sub-mesh of every element
+/// around them (so their cells are whole) and take the place of the old ones; the other points
+/// keep their entries. The same operators as a whole rebuild (verification/operators/
+/// test_conversion). Material state is not touched; tables are rebuilt (NodalBlock::build_tables).
+/// Returns the nodes (local) whose physical-value rows changed, with those rows (CSR over the
+/// returned nodes; columns global); the block's particle and fe_element flags are updated.
+struct ChangedRows
+{
+    std::vector<index_t> node;
+    std::vector<index_t> offsets{0};
+    std::vector<index_t> columns;
+    std::vector<real_t> values;
+};
+ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                                 const std::vector<char>& rk_old, const std::vector<char>& rk_new, NodalBlock& nb);
+
 /// The convex body a cloud part's Voronoi cells are clipped to: its box, or the prism of planes
 /// tangent to its cylinder (at least 128, about 8 pi radius / mean spacing of n_particles).
 std::vector<HalfSpace> cloud_body(const GeneratorSpec& g, index_t n_particles);

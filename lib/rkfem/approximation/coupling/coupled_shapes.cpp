@@ -6,46 +6,36 @@
 
 namespace rkfem
 {
-CoupledShapes::CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params,
-                             Transition transition)
-    : mesh_(mesh), transition_(transition)
+CoupledLayout coupled_layout(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params)
 {
     const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
     RKFEM_REQUIRE(static_cast<index_t>(rk_element.size()) == ne,
                   "coupled shapes: " << rk_element.size() << " element flags for " << ne << " elements");
-    kind_.assign(static_cast<std::size_t>(ne), Kind::Fe);
-    particle_of_.assign(static_cast<std::size_t>(nn), -1);
-    index_t n_rk = 0;
+    CoupledLayout L;
+    L.kind.assign(static_cast<std::size_t>(ne), CoupledShapes::Kind::Fe);
+    std::vector<char> particle(static_cast<std::size_t>(nn), 0);
     for (index_t e = 0; e < ne; ++e)
         if (rk_element[e])
         {
-            kind_[e] = Kind::Rk;
-            ++n_rk;
+            L.kind[e] = CoupledShapes::Kind::Rk;
             for (int a = 0; a < 8; ++a)
-                particle_of_[mesh.conn[8 * e + a]] = 0;
+                particle[mesh.conn[8 * e + a]] = 1;
         }
-    RKFEM_REQUIRE(n_rk > 0, "coupled shapes: no element of " << ne << " is RK");
     // interface elements, and the nodes they touch
     std::vector<char> touches_interface(static_cast<std::size_t>(nn), 0);
     for (index_t e = 0; e < ne; ++e)
     {
-        if (kind_[e] == Kind::Rk)
+        if (L.kind[e] == CoupledShapes::Kind::Rk)
             continue;
         bool any = false;
         for (int a = 0; a < 8; ++a)
-            any = any || particle_of_[mesh.conn[8 * e + a]] >= 0;
+            any = any || particle[mesh.conn[8 * e + a]];
         if (!any)
             continue;
-        kind_[e] = Kind::Interface;
+        L.kind[e] = CoupledShapes::Kind::Interface;
         for (int a = 0; a < 8; ++a)
             touches_interface[mesh.conn[8 * e + a]] = 1;
     }
-    for (index_t i = 0; i < nn; ++i)
-        if (particle_of_[i] >= 0)
-        {
-            particle_of_[i] = static_cast<index_t>(particle_node_.size());
-            particle_node_.push_back(i);
-        }
     // supports: normalized_support x the longest edge at the node; at least kInterfaceSupport x
     // for every node of an RK element that shares a node with an interface element (two particle
     // layers reach across each interface element)
@@ -53,7 +43,7 @@ CoupledShapes::CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_el
     std::vector<real_t> c(static_cast<std::size_t>(nn), params.normalized_support);
     for (index_t e = 0; e < ne; ++e)
     {
-        if (kind_[e] != Kind::Rk)
+        if (L.kind[e] != CoupledShapes::Kind::Rk)
             continue;
         bool near = false;
         for (int a = 0; a < 8; ++a)
@@ -62,16 +52,38 @@ CoupledShapes::CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_el
             for (int a = 0; a < 8; ++a)
             {
                 real_t& ca = c[mesh.conn[8 * e + a]];
-                ca = std::max(ca, kInterfaceSupport);
+                ca = std::max(ca, CoupledShapes::kInterfaceSupport);
             }
     }
+    L.radius.assign(static_cast<std::size_t>(nn), 0.0);
+    for (index_t i = 0; i < nn; ++i)
+        if (particle[i])
+            L.radius[i] = c[i] * h[i];
+    return L;
+}
+
+CoupledShapes::CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params,
+                             Transition transition)
+    : mesh_(mesh), transition_(transition)
+{
+    CoupledLayout L = coupled_layout(mesh, rk_element, params);
+    index_t n_rk = 0;
+    for (Kind k : L.kind)
+        n_rk += k == Kind::Rk;
+    RKFEM_REQUIRE(n_rk > 0, "coupled shapes: no element of " << mesh.n_elements() << " is RK");
+    kind_ = std::move(L.kind);
+    radius_ = std::move(L.radius);
+    particle_of_.assign(radius_.size(), -1);
     std::vector<real_t> x, radius;
-    for (index_t i : particle_node_)
-    {
-        for (int d = 0; d < 3; ++d)
-            x.push_back(mesh.x[3 * i + d]);
-        radius.push_back(c[i] * h[i]);
-    }
+    for (index_t i = 0; i < mesh.n_nodes(); ++i)
+        if (radius_[i] > 0.0)
+        {
+            particle_of_[i] = static_cast<index_t>(particle_node_.size());
+            particle_node_.push_back(i);
+            for (int d = 0; d < 3; ++d)
+                x.push_back(mesh.x[3 * i + d]);
+            radius.push_back(radius_[i]);
+        }
     rk_ = RkShapeFunctions(std::move(x), std::move(radius), params);
 }
 

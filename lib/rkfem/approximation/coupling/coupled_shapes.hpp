@@ -61,12 +61,25 @@ class CoupledShapes final : public ShapeEvaluator
     /// interpolant sum_J Psi_J(X_I) d_J at particles), appended to (nodes, values).
     void node_row(index_t node, std::vector<index_t>& nodes, std::vector<real_t>& values) const;
 
+    /// Support radius of a particle (0 for FE nodes).
+    real_t radius(index_t node) const { return radius_[static_cast<std::size_t>(node)]; }
+
   private:
     const HexMesh& mesh_;
     std::vector<Kind> kind_;
     std::vector<index_t> particle_of_;   ///< per node: particle index, -1 for FE nodes
     std::vector<index_t> particle_node_; ///< per particle: node
+    std::vector<real_t> radius_;         ///< per node: support radius, 0 for FE nodes
     RkShapeFunctions rk_;
     Transition transition_;
 };
+/// What the coupled shapes of an RK element set are made of, without building them: per element
+/// its kind, per node its support radius as a particle (0: an FE node). Two sets' approximations
+/// differ only in elements whose kind differs or that a changed support reaches.
+struct CoupledLayout
+{
+    std::vector<CoupledShapes::Kind> kind;
+    std::vector<real_t> radius;
+};
+CoupledLayout coupled_layout(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params);
 } // namespace rkfem
