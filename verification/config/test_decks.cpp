@@ -647,6 +647,11 @@ TEST(Decks, ErosionAndConversionMistakesNameTheKey)
     expect_rejected("conversion_negative.yaml",
                     replace(good, part, j2 + "    formulation: fem-nodal\n    conversion: {principal_strain: -0.1}\n"),
                     ":9: parts.col.conversion.principal_strain", "expected a value > 0");
+    expect_rejected("conversion_interval.yaml",
+                    replace(good, part, j2 + "    formulation: fem-nodal\n    conversion: {damage: 0.5, interval: -1 us}\n"),
+                    ":9: parts.col.conversion.interval", "expected a time >= 0");
+    expect_rejected("erosion_interval.yaml", replace(good, part, j2 + "    erosion: {damage: 0.5, interval: 1 us}\n"),
+                    ":8: parts.col.erosion.interval", "unknown key");
 }
 
 TEST(Decks, TinyOutputIntervalsWriteEveryStepAndEnd)

@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <tuple>
 
 #include "../support.hpp"
 #include "rkfem/run/simulation.hpp"
@@ -341,4 +342,41 @@ TEST(ConversionUpdate, RebuildsOnlyWhereTheApproximationChangedWithTheWholeRebui
     EXPECT_LT(dg / gmax, 1e-13);
     EXPECT_LT(dmap, 1e-14);
     EXPECT_LT(du / umax, 1e-10);
+}
+
+TEST(ConversionInterval, ChecksAtTheIntervalConvertInFewerEventsWithTheSameResult)
+{
+    // the converting K&C bar (5 mm, 30 us; steps of about 1.1 us) with the criteria checked
+    // after every step and every 2 us: the events (stepper restarts) fall to about half,
+    // elements convert up to 2 us later, and the energies stay within 1 %
+    const std::string deck = std::string(RKFEM_SOURCE_DIR) + "/studies/decks/concrete_bar_conversion.yaml";
+    auto run = [&](const char* interval)
+    {
+        Model m = Model::build(read_deck(deck, {"parts.bar.generator.element_size=5mm", "time.end=30us",
+                                                 std::string("parts.bar.conversion.interval=") + interval}));
+        int events = 0;
+        RunOptions opt;
+        opt.progress = false;
+        index_t converted = 0;
+        opt.events = [&](Model& mm, real_t, std::int64_t)
+        {
+            events += mm.converted_elements() != converted;
+            converted = mm.converted_elements();
+            return false;
+        };
+        EXPECT_EQ(run_simulation(m, opt).status, "completed");
+        std::printf("interval %s: %d conversion events, %ld elements converted, kinetic %.4f J, internal %.4f J, "
+                    "balance error %.2e\n",
+                    interval, events, static_cast<long>(m.converted_elements()), m.energy.kinetic, m.energy.internal,
+                    m.energy.balance_error());
+        return std::tuple{events, m.converted_elements(), m.energy};
+    };
+    const auto [events0, converted0, e0] = run("0");
+    const auto [events2, converted2, e2] = run("2us");
+    EXPECT_GE(events0, 8);
+    EXPECT_LE(events2, 0.7 * events0);
+    EXPECT_NEAR(static_cast<real_t>(converted2) / converted0, 1.0, 0.1);
+    EXPECT_NEAR(e2.kinetic / e0.kinetic, 1.0, 0.01);
+    EXPECT_NEAR(e2.internal / e0.internal, 1.0, 0.01);
+    EXPECT_LT(e2.balance_error(), 2e-3);
 }

@@ -150,13 +150,13 @@ TEST(Checkpoint, ConcreteBarRestartsWithTheSameBits)
 }
 
 // Evolutionary coupling: the restart converts the elements the run had converted (the points'
-// state then loads as it was saved), and conversion goes on after it
+// state then loads as it was saved), and conversion goes on after it, at the checks' times
 TEST(Checkpoint, ConvertingConcreteBarRestartsWithTheSameBits)
 {
     for (const char* stepper : {"central-difference", "arkode-cd"})
         expect_restarts_reproduce(std::string("conversion_") + stepper, deck_path("concrete_bar_conversion.yaml"),
                                   std::string("--set parts.bar.generator.element_size=5mm --set time.end=20us "
-                                              "--set time.stepper=") +
+                                              "--set parts.bar.conversion.interval=3us --set time.stepper=") +
                                       stepper,
                                   "5 us");
 }

@@ -95,6 +95,9 @@ struct ElementCriteria
     real_t principal_strain = 0.0;  ///< largest principal logarithmic strain ln(lambda_max) (MXEPS)
     real_t volumetric_strain = 0.0; ///< V / V0 - 1, tension (VOLEPS)
     real_t time_step = 0.0;         ///< element step (V / A_max) / c below this [s] (DTMIN)
+    /// conversion only: the criteria are checked at the first step end at or past each multiple
+    /// of this time [s] (0: after every step), so that elements convert in fewer, larger events
+    real_t interval = 0.0;
     bool active() const { return plastic_strain > 0 || damage > 0 || geometric(); }
     /// a criterion on the element's shape (a pass over its nodes per step)
     bool geometric() const { return principal_strain > 0 || volumetric_strain > 0 || time_step > 0; }

@@ -307,9 +307,14 @@ std::string to_yaml(const Deck& d)
         os << "    initial_velocity: " << vec(p.initial_velocity) << "\n";
         for (const auto& [key, c] : {std::pair{"erosion", &p.erosion}, std::pair{"conversion", &p.conversion}})
             if (c->active())
+            {
                 os << "    " << key << ": {effective_plastic_strain: " << c->plastic_strain << ", damage: " << c->damage
                    << ", principal_strain: " << c->principal_strain << ", volumetric_strain: " << c->volumetric_strain
-                   << ", time_step: " << c->time_step << "}\n";
+                   << ", time_step: " << c->time_step;
+                if (c == &p.conversion)
+                    os << ", interval: " << c->interval;
+                os << "}\n";
+            }
     }
     sets(os, "node_sets", d.node_sets);
     sets(os, "face_sets", d.face_sets);

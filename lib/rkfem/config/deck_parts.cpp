@@ -374,9 +374,18 @@ void ignore(PartSpec& p, const Section& s, const std::string& key, const std::st
 /// The element criteria under `key` (erosion, conversion): at least one set, none negative.
 ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::string& key, const PartSpec& p)
 {
-    Section e(ctx, s.node(key), s.path(key),
-              {"effective_plastic_strain", "damage", "principal_strain", "volumetric_strain", "time_step"});
+    std::vector<std::string> keys = {"effective_plastic_strain", "damage", "principal_strain", "volumetric_strain",
+                                     "time_step"};
+    if (key == "conversion")
+        keys.push_back("interval");
+    Section e(ctx, s.node(key), s.path(key), keys);
     ElementCriteria c;
+    if (key == "conversion")
+    {
+        c.interval = e.quantity("interval", dim::time, 0.0);
+        if (!(c.interval >= 0.0 && std::isfinite(c.interval)))
+            e.fail("interval", "is negative or not finite", "expected a time >= 0 (0: check after every step)");
+    }
     c.plastic_strain = e.quantity("effective_plastic_strain", dim::none, 0.0);
     c.damage = e.quantity("damage", dim::none, 0.0);
     c.principal_strain = e.quantity("principal_strain", dim::none, 0.0);

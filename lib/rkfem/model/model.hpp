@@ -273,6 +273,7 @@ class Model final : public ExplicitOperator
     /// Conversion rebuilds the whole part's block (the plain path the incremental update is
     /// held to) instead of the points where the approximation changed.
     bool rebuild_whole_part_ = false;
+    std::vector<real_t> next_conversion_check_; ///< per part (conversion.interval): time of the next check
     /// A coupled part's tables, map and the conditions' and loads' use of it rebuilt for a new
     /// set of RK elements; the points' state carries over.
     void set_rk_elements(index_t part, const std::vector<char>& rk);

@@ -94,7 +94,7 @@ bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
            (c.time_step > 0 && g.time_step < c.time_step);
 }
 
-bool Model::apply_events(real_t, std::int64_t)
+bool Model::apply_events(real_t t, std::int64_t)
 {
     bool changed = false;
     for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
@@ -104,6 +104,16 @@ bool Model::apply_events(real_t, std::int64_t)
         if (ps.converts())
         {
             // evolutionary coupling: FE and transition elements that meet the criteria turn RK
+            // (at the first step end at or past each multiple of the interval)
+            const real_t interval = ps.conversion.interval;
+            if (interval > 0.0)
+            {
+                next_conversion_check_.resize(blocks.size(), 0.0);
+                real_t& next = next_conversion_check_[static_cast<std::size_t>(b)];
+                if (t < next)
+                    continue;
+                next = (std::floor(t / interval * (1 + 1e-12)) + 1) * interval;
+            }
             const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(b)];
             std::vector<char> convert(static_cast<std::size_t>(ne), 0);
             bool any = false;
