@@ -278,3 +278,31 @@ TEST(NodalIntegration, DropToleranceKeepsTheConstraintAndShrinksTheStencil)
             EXPECT_LT(b.n_entries(), a.n_entries());
     }
 }
+
+TEST(NodalIntegration, OnePassScniAndSubCellsAreTheSeparateBuildsBitForBit)
+{
+    // build_scni_sd evaluates each sub-hex facet point once for the sub-cell and the nodal cell;
+    // its operators are build_scni's and build_sd_scni's, entry for entry, on a jittered mesh
+    // with RK and FE shapes
+    const real_t h = 1e-3;
+    const HexMesh mesh = distorted_box(5, h, 0.3);
+    const RkShapeFunctions rk = rk_on_mesh(mesh, RkParams{});
+    const RkShapes rks(rk);
+    const FemShapes fes(mesh);
+    for (const ShapeEvaluator* shapes : {static_cast<const ShapeEvaluator*>(&rks), static_cast<const ShapeEvaluator*>(&fes)})
+    {
+        IntegrationOperator scni, sd;
+        build_scni_sd(mesh, *shapes, scni, &sd);
+        const IntegrationOperator a = build_scni(mesh, *shapes), b = build_sd_scni(mesh, *shapes);
+        for (const auto& [fused, plain] : {std::pair{&scni, &a}, std::pair{&sd, &b}})
+        {
+            EXPECT_EQ(fused->weight, plain->weight);
+            EXPECT_EQ(fused->position, plain->position);
+            EXPECT_EQ(fused->owner, plain->owner);
+            EXPECT_EQ(fused->offsets, plain->offsets);
+            EXPECT_EQ(fused->nodes, plain->nodes);
+            EXPECT_EQ(fused->grad, plain->grad);
+        }
+        EXPECT_GT(sd.n_entries(), scni.n_entries());
+    }
+}

@@ -117,12 +117,18 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
         shapes = std::make_unique<FemShapes>(mesh);
     try
     {
-        nb.points = build_nodal(scheme, mesh, *shapes);
-        if (scheme == NodalScheme::Scni && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
+        const bool stabilized =
+            scheme == NodalScheme::Scni && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0;
+        const bool mscni = stabilized && !(ps.nodal.stabilization == "nsni" && rk);
+        IntegrationOperator sd; // MSCNI's sub-cells, in the same pass as the SCNI points
+        if (mscni)
+            build_scni_sd(mesh, *shapes, nb.points, &sd);
+        else
+            nb.points = build_nodal(scheme, mesh, *shapes);
+        if (stabilized)
         {
-            nb.stabilization = ps.nodal.stabilization == "nsni" && rk
-                                   ? build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh), ps.rk.drop_tolerance)
-                                   : build_mscni_stabilization(nb.points, build_sd_scni(mesh, *shapes));
+            nb.stabilization = mscni ? build_mscni_stabilization(nb.points, sd)
+                                     : build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh), ps.rk.drop_tolerance);
             nb.stabilization_triplets = ps.nodal.stabilization == "nsni" && rk;
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
@@ -211,12 +217,15 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
         // no RK element yet: nodal-integrated FE on the same cells as a coupled block's
         NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
         const FemShapes shapes(mesh);
-        nb.points = build_scni(mesh, shapes);
         if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
         {
-            nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, shapes));
+            IntegrationOperator sd;
+            build_scni_sd(mesh, shapes, nb.points, &sd);
+            nb.stabilization = build_mscni_stabilization(nb.points, sd);
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
+        else
+            nb.points = build_scni(mesh, shapes);
         nb.particle.assign(static_cast<std::size_t>(mesh.n_nodes()), 0);
         nb.fe_element.assign(static_cast<std::size_t>(mesh.n_elements()), 1);
         // physical values: identity rows
@@ -245,9 +254,10 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
         if (ps.formulation == Formulation::FemNodal)
         {
             // every node's dual cell
-            nb.points = build_scni(mesh, shapes);
+            IntegrationOperator sd;
+            build_scni_sd(mesh, shapes, nb.points, stabilized ? &sd : nullptr);
             if (stabilized)
-                nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(mesh, shapes));
+                nb.stabilization = build_mscni_stabilization(nb.points, sd);
         }
         else
         {
@@ -276,9 +286,10 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
             }
             sub.faces = extract_boundary_faces(sub.conn);
             const SubMeshShapes sub_shapes(shapes, elements);
-            nb.points = build_scni(sub, sub_shapes);
+            IntegrationOperator sd;
+            build_scni_sd(sub, sub_shapes, nb.points, stabilized ? &sd : nullptr);
             if (stabilized)
-                nb.stabilization = build_mscni_stabilization(nb.points, build_sd_scni(sub, sub_shapes));
+                nb.stabilization = build_mscni_stabilization(nb.points, sd);
             // owners to the part's numbering (the gradients' nodes already are)
             for (auto* op : {&nb.points, &nb.stabilization})
                 for (auto& o : op->owner)
@@ -455,7 +466,8 @@ ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_
     {
         const CoupledShapes shapes(mesh, rk_new, params, t);
         const SubMeshShapes sub_shapes(shapes, elements);
-        IntegrationOperator scni = build_scni(sub, sub_shapes);
+        IntegrationOperator scni, sd;
+        build_scni_sd(sub, sub_shapes, scni, nb.n_stab() > 0 ? &sd : nullptr);
         for (auto& n : scni.nodes)
             n += offset;
         // SCNI: point p is node p
@@ -467,7 +479,6 @@ ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_
         if (nb.n_stab() > 0)
         {
             // MSCNI: sub-cell 8 e + a of the node conn[8 e + a]; the sub-mesh's 8 k + a
-            IntegrationOperator sd = build_sd_scni(sub, sub_shapes);
             for (auto& n : sd.nodes)
                 n += offset;
             const IntegrationOperator stab = build_mscni_stabilization(scni, sd);

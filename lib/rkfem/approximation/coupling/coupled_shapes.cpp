@@ -98,6 +98,16 @@ void CoupledShapes::values(index_t e, const Vec3& xi, const Vec3& x, std::vector
     real_t N[8];
     const real_t z[3] = {xi[0], xi[1], xi[2]};
     hex8_shape(z, N);
+    // particles are never among the FE nodes listed before them, so only the ramp (which lists
+    // every node of the element first) can meet a node twice
+    auto add_distinct = [&]()
+    {
+        for (index_t k = 0; k < s.size(); ++k)
+        {
+            nodes.push_back(particle_node_[s.nodes[k]]);
+            psi.push_back(s.psi[k]);
+        }
+    };
     auto add_particles = [&](real_t scale)
     {
         for (index_t k = 0; k < s.size(); ++k)
@@ -121,7 +131,7 @@ void CoupledShapes::values(index_t e, const Vec3& xi, const Vec3& x, std::vector
         return;
     case Kind::Rk:
         rk_.evaluate(x, false, s);
-        add_particles(1.0);
+        add_distinct();
         return;
     case Kind::Interface:
         break;
@@ -138,7 +148,7 @@ void CoupledShapes::values(index_t e, const Vec3& xi, const Vec3& x, std::vector
                 others.dx.push_back(x - mesh_.node(en[a]));
             }
         rk_.evaluate_completing(x, others, s);
-        add_particles(1.0);
+        add_distinct();
         return;
     }
     // ramp: (1 - R) N_k for every node of the element, R Psi_J for every covering particle

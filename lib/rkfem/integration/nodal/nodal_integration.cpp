@@ -54,6 +54,21 @@ void add_facets(const ShapeEvaluator& shapes, index_t e, const SubHex& sh, const
     }
 }
 
+IntegrationOperator pack(std::vector<Entries>& entries, std::vector<real_t> weight, std::vector<real_t> position,
+                         std::vector<index_t> owner);
+
+/// The centroid of sub-hex a of an element: the natural centre of its octant.
+Vec3 sub_hex_centroid(const real_t xe[8][3], int a)
+{
+    real_t N[8];
+    const real_t xi[3] = {0.5 * hex8_nodes[a][0], 0.5 * hex8_nodes[a][1], 0.5 * hex8_nodes[a][2]};
+    hex8_shape(xi, N);
+    Vec3 pos = Vec3::Zero();
+    for (int I = 0; I < 8; ++I)
+        pos += N[I] * Vec3(xe[I][0], xe[I][1], xe[I][2]);
+    return pos;
+}
+
 /// Builds an operator from per-point entry lists (parallel over points, concatenated in order).
 template <class PointFn>
 IntegrationOperator assemble(index_t n_points, PointFn&& fn)
@@ -92,6 +107,13 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
     }
     if (error)
         std::rethrow_exception(error); // the first failure, with its type (SingularMomentError)
+    return pack(entries, std::move(weight), std::move(position), std::move(owner));
+}
+
+/// The operator of per-point merged entry lists (freed as they are copied).
+IntegrationOperator pack(std::vector<Entries>& entries, std::vector<real_t> weight, std::vector<real_t> position,
+                         std::vector<index_t> owner)
+{
     IntegrationOperator op;
     op.weight = std::move(weight);
     op.position = std::move(position);
@@ -141,10 +163,21 @@ IntegrationOperator build_dni(const HexMesh& mesh, const ShapeEvaluator& shapes)
 
 IntegrationOperator build_scni(const HexMesh& mesh, const ShapeEvaluator& shapes)
 {
+    IntegrationOperator scni;
+    build_scni_sd(mesh, shapes, scni, nullptr);
+    return scni;
+}
+
+void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, IntegrationOperator& scni, IntegrationOperator* sd)
+{
     std::vector<index_t> offsets, slots;
     node_element_incidence(mesh, offsets, slots);
     const std::vector<index_t> nb = face_neighbours(mesh);
-    return assemble(mesh.n_nodes(),
+    const std::size_t n_sub = sd ? 8 * static_cast<std::size_t>(mesh.n_elements()) : 0;
+    std::vector<Entries> sub_entries(n_sub);
+    std::vector<real_t> sub_weight(n_sub), sub_position(3 * n_sub);
+    std::vector<index_t> sub_owner(n_sub);
+    scni = assemble(mesh.n_nodes(),
                     [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
                         std::vector<real_t>& psi)
                     {
@@ -163,7 +196,33 @@ IntegrationOperator build_scni(const HexMesh& mesh, const ShapeEvaluator& shapes
                             bool use[6];
                             for (int f = 0; f < 6; ++f)
                                 use[f] = sh.element_face[f] < 0 || nb[6 * e + sh.element_face[f]] < 0;
-                            add_facets(shapes, e, sh, use, out, nodes, psi);
+                            if (!sd)
+                            {
+                                add_facets(shapes, e, sh, use, out, nodes, psi);
+                                continue;
+                            }
+                            // with the sub-cells: every facet evaluated once, the sub-cell's row
+                            // from all six (as build_sd_scni), the node's from those it uses
+                            const std::size_t s = static_cast<std::size_t>(slots[k]);
+                            Entries& sub = sub_entries[s];
+                            for (int f = 0; f < 6; ++f)
+                            {
+                                const std::size_t begin = sub.size();
+                                bool one[6] = {};
+                                one[f] = true;
+                                add_facets(shapes, e, sh, one, sub, nodes, psi);
+                                if (use[f])
+                                    out.insert(out.end(), sub.begin() + static_cast<std::ptrdiff_t>(begin), sub.end());
+                            }
+                            RKFEM_REQUIRE(sh.volume > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
+                                                                                 << " has non-positive volume "
+                                                                                 << sh.volume);
+                            merge(sub, 1.0 / sh.volume);
+                            sub_weight[s] = sh.volume;
+                            const Vec3 c = sub_hex_centroid(xe, a);
+                            for (int d = 0; d < 3; ++d)
+                                sub_position[3 * s + d] = c[d];
+                            sub_owner[s] = i;
                         }
                         RKFEM_REQUIRE(vol > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << vol);
                         merge(out, 1.0 / vol);
@@ -171,6 +230,8 @@ IntegrationOperator build_scni(const HexMesh& mesh, const ShapeEvaluator& shapes
                         pos = mesh.node(i);
                         owner = i;
                     });
+    if (sd)
+        *sd = pack(sub_entries, std::move(sub_weight), std::move(sub_position), std::move(sub_owner));
 }
 
 IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& shapes)
@@ -191,13 +252,7 @@ IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& sha
                                                                              << " has non-positive volume " << sh.volume);
                         merge(out, 1.0 / sh.volume);
                         w = sh.volume;
-                        // centroid of the sub-hex: natural centre of the octant
-                        real_t N[8];
-                        const real_t xi[3] = {0.5 * hex8_nodes[a][0], 0.5 * hex8_nodes[a][1], 0.5 * hex8_nodes[a][2]};
-                        hex8_shape(xi, N);
-                        pos.setZero();
-                        for (int I = 0; I < 8; ++I)
-                            pos += N[I] * Vec3(xe[I][0], xe[I][1], xe[I][2]);
+                        pos = sub_hex_centroid(xe, a);
                         owner = mesh.conn[8 * e + a];
                     });
 }
