@@ -205,6 +205,45 @@ class SubMeshShapes final : public ShapeEvaluator
 };
 } // namespace
 
+namespace
+{
+/// The part's elements with keep[e] != 0 as a mesh of their own: element k is elements[k] of the
+/// part (element_to_sub the inverse, -1 for the others), node j is sub_to_part[j] (part_to_sub the
+/// inverse), boundary faces extracted.
+struct SubMesh
+{
+    HexMesh mesh;
+    std::vector<index_t> elements, element_to_sub, sub_to_part, part_to_sub;
+};
+SubMesh sub_mesh(const HexMesh& mesh, const std::vector<char>& keep)
+{
+    SubMesh s;
+    s.element_to_sub.assign(static_cast<std::size_t>(mesh.n_elements()), -1);
+    s.part_to_sub.assign(static_cast<std::size_t>(mesh.n_nodes()), -1);
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        if (!keep[e])
+            continue;
+        s.element_to_sub[e] = static_cast<index_t>(s.elements.size());
+        s.elements.push_back(e);
+        for (int a = 0; a < 8; ++a)
+        {
+            const index_t i = mesh.conn[8 * e + a];
+            if (s.part_to_sub[i] < 0)
+            {
+                s.part_to_sub[i] = static_cast<index_t>(s.sub_to_part.size());
+                s.sub_to_part.push_back(i);
+                for (int d = 0; d < 3; ++d)
+                    s.mesh.x.push_back(mesh.x[3 * i + d]);
+            }
+            s.mesh.conn.push_back(s.part_to_sub[i]);
+        }
+    }
+    s.mesh.faces = extract_boundary_faces(s.mesh.conn);
+    return s;
+}
+} // namespace
+
 NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
                                const std::vector<char>* rk_set)
 {
@@ -264,36 +303,19 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
             // fem-1pt FE side: the FE elements are the part's 1-point block; the nodes of the
             // transition and RK elements get the dual cells of those elements only (their faces
             // with FE elements are the cells' boundary), on a sub-mesh with its own numbering
-            std::vector<index_t> elements, sub_to_part, part_to_sub(static_cast<std::size_t>(mesh.n_nodes()), -1);
-            HexMesh sub;
+            std::vector<char> keep(static_cast<std::size_t>(mesh.n_elements()));
             for (index_t e = 0; e < mesh.n_elements(); ++e)
-            {
-                if (shapes.kind(e) == CoupledShapes::Kind::Fe)
-                    continue;
-                elements.push_back(e);
-                for (int a = 0; a < 8; ++a)
-                {
-                    const index_t i = mesh.conn[8 * e + a];
-                    if (part_to_sub[i] < 0)
-                    {
-                        part_to_sub[i] = static_cast<index_t>(sub_to_part.size());
-                        sub_to_part.push_back(i);
-                        for (int d = 0; d < 3; ++d)
-                            sub.x.push_back(mesh.x[3 * i + d]);
-                    }
-                    sub.conn.push_back(part_to_sub[i]);
-                }
-            }
-            sub.faces = extract_boundary_faces(sub.conn);
-            const SubMeshShapes sub_shapes(shapes, elements);
+                keep[e] = shapes.kind(e) != CoupledShapes::Kind::Fe;
+            const SubMesh sm = sub_mesh(mesh, keep);
+            const SubMeshShapes sub_shapes(shapes, sm.elements);
             IntegrationOperator sd;
-            build_scni_sd(sub, sub_shapes, nb.points, stabilized ? &sd : nullptr);
+            build_scni_sd(sm.mesh, sub_shapes, nb.points, stabilized ? &sd : nullptr);
             if (stabilized)
                 nb.stabilization = build_mscni_stabilization(nb.points, sd);
             // owners to the part's numbering (the gradients' nodes already are)
             for (auto* op : {&nb.points, &nb.stabilization})
                 for (auto& o : op->owner)
-                    o = sub_to_part[static_cast<std::size_t>(o)];
+                    o = sm.sub_to_part[static_cast<std::size_t>(o)];
         }
         if (stabilized)
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
@@ -432,49 +454,28 @@ ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_
         if (affected[e])
             for (int a = 0; a < 8; ++a)
                 node_changes[mesh.conn[8 * e + a]] = 1;
-    std::vector<index_t> elements, sub_to_part, part_to_sub(static_cast<std::size_t>(nn), -1),
-        element_to_sub(static_cast<std::size_t>(ne), -1);
-    HexMesh sub;
+    std::vector<char> around(static_cast<std::size_t>(ne), 0);
     for (index_t e = 0; e < ne; ++e)
-    {
-        bool around = false;
         for (int a = 0; a < 8; ++a)
-            around = around || node_changes[mesh.conn[8 * e + a]];
-        if (!around)
-            continue;
-        element_to_sub[e] = static_cast<index_t>(elements.size());
-        elements.push_back(e);
-        for (int a = 0; a < 8; ++a)
-        {
-            const index_t i = mesh.conn[8 * e + a];
-            if (part_to_sub[i] < 0)
-            {
-                part_to_sub[i] = static_cast<index_t>(sub_to_part.size());
-                sub_to_part.push_back(i);
-                for (int d = 0; d < 3; ++d)
-                    sub.x.push_back(mesh.x[3 * i + d]);
-            }
-            sub.conn.push_back(part_to_sub[i]);
-        }
-    }
+            around[e] = around[e] || node_changes[mesh.conn[8 * e + a]];
+    const SubMesh sm = sub_mesh(mesh, around);
     ChangedRows rows;
-    if (elements.empty())
+    if (sm.elements.empty())
         return rows;
-    sub.faces = extract_boundary_faces(sub.conn);
     const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
     try
     {
         const CoupledShapes shapes(mesh, rk_new, params, t);
-        const SubMeshShapes sub_shapes(shapes, elements);
+        const SubMeshShapes sub_shapes(shapes, sm.elements);
         IntegrationOperator scni, sd;
-        build_scni_sd(sub, sub_shapes, scni, nb.n_stab() > 0 ? &sd : nullptr);
+        build_scni_sd(sm.mesh, sub_shapes, scni, nb.n_stab() > 0 ? &sd : nullptr);
         for (auto& n : scni.nodes)
             n += offset;
         // SCNI: point p is node p
         std::vector<index_t> from(static_cast<std::size_t>(nn), -1);
         for (index_t i = 0; i < nn; ++i)
             if (node_changes[i])
-                from[i] = part_to_sub[i];
+                from[i] = sm.part_to_sub[i];
         splice_rows(nb.points, node_changes, scni, from);
         if (nb.n_stab() > 0)
         {
@@ -489,7 +490,7 @@ ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_
                     if (node_changes[mesh.conn[8 * e + a]])
                     {
                         replace[8 * e + a] = 1;
-                        from_stab[8 * e + a] = 8 * element_to_sub[e] + a;
+                        from_stab[8 * e + a] = 8 * sm.element_to_sub[e] + a;
                     }
             splice_rows(nb.stabilization, replace, stab, from_stab);
         }
