@@ -10,6 +10,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <sstream>
 
 namespace rkfem
 {
@@ -94,7 +95,7 @@ bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
            (c.time_step > 0 && g.time_step < c.time_step);
 }
 
-bool Model::apply_events(real_t t, std::int64_t)
+bool Model::apply_events(real_t t, std::int64_t step)
 {
     bool changed = false;
     for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
@@ -123,8 +124,23 @@ bool Model::apply_events(real_t t, std::int64_t)
                     convert[e] = 1;
                     any = true;
                 }
-            if (any && convert_elements(b, convert) > 0)
-                changed = true;
+            try
+            {
+                if (any && convert_elements(b, convert) > 0)
+                    changed = true;
+            }
+            catch (const InstabilityError&)
+            {
+                throw;
+            }
+            catch (const Error& e)
+            {
+                // the run stops there (with its output so far and this state written), as on an
+                // instability: a conversion that cannot be made is no input error
+                std::ostringstream os;
+                os << e.what() << " (at t = " << t << " s, step " << step << ")";
+                throw InstabilityError(os.str(), t);
+            }
             continue;
         }
         if (!ps.erosion.active() || part_nodal[b] >= 0)
