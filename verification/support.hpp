@@ -11,6 +11,7 @@
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/operators/hex_block.hpp"
+#include "rkfem/run/simulation.hpp"
 
 namespace rkfem::test
 {
@@ -118,5 +119,26 @@ inline void linear_velocity_step(NodeSet& nodes, const real_t (&A)[3][3], real_t
 inline Model model_from(const std::string& deck_text, const std::vector<std::string>& overrides = {})
 {
     return Model::build(parse_deck(deck_text, "test.yaml", overrides));
+}
+
+/// A run to the deck's end without progress output, and its largest energy balance error after
+/// time `after` (an impulsive start's transient left out).
+struct RunWithBalance
+{
+    RunSummary summary;
+    real_t balance = 0.0;
+};
+inline RunWithBalance run_with_balance(Model& m, real_t after)
+{
+    RunWithBalance r;
+    RunOptions opt;
+    opt.progress = false;
+    r.summary = run_simulation(m, opt,
+                               [&](const Model& mm, real_t t, real_t, std::int64_t)
+                               {
+                                   if (t > after)
+                                       r.balance = std::max(r.balance, mm.energy.balance_error());
+                               });
+    return r;
 }
 } // namespace rkfem::test

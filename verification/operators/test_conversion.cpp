@@ -232,15 +232,9 @@ Wave run_wave(const std::vector<std::string>& overrides)
     Model m = test::model_from(wave_deck, overrides);
     const real_t c = 5856.4, h = 1e-3;
     Wave w;
-    RunOptions opt;
-    opt.progress = false;
-    const RunSummary s = run_simulation(m, opt,
-                                        [&](const Model& mm, real_t t, real_t, std::int64_t)
-                                        {
-                                            if (t > 20 * h / c)
-                                                w.balance = std::max(w.balance, mm.energy.balance_error());
-                                        });
-    EXPECT_EQ(s.status, "completed") << s.message;
+    const test::RunWithBalance r = test::run_with_balance(m, 20 * h / c);
+    EXPECT_EQ(r.summary.status, "completed") << r.summary.message;
+    w.balance = r.balance;
     for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
     {
         w.szz.push_back(m.element_stress(0, e)[ZZ]);

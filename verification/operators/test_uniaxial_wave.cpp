@@ -39,16 +39,9 @@ void check_wave(const std::vector<std::string>& overrides)
     ASSERT_NEAR(c, 5856.4, 0.1);
     const real_t plateau = -7850 * c * v;
     ASSERT_NEAR(plateau, -459.7e6, 0.05e6);
-    real_t worst_balance_after_startup = 0.0;
-    RunOptions opt;
-    opt.progress = false;
-    const RunSummary s = run_simulation(m, opt,
-                                        [&](const Model& mm, real_t t, real_t, std::int64_t)
-                                        {
-                                            if (t > 20 * h / c) // startup transient of the impulsive start
-                                                worst_balance_after_startup =
-                                                    std::max(worst_balance_after_startup, mm.energy.balance_error());
-                                        });
+    const test::RunWithBalance r = test::run_with_balance(m, 20 * h / c); // after the impulsive start's transient
+    const RunSummary& s = r.summary;
+    const real_t worst_balance_after_startup = r.balance;
     ASSERT_EQ(s.status, "completed") << s.message;
     const real_t t = s.end_time;
     // plateau behind the front (elements 20 .. 120 mm from the driven end)
