@@ -828,6 +828,44 @@ TEST(Decks, TubeKeysAreChecked)
                     ":6: parts.col.generator.core", "a tube has no core");
 }
 
+TEST(Decks, HistoryCountsTheRkElementsOfAConvertingPart)
+{
+    // evolutionary coupling: part_bar_rk_elements grows from 0 and ends at the summary's count
+    const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "rk_elements_column";
+    const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/concrete_bar_conversion.yaml --out " +
+                         out.string() + " --quiet --set parts.bar.generator.element_size=5mm --set time.end=20us");
+    ASSERT_EQ(r.code, 0) << r.output;
+    std::ifstream csv(out / "history.csv");
+    std::string header;
+    std::getline(csv, header);
+    std::vector<std::string> cols;
+    std::stringstream hs(header);
+    for (std::string c; std::getline(hs, c, ',');)
+        cols.push_back(c);
+    const auto it = std::find(cols.begin(), cols.end(), "part_bar_rk_elements");
+    ASSERT_NE(it, cols.end()) << header;
+    const std::size_t k = static_cast<std::size_t>(it - cols.begin());
+    double first = -1, last = 0, previous = 0;
+    for (std::string line; std::getline(csv, line);)
+    {
+        std::stringstream ls(line);
+        std::vector<double> v;
+        for (std::string c; std::getline(ls, c, ',');)
+            v.push_back(std::stod(c));
+        if (first < 0)
+            first = v[k];
+        EXPECT_GE(v[k], previous);
+        previous = last = v[k];
+    }
+    std::ifstream js(out / "summary.json");
+    const std::string summary((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+    std::smatch mt;
+    ASSERT_TRUE(std::regex_search(summary, mt, std::regex("\"converted_elements\": ([0-9]+)")));
+    EXPECT_EQ(first, 0.0);
+    EXPECT_GT(last, 0.0);
+    EXPECT_EQ(last, std::stod(mt[1].str()));
+}
+
 TEST(Decks, HistoryCarriesEachLoadsValue)
 {
     // a pressure ramp on the tube of the P2 deck: the column load_outer is the curve at each row

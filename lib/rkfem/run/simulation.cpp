@@ -1,6 +1,7 @@
 #include "rkfem/run/simulation.hpp"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -82,6 +83,9 @@ std::vector<std::string> history_columns(const Model& m)
     for (const auto& p : m.parts)
         for (const char* q : {"_mass", "_kinetic", "_internal", "_hourglass", "_momentum_x", "_momentum_y", "_momentum_z"})
             c.push_back("part_" + p.name + q);
+    for (const auto& p : m.deck().parts)
+        if (p.converts())
+            c.push_back("part_" + p.name + "_rk_elements"); // evolutionary coupling: the RK region's size
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
@@ -119,6 +123,12 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
         const Model::PartSummary s = m.part_summary(p);
         rows.insert(rows.end(), {s.mass, s.kinetic, s.internal, s.hourglass, s.momentum[0], s.momentum[1], s.momentum[2]});
     }
+    for (index_t p = 0; p < static_cast<index_t>(m.parts.size()); ++p)
+        if (m.deck().parts[static_cast<std::size_t>(p)].converts())
+        {
+            const std::vector<char>& rk = m.rk_elements(p);
+            rows.push_back(static_cast<real_t>(std::count(rk.begin(), rk.end(), 1)));
+        }
     for (index_t n : m.probe_nodes)
     {
         const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);
