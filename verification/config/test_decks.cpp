@@ -828,6 +828,39 @@ TEST(Decks, TubeKeysAreChecked)
                     ":6: parts.col.generator.core", "a tube has no core");
 }
 
+namespace
+{
+/// history.csv of a run: its column names and its rows.
+struct History
+{
+    std::vector<std::string> columns;
+    std::vector<std::vector<double>> rows;
+    /// The index of a column (columns.size() when there is none).
+    std::size_t column(const std::string& name) const
+    {
+        return static_cast<std::size_t>(std::find(columns.begin(), columns.end(), name) - columns.begin());
+    }
+};
+History read_history(const fs::path& file)
+{
+    History h;
+    std::ifstream csv(file);
+    std::string header;
+    std::getline(csv, header);
+    std::stringstream hs(header);
+    for (std::string c; std::getline(hs, c, ',');)
+        h.columns.push_back(c);
+    for (std::string line; std::getline(csv, line);)
+    {
+        std::stringstream ls(line);
+        std::vector<double>& v = h.rows.emplace_back();
+        for (std::string c; std::getline(ls, c, ',');)
+            v.push_back(std::stod(c));
+    }
+    return h;
+}
+} // namespace
+
 TEST(Decks, HistoryCountsTheRkElementsOfAConvertingPart)
 {
     // evolutionary coupling: part_bar_rk_elements grows from 0 and ends at the summary's count
@@ -835,35 +868,23 @@ TEST(Decks, HistoryCountsTheRkElementsOfAConvertingPart)
     const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/concrete_bar_conversion.yaml --out " +
                          out.string() + " --quiet --set parts.bar.generator.element_size=5mm --set time.end=20us");
     ASSERT_EQ(r.code, 0) << r.output;
-    std::ifstream csv(out / "history.csv");
-    std::string header;
-    std::getline(csv, header);
-    std::vector<std::string> cols;
-    std::stringstream hs(header);
-    for (std::string c; std::getline(hs, c, ',');)
-        cols.push_back(c);
-    const auto it = std::find(cols.begin(), cols.end(), "part_bar_rk_elements");
-    ASSERT_NE(it, cols.end()) << header;
-    const std::size_t k = static_cast<std::size_t>(it - cols.begin());
-    double first = -1, last = 0, previous = 0;
-    for (std::string line; std::getline(csv, line);)
+    const History h = read_history(out / "history.csv");
+    const std::size_t k = h.column("part_bar_rk_elements");
+    ASSERT_LT(k, h.columns.size());
+    ASSERT_FALSE(h.rows.empty());
+    double previous = 0;
+    for (const auto& v : h.rows)
     {
-        std::stringstream ls(line);
-        std::vector<double> v;
-        for (std::string c; std::getline(ls, c, ',');)
-            v.push_back(std::stod(c));
-        if (first < 0)
-            first = v[k];
         EXPECT_GE(v[k], previous);
-        previous = last = v[k];
+        previous = v[k];
     }
     std::ifstream js(out / "summary.json");
     const std::string summary((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
     std::smatch mt;
     ASSERT_TRUE(std::regex_search(summary, mt, std::regex("\"converted_elements\": ([0-9]+)")));
-    EXPECT_EQ(first, 0.0);
-    EXPECT_GT(last, 0.0);
-    EXPECT_EQ(last, std::stod(mt[1].str()));
+    EXPECT_EQ(h.rows.front()[k], 0.0);
+    EXPECT_GT(h.rows.back()[k], 0.0);
+    EXPECT_EQ(h.rows.back()[k], std::stod(mt[1].str()));
 }
 
 TEST(Decks, HistoryCarriesEachLoadsValue)
@@ -873,28 +894,17 @@ TEST(Decks, HistoryCarriesEachLoadsValue)
     const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/p2_implosion.yaml --out " + out.string() +
                          " --quiet --set parts.tube.generator.element_size=0.8in --set time.end=0.2ms");
     ASSERT_EQ(r.code, 0) << r.output;
-    std::ifstream csv(out / "history.csv");
-    std::string header;
-    std::getline(csv, header);
-    std::vector<std::string> cols;
-    std::stringstream hs(header);
-    for (std::string c; std::getline(hs, c, ',');)
-        cols.push_back(c);
-    const auto it = std::find(cols.begin(), cols.end(), "load_outer");
-    ASSERT_NE(it, cols.end()) << header;
-    const std::size_t k = static_cast<std::size_t>(it - cols.begin());
-    EXPECT_NE(std::find(cols.begin(), cols.end(), "load_end"), cols.end());
-    int rows = 0;
-    for (std::string line; std::getline(csv, line); ++rows)
+    const History h = read_history(out / "history.csv");
+    const std::size_t k = h.column("load_outer");
+    ASSERT_LT(k, h.columns.size());
+    EXPECT_LT(h.column("load_end"), h.columns.size());
+    for (std::size_t row = 0; row < h.rows.size(); ++row)
     {
-        std::stringstream ls(line);
-        std::vector<double> v;
-        for (std::string c; std::getline(ls, c, ',');)
-            v.push_back(std::stod(c));
+        const auto& v = h.rows[row];
         // 4,000 psi over 20 ms
-        EXPECT_NEAR(v[k], 4000 * 6894.757293168361 * v[0] / 0.02, 1e-6 * 4000 * 6894.757) << "row " << rows;
+        EXPECT_NEAR(v[k], 4000 * 6894.757293168361 * v[0] / 0.02, 1e-6 * 4000 * 6894.757) << "row " << row;
     }
-    EXPECT_GT(rows, 5);
+    EXPECT_GT(h.rows.size(), 5u);
 }
 
 TEST(Decks, CheckEchoesGeneratedParametersAndWhatSetsTheStep)

@@ -35,15 +35,8 @@ std::vector<char> elements_above(const Model& m, real_t z)
     }
     return flags;
 }
-} // namespace
-
-TEST(ConversionPatch, LinearFieldKeepsItsUniformStressThroughAConversion)
-{
-    // a fem-nodal box under a linear velocity field; after step 3 the upper half turns RK
-    // (the transition layer below it): every point's stress stays that of the run that never
-    // converts, FE nodes off the boundary carry no force, and the particles' physical
-    // velocities are the linear field's
-    const char* box = R"(
+/// A 4 x 4 x 6 mm fem-nodal box that converts only when a test says so.
+const char* box = R"(
 time: {end: 1 s}
 parts:
   b:
@@ -53,6 +46,14 @@ parts:
     bulk_viscosity: {linear: 0, quadratic: 0}
     conversion: {principal_strain: 10}
 )";
+} // namespace
+
+TEST(ConversionPatch, LinearFieldKeepsItsUniformStressThroughAConversion)
+{
+    // a fem-nodal box under a linear velocity field; after step 3 the upper half turns RK
+    // (the transition layer below it): every point's stress stays that of the run that never
+    // converts, FE nodes off the boundary carry no force, and the particles' physical
+    // velocities are the linear field's
     const real_t A[3][3] = {{1.0, 0.3, -0.2}, {0.1, -0.5, 0.4}, {0.25, 0.2, 0.7}}; // 1/s
     const real_t dt = 1e-8;
     for (const char* transition : {"mixed", "ramp"})
@@ -149,23 +150,10 @@ parts:
     auto run = [&](bool convert, real_t& momentum_error, real_t& energy_error)
     {
         Model m = test::model_from(deck);
-        for (index_t i = 0; i < m.nodes.size(); ++i)
-        {
-            const real_t z = m.nodes.x0[3 * i + 2];
-            m.nodes.v[3 * i] = 2.0 * std::sin(80.0 * z);
-            m.nodes.v[3 * i + 2] = 10.0 * std::cos(150.0 * z) + 3.0;
-        }
-        auto momentum = [&]
-        {
-            Vec3 p = Vec3::Zero();
-            for (index_t i = 0; i < m.nodes.size(); ++i)
-                p += m.nodes.mass[i] * Vec3(m.nodes.v[3 * i], m.nodes.v[3 * i + 1], m.nodes.v[3 * i + 2]);
-            return p;
-        };
+        test::deforming_column_velocity(m.nodes);
+        auto momentum = [&] { return test::momentum(m.nodes); };
         const Vec3 p0 = momentum();
-        real_t mv = 0.0;
-        for (index_t i = 0; i < m.nodes.size(); ++i)
-            mv += m.nodes.mass[i] * std::hypot(m.nodes.v[3 * i], m.nodes.v[3 * i + 2]);
+        const real_t mv = test::momentum_scale(m.nodes);
         CentralDifference cd;
         const TimeSpec ts = m.deck().time;
         StepReport r = cd.initialize(m, 0.0);
@@ -381,20 +369,8 @@ TEST(ConversionLoads, PressureOnConvertedFacesKeepsItsResultantAndMoment)
     // act at their physical points and reach the coefficients through the kinematic map, whose
     // rows sum to 1 and reproduce x, so the total force (-p A) and its moment about the origin
     // (the face centre x F) are those of the FE box, to round-off
-    const char* box = R"(
-time: {end: 1 s}
-parts:
-  b:
-    generator: {type: box, size: [4 mm, 4 mm, 6 mm], divisions: [4, 4, 6]}
-    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
-    formulation: fem-nodal
-    conversion: {principal_strain: 10}
-face_sets:
-  top: {select: {type: plane, point: [0, 0, 6 mm], normal: [0, 0, 1]}}
-loads:
-  - {type: pressure, face_set: top, pressure: 1 MPa}
-)";
-    Model m = test::model_from(box);
+    Model m = test::model_from(box, {"face_sets={top: {select: {type: plane, point: [0, 0, 6 mm], normal: [0, 0, 1]}}}",
+                                     "loads=[{type: pressure, face_set: top, pressure: 1 MPa}]"});
     auto resultant = [&](Vec3& force, Vec3& moment)
     {
         m.external_forces(0.0);

@@ -104,23 +104,10 @@ TEST(CoupledWave, FreeColumnConservesMomentum)
                                           "parts.column.generator.size=[3 mm, 3 mm, 40 mm]",
                                           "parts.column.regions.0.select.min=[-1 mm, -1 mm, 20 mm]",
                                           "parts.column.regions.0.select.max=[4 mm, 4 mm, 41 mm]"});
-        for (index_t i = 0; i < m.nodes.size(); ++i)
-        {
-            const real_t z = m.nodes.x0[3 * i + 2];
-            m.nodes.v[3 * i] = 2.0 * std::sin(80.0 * z);
-            m.nodes.v[3 * i + 2] = 10.0 * std::cos(150.0 * z) + 3.0;
-        }
-        auto momentum = [&]
-        {
-            Vec3 p = Vec3::Zero();
-            for (index_t i = 0; i < m.nodes.size(); ++i)
-                p += m.nodes.mass[i] * Vec3(m.nodes.v[3 * i], m.nodes.v[3 * i + 1], m.nodes.v[3 * i + 2]);
-            return p;
-        };
+        test::deforming_column_velocity(m.nodes);
+        auto momentum = [&] { return test::momentum(m.nodes); };
         const Vec3 p0 = momentum();
-        real_t mv = 0.0; // scale: sum m |v|
-        for (index_t i = 0; i < m.nodes.size(); ++i)
-            mv += m.nodes.mass[i] * std::sqrt(std::pow(m.nodes.v[3 * i], 2) + std::pow(m.nodes.v[3 * i + 2], 2));
+        const real_t mv = test::momentum_scale(m.nodes);
         CentralDifference cd;
         const TimeSpec ts = m.deck().time;
         StepReport r = cd.initialize(m, 0.0);
