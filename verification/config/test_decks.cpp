@@ -733,6 +733,23 @@ contacts:
         std::ifstream in(out / "summary.json");
         const std::string summary((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
         EXPECT_NE(summary.find("\"initial_penetrations\": 18"), std::string::npos);
+        // mortar contact holds no offsets: the same nodes, pushed out
+        const Result rm = run("run " + write_deck("overlap.yaml", overlap) + " --out " + out.string() +
+                              " --set contacts.0.formulation=mortar");
+        EXPECT_EQ(rm.code, 0) << rm.output;
+        EXPECT_NE(rm.output.find("warning: contacts.0: 18 node(s) start inside the other surface; they are pushed out"),
+                  std::string::npos)
+            << rm.output;
+    }
+    // mortar contact holds no offsets: it says the nodes are pushed out
+    {
+        const std::string mortar = good + "contacts:\n  - {type: surface-to-surface, surfaces: [col, col], formulation: mortar}\n";
+        const Result r = run("check " + write_deck("contact_mortar.yaml", mortar));
+        EXPECT_EQ(r.code, 0) << r.output;
+        expect_rejected("contact_mortar_single.yaml",
+                        replace(wall, "type: rigid-wall, surfaces: [col], point: [0, 0, 0], normal: [0, 0, 1]",
+                                "type: single-surface, surfaces: [col], formulation: mortar"),
+                        ":13: contacts.0.formulation", "'mortar' is for surface-to-surface contact only");
     }
     // a good contact deck runs, and check echoes the resolved contact
     const std::string deck = write_deck("contact_good.yaml", wall);

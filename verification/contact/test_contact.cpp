@@ -14,6 +14,7 @@
 
 #include "../support.hpp"
 #include "rkfem/contact/contact_surface.hpp"
+#include "rkfem/contact/mortar.hpp"
 #include "rkfem/contact/segment_buckets.hpp"
 #include "rkfem/run/simulation.hpp"
 
@@ -94,6 +95,70 @@ TEST(SegmentBuckets, CandidatesAreExactlyTheInflatedBoxesHoldingThePoint)
         total += static_cast<index_t>(found.size());
     }
     EXPECT_GT(total, 1000); // the queries do hit boxes
+}
+
+TEST(MortarOverlap, PointsIntegrateTheOverlapAndBothSegmentsShapeFunctions)
+{
+    // slave: the square [0, 2]^2 in z = 0 facing +z; masters facing it (-z) a little above
+    const Vec3 slave[4] = {{0, 0, 0}, {2, 0, 0}, {2, 2, 0}, {0, 2, 0}};
+    OverlapPoint pts[max_overlap_points];
+    Vec3 n;
+    // (1) an equal square shifted by (0.5, 0.7): the overlap is [0.5, 2] x [0.7, 2], and the
+    // integrals of bilinear shape functions over it are products of 1-D integrals of linear ones
+    const Vec3 shifted[4] = {{0.5, 0.7, 0.1}, {0.5, 2.7, 0.1}, {2.5, 2.7, 0.1}, {2.5, 0.7, 0.1}};
+    int np = overlap_points(slave, shifted, pts, &n);
+    ASSERT_GT(np, 0);
+    EXPECT_NEAR((n - Vec3::UnitZ()).norm(), 0.0, 1e-15);
+    // int over [a, b] of (1 - x / L) and x / L on [0, L]
+    auto lower = [](real_t a, real_t b, real_t x0, real_t L)
+    { return (b - a) - (0.5 * (b - x0) * (b - x0) - 0.5 * (a - x0) * (a - x0)) / L; };
+    auto upper = [](real_t a, real_t b, real_t x0, real_t L)
+    { return (0.5 * (b - x0) * (b - x0) - 0.5 * (a - x0) * (a - x0)) / L; };
+    const real_t sx[4] = {lower(0.5, 2, 0, 2), upper(0.5, 2, 0, 2), upper(0.5, 2, 0, 2), lower(0.5, 2, 0, 2)};
+    const real_t sy[4] = {lower(0.7, 2, 0, 2), lower(0.7, 2, 0, 2), upper(0.7, 2, 0, 2), upper(0.7, 2, 0, 2)};
+    // master corner order: (0.5, 0.7), (0.5, 2.7), (2.5, 2.7), (2.5, 0.7)
+    const real_t mx[4] = {lower(0.5, 2, 0.5, 2), lower(0.5, 2, 0.5, 2), upper(0.5, 2, 0.5, 2), upper(0.5, 2, 0.5, 2)};
+    const real_t my[4] = {lower(0.7, 2, 0.7, 2), upper(0.7, 2, 0.7, 2), upper(0.7, 2, 0.7, 2), lower(0.7, 2, 0.7, 2)};
+    real_t area = 0.0, worst = 0.0;
+    for (int a = 0; a < 4; ++a)
+    {
+        real_t is = 0.0, im = 0.0;
+        for (int k = 0; k < np; ++k)
+        {
+            is += pts[k].w * pts[k].Ns[a];
+            im += pts[k].w * pts[k].Nm[a];
+        }
+        worst = std::max({worst, std::abs(is - sx[a] * sy[a]), std::abs(im - mx[a] * my[a])});
+    }
+    for (int k = 0; k < np; ++k)
+        area += pts[k].w;
+    const real_t shifted_area = area;
+    EXPECT_NEAR(shifted_area, 1.5 * 1.3, 1e-14);
+    EXPECT_LT(worst, 1e-14);
+    // (2) the square turned by 45 degrees about the slave's centre: a regular octagon of area
+    // 8 (sqrt 2 - 1)
+    Vec3 turned[4];
+    for (int a = 0; a < 4; ++a)
+    {
+        const real_t ang = -0.5 * M_PI * a; // corners on the axes, clockwise seen from +z: it faces -z
+        turned[a] = Vec3(1 + std::sqrt(2.0) * std::cos(ang), 1 + std::sqrt(2.0) * std::sin(ang), 0.2);
+    }
+    np = overlap_points(slave, turned, pts, &n);
+    area = 0.0;
+    real_t partition = 0.0;
+    for (int k = 0; k < np; ++k)
+    {
+        area += pts[k].w;
+        partition = std::max(partition, std::abs(pts[k].Ns[0] + pts[k].Ns[1] + pts[k].Ns[2] + pts[k].Ns[3] - 1.0));
+    }
+    std::printf("mortar overlap: shifted square %.15f (1.95), shape-function integrals within %.1e; turned square "
+                "%.15f (8 (sqrt 2 - 1) = %.15f)\n",
+                shifted_area, worst, area, 8 * (std::sqrt(2.0) - 1));
+    EXPECT_NEAR(area, 8 * (std::sqrt(2.0) - 1), 1e-13);
+    EXPECT_LT(partition, 1e-14);
+    // (3) apart: no points
+    const Vec3 away[4] = {{3, 0, 0.1}, {3, 2, 0.1}, {5, 2, 0.1}, {5, 0, 0.1}};
+    EXPECT_EQ(overlap_points(slave, away, pts, &n), 0);
 }
 
 namespace
@@ -207,12 +272,15 @@ TEST(RigidWall, ElasticBarReboundsWithItsSpeedAfterTwoTransitTimes)
 TEST(SurfaceToSurface, IdenticalBarsExchangeVelocitiesAndConserveMomentum)
 {
     const real_t c = std::sqrt(200e9 / 7850.0), L = 0.02, v0 = 10.0;
-    for (const char* stiffness : {"segment", "soft"})
+    for (const char* stiffness : {"segment", "soft", "mortar"})
     {
         const std::string st(stiffness);
-        const ImpactRun r =
-            impact(bars_deck, st == "segment" ? std::vector<std::string>{"contacts.0.stiffness=segment", "contacts.0.penalty_scale=0.5"}
-                                              : std::vector<std::string>{"contacts.0.penalty_scale=0.01", "contacts.0.soft_scale=0.5"});
+        // mortar: each pass carries half the penalty per unit area, node-to-segment's passes the whole
+        const ImpactRun r = impact(
+            bars_deck, st == "segment" ? std::vector<std::string>{"contacts.0.stiffness=segment", "contacts.0.penalty_scale=0.5"}
+                       : st == "soft"  ? std::vector<std::string>{"contacts.0.penalty_scale=0.01", "contacts.0.soft_scale=0.5"}
+                                       : std::vector<std::string>{"contacts.0.formulation=mortar", "contacts.0.stiffness=segment",
+                                                                  "contacts.0.penalty_scale=1"});
         ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
         const real_t duration = r.t_last - r.t_first;
         const real_t va = r.momentum[0][2] / r.mass[0], vb = r.momentum[1][2] / r.mass[1];
@@ -300,7 +368,7 @@ contacts:
 )";
 } // namespace
 
-TEST(SurfaceToSurface, PatchTestMatchingMeshesExactNonMatchingWithinTheNodeToSegmentError)
+TEST(SurfaceToSurface, PatchTestExactWithMortarOrMatchingMeshesNodeToSegmentWithinItsError)
 {
     // Matching meshes (3 x 3 on 3 x 3): both passes pair coincident nodes, each spring carries its
     // node's share of p A, and the stress is as uniform as in one block without contact (1.8e-6:
@@ -308,8 +376,9 @@ TEST(SurfaceToSurface, PatchTestMatchingMeshesExactNonMatchingWithinTheNodeToSeg
     // below): node-to-segment contact does not pass the patch test (Taylor & Papadopoulos 1991,
     // the forces at slave nodes do not integrate the master's shape functions exactly); here the
     // element stress stays within 8% of -p at the default penalty and within 4% at penalty_scale 1
-    // (the stiffer the springs, the closer to the matching answer). The issue's 1% needs a
-    // segment-to-segment (mortar) integration, not built yet.
+    // (the stiffer the springs, the closer to the matching answer). Mortar contact integrates the
+    // pressure over the segments' overlaps, so a uniform gap gives each node its exact share of a
+    // uniform pressure on both sides: as uniform as one block on non-matching meshes.
     const real_t p = 10e6;
     struct Case
     {
@@ -321,6 +390,9 @@ TEST(SurfaceToSurface, PatchTestMatchingMeshesExactNonMatchingWithinTheNodeToSeg
         {"matching 3x3 / 3x3", {"parts.lower.generator.divisions=[3, 3, 3]"}, 5e-6},
         {"non-matching 4x4 / 3x3, penalty 0.1", {}, 0.08},
         {"non-matching 4x4 / 3x3, penalty 1", {"contacts.0.penalty_scale=1"}, 0.04},
+        {"non-matching 4x4 / 3x3, mortar", {"contacts.0.formulation=mortar"}, 5e-6},
+        {"non-matching 5x7 / 3x4, mortar", {"contacts.0.formulation=mortar", "parts.lower.generator.divisions=[5, 7, 3]",
+                                             "parts.upper.generator.divisions=[3, 4, 2]"}, 5e-6},
     };
     for (const Case& c : cases)
     {

@@ -177,6 +177,9 @@ TEST(Checkpoint, ErodingContactImpactRestartsWithTheSameBits)
                               "--set time.end=45us --set time.stepper=arkode-cd", "20 us");
     expect_restarts_reproduce("impact_central-difference", deck_path("fsp_impact.yaml"),
                               "--set time.end=25us --set time.stepper=central-difference", "10 us");
+    expect_restarts_reproduce("impact_mortar", deck_path("fsp_impact.yaml"),
+                              "--set time.end=25us --set time.stepper=central-difference --set contacts.0.formulation=mortar",
+                              "10 us");
 }
 
 TEST(Checkpoint, RestartContinuesPastTheEndWithUntil)

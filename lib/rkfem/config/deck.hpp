@@ -302,6 +302,7 @@ struct ContactSpec
     /// single-surface and rigid-wall any number (their union; empty: every part)
     std::vector<std::string> surfaces;
     bool soft = true;               ///< stiffness: soft (max of segment and soft, SOFT = 1) | segment
+    bool mortar = false;            ///< formulation: node-to-segment | mortar (surface-to-surface)
     real_t penalty_scale = 0.1;     ///< SLSFAC (segment stiffness K A / h); rigid wall: scale of m / dt0^2
     real_t soft_scale = 0.1;        ///< SOFSCL (soft stiffness m* / dt^2)
     real_t thickness = 0.0;         ///< [m]

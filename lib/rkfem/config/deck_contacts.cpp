@@ -24,7 +24,8 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
     if (type == "rigid-wall")
         keys.insert(keys.end(), {"point", "normal", "velocity", "penalty_scale"});
     else
-        keys.insert(keys.end(), {"stiffness", "penalty_scale", "soft_scale", "thickness", "max_penetration"});
+        keys.insert(keys.end(),
+                    {"formulation", "stiffness", "penalty_scale", "soft_scale", "thickness", "max_penetration"});
     Section s(ctx, n, p, keys);
     ContactSpec c;
     const std::string t = s.choice("type", {"surface-to-surface", "single-surface", "rigid-wall"}, "");
@@ -82,6 +83,10 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
         c.loc = s.loc();
         return c;
     }
+    c.mortar = s.choice("formulation", {"node-to-segment", "mortar"}, "node-to-segment") == "mortar";
+    if (c.mortar && c.kind != ContactSpec::Kind::SurfaceToSurface)
+        s.fail("formulation", "'mortar' is for surface-to-surface contact only",
+               "expected node-to-segment for single-surface contact");
     c.soft = s.choice("stiffness", {"soft", "segment"}, "soft") == "soft";
     c.penalty_scale = scale("penalty_scale", 0.1, 100.0);
     c.soft_scale = scale("soft_scale", 0.1, 0.8);

@@ -105,7 +105,9 @@ class ContactAlgorithm
     virtual Vec3 resultant() const = 0;
     /// Nodes in contact in the last evaluation.
     virtual index_t active_nodes() const = 0;
-    /// Nodes found inside the other surface at the first evaluation (held, not pushed out).
+    /// Nodes found inside the other surface at the first evaluation...
     virtual index_t initial_penetrations() const { return 0; }
+    /// ...which are held at that depth (true) or pushed out (false).
+    virtual bool holds_initial_penetrations() const { return true; }
 };
 } // namespace rkfem

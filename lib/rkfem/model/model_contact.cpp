@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "rkfem/contact/mortar.hpp"
 #include "rkfem/contact/node_to_segment.hpp"
 #include "rkfem/contact/rigid_wall.hpp"
 #include "rkfem/core/error.hpp"
@@ -92,7 +93,10 @@ void Model::build_contacts()
         p.thickness = c.thickness;
         p.max_penetration = c.max_penetration;
         p.friction = friction;
-        contacts.push_back(std::make_unique<NodeToSegmentContact>(contact_surfaces(c), p));
+        if (c.mortar)
+            contacts.push_back(std::make_unique<MortarContact>(contact_surfaces(c), p));
+        else
+            contacts.push_back(std::make_unique<NodeToSegmentContact>(contact_surfaces(c), p));
     }
 }
 

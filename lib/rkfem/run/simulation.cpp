@@ -399,8 +399,11 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                 if (const index_t n = model.contacts[k]->initial_penetrations(); n > 0 && opt.progress)
                     std::fprintf(stderr,
                                  "rkfem: warning: contacts.%zu: %lld node(s) start inside the other surface; they are "
-                                 "held at that depth, not pushed out (summary.json: contacts)\n",
-                                 k, static_cast<long long>(n));
+                                 "%s (summary.json: contacts)\n",
+                                 k, static_cast<long long>(n),
+                                 model.contacts[k]->holds_initial_penetrations()
+                                     ? "held at that depth, not pushed out"
+                                     : "pushed out by the penalty (mortar contact holds no offsets)");
         }
         dt_stable = rep.dt_stable;
         index_t ne = model.n_work_items(); // elements, and the stress points of nodal parts
