@@ -4,7 +4,13 @@
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
+#include "rkfem/core/error.hpp"
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/discretization/keyword_mesh.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 
 using namespace rkfem;
 
@@ -123,4 +129,139 @@ TEST(Generators, ProjectileNamesNoseAndTail)
     for (index_t f : m.named_faces.at("tail"))
         for (index_t n : m.faces[f])
             EXPECT_NEAR(m.x[3 * n + 2], 0.03, 1e-15);
+}
+
+namespace
+{
+std::string write_file(const std::string& name, const std::string& text)
+{
+    const std::string path = (std::filesystem::temp_directory_path() / name).string();
+    std::ofstream(path) << text;
+    return path;
+}
+
+GeneratorSpec keyword(const std::string& path, real_t unit = 1.0, std::vector<long long> pids = {})
+{
+    GeneratorSpec g;
+    g.type = GeneratorSpec::Type::Keyword;
+    g.mesh_file = path;
+    g.mesh_unit = unit;
+    g.mesh_pids = std::move(pids);
+    g.loc = {"deck.yaml:5", "parts.a.generator"};
+    return g;
+}
+
+/// The error message of reading the file (empty: read).
+std::string keyword_error(const std::string& name, const std::string& text)
+{
+    try
+    {
+        read_keyword_mesh(keyword(write_file(name, text)));
+    }
+    catch (const DeckError& e)
+    {
+        return e.what();
+    }
+    return "";
+}
+} // namespace
+
+TEST(KeywordMesh, ReadsTheBoxGeneratorsMeshBackToTheBit)
+{
+    // the box generator's mesh written as *NODE / *ELEMENT_SOLID (free format, 17 digits): read
+    // back, the same coordinates, connectivity and boundary faces bit for bit
+    const HexMesh box = generate_box(Vec3(0.1, -0.2, 0.3), Vec3(0.4, 0.25, 1.0 / 3.0), {4, 3, 5});
+    std::ostringstream k;
+    k << "*KEYWORD\n$ written by the test\n*NODE\n";
+    char buf[128];
+    for (index_t i = 0; i < box.n_nodes(); ++i)
+    {
+        std::snprintf(buf, sizeof buf, "%lld,%.17g,%.17g,%.17g\n", static_cast<long long>(10 + i), box.x[3 * i],
+                      box.x[3 * i + 1], box.x[3 * i + 2]);
+        k << buf;
+    }
+    k << "*ELEMENT_SOLID\n";
+    for (index_t e = 0; e < box.n_elements(); ++e)
+    {
+        k << 100 + e << ",7";
+        for (int a = 0; a < 8; ++a)
+            k << "," << 10 + box.conn[8 * e + a];
+        k << "\n";
+    }
+    k << "*END\n";
+    const HexMesh m = read_keyword_mesh(keyword(write_file("rkfem_box.k", k.str())));
+    EXPECT_EQ(m.x, box.x);
+    EXPECT_EQ(m.conn, box.conn);
+    EXPECT_EQ(m.faces, box.faces);
+    EXPECT_EQ(m.named_faces.at("all").size(), box.faces.size());
+}
+
+TEST(KeywordMesh, FixedColumnsTwoCardSolidsPartIdsAndUnits)
+{
+    // two unit cubes side by side in millimetres, fixed columns (a coordinate field touching the
+    // next), one solid on one card with PID 1 and one on two cards (R10 format) with PID 2; a
+    // *PART card and comments are skipped; a node no solid uses is dropped
+    const std::string text = "*KEYWORD\n"
+                             "*PART\n"
+                             "cube\n"
+                             "         1         1\n"
+                             "*NODE\n"
+                             "$#   nid               x               y               z      tc      rc\n"
+                             "       1             0.0             0.0             0.0\n"
+                             "       2             1.0             0.0             0.0\n"
+                             "       3             1.0             1.0             0.0\n"
+                             "       4             0.0             1.0             0.0\n"
+                             "       5             0.0             0.0             1.0\n"
+                             "       6             1.0             0.0             1.0\n"
+                             "       7             1.0             1.0             1.0\n"
+                             "       8             0.0             1.0             1.0\n"
+                             "       92.0000000000e+00             0.0             0.0\n"
+                             "      102.0000000000e+00 1.000000000e+00             0.0\n"
+                             "      112.0000000000e+00             0.0 1.000000000e+00\n"
+                             "      122.0000000000e+001.0000000000e+001.0000000000e+00\n"
+                             "      99           -50.0           -50.0           -50.0\n"
+                             "*ELEMENT_SOLID\n"
+                             "$#   eid     pid      n1      n2      n3      n4      n5      n6      n7      n8\n"
+                             "       1       1       1       2       3       4       5       6       7       8\n"
+                             "       2       2\n"
+                             "       2       9      10       3       6      11      12       7       0       0\n"
+                             "*END\n"
+                             "this line is after *END\n";
+    const std::string path = write_file("rkfem_two.k", text);
+    const HexMesh both = read_keyword_mesh(keyword(path, 1e-3));
+    ASSERT_EQ(both.n_elements(), 2);
+    ASSERT_EQ(both.n_nodes(), 12); // node 99 is not used
+    real_t volume = 0.0;
+    EXPECT_GT(min_jacobian_and_volume(both, volume), 0.0);
+    EXPECT_NEAR(volume, 2e-9, 1e-24);
+    EXPECT_EQ(both.node(8), Vec3(2e-3, 0, 0));
+    EXPECT_EQ(both.named_faces.at("all").size(), 10u); // 12 faces less the shared one (a face of each cube)
+    const HexMesh second = read_keyword_mesh(keyword(path, 1e-3, {2}));
+    ASSERT_EQ(second.n_elements(), 1);
+    EXPECT_EQ(second.n_nodes(), 8);
+    EXPECT_EQ(second.node(0), Vec3(1e-3, 0, 0)); // the file's order: node 2 first
+}
+
+TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)
+{
+    const std::string nodes = "*NODE\n1,0,0,0\n2,1,0,0\n3,1,1,0\n4,0,1,0\n5,0,0,1\n6,1,0,1\n7,1,1,1\n8,0,1,1\n";
+    auto expect = [](const std::string& msg, const std::string& a, const std::string& b)
+    {
+        EXPECT_NE(msg.find(a), std::string::npos) << msg;
+        EXPECT_NE(msg.find(b), std::string::npos) << msg;
+        EXPECT_NE(msg.find("parts.a.generator.file"), std::string::npos) << msg;
+    };
+    EXPECT_EQ(keyword_error("k_good.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,8\n"), "");
+    expect(keyword_error("k_number.k", "*NODE\n1,0,zero,0\n"), "k_number.k:2", "coordinate 'zero' is not a number");
+    expect(keyword_error("k_twice.k", nodes + "3,5,5,5\n"), "k_twice.k:10", "node 3 is defined again (first on line 4)");
+    expect(keyword_error("k_missing.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,18\n"), "k_missing.k:11",
+           "names node 18, which no *NODE card defines");
+    expect(keyword_error("k_prism.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,3,5,6,7,7\n"), "k_prism.k:11",
+           "repeats node 3");
+    expect(keyword_error("k_inverted.k", nodes + "*ELEMENT_SOLID\n1,1,5,6,7,8,1,2,3,4\n"), "k_inverted.k:11",
+           "is inside out");
+    expect(keyword_error("k_none.k", nodes), "k_none.k", "has no *ELEMENT_SOLID elements");
+    expect(keyword_error("k_short.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4\n"), "k_short.k:11", "fewer than 8 nodes");
+    expect(keyword_error("k_include.k", "*INCLUDE\nmesh.k\n"), "k_include.k:1", "*INCLUDE is not followed");
+    EXPECT_NE(keyword_error("k_absent_dir/none.k", "").find("cannot be opened"), std::string::npos);
 }

@@ -145,6 +145,7 @@ struct GeneratorSpec
         Cylinder,
         Projectile,
         Cloud, ///< particles not from a mesh: a jittered lattice or imported points in a box or cylinder body
+        Keyword, ///< *NODE and *ELEMENT_SOLID of an LS-DYNA keyword file (discretization/keyword_mesh.hpp)
     };
     Type type = Type::Box;
     // box
@@ -172,6 +173,11 @@ struct GeneratorSpec
     int seed = 1;
     std::string points_file; ///< resolved against the deck's directory
     real_t points_unit = 1.0; ///< metres per file unit
+    // keyword: the file (resolved against the deck's directory), metres per file length unit,
+    // the PIDs of the solids taken (empty: all)
+    std::string mesh_file;
+    real_t mesh_unit = 1.0;
+    std::vector<long long> mesh_pids;
     SourceLocation loc;
 };
 

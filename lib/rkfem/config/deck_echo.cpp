@@ -209,6 +209,16 @@ std::string to_yaml(const Deck& d)
             else
                 os << ", points: " << scalar(g.points_file) << ", points_unit: " << g.points_unit << " m";
             break;
+        case GeneratorSpec::Type::Keyword:
+            os << "type: keyword, file: " << scalar(g.mesh_file) << ", unit: " << g.mesh_unit << " m";
+            if (!g.mesh_pids.empty())
+            {
+                os << ", pid: [";
+                for (std::size_t i = 0; i < g.mesh_pids.size(); ++i)
+                    os << (i ? ", " : "") << g.mesh_pids[i];
+                os << "]";
+            }
+            break;
         }
         os << "}\n";
         os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho

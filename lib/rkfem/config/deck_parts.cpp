@@ -25,7 +25,7 @@ void read_box(const Section& s, GeneratorSpec& g)
 
 GeneratorSpec read_generator(const Section& part)
 {
-    part.require("generator", "a mapping with type: box | cylinder | projectile | cloud");
+    part.require("generator", "a mapping with type: box | cylinder | projectile | cloud | keyword");
     const YAML::Node gn = part.node("generator");
     const std::string gp = part.path("generator");
     std::string type;
@@ -140,13 +140,55 @@ GeneratorSpec read_generator(const Section& part)
         }
         g.loc = s.loc();
     }
+    else if (type == "keyword")
+    {
+        Section s(part.ctx(), gn, gp, {"type", "file", "unit", "pid"});
+        g.type = GeneratorSpec::Type::Keyword;
+        s.require("file", "the path of an LS-DYNA keyword file (*NODE, *ELEMENT_SOLID)");
+        const std::filesystem::path file = s.text("file");
+        g.mesh_file =
+            file.is_absolute() ? file.string() : (std::filesystem::path(part.ctx().name).parent_path() / file).string();
+        const std::string unit = s.text("unit", "m");
+        std::string err;
+        const std::optional<Unit> u = parse_unit(unit, &err);
+        if (!u || !(u->dimension == dim::length))
+            s.fail("unit", "'" + unit + "' is not a length unit" + (err.empty() ? "" : " (" + err + ")"),
+                   "expected the file's length unit, one of " + known_units_for(dim::length));
+        g.mesh_unit = u->scale;
+        if (s.has("pid"))
+        {
+            const YAML::Node pn = s.node("pid");
+            std::vector<YAML::Node> items;
+            if (pn.IsSequence())
+                for (std::size_t i = 0; i < pn.size(); ++i)
+                    items.push_back(pn[i]);
+            else
+                items.push_back(pn);
+            for (const YAML::Node& it : items)
+            {
+                long long v = 0;
+                try
+                {
+                    v = it.as<long long>();
+                }
+                catch (const std::exception&)
+                {
+                    s.fail("pid", "is not an integer or a list of integers", "expected the PIDs of the solids to take");
+                }
+                g.mesh_pids.push_back(v);
+            }
+            if (g.mesh_pids.empty())
+                s.fail("pid", "is an empty list", "expected the PIDs of the solids to take");
+        }
+        g.loc = s.loc();
+    }
     else
     {
         const SourceLocation loc = gn.IsMap() && gn["type"].IsDefined()
                                        ? locate(part.ctx(), gn["type"], gp + ".type")
                                        : locate(part.ctx(), gn, gp + ".type");
         throw DeckError(loc, type.empty() ? "missing generator type" : "unknown generator '" + type + "'",
-                        "expected type: box | cylinder | projectile | cloud");
+                        "expected type: box | cylinder | projectile | cloud | keyword");
     }
     return g;
 }

@@ -1,4 +1,5 @@
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/discretization/keyword_mesh.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -403,6 +404,8 @@ HexMesh generate(const GeneratorSpec& g)
         return generate_cylinder(g.origin, g.radius, g.height, g.element_size, g.core == "ogrid");
     case GeneratorSpec::Type::Cloud:
         return generate_cloud(g);
+    case GeneratorSpec::Type::Keyword:
+        return read_keyword_mesh(g);
     case GeneratorSpec::Type::Projectile:
     {
         Vec3 base = g.origin;

@@ -1,0 +1,263 @@
+#include "rkfem/discretization/keyword_mesh.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <fstream>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/core/error.hpp"
+
+namespace rkfem
+{
+namespace
+{
+std::string trim(const std::string& s)
+{
+    const auto a = s.find_first_not_of(" \t\r");
+    if (a == std::string::npos)
+        return "";
+    const auto b = s.find_last_not_of(" \t\r");
+    return s.substr(a, b - a + 1);
+}
+
+/// The fields of a card: comma-separated (free format) or fixed columns of the given widths.
+std::vector<std::string> fields(const std::string& line, const std::vector<int>& widths)
+{
+    std::vector<std::string> out;
+    if (line.find(',') != std::string::npos)
+    {
+        std::size_t a = 0;
+        for (;;)
+        {
+            const std::size_t b = line.find(',', a);
+            out.push_back(trim(line.substr(a, b == std::string::npos ? std::string::npos : b - a)));
+            if (b == std::string::npos)
+                break;
+            a = b + 1;
+        }
+        return out;
+    }
+    std::size_t at = 0;
+    for (int w : widths)
+    {
+        if (at >= line.size())
+            break;
+        out.push_back(trim(line.substr(at, static_cast<std::size_t>(w))));
+        at += static_cast<std::size_t>(w);
+    }
+    return out;
+}
+
+struct Reader
+{
+    const GeneratorSpec& g;
+    SourceLocation where;
+    int line = 0;
+
+    [[noreturn]] void fail(const std::string& problem, const std::string& expected) const
+    {
+        throw DeckError(where, g.mesh_file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + problem,
+                        expected);
+    }
+    long long integer(const std::string& f, const char* what) const
+    {
+        long long v = 0;
+        const auto r = std::from_chars(f.data(), f.data() + f.size(), v);
+        if (f.empty() || r.ec != std::errc() || r.ptr != f.data() + f.size())
+            fail(std::string(what) + " '" + f + "' is not an integer", "expected an integer field");
+        return v;
+    }
+    real_t number(const std::string& f, const char* what) const
+    {
+        if (f.empty())
+            return 0.0; // a blank coordinate field is 0, as LS-DYNA reads it
+        std::size_t used = 0;
+        real_t v = 0.0;
+        try
+        {
+            v = std::stod(f, &used);
+        }
+        catch (const std::exception&)
+        {
+            used = 0;
+        }
+        if (used != f.size() || !std::isfinite(v))
+            fail(std::string(what) + " '" + f + "' is not a number", "expected a coordinate field");
+        return v;
+    }
+};
+} // namespace
+
+HexMesh read_keyword_mesh(const GeneratorSpec& g)
+{
+    Reader rd{g, {g.loc.where, g.loc.path + ".file"}};
+    std::ifstream in(g.mesh_file);
+    if (!in)
+        rd.fail("cannot be opened", "expected an LS-DYNA keyword file with *NODE and *ELEMENT_SOLID");
+    std::vector<real_t> x;                          // file order
+    std::vector<long long> node_ids;
+    std::unordered_map<long long, index_t> node_of; // NID -> index into x / 3
+    std::unordered_map<long long, int> node_line;
+    struct Solid
+    {
+        long long nodes[8];
+        int line;
+        long long eid;
+    };
+    std::vector<Solid> solids;
+    enum class Block
+    {
+        None,
+        Node,
+        Solid
+    } block = Block::None;
+    bool pending = false;      // two-card solid: EID, PID read, nodes next
+    bool pending_take = false; // ...and its PID is among those asked for
+    Solid pend{};
+    std::string text;
+    while (std::getline(in, text))
+    {
+        ++rd.line;
+        if (!text.empty() && text.back() == '\r')
+            text.pop_back();
+        if (text.empty() || text[0] == '$')
+            continue;
+        if (text[0] == '*')
+        {
+            if (pending)
+                rd.fail("a solid's node card is missing before '" + trim(text) + "'", "expected N1..N8 after EID, PID");
+            std::string kw = trim(text);
+            std::transform(kw.begin(), kw.end(), kw.begin(), [](unsigned char c) { return std::toupper(c); });
+            if (kw == "*END")
+                break;
+            if (kw.rfind("*INCLUDE", 0) == 0)
+                rd.fail("*INCLUDE is not followed", "expected one file with the *NODE and *ELEMENT_SOLID cards");
+            block = kw == "*NODE" ? Block::Node : kw == "*ELEMENT_SOLID" ? Block::Solid : Block::None;
+            continue;
+        }
+        if (trim(text).empty())
+            continue;
+        if (block == Block::Node)
+        {
+            const std::vector<std::string> f = fields(text, {8, 16, 16, 16});
+            if (f.size() < 2)
+                rd.fail("a *NODE card has no coordinates", "expected NID, X, Y, Z");
+            const long long nid = rd.integer(f[0], "NID");
+            if (node_of.count(nid))
+                rd.fail("node " + std::to_string(nid) + " is defined again (first on line " +
+                            std::to_string(node_line[nid]) + ")",
+                        "expected each NID once");
+            node_of[nid] = static_cast<index_t>(node_ids.size());
+            node_line[nid] = rd.line;
+            node_ids.push_back(nid);
+            for (int d = 0; d < 3; ++d)
+                x.push_back(g.mesh_unit *
+                            (static_cast<std::size_t>(d + 1) < f.size() ? rd.number(f[static_cast<std::size_t>(d + 1)], "coordinate") : 0.0));
+        }
+        else if (block == Block::Solid)
+        {
+            const std::vector<std::string> f = fields(text, std::vector<int>(10, 8));
+            std::size_t first = 0; // where the node ids start in f
+            if (!pending)
+            {
+                pend = Solid{};
+                pend.line = rd.line;
+                pend.eid = rd.integer(f[0], "EID");
+                const long long pid = f.size() > 1 ? rd.integer(f[1], "PID") : 0;
+                const bool take = g.mesh_pids.empty() ||
+                                  std::find(g.mesh_pids.begin(), g.mesh_pids.end(), pid) != g.mesh_pids.end();
+                std::size_t nonblank = 0;
+                for (std::size_t k = 2; k < f.size(); ++k)
+                    nonblank += !f[k].empty();
+                if (nonblank == 0)
+                {
+                    pending = true; // two-card format
+                    pending_take = take;
+                    continue;
+                }
+                if (!take)
+                    continue;
+                first = 2;
+            }
+            else
+            {
+                pending = false;
+                if (!pending_take)
+                    continue; // not among the PIDs
+            }
+            if (f.size() < first + 8)
+                rd.fail("element " + std::to_string(pend.eid) + " has fewer than 8 nodes",
+                        "expected N1..N8 (8-node solids)");
+            for (std::size_t k = first + 8; k < f.size(); ++k)
+                if (!f[k].empty() && rd.integer(f[k], "node") != 0)
+                    rd.fail("element " + std::to_string(pend.eid) + " has more than 8 nodes",
+                            "expected 8-node solids (fields 9 and 10 zero)");
+            for (int a = 0; a < 8; ++a)
+                pend.nodes[a] = rd.integer(f[first + static_cast<std::size_t>(a)], "node");
+            solids.push_back(pend);
+        }
+    }
+    if (pending)
+        rd.fail("the last solid's node card is missing", "expected N1..N8 after EID, PID");
+    rd.line = 0;
+    if (solids.empty())
+        rd.fail(g.mesh_pids.empty() ? "has no *ELEMENT_SOLID elements" : "has no solids with the PIDs asked for",
+                "expected 8-node solids" + std::string(g.mesh_pids.empty() ? "" : " of the parts named by pid"));
+
+    // keep the nodes the selected solids use, in the file's order
+    HexMesh m;
+    std::vector<index_t> new_index(node_ids.size(), -1);
+    for (const Solid& s : solids)
+        for (long long nid : s.nodes)
+        {
+            const auto it = node_of.find(nid);
+            if (it == node_of.end())
+            {
+                rd.line = s.line;
+                rd.fail("element " + std::to_string(s.eid) + " names node " + std::to_string(nid) +
+                            ", which no *NODE card defines",
+                        "expected every node of a solid in *NODE");
+            }
+            new_index[static_cast<std::size_t>(it->second)] = 0;
+        }
+    index_t kept = 0;
+    for (std::size_t i = 0; i < new_index.size(); ++i)
+        if (new_index[i] == 0)
+        {
+            new_index[i] = kept++;
+            m.x.insert(m.x.end(), {x[3 * i], x[3 * i + 1], x[3 * i + 2]});
+        }
+    for (const Solid& s : solids)
+    {
+        rd.line = s.line;
+        for (int a = 0; a < 8; ++a)
+            for (int b = a + 1; b < 8; ++b)
+                if (s.nodes[a] == s.nodes[b])
+                    rd.fail("element " + std::to_string(s.eid) + " repeats node " + std::to_string(s.nodes[a]) +
+                                " (a degenerate prism or tetrahedron)",
+                            "expected hexahedra with 8 distinct nodes");
+        real_t xe[8][3];
+        for (int a = 0; a < 8; ++a)
+        {
+            const index_t k = new_index[static_cast<std::size_t>(node_of.at(s.nodes[a]))];
+            m.conn.push_back(k);
+            for (int d = 0; d < 3; ++d)
+                xe[a][d] = m.x[3 * static_cast<std::size_t>(k) + static_cast<std::size_t>(d)];
+        }
+        const real_t centre[3] = {0.0, 0.0, 0.0};
+        real_t dNdx[8][3];
+        if (!(hex8_gradients(xe, centre, dNdx) > 0.0))
+            rd.fail("element " + std::to_string(s.eid) + " is inside out (negative volume at its centre)",
+                    "expected N1..N4 counter-clockwise seen from N5..N8, LS-DYNA's node order");
+    }
+    m.faces = extract_boundary_faces(m.conn);
+    std::vector<index_t>& all = m.named_faces["all"];
+    for (index_t f = 0; f < static_cast<index_t>(m.faces.size()); ++f)
+        all.push_back(f);
+    return m;
+}
+} // namespace rkfem
