@@ -5,7 +5,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <random>
+#include <string>
 
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/generators.hpp"
@@ -34,6 +38,40 @@ inline HexMesh distorted_box(int n, real_t h, real_t jitter, unsigned seed = 7)
                 m.x[3 * i + d] += u(gen);
     }
     return m;
+}
+
+/// Writes nodes (x: 3 per node) and 8-node solids (conn: 8 per element, 0-based; pid per element,
+/// empty: all 1) as an LS-DYNA keyword file in the temp folder (NIDs and EIDs from 1, comma
+/// fields with 17 digits, so the mesh reads back bit for bit); an element whose volume comes out
+/// negative has its two layers of nodes swapped. Returns the path.
+inline std::string write_keyword_mesh(const std::string& name, const std::vector<real_t>& x, std::vector<index_t> conn,
+                                      const std::vector<int>& pid = {})
+{
+    const std::string path = (std::filesystem::temp_directory_path() / name).string();
+    std::ofstream k(path);
+    k << "*KEYWORD\n*NODE\n";
+    char buf[160];
+    for (std::size_t i = 0; i < x.size() / 3; ++i)
+    {
+        std::snprintf(buf, sizeof buf, "%zu,%.17g,%.17g,%.17g\n", i + 1, x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+        k << buf;
+    }
+    k << "*ELEMENT_SOLID\n";
+    for (std::size_t e = 0; e < conn.size() / 8; ++e)
+    {
+        index_t* c = &conn[8 * e];
+        auto p = [&](int a) { return Vec3(x[3 * c[a]], x[3 * c[a] + 1], x[3 * c[a] + 2]); };
+        // the sign of the volume: (x1 - x0) x (x3 - x0) . (x4 - x0) at the first corner
+        if ((p(1) - p(0)).cross(p(3) - p(0)).dot(p(4) - p(0)) < 0.0)
+            for (int a = 0; a < 4; ++a)
+                std::swap(c[a], c[a + 4]);
+        k << e + 1 << "," << (pid.empty() ? 1 : pid[e]);
+        for (int a = 0; a < 8; ++a)
+            k << "," << c[a] + 1;
+        k << "\n";
+    }
+    k << "*END\n";
+    return path;
 }
 
 inline bool is_interior(const HexMesh& m, index_t i, real_t lo, real_t hi)

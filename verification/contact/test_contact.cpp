@@ -318,9 +318,9 @@ TEST(SurfaceToSurface, IdenticalBarsExchangeVelocitiesAndConserveMomentum)
 
 TEST(SurfaceToSurface, AStiffPenaltyBoundsTheStep)
 {
-    // penalty_scale 1 puts k dt0^2 / m* = 1.33 on the bars' end nodes: at the elements' step
-    // (0.9 dt0) the run went unstable (balance error 0.1 at step 127); the contact's bound
-    // dt0 sqrt(2 / (1 + 1.33)) = 0.93 dt0 keeps it stable
+    // penalty_scale 1 puts two springs of k dt0^2 / m = 0.67 each (one per pass) on the bars' end
+    // nodes: at the elements' step (0.9 dt0) the run went unstable (balance error 0.1 at step
+    // 127); the contact's bound dt0 / sqrt(1 + 1.33 / 2) = 0.77 dt0 keeps it stable
     const ImpactRun r = impact(bars_deck, {"contacts.0.stiffness=segment", "contacts.0.penalty_scale=1"});
     ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
     const real_t p0 = r.mass[0] * 10.0;
@@ -637,4 +637,111 @@ contacts:
     EXPECT_LT(worst, 1e-5);
     EXPECT_NEAR(px - px0, impulse, 1e-9 * std::abs(impulse));
     EXPECT_LT(px / mass, 20.0 - 0.5); // about mu p A t / M = 0.57 m/s slower
+}
+
+TEST(SingleSurface, FoldedPlatePressedOntoItselfNeverPassesTheContactThickness)
+{
+    // A steel plate folded into a U (arms 20 mm long, 4 mm wide, 0.5 mm thick, 2 mm apart, joined
+    // by a half ring), the lower arm's bottom fixed and 2 MPa on the upper arm's top: elastic
+    // bending would take the free end 19 mm down (q L^4 / 8 EI), so the upper arm slams onto the
+    // lower one and is pressed on it. One single-surface contact over the whole part (no surfaces
+    // named: it finds the arms itself) with a 0.05 mm contact thickness: over the whole run no node
+    // of the upper arm's lower face comes closer to its partner on the lower arm's upper face than
+    // 0 (the surfaces may close into the thickness, never through it). Without contact the arm
+    // passes through the lower one.
+    const real_t La = 20e-3, W = 4e-3, t = 0.5e-3, g = 2e-3;
+    const int na = 40, nb = 8, nr = 2, ny = 4;
+    const real_t zc = t + 0.5 * g;
+    // stations along the U: the lower arm from x = La to 0, the half ring, the upper arm to La
+    std::vector<real_t> x;
+    std::vector<index_t> conn;
+    const int ns = 2 * na + nb + 1; // stations
+    auto at = [&](int k, real_t r) -> std::array<real_t, 2>
+    {
+        if (k <= na)
+            return {La * (na - k) / na, zc - r};
+        if (k < na + nb)
+        {
+            const real_t phi = M_PI * (k - na) / nb;
+            return {-r * std::sin(phi), zc - r * std::cos(phi)};
+        }
+        return {La * (k - na - nb) / na, zc + r};
+    };
+    auto id = [&](int k, int a, int b) { return static_cast<index_t>((k * (nr + 1) + a) * (ny + 1) + b); };
+    for (int k = 0; k < ns; ++k)
+        for (int a = 0; a <= nr; ++a)
+            for (int b = 0; b <= ny; ++b)
+            {
+                const auto p = at(k, 0.5 * g + t * a / nr);
+                x.insert(x.end(), {p[0], W * b / ny, p[1]});
+            }
+    for (int k = 0; k + 1 < ns; ++k)
+        for (int a = 0; a < nr; ++a)
+            for (int b = 0; b < ny; ++b)
+                conn.insert(conn.end(), {id(k, a, b), id(k + 1, a, b), id(k + 1, a + 1, b), id(k, a + 1, b),
+                                         id(k, a, b + 1), id(k + 1, a, b + 1), id(k + 1, a + 1, b + 1), id(k, a + 1, b + 1)});
+    const std::string mesh = test::write_keyword_mesh("rkfem_folded_plate.k", x, conn);
+    const std::string deck = R"(
+title: folded plate pressed onto itself
+time: {end: 150 us, stepper: central-difference}
+parts:
+  plate:
+    generator: {type: keyword, file: )" + mesh + R"(}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+node_sets:
+  base: {select: {type: plane, point: [0, 0, 0], normal: [0, 0, 1]}}
+face_sets:
+  upper: {select: {type: plane, point: [0, 0, 3 mm], normal: [0, 0, 1]}}
+boundary_conditions:
+  - {node_set: base, fixed: all}
+loads:
+  - {type: pressure, face_set: upper, pressure: 2 MPa}
+contacts:
+  - {type: single-surface, thickness: 0.05 mm}
+)";
+    // partners: the upper arm's lower face (r = g / 2 at station na + nb + j) and the lower arm's
+    // upper face (r = g / 2 at station na - j), j = 1..na, every y
+    std::vector<std::pair<index_t, index_t>> pairs;
+    for (int j = 1; j <= na; ++j)
+        for (int b = 0; b <= ny; ++b)
+            pairs.emplace_back(id(na + nb + j, 0, b), id(na - j, 0, b));
+    struct Result
+    {
+        real_t min_gap = 1e300;
+        index_t most_active = 0;
+        real_t worst_balance = 0.0;
+        RunSummary summary;
+    };
+    auto run = [&](bool contact)
+    {
+        Model m = test::model_from(deck, contact ? std::vector<std::string>{} : std::vector<std::string>{"contacts=[]"});
+        Result r;
+        RunOptions opt;
+        opt.progress = false;
+        r.summary = run_simulation(m, opt,
+                                   [&](const Model& mm, real_t tt, real_t, std::int64_t)
+                                   {
+                                       if (tt > 10e-6) // past the start, when the ledger's scale is tiny
+                                           r.worst_balance = std::max(r.worst_balance, mm.energy.balance_error());
+                                       for (const auto& [up, low] : pairs)
+                                           r.min_gap = std::min(r.min_gap, mm.nodes.x[3 * up + 2] - mm.nodes.x[3 * low + 2]);
+                                       if (!mm.contacts.empty())
+                                           r.most_active = std::max(r.most_active, mm.contacts[0]->active_nodes());
+                                   });
+        return r;
+    };
+    const Result free = run(false), held = run(true);
+    ASSERT_EQ(held.summary.status, "completed") << held.summary.message;
+    std::printf("folded plate: least gap between the arms' facing nodes %.4f mm with single-surface contact "
+                "(thickness 0.05 mm), %.3f mm without; up to %lld nodes in contact; largest balance error after "
+                "10 us %.2e\n",
+                1e3 * held.min_gap, 1e3 * free.min_gap, static_cast<long long>(held.most_active),
+                held.worst_balance);
+    EXPECT_LT(free.min_gap, -t); // without contact the arm passes through
+    EXPECT_GT(held.min_gap, 0.0); // with it, never through the thickness
+    EXPECT_LT(held.min_gap, 0.05e-3); // ...and the arms did close into it
+    EXPECT_GT(held.most_active, 2 * (ny + 1)); // along more than a line
+    EXPECT_LT(held.worst_balance, 0.01);
 }

@@ -252,7 +252,8 @@ void MortarContact::search(const PhysicalNodes& nodes)
         }
         pass.f_slave.assign(4 * static_cast<std::size_t>(ns), Vec3::Zero());
         pass.f_master.assign(4 * pass.candidates.size(), Vec3::Zero());
-        pass.k_over_m.assign(static_cast<std::size_t>(ns), 0.0);
+        pass.k_slave.assign(4 * static_cast<std::size_t>(ns), 0.0);
+        pass.k_master.assign(4 * pass.candidates.size(), 0.0);
     }
     searched_ = true;
     ++searches_;
@@ -288,8 +289,9 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                      Vec3* fs = &pass.f_slave[s4];
                      for (int a = 0; a < 4; ++a)
                          fs[a] = Vec3::Zero();
-                     real_t& k_over_m = pass.k_over_m[static_cast<std::size_t>(s)];
-                     k_over_m = 0.0;
+                     real_t* ks = &pass.k_slave[s4];
+                     for (int a = 0; a < 4; ++a)
+                         ks[a] = 0.0;
                      const Quad& qs = slave.segments[s];
                      const Vec3 xs[4] = {nodes.x(qs[0]), nodes.x(qs[1]), nodes.x(qs[2]), nodes.x(qs[3])};
                      const Vec3 n_s = (xs[2] - xs[0]).cross(xs[3] - xs[1]);
@@ -304,8 +306,12 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                      for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
                      {
                          Vec3* fm = &pass.f_master[4 * static_cast<std::size_t>(c)];
+                         real_t* km = &pass.k_master[4 * static_cast<std::size_t>(c)];
                          for (int b = 0; b < 4; ++b)
+                         {
                              fm[b] = Vec3::Zero();
+                             km[b] = 0.0;
+                         }
                          const index_t m = pass.candidates[c];
                          const Quad& qm = master.segments[m];
                          const Vec3 xm[4] = {nodes.x(qm[0]), nodes.x(qm[1]), nodes.x(qm[2]), nodes.x(qm[3])};
@@ -316,6 +322,19 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                              continue;
                          if (!((xm[2] - xm[0]).cross(xm[3] - xm[1]).dot(n_s) < 0.0))
                              continue; // not facing
+                         // the gap anywhere between them is at least the master corners' least
+                         // height over the slave's centre plane less the slave corners' greatest
+                         {
+                             const Vec3 u = n_s.normalized(), cs = 0.25 * (xs[0] + xs[1] + xs[2] + xs[3]);
+                             real_t m_lo = 1e300, s_hi = -1e300;
+                             for (int a = 0; a < 4; ++a)
+                             {
+                                 m_lo = std::min(m_lo, (xm[a] - cs).dot(u));
+                                 s_hi = std::max(s_hi, (xs[a] - cs).dot(u));
+                             }
+                             if (m_lo - s_hi >= p_.thickness)
+                                 continue; // apart everywhere
+                         }
                          Vec3 n;
                          const int np = overlap_points(xs, xm, pts, &n);
                          if (np == 0)
@@ -346,7 +365,7 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                              real_t k_a = k_segment;
                              if (soft)
                                  k_a = std::max(k_a, 0.5 * p_.soft_scale * mu_star / (dt0_ * dt0_));
-                             k_over_m = std::max(k_over_m, 2.0 * k_a / mu_star);
+
                              const real_t pressure = k_a * pen;
                              Vec3 f = (-o.w * pressure) * n; // on the slave
                              if (p_.friction.active() && dt0_ > 0.0)
@@ -368,6 +387,8 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                              {
                                  fs[a] += o.Ns[a] * f;
                                  fm[a] -= o.Nm[a] * f;
+                                 ks[a] += o.Ns[a] * o.w * k_a;
+                                 km[a] += o.Nm[a] * o.w * k_a;
                              }
                          }
                      }
@@ -393,10 +414,10 @@ void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
         search(nodes);
     update_areas(nodes);
     touched_.resize(static_cast<std::size_t>(nodes.size()), 0);
+    node_k_.resize(static_cast<std::size_t>(nodes.size()), 0.0);
     resultant_ = Vec3::Zero();
     active_ = 0;
-    real_t k_over_m = 0.0;
-    auto add = [&](index_t node, const Vec3& f)
+    auto add = [&](index_t node, const Vec3& f, real_t k)
     {
         if (f[0] == 0.0 && f[1] == 0.0 && f[2] == 0.0)
             return;
@@ -404,6 +425,7 @@ void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
         char& t = touched_[static_cast<std::size_t>(node)];
         active_ += t == 0;
         t = 1;
+        node_k_[static_cast<std::size_t>(node)] += k;
     };
     for (Pass& pass : passes_)
     {
@@ -415,45 +437,44 @@ void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
             const std::size_t s4 = 4 * static_cast<std::size_t>(s);
             for (int a = 0; a < 4; ++a)
             {
-                add(slave.segments[s][a], pass.f_slave[s4 + a]);
+                add(slave.segments[s][a], pass.f_slave[s4 + a], pass.k_slave[s4 + a]);
                 if (pass.slave == 0)
                     resultant_ += pass.f_slave[s4 + a];
             }
+            if (pass.k_slave[s4] + pass.k_slave[s4 + 1] + pass.k_slave[s4 + 2] + pass.k_slave[s4 + 3] == 0.0)
+                continue; // no point of this slave segment touched: nor did its masters'
             for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
                 for (int b = 0; b < 4; ++b)
                 {
-                    const Vec3& f = pass.f_master[4 * static_cast<std::size_t>(c) + b];
-                    add(master.segments[pass.candidates[c]][b], f);
+                    const std::size_t cb = 4 * static_cast<std::size_t>(c) + static_cast<std::size_t>(b);
+                    add(master.segments[pass.candidates[c]][b], pass.f_master[cb], pass.k_master[cb]);
                     if (pass.master == 0)
-                        resultant_ += f;
+                        resultant_ += pass.f_master[cb];
                 }
-            k_over_m = std::max(k_over_m, pass.k_over_m[static_cast<std::size_t>(s)]);
         }
     }
-    // the first evaluation: the slave nodes of segments in contact started inside
+    // the first evaluation: the nodes with a force started inside
     if (!started_)
     {
-        for (const index_t i : all_nodes_)
-            touched_[static_cast<std::size_t>(i)] = 0;
-        for (const Pass& pass : passes_)
-        {
-            const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
-            for (index_t s = 0; s < slave.n_segments(); ++s)
-                if (pass.k_over_m[static_cast<std::size_t>(s)] > 0.0)
-                    for (const index_t i : slave.segments[s])
-                    {
-                        char& t = touched_[static_cast<std::size_t>(i)];
-                        initial_penetrations_ += t == 0;
-                        t = 1;
-                    }
-        }
+        initial_penetrations_ = active_;
         started_ = true;
     }
-    // the marks counted nodes; clear them for the next evaluation
+    // A node's contact stiffness k (both passes' k_A w N) against its mass, the largest over the
+    // nodes in contact, in node_to_segment.cpp's bound. The marks and stiffnesses are cleared for
+    // the next evaluation.
+    real_t k_over_m = 0.0;
     for (const index_t i : all_nodes_)
-        touched_[static_cast<std::size_t>(i)] = 0;
-    // the bound of node_to_segment.cpp with k / m* per unit area
-    dt_bound_ = k_over_m > 0.0 && dt0_ > 0.0 ? dt0_ * std::sqrt(2.0 / (1.0 + k_over_m * dt0_ * dt0_)) : 1e300;
+    {
+        const std::size_t ii = static_cast<std::size_t>(i);
+        if (touched_[ii])
+            k_over_m = std::max(k_over_m, node_k_[ii] / nodes.mass(i));
+        touched_[ii] = 0;
+        node_k_[ii] = 0.0;
+    }
+    // The bound holds from the first contact on: it acts one step late, and a node that touches
+    // at every other step would otherwise take every first step at the elements' step
+    if (k_over_m > 0.0 && dt0_ > 0.0)
+        dt_bound_ = std::min(dt_bound_, dt0_ / std::sqrt(1.0 + 0.5 * k_over_m * dt0_ * dt0_));
 }
 
 void MortarContact::save_state(StateArchive& a, const std::string& prefix) const
@@ -486,7 +507,8 @@ void MortarContact::load_state(const StateArchive& a, const std::string& prefix)
         const std::size_t ns = pass.offsets.empty() ? 0 : pass.offsets.size() - 1;
         pass.f_slave.assign(4 * ns, Vec3::Zero());
         pass.f_master.assign(4 * pass.candidates.size(), Vec3::Zero());
-        pass.k_over_m.assign(ns, 0.0);
+        pass.k_slave.assign(4 * ns, 0.0);
+        pass.k_master.assign(4 * pass.candidates.size(), 0.0);
     }
     a.get(prefix + "x_search", x_search_);
     dt0_ = a.value<real_t>(prefix + "dt0");

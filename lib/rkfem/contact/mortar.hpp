@@ -25,7 +25,8 @@
 ///   - the force w k_A p n pushes S back (on S's nodes -N_a^S of it) and M away (+N_b^M), plus
 ///     Coulomb friction on the relative tangential velocity with the traction bounded by the one
 ///     that stops the slip within dt0 (mu* |v_t| / dt0; contact_algorithm.hpp, Friction).
-/// The step bound is node-to-segment's, with k / m* = k_A / mu*.
+/// The step bound is node-to-segment's, k a node's share of the penalty (sum over points of
+/// k_A w N, both passes).
 /// What it does not do (node-to-segment does): single-surface (self) contact, and holding
 /// initial penetrations as offsets (LS-DYNA's IGNORE): a mortar pair that starts inside is
 /// pushed apart. Forces are computed in parallel per slave segment into fixed slots, then added
@@ -68,7 +69,7 @@ class MortarContact final : public ContactAlgorithm
     Vec3 resultant() const override { return resultant_; }
     index_t active_nodes() const override { return active_; }
     index_t searches() const { return searches_; }
-    /// Slave nodes of segments with a penetrating point at the first evaluation (pushed out).
+    /// Nodes with a contact force at the first evaluation (pushed out).
     index_t initial_penetrations() const override { return initial_penetrations_; }
     bool holds_initial_penetrations() const override { return false; }
 
@@ -79,7 +80,7 @@ class MortarContact final : public ContactAlgorithm
         std::vector<index_t> offsets, candidates; ///< per slave segment (CSR): master segments
         std::vector<Vec3> f_slave;                ///< 4 per slave segment: forces on its corners
         std::vector<Vec3> f_master;               ///< 4 per candidate pair: forces on the master's corners
-        std::vector<real_t> k_over_m;             ///< per slave segment: largest k_A / mu* (0: no contact)
+        std::vector<real_t> k_slave, k_master;    ///< stiffness on those corners: sum of k_A w N
         SegmentBuckets buckets;
     };
     void search(const PhysicalNodes& nodes);
@@ -93,7 +94,8 @@ class MortarContact final : public ContactAlgorithm
     std::vector<Pass> passes_;
     std::vector<index_t> all_nodes_;
     std::vector<real_t> x_search_;
-    std::vector<char> touched_; ///< per model node: scratch for counting active nodes
+    std::vector<char> touched_;   ///< per model node: scratch for counting active nodes
+    std::vector<real_t> node_k_;  ///< per model node: scratch, contact stiffness this evaluation
     real_t margin_ = 0.0, reach_ = 0.0;
     real_t dt0_ = 0.0, dt_bound_ = 1e300;
     Vec3 resultant_ = Vec3::Zero();

@@ -31,8 +31,8 @@
 ///     (LS-DYNA's IGNORE = 1), which shrinks as the node moves out and is gone when it leaves. So
 ///     the force never jumps up by more than one step of approach, and contact does not create
 ///     energy.
-/// The step: with k dt0^2 / m* above 1 (a penalty stiffer than any default) the contact bounds the
-/// step at dt0 sqrt(2 / (1 + k dt0^2 / m*)) (node_to_segment.cpp says why).
+/// The step: the contact bounds it at dt0 / sqrt(1 + kappa dt0^2 / 2), kappa the largest k / m over
+/// the nodes in contact (k the springs on a node, m its mass; node_to_segment.cpp says why).
 /// Forces are computed in parallel per slave node into a fixed slot each, then added to the
 /// channel in node order: the bits do not depend on the thread count.
 #include <vector>
@@ -75,7 +75,7 @@ class NodeToSegmentContact final : public ContactAlgorithm
         index_t segment = -1;
         real_t N[4] = {0.0, 0.0, 0.0, 0.0};
         Vec3 f = Vec3::Zero(); ///< on the slave node
-        real_t k_over_m = 0.0; ///< k / m* (stable step)
+        real_t k = 0.0;        ///< the spring's stiffness (stable step)
     };
     struct Pass
     {
@@ -120,5 +120,6 @@ class NodeToSegmentContact final : public ContactAlgorithm
     };
     std::vector<std::vector<Before>> before_;
     std::vector<real_t> lo_, hi_; ///< scratch: segment boxes
+    std::vector<real_t> node_k_;  ///< scratch per model node: the contact springs' stiffness on it
 };
 } // namespace rkfem
