@@ -1,5 +1,5 @@
 // Contact search and force: two elastic plates pressed face to face (surface-to-surface, both
-// passes), every node of both touching faces in contact each step. Per iteration the contact
+// passes; node-to-segment or mortar), every node of both touching faces in contact each step. Per iteration the contact
 // pass of one force evaluation (motion check, search when due, projections, forces into the
 // channel); reported as ns per contact node-step, the surface nodes of both parts. Sizes: about
 // 10^4 and 10^5 surface nodes. A small drift every step makes the search run every few steps,
@@ -16,7 +16,7 @@ using namespace rkfem;
 
 namespace
 {
-std::string plates_deck(int n)
+std::string plates_deck(int n, bool mortar)
 {
     const std::string s = std::to_string(n), size = std::to_string(n) + " mm";
     std::string d = "time: {end: 1 s}\nparts:\n";
@@ -24,7 +24,8 @@ std::string plates_deck(int n)
         d += std::string("  p") + std::to_string(k) + ":\n    generator: {type: box, origin: [0, 0, " +
              (k ? "-0.001 mm" : "-1 mm") + "], size: [" + size + ", " + size + ", 1 mm], divisions: [" + s + ", " + s +
              ", 1]}\n    material: {model: elastic, rho: 7850, E: 200e9, nu: 0.3}\n    formulation: fem-1pt\n";
-    d += "contacts:\n  - {type: surface-to-surface, surfaces: [p0, p1]}\n";
+    d += std::string("contacts:\n  - {type: surface-to-surface, surfaces: [p0, p1], formulation: ") +
+         (mortar ? "mortar" : "node-to-segment") + "}\n";
     return d;
 }
 
@@ -32,7 +33,7 @@ void BM_ContactPass(benchmark::State& state)
 {
     const int saved = omp_get_max_threads();
     omp_set_num_threads(static_cast<int>(state.range(1)));
-    Model m = Model::build(parse_deck(plates_deck(static_cast<int>(state.range(0))), "bench.yaml"));
+    Model m = Model::build(parse_deck(plates_deck(static_cast<int>(state.range(0)), state.range(2) != 0), "bench.yaml"));
     m.compute_forces(0.0, 0.0, 0); // the elements' critical step, the first search
     index_t surface_nodes = 0;
     for (const char* p : {"p0", "p1"})
@@ -59,6 +60,9 @@ void BM_ContactPass(benchmark::State& state)
 }
 } // namespace
 
-// 48 x 48 plates: 1.0e4 surface nodes; 158 x 158: 1.0e5
-BENCHMARK(BM_ContactPass)->ArgNames({"n", "threads"})->ArgsProduct({{48, 158}, {1, 2}})->Unit(benchmark::kMicrosecond);
+// 48 x 48 plates: 1.0e4 surface nodes; 158 x 158: 1.0e5; mortar 0: node-to-segment, 1: mortar
+BENCHMARK(BM_ContactPass)
+    ->ArgNames({"n", "threads", "mortar"})
+    ->ArgsProduct({{48, 158}, {1, 2}, {0, 1}})
+    ->Unit(benchmark::kMicrosecond);
 BENCHMARK_MAIN();

@@ -50,32 +50,44 @@ void bilinear(real_t xi, real_t eta, real_t (&N)[4])
     N[3] = 0.25 * (1 - xi) * (1 + eta);
 }
 
-/// The parameters at which the bilinear map of the plane quadrilateral c reaches q (Newton),
-/// clamped to [-1, 1]^2 (overlap points lie in both segments up to round-off), as shape functions.
-void inverse_bilinear(const P2 (&c)[4], const P2& q, real_t (&N)[4])
+/// The bilinear map of a plane quadrilateral with corners c (counter-clockwise from (-1, -1)):
+/// x = a0 + a1 xi + a2 eta + a3 xi eta.
+struct Bilinear2
 {
-    const real_t a0x = 0.25 * (c[0].x + c[1].x + c[2].x + c[3].x), a0y = 0.25 * (c[0].y + c[1].y + c[2].y + c[3].y);
-    const real_t a1x = 0.25 * (-c[0].x + c[1].x + c[2].x - c[3].x), a1y = 0.25 * (-c[0].y + c[1].y + c[2].y - c[3].y);
-    const real_t a2x = 0.25 * (-c[0].x - c[1].x + c[2].x + c[3].x), a2y = 0.25 * (-c[0].y - c[1].y + c[2].y + c[3].y);
-    const real_t a3x = 0.25 * (c[0].x - c[1].x + c[2].x - c[3].x), a3y = 0.25 * (c[0].y - c[1].y + c[2].y - c[3].y);
-    real_t xi = 0.0, eta = 0.0;
-    for (int it = 0; it < 20; ++it)
+    real_t a0x, a0y, a1x, a1y, a2x, a2y, a3x, a3y;
+    bool affine; ///< a3 = 0 (a parallelogram): the map is linear
+    explicit Bilinear2(const P2 (&c)[4])
+        : a0x(0.25 * (c[0].x + c[1].x + c[2].x + c[3].x)), a0y(0.25 * (c[0].y + c[1].y + c[2].y + c[3].y)),
+          a1x(0.25 * (-c[0].x + c[1].x + c[2].x - c[3].x)), a1y(0.25 * (-c[0].y + c[1].y + c[2].y - c[3].y)),
+          a2x(0.25 * (-c[0].x - c[1].x + c[2].x + c[3].x)), a2y(0.25 * (-c[0].y - c[1].y + c[2].y + c[3].y)),
+          a3x(0.25 * (c[0].x - c[1].x + c[2].x - c[3].x)), a3y(0.25 * (c[0].y - c[1].y + c[2].y - c[3].y)),
+          affine(a3x == 0.0 && a3y == 0.0)
     {
-        const real_t rx = a0x + a1x * xi + a2x * eta + a3x * xi * eta - q.x;
-        const real_t ry = a0y + a1y * xi + a2y * eta + a3y * xi * eta - q.y;
-        const real_t j11 = a1x + a3x * eta, j12 = a2x + a3x * xi;
-        const real_t j21 = a1y + a3y * eta, j22 = a2y + a3y * xi;
-        const real_t det = j11 * j22 - j12 * j21;
-        if (!(std::abs(det) > 0.0))
-            break;
-        const real_t dxi = (j22 * rx - j12 * ry) / det, deta = (j11 * ry - j21 * rx) / det;
-        xi -= dxi;
-        eta -= deta;
-        if (std::abs(dxi) + std::abs(deta) < 1e-14)
-            break;
     }
-    bilinear(std::clamp(xi, -1.0, 1.0), std::clamp(eta, -1.0, 1.0), N);
-}
+    /// The parameters at which the map reaches q (Newton from the centre; one solve for a
+    /// parallelogram), clamped to [-1, 1]^2 (overlap points lie in both segments up to
+    /// round-off), as shape functions.
+    void inverse(const P2& q, real_t (&N)[4]) const
+    {
+        real_t xi = 0.0, eta = 0.0;
+        for (int it = 0; it < 20; ++it)
+        {
+            const real_t rx = a0x + a1x * xi + a2x * eta + a3x * xi * eta - q.x;
+            const real_t ry = a0y + a1y * xi + a2y * eta + a3y * xi * eta - q.y;
+            const real_t j11 = a1x + a3x * eta, j12 = a2x + a3x * xi;
+            const real_t j21 = a1y + a3y * eta, j22 = a2y + a3y * xi;
+            const real_t det = j11 * j22 - j12 * j21;
+            if (!(std::abs(det) > 0.0))
+                break;
+            const real_t dxi = (j22 * rx - j12 * ry) / det, deta = (j11 * ry - j21 * rx) / det;
+            xi -= dxi;
+            eta -= deta;
+            if (affine || std::abs(dxi) + std::abs(deta) < 1e-13)
+                break;
+        }
+        bilinear(std::clamp(xi, -1.0, 1.0), std::clamp(eta, -1.0, 1.0), N);
+    }
+};
 
 // Dunavant's 6-point rule on a triangle (degree 4): barycentric coordinates and weights (sum 1)
 constexpr real_t ga = 0.445948490915965, gb = 0.108103018168070, gw1 = 0.223381589678011;
@@ -84,27 +96,51 @@ constexpr real_t gauss[6][4] = {{ga, ga, gb, gw1}, {ga, gb, ga, gw1}, {gb, ga, g
                                 {gc, gc, gd, gw2}, {gc, gd, gc, gw2}, {gd, gc, gc, gw2}};
 } // namespace
 
-int overlap_points(const Vec3 (&s)[4], const Vec3 (&m)[4], OverlapPoint* out, Vec3* normal)
+bool SlaveFrame::set(const Vec3 (&s)[4])
 {
     const Vec3 area = 0.5 * (s[2] - s[0]).cross(s[3] - s[1]);
     const real_t len = area.norm();
     if (!(len > 0.0))
-        return 0;
-    const Vec3 n = area / len;
-    *normal = n;
-    const Vec3 c = 0.25 * (s[0] + s[1] + s[2] + s[3]);
-    Vec3 e1 = (s[1] - s[0]) + (s[2] - s[3]);
+        return false;
+    n = area / len;
+    c = 0.25 * (s[0] + s[1] + s[2] + s[3]);
+    e1 = (s[1] - s[0]) + (s[2] - s[3]);
     e1 -= e1.dot(n) * n;
     if (!(e1.norm() > 0.0))
-        return 0;
+        return false;
     e1.normalize();
-    const Vec3 e2 = n.cross(e1);
-    P2 sp[4], mp[4];
+    e2 = n.cross(e1);
+    lo[0] = lo[1] = 1e300;
+    hi[0] = hi[1] = -1e300;
     for (int a = 0; a < 4; ++a)
     {
-        sp[a] = {(s[a] - c).dot(e1), (s[a] - c).dot(e2)};
-        mp[a] = {(m[a] - c).dot(e1), (m[a] - c).dot(e2)};
+        p[a][0] = (s[a] - c).dot(e1);
+        p[a][1] = (s[a] - c).dot(e2);
+        for (int d = 0; d < 2; ++d)
+        {
+            lo[d] = std::min(lo[d], p[a][d]);
+            hi[d] = std::max(hi[d], p[a][d]);
+        }
     }
+    return true;
+}
+
+int overlap_points(const SlaveFrame& f, const Vec3 (&m)[4], OverlapPoint* out)
+{
+    P2 sp[4], mp[4];
+    real_t mlo[2] = {1e300, 1e300}, mhi[2] = {-1e300, -1e300};
+    for (int a = 0; a < 4; ++a)
+    {
+        sp[a] = {f.p[a][0], f.p[a][1]};
+        mp[a] = {(m[a] - f.c).dot(f.e1), (m[a] - f.c).dot(f.e2)};
+        mlo[0] = std::min(mlo[0], mp[a].x), mhi[0] = std::max(mhi[0], mp[a].x);
+        mlo[1] = std::min(mlo[1], mp[a].y), mhi[1] = std::max(mhi[1], mp[a].y);
+    }
+    // boxes apart, or meeting at an edge (within round-off of the segment's size): no area
+    const real_t tol = 1e-12 * (f.hi[0] - f.lo[0] + f.hi[1] - f.lo[1]);
+    for (int d = 0; d < 2; ++d)
+        if (mlo[d] >= f.hi[d] - tol || mhi[d] <= f.lo[d] + tol)
+            return 0;
     // the master polygon's orientation (it faces the slave: clockwise here)
     const real_t m_area = cross2(mp[0], mp[1], mp[2]) + cross2(mp[0], mp[2], mp[3]);
     if (m_area == 0.0)
@@ -117,6 +153,7 @@ int overlap_points(const Vec3 (&s)[4], const Vec3 (&m)[4], OverlapPoint* out, Ve
         tri[0][0] = 1, tri[0][1] = 2, tri[0][2] = 3;
         tri[1][0] = 1, tri[1][1] = 3, tri[1][2] = 0;
     }
+    const Bilinear2 s_map(sp), m_map(mp);
     int count = 0;
     for (const auto& t : tri)
     {
@@ -139,12 +176,21 @@ int overlap_points(const Vec3 (&s)[4], const Vec3 (&m)[4], OverlapPoint* out, Ve
                            g[0] * b[0].y + g[1] * b[i].y + g[2] * b[i + 1].y};
                 OverlapPoint& o = out[count++];
                 o.w = g[3] * tri_area;
-                inverse_bilinear(sp, q, o.Ns);
-                inverse_bilinear(mp, q, o.Nm);
+                s_map.inverse(q, o.Ns);
+                m_map.inverse(q, o.Nm);
             }
         }
     }
     return count;
+}
+
+int overlap_points(const Vec3 (&s)[4], const Vec3 (&m)[4], OverlapPoint* out, Vec3* normal)
+{
+    SlaveFrame f;
+    if (!f.set(s))
+        return 0;
+    *normal = f.n;
+    return overlap_points(f, m, out);
 }
 
 MortarContact::MortarContact(std::vector<ContactSurface> surfaces, const ContactParameters& p) : p_(p)
@@ -303,6 +349,18 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                      Vec3 vs[4];
                      bool have_vs = false;
                      OverlapPoint pts[max_overlap_points];
+                     SlaveFrame frame;
+                     if (!frame.set(xs))
+                     {
+                         for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
+                             for (int b = 0; b < 4; ++b)
+                             {
+                                 pass.f_master[4 * static_cast<std::size_t>(c) + b] = Vec3::Zero();
+                                 pass.k_master[4 * static_cast<std::size_t>(c) + b] = 0.0;
+                             }
+                         return; // a collapsed slave segment takes no load
+                     }
+                     const Vec3& n = frame.n;
                      for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
                      {
                          Vec3* fm = &pass.f_master[4 * static_cast<std::size_t>(c)];
@@ -335,8 +393,7 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                              if (m_lo - s_hi >= p_.thickness)
                                  continue; // apart everywhere
                          }
-                         Vec3 n;
-                         const int np = overlap_points(xs, xm, pts, &n);
+                         const int np = overlap_points(frame, xm, pts);
                          if (np == 0)
                              continue;
                          real_t mu_m[4];
@@ -346,21 +403,28 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                          Vec3 vm[4];
                          bool have_vm = false;
                          const real_t k_segment = 0.5 * p_.penalty_scale * master.bulk_modulus[m] / master.depth[m];
+                         // the corners' heights along n: the gap at a point is their interpolation
+                         real_t hs[4], hm[4];
+                         for (int a = 0; a < 4; ++a)
+                         {
+                             hs[a] = xs[a].dot(n);
+                             hm[a] = xm[a].dot(n);
+                         }
                          for (int ip = 0; ip < np; ++ip)
                          {
                              const OverlapPoint& o = pts[ip];
-                             Vec3 x_s = Vec3::Zero(), x_m = Vec3::Zero();
+                             real_t gap = 0.0;
+                             for (int a = 0; a < 4; ++a)
+                                 gap += o.Nm[a] * hm[a] - o.Ns[a] * hs[a];
+                             const real_t pen = p_.thickness - gap;
+                             if (!(pen > 0.0) || pen > limit)
+                                 continue;
                              real_t ms = 0.0, mm = 0.0;
                              for (int a = 0; a < 4; ++a)
                              {
-                                 x_s += o.Ns[a] * xs[a];
-                                 x_m += o.Nm[a] * xm[a];
                                  ms += o.Ns[a] * mu_s[a];
                                  mm += o.Nm[a] * mu_m[a];
                              }
-                             const real_t pen = p_.thickness - (x_m - x_s).dot(n);
-                             if (!(pen > 0.0) || pen > limit)
-                                 continue;
                              const real_t mu_star = ms * mm / (ms + mm);
                              real_t k_a = k_segment;
                              if (soft)

@@ -56,6 +56,19 @@ inline constexpr int max_overlap_points = 2 * 5 * 6;
 /// slave's centre. Returns their number (0: no overlap); weights sum to the overlap's area.
 int overlap_points(const Vec3 (&s)[4], const Vec3 (&m)[4], OverlapPoint* out, Vec3* normal);
 
+/// A slave segment's plane: unit normal n (its area vector), centre c, in-plane basis e1, e2, and
+/// its corners in that basis with their bounding box.
+struct SlaveFrame
+{
+    Vec3 n, c, e1, e2;
+    real_t p[4][2];
+    real_t lo[2], hi[2];
+    /// False for a segment without area.
+    bool set(const Vec3 (&s)[4]);
+};
+/// The same for a slave frame computed once for all its candidate masters.
+int overlap_points(const SlaveFrame& slave, const Vec3 (&m)[4], OverlapPoint* out);
+
 class MortarContact final : public ContactAlgorithm
 {
   public:
