@@ -4,7 +4,9 @@
 /// timers and profilers can name it.
 #include <algorithm>
 #include <limits>
+#include <array>
 #include <memory>
+#include <vector>
 #include <omp.h>
 
 #include "rkfem/core/types.hpp"
@@ -65,6 +67,44 @@ template <class F> inline real_t parallel_reduce_sum(const char* /*label*/, inde
     }
     for (index_t c = 0; c < n_chunks; ++c)
         total += sums[c];
+    return total;
+}
+
+/// K sums of f(i, out) over [0, n) at once (f adds its K terms into out), with
+/// parallel_reduce_sum's fixed chunks: reproducible for a given thread count, one pass over the data.
+template <int K, class F> inline std::array<real_t, K> parallel_reduce_sums(const char* /*label*/, index_t n, F&& f)
+{
+    constexpr index_t chunk = 4096;
+    const index_t n_chunks = (n + chunk - 1) / chunk;
+    std::array<real_t, K> total{};
+    if (n_chunks <= 1)
+    {
+        for (index_t i = 0; i < n; ++i)
+            f(i, total);
+        return total;
+    }
+    // chunk sums on the stack for up to 4 M items (no allocation per call), on the heap beyond
+    constexpr index_t max_stack = 1024;
+    std::array<real_t, K> stack_sums[max_stack];
+    std::vector<std::array<real_t, K>> heap;
+    std::array<real_t, K>* sums = stack_sums;
+    if (n_chunks > max_stack)
+    {
+        heap.resize(static_cast<std::size_t>(n_chunks));
+        sums = heap.data();
+    }
+#pragma omp parallel for schedule(static)
+    for (index_t c = 0; c < n_chunks; ++c)
+    {
+        std::array<real_t, K> s{};
+        const index_t end = std::min(n, (c + 1) * chunk);
+        for (index_t i = c * chunk; i < end; ++i)
+            f(i, s);
+        sums[c] = s;
+    }
+    for (index_t c = 0; c < n_chunks; ++c)
+        for (int k = 0; k < K; ++k)
+            total[k] += sums[c][k];
     return total;
 }
 

@@ -181,37 +181,67 @@ Model::PartSummary Model::part_summary(index_t part) const
     s.internal = part_energy_[part].internal;
     s.hourglass = part_energy_[part].hourglass;
     s.bulk_viscosity = part_energy_[part].bulk_viscosity;
-    for (index_t i = pi.node_begin; i < pi.node_end; ++i)
-    {
-        const real_t m = nodes.mass[i];
-        const Vec3 v(nodes.v[3 * i], nodes.v[3 * i + 1], nodes.v[3 * i + 2]);
-        s.mass += m;
-        s.momentum += m * v;
-        s.kinetic += 0.5 * m * v.squaredNorm();
-    }
+    // the last energy update's sums (update_energies: a history row per step costs no pass);
+    // before any, a pass of its own
+    std::array<real_t, 5> sum{};
+    if (static_cast<std::size_t>(part) < part_motion_.size())
+        sum = part_motion_[static_cast<std::size_t>(part)];
+    else
+        sum = parallel_reduce_sums<5>("rkfem::part_summary", pi.node_end - pi.node_begin,
+                                      [&](index_t k, std::array<real_t, 5>& out)
+                                      {
+                                          const index_t i = pi.node_begin + k;
+                                          const std::size_t j = 3 * static_cast<std::size_t>(i);
+                                          const real_t m = nodes.mass[i];
+                                          const real_t vx = nodes.v[j], vy = nodes.v[j + 1], vz = nodes.v[j + 2];
+                                          out[0] += m;
+                                          out[1] += m * vx;
+                                          out[2] += m * vy;
+                                          out[3] += m * vz;
+                                          out[4] += 0.5 * m * (vx * vx + vy * vy + vz * vz);
+                                      });
+    s.mass = sum[0];
+    s.momentum = Vec3(sum[1], sum[2], sum[3]);
+    s.kinetic = sum[4];
     return s;
 }
 
 void Model::update_energies(const real_t* u_prev, real_t dt)
 {
-    const index_t n = nodes.size();
-    energy.kinetic = parallel_reduce_sum("rkfem::kinetic", n,
-                                         [&](index_t i)
-                                         {
-                                             const std::size_t j = 3 * static_cast<std::size_t>(i);
-                                             return 0.5 * nodes.mass[i] *
-                                                    (nodes.v[j] * nodes.v[j] + nodes.v[j + 1] * nodes.v[j + 1] +
-                                                     nodes.v[j + 2] * nodes.v[j + 2]);
-                                         });
-    energy.kinetic_correction =
-        -0.125 * dt * dt *
-        parallel_reduce_sum("rkfem::kinetic_correction", n,
-                            [&](index_t i)
-                            {
-                                const std::size_t j = 3 * static_cast<std::size_t>(i);
-                                return nodes.mass[i] * (nodes.a[j] * nodes.a[j] + nodes.a[j + 1] * nodes.a[j + 1] +
-                                                        nodes.a[j + 2] * nodes.a[j + 2]);
-                            });
+    // One pass over the nodes, part by part (parts hold contiguous node ranges that cover the
+    // nodes): kinetic energy, the leapfrog correction's sum of m |a|^2, and each part's mass and
+    // momentum, which history rows then read without a pass of their own (part_summary).
+    part_motion_.resize(parts.size());
+    real_t kinetic = 0.0, m_a2 = 0.0;
+    index_t covered = 0;
+    for (const PartInfo& pi : parts)
+        covered += pi.node_end - pi.node_begin;
+    RKFEM_REQUIRE(covered == nodes.size(), "parts cover " << covered << " of " << nodes.size() << " nodes");
+    for (std::size_t p = 0; p < parts.size(); ++p)
+    {
+        const index_t b = parts[p].node_begin;
+        const std::array<real_t, 6> sum =
+            parallel_reduce_sums<6>("rkfem::kinetic", parts[p].node_end - b,
+                                    [&](index_t k, std::array<real_t, 6>& out)
+                                    {
+                                        const index_t i = b + k;
+                                        const std::size_t j = 3 * static_cast<std::size_t>(i);
+                                        const real_t m = nodes.mass[i];
+                                        const real_t vx = nodes.v[j], vy = nodes.v[j + 1], vz = nodes.v[j + 2];
+                                        out[0] += 0.5 * m * (vx * vx + vy * vy + vz * vz);
+                                        out[1] += m * (nodes.a[j] * nodes.a[j] + nodes.a[j + 1] * nodes.a[j + 1] +
+                                                       nodes.a[j + 2] * nodes.a[j + 2]);
+                                        out[2] += m;
+                                        out[3] += m * vx;
+                                        out[4] += m * vy;
+                                        out[5] += m * vz;
+                                    });
+        kinetic += sum[0];
+        m_a2 += sum[1];
+        part_motion_[p] = {sum[2], sum[3], sum[4], sum[5], sum[0]};
+    }
+    energy.kinetic = kinetic;
+    energy.kinetic_correction = -0.125 * dt * dt * m_a2;
     const index_t n_loaded = static_cast<index_t>(loaded_dofs_.size());
     auto keep_f_ext = [&]
     {
@@ -309,5 +339,13 @@ Vec3 Model::reaction(index_t condition) const
         if (conditions[k].source == condition)
             r[conditions[k].dof % 3] += reaction_prev_[k];
     return r;
+}
+
+void Model::reactions(std::vector<Vec3>& out) const
+{
+    out.assign(deck_.boundary_conditions.size(), Vec3::Zero());
+    for (std::size_t k = 0; k < conditions.size() && k < reaction_prev_.size(); ++k)
+        if (const std::size_t b = static_cast<std::size_t>(conditions[k].source); b < out.size())
+            out[b][conditions[k].dof % 3] += reaction_prev_[k];
 }
 } // namespace rkfem

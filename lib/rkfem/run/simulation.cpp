@@ -106,11 +106,10 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
                              e.hourglass_to_total()});
     if (impact)
         rows.insert(rows.end(), {impact->apparent_depth(m), actual_depth, impact->residual_velocity(m)});
-    for (index_t b = 0; b < static_cast<index_t>(m.deck().boundary_conditions.size()); ++b)
-    {
-        const Vec3 r = m.reaction(b);
+    thread_local std::vector<Vec3> reactions; // kept between rows: no allocation per row
+    m.reactions(reactions);
+    for (const Vec3& r : reactions)
         rows.insert(rows.end(), {r[0], r[1], r[2]});
-    }
     for (const LoadSpec& l : m.deck().loads)
         rows.push_back(load_value(l, t));
     for (index_t k = 0; k < static_cast<index_t>(m.section_nodes.size()); ++k)
