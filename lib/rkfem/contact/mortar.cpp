@@ -1,7 +1,6 @@
 #include "rkfem/contact/mortar.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 
 #include "rkfem/core/error.hpp"
@@ -229,20 +228,14 @@ void MortarContact::set_surfaces(std::vector<ContactSurface> surfaces)
     all_nodes_.erase(std::unique(all_nodes_.begin(), all_nodes_.end()), all_nodes_.end());
     margin_ = n_seg > 0 ? 0.25 * std::sqrt(size / static_cast<real_t>(n_seg)) : 0.0;
     reach_ = margin_ + p_.max_penetration * deepest + p_.thickness;
-    searched_ = false;
-    active_ = 0;
-    resultant_ = Vec3::Zero();
+    s_.searched = false;
+    s_.active = 0;
+    s_.resultant = Vec3::Zero();
 }
 
 void MortarContact::search(const PhysicalNodes& nodes)
 {
-    x_search_.resize(3 * all_nodes_.size());
-    for (std::size_t k = 0; k < all_nodes_.size(); ++k)
-    {
-        const Vec3 x = nodes.x(all_nodes_[k]);
-        for (int d = 0; d < 3; ++d)
-            x_search_[3 * k + d] = x[d];
-    }
+    s_.record_search(nodes, all_nodes_);
     auto box = [&](const Quad& q, Vec3& lo, Vec3& hi)
     {
         lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
@@ -301,8 +294,6 @@ void MortarContact::search(const PhysicalNodes& nodes)
         pass.k_slave.assign(4 * static_cast<std::size_t>(ns), 0.0);
         pass.k_master.assign(4 * pass.candidates.size(), 0.0);
     }
-    searched_ = true;
-    ++searches_;
 }
 
 void MortarContact::update_areas(const PhysicalNodes& nodes)
@@ -327,7 +318,7 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
     const std::size_t is = static_cast<std::size_t>(pass.slave), im = static_cast<std::size_t>(pass.master);
     const ContactSurface& master = surfaces_[im];
     const ContactSurface& slave = surfaces_[is];
-    const bool soft = p_.soft && dt0_ > 0.0 && dt0_ < 1e299;
+    const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < 1e299;
     parallel_for("rkfem::contact_mortar", slave.n_segments(),
                  [&](index_t s)
                  {
@@ -428,11 +419,11 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                              const real_t mu_star = ms * mm / (ms + mm);
                              real_t k_a = k_segment;
                              if (soft)
-                                 k_a = std::max(k_a, 0.5 * p_.soft_scale * mu_star / (dt0_ * dt0_));
+                                 k_a = std::max(k_a, 0.5 * p_.soft_scale * mu_star / (s_.dt0 * s_.dt0));
 
                              const real_t pressure = k_a * pen;
                              Vec3 f = (-o.w * pressure) * n; // on the slave
-                             if (p_.friction.active() && dt0_ > 0.0)
+                             if (p_.friction.active() && s_.dt0 > 0.0)
                              {
                                  if (!have_vs)
                                      for (int a = 0; a < 4; ++a)
@@ -445,7 +436,7 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                                  for (int a = 0; a < 4; ++a)
                                      v_rel += o.Ns[a] * vs[a] - o.Nm[a] * vm[a];
                                  const Vec3 v_t = v_rel - v_rel.dot(n) * n;
-                                 f += o.w * p_.friction.force(v_t, pressure, 0.5 * mu_star, dt0_);
+                                 f += o.w * p_.friction.force(v_t, pressure, 0.5 * mu_star, s_.dt0);
                              }
                              for (int a = 0; a < 4; ++a)
                              {
@@ -461,33 +452,21 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
 
 void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel)
 {
-    if (dt0_ == 0.0 && clock.dt_critical > 0.0)
-        dt0_ = clock.dt_critical;
-    bool redo = !searched_;
-    if (!redo)
-    {
-        const real_t limit = 0.25 * margin_ * margin_; // half the margin, squared
-        for (std::size_t k = 0; k < all_nodes_.size() && !redo; ++k)
-        {
-            const Vec3 x = nodes.x(all_nodes_[k]);
-            const Vec3 x0(x_search_[3 * k], x_search_[3 * k + 1], x_search_[3 * k + 2]);
-            redo = (x - x0).squaredNorm() > limit;
-        }
-    }
-    if (redo)
+    s_.see(clock);
+    if (s_.search_due(nodes, all_nodes_, margin_))
         search(nodes);
     update_areas(nodes);
     touched_.resize(static_cast<std::size_t>(nodes.size()), 0);
     node_k_.resize(static_cast<std::size_t>(nodes.size()), 0.0);
-    resultant_ = Vec3::Zero();
-    active_ = 0;
+    s_.resultant = Vec3::Zero();
+    s_.active = 0;
     auto add = [&](index_t node, const Vec3& f, real_t k)
     {
         if (f[0] == 0.0 && f[1] == 0.0 && f[2] == 0.0)
             return;
         channel.add(node, f);
         char& t = touched_[static_cast<std::size_t>(node)];
-        active_ += t == 0;
+        s_.active += t == 0;
         t = 1;
         node_k_[static_cast<std::size_t>(node)] += k;
     };
@@ -503,7 +482,7 @@ void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
             {
                 add(slave.segments[s][a], pass.f_slave[s4 + a], pass.k_slave[s4 + a]);
                 if (pass.slave == 0)
-                    resultant_ += pass.f_slave[s4 + a];
+                    s_.resultant += pass.f_slave[s4 + a];
             }
             if (pass.k_slave[s4] + pass.k_slave[s4 + 1] + pass.k_slave[s4 + 2] + pass.k_slave[s4 + 3] == 0.0)
                 continue; // no point of this slave segment touched: nor did its masters'
@@ -513,15 +492,15 @@ void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
                     const std::size_t cb = 4 * static_cast<std::size_t>(c) + static_cast<std::size_t>(b);
                     add(master.segments[pass.candidates[c]][b], pass.f_master[cb], pass.k_master[cb]);
                     if (pass.master == 0)
-                        resultant_ += pass.f_master[cb];
+                        s_.resultant += pass.f_master[cb];
                 }
         }
     }
     // the first evaluation: the nodes with a force started inside
-    if (!started_)
+    if (!s_.started)
     {
-        initial_penetrations_ = active_;
-        started_ = true;
+        s_.initial_penetrations = s_.active;
+        s_.started = true;
     }
     // A node's contact stiffness k (both passes' k_A w N) against its mass, the largest over the
     // nodes in contact, in node_to_segment.cpp's bound. The marks and stiffnesses are cleared for
@@ -535,10 +514,7 @@ void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
         touched_[ii] = 0;
         node_k_[ii] = 0.0;
     }
-    // The bound holds from the first contact on: it acts one step late, and a node that touches
-    // at every other step would otherwise take every first step at the elements' step
-    if (k_over_m > 0.0 && dt0_ > 0.0)
-        dt_bound_ = std::min(dt_bound_, dt0_ / std::sqrt(1.0 + 0.5 * k_over_m * dt0_ * dt0_));
+    s_.bound_step(k_over_m);
 }
 
 void MortarContact::save_state(StateArchive& a, const std::string& prefix) const
@@ -549,15 +525,7 @@ void MortarContact::save_state(StateArchive& a, const std::string& prefix) const
         a.put(pp + "offsets", passes_[k].offsets);
         a.put(pp + "candidates", passes_[k].candidates);
     }
-    a.put(prefix + "x_search", x_search_);
-    a.put_value(prefix + "dt0", dt0_);
-    a.put_value(prefix + "dt_bound", dt_bound_);
-    a.put_value(prefix + "resultant", std::array<real_t, 3>{resultant_[0], resultant_[1], resultant_[2]});
-    a.put_value(prefix + "active", active_);
-    a.put_value(prefix + "searches", searches_);
-    a.put_value(prefix + "searched", searched_);
-    a.put_value(prefix + "started", started_);
-    a.put_value(prefix + "initial_penetrations", initial_penetrations_);
+    s_.save(a, prefix);
 }
 
 void MortarContact::load_state(const StateArchive& a, const std::string& prefix)
@@ -574,15 +542,6 @@ void MortarContact::load_state(const StateArchive& a, const std::string& prefix)
         pass.k_slave.assign(4 * ns, 0.0);
         pass.k_master.assign(4 * pass.candidates.size(), 0.0);
     }
-    a.get(prefix + "x_search", x_search_);
-    dt0_ = a.value<real_t>(prefix + "dt0");
-    dt_bound_ = a.value<real_t>(prefix + "dt_bound");
-    const auto r = a.value<std::array<real_t, 3>>(prefix + "resultant");
-    resultant_ = Vec3(r[0], r[1], r[2]);
-    active_ = a.value<index_t>(prefix + "active");
-    searches_ = a.value<index_t>(prefix + "searches");
-    searched_ = a.value<bool>(prefix + "searched");
-    started_ = a.value<bool>(prefix + "started");
-    initial_penetrations_ = a.value<index_t>(prefix + "initial_penetrations");
+    s_.load(a, prefix);
 }
 } // namespace rkfem

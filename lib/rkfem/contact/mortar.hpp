@@ -36,6 +36,7 @@
 #include "rkfem/contact/contact_algorithm.hpp"
 #include "rkfem/contact/node_to_segment.hpp"
 #include "rkfem/contact/segment_buckets.hpp"
+#include "rkfem/contact/surface_contact_state.hpp"
 
 namespace rkfem
 {
@@ -69,21 +70,15 @@ struct SlaveFrame
 /// The same for a slave frame computed once for all its candidate masters.
 int overlap_points(const SlaveFrame& slave, const Vec3 (&m)[4], OverlapPoint* out);
 
-class MortarContact final : public ContactAlgorithm
+class MortarContact final : public SurfaceContact
 {
   public:
     /// Two surfaces (surface-to-surface).
     MortarContact(std::vector<ContactSurface> surfaces, const ContactParameters& p);
     void add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel) override;
-    real_t stable_step() const override { return dt_bound_; }
     void set_surfaces(std::vector<ContactSurface> surfaces) override;
     void save_state(StateArchive& archive, const std::string& prefix) const override;
     void load_state(const StateArchive& archive, const std::string& prefix) override;
-    Vec3 resultant() const override { return resultant_; }
-    index_t active_nodes() const override { return active_; }
-    index_t searches() const { return searches_; }
-    /// Nodes with a contact force at the first evaluation (pushed out).
-    index_t initial_penetrations() const override { return initial_penetrations_; }
     bool holds_initial_penetrations() const override { return false; }
 
   private:
@@ -106,16 +101,9 @@ class MortarContact final : public ContactAlgorithm
     ContactParameters p_;
     std::vector<Pass> passes_;
     std::vector<index_t> all_nodes_;
-    std::vector<real_t> x_search_;
     std::vector<char> touched_;   ///< per model node: scratch for counting active nodes
     std::vector<real_t> node_k_;  ///< per model node: scratch, contact stiffness this evaluation
     real_t margin_ = 0.0, reach_ = 0.0;
-    real_t dt0_ = 0.0, dt_bound_ = 1e300;
-    Vec3 resultant_ = Vec3::Zero();
-    index_t active_ = 0, searches_ = 0;
-    bool searched_ = false;
-    bool started_ = false;
-    index_t initial_penetrations_ = 0;
     std::vector<real_t> lo_, hi_; ///< scratch: segment boxes
 };
 } // namespace rkfem

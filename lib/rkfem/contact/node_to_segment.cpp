@@ -1,13 +1,10 @@
 #include "rkfem/contact/node_to_segment.hpp"
 
-#include "rkfem/core/state_archive.hpp"
-
-#include <array>
-
 #include <algorithm>
 #include <cmath>
 
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/state_archive.hpp"
 
 namespace rkfem
 {
@@ -86,21 +83,15 @@ void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
     // the search margin: a quarter of the mean segment's edge (size: the total area)
     margin_ = n_seg > 0 ? 0.25 * std::sqrt(size / static_cast<real_t>(n_seg)) : 0.0;
     reach_ = margin_ + p_.max_penetration * deepest + p_.thickness;
-    searched_ = false;
+    s_.searched = false;
     fresh_ = true;
-    active_ = 0;
-    resultant_ = Vec3::Zero();
+    s_.active = 0;
+    s_.resultant = Vec3::Zero();
 }
 
 void NodeToSegmentContact::search(const PhysicalNodes& nodes)
 {
-    x_search_.resize(3 * all_nodes_.size());
-    for (std::size_t k = 0; k < all_nodes_.size(); ++k)
-    {
-        const Vec3 x = nodes.x(all_nodes_[k]);
-        for (int d = 0; d < 3; ++d)
-            x_search_[3 * k + d] = x[d];
-    }
+    s_.record_search(nodes, all_nodes_);
     for (Pass& pass : passes_)
     {
         const ContactSurface& master = surfaces_[static_cast<std::size_t>(pass.master)];
@@ -145,8 +136,6 @@ void NodeToSegmentContact::search(const PhysicalNodes& nodes)
         pass.offset.resize(static_cast<std::size_t>(n_slave), 0.0);
         pass.last_penetration.resize(static_cast<std::size_t>(n_slave), 0.0);
     }
-    searched_ = true;
-    ++searches_;
 }
 
 void NodeToSegmentContact::update_node_normals(const PhysicalNodes& nodes)
@@ -183,7 +172,7 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
     const ContactSurface& master = surfaces_[static_cast<std::size_t>(pass.master)];
     const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
     const index_t n_slave = static_cast<index_t>(slave.nodes.size());
-    const bool soft = p_.soft && dt0_ > 0.0 && dt0_ < 1e299;
+    const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < 1e299;
     parallel_for("rkfem::contact_node_to_segment", n_slave,
                  [&](index_t k)
                  {
@@ -256,7 +245,7 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                      // segment's edge, or with an event, and is held as an offset, which shrinks
                      // as the node moves out
                      const real_t approach =
-                         fresh_ && !started_ ? 0.0 : 1.5 * dt0_ * std::max(0.0, -v_rel.dot(at.normal));
+                         fresh_ && !s_.started ? 0.0 : 1.5 * s_.dt0 * std::max(0.0, -v_rel.dot(at.normal));
                      offset = std::min(offset, best) + std::max(0.0, best - last - approach);
                      last = best;
                      best -= offset;
@@ -270,13 +259,13 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                      real_t k_pen =
                          p_.penalty_scale * master.bulk_modulus[h.segment] * area / master.depth[h.segment];
                      if (soft)
-                         k_pen = std::max(k_pen, p_.soft_scale * m_star / (dt0_ * dt0_));
+                         k_pen = std::max(k_pen, p_.soft_scale * m_star / (s_.dt0 * s_.dt0));
                      const real_t fn = k_pen * best;
                      h.f = fn * at.normal;
-                     if (p_.friction.active() && dt0_ > 0.0)
+                     if (p_.friction.active() && s_.dt0 > 0.0)
                      {
                          const Vec3 v_t = v_rel - v_rel.dot(at.normal) * at.normal;
-                         h.f += p_.friction.force(v_t, fn, m_star, dt0_);
+                         h.f += p_.friction.force(v_t, fn, m_star, s_.dt0);
                      }
                      h.k = k_pen;
                  });
@@ -284,24 +273,12 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
 
 void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel)
 {
-    if (dt0_ == 0.0 && clock.dt_critical > 0.0)
-        dt0_ = clock.dt_critical;
-    bool redo = !searched_;
-    if (!redo)
-    {
-        const real_t limit = 0.25 * margin_ * margin_; // half the margin, squared
-        for (std::size_t k = 0; k < all_nodes_.size() && !redo; ++k)
-        {
-            const Vec3 x = nodes.x(all_nodes_[k]);
-            const Vec3 x0(x_search_[3 * k], x_search_[3 * k + 1], x_search_[3 * k + 2]);
-            redo = (x - x0).squaredNorm() > limit;
-        }
-    }
-    if (redo)
+    s_.see(clock);
+    if (s_.search_due(nodes, all_nodes_, margin_))
         search(nodes);
     update_node_normals(nodes);
-    resultant_ = Vec3::Zero();
-    active_ = 0;
+    s_.resultant = Vec3::Zero();
+    s_.active = 0;
     node_k_.resize(static_cast<std::size_t>(nodes.size()), 0.0);
     for (Pass& pass : passes_)
     {
@@ -322,15 +299,15 @@ void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactC
                 channel.add(q[a], -h.N[a] * h.f);
                 node_k_[static_cast<std::size_t>(q[a])] += h.N[a] * h.k;
             }
-            resultant_ += side * h.f;
-            ++active_;
+            s_.resultant += side * h.f;
+            ++s_.active;
         }
     }
-    if (fresh_ && !started_)
+    if (fresh_ && !s_.started)
         for (const Pass& pass : passes_)
             for (real_t o : pass.offset)
-                initial_penetrations_ += o > 0.0;
-    started_ = true;
+                s_.initial_penetrations += o > 0.0;
+    s_.started = true;
     fresh_ = false;
     before_.clear();
     // The step. The springs on a node (as slave, and as a corner of the master segments other
@@ -352,10 +329,7 @@ void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactC
             k_over_m = std::max(k_over_m, node_k_[ii] / nodes.mass(i));
         node_k_[ii] = 0.0;
     }
-    // The bound holds from the first contact on: it acts one step late, and a node that touches
-    // at every other step would otherwise take every first step at the elements' step
-    if (k_over_m > 0.0 && dt0_ > 0.0)
-        dt_bound_ = std::min(dt_bound_, dt0_ / std::sqrt(1.0 + 0.5 * k_over_m * dt0_ * dt0_));
+    s_.bound_step(k_over_m);
 }
 
 void NodeToSegmentContact::save_state(StateArchive& a, const std::string& prefix) const
@@ -370,18 +344,10 @@ void NodeToSegmentContact::save_state(StateArchive& a, const std::string& prefix
         a.put(pp + "offset", pass.offset);
         a.put(pp + "last_penetration", pass.last_penetration);
     }
-    a.put(prefix + "x_search", x_search_);
+    s_.save(a, prefix);
     a.put_value(prefix + "margin", margin_);
     a.put_value(prefix + "reach", reach_);
-    a.put_value(prefix + "dt0", dt0_);
-    a.put_value(prefix + "dt_bound", dt_bound_);
-    a.put_value(prefix + "resultant", std::array<real_t, 3>{resultant_[0], resultant_[1], resultant_[2]});
-    a.put_value(prefix + "active", active_);
-    a.put_value(prefix + "searches", searches_);
-    a.put_value(prefix + "searched", searched_);
     a.put_value(prefix + "fresh", fresh_);
-    a.put_value(prefix + "initial_penetrations", initial_penetrations_);
-    a.put_value(prefix + "started", started_);
 }
 
 void NodeToSegmentContact::load_state(const StateArchive& a, const std::string& prefix)
@@ -396,19 +362,10 @@ void NodeToSegmentContact::load_state(const StateArchive& a, const std::string& 
         a.get(pp + "offset", pass.offset);
         a.get(pp + "last_penetration", pass.last_penetration);
     }
-    a.get(prefix + "x_search", x_search_);
+    s_.load(a, prefix);
     margin_ = a.value<real_t>(prefix + "margin");
     reach_ = a.value<real_t>(prefix + "reach");
-    dt0_ = a.value<real_t>(prefix + "dt0");
-    dt_bound_ = a.value<real_t>(prefix + "dt_bound");
-    const auto r = a.value<std::array<real_t, 3>>(prefix + "resultant");
-    resultant_ = Vec3(r[0], r[1], r[2]);
-    active_ = a.value<index_t>(prefix + "active");
-    searches_ = a.value<index_t>(prefix + "searches");
-    searched_ = a.value<bool>(prefix + "searched");
     fresh_ = a.value<bool>(prefix + "fresh");
-    initial_penetrations_ = a.value<index_t>(prefix + "initial_penetrations");
-    started_ = a.value<bool>(prefix + "started");
     before_.clear();
 }
 } // namespace rkfem

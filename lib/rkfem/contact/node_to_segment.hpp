@@ -39,6 +39,7 @@
 
 #include "rkfem/contact/contact_algorithm.hpp"
 #include "rkfem/contact/segment_buckets.hpp"
+#include "rkfem/contact/surface_contact_state.hpp"
 
 namespace rkfem
 {
@@ -52,22 +53,15 @@ struct ContactParameters
     Friction friction;
 };
 
-class NodeToSegmentContact final : public ContactAlgorithm
+class NodeToSegmentContact final : public SurfaceContact
 {
   public:
     /// Two surfaces: surface-to-surface (both passes). One surface: single-surface.
     NodeToSegmentContact(std::vector<ContactSurface> surfaces, const ContactParameters& p);
     void add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel) override;
-    real_t stable_step() const override { return dt_bound_; }
     void set_surfaces(std::vector<ContactSurface> surfaces) override;
     void save_state(StateArchive& archive, const std::string& prefix) const override;
     void load_state(const StateArchive& archive, const std::string& prefix) override;
-    Vec3 resultant() const override { return resultant_; }
-    index_t active_nodes() const override { return active_; }
-    /// Searches done so far (the first evaluation's included).
-    index_t searches() const { return searches_; }
-    /// Slave nodes found inside the other surface at the first evaluation (initial penetrations).
-    index_t initial_penetrations() const override { return initial_penetrations_; }
 
   private:
     struct Hit
@@ -99,18 +93,9 @@ class NodeToSegmentContact final : public ContactAlgorithm
     ContactParameters p_;
     std::vector<Pass> passes_;
     std::vector<index_t> all_nodes_; ///< the surfaces' nodes, ascending
-    std::vector<real_t> x_search_;   ///< their positions at the last search
     real_t margin_ = 0.0;            ///< motion allowed between searches (both sides together)
     real_t reach_ = 0.0;             ///< inflation of segment boxes: margin + deepest release depth + thickness
-    real_t dt0_ = 0.0;
-    real_t dt_bound_ = 1e300;
-    Vec3 resultant_ = Vec3::Zero();
-    index_t active_ = 0;
-    index_t searches_ = 0;
-    bool searched_ = false;
     bool fresh_ = true; ///< the next evaluation is the first on these surfaces
-    index_t initial_penetrations_ = 0;
-    bool started_ = false;
     /// per pass: the slave nodes in contact at the last evaluation before new surfaces, with their
     /// penetration (sorted by node)
     struct Before
