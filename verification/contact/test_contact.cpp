@@ -156,7 +156,15 @@ TEST(MortarOverlap, PointsIntegrateTheOverlapAndBothSegmentsShapeFunctions)
                 shifted_area, worst, area, 8 * (std::sqrt(2.0) - 1));
     EXPECT_NEAR(area, 8 * (std::sqrt(2.0) - 1), 1e-13);
     EXPECT_LT(partition, 1e-14);
-    // (3) apart: no points
+    // (3) a master whose projection is not convex (a dart, clockwise seen from +z), inside the
+    // slave: the overlap is the dart, area 1 by the shoelace formula
+    const Vec3 dart[4] = {{0, 0, 0.1}, {0, 2, 0.1}, {0.5, 0.5, 0.1}, {2, 0, 0.1}};
+    np = overlap_points(slave, dart, pts, &n);
+    real_t dart_area = 0.0;
+    for (int k = 0; k < np; ++k)
+        dart_area += pts[k].w;
+    EXPECT_NEAR(dart_area, 1.0, 1e-14);
+    // (4) apart: no points
     const Vec3 away[4] = {{3, 0, 0.1}, {3, 2, 0.1}, {5, 2, 0.1}, {5, 0, 0.1}};
     EXPECT_EQ(overlap_points(slave, away, pts, &n), 0);
 }

@@ -20,7 +20,8 @@ struct P2
 real_t cross2(const P2& a, const P2& b, const P2& c) { return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x); }
 
 /// The part of polygon `in` (n vertices) left of the directed line a -> b (Sutherland-Hodgman,
-/// one edge); returns the number of vertices written to out (at most n + 1).
+/// one edge); returns the number of vertices written to out (at most n + 1 for a convex polygon,
+/// 1.5 n for any).
 int clip_by_edge(const P2* in, int n, const P2& a, const P2& b, P2* out)
 {
     int m = 0;
@@ -158,7 +159,9 @@ int overlap_points(const SlaveFrame& f, const Vec3 (&m)[4], OverlapPoint* out)
     {
         if (!(cross2(sp[t[0]], sp[t[1]], sp[t[2]]) > 0.0))
             continue; // a degenerate slave half
-        P2 a[8], b[8];
+        // a clip of an n-gon keeps at most 1.5 n vertices (n for a convex one, plus one): 4, 6,
+        // 9, 13 for a projected master that is not convex
+        P2 a[16], b[16];
         int na = 4;
         std::copy(mp, mp + 4, a);
         na = clip_by_edge(a, na, sp[t[0]], sp[t[1]], b);

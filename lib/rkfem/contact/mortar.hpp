@@ -49,8 +49,9 @@ struct OverlapPoint
     real_t Nm[4] = {0.0, 0.0, 0.0, 0.0};
 };
 /// The most points overlap_points() writes: two clip triangles, each clipping a quadrilateral
-/// into at most 7 vertices (5 fan triangles), 6 points per triangle.
-inline constexpr int max_overlap_points = 2 * 5 * 6;
+/// into at most 13 vertices (7 when the projected master is convex), so 11 fan triangles, 6
+/// points per triangle.
+inline constexpr int max_overlap_points = 2 * 11 * 6;
 
 /// The integration points of the overlap of slave segment s and master segment m, both
 /// projected along the slave's unit normal n (written to *normal) onto the plane through the
