@@ -1206,3 +1206,36 @@ TEST(Decks, DeepNestingIsNamed)
     const std::string deep = "title: x\ntime: {end: 1 us}\nparts: " + std::string(2100, '[') + std::string(2100, ']') + "\n";
     expect_rejected("deep_nesting.yaml", deep, ":3: deck", "nested deeper than the YAML reader allows");
 }
+
+TEST(Decks, KeywordMeshesResolveAgainstTheDeckAndTheResolvedDeckReadsBack)
+{
+    // a mesh file named relative to the deck, in millimetres: check reads it (10 elements) and
+    // prints a resolved deck that names the unit as written and reads back the same
+    std::ostringstream k;
+    k << "*KEYWORD\n*NODE\n";
+    for (int j = 0; j <= 10; ++j)
+        for (int c = 0; c < 4; ++c)
+            k << 4 * j + c + 1 << "," << (c == 1 || c == 2) << "," << (c >= 2) << "," << j << "\n";
+    k << "*ELEMENT_SOLID\n";
+    for (int j = 0; j < 10; ++j)
+    {
+        k << j + 1 << ",3";
+        for (int c = 0; c < 8; ++c)
+            k << "," << 4 * (j + c / 4) + c % 4 + 1;
+        k << "\n";
+    }
+    k << "*END\n";
+    write_deck("column.k", k.str());
+    std::string deck = replace(good, "generator: {type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
+                               "generator: {type: keyword, file: column.k, unit: mm, pid: 3}");
+    const Result r = run("check " + write_deck("keyword.yaml", deck));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("unit: mm, pid: [3]"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("10 elements"), std::string::npos) << r.output;
+    const std::string resolved = r.output.substr(r.output.find("# resolved deck"));
+    const Result again = run("check " + write_deck("keyword_resolved.yaml", resolved));
+    EXPECT_EQ(again.code, 0) << again.output;
+    // a unit that is not a length
+    expect_rejected("keyword_unit.yaml", replace(deck, "unit: mm", "unit: kg"), ":6: parts.col.generator.unit",
+                    "'kg' is not a length unit");
+}

@@ -173,10 +173,12 @@ struct GeneratorSpec
     int seed = 1;
     std::string points_file; ///< resolved against the deck's directory
     real_t points_unit = 1.0; ///< metres per file unit
+    std::string points_unit_name = "m"; ///< as the deck wrote it (the resolved deck echoes it)
     // keyword: the file (resolved against the deck's directory), metres per file length unit,
     // the PIDs of the solids taken (empty: all)
     std::string mesh_file;
     real_t mesh_unit = 1.0;
+    std::string mesh_unit_name = "m"; ///< as the deck wrote it
     std::vector<long long> mesh_pids;
     SourceLocation loc;
 };

@@ -207,10 +207,10 @@ std::string to_yaml(const Deck& d)
             if (g.points_file.empty())
                 os << ", spacing: " << g.element_size << ", jitter: " << g.jitter << ", seed: " << g.seed;
             else
-                os << ", points: " << scalar(g.points_file) << ", points_unit: " << g.points_unit << " m";
+                os << ", points: " << scalar(g.points_file) << ", points_unit: " << g.points_unit_name;
             break;
         case GeneratorSpec::Type::Keyword:
-            os << "type: keyword, file: " << scalar(g.mesh_file) << ", unit: " << g.mesh_unit << " m";
+            os << "type: keyword, file: " << scalar(g.mesh_file) << ", unit: " << g.mesh_unit_name;
             if (!g.mesh_pids.empty())
             {
                 os << ", pid: [";
@@ -390,7 +390,8 @@ std::string to_yaml(const Deck& d)
                 os << ", point: " << vec(c.point) << ", normal: " << vec(c.normal) << ", velocity: " << vec(c.velocity)
                    << ", penalty_scale: " << c.penalty_scale;
             else
-                os << ", stiffness: " << (c.soft ? "soft" : "segment") << ", penalty_scale: " << c.penalty_scale
+                os << ", formulation: " << (c.mortar ? "mortar" : "node-to-segment")
+                   << ", stiffness: " << (c.soft ? "soft" : "segment") << ", penalty_scale: " << c.penalty_scale
                    << ", soft_scale: " << c.soft_scale << ", thickness: " << c.thickness
                    << ", max_penetration: " << c.max_penetration;
             os << ", friction: {static: " << c.mu_static << ", dynamic: " << c.mu_dynamic << ", decay: " << c.decay

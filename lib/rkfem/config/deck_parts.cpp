@@ -129,6 +129,7 @@ GeneratorSpec read_generator(const Section& part)
                 s.fail("points_unit", "'" + unit + "' is not a length unit" + (err.empty() ? "" : " (" + err + ")"),
                        "expected one of " + known_units_for(dim::length));
             g.points_unit = u->scale;
+            g.points_unit_name = unit;
         }
         else
         {
@@ -155,6 +156,7 @@ GeneratorSpec read_generator(const Section& part)
             s.fail("unit", "'" + unit + "' is not a length unit" + (err.empty() ? "" : " (" + err + ")"),
                    "expected the file's length unit, one of " + known_units_for(dim::length));
         g.mesh_unit = u->scale;
+        g.mesh_unit_name = unit;
         if (s.has("pid"))
         {
             const YAML::Node pn = s.node("pid");
