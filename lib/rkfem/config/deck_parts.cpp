@@ -23,6 +23,29 @@ void read_box(const Section& s, GeneratorSpec& g)
 }
 } // namespace
 
+namespace
+{
+/// A data file's path from `key`, relative paths from the deck's folder.
+std::string data_file(const Section& s, const char* key)
+{
+    const std::filesystem::path file = s.text(key);
+    return file.is_absolute() ? file.string() : (std::filesystem::path(s.ctx().name).parent_path() / file).string();
+}
+
+/// A data file's length unit from `key` (default m): metres per file unit, and the name as
+/// written (the resolved deck echoes it).
+void read_length_unit(const Section& s, const char* key, real_t& scale, std::string& name)
+{
+    name = s.text(key, "m");
+    std::string err;
+    const std::optional<Unit> u = parse_unit(name, &err);
+    if (!u || !(u->dimension == dim::length))
+        s.fail(key, "'" + name + "' is not a length unit" + (err.empty() ? "" : " (" + err + ")"),
+               "expected the file's length unit, one of " + known_units_for(dim::length));
+    scale = u->scale;
+}
+} // namespace
+
 GeneratorSpec read_generator(const Section& part)
 {
     part.require("generator", "a mapping with type: box | cylinder | projectile | cloud | keyword");
@@ -119,17 +142,8 @@ GeneratorSpec read_generator(const Section& part)
                    "expected either spacing (a jittered lattice) or points (a CSV file of x,y,z)");
         if (s.has("points"))
         {
-            const std::filesystem::path file = s.text("points");
-            g.points_file = file.is_absolute() ? file.string()
-                                               : (std::filesystem::path(part.ctx().name).parent_path() / file).string();
-            const std::string unit = s.text("points_unit", "m");
-            std::string err;
-            const std::optional<Unit> u = parse_unit(unit, &err);
-            if (!u || !(u->dimension == dim::length))
-                s.fail("points_unit", "'" + unit + "' is not a length unit" + (err.empty() ? "" : " (" + err + ")"),
-                       "expected one of " + known_units_for(dim::length));
-            g.points_unit = u->scale;
-            g.points_unit_name = unit;
+            g.points_file = data_file(s, "points");
+            read_length_unit(s, "points_unit", g.points_unit, g.points_unit_name);
         }
         else
         {
@@ -146,17 +160,8 @@ GeneratorSpec read_generator(const Section& part)
         Section s(part.ctx(), gn, gp, {"type", "file", "unit", "pid"});
         g.type = GeneratorSpec::Type::Keyword;
         s.require("file", "the path of an LS-DYNA keyword file (*NODE, *ELEMENT_SOLID)");
-        const std::filesystem::path file = s.text("file");
-        g.mesh_file =
-            file.is_absolute() ? file.string() : (std::filesystem::path(part.ctx().name).parent_path() / file).string();
-        const std::string unit = s.text("unit", "m");
-        std::string err;
-        const std::optional<Unit> u = parse_unit(unit, &err);
-        if (!u || !(u->dimension == dim::length))
-            s.fail("unit", "'" + unit + "' is not a length unit" + (err.empty() ? "" : " (" + err + ")"),
-                   "expected the file's length unit, one of " + known_units_for(dim::length));
-        g.mesh_unit = u->scale;
-        g.mesh_unit_name = unit;
+        g.mesh_file = data_file(s, "file");
+        read_length_unit(s, "unit", g.mesh_unit, g.mesh_unit_name);
         if (s.has("pid"))
         {
             const YAML::Node pn = s.node("pid");
