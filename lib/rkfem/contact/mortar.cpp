@@ -334,7 +334,6 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                          ks[a] = 0.0;
                      const Quad& qs = slave.segments[s];
                      const Vec3 xs[4] = {nodes.x(qs[0]), nodes.x(qs[1]), nodes.x(qs[2]), nodes.x(qs[3])};
-                     const Vec3 n_s = (xs[2] - xs[0]).cross(xs[3] - xs[1]);
                      real_t mu_s[4];
                      for (int a = 0; a < 4; ++a)
                          mu_s[a] = nodes.mass(qs[a]) / node_area_[is][static_cast<std::size_t>(corner_slot_[is][s4 + a])];
@@ -355,6 +354,10 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                          return; // a collapsed slave segment takes no load
                      }
                      const Vec3& n = frame.n;
+                     // the slave corners' greatest height over its centre plane (the gap bound below)
+                     real_t s_hi = -1e300;
+                     for (int a = 0; a < 4; ++a)
+                         s_hi = std::max(s_hi, (xs[a] - frame.c).dot(n));
                      for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
                      {
                          Vec3* fm = &pass.f_master[4 * static_cast<std::size_t>(c)];
@@ -372,21 +375,15 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                          const Vec3 hi_m = xm[0].cwiseMax(xm[1]).cwiseMax(xm[2].cwiseMax(xm[3]));
                          if ((lo_s.array() > hi_m.array() + limit).any() || (hi_s.array() < lo_m.array() - limit).any())
                              continue;
-                         if (!((xm[2] - xm[0]).cross(xm[3] - xm[1]).dot(n_s) < 0.0))
+                         if (!((xm[2] - xm[0]).cross(xm[3] - xm[1]).dot(n) < 0.0))
                              continue; // not facing
                          // the gap anywhere between them is at least the master corners' least
                          // height over the slave's centre plane less the slave corners' greatest
-                         {
-                             const Vec3 u = n_s.normalized(), cs = 0.25 * (xs[0] + xs[1] + xs[2] + xs[3]);
-                             real_t m_lo = 1e300, s_hi = -1e300;
-                             for (int a = 0; a < 4; ++a)
-                             {
-                                 m_lo = std::min(m_lo, (xm[a] - cs).dot(u));
-                                 s_hi = std::max(s_hi, (xs[a] - cs).dot(u));
-                             }
-                             if (m_lo - s_hi >= p_.thickness)
-                                 continue; // apart everywhere
-                         }
+                         real_t m_lo = 1e300;
+                         for (int a = 0; a < 4; ++a)
+                             m_lo = std::min(m_lo, (xm[a] - frame.c).dot(n));
+                         if (m_lo - s_hi >= p_.thickness)
+                             continue; // apart everywhere
                          const int np = overlap_points(frame, xm, pts);
                          if (np == 0)
                              continue;
