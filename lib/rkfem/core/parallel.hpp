@@ -32,46 +32,9 @@ template <class F> inline real_t parallel_reduce_min(const char* /*label*/, inde
     return result;
 }
 
-/// Sum of f(i) over [0, n), reproducible for a given thread count only through a fixed-chunk
-/// two-level sum: chunks of 4096 are summed serially, then chunk sums in order.
-template <class F> inline real_t parallel_reduce_sum(const char* /*label*/, index_t n, F&& f)
-{
-    constexpr index_t chunk = 4096;
-    const index_t n_chunks = (n + chunk - 1) / chunk;
-    real_t total = 0.0;
-    if (n_chunks <= 1)
-    {
-        for (index_t i = 0; i < n; ++i)
-            total += f(i);
-        return total;
-    }
-    // Small stack buffer for typical sizes; chunk sums are combined in index order so the
-    // result does not depend on the number of threads.
-    constexpr index_t max_stack = 1024;
-    real_t stack_sums[max_stack];
-    real_t* sums = stack_sums;
-    std::unique_ptr<real_t[]> heap;
-    if (n_chunks > max_stack)
-    {
-        heap.reset(new real_t[n_chunks]);
-        sums = heap.get();
-    }
-#pragma omp parallel for schedule(static)
-    for (index_t c = 0; c < n_chunks; ++c)
-    {
-        real_t s = 0.0;
-        const index_t end = std::min(n, (c + 1) * chunk);
-        for (index_t i = c * chunk; i < end; ++i)
-            s += f(i);
-        sums[c] = s;
-    }
-    for (index_t c = 0; c < n_chunks; ++c)
-        total += sums[c];
-    return total;
-}
-
-/// K sums of f(i, out) over [0, n) at once (f adds its K terms into out), with
-/// parallel_reduce_sum's fixed chunks: reproducible for a given thread count, one pass over the data.
+/// K sums of f(i, out) over [0, n) at once (f adds its K terms into out), reproducible for a
+/// given thread count only through a fixed-chunk two-level sum: chunks of 4096 are summed
+/// serially, then chunk sums in order; one pass over the data.
 template <int K, class F> inline std::array<real_t, K> parallel_reduce_sums(const char* /*label*/, index_t n, F&& f)
 {
     constexpr index_t chunk = 4096;
@@ -106,6 +69,13 @@ template <int K, class F> inline std::array<real_t, K> parallel_reduce_sums(cons
         for (int k = 0; k < K; ++k)
             total[k] += sums[c][k];
     return total;
+}
+
+/// Sum of f(i) over [0, n), reproducible for a given thread count only through a fixed-chunk
+/// two-level sum: chunks of 4096 are summed serially, then chunk sums in order.
+template <class F> inline real_t parallel_reduce_sum(const char* label, index_t n, F&& f)
+{
+    return parallel_reduce_sums<1>(label, n, [&](index_t i, std::array<real_t, 1>& out) { out[0] += f(i); })[0];
 }
 
 inline int max_threads() { return omp_get_max_threads(); }

@@ -162,8 +162,7 @@ class Model final : public ExplicitOperator
     /// the sum runs over the generalized forces of the constrained particles, whose resultant is
     /// the physical one when no other condition's particles share their kernels.
     Vec3 reaction(index_t condition) const;
-    /// Every condition's reaction in one pass over the constrained dofs (the same sums, in the
-    /// same order, as reaction()).
+    /// Every condition's reaction in one pass over the constrained dofs.
     void reactions(std::vector<Vec3>& out) const;
 
     /// Per-part sums (LS-DYNA's MATSUM): mass, momentum and kinetic energy of the part's nodes
@@ -308,8 +307,9 @@ class Model final : public ExplicitOperator
         real_t internal = 0, hourglass = 0, bulk_viscosity = 0;
     };
     std::vector<PartEnergy> part_energy_, part_pending_; ///< per part: committed, this evaluation's
-    /// per part, at the last update_energies: mass, momentum x y z, kinetic energy
-    std::vector<std::array<real_t, 5>> part_motion_;
+    /// A part's kinetic energy, sum of m |a|^2, mass and momentum x y z, in one pass over its nodes.
+    std::array<real_t, 6> part_motion(index_t part) const;
+    std::vector<std::array<real_t, 6>> part_motion_; ///< per part, at the last update_energies
     std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;
     std::vector<std::pair<const LoadSpec*, const std::vector<Quad>*>> pressure_loads_;
     /// Per pressure load: its facets on cloud parts, Psi_I and grad Psi_I at each (CSR, reference

@@ -177,68 +177,51 @@ void Model::commit()
 Model::PartSummary Model::part_summary(index_t part) const
 {
     PartSummary s;
-    const PartInfo& pi = parts[part];
     s.internal = part_energy_[part].internal;
     s.hourglass = part_energy_[part].hourglass;
     s.bulk_viscosity = part_energy_[part].bulk_viscosity;
-    // the last energy update's sums (update_energies: a history row per step costs no pass);
-    // before any, a pass of its own
-    std::array<real_t, 5> sum{};
-    if (static_cast<std::size_t>(part) < part_motion_.size())
-        sum = part_motion_[static_cast<std::size_t>(part)];
-    else
-        sum = parallel_reduce_sums<5>("rkfem::part_summary", pi.node_end - pi.node_begin,
-                                      [&](index_t k, std::array<real_t, 5>& out)
-                                      {
-                                          const index_t i = pi.node_begin + k;
-                                          const std::size_t j = 3 * static_cast<std::size_t>(i);
-                                          const real_t m = nodes.mass[i];
-                                          const real_t vx = nodes.v[j], vy = nodes.v[j + 1], vz = nodes.v[j + 2];
-                                          out[0] += m;
-                                          out[1] += m * vx;
-                                          out[2] += m * vy;
-                                          out[3] += m * vz;
-                                          out[4] += 0.5 * m * (vx * vx + vy * vy + vz * vz);
-                                      });
-    s.mass = sum[0];
-    s.momentum = Vec3(sum[1], sum[2], sum[3]);
-    s.kinetic = sum[4];
+    // the last energy update's sums (a history row per step costs no pass); before any, a pass
+    const std::array<real_t, 6> sum = static_cast<std::size_t>(part) < part_motion_.size()
+                                          ? part_motion_[static_cast<std::size_t>(part)]
+                                          : part_motion(part);
+    s.kinetic = sum[0];
+    s.mass = sum[2];
+    s.momentum = Vec3(sum[3], sum[4], sum[5]);
     return s;
+}
+
+std::array<real_t, 6> Model::part_motion(index_t part) const
+{
+    const index_t b = parts[static_cast<std::size_t>(part)].node_begin;
+    return parallel_reduce_sums<6>("rkfem::part_motion", parts[static_cast<std::size_t>(part)].node_end - b,
+                                   [&](index_t k, std::array<real_t, 6>& out)
+                                   {
+                                       const index_t i = b + k;
+                                       const std::size_t j = 3 * static_cast<std::size_t>(i);
+                                       const real_t m = nodes.mass[i];
+                                       const real_t vx = nodes.v[j], vy = nodes.v[j + 1], vz = nodes.v[j + 2];
+                                       out[0] += 0.5 * m * (vx * vx + vy * vy + vz * vz);
+                                       out[1] += m * (nodes.a[j] * nodes.a[j] + nodes.a[j + 1] * nodes.a[j + 1] +
+                                                      nodes.a[j + 2] * nodes.a[j + 2]);
+                                       out[2] += m;
+                                       out[3] += m * vx;
+                                       out[4] += m * vy;
+                                       out[5] += m * vz;
+                                   });
 }
 
 void Model::update_energies(const real_t* u_prev, real_t dt)
 {
-    // One pass over the nodes, part by part (parts hold contiguous node ranges that cover the
-    // nodes): kinetic energy, the leapfrog correction's sum of m |a|^2, and each part's mass and
-    // momentum, which history rows then read without a pass of their own (part_summary).
+    // One pass over the nodes, part by part (build() gives each part a contiguous node range, and
+    // together they are the nodes): kinetic energy, the leapfrog correction's sum of m |a|^2, and
+    // each part's mass and momentum, which history rows then read (part_summary).
     part_motion_.resize(parts.size());
     real_t kinetic = 0.0, m_a2 = 0.0;
-    index_t covered = 0;
-    for (const PartInfo& pi : parts)
-        covered += pi.node_end - pi.node_begin;
-    RKFEM_REQUIRE(covered == nodes.size(), "parts cover " << covered << " of " << nodes.size() << " nodes");
     for (std::size_t p = 0; p < parts.size(); ++p)
     {
-        const index_t b = parts[p].node_begin;
-        const std::array<real_t, 6> sum =
-            parallel_reduce_sums<6>("rkfem::kinetic", parts[p].node_end - b,
-                                    [&](index_t k, std::array<real_t, 6>& out)
-                                    {
-                                        const index_t i = b + k;
-                                        const std::size_t j = 3 * static_cast<std::size_t>(i);
-                                        const real_t m = nodes.mass[i];
-                                        const real_t vx = nodes.v[j], vy = nodes.v[j + 1], vz = nodes.v[j + 2];
-                                        out[0] += 0.5 * m * (vx * vx + vy * vy + vz * vz);
-                                        out[1] += m * (nodes.a[j] * nodes.a[j] + nodes.a[j + 1] * nodes.a[j + 1] +
-                                                       nodes.a[j + 2] * nodes.a[j + 2]);
-                                        out[2] += m;
-                                        out[3] += m * vx;
-                                        out[4] += m * vy;
-                                        out[5] += m * vz;
-                                    });
-        kinetic += sum[0];
-        m_a2 += sum[1];
-        part_motion_[p] = {sum[2], sum[3], sum[4], sum[5], sum[0]};
+        part_motion_[p] = part_motion(static_cast<index_t>(p));
+        kinetic += part_motion_[p][0];
+        m_a2 += part_motion_[p][1];
     }
     energy.kinetic = kinetic;
     energy.kinetic_correction = -0.125 * dt * dt * m_a2;
@@ -334,11 +317,9 @@ Vec3 Model::section_force(index_t section) const
 
 Vec3 Model::reaction(index_t condition) const
 {
-    Vec3 r = Vec3::Zero();
-    for (std::size_t k = 0; k < conditions.size() && k < reaction_prev_.size(); ++k)
-        if (conditions[k].source == condition)
-            r[conditions[k].dof % 3] += reaction_prev_[k];
-    return r;
+    std::vector<Vec3> all;
+    reactions(all);
+    return all.at(static_cast<std::size_t>(condition));
 }
 
 void Model::reactions(std::vector<Vec3>& out) const
