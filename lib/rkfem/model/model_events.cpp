@@ -143,13 +143,17 @@ bool Model::apply_events(real_t t, std::int64_t step)
             }
             continue;
         }
-        if (!ps.erosion.active() || part_nodal[b] >= 0)
+        // J2 failure on Gauss-point elements deletes the element once all its points have failed
+        // (LS-DYNA MAT_024 FAIL); the damage index of a J2 point is its failed flag, 0 or 1
+        const bool fails = ps.material.model == "j2" && ps.material.fail > 0.0 && part_fe_side[b] < 0;
+        if ((!ps.erosion.active() && !fails) || part_nodal[b] >= 0)
             continue;
         std::vector<char> keep(static_cast<std::size_t>(ne), 1);
         index_t removed = 0;
         for (index_t e = 0; e < ne; ++e)
         {
-            const bool erode = meets(ps.erosion, b, e);
+            const bool erode = (ps.erosion.active() && meets(ps.erosion, b, e)) ||
+                               (fails && element_history(b, e, History::Damage) >= 1.0);
             keep[e] = !erode;
             removed += erode;
         }
