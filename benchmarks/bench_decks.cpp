@@ -8,6 +8,7 @@
 #include <benchmark/benchmark.h>
 
 #include <fstream>
+#include <malloc.h>
 #include <omp.h>
 #include <string>
 #include <unistd.h>
@@ -38,9 +39,11 @@ void BM_SeedDeckStep(benchmark::State& state)
     const bool rk = state.range(1) == 1;
     const std::string part = deck == 0 ? "beam" : "cylinder";
     const double rss0 = resident_bytes();
+    const double heap0 = static_cast<double>(mallinfo2().uordblks) + static_cast<double>(mallinfo2().hblkhd);
     Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/" + deck_path(deck),
                                      {"parts." + part + ".formulation=" + (rk ? "rkpm" : "fem-1pt")}));
     const double bytes = resident_bytes() - rss0;
+    const double heap = static_cast<double>(mallinfo2().uordblks) + static_cast<double>(mallinfo2().hblkhd) - heap0;
     auto stepper = make_stepper(m.deck().time);
     StepReport r = stepper->initialize(m, 0.0);
     real_t t = 0.0;
@@ -59,6 +62,7 @@ void BM_SeedDeckStep(benchmark::State& state)
     state.counters["ns_per_item_step"] =
         benchmark::Counter(items * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
     state.counters["bytes_per_item"] = bytes / items;
+    state.counters["heap_bytes_per_item"] = heap / items;
     omp_set_num_threads(saved);
 }
 } // namespace

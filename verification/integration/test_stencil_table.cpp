@@ -230,6 +230,12 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         assemble_nodal_forces(blk, nodes);
         const std::vector<real_t> f_shared = nodes.f_int;
         const LineVector<real_t> s_shared = blk.stress_trial;
+        // the operators' own entries were released to the tables (a part of one formulation);
+        // written back, they give the same pass bit for bit
+        EXPECT_TRUE(blk.points_in_table && blk.points.nodes.empty() && blk.points.grad.empty()) << stab;
+        EXPECT_EQ(blk.stab_in_table, blk.n_stab() > 0) << stab;
+        blk.expand_operators();
+        ASSERT_EQ(blk.points.n_entries(), blk.points.offsets.back()) << stab;
         blk.point_stencils.clear();
         blk.stab_stencils.clear();
         const ForcePassResult b = nodal_internal_force(blk, nodes, dt);

@@ -48,6 +48,7 @@ struct Fixture
         nodes.resize(mesh.n_nodes());
         nodes.x0 = nodes.x = mesh.x;
         blk = build_nodal_block(ps, mesh, 0);
+        blk.expand_operators(); // the stiffness matrices below read the operators' entries
         add_nodal_mass(blk, nodes);
     }
 };
@@ -65,6 +66,7 @@ Fixture cloud_fixture(PartSpec ps, real_t jitter, int seed)
     fx.nodes.resize(fx.mesh.n_nodes());
     fx.nodes.x0 = fx.nodes.x = fx.mesh.x;
     fx.blk = build_cloud_block(ps, fx.mesh, 0);
+    fx.blk.expand_operators();
     add_nodal_mass(fx.blk, fx.nodes);
     return fx;
 }
@@ -143,6 +145,7 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValueOnClouds)
         fx.nodes.resize(fx.mesh.n_nodes());
         fx.nodes.x0 = fx.nodes.x = fx.mesh.x;
         fx.blk = build_cloud_block(pc, fx.mesh, 0);
+        fx.blk.expand_operators();
         add_nodal_mass(fx.blk, fx.nodes);
         const real_t a = critical_dt_factor(fx);
         std::printf("random cloud, seed %d: alpha_crit %.3f; default alpha %.3f\n", seed, a, fx.blk.dt_factor);

@@ -180,13 +180,16 @@ Model Model::build(const Deck& deck)
         blk.hourglass = ps.hourglass;
         blk.bulk_viscosity = ps.bulk_viscosity;
         blk.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
-        blk.plastic.configure(ps.material);
+        blk.mesh_only = is_nodal(ps.formulation) || ps.coupled();
+        if (!blk.mesh_only)
+            blk.plastic.configure(ps.material);
         blk.conn = mesh.conn;
         for (auto& c : blk.conn)
             c += offset;
         blk.node_begin = info.node_begin;
         blk.node_end = info.node_end;
         blk.initialize(m.nodes);
+        if (!blk.mesh_only)
         {
             // crack-band length per point: the element's V^(1/3)
             std::vector<real_t> h(static_cast<std::size_t>(blk.n_points()));

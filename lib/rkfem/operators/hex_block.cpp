@@ -571,8 +571,8 @@ void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t 
 
 void HexBlock::initialize(const NodeSet& nodes, Assembly assembly)
 {
-    const index_t ne = n_elements();
-    const std::size_t np = static_cast<std::size_t>(n_points());
+    const index_t ne = mesh_only ? 0 : n_elements();
+    const std::size_t np = mesh_only ? 0 : static_cast<std::size_t>(n_points());
     stress_stride = batch8_stride(np);
     stress.assign(6 * stress_stride, 0.0);
     stress_trial.assign(6 * stress_stride, 0.0);
@@ -632,7 +632,7 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
     // forces are never written out); others (2x2x2, an element order without locality: chunk
     // ranges adding up to over 3 nodes per node) through the element force buffer
     scatter.clear();
-    if (formulation == Formulation::Fem1pt && assembly != Assembly::Gather)
+    if (formulation == Formulation::Fem1pt && assembly != Assembly::Gather && !mesh_only)
     {
         scatter.node_begin = node_begin;
         scatter.node_end = node_end;
@@ -651,9 +651,9 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
         else
             scatter.clear();
     }
-    elem_force.assign(scatter.empty() ? 24 * static_cast<std::size_t>(ne) : 0, 0.0);
+    elem_force.assign(scatter.empty() && !mesh_only ? 24 * static_cast<std::size_t>(ne) : 0, 0.0);
     volume0.assign(static_cast<std::size_t>(ne), 0.0);
-    const index_t nb = formulation == Formulation::Fem1pt ? n_batches(ne) : ne;
+    const index_t nb = mesh_only ? 0 : formulation == Formulation::Fem1pt ? n_batches(ne) : ne;
     batch_sums.assign(4 * static_cast<std::size_t>(nb), 0.0);
     batch_idx.assign(2 * static_cast<std::size_t>(nb), -1);
     for (index_t e = 0; e < ne; ++e)
@@ -676,8 +676,9 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
     for (index_t s = 0; s < 8 * ne; ++s)
         node_elem_slots[fill[conn[s] - node_begin]++] = s;
     // batch-major gather indices: [64 b + 8 I + l] = 3 x (node I of element 8 b + l), full batches
-    gather_index.assign(64 * static_cast<std::size_t>(ne / W), 0);
-    for (index_t b = 0; b < ne / W; ++b)
+    const index_t n_gather = mesh_only ? 0 : ne / W;
+    gather_index.assign(64 * static_cast<std::size_t>(n_gather), 0);
+    for (index_t b = 0; b < n_gather; ++b)
         for (int I = 0; I < 8; ++I)
             for (int l = 0; l < W; ++l)
                 gather_index[64 * static_cast<std::size_t>(b) + 8 * I + l] = 3 * conn[8 * (W * b + l) + I];

@@ -29,6 +29,10 @@ struct HexBlock
     BulkViscositySpec bulk_viscosity;
     ElasticParams material;
     PlasticPoints plastic; ///< J2 / K&C history per point (inactive for elastic blocks)
+    /// The mesh of a part integrated elsewhere (a nodal block, a coupled part's FE side), kept
+    /// for output, probes and events: conn, reference volumes and the node -> element transpose,
+    /// no element state and no force tables.
+    bool mesh_only = false;
 
     std::vector<index_t> conn; ///< n_elements x 8, global node ids
     index_t node_begin = 0;    ///< this block's nodes are [node_begin, node_end)

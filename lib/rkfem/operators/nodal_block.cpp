@@ -31,8 +31,48 @@ void NodalBlock::initialize(Assembly assembly)
     use_huge_pages(stab_stress_trial);
 }
 
+namespace
+{
+/// The entries of `op` written back from `table` (point p: node = base + offset, its gradients).
+void expand_from(IntegrationOperator& op, const StencilTable& table)
+{
+    const index_t np = op.n_points();
+    op.nodes.resize(static_cast<std::size_t>(op.offsets[np]));
+    op.grad.resize(3 * op.nodes.size());
+    for (index_t p = 0; p < np; ++p)
+    {
+        const StencilView v = table.view(p);
+        const index_t k0 = op.offsets[p];
+        RKFEM_REQUIRE(op.offsets[p + 1] - k0 == v.size, "expand_operators: point " << p << " has " << op.offsets[p + 1] - k0
+                                                                                  << " entries, its stencil " << v.size);
+        for (index_t j = 0; j < v.size; ++j)
+        {
+            op.nodes[k0 + j] = v.base + v.offset[j];
+            for (int d = 0; d < 3; ++d)
+                op.grad[3 * static_cast<std::size_t>(k0 + j) + d] = v.grad[3 * j + d];
+        }
+    }
+}
+
+void release_entries(IntegrationOperator& op)
+{
+    std::vector<index_t>().swap(op.nodes);
+    std::vector<real_t>().swap(op.grad);
+}
+} // namespace
+
+void NodalBlock::expand_operators()
+{
+    if (points_in_table)
+        expand_from(points, point_stencils);
+    if (stab_in_table)
+        expand_from(stabilization, stab_stencils);
+    points_in_table = stab_in_table = false;
+}
+
 void NodalBlock::build_tables(Assembly assembly)
 {
+    expand_operators();
     const index_t np = n_points(), ns = n_stab();
     const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     const index_t nn = node_end - node_begin;
@@ -172,6 +212,16 @@ void NodalBlock::build_tables(Assembly assembly)
     stab_energy.assign(static_cast<std::size_t>(ns), 0.0);
 
     prefetch_stencils = point_stencils.empty() && points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
+    if (compact_operators && !point_stencils.empty())
+    {
+        release_entries(points);
+        points_in_table = true;
+    }
+    if (compact_operators && !stab_stencils.empty())
+    {
+        release_entries(stabilization);
+        stab_in_table = true;
+    }
     for (IntegrationOperator* op : {&points, &stabilization})
     {
         use_huge_pages(op->nodes);

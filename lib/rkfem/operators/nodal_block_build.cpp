@@ -141,6 +141,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     }
     // stable-step length and crack band: the shortest mesh edge at the node
     const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+    nb.compact_operators = true; // a part of one formulation: its operators never change in place
     finish_block(nb, offset, l0, l0);
     return nb;
 }
@@ -611,6 +612,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     std::vector<real_t> band(cells.volume.size());
     for (std::size_t i = 0; i < band.size(); ++i)
         band[i] = std::cbrt(cells.volume[i]); // crack band: the cell's size
+    nb.compact_operators = true;
     finish_block(nb, offset, reach, band);
     return nb;
 }

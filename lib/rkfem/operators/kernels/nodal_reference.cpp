@@ -9,28 +9,29 @@ namespace rkfem
 {
 namespace
 {
-/// F = 1 + sum u (x) g (or, with identity = false, sum v (x) g) over the entries of point p.
-Mat3 stencil_sum(const IntegrationOperator& op, index_t p, const std::vector<real_t>& field, bool identity)
+/// F = 1 + sum u (x) g (or, with identity = false, sum v (x) g) over the entries of a stencil
+/// (a point's nodes and gradients, integration/stencil_table.hpp: node = base + offset).
+Mat3 stencil_sum(const StencilView& st, const std::vector<real_t>& field, bool identity)
 {
     Mat3 M = Mat3::Zero();
     if (identity)
         M = Mat3::Identity();
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    for (index_t j = 0; j < st.size; ++j)
     {
-        const std::size_t n = 3 * static_cast<std::size_t>(op.nodes[k]);
-        M += Vec3(field[n], field[n + 1], field[n + 2]) * op.gradient(k).transpose();
+        const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[j]);
+        M += Vec3(field[n], field[n + 1], field[n + 2]) * Vec3(st.grad[3 * j], st.grad[3 * j + 1], st.grad[3 * j + 2]).transpose();
     }
     return M;
 }
 
-/// f_I += P g for every entry of point p (P = V0 J sigma F^-T).
-void scatter(const IntegrationOperator& op, index_t p, const Mat3& P, std::vector<real_t>& f)
+/// f_I += P g for every entry of a stencil (P = V0 J sigma F^-T).
+void scatter(const StencilView& st, const Mat3& P, std::vector<real_t>& f)
 {
-    for (index_t k = op.offsets[p]; k < op.offsets[p + 1]; ++k)
+    for (index_t j = 0; j < st.size; ++j)
     {
-        const Vec3 fi = P * op.gradient(k);
+        const Vec3 fi = P * Vec3(st.grad[3 * j], st.grad[3 * j + 1], st.grad[3 * j + 2]);
         for (int a = 0; a < 3; ++a)
-            f[3 * static_cast<std::size_t>(op.nodes[k]) + a] += fi[a];
+            f[3 * static_cast<std::size_t>(st.base + st.offset[j]) + a] += fi[a];
     }
 }
 
@@ -73,7 +74,7 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
     out.stress.resize(6 * static_cast<std::size_t>(np));
     for (index_t p = 0; p < np; ++p)
     {
-        const Mat3 F = stencil_sum(op, p, nodes.u, true), Fd = stencil_sum(op, p, nodes.v, false);
+        const Mat3 F = stencil_sum(blk.point_view(p), nodes.u, true), Fd = stencil_sum(blk.point_view(p), nodes.v, false);
         const real_t J = F.determinant();
         const Mat3 Fi = F.inverse();
         real_t d[6], w[3], s_old[6];
@@ -89,7 +90,7 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
         const real_t VJ = op.weight[p] * J;
         out.d_internal += dt * VJ * stress_power(s_old, s, d);
         out.d_bulk_viscosity += -dt * VJ * q * trd;
-        scatter(op, p, VJ * (tensor(s) - q * Mat3::Identity()) * Fi.transpose(), out.f);
+        scatter(blk.point_view(p), VJ * (tensor(s) - q * Mat3::Identity()) * Fi.transpose(), out.f);
         finv[p] = Fi;
         spin[p] = Vec3(w[0], w[1], w[2]);
         jac[p] = J;
@@ -104,7 +105,7 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
     {
         const index_t P = st.parent[s];
         real_t d[6], w_unused[3], s_old[6];
-        split(stencil_sum(st, s, nodes.v, false) * finv[P], d, w_unused);
+        split(stencil_sum(blk.stab_view(s), nodes.v, false) * finv[P], d, w_unused);
         const real_t w[3] = {spin[P][0], spin[P][1], spin[P][2]};
         real_t* sg = &out.stab_stress[6 * static_cast<std::size_t>(s)];
         for (int k = 0; k < 6; ++k)
@@ -112,7 +113,7 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
         elastic_update(smat, d, w, dt, sg);
         const real_t VJ = st.weight[s] * jac[P];
         out.d_stabilization += dt * VJ * stress_power(s_old, sg, d);
-        scatter(st, s, VJ * tensor(sg) * finv[P].transpose(), out.f);
+        scatter(blk.stab_view(s), VJ * tensor(sg) * finv[P].transpose(), out.f);
     }
     return out;
 }
