@@ -144,10 +144,17 @@ void RkShapeFunctions::evaluate_impl(const Vec3& x, bool gradients, RkSample& ou
 {
     out.clear();
     real_t s = 1e300;
+    const bool box = p_.support == SupportShape::Box;
     cells_.for_each_candidate(x,
                               [&](index_t j)
                               {
                                   const Vec3 dx = x - position(j);
+                                  // most candidates of the cell list lie outside the box: one
+                                  // comparison per axis, with a margin that leaves to kernel_3d
+                                  // every point it could find inside (the same samples, bit for bit)
+                                  const real_t reach = a_[j] * (1.0 + 1e-12);
+                                  if (box && (std::abs(dx[0]) > reach || std::abs(dx[1]) > reach || std::abs(dx[2]) > reach))
+                                      return;
                                   real_t phi = 0.0;
                                   Vec3 g;
                                   if (kernel_3d(p_.kernel, p_.support, dx, a_[j], phi, g) && phi > 0.0)

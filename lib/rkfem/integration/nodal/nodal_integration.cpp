@@ -13,19 +13,32 @@ namespace
 {
 using Entries = std::vector<std::pair<index_t, Vec3>>;
 
-/// Sorts by node and merges duplicates; scales by `scale`.
+/// Merges duplicate nodes (each node's contributions summed in the order they come) and sorts
+/// by node; scales by `scale`. A per-thread node -> slot table does the merging in one pass, so
+/// only the distinct nodes are sorted (a node's raw list holds tens of contributions per node:
+/// every facet point's whole support); the sums are those of a stable sort and a sweep, bit for bit.
 void merge(Entries& e, real_t scale)
 {
-    std::stable_sort(e.begin(), e.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    std::size_t w = 0;
-    for (std::size_t r = 0; r < e.size(); ++r)
+    thread_local std::vector<index_t> slot; // node -> its entry in `out`, -1: none yet
+    thread_local Entries out;
+    out.clear();
+    for (const auto& [n, g] : e)
     {
-        if (w > 0 && e[w - 1].first == e[r].first)
-            e[w - 1].second += e[r].second;
+        if (static_cast<std::size_t>(n) >= slot.size())
+            slot.resize(static_cast<std::size_t>(n) + 1, -1);
+        index_t& k = slot[static_cast<std::size_t>(n)];
+        if (k < 0)
+        {
+            k = static_cast<index_t>(out.size());
+            out.emplace_back(n, g);
+        }
         else
-            e[w++] = e[r];
+            out[static_cast<std::size_t>(k)].second += g;
     }
-    e.resize(w);
+    for (const auto& [n, g] : out)
+        slot[static_cast<std::size_t>(n)] = -1;
+    std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    e.assign(out.begin(), out.end());
     for (auto& [n, g] : e)
         g *= scale;
 }
