@@ -79,4 +79,6 @@ template <class F> inline real_t parallel_reduce_sum(const char* label, index_t 
 }
 
 inline int max_threads() { return omp_get_max_threads(); }
+/// The team size of the parallel loops that follow (results do not depend on it).
+inline void set_threads(int n) { omp_set_num_threads(n); }
 } // namespace rkfem

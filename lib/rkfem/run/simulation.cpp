@@ -4,12 +4,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <limits>
 #include <map>
 #include <sstream>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "rkfem/core/error.hpp"
@@ -24,6 +26,17 @@
 
 namespace rkfem
 {
+namespace
+{
+/// The process's involuntary context switches so far (all threads): how often it lost a core.
+long involuntary_switches()
+{
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_nivcsw;
+}
+} // namespace
+
 namespace
 {
 /// PREFIX + SET per entry ("PREFIX SET_2" for the second entry on one set).
@@ -349,6 +362,16 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             throw Error("cannot rename " + fresh + " to " + checkpoint_path(opt.out_dir) + ": " + ec.message());
     };
     bool in_step = false; // a step is under way: a failure in it leaves t and step at the last good one
+    // the team size per step (run/thread_governor.hpp); the OpenMP default again after the loop
+    const char* adapt_env = std::getenv("RKFEM_ADAPTIVE_THREADS");
+    const bool adapt = opt.adaptive_threads && !(adapt_env && std::string(adapt_env) == "0");
+    const int team = max_threads();
+    ThreadGovernor governor(adapt ? team : 1, opt.thread_governor);
+    struct TeamRestore
+    {
+        int n;
+        ~TeamRestore() { set_threads(n); }
+    } team_restore{team};
     try
     {
         StepReport rep;
@@ -417,7 +440,14 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                                        std::to_string(t) + " s, step " + std::to_string(step));
             ++step;
             in_step = true;
+            if (governor.active())
+                set_threads(governor.threads());
+            const auto step_start = std::chrono::steady_clock::now();
+            const long preempted_before = governor.active() ? involuntary_switches() : 0;
             rep = stepper->step(model, t, dt, step);
+            if (governor.active())
+                governor.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start).count(),
+                                static_cast<double>(involuntary_switches() - preempted_before));
             in_step = false;
             t = rep.t;
             dt_last = dt;
@@ -502,6 +532,9 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             --step; // the failed step is not counted: steps and end_time are the last good step's
     }
     progress.finish();
+    set_threads(team);
+    sum.thread_switches = governor.switches();
+    sum.steps_on_one_thread = governor.steps_on_one_thread();
     sum.steps = step;
     sum.end_time = t;
     sum.wall_seconds = elapsed();

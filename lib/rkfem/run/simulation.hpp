@@ -8,6 +8,7 @@
 
 #include "rkfem/analysis/impact.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/run/thread_governor.hpp"
 
 namespace rkfem
 {
@@ -34,6 +35,11 @@ struct RunOptions
     /// its state (Model::load_state); the loop, the output cursors, results.h5 and the history
     /// go on from where it was written.
     const StateArchive* resume = nullptr;
+    /// Choose the team size between steps from the steps' wall times (run/thread_governor.hpp):
+    /// on a busy machine a run falls back to one thread; off (or environment
+    /// RKFEM_ADAPTIVE_THREADS=0): every step on the OpenMP default. Results are the same bits.
+    bool adaptive_threads = true;
+    ThreadGovernor::Options thread_governor;
 };
 
 /// The file of checkpoint k in a run's directory (0: the newest, checkpoint.h5).
@@ -59,6 +65,8 @@ struct RunSummary
     Energies energy;
     real_t max_balance_error = 0.0;
     int n_outputs = 0;
+    int thread_switches = 0;                ///< team-size changes the thread governor made
+    std::int64_t steps_on_one_thread = 0;   ///< steps run on one thread while more were allowed
     bool has_impact = false; ///< the deck has an impact key
     ImpactMeasures impact;   ///< at the end
     std::vector<std::string> history_columns;

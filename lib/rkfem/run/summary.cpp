@@ -88,6 +88,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"eroded_elements\": " << model.eroded_elements() << ",\n";
     o << "  \"converted_elements\": " << model.converted_elements() << ",\n";
     o << "  \"threads\": " << max_threads() << ",\n";
+    o << "  \"thread_switches\": " << s.thread_switches << ",\n";
+    o << "  \"steps_on_one_thread\": " << s.steps_on_one_thread << ",\n";
     o << "  \"steps\": " << s.steps << ",\n";
     o << "  \"end_time\": " << num(s.end_time) << ",\n";
     if (s.failed_time >= 0.0)

@@ -1,0 +1,113 @@
+#pragma once
+/// @file thread_governor.hpp
+/// Chooses the OpenMP team size of a run between steps from the steps' own wall times, so that a
+/// run on a busy machine is not slower than on one thread. On an idle 2-core machine a step on 2
+/// threads takes about 0.6 of one on 1; while another process holds a core, the static loops
+/// wait at every barrier for the thread that lost its core, and 2 threads took 1.9x as long as 1
+/// on the 100k-hex column deck.
+///
+/// The run steps in windows of `window` steps on one team size. On the largest size, a window
+/// whose steps were preempted (involuntary context switches of the process) `contention` times
+/// per step or more on average says another process wants the cores (an idle machine: about 0.5
+/// per step on the 100k column, a core held by another process: about 9), and then, at most every
+/// `probe_interval` steps, a window on one thread follows; on one thread a window on the largest
+/// size follows every `probe_interval` steps (is the machine free again?). The size whose
+/// median step time is lower is kept (the other must win by `margin` to take over). A probe that
+/// confirms the current size doubles the interval (up to `max_interval`), a switch resets it. On
+/// an idle machine nothing is probed. Results do not depend on the team size (every reduction sums fixed chunks in order,
+/// see core/parallel.hpp), so a switch changes no bits. The time source is the caller's: the
+/// logic is a pure function of the step times it is given.
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+namespace rkfem
+{
+class ThreadGovernor
+{
+  public:
+    struct Options
+    {
+        int window = 8;                   ///< steps per measurement window
+        std::int64_t probe_interval = 16; ///< steps between probes at first
+        std::int64_t max_interval = 4096; ///< the longest interval between probes
+        double margin = 0.05;             ///< the other size must be this much faster to take over
+        double contention = 2.0;          ///< preemptions per step that make the largest size probe
+    };
+
+    /// max_threads: the largest team size (OMP_NUM_THREADS or the cores); 1: the governor idles.
+    explicit ThreadGovernor(int max_threads) : ThreadGovernor(max_threads, Options{}) {}
+    ThreadGovernor(int max_threads, Options opt) : max_(std::max(1, max_threads)), current_(max_), opt_(opt)
+    {
+        interval_ = opt_.probe_interval;
+    }
+
+    bool active() const { return max_ > 1; }
+    /// The team size for the next step.
+    int threads() const { return probing_ ? other() : current_; }
+    /// The wall time of the step just run on threads(), and how often the process was preempted
+    /// during it (involuntary context switches).
+    void record(double seconds, double preemptions)
+    {
+        if (!active())
+            return;
+        ++steps_;
+        if (threads() == 1)
+            ++steps_on_one_;
+        std::vector<double>& w = probing_ ? probe_times_ : current_times_;
+        w.push_back(seconds);
+        if (!probing_)
+        {
+            preempted_.push_back(preemptions);
+            if (static_cast<int>(w.size()) > opt_.window)
+            {
+                w.erase(w.begin()); // the latest window on the current size
+                preempted_.erase(preempted_.begin());
+            }
+            double per_step = 0.0;
+            for (double p : preempted_)
+                per_step += p / static_cast<double>(preempted_.size());
+            const bool doubt = current_ == 1 || per_step >= opt_.contention;
+            if (++since_probe_ >= interval_ && static_cast<int>(w.size()) == opt_.window && doubt)
+            {
+                probing_ = true;
+                probe_times_.clear();
+            }
+            return;
+        }
+        if (static_cast<int>(w.size()) < opt_.window)
+            return;
+        // the probe's window is complete: keep the faster size
+        probing_ = false;
+        since_probe_ = 0;
+        if (median(probe_times_) < (1.0 - opt_.margin) * median(current_times_))
+        {
+            current_ = other();
+            current_times_ = probe_times_;
+            preempted_.clear();
+            interval_ = opt_.probe_interval;
+            ++switches_;
+        }
+        else
+            interval_ = std::min(2 * interval_, opt_.max_interval);
+    }
+    int switches() const { return switches_; }
+    std::int64_t steps_on_one_thread() const { return steps_on_one_; }
+    std::int64_t steps() const { return steps_; }
+
+  private:
+    int other() const { return current_ == max_ ? 1 : max_; }
+    static double median(std::vector<double> v)
+    {
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    }
+
+    int max_, current_;
+    Options opt_;
+    std::int64_t interval_ = 0, since_probe_ = 0, steps_ = 0, steps_on_one_ = 0;
+    bool probing_ = false;
+    int switches_ = 0;
+    std::vector<double> current_times_, probe_times_, preempted_;
+};
+} // namespace rkfem
