@@ -7,6 +7,7 @@
 // so set-up scratch that was freed does not count).
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <fstream>
 #include <malloc.h>
 #include <omp.h>
@@ -15,6 +16,7 @@
 
 #include "rkfem/config/deck.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/operators/nodal_force.hpp"
 #include "rkfem/time/stepper.hpp"
 
 using namespace rkfem;
@@ -65,7 +67,39 @@ void BM_SeedDeckStep(benchmark::State& state)
     state.counters["heap_bytes_per_item"] = heap / items;
     omp_set_num_threads(saved);
 }
+
+/// The force pass alone (nodal_internal_force and the assembly) on an irregular cloud: the
+/// particles of studies/decks/column_wave_cloud.yaml (a jittered lattice with Voronoi cells, SCNI
+/// + NSNI, a/h 1.51), whose stencils are not translates of each other, so none are shared.
+void BM_CloudForcePass(benchmark::State& state)
+{
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(static_cast<int>(state.range(0)));
+    Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_cloud.yaml"));
+    NodalBlock& blk = m.nodal_blocks.at(0);
+    NodeSet& nodes = m.nodes;
+    for (std::size_t i = 0; i < nodes.x0.size(); ++i)
+    {
+        nodes.v[i] = 1e-3 * std::sin(1e3 * nodes.x0[i] + static_cast<double>(i % 3));
+        nodes.u[i] = 1e-9 * std::cos(1e3 * nodes.x0[i] + static_cast<double>(i % 3));
+    }
+    for (auto _ : state)
+    {
+        benchmark::DoNotOptimize(nodal_internal_force(blk, nodes, 1e-8));
+        assemble_nodal_forces(blk, nodes);
+        benchmark::ClobberMemory();
+    }
+    state.counters["ns_per_particle_step"] =
+        benchmark::Counter(static_cast<double>(blk.n_points()) * 1e-9,
+                           benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.counters["entries"] = static_cast<double>(blk.points.offsets.back()) / blk.n_points();
+    state.counters["stab_entries"] = static_cast<double>(blk.stabilization.offsets.back()) / blk.n_points();
+    state.counters["shared"] = blk.point_stencils.empty() ? 0 : 1;
+    omp_set_num_threads(saved);
+}
 } // namespace
+
+BENCHMARK(BM_CloudForcePass)->ArgNames({"threads"})->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 // deck 0: P3 cantilever, 1: P1 cylinder (0.5 in); form 0: fem-1pt, 1: rkpm
 BENCHMARK(BM_SeedDeckStep)
