@@ -278,7 +278,7 @@ void op_linear_sum(realtype a, N_Vector x, realtype b, N_Vector y, N_Vector z)
     real_t *zu = zs->half[0].data(), *zv = zs->half[1].data();
     const index_t n = pool.half_length();
     constexpr index_t block = 2048;
-    const bool stream = stream_pays(n);
+    [[maybe_unused]] const bool stream = stream_pays(n); // read on AVX-512 builds only
     parallel_for(
         "rkfem::nv::linear_sum_difference", (n + block - 1) / block,
         [&](index_t blk)
