@@ -19,6 +19,7 @@
 #include <sstream>
 #include <string>
 #include <vector>
+#include <unistd.h>
 
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/analysis/material_point.hpp"
@@ -28,6 +29,7 @@
 #include "rkfem/core/units.hpp"
 #include "rkfem/io/checkpoint.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/setup_progress.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/run/check_report.hpp"
 #include "rkfem/run/simulation.hpp"
@@ -295,6 +297,21 @@ int main(int argc, char** argv)
         }
         else if (command == "run" && checkpoint_seconds > 0)
             deck_text = rkfem::read_deck_text(deck_path, "expected a deck file");
+        if (!quiet)
+        {
+            // set-up work that runs past 2 s says what it is doing and how far it is
+            const bool tty = isatty(STDERR_FILENO) != 0;
+            rkfem::setup_progress::install(
+                [tty](const std::string& line, bool last)
+                {
+                    if (tty)
+                        std::fprintf(stderr, "\rrkfem: %s\033[K%s", line.c_str(), last ? "\n" : "");
+                    else
+                        std::fprintf(stderr, "rkfem: %s\n", line.c_str());
+                    std::fflush(stderr);
+                },
+                2.0, tty ? 0.5 : 5.0);
+        }
         const std::string deck_name = command == "restart" ? checkpoint.text("run.deck_path") : deck_path;
         const rkfem::Deck deck = command == "restart" ? rkfem::parse_deck(deck_text, deck_name, overrides)
                                                       : rkfem::read_deck(deck_path, overrides);

@@ -10,6 +10,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
+#include "rkfem/core/setup_progress.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 
 namespace rkfem
@@ -121,12 +122,18 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
             scheme == NodalScheme::Scni && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0;
         const bool mscni = stabilized && !(ps.nodal.stabilization == "nsni" && rk);
         IntegrationOperator sd; // MSCNI's sub-cells, in the same pass as the SCNI points
-        if (mscni)
-            build_scni_sd(mesh, *shapes, nb.points, &sd);
-        else
-            nb.points = build_nodal(scheme, mesh, *shapes);
+        {
+            const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.scheme + " gradients",
+                                                 mesh.n_nodes());
+            if (mscni)
+                build_scni_sd(mesh, *shapes, nb.points, &sd);
+            else
+                nb.points = build_nodal(scheme, mesh, *shapes);
+        }
         if (stabilized)
         {
+            const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
+                                                 mscni ? 0 : nb.points.n_points());
             nb.stabilization = mscni ? build_mscni_stabilization(nb.points, sd)
                                      : build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh), ps.rk.drop_tolerance);
             nb.stabilization_triplets = ps.nodal.stabilization == "nsni" && rk;
@@ -545,6 +552,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     VoronoiCells cells;
     try
     {
+        const setup_progress::Phase progress("part '" + ps.name + "': Voronoi cells of " + std::to_string(n) + " particles", 0);
         cells = voronoi_cells(cloud.x, cloud_body(g, n));
     }
     catch (const Error& e)
@@ -589,11 +597,17 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         const RkShapes shapes(*rk, ps.rk.drop_tolerance);
         // SD-SCNI on a cloud: each Voronoi cell's pyramids (VoronoiCells::sub_cells, the sub-cells
         // MSCNI uses) are stress points of their own, owned by the cell's particle
-        nb.points = ps.nodal.scheme == "dni"       ? build_dni_cells(cells.volume, cloud.x, shapes)
-                    : ps.nodal.scheme == "sd-scni" ? build_sd_cells(cells, shapes)
-                                                   : build_scni_cells(cells, cloud.x, shapes);
+        {
+            const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.scheme + " gradients",
+                                                 ps.nodal.scheme == "scni" ? n : 0);
+            nb.points = ps.nodal.scheme == "dni"       ? build_dni_cells(cells.volume, cloud.x, shapes)
+                        : ps.nodal.scheme == "sd-scni" ? build_sd_cells(cells, shapes)
+                                                       : build_scni_cells(cells, cloud.x, shapes);
+        }
         if (ps.nodal.scheme == "scni" && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
         {
+            const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
+                                                 ps.nodal.stabilization == "nsni" ? nb.points.n_points() : 0);
             nb.stabilization = ps.nodal.stabilization == "nsni"
                                    ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume), ps.rk.drop_tolerance)
                                    : build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/setup_progress.hpp"
 
 namespace rkfem
 {
@@ -109,6 +110,7 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
                 entries[p].assign(scratch.begin(), scratch.end());
                 for (int d = 0; d < 3; ++d)
                     position[3 * p + d] = pos[d];
+                setup_progress::advance();
             }
             catch (...)
             {
@@ -393,6 +395,7 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
                 prune_rk_hessians(rk, x, drop_tolerance, nodes[p], hess[p]);
             nodes[p].shrink_to_fit();
             hess[p].shrink_to_fit();
+            setup_progress::advance();
         }
         catch (...)
         {
