@@ -32,6 +32,18 @@ template <class F> inline real_t parallel_reduce_min(const char* /*label*/, inde
     return result;
 }
 
+/// Runs f(i) for i in [0, n) as parallel_for does, where f also says whether item i is flagged
+/// (e.g. a value is not finite): true when any is. An OR reduction, which vectorizes beside the
+/// loop's own work (a floating-point sum would run as one dependency chain).
+template <class F> inline bool parallel_for_any(const char* /*label*/, index_t n, F&& f)
+{
+    int any = 0;
+#pragma omp parallel for schedule(static) reduction(| : any)
+    for (index_t i = 0; i < n; ++i)
+        any |= f(i) ? 1 : 0;
+    return any != 0;
+}
+
 /// K sums of f(i, out) over [0, n) at once (f adds its K terms into out), reproducible for a
 /// given thread count only through a fixed-chunk two-level sum: chunks of 4096 are summed
 /// serially, then chunk sums in order; one pass over the data.

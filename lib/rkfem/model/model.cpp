@@ -529,6 +529,7 @@ Model Model::build(const Deck& deck)
         m.cloud_face_loads_.push_back(std::move(cl));
     }
     m.collect_loaded_dofs();
+    m.plan_conditions();
     m.reaction_prev_.assign(m.conditions.size(), 0.0);
     m.part_energy_.assign(m.parts.size(), {});
     m.part_pending_.assign(m.parts.size(), {});

@@ -139,7 +139,8 @@ class Model final : public ExplicitOperator
     /// a = (f_ext + f_contact - f_int) / m - c v; zero on constrained dofs.
     void accelerations() override;
     /// Throws InstabilityError naming the first node (and its part), t and the step when a
-    /// displacement or acceleration is not finite.
+    /// displacement or acceleration is not finite: update_coordinates (or set_state) and
+    /// accelerations flag such values as they write x and a, and only then check scans.
     void check(real_t t, std::int64_t step) const override;
     /// Commits material trial state and books this step's energy increments.
     void commit() override;
@@ -301,6 +302,29 @@ class Model final : public ExplicitOperator
     std::vector<real_t> reaction_prev_;
     std::vector<real_t> reaction_inertia_; ///< per condition: m a_p of the last step
     std::vector<real_t> bc_v_prev_;
+    /// The conditions split for the per-step passes (plan_conditions). A `still` condition holds
+    /// a node of a mesh at rest (fixed, no RK coefficients): its velocity is 0, its displacement
+    /// never changes, so its reaction does no work and is read from the current forces when
+    /// asked for (reactions(); reaction_prev_ holds it only after an event). The others, `moving`,
+    /// book their work every step. still_dofs_ is ascending.
+    std::vector<index_t> still_conditions_, still_dofs_, moving_conditions_;
+    /// Per condition, in their order, what reactions() adds: its dof, its slot in the flat output
+    /// (3 source + component) and whether it is still (1), still on a loaded dof (2), or stored (0)
+    struct ReactionTerm
+    {
+        index_t dof = 0;
+        int slot = 0;
+        int still = 0;
+    };
+    std::vector<ReactionTerm> reaction_terms_;
+    /// The forces are those of the last energy update (not after a restore, until the next)
+    bool forces_current_ = false;
+    /// The last update_coordinates / set_state met a non-finite u; the last accelerations() a
+    /// non-finite a (check())
+    bool nonfinite_u_ = false, nonfinite_a_ = false;
+    void plan_conditions();
+    /// reaction_prev_ with the still conditions' reactions from the current forces.
+    void fill_still_reactions(std::vector<real_t>& reaction) const;
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;
     struct PartEnergy
     {

@@ -7,6 +7,7 @@
 #include "rkfem/model/model.hpp"
 
 #include <Eigen/SparseLU>
+#include <algorithm>
 #include <memory>
 
 #include "rkfem/core/error.hpp"
@@ -27,10 +28,47 @@ struct RkVelocityConstraint
 
 void Model::impose_velocity(real_t t, real_t dt, bool half_step) { impose_velocity(t, dt, half_step, nodes.v.data()); }
 
+void Model::plan_conditions()
+{
+    still_conditions_.clear();
+    still_dofs_.clear();
+    moving_conditions_.clear();
+    for (index_t k = 0; k < static_cast<index_t>(conditions.size()); ++k)
+    {
+        const DofCondition& c = conditions[k];
+        if (c.kind == BoundarySpec::Kind::Fixed && !kinematics.carries_coefficients(c.dof / 3))
+        {
+            still_conditions_.push_back(k);
+            still_dofs_.push_back(c.dof);
+        }
+        else
+            moving_conditions_.push_back(k);
+    }
+    std::sort(still_dofs_.begin(), still_dofs_.end());
+    reaction_terms_.assign(conditions.size(), ReactionTerm{});
+    for (std::size_t k = 0; k < conditions.size(); ++k)
+        reaction_terms_[k] = {conditions[k].dof, 3 * static_cast<int>(conditions[k].source) + conditions[k].dof % 3, 0};
+    for (const index_t k : still_conditions_)
+        reaction_terms_[k].still =
+            std::binary_search(loaded_dofs_.begin(), loaded_dofs_.end(), conditions[k].dof) ? 2 : 1;
+}
+
+void Model::fill_still_reactions(std::vector<real_t>& reaction) const
+{
+    for (const index_t k : still_conditions_)
+    {
+        const index_t j = conditions[k].dof;
+        reaction[k] = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
+    }
+}
+
 void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
 {
-    for (const auto& c : conditions)
+    for (const index_t j : still_dofs_)
+        vel[j] = 0.0;
+    for (const index_t k : moving_conditions_)
     {
+        const DofCondition& c = conditions[k];
         real_t v = 0.0;
         switch (c.kind)
         {

@@ -107,6 +107,7 @@ void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
     rk_constraints_.clear();
     build_rk_constraints();
     collect_loaded_dofs();
+    plan_conditions();
     plan_assembly();
 }
 

@@ -88,7 +88,10 @@ void Model::save_state(StateArchive& a) const
     a.put_value("energy", energy);
     a.put("part_energy", part_energy_);
     a.put("f_ext_prev", f_ext_prev_);
-    a.put("reaction_prev", reaction_prev_);
+    std::vector<real_t> reaction = reaction_prev_; // the still conditions' from the current forces
+    if (forces_current_)
+        fill_still_reactions(reaction);
+    a.put("reaction_prev", reaction);
     a.put("reaction_inertia", reaction_inertia_);
     a.put("bc_v_prev", bc_v_prev_);
     a.put_value("dt_critical", dt_critical_);
@@ -172,6 +175,7 @@ void Model::load_state(const StateArchive& a)
     a.get("part_energy", part_energy_);
     a.get("f_ext_prev", f_ext_prev_);
     a.get("reaction_prev", reaction_prev_);
+    forces_current_ = false; // the forces are not restored: reactions() reads reaction_prev_
     a.get("reaction_inertia", reaction_inertia_);
     a.get("bc_v_prev", bc_v_prev_);
     dt_critical_ = a.value<real_t>("dt_critical");

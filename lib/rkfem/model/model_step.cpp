@@ -15,19 +15,27 @@ namespace rkfem
 void Model::update_coordinates()
 {
     const index_t n3 = 3 * nodes.size();
-    parallel_for("rkfem::coordinates", n3, [&](index_t i) { nodes.x[i] = nodes.x0[i] + nodes.u[i]; });
+    // u - u is 0 for finite u and NaN otherwise: the pass flags a value that is not (check())
+    nonfinite_u_ = parallel_for_any("rkfem::coordinates", n3,
+                                    [&](index_t i)
+                                    {
+                                        const real_t u = nodes.u[i];
+                                        nodes.x[i] = nodes.x0[i] + u;
+                                        return !(u - u == 0.0);
+                                    });
 }
 
 void Model::set_state(const real_t* u, const real_t* v)
 {
     const index_t n3 = 3 * nodes.size();
-    parallel_for("rkfem::set_state", n3,
-                 [&](index_t i)
-                 {
-                     nodes.u[i] = u[i];
-                     nodes.v[i] = v[i];
-                     nodes.x[i] = nodes.x0[i] + u[i];
-                 });
+    nonfinite_u_ = parallel_for_any("rkfem::set_state", n3,
+                                    [&](index_t i)
+                                    {
+                                        nodes.u[i] = u[i];
+                                        nodes.v[i] = v[i];
+                                        nodes.x[i] = nodes.x0[i] + u[i];
+                                        return !(u[i] - u[i] == 0.0);
+                                    });
 }
 
 ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
@@ -132,25 +140,34 @@ void Model::accelerations()
 {
     const real_t c = deck_.time.mass_damping;
     const index_t n = nodes.size();
-    parallel_for("rkfem::accelerations", n,
-                 [&](index_t i)
-                 {
-                     const real_t inv_m = 1.0 / nodes.mass[i];
-                     for (int k = 0; k < 3; ++k)
-                     {
-                         const std::size_t j = 3 * static_cast<std::size_t>(i) + k;
-                         nodes.a[j] = (nodes.f_ext[j] - nodes.f_int[j]) * inv_m - c * nodes.v[j];
-                     }
-                 });
+    // a - a is 0 for finite a and NaN otherwise: the pass flags a value that is not (check())
+    nonfinite_a_ = parallel_for_any("rkfem::accelerations", n,
+                                    [&](index_t i)
+                                    {
+                                        const real_t inv_m = 1.0 / nodes.mass[i];
+                                        real_t flag = 0.0;
+                                        for (int k = 0; k < 3; ++k)
+                                        {
+                                            const std::size_t j = 3 * static_cast<std::size_t>(i) + k;
+                                            const real_t a = (nodes.f_ext[j] - nodes.f_int[j]) * inv_m - c * nodes.v[j];
+                                            nodes.a[j] = a;
+                                            flag += a - a;
+                                        }
+                                        return !(flag == 0.0);
+                                    });
     // contact forces: only on the nodes in contact this pass
     for (index_t i : contact.nodes())
     {
         const real_t inv_m = 1.0 / nodes.mass[i];
         for (int k = 0; k < 3; ++k)
-            nodes.a[3 * static_cast<std::size_t>(i) + k] += contact.f[3 * static_cast<std::size_t>(i) + k] * inv_m;
+        {
+            real_t& a = nodes.a[3 * static_cast<std::size_t>(i) + k];
+            a += contact.f[3 * static_cast<std::size_t>(i) + k] * inv_m;
+            nonfinite_a_ = nonfinite_a_ || !(a - a == 0.0);
+        }
     }
-    for (const auto& cnd : conditions)
-        nodes.a[cnd.dof] = 0.0;
+    for (const index_t j : constrained_dofs_)
+        nodes.a[j] = 0.0;
 }
 
 void Model::commit()
@@ -238,6 +255,7 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
         // m a_p (a prescribed acceleration needs a step)
         keep_f_ext();
         contact.commit();
+        forces_current_ = true;
         bc_v_prev_.resize(conditions.size());
         for (std::size_t k = 0; k < conditions.size(); ++k)
         {
@@ -255,8 +273,10 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
                                                     return 0.5 * (f_ext_prev_[q] + nodes.f_ext[j]) *
                                                            (nodes.u[j] - u_prev[j]);
                                                 });
-    // work of reactions at prescribed dofs: R = f_int - f_ext + m a_prescribed
-    for (std::size_t k = 0; k < conditions.size(); ++k)
+    // work of reactions at prescribed dofs: R = f_int - f_ext + m a_prescribed; still dofs
+    // (plan_conditions) do none, and their reactions are read from the forces when asked for
+    forces_current_ = true;
+    for (const index_t k : moving_conditions_)
     {
         const index_t j = conditions[k].dof;
         const real_t du = nodes.u[j] - u_prev[j];
@@ -281,17 +301,18 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
 
 void Model::check(real_t t, std::int64_t step) const
 {
+    // the passes that wrote x and a (update_coordinates or set_state, accelerations) flagged any
+    // value that is not finite; only then a scan finds the first such node
+    if (!nonfinite_u_ && !nonfinite_a_)
+        return;
     const index_t n3 = 3 * nodes.size();
     const real_t* u = nodes.u.data();
     const real_t* a = nodes.a.data();
-    // x - x is 0 for finite x and NaN otherwise: one vectorized sum finds whether any value is
-    // not finite; only then a scan finds the first such node
-    const real_t s = parallel_reduce_sum("rkfem::check_finite", n3, [&](index_t j) { return (u[j] - u[j]) + (a[j] - a[j]); });
-    if (s == 0.0)
-        return;
     index_t bad = 0;
     while (bad < n3 && std::isfinite(u[bad]) && std::isfinite(a[bad]))
         ++bad;
+    if (bad == n3)
+        return; // the state changed since (finite now)
     bad /= 3;
     std::ostringstream os;
     os << "non-finite acceleration or displacement at node " << bad << " (part '" << parts[nodes.part[bad]].name
@@ -324,9 +345,34 @@ Vec3 Model::reaction(index_t condition) const
 
 void Model::reactions(std::vector<Vec3>& out) const
 {
-    out.assign(deck_.boundary_conditions.size(), Vec3::Zero());
-    for (std::size_t k = 0; k < conditions.size() && k < reaction_prev_.size(); ++k)
-        if (const std::size_t b = static_cast<std::size_t>(conditions[k].source); b < out.size())
-            out[b][conditions[k].dof % 3] += reaction_prev_[k];
+    const std::size_t n_bc = deck_.boundary_conditions.size();
+    out.assign(n_bc, Vec3::Zero());
+    if (n_bc == 0 || reaction_prev_.size() != conditions.size() || reaction_terms_.size() != conditions.size())
+        return;
+    // in the conditions' order, the sums as they were when every reaction was stored. A still
+    // condition's reaction is f_int - f_ext - f_contact (its m a_p is 0); f_ext is zero off the
+    // loaded dofs, and the contact channel's forces off the nodes of its pass
+    const bool lazy = forces_current_;
+    const bool touched = !contact.nodes().empty();
+    const real_t* f_int = nodes.f_int.data();
+    const real_t* f_ext = nodes.f_ext.data();
+    const real_t* f_contact = contact.f.data();
+    real_t* sum = out.front().data(); // Vec3 is 3 packed doubles
+    static_assert(sizeof(Vec3) == 3 * sizeof(real_t));
+    for (std::size_t k = 0; k < reaction_terms_.size(); ++k)
+    {
+        const ReactionTerm& c = reaction_terms_[k];
+        real_t r = reaction_prev_[k];
+        if (lazy && c.still)
+        {
+            r = f_int[c.dof];
+            if (c.still == 2)
+                r -= f_ext[c.dof];
+            if (touched)
+                r -= f_contact[c.dof];
+        }
+        if (static_cast<std::size_t>(c.slot) < 3 * n_bc)
+            sum[c.slot] += r;
+    }
 }
 } // namespace rkfem
