@@ -184,8 +184,9 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
     const int n = 12;
     const real_t h = 0.01;
     const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(n * h), {n, n, n});
-    for (const char* stab : {"none", "mscni"})
+    for (const char* stab : {"none", "mscni", "nsni"})
     {
+        const bool nsni = std::string(stab) == "nsni";
         PartSpec ps;
         ps.formulation = Formulation::Rkpm;
         ps.material.model = "elastic";
@@ -213,9 +214,16 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         std::printf("%s: %d of %d full batches are uniform\n", stab, uniform, batches);
         ASSERT_GT(uniform, 0);
         ASSERT_LT(uniform, batches);
-        if (blk.n_stab() > 0)
+        if (blk.n_stab() > 0 && !nsni)
         {
             ASSERT_FALSE(blk.stab_stencils.empty());
+        }
+        // NSNI: the sub-points' stencils packed as triplets (node and six Hessian values per
+        // entry), their only copy in a part of one formulation
+        if (nsni)
+        {
+            ASSERT_FALSE(blk.stab_triplets.empty());
+            EXPECT_LT(blk.stab_triplets.n_triplets(), blk.n_points() / 4);
         }
         NodeSet nodes;
         nodes.resize(mesh.n_nodes());
@@ -233,11 +241,15 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         // the operators' own entries were released to the tables (a part of one formulation);
         // written back, they give the same pass bit for bit
         EXPECT_TRUE(blk.points_in_table && blk.points.nodes.empty() && blk.points.grad.empty()) << stab;
-        EXPECT_EQ(blk.stab_in_table, blk.n_stab() > 0) << stab;
+        EXPECT_EQ(blk.stab_in_table, blk.n_stab() > 0 && !nsni) << stab;
+        EXPECT_EQ(blk.stab_in_triplets, nsni) << stab;
+        EXPECT_TRUE(blk.stabilization.nodes.empty()) << stab; // released, or none
         blk.expand_operators();
         ASSERT_EQ(blk.points.n_entries(), blk.points.offsets.back()) << stab;
+        ASSERT_EQ(blk.stabilization.n_entries(), blk.stabilization.offsets.back()) << stab;
         blk.point_stencils.clear();
         blk.stab_stencils.clear();
+        blk.stab_triplets.clear(); // NSNI then reads the three sub-point stencils from the operator
         const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
         assemble_nodal_forces(blk, nodes);
         EXPECT_TRUE(s_shared == blk.stress_trial) << stab;
@@ -246,4 +258,48 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         EXPECT_EQ(a.d_hourglass, b.d_hourglass) << stab;
         EXPECT_EQ(a.dt_stable, b.dt_stable) << stab;
     }
+}
+
+// A jittered mesh shares no stencils: NSNI's sub-points are packed as triplets point by point
+// (node and the six distinct Hessian values per entry: 52 bytes for the 84 of three sub-point
+// entries), the only copy of them; the pass over the packed triplets equals, bit for bit, the
+// pass over the three sub-point stencils written back from them.
+TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
+{
+    const HexMesh mesh = distorted_box(8, 0.01, 0.3);
+    PartSpec ps;
+    ps.formulation = Formulation::Rkpm;
+    ps.material.model = "elastic";
+    ps.material.rho = 2400.0;
+    ps.material.E = 30e9;
+    ps.material.nu = 0.2;
+    ps.nodal.stabilization = "nsni";
+    NodalBlock blk = build_nodal_block(ps, mesh, 0);
+    ASSERT_TRUE(blk.point_stencils.empty());
+    ASSERT_TRUE(blk.stab_in_triplets);
+    EXPECT_EQ(blk.stab_triplets.n_triplets(), blk.n_points());
+    EXPECT_TRUE(blk.stabilization.nodes.empty() && blk.stabilization.grad.empty());
+    NodeSet nodes;
+    nodes.resize(mesh.n_nodes());
+    nodes.x0 = nodes.x = mesh.x;
+    for (std::size_t i = 0; i < mesh.x.size(); ++i)
+    {
+        nodes.v[i] = std::sin(300.0 * mesh.x[i] + static_cast<real_t>(i % 3));
+        nodes.u[i] = 1e-5 * std::cos(200.0 * mesh.x[i] + static_cast<real_t>(i % 5));
+    }
+    const real_t dt = 1e-7;
+    const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
+    assemble_nodal_forces(blk, nodes);
+    const std::vector<real_t> f_packed = nodes.f_int;
+    const std::vector<real_t> s_packed = blk.stab_stress_trial;
+    const index_t packed_entries = blk.stab_triplets.n_entries();
+    blk.expand_operators();
+    EXPECT_EQ(blk.stabilization.n_entries(), 3 * packed_entries);
+    blk.stab_triplets.clear();
+    const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
+    assemble_nodal_forces(blk, nodes);
+    EXPECT_EQ(f_packed, nodes.f_int);
+    EXPECT_EQ(s_packed, blk.stab_stress_trial);
+    EXPECT_EQ(a.d_hourglass, b.d_hourglass);
+    EXPECT_NE(a.d_hourglass, 0.0);
 }

@@ -1,6 +1,9 @@
 #include "rkfem/integration/stencil_table.hpp"
 
+#include "rkfem/core/error.hpp"
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <unordered_map>
@@ -92,5 +95,105 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
         std::copy(s.grad, s.grad + 3 * s.size, op.grad.begin() + 3 * static_cast<std::ptrdiff_t>(op.offsets[p]));
     }
     return t;
+}
+
+TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable& shared)
+{
+    TripletTable t;
+    const index_t ns = stab.n_points();
+    if (ns == 0 || ns % 3 != 0)
+        return t;
+    const index_t np = ns / 3;
+    // Row i of entry k's matrix is sub-point i's gradient. The operator's are symmetric bit for
+    // bit (RkShapeFunctions::hessians); shared stencils snapped each sub-point to its own class,
+    // which moves the lower triangle by up to the sharing's tolerance. The table keeps the upper
+    // triangle (the values the force pass reads); more asymmetry than that: no table.
+    auto symmetric = [](const real_t* g0, const real_t* g1, const real_t* g2, real_t tol)
+    { return std::abs(g0[1] - g1[0]) <= tol && std::abs(g0[2] - g2[0]) <= tol && std::abs(g1[2] - g2[1]) <= tol; };
+    auto add_triplet = [&](const StencilView (&v)[3], real_t relative) -> bool
+    {
+        real_t scale = 0.0;
+        for (int i = 0; i < 3; ++i)
+            for (index_t k = 0; k < 3 * v[i].size; ++k)
+                scale = std::max(scale, std::abs(v[i].grad[k]));
+        for (index_t k = 0; k < v[0].size; ++k)
+        {
+            const real_t *g0 = v[0].grad + 3 * k, *g1 = v[1].grad + 3 * k, *g2 = v[2].grad + 3 * k;
+            if (v[1].size != v[0].size || v[2].size != v[0].size || v[1].offset[k] != v[0].offset[k] ||
+                v[2].offset[k] != v[0].offset[k] || !symmetric(g0, g1, g2, relative * scale))
+                return false;
+            t.node_offset.push_back(v[0].offset[k]);
+            t.hess.insert(t.hess.end(), {g0[0], g0[1], g0[2], g1[1], g1[2], g2[2]});
+        }
+        t.offsets.push_back(t.n_entries());
+        return true;
+    };
+    t.point_triplet.resize(static_cast<std::size_t>(np));
+    t.point_base.resize(static_cast<std::size_t>(np));
+    if (shared.empty())
+    {
+        t.node_offset.reserve(static_cast<std::size_t>(stab.n_entries() / 3));
+        t.hess.reserve(2 * static_cast<std::size_t>(stab.n_entries()));
+        for (index_t p = 0; p < np; ++p)
+        {
+            const StencilView v[3] = {stencil_view(stab, 3 * p), stencil_view(stab, 3 * p + 1), stencil_view(stab, 3 * p + 2)};
+            if (!add_triplet(v, 0.0))
+                return TripletTable{};
+            t.point_triplet[static_cast<std::size_t>(p)] = p;
+            t.point_base[static_cast<std::size_t>(p)] = 0;
+        }
+        return t;
+    }
+    // one triplet stencil per distinct triple of shared stencils
+    const real_t relative = 10 * StencilSharing{}.relative_tolerance;
+    std::unordered_map<std::uint64_t, std::vector<index_t>> by_triple; // hash -> triplet stencils
+    std::vector<std::array<index_t, 3>> triple_of;                     // per triplet stencil
+    for (index_t p = 0; p < np; ++p)
+    {
+        const std::size_t s0 = 3 * static_cast<std::size_t>(p);
+        const std::array<index_t, 3> key = {shared.point_stencil[s0], shared.point_stencil[s0 + 1], shared.point_stencil[s0 + 2]};
+        const std::uint64_t h =
+            (static_cast<std::uint64_t>(key[0]) * 1000003u + static_cast<std::uint64_t>(key[1])) * 1000003u +
+            static_cast<std::uint64_t>(key[2]);
+        index_t found = -1;
+        for (const index_t c : by_triple[h])
+            if (triple_of[static_cast<std::size_t>(c)] == key)
+                found = c;
+        if (found < 0)
+        {
+            found = static_cast<index_t>(triple_of.size());
+            const StencilView v[3] = {shared.view(3 * p), shared.view(3 * p + 1), shared.view(3 * p + 2)};
+            if (!add_triplet(v, relative))
+                return TripletTable{};
+            triple_of.push_back(key);
+            by_triple[h].push_back(found);
+        }
+        t.point_triplet[static_cast<std::size_t>(p)] = found;
+        t.point_base[static_cast<std::size_t>(p)] = shared.point_base[s0];
+    }
+    return t;
+}
+
+void expand_triplets(IntegrationOperator& stab, const TripletTable& table)
+{
+    const index_t ns = stab.n_points();
+    stab.nodes.resize(static_cast<std::size_t>(stab.offsets[static_cast<std::size_t>(ns)]));
+    stab.grad.resize(3 * stab.nodes.size());
+    constexpr int row[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+    for (index_t s = 0; s < ns; ++s)
+    {
+        const TripletView v = table.view(s / 3);
+        const int i = static_cast<int>(s % 3);
+        const index_t k0 = stab.offsets[static_cast<std::size_t>(s)];
+        RKFEM_REQUIRE(stab.offsets[static_cast<std::size_t>(s) + 1] - k0 == v.size,
+                      "expand_triplets: sub-point " << s << " has " << stab.offsets[static_cast<std::size_t>(s) + 1] - k0
+                                                    << " entries, its triplet " << v.size);
+        for (index_t k = 0; k < v.size; ++k)
+        {
+            stab.nodes[static_cast<std::size_t>(k0 + k)] = v.base + v.offset[k];
+            for (int d = 0; d < 3; ++d)
+                stab.grad[3 * static_cast<std::size_t>(k0 + k) + d] = v.hess[6 * static_cast<std::size_t>(k) + row[i][d]];
+        }
+    }
 }
 } // namespace rkfem

@@ -77,6 +77,53 @@ struct StencilSharing
     int max_candidates = 16;
 };
 
+/// NSNI's three sub-points of a point in one stencil (NodalBlock::stabilization_triplets): they
+/// touch the same nodes in the same order, and entry k's three gradients are the rows of one
+/// symmetric matrix, g_ikj = H_k(i, j), so the entry stores its node and H_k's six distinct values
+/// (00, 01, 02, 11, 12, 22): 52 bytes where three sub-point stencils take 84.
+struct TripletView
+{
+    const index_t* offset = nullptr;
+    const real_t* hess = nullptr; ///< 6 per entry
+    index_t size = 0;
+    index_t base = 0;
+};
+
+struct TripletTable
+{
+    std::vector<index_t> point_triplet; ///< per point: its triplet stencil (empty table: none)
+    std::vector<index_t> point_base;    ///< per point: the node its offsets count from
+    std::vector<index_t> offsets{0};    ///< triplet stencil s: entries [offsets[s], offsets[s + 1])
+    std::vector<index_t> node_offset;   ///< per entry: node - base
+    std::vector<real_t> hess;           ///< 6 per entry [1/m]
+
+    bool empty() const { return point_triplet.empty(); }
+    index_t n_triplets() const { return static_cast<index_t>(offsets.size()) - 1; }
+    index_t n_entries() const { return static_cast<index_t>(node_offset.size()); }
+    void clear() { *this = TripletTable{}; }
+    TripletView view(index_t p) const
+    {
+        const index_t s = point_triplet[static_cast<std::size_t>(p)];
+        const index_t k0 = offsets[static_cast<std::size_t>(s)];
+        return {node_offset.data() + k0, hess.data() + 6 * static_cast<std::size_t>(k0),
+                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)]};
+    }
+};
+
+/// The triplet table of an NSNI operator (sub-points 3 p + i, i = 0..2, of point p, with one
+/// node list): one triplet stencil per distinct triple of `shared`'s stencils when that table
+/// holds them, otherwise one per point (base 0, offsets are the node ids). Each entry keeps the
+/// upper triangle of its matrix. The operator's own gradients are symmetric bit for bit; shared
+/// stencils, snapped one sub-point at a time, may differ from symmetry by the sharing's
+/// tolerance (10x is allowed). Empty when some entry is further from symmetric (then the force
+/// pass reads the sub-point stencils).
+TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable& shared);
+
+/// Writes the sub-point entries of `stab` from its triplet table: sub-point i of entry k gets
+/// row i of the entry's symmetric matrix. It snaps an operator to its table, as sharing does,
+/// and writes back the entries of a released one.
+void expand_triplets(IntegrationOperator& stab, const TripletTable& table);
+
 /// Finds the shared stencils of `op` and snaps its gradients to them (see the file comment).
 /// Returns an empty table, and leaves `op` as it was, when sharing does not pay
 /// (max_entry_fraction).

@@ -67,7 +67,9 @@ void NodalBlock::expand_operators()
         expand_from(points, point_stencils);
     if (stab_in_table)
         expand_from(stabilization, stab_stencils);
-    points_in_table = stab_in_table = false;
+    if (stab_in_triplets)
+        expand_triplets(stabilization, stab_triplets);
+    points_in_table = stab_in_table = stab_in_triplets = false;
 }
 
 void NodalBlock::build_tables(Assembly assembly)
@@ -217,7 +219,23 @@ void NodalBlock::build_tables(Assembly assembly)
         release_entries(points);
         points_in_table = true;
     }
-    if (compact_operators && !stab_stencils.empty())
+    // NSNI in the points' batches reads triplets (the same values, 52 bytes per entry for 84)
+    // (the triplets snap the operator, as shared stencils do: every reader sees one operator)
+    stab_triplets.clear();
+    if (stabilization_triplets && use_scatter)
+        stab_triplets = build_triplets(stabilization, stab_stencils);
+    if (!stab_triplets.empty())
+    {
+        stab_stencils.clear();
+        if (compact_operators)
+        {
+            release_entries(stabilization);
+            stab_in_triplets = true;
+        }
+        else
+            expand_triplets(stabilization, stab_triplets);
+    }
+    else if (compact_operators && !stab_stencils.empty())
     {
         release_entries(stabilization);
         stab_in_table = true;

@@ -18,6 +18,7 @@
 #include <memory>
 #include <vector>
 
+#include "rkfem/core/error.hpp"
 #include "rkfem/core/huge_pages.hpp"
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
@@ -65,9 +66,22 @@ struct NodalBlock
     /// stab_view, which take them from wherever they are.
     bool compact_operators = false;
     bool points_in_table = false, stab_in_table = false;
+    /// NSNI with the chunked scatter: the sub-points' entries as triplets (integration/
+    /// stencil_table.hpp, TripletTable: each point's three sub-points in one stencil of nodes and
+    /// six Hessian values per entry), which the force pass reads (nsni_batch); built by
+    /// build_tables() from the shared stencils or the operator. With compact_operators it is the
+    /// only copy (stab_in_triplets: the sub-point stencils are released too, 52 bytes per
+    /// entry where they took 84), and expand_operators() writes them back.
+    TripletTable stab_triplets;
+    bool stab_in_triplets = false;
     void expand_operators();
     StencilView point_view(index_t p) const { return stencil_view(points, point_stencils, p); }
-    StencilView stab_view(index_t s) const { return stencil_view(stabilization, stab_stencils, s); }
+    /// Sub-point s's entries (not while they are held as triplets only: expand_operators() first)
+    StencilView stab_view(index_t s) const
+    {
+        RKFEM_REQUIRE(!stab_in_triplets, "nodal block: the stabilization's entries are held as triplets; expand_operators() first");
+        return stencil_view(stabilization, stab_stencils, s);
+    }
     /// RK parts, as built: physical value at node I = sum over k in [interp_offsets[i],
     /// interp_offsets[i+1]) of interp_values[k] * coefficient[interp_nodes[k]] (local node i);
     /// empty for FE parts. Model moves these rows into its KinematicMap (and empties them here).

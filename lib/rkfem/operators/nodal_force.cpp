@@ -170,70 +170,120 @@ inline void scatter_point(const StencilView& st, const real_t P[9], real_t* buf,
 /// point L have the same nodes in the same order, and entry k's coefficients are the rows of
 /// one symmetric matrix, g_ikj = H_k(i, j) (RkShapeFunctions::hessians symmetrizes exactly), so
 /// one pass over the nodes forms G_i = sum_k v_k (x) g_ik for the three (G[i][a][j]) from the six
-/// sums A_ij = sum_k v_k H_k(i, j), i <= j. The plain twin is three gather_velocity_gradient calls.
-inline void gather_triplet(const StencilView st[3], const real_t* v, real_t G[3][3][3])
+/// sums A_ij = sum_k v_k H_k(i, j), i <= j. The entries come from the three sub-point stencils
+/// (SubPointTriplet) or from the packed triplet table (PackedTriplet, stencil_table.hpp), the
+/// same values in the same order. The plain twin is three gather_velocity_gradient calls.
+struct SubPointTriplet
 {
-#if defined(__AVX2__) && defined(__FMA__)
-    __m256d a00 = _mm256_setzero_pd(), a01 = a00, a02 = a00, a11 = a00, a12 = a00, a22 = a00;
-    for (index_t k = 0; k < st[0].size; ++k)
+    const StencilView* st; ///< the three sub-points' stencils
+    index_t size() const { return st[0].size; }
+    index_t node(index_t k) const { return st[0].base + st[0].offset[k]; }
+    /// H_k's six distinct values (00, 01, 02, 11, 12, 22)
+    void values(index_t k, const real_t* (&h)[6]) const
     {
-        const __m256d vv = _mm256_maskload_pd(v + 3 * static_cast<std::size_t>(st[0].base + st[0].offset[k]), lanes3);
         const real_t* h0 = st[0].grad + 3 * static_cast<std::size_t>(k);
         const real_t* h1 = st[1].grad + 3 * static_cast<std::size_t>(k);
         const real_t* h2 = st[2].grad + 3 * static_cast<std::size_t>(k);
-        a00 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h0), a00);
-        a01 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h0 + 1), a01);
-        a02 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h0 + 2), a02);
-        a11 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h1 + 1), a11);
-        a12 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h1 + 2), a12);
-        a22 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h2 + 2), a22);
+        h[0] = h0, h[1] = h0 + 1, h[2] = h0 + 2, h[3] = h1 + 1, h[4] = h1 + 2, h[5] = h2 + 2;
     }
+};
+struct PackedTriplet
+{
+    TripletView t;
+    index_t size() const { return t.size; }
+    index_t node(index_t k) const { return t.base + t.offset[k]; }
+    void values(index_t k, const real_t* (&h)[6]) const
+    {
+        const real_t* e = t.hess + 6 * static_cast<std::size_t>(k);
+        for (int q = 0; q < 6; ++q)
+            h[q] = e + q;
+    }
+};
+
+template <class Triplet> inline void gather_triplet(const Triplet& tr, const real_t* v, real_t G[3][3][3])
+{
     alignas(32) real_t c[6][4];
+#if defined(__AVX2__) && defined(__FMA__)
+    __m256d a00 = _mm256_setzero_pd(), a01 = a00, a02 = a00, a11 = a00, a12 = a00, a22 = a00;
+    for (index_t k = 0; k < tr.size(); ++k)
+    {
+        const __m256d vv = _mm256_maskload_pd(v + 3 * static_cast<std::size_t>(tr.node(k)), lanes3);
+        const real_t* h[6];
+        tr.values(k, h);
+        a00 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h[0]), a00);
+        a01 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h[1]), a01);
+        a02 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h[2]), a02);
+        a11 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h[3]), a11);
+        a12 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h[4]), a12);
+        a22 = _mm256_fmadd_pd(vv, _mm256_broadcast_sd(h[5]), a22);
+    }
     _mm256_store_pd(c[0], a00);
     _mm256_store_pd(c[1], a01);
     _mm256_store_pd(c[2], a02);
     _mm256_store_pd(c[3], a11);
     _mm256_store_pd(c[4], a12);
     _mm256_store_pd(c[5], a22);
+#else
+    for (int q = 0; q < 6; ++q)
+        for (int a = 0; a < 4; ++a)
+            c[q][a] = 0.0;
+    for (index_t k = 0; k < tr.size(); ++k)
+    {
+        const real_t* vk = v + 3 * static_cast<std::size_t>(tr.node(k));
+        const real_t* h[6];
+        tr.values(k, h);
+        for (int q = 0; q < 6; ++q)
+            for (int a = 0; a < 3; ++a)
+                c[q][a] += vk[a] * *h[q];
+    }
+#endif
     constexpr int sym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
     for (int i = 0; i < 3; ++i)
         for (int a = 0; a < 3; ++a)
             for (int j = 0; j < 3; ++j)
                 G[i][a][j] = c[sym[i][j]][a];
-#else
-    for (int i = 0; i < 3; ++i)
-        gather_velocity_gradient(st[i], v, G[i]);
-#endif
 }
 
 /// buf[4 (n - lo) + a] += sum_i sum_j (P_i)_aj H_k(i, j) over the shared entries of a triplet
 /// (each P_i by columns), as sum_{i <= j} Q_ij H_k(i, j) with Q_ii = P_i e_i, Q_ij = P_i e_j +
 /// P_j e_i; the plain twin is three scatter_point calls.
-inline void scatter_triplet(const StencilView st[3], const real_t P[3][9], real_t* buf, index_t lo)
+template <class Triplet> inline void scatter_triplet(const Triplet& tr, const real_t P[3][9], real_t* buf, index_t lo)
 {
 #if defined(__AVX2__) && defined(__FMA__)
     auto col = [&](int i, int j) { return _mm256_setr_pd(P[i][3 * j], P[i][3 * j + 1], P[i][3 * j + 2], 0.0); };
     const __m256d q00 = col(0, 0), q11 = col(1, 1), q22 = col(2, 2), q01 = _mm256_add_pd(col(0, 1), col(1, 0)),
                   q02 = _mm256_add_pd(col(0, 2), col(2, 0)), q12 = _mm256_add_pd(col(1, 2), col(2, 1));
-    real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(st[0].base - lo);
-    for (index_t k = 0; k < st[0].size; ++k)
+    for (index_t k = 0; k < tr.size(); ++k)
     {
-        real_t* f = b + 4 * static_cast<std::size_t>(st[0].offset[k]);
-        const real_t* h0 = st[0].grad + 3 * static_cast<std::size_t>(k);
-        const real_t* h1 = st[1].grad + 3 * static_cast<std::size_t>(k);
-        const real_t* h2 = st[2].grad + 3 * static_cast<std::size_t>(k);
+        real_t* f = buf + 4 * static_cast<std::ptrdiff_t>(tr.node(k) - lo);
+        const real_t* h[6];
+        tr.values(k, h);
         // two independent chains, joined at the end
-        __m256d x = _mm256_mul_pd(q00, _mm256_broadcast_sd(h0));
-        __m256d y = _mm256_mul_pd(q11, _mm256_broadcast_sd(h1 + 1));
-        x = _mm256_fmadd_pd(q01, _mm256_broadcast_sd(h0 + 1), x);
-        y = _mm256_fmadd_pd(q12, _mm256_broadcast_sd(h1 + 2), y);
-        x = _mm256_fmadd_pd(q02, _mm256_broadcast_sd(h0 + 2), x);
-        y = _mm256_fmadd_pd(q22, _mm256_broadcast_sd(h2 + 2), y);
+        __m256d x = _mm256_mul_pd(q00, _mm256_broadcast_sd(h[0]));
+        __m256d y = _mm256_mul_pd(q11, _mm256_broadcast_sd(h[3]));
+        x = _mm256_fmadd_pd(q01, _mm256_broadcast_sd(h[1]), x);
+        y = _mm256_fmadd_pd(q12, _mm256_broadcast_sd(h[4]), y);
+        x = _mm256_fmadd_pd(q02, _mm256_broadcast_sd(h[2]), x);
+        y = _mm256_fmadd_pd(q22, _mm256_broadcast_sd(h[5]), y);
         _mm256_storeu_pd(f, _mm256_add_pd(_mm256_loadu_pd(f), _mm256_add_pd(x, y)));
     }
 #else
-    for (int i = 0; i < 3; ++i)
-        scatter_point(st[i], P[i], buf, lo);
+    real_t q[6][3];
+    constexpr int pairs[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+    for (int r = 0; r < 6; ++r)
+    {
+        const int i = pairs[r][0], j = pairs[r][1];
+        for (int a = 0; a < 3; ++a)
+            q[r][a] = i == j ? P[i][3 * j + a] : P[i][3 * j + a] + P[j][3 * i + a];
+    }
+    for (index_t k = 0; k < tr.size(); ++k)
+    {
+        real_t* f = buf + 4 * static_cast<std::ptrdiff_t>(tr.node(k) - lo);
+        const real_t* h[6];
+        tr.values(k, h);
+        for (int a = 0; a < 3; ++a)
+            f[a] += (q[0][a] * *h[0] + q[1][a] * *h[1] + q[2][a] * *h[2]) + (q[3][a] * *h[3] + q[4][a] * *h[4] + q[5][a] * *h[5]);
+    }
 #endif
 }
 
@@ -361,14 +411,25 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     smat.lambda *= blk.stabilization_coefficient;
     smat.mu *= blk.stabilization_coefficient;
     alignas(64) real_t G[3][3][3][W];
+    // the packed triplets when built (build_tables), else the three sub-point stencils
+    const bool packed = !blk.stab_triplets.empty();
     StencilView sv[W][3];
+    TripletView tv[W];
     for (int l = 0; l < W; ++l)
     {
         const index_t t = p0 + (l < nl ? l : 0);
-        for (int i = 0; i < 3; ++i)
-            sv[l][i] = stencil_view(st, blk.stab_stencils, 3 * t + i);
         real_t g[3][3][3];
-        gather_triplet(sv[l], v, g);
+        if (packed)
+        {
+            tv[l] = blk.stab_triplets.view(t);
+            gather_triplet(PackedTriplet{tv[l]}, v, g);
+        }
+        else
+        {
+            for (int i = 0; i < 3; ++i)
+                sv[l][i] = stencil_view(st, blk.stab_stencils, 3 * t + i);
+            gather_triplet(SubPointTriplet{sv[l]}, v, g);
+        }
         for (int i = 0; i < 3; ++i)
             for (int a = 0; a < 3; ++a)
                 for (int j = 0; j < 3; ++j)
@@ -423,7 +484,10 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
         for (int i = 0; i < 3; ++i)
             for (int k = 0; k < 9; ++k)
                 Pl[i][k] = P[i][k][l];
-        scatter_triplet(sv[l], Pl, buf, lo);
+        if (packed)
+            scatter_triplet(PackedTriplet{tv[l]}, Pl, buf, lo);
+        else
+            scatter_triplet(SubPointTriplet{sv[l]}, Pl, buf, lo);
     }
 }
 
@@ -772,7 +836,7 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                                        stencil_view(st, blk.stab_stencils, 3 * t + 1),
                                        stencil_view(st, blk.stab_stencils, 3 * t + 2)};
             real_t G[3][3][3];
-            gather_triplet(sv, v, G);
+            gather_triplet(SubPointTriplet{sv}, v, G);
             for (int i = 0; i < 3; ++i)
                 sub_point(3 * t + i, G[i], P[i]);
         };

@@ -101,11 +101,30 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
     smat.lambda *= blk.stabilization_coefficient;
     smat.mu *= blk.stabilization_coefficient;
     out.stab_stress.resize(6 * static_cast<std::size_t>(ns));
+    // NSNI held as triplets (NodalBlock::stab_in_triplets): sub-point i's gradient at entry k is
+    // row i of the entry's symmetric matrix, written out here one sub-point at a time
+    std::vector<index_t> sub_offset;
+    std::vector<real_t> sub_grad;
+    auto stab_view = [&](index_t s) -> StencilView
+    {
+        if (!blk.stab_in_triplets)
+            return blk.stab_view(s);
+        const TripletView t = blk.stab_triplets.view(s / 3);
+        const int i = static_cast<int>(s % 3);
+        constexpr int row[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+        sub_offset.assign(t.offset, t.offset + t.size);
+        sub_grad.resize(3 * static_cast<std::size_t>(t.size));
+        for (index_t k = 0; k < t.size; ++k)
+            for (int d = 0; d < 3; ++d)
+                sub_grad[3 * static_cast<std::size_t>(k) + d] = t.hess[6 * static_cast<std::size_t>(k) + row[i][d]];
+        return {sub_offset.data(), sub_grad.data(), t.size, t.base};
+    };
     for (index_t s = 0; s < ns; ++s)
     {
         const index_t P = st.parent[s];
         real_t d[6], w_unused[3], s_old[6];
-        split(stencil_sum(blk.stab_view(s), nodes.v, false) * finv[P], d, w_unused);
+        const StencilView sv = stab_view(s);
+        split(stencil_sum(sv, nodes.v, false) * finv[P], d, w_unused);
         const real_t w[3] = {spin[P][0], spin[P][1], spin[P][2]};
         real_t* sg = &out.stab_stress[6 * static_cast<std::size_t>(s)];
         for (int k = 0; k < 6; ++k)
@@ -113,7 +132,7 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
         elastic_update(smat, d, w, dt, sg);
         const real_t VJ = st.weight[s] * jac[P];
         out.d_stabilization += dt * VJ * stress_power(s_old, sg, d);
-        scatter(blk.stab_view(s), VJ * tensor(sg) * finv[P].transpose(), out.f);
+        scatter(sv, VJ * tensor(sg) * finv[P].transpose(), out.f);
     }
     return out;
 }
