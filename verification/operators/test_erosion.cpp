@@ -16,6 +16,7 @@
 #include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/point_state.hpp"
 #include "rkfem/run/simulation.hpp"
+#include "rkfem/time/stepper.hpp"
 
 using namespace rkfem;
 
@@ -326,4 +327,45 @@ TEST(Restart, KccBarStartedAgainAfterEveryStepRunsAsTheUninterruptedOne)
     EXPECT_NEAR(restarted.kinetic / plain.kinetic, 1.0, 0.01);
     EXPECT_NEAR(restarted.internal / plain.internal, 1.0, 0.01);
     EXPECT_LT(restarted.balance_error(), 2e-3);
+}
+
+// Without observers a run computes the nodes' motion (kinetic energy, the parts' momentum) only
+// on the steps that read it (Model::defer_motion): balance checks, history rows, outputs, and
+// before an event changes the model. Its history, with elements eroding, is the bits of the run
+// that computes it every step (an observer), and a step leaves it for refresh_motion().
+TEST(Erosion, MotionComputedWhenReadGivesTheBitsOfEveryStep)
+{
+    auto run_deck = [](bool observe)
+    {
+        Model m = test::model_from(deck, {"time.history_interval=0.3us"});
+        for (index_t i = 0; i < m.nodes.size(); ++i)
+        {
+            const real_t z = m.nodes.x0[3 * i + 2];
+            m.nodes.v[3 * i + 2] = z < 0.01 - 1e-6 ? 150.0 : z > 0.01 + 1e-6 ? -150.0 : 0.0;
+        }
+        RunOptions opt;
+        opt.progress = false;
+        StepObserver none;
+        const RunSummary s = run_simulation(m, opt, observe ? StepObserver([](const Model&, real_t, real_t, std::int64_t) {}) : none);
+        EXPECT_EQ(s.status, "completed") << s.message;
+        EXPECT_GT(m.eroded_elements(), 0);
+        return s;
+    };
+    const RunSummary deferred = run_deck(false), every = run_deck(true);
+    ASSERT_GT(deferred.history.size(), 20 * deferred.history_columns.size());
+    EXPECT_TRUE(deferred.history == every.history);
+    EXPECT_EQ(deferred.energy.kinetic, every.energy.kinetic);
+    EXPECT_EQ(deferred.energy.kinetic_correction, every.energy.kinetic_correction);
+
+    Model m = test::model_from(deck);
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        m.nodes.v[3 * i + 2] = m.nodes.x0[3 * i + 2] < 0.01 ? 150.0 : -150.0;
+    auto stepper = make_stepper(m.deck().time);
+    const StepReport r = stepper->initialize(m, 0.0);
+    m.defer_motion(true);
+    stepper->step(m, 0.0, 0.5 * r.dt_stable, 1);
+    const real_t before = m.energy.kinetic_correction;
+    m.refresh_motion();
+    EXPECT_EQ(before, 0.0); // the start's (no step yet), until refreshed
+    EXPECT_LT(m.energy.kinetic_correction, 0.0);
 }

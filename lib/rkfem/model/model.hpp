@@ -148,6 +148,15 @@ class Model final : public ExplicitOperator
     /// given by u - u_prev (uses stored previous external and reaction forces) and the contact
     /// channel's work.
     void update_energies(const real_t* u_prev, real_t dt) override;
+    /// On: update_energies leaves the kinetic energy, its leapfrog correction and the parts'
+    /// mass and momentum (a pass over every node) to refresh_motion(), which the run calls when
+    /// something reads them (balance checks, history rows, outputs, checkpoints); with mass
+    /// damping they are computed every step. Events refresh them before they change the model.
+    /// Off (the default) they are computed every step.
+    void defer_motion(bool on) { defer_motion_ = on; }
+    /// Brings energy.kinetic, energy.kinetic_correction and part_summary()'s motion up to the last
+    /// update_energies (the same numbers it would have computed then).
+    void refresh_motion();
 
     /// True when the node's unknowns are RK coefficients (rkpm parts), not physical values.
     bool carries_coefficients(index_t node) const;
@@ -334,6 +343,9 @@ class Model final : public ExplicitOperator
     /// A part's kinetic energy, sum of m |a|^2, mass and momentum x y z, in one pass over its nodes.
     std::array<real_t, 6> part_motion(index_t part) const;
     std::vector<std::array<real_t, 6>> part_motion_; ///< per part, at the last update_energies
+    bool defer_motion_ = false, motion_stale_ = false;
+    real_t motion_dt_ = 0.0; ///< the step of a deferred update_energies
+    void compute_motion(real_t dt);
     std::vector<std::pair<const LoadSpec*, std::vector<index_t>>> nodal_loads_;
     std::vector<std::pair<const LoadSpec*, const std::vector<Quad>*>> pressure_loads_;
     /// Per pressure load: its facets on cloud parts, Psi_I and grad Psi_I at each (CSR, reference

@@ -124,6 +124,8 @@ bool Model::apply_events(real_t t, std::int64_t step)
                     convert[e] = 1;
                     any = true;
                 }
+            if (any)
+                refresh_motion(); // the motion of the step, before the model changes
             try
             {
                 if (any && convert_elements(b, convert) > 0)
@@ -159,6 +161,7 @@ bool Model::apply_events(real_t t, std::int64_t step)
         }
         if (removed == 0)
             continue;
+        refresh_motion(); // the motion of the step, before the model changes
         remove_elements(b, keep);
         eroded_elements_ += removed;
         changed = true;

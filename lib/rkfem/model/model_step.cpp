@@ -227,7 +227,7 @@ std::array<real_t, 6> Model::part_motion(index_t part) const
                                    });
 }
 
-void Model::update_energies(const real_t* u_prev, real_t dt)
+void Model::compute_motion(real_t dt)
 {
     // One pass over the nodes, part by part (build() gives each part a contiguous node range, and
     // together they are the nodes): kinetic energy, the leapfrog correction's sum of m |a|^2, and
@@ -242,6 +242,25 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
     }
     energy.kinetic = kinetic;
     energy.kinetic_correction = -0.125 * dt * dt * m_a2;
+    motion_stale_ = false;
+}
+
+void Model::refresh_motion()
+{
+    if (motion_stale_)
+        compute_motion(motion_dt_);
+}
+
+void Model::update_energies(const real_t* u_prev, real_t dt)
+{
+    // the nodes' motion now, or when read (defer_motion); mass damping books 2 c E_kin dt
+    if (dt > 0 && defer_motion_ && !(deck_.time.mass_damping > 0))
+    {
+        motion_stale_ = true;
+        motion_dt_ = dt;
+    }
+    else
+        compute_motion(dt);
     const index_t n_loaded = static_cast<index_t>(loaded_dofs_.size());
     auto keep_f_ext = [&]
     {
