@@ -206,8 +206,11 @@ void NodalBlock::build_tables(Assembly assembly)
 
     jacobian.assign(static_cast<std::size_t>(np), 1.0);
     point_tensor.assign(use_scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
-    finv.assign(9 * static_cast<std::size_t>(np), 0.0);
-    spin.assign(3 * static_cast<std::size_t>(np), 0.0);
+    // the parents' F^-1 and spin for the stabilization's own pass (NSNI with the chunked scatter
+    // runs in the points' batches and needs neither)
+    const bool own_stab_pass = ns > 0 && !(stabilization_triplets && use_scatter);
+    finv.assign(own_stab_pass ? 9 * static_cast<std::size_t>(np) : 0, 0.0);
+    spin.assign(own_stab_pass ? 3 * static_cast<std::size_t>(np) : 0, 0.0);
     const std::size_t nb = static_cast<std::size_t>((np + kPointLanes - 1) / kPointLanes);
     batch_sums.assign(3 * nb, 0.0);
     batch_idx.assign(2 * nb, -1);

@@ -134,8 +134,8 @@ struct NodalBlock
 
     // per-step scratch
     std::vector<real_t> point_tensor; ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
-    std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for stabilization
-    std::vector<real_t> spin;         ///< 3 x n_points: W of the point
+    std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for the stabilization's own pass (empty without one)
+    std::vector<real_t> spin;         ///< 3 x n_points: W of the point (the same)
     std::vector<real_t> batch_sums;  ///< per batch of stress points x 3: d_int, d_bv, dt_min
     std::vector<index_t> batch_idx;  ///< per batch x 2: the point of dt_min, the first bad point (-1: none)
     std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell
