@@ -19,6 +19,33 @@ using namespace rkfem::test;
 
 namespace
 {
+/// An elastic concrete-like RK part with the given stabilization.
+PartSpec elastic_rk_part(const char* stabilization)
+{
+    PartSpec ps;
+    ps.formulation = Formulation::Rkpm;
+    ps.material.model = "elastic";
+    ps.material.rho = 2400.0;
+    ps.material.E = 30e9;
+    ps.material.nu = 0.2;
+    ps.nodal.stabilization = stabilization;
+    return ps;
+}
+
+/// The mesh's nodes with a smooth, non-polynomial displacement and velocity.
+NodeSet wavy_motion(const HexMesh& mesh)
+{
+    NodeSet nodes;
+    nodes.resize(mesh.n_nodes());
+    nodes.x0 = nodes.x = mesh.x;
+    for (std::size_t i = 0; i < mesh.x.size(); ++i)
+    {
+        nodes.v[i] = std::sin(300.0 * mesh.x[i] + static_cast<real_t>(i % 3));
+        nodes.u[i] = 1e-5 * std::cos(200.0 * mesh.x[i] + static_cast<real_t>(i % 5));
+    }
+    return nodes;
+}
+
 /// max over nodes of |sum_p V_p g_I(p)| h / V outside the boundary layer of width `layer`: the
 /// integration constraint, whose boundary term vanishes for nodes whose functions do not reach
 /// the surface.
@@ -187,13 +214,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
     for (const char* stab : {"none", "mscni", "nsni"})
     {
         const bool nsni = std::string(stab) == "nsni";
-        PartSpec ps;
-        ps.formulation = Formulation::Rkpm;
-        ps.material.model = "elastic";
-        ps.material.rho = 2400.0;
-        ps.material.E = 30e9;
-        ps.material.nu = 0.2;
-        ps.nodal.stabilization = stab;
+        PartSpec ps = elastic_rk_part(stab);
         // the full stencils (125 entries): with the default drop tolerance MSCNI's sub-cell
         // stencils on this small box differ too much between boundary layers to be shared
         ps.rk.drop_tolerance = 0.0;
@@ -225,14 +246,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
             ASSERT_FALSE(blk.stab_triplets.empty());
             EXPECT_LT(blk.stab_triplets.n_triplets(), blk.n_points() / 4);
         }
-        NodeSet nodes;
-        nodes.resize(mesh.n_nodes());
-        nodes.x0 = nodes.x = mesh.x;
-        for (std::size_t i = 0; i < mesh.x.size(); ++i)
-        {
-            nodes.v[i] = std::sin(300.0 * mesh.x[i] + static_cast<real_t>(i % 3));
-            nodes.u[i] = 1e-5 * std::cos(200.0 * mesh.x[i] + static_cast<real_t>(i % 5));
-        }
+        NodeSet nodes = wavy_motion(mesh);
         const real_t dt = 1e-7;
         const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
         assemble_nodal_forces(blk, nodes);
@@ -267,26 +281,12 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
 TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
 {
     const HexMesh mesh = distorted_box(8, 0.01, 0.3);
-    PartSpec ps;
-    ps.formulation = Formulation::Rkpm;
-    ps.material.model = "elastic";
-    ps.material.rho = 2400.0;
-    ps.material.E = 30e9;
-    ps.material.nu = 0.2;
-    ps.nodal.stabilization = "nsni";
-    NodalBlock blk = build_nodal_block(ps, mesh, 0);
+    NodalBlock blk = build_nodal_block(elastic_rk_part("nsni"), mesh, 0);
     ASSERT_TRUE(blk.point_stencils.empty());
     ASSERT_TRUE(blk.stab_in_triplets);
     EXPECT_EQ(blk.stab_triplets.n_triplets(), blk.n_points());
     EXPECT_TRUE(blk.stabilization.nodes.empty() && blk.stabilization.grad.empty());
-    NodeSet nodes;
-    nodes.resize(mesh.n_nodes());
-    nodes.x0 = nodes.x = mesh.x;
-    for (std::size_t i = 0; i < mesh.x.size(); ++i)
-    {
-        nodes.v[i] = std::sin(300.0 * mesh.x[i] + static_cast<real_t>(i % 3));
-        nodes.u[i] = 1e-5 * std::cos(200.0 * mesh.x[i] + static_cast<real_t>(i % 5));
-    }
+    NodeSet nodes = wavy_motion(mesh);
     const real_t dt = 1e-7;
     const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
     assemble_nodal_forces(blk, nodes);
