@@ -241,7 +241,10 @@ TEST(NodalReference, FastPassEqualsThePlainOneToRoundOff)
                             a == Assembly::Scatter ? "scatter" : "gather ", c.force, c.stress, c.stab_stress, c.energy, c.dt);
                 EXPECT_LT(c.force, 1e-12);
                 EXPECT_LT(c.stress, 1e-12);
-                EXPECT_LT(c.stab_stress, 1e-12);
+                // round-off of sums over 50-200 entries (at most 4e-16 seen): NSNI's sub-points
+                // on shared stencils once differed from the plain pass by 3.2e-14, when their
+                // gradients were snapped one class at a time and lost their symmetry
+                EXPECT_LT(c.stab_stress, 1e-14);
                 EXPECT_LT(c.energy, 1e-12);
                 EXPECT_LT(c.dt, 1e-6);
             }

@@ -104,6 +104,18 @@ void NodalBlock::build_tables(Assembly assembly)
         point_stencils = rkfem::share_stencils(points);
         stab_stencils = rkfem::share_stencils(stabilization);
     }
+    // NSNI's triplets: per entry the six values the pass reads. They snap the operator, as
+    // shared stencils do (whose sub-points, snapped one class at a time, differ from symmetry by
+    // up to the sharing's tolerance), so that every reader, the transposes below included, sees
+    // one symmetric operator; they replace the sub-points' shared stencils.
+    stab_triplets.clear();
+    if (stabilization_triplets)
+        stab_triplets = build_triplets(stabilization, stab_stencils);
+    if (!stab_triplets.empty())
+    {
+        stab_stencils.clear();
+        expand_triplets(stabilization, stab_triplets);
+    }
 
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
     // the node range its entries touch
@@ -222,21 +234,14 @@ void NodalBlock::build_tables(Assembly assembly)
         release_entries(points);
         points_in_table = true;
     }
-    // NSNI in the points' batches reads triplets (the same values, 52 bytes per entry for 84)
-    // (the triplets snap the operator, as shared stencils do: every reader sees one operator)
-    stab_triplets.clear();
-    if (stabilization_triplets && use_scatter)
-        stab_triplets = build_triplets(stabilization, stab_stencils);
-    if (!stab_triplets.empty())
+    // NSNI in the points' batches reads the triplets (52 bytes per entry for 84); the gather
+    // assembly's own pass reads the (snapped) operator and its transposes
+    if (!use_scatter)
+        stab_triplets.clear();
+    if (compact_operators && !stab_triplets.empty())
     {
-        stab_stencils.clear();
-        if (compact_operators)
-        {
-            release_entries(stabilization);
-            stab_in_triplets = true;
-        }
-        else
-            expand_triplets(stabilization, stab_triplets);
+        release_entries(stabilization);
+        stab_in_triplets = true;
     }
     else if (compact_operators && !stab_stencils.empty())
     {
