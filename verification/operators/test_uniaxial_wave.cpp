@@ -328,6 +328,15 @@ boundary_conditions:
     opt.progress = false;
     const RunSummary s = run_simulation(m, opt, {});
     ASSERT_EQ(s.status, "completed") << s.message;
+    // rollers on every particle: the mixed transformation's right-hand side is 0 in x and y, so
+    // are the lateral coefficients, exactly (no collocation system is solved for them), and so
+    // is the physical lateral velocity at every particle
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        for (int k = 0; k < 2; ++k)
+        {
+            ASSERT_EQ(m.nodes.v[3 * i + k], 0.0) << "particle " << i;
+            ASSERT_EQ(m.physical(m.nodes.v, i)[k], 0.0) << "particle " << i;
+        }
     const real_t mean = bin_means(m, 15e-3, 80e-3, 1, ZZ)[0], lateral = bin_means(m, 15e-3, 80e-3, 1, XX)[0];
     const real_t ratio = nb.material.lambda / nb.material.plane_wave_modulus();
     std::printf("cloud: %d particles, plateau %.2f MPa (theory %.2f, error %.2e), lateral error %.2e\n",

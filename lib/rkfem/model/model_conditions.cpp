@@ -22,7 +22,11 @@ struct RkVelocityConstraint
     std::vector<index_t> condition;     ///< index into Model::conditions, per constrained node
     std::vector<index_t> node;          ///< global node per constrained node
     std::vector<index_t> slot;          ///< global node -> position in `node`, -1 if free (block range)
-    Eigen::SparseLU<SparseMatrix> lu;   ///< Lambda_bb
+    /// Every condition holds its particle fixed and no row reaches a free particle: the
+    /// right-hand side is 0 at every step, and so is the solution (no factor is kept). A column
+    /// with rollers on every particle (uniaxial strain) is one.
+    bool at_rest = false;
+    Eigen::SparseLU<SparseMatrix> lu;   ///< Lambda_bb (not factored when at_rest)
     Eigen::VectorXd rhs, x;
 };
 
@@ -96,6 +100,12 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
         const NodalBlock& nb = nodal_blocks[rc->block];
         const int k = rc->component;
         const index_t nb_count = static_cast<index_t>(rc->node.size());
+        if (rc->at_rest)
+        {
+            for (index_t q = 0; q < nb_count; ++q)
+                vel[3 * rc->node[q] + k] = 0.0;
+            continue;
+        }
         for (index_t q = 0; q < nb_count; ++q)
         {
             real_t r = vel[3 * rc->node[q] + k];
@@ -149,6 +159,7 @@ void Model::build_rk_constraints()
                 continue;
             const index_t m = static_cast<index_t>(rc->node.size());
             std::vector<Eigen::Triplet<real_t, int>> t;
+            bool reaches_free = false;
             for (index_t q = 0; q < m; ++q)
             {
                 kinematics.for_row(rc->node[q],
@@ -157,7 +168,16 @@ void Model::build_rk_constraints()
                                        const index_t col = rc->slot[J - nb.node_begin];
                                        if (col >= 0)
                                            t.emplace_back(q, col, w);
+                                       else
+                                           reaches_free = true;
                                    });
+            }
+            rc->at_rest = !reaches_free && std::all_of(rc->condition.begin(), rc->condition.end(),
+                                                       [&](index_t ci) { return conditions[ci].kind == BoundarySpec::Kind::Fixed; });
+            if (rc->at_rest)
+            {
+                rk_constraints_.push_back(std::move(rc));
+                continue;
             }
             SparseMatrix A(m, m);
             A.setFromTriplets(t.begin(), t.end());
