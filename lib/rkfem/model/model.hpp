@@ -332,6 +332,8 @@ class Model final : public ExplicitOperator
     /// non-finite a (check())
     bool nonfinite_u_ = false, nonfinite_a_ = false;
     void plan_conditions();
+    /// A still condition's reaction from the current forces.
+    real_t still_reaction(const ReactionTerm& c) const;
     /// reaction_prev_ with the still conditions' reactions from the current forces.
     void fill_still_reactions(std::vector<real_t>& reaction) const;
     real_t pending_int_ = 0, pending_hg_ = 0, pending_bv_ = 0;

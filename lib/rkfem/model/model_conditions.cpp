@@ -57,13 +57,22 @@ void Model::plan_conditions()
             std::binary_search(loaded_dofs_.begin(), loaded_dofs_.end(), conditions[k].dof) ? 2 : 1;
 }
 
+real_t Model::still_reaction(const ReactionTerm& c) const
+{
+    // f_int - f_ext - f_contact (its m a_p is 0): f_ext is zero off the loaded dofs, and the
+    // contact channel's forces off the nodes of its pass
+    real_t r = nodes.f_int[c.dof];
+    if (c.still == 2)
+        r -= nodes.f_ext[c.dof];
+    if (!contact.nodes().empty())
+        r -= contact.f[c.dof];
+    return r;
+}
+
 void Model::fill_still_reactions(std::vector<real_t>& reaction) const
 {
     for (const index_t k : still_conditions_)
-    {
-        const index_t j = conditions[k].dof;
-        reaction[k] = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
-    }
+        reaction[k] = still_reaction(reaction_terms_[k]);
 }
 
 void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)

@@ -368,28 +368,14 @@ void Model::reactions(std::vector<Vec3>& out) const
     out.assign(n_bc, Vec3::Zero());
     if (n_bc == 0 || reaction_prev_.size() != conditions.size() || reaction_terms_.size() != conditions.size())
         return;
-    // in the conditions' order, the sums as they were when every reaction was stored. A still
-    // condition's reaction is f_int - f_ext - f_contact (its m a_p is 0); f_ext is zero off the
-    // loaded dofs, and the contact channel's forces off the nodes of its pass
+    // in the conditions' order, the sums as they were when every reaction was stored
     const bool lazy = forces_current_;
-    const bool touched = !contact.nodes().empty();
-    const real_t* f_int = nodes.f_int.data();
-    const real_t* f_ext = nodes.f_ext.data();
-    const real_t* f_contact = contact.f.data();
     real_t* sum = out.front().data(); // Vec3 is 3 packed doubles
     static_assert(sizeof(Vec3) == 3 * sizeof(real_t));
     for (std::size_t k = 0; k < reaction_terms_.size(); ++k)
     {
         const ReactionTerm& c = reaction_terms_[k];
-        real_t r = reaction_prev_[k];
-        if (lazy && c.still)
-        {
-            r = f_int[c.dof];
-            if (c.still == 2)
-                r -= f_ext[c.dof];
-            if (touched)
-                r -= f_contact[c.dof];
-        }
+        const real_t r = lazy && c.still ? still_reaction(c) : reaction_prev_[k];
         if (static_cast<std::size_t>(c.slot) < 3 * n_bc)
             sum[c.slot] += r;
     }
