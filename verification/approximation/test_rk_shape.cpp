@@ -6,8 +6,10 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <map>
 #include <random>
 
+#include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "../support.hpp"
@@ -326,4 +328,168 @@ TEST(RkShape, DroppedHessiansKeepTheirIdentities)
     EXPECT_LT(after, before);
     EXPECT_LT(identities, 1e-12);
     EXPECT_LT(change, 10 * tau);
+}
+
+// RkRegionValues (the set-up's fast path) against its plain twin, evaluate + prune_rk_values: at
+// points of one element of a jittered mesh, over the particles gathered for the element's box,
+// the same functions (node for node) and the same values to round-off, for every kernel,
+// support, order and the drop tolerance.
+TEST(RkShape, RegionValuesAreThePointwiseValuesToRoundOff)
+{
+    const real_t h = 1e-3;
+    const HexMesh mesh = rkfem::test::distorted_box(6, h, 0.3);
+    struct Case
+    {
+        KernelType kernel;
+        SupportShape support;
+        int order;
+        real_t a, tau;
+    };
+    const Case cases[] = {{KernelType::CubicBSpline, SupportShape::Box, 1, 1.51, 0.0},
+                          {KernelType::CubicBSpline, SupportShape::Box, 1, 1.51, 1e-5},
+                          {KernelType::CubicBSpline, SupportShape::Box, 1, 2.2, 1e-3},
+                          {KernelType::QuinticBSpline, SupportShape::Sphere, 1, 2.1, 0.0},
+                          {KernelType::Gaussian, SupportShape::Box, 1, 1.7, 0.0},
+                          {KernelType::CubicBSpline, SupportShape::Box, 2, 2.3, 0.0}};
+    std::mt19937 gen(3);
+    std::uniform_real_distribution<real_t> u(0.0, 1.0);
+    for (const Case& c : cases)
+    {
+        RkParams p;
+        p.kernel = c.kernel;
+        p.support = c.support;
+        p.order = c.order;
+        p.normalized_support = c.a;
+        const RkShapeFunctions rk = rk_on_mesh(mesh, p);
+        RkRegionValues region(rk, c.tau);
+        real_t worst = 0.0;
+        std::size_t dropped = 0;
+        for (const index_t e : {0, 43, 107, 215}) // a corner, the interior, a face
+        {
+            Vec3 lo = Vec3::Constant(1e300), hi = -lo;
+            for (int I = 0; I < 8; ++I)
+            {
+                lo = lo.cwiseMin(mesh.node(mesh.conn[8 * e + I]));
+                hi = hi.cwiseMax(mesh.node(mesh.conn[8 * e + I]));
+            }
+            region.gather(lo, hi);
+            for (int q = 0; q < 20; ++q)
+            {
+                Vec3 x;
+                for (int d = 0; d < 3; ++d)
+                    x[d] = lo[d] + u(gen) * (hi[d] - lo[d]);
+                RkSample s;
+                rk.evaluate(x, false, s);
+                std::vector<index_t> nodes = s.nodes;
+                std::vector<real_t> psi = s.psi;
+                if (c.tau > 0.0)
+                    prune_rk_values(rk, x, c.tau, nodes, psi);
+                dropped += s.nodes.size() - nodes.size();
+                region.evaluate(x);
+                std::map<index_t, real_t> fast;
+                real_t big = 0.0;
+                for (std::size_t k = 0; k < region.size(); ++k)
+                {
+                    if (region.kept()[k] != 0.0)
+                        fast[region.candidates()[k]] = region.psi()[k];
+                    else
+                        EXPECT_EQ(region.psi()[k], 0.0);
+                }
+                ASSERT_EQ(fast.size(), nodes.size()) << "element " << e << " point " << q;
+                for (std::size_t k = 0; k < nodes.size(); ++k)
+                {
+                    ASSERT_EQ(fast.count(nodes[k]), 1u);
+                    worst = std::max(worst, std::abs(fast[nodes[k]] - psi[k]));
+                    big = std::max(big, std::abs(psi[k]));
+                }
+                EXPECT_GT(big, 0.05);
+            }
+        }
+        std::printf("kernel %d support %d order %d a/h %.2f tau %.0e: largest difference %.2e, %zu dropped\n",
+                    static_cast<int>(c.kernel), static_cast<int>(c.support), c.order, c.a, c.tau, worst, dropped);
+        EXPECT_LT(worst, 1e-13);
+        if (c.tau > 0.0)
+        {
+            EXPECT_GT(dropped, 0u); // the drop and its correction ran
+        }
+    }
+}
+
+// A point with too few covering particles is the same named error from the fast path.
+TEST(RkShape, RegionValuesNameASingularPoint)
+{
+    const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(4e-3), {4, 4, 4});
+    const RkShapeFunctions rk = rk_on_mesh(mesh, RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 0.45});
+    RkRegionValues region(rk, 0.0);
+    region.gather(Vec3::Zero(), Vec3::Constant(1e-3));
+    try
+    {
+        region.evaluate(Vec3(0.5e-3, 0.5e-3, 0.5e-3)); // the element centre: no particle covers it
+        FAIL() << "no error";
+    }
+    catch (const SingularMomentError& e)
+    {
+        EXPECT_NE(std::string(e.what()).find("too few neighbours"), std::string::npos) << e.what();
+    }
+}
+
+// The fast path's gradients (RkRegionValues::evaluate_gradients) and second derivatives
+// (RkRegionValues::hessians, which NSNI builds with) against their plain twins, evaluate(x,
+// true) and RkShapeFunctions::hessians: the same functions, gradients to round-off, second
+// derivatives to round-off over the difference step (1e-3 of the support).
+TEST(RkShape, RegionGradientsAndHessiansAreThePointwiseOnesToRoundOff)
+{
+    const real_t h = 0.1;
+    const RkParams cases[] = {{1, KernelType::CubicBSpline, SupportShape::Box, 1.51},
+                              {1, KernelType::QuinticBSpline, SupportShape::Sphere, 2.1},
+                              {1, KernelType::Gaussian, SupportShape::Box, 1.7},
+                              {2, KernelType::CubicBSpline, SupportShape::Sphere, 2.51}};
+    for (const RkParams& p : cases)
+    {
+        Cloud cl = make_cloud(6, h, 0.3, p);
+        RkRegionValues region(cl.rk, 0.0);
+        real_t grad_err = 0.0, grad_big = 0.0, hess_err = 0.0, hess_big = 0.0;
+        std::vector<index_t> nodes, plain_nodes;
+        std::vector<Mat3> H, plain_H;
+        std::vector<Vec3> points = sample_points(20, 0.1, 0.5, 29);
+        for (index_t i = 0; i < cl.rk.size(); i += 7)
+            points.push_back(cl.rk.position(i)); // NSNI evaluates at the particles
+        for (const Vec3& x : points)
+        {
+            region.gather(x, x);
+            region.evaluate_gradients(x);
+            RkSample s;
+            cl.rk.evaluate(x, true, s);
+            std::size_t n_kept = 0;
+            for (std::size_t k = 0; k < region.size(); ++k)
+                n_kept += region.kept()[k] != 0.0;
+            ASSERT_EQ(n_kept, s.nodes.size());
+            for (index_t j = 0; j < s.size(); ++j)
+            {
+                const auto it = std::find(region.candidates().begin(), region.candidates().end(), s.nodes[j]);
+                ASSERT_NE(it, region.candidates().end());
+                const std::size_t k = static_cast<std::size_t>(it - region.candidates().begin());
+                ASSERT_EQ(region.kept()[k], 1.0);
+                for (int i = 0; i < 3; ++i)
+                {
+                    grad_err = std::max(grad_err, std::abs(region.gradient(i)[k] - s.grad[j][i]));
+                    grad_big = std::max(grad_big, std::abs(s.grad[j][i]));
+                }
+            }
+            region.hessians(x, nodes, H);
+            cl.rk.hessians(x, plain_nodes, plain_H);
+            ASSERT_EQ(nodes, plain_nodes);
+            for (std::size_t k = 0; k < nodes.size(); ++k)
+            {
+                hess_err = std::max(hess_err, (H[k] - plain_H[k]).cwiseAbs().maxCoeff());
+                hess_big = std::max(hess_big, plain_H[k].cwiseAbs().maxCoeff());
+                EXPECT_EQ(H[k], H[k].transpose());
+            }
+        }
+        std::printf("order %d kernel %d support %d: gradients differ by %.1e, second derivatives by %.1e of the largest\n",
+                    p.order, static_cast<int>(p.kernel), static_cast<int>(p.support), grad_err / grad_big,
+                    hess_err / hess_big);
+        EXPECT_LT(grad_err, 1e-13 * grad_big);
+        EXPECT_LT(hess_err, 1e-11 * hess_big); // round-off 1e-16 over the step 1e-3 a: measured up to 7e-13
+    }
 }

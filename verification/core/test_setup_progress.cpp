@@ -38,12 +38,13 @@ TEST(SetupProgress, PhasesReportTheirNamesAndEveryItem)
     const std::vector<Line> lines = build_with_progress(0.0, "nsni");
     for (const Line& l : lines)
         std::printf("%s%s\n", l.text.c_str(), l.last ? "  (last)" : "");
-    const std::string n = std::to_string(7 * 7 * 7); // nodes of a 6 x 6 x 6 box: one SCNI point and one NSNI triplet each
+    const std::string n = std::to_string(7 * 7 * 7); // nodes of a 6 x 6 x 6 box: one NSNI triplet each
+    const std::string ne = std::to_string(6 * 6 * 6); // its elements: RK SCNI is built by elements
     int last_gradients = 0, last_stab = 0;
     for (const Line& l : lines)
         if (l.last)
         {
-            if (l.text.find("part 'block': scni gradients 100.0% (" + n + " of " + n + ")") != std::string::npos)
+            if (l.text.find("part 'block': scni gradients 100.0% (" + ne + " of " + ne + ")") != std::string::npos)
                 ++last_gradients;
             if (l.text.find("part 'block': nsni stabilization 100.0% (" + n + " of " + n + ")") != std::string::npos)
                 ++last_stab;

@@ -6,6 +6,7 @@
 
 #include <cstdio>
 #include <map>
+#include <omp.h>
 
 #include "nodal_common.hpp"
 #include "rkfem/approximation/fem/hex8_basis.hpp"
@@ -304,5 +305,56 @@ TEST(NodalIntegration, OnePassScniAndSubCellsAreTheSeparateBuildsBitForBit)
             EXPECT_EQ(fused->grad, plain->grad);
         }
         EXPECT_GT(sd.n_entries(), scni.n_entries());
+    }
+}
+
+// build_scni_rk (by elements: each facet point evaluated once for both cells, RkRegionValues)
+// against build_scni with RkShapes (node by node, the plain twin): the same points, weights and
+// stencils, gradients to round-off, on a jittered mesh with and without the drop tolerance and
+// with a quadratic basis; the same bits on 1 and 2 threads (colour by colour, no race).
+TEST(NodalIntegration, ScniByElementsIsTheNodeByNodeBuildToRoundOff)
+{
+    const real_t h = 1e-3;
+    const HexMesh mesh = distorted_box(5, h, 0.3);
+    std::vector<index_t> colour_offsets, by_colour;
+    colour_elements(mesh, colour_offsets, by_colour);
+    EXPECT_EQ(colour_offsets.size(), 9u); // 8 colours on a structured mesh
+    for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
+    {
+        std::vector<int> seen(static_cast<std::size_t>(mesh.n_nodes()), 0);
+        for (index_t q = colour_offsets[c]; q < colour_offsets[c + 1]; ++q)
+            for (int a = 0; a < 8; ++a)
+                EXPECT_EQ(seen[mesh.conn[8 * by_colour[q] + a]]++, 0) << "colour " << c << " shares a node";
+    }
+    for (const auto& [order, tau] : {std::pair{1, 0.0}, std::pair{1, 1e-5}, std::pair{2, 0.0}})
+    {
+        RkParams p;
+        p.order = order;
+        p.normalized_support = order == 1 ? 1.51 : 2.3;
+        const RkShapeFunctions rk = rk_on_mesh(mesh, p);
+        const IntegrationOperator plain = build_scni(mesh, RkShapes(rk, tau));
+        const IntegrationOperator fast = build_scni_rk(mesh, rk, tau);
+        EXPECT_EQ(fast.weight, plain.weight);
+        EXPECT_EQ(fast.position, plain.position);
+        EXPECT_EQ(fast.owner, plain.owner);
+        ASSERT_EQ(fast.offsets, plain.offsets);
+        ASSERT_EQ(fast.nodes, plain.nodes);
+        real_t worst = 0.0, big = 0.0;
+        for (std::size_t k = 0; k < plain.grad.size(); ++k)
+        {
+            worst = std::max(worst, std::abs(fast.grad[k] - plain.grad[k]));
+            big = std::max(big, std::abs(plain.grad[k]));
+        }
+        std::printf("order %d, tau %.0e: %d entries, largest gradient difference %.2e of the largest gradient\n", order,
+                    tau, plain.n_entries(), worst / big);
+        EXPECT_LT(worst, 1e-13 * big); // measured up to 1.9e-15
+        const int threads = omp_get_max_threads();
+        omp_set_num_threads(1);
+        const IntegrationOperator serial = build_scni_rk(mesh, rk, tau);
+        omp_set_num_threads(2);
+        const IntegrationOperator two = build_scni_rk(mesh, rk, tau);
+        omp_set_num_threads(threads);
+        EXPECT_EQ(serial.grad, two.grad);
+        EXPECT_EQ(serial.grad, fast.grad);
     }
 }

@@ -44,6 +44,27 @@ class CellList
         }
     }
 
+    /// Calls f(j) for every point j in the bins that meet the box [lo - cell_size, hi +
+    /// cell_size] (a superset of the points within cell_size of the box along every axis), bins
+    /// in a fixed order, each point once.
+    template <class F> void for_each_near_box(const Vec3& lo, const Vec3& hi, F&& f) const
+    {
+        int c0[3], c1[3];
+        for (int d = 0; d < 3; ++d)
+        {
+            c0[d] = clamped_bin(lo[d] - h_, d);
+            c1[d] = clamped_bin(hi[d] + h_, d);
+        }
+        for (int k = c0[2]; k <= c1[2]; ++k)
+            for (int j = c0[1]; j <= c1[1]; ++j)
+                for (int i = c0[0]; i <= c1[0]; ++i)
+                {
+                    const std::size_t b = (static_cast<std::size_t>(k) * dims_[1] + j) * dims_[0] + i;
+                    for (index_t q = offsets_[b]; q < offsets_[b + 1]; ++q)
+                        f(ids_[q]);
+                }
+    }
+
     real_t cell_size() const { return h_; }
 
   private:
@@ -55,6 +76,12 @@ class CellList
         const real_t m = static_cast<real_t>(dims_[d]);
         return t >= m ? dims_[d] + static_cast<int>(std::min<real_t>(t - m, 1.0))
                       : static_cast<int>(t);
+    }
+    /// The bin a point at v would be binned in (clamped into the grid, as the points are).
+    int clamped_bin(real_t v, int d) const
+    {
+        const real_t t = std::clamp<real_t>((v - lo_[d]) / h_, 0.0, static_cast<real_t>(dims_[d] - 1));
+        return static_cast<int>(t);
     }
     Vec3 lo_ = Vec3::Zero();
     real_t h_ = 1.0;

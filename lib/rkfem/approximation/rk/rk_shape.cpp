@@ -4,7 +4,6 @@
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
 
-
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
@@ -12,39 +11,14 @@
 #include <sstream>
 #include <utility>
 
+#include "rkfem/approximation/rk/rk_basis.hpp"
+
 namespace rkfem
 {
 namespace
 {
-/// H(y) and dH/dy_i (i = 0..2); m = 4 (order 1) or 10 (order 2).
-template <int m>
-void basis(const Vec3& y, Eigen::Matrix<real_t, m, 1>& H, Eigen::Matrix<real_t, m, 1> dH[3])
-{
-    for (int i = 0; i < 3; ++i)
-        dH[i].setZero();
-    H[0] = 1.0;
-    for (int i = 0; i < 3; ++i)
-    {
-        H[1 + i] = y[i];
-        dH[i][1 + i] = 1.0;
-    }
-    if constexpr (m == 10)
-    {
-        for (int i = 0; i < 3; ++i)
-        {
-            H[4 + i] = y[i] * y[i];
-            dH[i][4 + i] = 2.0 * y[i];
-        }
-        // cross terms y0 y1, y1 y2, y2 y0
-        for (int i = 0; i < 3; ++i)
-        {
-            const int j = (i + 1) % 3;
-            H[7 + i] = y[i] * y[j];
-            dH[i][7 + i] = y[j];
-            dH[j][7 + i] = y[i];
-        }
-    }
-}
+using rk_detail::basis;
+
 /// Moment matrix, its LDL^T, and Psi (and direct gradients) for every sample entry. With
 /// `others` (values only), the right-hand side is H(0) - sum_k w_k H(dy_k / s): the RK functions
 /// complete other functions' reproduction (RkShapeFunctions::evaluate_completing).
@@ -122,15 +96,15 @@ RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> ra
     RKFEM_REQUIRE(p_.order == 1 || p_.order == 2, "RK basis order must be 1 or 2, got " << p_.order);
     RKFEM_REQUIRE(x_.size() == 3 * a_.size(), "RK shape functions: " << x_.size() / 3 << " positions but "
                                                                       << a_.size() << " support radii");
-    real_t a_max = 0.0;
+    a_max_ = 0.0;
     for (real_t a : a_)
     {
         RKFEM_REQUIRE(a > 0.0, "RK shape functions: support radius must be positive, got " << a);
-        a_max = std::max(a_max, a);
+        a_max_ = std::max(a_max_, a);
     }
     // box support reaches a * sqrt(3) along a diagonal but each axis only a: bins of side a_max
     // cover every axis-aligned offset below a_max
-    cells_ = CellList(x_, a_.empty() ? 1.0 : a_max);
+    cells_ = CellList(x_, a_.empty() ? 1.0 : a_max_);
 }
 
 void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const { evaluate_impl(x, gradients, out, nullptr); }
@@ -168,22 +142,42 @@ void RkShapeFunctions::evaluate_impl(const Vec3& x, bool gradients, RkSample& ou
                               });
     const index_t n = out.size();
     const int m = p_.basis_size();
-    auto singular = [&](const char* why)
-    {
-        std::ostringstream os;
-        os << "RK moment matrix is singular at x = (" << x[0] << ", " << x[1] << ", " << x[2] << ") m: "
-           << n << " particle(s) cover the point (" << why << "); a basis of order " << p_.order
-           << " needs at least " << m << " covering particles not all in one "
-           << (p_.order == 1 ? "plane" : "quadric")
-           << "; increase rk.normalized_support or refine the particle cloud there";
-        throw SingularMomentError(os.str());
-    };
+    auto singular = [&](const char* why) { throw_singular(x, n, why); };
     if (n < m && others == nullptr)
         singular("too few neighbours");
     if (m == 4)
         solve_and_fill<4>(out, s, gradients, singular, others);
     else
         solve_and_fill<10>(out, s, gradients, singular, others);
+}
+
+void RkShapeFunctions::throw_singular(const Vec3& x, index_t n, const char* why) const
+{
+    std::ostringstream os;
+    os << "RK moment matrix is singular at x = (" << x[0] << ", " << x[1] << ", " << x[2] << ") m: " << n
+       << " particle(s) cover the point (" << why << "); a basis of order " << p_.order << " needs at least "
+       << p_.basis_size() << " covering particles not all in one " << (p_.order == 1 ? "plane" : "quadric")
+       << "; increase rk.normalized_support or refine the particle cloud there";
+    throw SingularMomentError(os.str());
+}
+
+void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const
+{
+    out.clear();
+    cells_.for_each_near_box(lo, hi,
+                             [&](index_t j)
+                             {
+                                 // the margin of evaluate_impl's box test: every particle it could keep
+                                 const real_t reach = a_[j] * (1.0 + 1e-12);
+                                 for (int d = 0; d < 3; ++d)
+                                 {
+                                     const real_t xj = x_[3 * static_cast<std::size_t>(j) + d];
+                                     if (xj + reach < lo[d] || xj - reach > hi[d])
+                                         return;
+                                 }
+                                 out.push_back(j);
+                             });
+    std::sort(out.begin(), out.end());
 }
 
 void RkShapeFunctions::hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H) const

@@ -93,14 +93,22 @@ class RkShapeFunctions
     /// to the truncation error. Set-up only (naturally stabilized nodal integration).
     void hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H) const;
 
+    /// The particles whose support reaches the box [lo, hi] along every axis, ascending: every
+    /// particle that covers some point of the box (and those whose support box only meets it).
+    void particles_near_box(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const;
+    /// Throws the SingularMomentError of point x, which n particles cover (`why`: the test failed).
+    [[noreturn]] void throw_singular(const Vec3& x, index_t n, const char* why) const;
+
     index_t size() const { return static_cast<index_t>(a_.size()); }
     real_t radius(index_t i) const { return a_[static_cast<std::size_t>(i)]; }
+    real_t max_radius() const { return a_max_; }
     Vec3 position(index_t i) const { return {x_[3 * i], x_[3 * i + 1], x_[3 * i + 2]}; }
     const RkParams& params() const { return p_; }
 
   private:
     void evaluate_impl(const Vec3& x, bool gradients, RkSample& out, const RkOthers* others) const;
     std::vector<real_t> x_, a_;
+    real_t a_max_ = 0.0;
     RkParams p_;
     CellList cells_;
 };

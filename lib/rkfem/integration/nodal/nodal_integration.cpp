@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <limits>
 #include <utility>
 
+#include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/setup_progress.hpp"
 
@@ -249,6 +251,202 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
         *sd = pack(sub_entries, std::move(sub_weight), std::move(sub_position), std::move(sub_owner));
 }
 
+void colour_elements(const HexMesh& mesh, std::vector<index_t>& offsets, std::vector<index_t>& elements)
+{
+    std::vector<index_t> inc_offsets, slots;
+    node_element_incidence(mesh, inc_offsets, slots);
+    const index_t ne = mesh.n_elements();
+    std::vector<index_t> colour(static_cast<std::size_t>(ne), -1);
+    std::vector<char> taken;
+    index_t n_colours = 0;
+    for (index_t e = 0; e < ne; ++e)
+    {
+        taken.assign(static_cast<std::size_t>(n_colours) + 1, 0);
+        for (int a = 0; a < 8; ++a)
+        {
+            const index_t L = mesh.conn[8 * e + a];
+            for (index_t k = inc_offsets[L]; k < inc_offsets[L + 1]; ++k)
+            {
+                const index_t c = colour[slots[k] / 8];
+                if (c >= 0)
+                    taken[static_cast<std::size_t>(c)] = 1;
+            }
+        }
+        index_t c = 0;
+        while (taken[static_cast<std::size_t>(c)])
+            ++c;
+        colour[e] = c;
+        n_colours = std::max(n_colours, c + 1);
+    }
+    offsets.assign(static_cast<std::size_t>(n_colours) + 1, 0);
+    for (index_t e = 0; e < ne; ++e)
+        ++offsets[colour[e] + 1];
+    for (index_t c = 0; c < n_colours; ++c)
+        offsets[c + 1] += offsets[c];
+    elements.resize(static_cast<std::size_t>(ne));
+    std::vector<index_t> fill(offsets.begin(), offsets.end() - 1);
+    for (index_t e = 0; e < ne; ++e)
+        elements[fill[colour[e]]++] = e;
+}
+
+namespace
+{
+/// Adds an element's partial row (candidates ids[k], sums (acc[k], acc[n + k], acc[2 n + k]),
+/// present where hit[k] != 0; ascending ids) into a node's row (ascending): one sorted merge,
+/// sums in arrival order.
+void merge_partial_row(Entries& row, const std::vector<index_t>& ids, const real_t* acc, const real_t* hit,
+                       Entries& scratch)
+{
+    const std::size_t n = ids.size();
+    scratch.clear();
+    std::size_t i = 0;
+    for (std::size_t k = 0; k < n; ++k)
+    {
+        if (hit[k] == 0.0)
+            continue;
+        const Vec3 g(acc[k], acc[n + k], acc[2 * n + k]);
+        while (i < row.size() && row[i].first < ids[k])
+            scratch.push_back(row[i++]);
+        if (i < row.size() && row[i].first == ids[k])
+            scratch.emplace_back(ids[k], row[i++].second + g);
+        else
+            scratch.emplace_back(ids[k], g);
+    }
+    scratch.insert(scratch.end(), row.begin() + static_cast<std::ptrdiff_t>(i), row.end());
+    row.assign(scratch.begin(), scratch.end());
+}
+
+/// partner[a][d]: the local node across natural direction d from node a (the sub-hex that shares
+/// a's internal facet f = 2 d).
+struct FacetPartners
+{
+    int partner[8][3];
+    FacetPartners()
+    {
+        for (int a = 0; a < 8; ++a)
+            for (int d = 0; d < 3; ++d)
+                for (int b = 0; b < 8; ++b)
+                {
+                    bool across = true;
+                    for (int c = 0; c < 3; ++c)
+                        across = across && (c == d ? hex8_nodes[b][c] == -hex8_nodes[a][c]
+                                                   : hex8_nodes[b][c] == hex8_nodes[a][c]);
+                    if (across)
+                        partner[a][d] = b;
+                }
+    }
+};
+} // namespace
+
+IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance)
+{
+    static const FacetPartners facets;
+    const std::vector<index_t> nb = face_neighbours(mesh);
+    std::vector<index_t> colour_offsets, by_colour;
+    colour_elements(mesh, colour_offsets, by_colour);
+    const index_t nn = mesh.n_nodes();
+    std::vector<Entries> rows(static_cast<std::size_t>(nn));
+    std::exception_ptr error;
+#pragma omp parallel
+    {
+        RkRegionValues values(rk, drop_tolerance);
+        // per local node a: sum psi n dA [a][component][candidate], and hit [a][candidate] (0 / 1)
+        std::vector<real_t> acc, hit;
+        Entries scratch;
+        SubHex sh;
+        real_t xe[8][3];
+        for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
+        {
+#pragma omp for schedule(dynamic, 16)
+            for (index_t q = colour_offsets[c]; q < colour_offsets[c + 1]; ++q)
+            {
+                const index_t e = by_colour[q];
+                try
+                {
+                    element_coordinates(mesh, e, xe);
+                    Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
+                    for (int I = 0; I < 8; ++I) // a trilinear element lies in its nodes' box
+                        for (int d = 0; d < 3; ++d)
+                        {
+                            lo[d] = std::min(lo[d], xe[I][d]);
+                            hi[d] = std::max(hi[d], xe[I][d]);
+                        }
+                    values.gather(lo, hi);
+                    const std::size_t n = values.size();
+                    acc.assign(8 * 3 * n, 0.0);
+                    hit.assign(8 * n, 0.0);
+                    // psi (x_q) n dA into the row of local node a (sign +1) or of its partner (-1)
+                    auto add = [&](int a, const Vec3& nda, real_t sign)
+                    {
+                        const real_t n0 = sign * nda[0], n1 = sign * nda[1], n2 = sign * nda[2];
+                        const real_t *psi = values.psi(), *kept = values.kept();
+                        real_t* g = acc.data() + 3 * n * static_cast<std::size_t>(a);
+                        real_t* h = hit.data() + n * static_cast<std::size_t>(a);
+#pragma omp simd
+                        for (std::size_t k = 0; k < n; ++k)
+                        {
+                            g[k] += psi[k] * n0;
+                            g[n + k] += psi[k] * n1;
+                            g[2 * n + k] += psi[k] * n2;
+                            h[k] = h[k] < kept[k] ? kept[k] : h[k];
+                        }
+                    };
+                    for (int a = 0; a < 8; ++a)
+                    {
+                        build_sub_hex(xe, a, sh);
+                        for (int d = 0; d < 3; ++d)
+                        {
+                            // the internal facet, once for the pair of sub-hexes it separates
+                            // (the partner's facet has the same points and the opposite normal)
+                            const int b = facets.partner[a][d];
+                            if (a < b)
+                                for (const FacetPoint& fp : sh.facets[2 * d])
+                                {
+                                    values.evaluate(fp.x);
+                                    add(a, fp.nda, 1.0);
+                                    add(b, fp.nda, -1.0);
+                                }
+                            // the external facet, where the element face is on the boundary
+                            if (nb[6 * e + sh.element_face[2 * d + 1]] < 0)
+                                for (const FacetPoint& fp : sh.facets[2 * d + 1])
+                                {
+                                    values.evaluate(fp.x);
+                                    add(a, fp.nda, 1.0);
+                                }
+                        }
+                    }
+                    for (int a = 0; a < 8; ++a)
+                        merge_partial_row(rows[mesh.conn[8 * e + a]], values.candidates(),
+                                          acc.data() + 3 * n * static_cast<std::size_t>(a),
+                                          hit.data() + n * static_cast<std::size_t>(a), scratch);
+                    setup_progress::advance();
+                }
+                catch (...)
+                {
+#pragma omp critical(rkfem_nodal_build_error)
+                    if (!error)
+                        error = std::current_exception();
+                }
+            }
+        }
+    }
+    if (error)
+        std::rethrow_exception(error);
+    std::vector<real_t> volume = nodal_volumes(mesh), position(3 * static_cast<std::size_t>(nn));
+    std::vector<index_t> owner(static_cast<std::size_t>(nn));
+    for (index_t i = 0; i < nn; ++i)
+    {
+        RKFEM_REQUIRE(volume[i] > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << volume[i]);
+        const real_t scale = 1.0 / volume[i];
+        for (auto& [n, g] : rows[i])
+            g *= scale;
+        for (int d = 0; d < 3; ++d)
+            position[3 * i + d] = mesh.x[3 * static_cast<std::size_t>(i) + d];
+        owner[i] = i;
+    }
+    return pack(rows, std::move(volume), std::move(position), std::move(owner));
+}
+
 IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& shapes)
 {
     return assemble(8 * mesh.n_elements(),
@@ -384,24 +582,30 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
     std::vector<std::vector<index_t>> nodes(static_cast<std::size_t>(np));
     std::vector<std::vector<Mat3>> hess(static_cast<std::size_t>(np));
     std::exception_ptr error;
-#pragma omp parallel for schedule(dynamic, 64)
-    for (index_t p = 0; p < np; ++p)
+#pragma omp parallel
     {
-        try
+        // the particles near each point gathered once for its six gradient evaluations
+        // (RkRegionValues::hessians; RkShapeFunctions::hessians is its plain twin)
+        RkRegionValues region(rk, 0.0);
+#pragma omp for schedule(dynamic, 64)
+        for (index_t p = 0; p < np; ++p)
         {
-            const Vec3 x = rk.position(points.owner[p]);
-            rk.hessians(x, nodes[p], hess[p]);
-            if (drop_tolerance > 0.0)
-                prune_rk_hessians(rk, x, drop_tolerance, nodes[p], hess[p]);
-            nodes[p].shrink_to_fit();
-            hess[p].shrink_to_fit();
-            setup_progress::advance();
-        }
-        catch (...)
-        {
+            try
+            {
+                const Vec3 x = rk.position(points.owner[p]);
+                region.hessians(x, nodes[p], hess[p]);
+                if (drop_tolerance > 0.0)
+                    prune_rk_hessians(rk, x, drop_tolerance, nodes[p], hess[p]);
+                nodes[p].shrink_to_fit();
+                hess[p].shrink_to_fit();
+                setup_progress::advance();
+            }
+            catch (...)
+            {
 #pragma omp critical(rkfem_nsni_build_error)
-            if (!error)
-                error = std::current_exception();
+                if (!error)
+                    error = std::current_exception();
+            }
         }
     }
     if (error)

@@ -37,6 +37,20 @@ IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& sha
 /// the same entries, bit for bit, as build_scni and build_sd_scni, about two thirds of their
 /// evaluations. MSCNI (build_mscni_stabilization) needs both.
 void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, IntegrationOperator& scni, IntegrationOperator* sd);
+/// SCNI of RK functions on a mesh's nodal cells: the operator of build_scni with
+/// RkShapes(rk, drop_tolerance), to round-off, built by elements. Each element gathers the
+/// particles near it once (RkRegionValues) and evaluates each of its facet points once, for
+/// both nodal cells an internal facet bounds (build_scni, node by node, evaluates it from each
+/// side). Elements of one colour share no node, so they add into their nodes' rows in parallel,
+/// colour after colour: the rows are the same bits on any number of threads. One progress
+/// count per element.
+IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance);
+
+/// Greedy colouring of a mesh's elements: no two elements that share a node have one colour.
+/// Returns the elements by colour as CSR (colour c: elements[offsets[c] .. offsets[c + 1]),
+/// ascending), with as few colours as the greedy order finds (8 on a structured mesh).
+void colour_elements(const HexMesh& mesh, std::vector<index_t>& offsets, std::vector<index_t>& elements);
+
 IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const ShapeEvaluator& shapes);
 
 /// SCNI on the cells of a cloud that does not come from a mesh (Voronoi cells clipped to the
