@@ -334,7 +334,9 @@ TEST(NodalIntegration, ScniByElementsIsTheNodeByNodeBuildToRoundOff)
         const RkShapeFunctions rk = rk_on_mesh(mesh, p);
         const IntegrationOperator plain = build_scni(mesh, RkShapes(rk, tau));
         const IntegrationOperator fast = build_scni_rk(mesh, rk, tau);
-        EXPECT_EQ(fast.weight, plain.weight);
+        ASSERT_EQ(fast.weight.size(), plain.weight.size());
+        for (std::size_t p = 0; p < plain.weight.size(); ++p) // Gauss det J against the facets' x . n dA
+            EXPECT_NEAR(fast.weight[p], plain.weight[p], 1e-14 * plain.weight[p]);
         EXPECT_EQ(fast.position, plain.position);
         EXPECT_EQ(fast.owner, plain.owner);
         ASSERT_EQ(fast.offsets, plain.offsets);

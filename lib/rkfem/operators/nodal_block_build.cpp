@@ -3,9 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <exception>
 #include <memory>
 
+#include <omp.h>
+
 #include "rkfem/approximation/coupling/coupled_shapes.hpp"
+#include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/discretization/cell_list.hpp"
@@ -58,17 +62,59 @@ NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset)
 /// RK interpolation Psi_J(X_I) at the particles, for physical nodal values.
 void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::vector<real_t>& x, index_t offset)
 {
-    RkSample smp;
-    nb.interp_offsets.assign(1, 0);
-    for (std::size_t i = 0; 3 * i < x.size(); ++i)
+    // Psi_J(x_i) of every particle i by the region evaluator (particles ascending in each row),
+    // threads over contiguous blocks of particles, their rows joined in particle order
+    const index_t n = static_cast<index_t>(x.size() / 3);
+    std::vector<std::vector<index_t>> block_nodes;
+    std::vector<std::vector<real_t>> block_values;
+    std::vector<std::vector<index_t>> block_counts;
+    std::exception_ptr error;
+#pragma omp parallel
     {
-        rk.evaluate(Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]), false, smp);
-        for (index_t k = 0; k < smp.size(); ++k)
+#pragma omp single
         {
-            nb.interp_nodes.push_back(smp.nodes[k] + offset);
-            nb.interp_values.push_back(smp.psi[k]);
+            const std::size_t teams = static_cast<std::size_t>(omp_get_num_threads());
+            block_nodes.resize(teams);
+            block_values.resize(teams);
+            block_counts.resize(teams);
         }
-        nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
+        const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+        RkRegionValues region(rk, 0.0);
+#pragma omp for schedule(static)
+        for (index_t i = 0; i < n; ++i)
+        {
+            try
+            {
+                const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                region.gather(p, p);
+                region.evaluate(p);
+                index_t count = 0;
+                for (std::size_t k = 0; k < region.size(); ++k)
+                    if (region.kept()[k] != 0.0)
+                    {
+                        block_nodes[t].push_back(region.candidates()[k] + offset);
+                        block_values[t].push_back(region.psi()[k]);
+                        ++count;
+                    }
+                block_counts[t].push_back(count);
+            }
+            catch (...)
+            {
+#pragma omp critical(rkfem_interpolation_error)
+                if (!error)
+                    error = std::current_exception();
+            }
+        }
+    }
+    if (error)
+        std::rethrow_exception(error);
+    nb.interp_offsets.assign(1, 0);
+    for (std::size_t t = 0; t < block_nodes.size(); ++t)
+    {
+        nb.interp_nodes.insert(nb.interp_nodes.end(), block_nodes[t].begin(), block_nodes[t].end());
+        nb.interp_values.insert(nb.interp_values.end(), block_values[t].begin(), block_values[t].end());
+        for (index_t c : block_counts[t])
+            nb.interp_offsets.push_back(nb.interp_offsets.back() + c);
     }
 }
 

@@ -74,6 +74,80 @@ Eigen::Matrix4d scaled_moments(const real_t sums[10], real_t inv_s)
     return M;
 }
 
+/// LDL^T of a symmetric 4 x 4 with symmetric pivoting on the largest remaining diagonal, as
+/// Eigen::LDLT does it (the same pivots, so evaluate's test on them holds the same), written
+/// out: Eigen's general LDL^T was a tenth of the set-up at this size.
+class Ldlt4
+{
+  public:
+    explicit Ldlt4(const Eigen::Matrix4d& M)
+    {
+        real_t A[4][4];
+        for (int i = 0; i < 4; ++i)
+        {
+            perm_[i] = i;
+            for (int j = 0; j < 4; ++j)
+                A[i][j] = M(i, j);
+        }
+        for (int k = 0; k < 4; ++k)
+        {
+            int p = k;
+            for (int i = k + 1; i < 4; ++i)
+                if (std::abs(A[i][i]) > std::abs(A[p][p]))
+                    p = i;
+            if (p != k)
+            {
+                for (int j = 0; j < 4; ++j)
+                    std::swap(A[k][j], A[p][j]);
+                for (int i = 0; i < 4; ++i)
+                    std::swap(A[i][k], A[i][p]);
+                std::swap(perm_[k], perm_[p]);
+                for (int j = 0; j < k; ++j)
+                    std::swap(L_[k][j], L_[p][j]);
+            }
+            D_[k] = A[k][k];
+            for (int i = k + 1; i < 4; ++i)
+                L_[i][k] = A[i][k] / D_[k];
+            for (int i = k + 1; i < 4; ++i)
+                for (int j = k + 1; j <= i; ++j)
+                    A[j][i] = A[i][j] -= L_[i][k] * A[k][j];
+        }
+    }
+    /// evaluate's test: every pivot above 1e-12 of the largest in magnitude
+    bool pivots_ok() const
+    {
+        real_t lo = D_[0], big = std::abs(D_[0]);
+        for (int k = 1; k < 4; ++k)
+        {
+            lo = std::min(lo, D_[k]);
+            big = std::max(big, std::abs(D_[k]));
+        }
+        return lo > 1e-12 * big;
+    }
+    Eigen::Vector4d solve(const Eigen::Vector4d& b) const
+    {
+        real_t y[4];
+        for (int k = 0; k < 4; ++k)
+            y[k] = b[perm_[k]];
+        for (int i = 1; i < 4; ++i)
+            for (int j = 0; j < i; ++j)
+                y[i] -= L_[i][j] * y[j];
+        for (int i = 0; i < 4; ++i)
+            y[i] /= D_[i];
+        for (int i = 2; i >= 0; --i)
+            for (int j = i + 1; j < 4; ++j)
+                y[i] -= L_[j][i] * y[j];
+        Eigen::Vector4d x;
+        for (int k = 0; k < 4; ++k)
+            x[perm_[k]] = y[k];
+        return x;
+    }
+
+  private:
+    real_t L_[4][4] = {}, D_[4] = {};
+    int perm_[4] = {};
+};
+
 /// LDL^T of a moment matrix with evaluate's pivot test; b = M^-1 e_0.
 template <int m> bool solve_moments(const Eigen::Matrix<real_t, m, m>& M, Eigen::Matrix<real_t, m, 1>& b)
 {
@@ -116,22 +190,63 @@ RkRegionValues::RkRegionValues(const RkShapeFunctions& rk, real_t drop_tolerance
     }
 }
 
+template <class Keep> void RkRegionValues::select(Keep&& keep)
+{
+    const std::size_t nr = region_ids_.size();
+    for (auto* v : {&px_, &py_, &pz_, &inv_a_, &a_})
+        v->resize(nr);
+    ids_.resize(nr);
+    slots_.resize(nr);
+    std::size_t n = 0;
+    for (std::size_t k = 0; k < nr; ++k)
+    {
+        // written whether kept or not, kept by advancing: no branch on the test
+        ids_[n] = region_ids_[k];
+        slots_[n] = static_cast<index_t>(k);
+        px_[n] = region_x_[0][k];
+        py_[n] = region_x_[1][k];
+        pz_[n] = region_x_[2][k];
+        a_[n] = region_a_[k];
+        inv_a_[n] = 1.0 / region_a_[k]; // as kernel_3d computes it
+        n += keep(k) ? 1 : 0;
+    }
+    for (auto* v : {&px_, &py_, &pz_, &inv_a_, &a_})
+        v->resize(n);
+    ids_.resize(n);
+    slots_.resize(n);
+    for (auto* v : {&dx_, &dy_, &dz_, &phi_, &psi_, &kept_, &dphi_[0], &dphi_[1], &dphi_[2], &grad_[0], &grad_[1],
+                    &grad_[2]})
+        v->resize(n);
+}
+
 void RkRegionValues::gather(const Vec3& lo, const Vec3& hi)
 {
-    rk_.particles_near_box(lo, hi, ids_);
-    const std::size_t n = ids_.size();
-    for (auto* v : {&px_, &py_, &pz_, &inv_a_, &a_, &dx_, &dy_, &dz_, &phi_, &psi_, &kept_, &dphi_[0], &dphi_[1],
-                    &dphi_[2], &grad_[0], &grad_[1], &grad_[2]})
+    rk_.particles_near_box(lo, hi, region_ids_);
+    const std::size_t n = region_ids_.size();
+    for (auto* v : {&region_x_[0], &region_x_[1], &region_x_[2], &region_a_})
         v->resize(n);
     for (std::size_t k = 0; k < n; ++k)
     {
-        const Vec3 p = rk_.position(ids_[k]);
-        px_[k] = p[0];
-        py_[k] = p[1];
-        pz_[k] = p[2];
-        a_[k] = rk_.radius(ids_[k]);
-        inv_a_[k] = 1.0 / a_[k]; // as kernel_3d computes it
+        const Vec3 p = rk_.position(region_ids_[k]);
+        for (int d = 0; d < 3; ++d)
+            region_x_[d][k] = p[d];
+        region_a_[k] = rk_.radius(region_ids_[k]);
     }
+    select([](std::size_t) { return true; });
+}
+
+void RkRegionValues::focus(const Vec3& lo, const Vec3& hi)
+{
+    select(
+        [&](std::size_t k)
+        {
+            // particles_near_box's test, on the region's particles
+            const real_t reach = region_a_[k] * (1.0 + 1e-12);
+            bool in = true;
+            for (int d = 0; d < 3; ++d)
+                in &= !(region_x_[d][k] + reach < lo[d]) & !(region_x_[d][k] - reach > hi[d]);
+            return in;
+        });
 }
 
 /// One pass over the candidates: offsets, windows (0 outside the support) and the order-1
@@ -199,16 +314,22 @@ void RkRegionValues::values_linear(const Vec3& x)
 {
     const real_t inv_s = 1.0 / a_min_;
     const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
-    Eigen::Vector4d b;
-    if (!solve_moments<4>(M, b))
+    const Ldlt4 ldlt(M);
+    if (!ldlt.pivots_ok())
         rk_.throw_singular(x, static_cast<index_t>(n_cover_), "pivot ratio below 1e-12");
+    const Eigen::Vector4d b = ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
     const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
     const std::size_t n = ids_.size();
     const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi = phi_.data();
     real_t* psi = psi_.data();
-#pragma omp simd
+    real_t big = 0.0;
+#pragma omp simd reduction(max : big)
     for (std::size_t k = 0; k < n; ++k)
+    {
         psi[k] = phi[k] * (c0 + c1 * dx[k] + c2 * dy[k] + c3 * dz[k]);
+        big = larger(big, std::abs(psi[k]));
+    }
+    big_ = big;
 }
 
 /// Order 2: the moment matrix over the covering candidates, one rank-1 update each.
@@ -237,6 +358,9 @@ void RkRegionValues::values_quadratic(const Vec3& x)
             psi_[k] = phi_[k] * b.dot(H);
         }
     }
+    big_ = 0.0;
+    for (std::size_t k = 0; k < n; ++k)
+        big_ = std::max(big_, std::abs(psi_[k]));
 }
 
 /// prune_rk_values on the candidate arrays: drop |psi_k| < tau max |psi|, then correct the
@@ -248,31 +372,23 @@ void RkRegionValues::drop(const Vec3& x)
     const std::size_t n = ids_.size();
     const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data();
     real_t *psi = psi_.data(), *kept = kept_.data();
-    real_t big = 0.0;
-#pragma omp simd reduction(max : big)
-    for (std::size_t k = 0; k < n; ++k)
-        big = larger(big, std::abs(psi[k]));
-    const real_t cut = tau_ * big;
+    const real_t cut = tau_ * big_;
+    // one pass: the drop, the farthest kept offset s, and (for the correction, needed where
+    // any was dropped) the sums of w = |psi| and psi times 1, d_i, d_i d_j over the kept
     real_t n_dropped = 0.0, s = 0.0;
-#pragma omp simd reduction(+ : n_dropped) reduction(max : s)
+    real_t w0 = 0, w1 = 0, w2 = 0, w3 = 0, w11 = 0, w12 = 0, w13 = 0, w22 = 0, w23 = 0, w33 = 0;
+    real_t p0 = 0, p1 = 0, p2 = 0, p3 = 0;
+#pragma omp simd reduction(+ : n_dropped, w0, w1, w2, w3, w11, w12, w13, w22, w23, w33, p0, p1, p2, p3) \
+    reduction(max : s)
     for (std::size_t k = 0; k < n; ++k)
     {
         const real_t was = kept[k], value = psi[k];
         const real_t keep = std::abs(value) >= cut ? was : 0.0; // 1 or 0
         n_dropped += was - keep;
         kept[k] = keep;
-        psi[k] = keep * value;
+        const real_t v = keep * value, w = std::abs(v);
+        psi[k] = v;
         s = larger(s, keep * larger(std::abs(dx[k]), larger(std::abs(dy[k]), std::abs(dz[k]))));
-    }
-    if (n_dropped == 0.0)
-        return;
-    // M = sum w B B^T and r = e_0 - sum psi B with w = |psi|, B = (1, -d / s), from sums over d
-    real_t w0 = 0, w1 = 0, w2 = 0, w3 = 0, w11 = 0, w12 = 0, w13 = 0, w22 = 0, w23 = 0, w33 = 0;
-    real_t p0 = 0, p1 = 0, p2 = 0, p3 = 0;
-#pragma omp simd reduction(+ : w0, w1, w2, w3, w11, w12, w13, w22, w23, w33, p0, p1, p2, p3)
-    for (std::size_t k = 0; k < n; ++k)
-    {
-        const real_t w = std::abs(psi[k]);
         w0 += w;
         w1 += w * dx[k];
         w2 += w * dy[k];
@@ -283,11 +399,13 @@ void RkRegionValues::drop(const Vec3& x)
         w22 += w * dy[k] * dy[k];
         w23 += w * dy[k] * dz[k];
         w33 += w * dz[k] * dz[k];
-        p0 += psi[k];
-        p1 += psi[k] * dx[k];
-        p2 += psi[k] * dy[k];
-        p3 += psi[k] * dz[k];
+        p0 += v;
+        p1 += v * dx[k];
+        p2 += v * dy[k];
+        p3 += v * dz[k];
     }
+    if (n_dropped == 0.0)
+        return;
     const real_t is = 1.0 / s, is2 = is * is;
     Eigen::Matrix4d M;
     M << w0, -is * w1, -is * w2, -is * w3,   //
@@ -295,7 +413,7 @@ void RkRegionValues::drop(const Vec3& x)
         -is * w2, is2 * w12, is2 * w22, is2 * w23, //
         -is * w3, is2 * w13, is2 * w23, is2 * w33;
     const Eigen::Vector4d r(1.0 - p0, is * p1, is * p2, is * p3);
-    const Eigen::Vector4d c = M.ldlt().solve(r);
+    const Eigen::Vector4d c = Ldlt4(M).solve(r);
     RKFEM_REQUIRE(c.allFinite(), "RK drop tolerance: the functions left at (" << x.transpose()
                                                                               << ") do not span a linear field");
     const real_t c0 = c[0], c1 = is * c[1], c2 = is * c[2], c3 = is * c[3];
@@ -438,9 +556,8 @@ void RkRegionValues::gradients_linear(const Vec3& x)
 {
     const real_t inv_s = 1.0 / a_min_;
     const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
-    const Eigen::LDLT<Eigen::Matrix4d> ldlt(M);
-    const auto D = ldlt.vectorD();
-    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * D.cwiseAbs().maxCoeff()))
+    const Ldlt4 ldlt(M);
+    if (!ldlt.pivots_ok())
         rk_.throw_singular(x, static_cast<index_t>(n_cover_), "pivot ratio below 1e-12");
     const Eigen::Vector4d b = ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
     const Eigen::Vector4d m0 = M.col(0) * inv_s;

@@ -21,11 +21,21 @@ class RkRegionValues
     /// drop_tolerance: as RkShapes (prune_rk_values), 0 keeps every covering function.
     RkRegionValues(const RkShapeFunctions& rk, real_t drop_tolerance);
 
-    /// The region: the box [lo, hi] that every later point lies in (particles_near_box).
+    /// The region: the box [lo, hi] that every later point lies in (particles_near_box). Its
+    /// particles are the candidates until focus narrows them.
     void gather(const Vec3& lo, const Vec3& hi);
-    /// Candidate particles of the region, ascending; candidate k is particle candidates()[k].
+    /// Narrows the candidates to the region's particles whose support reaches the box [lo, hi]
+    /// (inside the region), for the points that lie in it: a facet's points need about a third
+    /// of its element's particles.
+    void focus(const Vec3& lo, const Vec3& hi);
+    /// Candidate particles, ascending; candidate k is particle candidates()[k] and the region's
+    /// particle slots()[k] (0 .. region_size() - 1).
     const std::vector<index_t>& candidates() const { return ids_; }
+    const std::vector<index_t>& slots() const { return slots_; }
     std::size_t size() const { return ids_.size(); }
+    /// The region's particles, ascending.
+    const std::vector<index_t>& region_particles() const { return region_ids_; }
+    std::size_t region_size() const { return region_ids_.size(); }
 
     /// The functions at x (in the region's box): afterwards psi()[k] is candidate k's value and
     /// kept()[k] is 1 where candidate k is one of the functions at x (it covers x and survives
@@ -47,6 +57,8 @@ class RkRegionValues
     void hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H);
 
   private:
+    /// The candidates: the region's particles k with keep(k).
+    template <class Keep> void select(Keep&& keep);
     template <KernelType K, SupportShape S> void windows(const Vec3& x);
     template <KernelType K, SupportShape S> void slopes(const Vec3& x);
     void gradients_linear(const Vec3& x);
@@ -60,8 +72,11 @@ class RkRegionValues
     // chosen once for the kernel and support
     void (RkRegionValues::*windows_)(const Vec3&) = nullptr;
     void (RkRegionValues::*slopes_)(const Vec3&) = nullptr;
-    // per candidate (flat): particle, position, 1 / radius, radius
-    std::vector<index_t> ids_;
+    // per particle of the region (flat): particle, position, radius
+    std::vector<index_t> region_ids_;
+    std::vector<real_t> region_x_[3], region_a_;
+    // per candidate (flat): particle, region slot, position, 1 / radius, radius
+    std::vector<index_t> ids_, slots_;
     std::vector<real_t> px_, py_, pz_, inv_a_, a_;
     // per candidate at the last point: offsets x - x_k, window, value, kept (0 / 1)
     std::vector<real_t> dx_, dy_, dz_, phi_, psi_, kept_;
@@ -75,5 +90,6 @@ class RkRegionValues
     // count and the smallest covering radius
     real_t sum_[10] = {};
     real_t n_cover_ = 0.0, a_min_ = 0.0;
+    real_t big_ = 0.0; ///< the largest |psi| at the last point (evaluate)
 };
 } // namespace rkfem

@@ -18,49 +18,79 @@ int element_face_of(int d, real_t sign)
 }
 } // namespace
 
-void build_sub_hex(const real_t xe[8][3], int a, SubHex& out)
+void build_sub_hex_facet(const real_t xe[8][3], int a, int f, std::array<FacetPoint, 4>& out)
 {
     const real_t g = 1.0 / std::sqrt(3.0);
     const real_t s[3] = {hex8_nodes[a][0], hex8_nodes[a][1], hex8_nodes[a][2]};
-    real_t vol = 0.0;
-    for (int d = 0; d < 3; ++d)
-    {
-        const int p = (d + 1) % 3, q = (d + 2) % 3;
-        for (int side = 0; side < 2; ++side)
+    const int d = f / 2, side = f % 2;
+    const int p = (d + 1) % 3, q = (d + 2) % 3;
+    const real_t xi_d = side == 0 ? 0.0 : s[d];
+    // outward in natural space: -s_d on the internal facet, +s_d on the external one
+    const real_t orient = side == 0 ? -s[d] : s[d];
+    int k = 0;
+    for (int i = 0; i < 2; ++i)
+        for (int j = 0; j < 2; ++j, ++k)
         {
-            const int f = 2 * d + side;
-            const real_t xi_d = side == 0 ? 0.0 : s[d];
-            // outward in natural space: -s_d on the internal facet, +s_d on the external one
-            const real_t orient = side == 0 ? -s[d] : s[d];
-            out.element_face[f] = side == 0 ? -1 : element_face_of(d, s[d]);
-            int k = 0;
-            for (int i = 0; i < 2; ++i)
-                for (int j = 0; j < 2; ++j, ++k)
+            real_t xi[3];
+            xi[d] = xi_d;
+            xi[p] = s[p] * 0.5 * (1.0 + (i == 0 ? -g : g));
+            xi[q] = s[q] * 0.5 * (1.0 + (j == 0 ? -g : g));
+            real_t N[8], dN[8][3];
+            hex8_shape(xi, N);
+            hex8_shape_derivatives(xi, dN);
+            Vec3 x = Vec3::Zero(), xp = Vec3::Zero(), xq = Vec3::Zero();
+            for (int I = 0; I < 8; ++I)
+                for (int c = 0; c < 3; ++c)
                 {
-                    real_t xi[3];
-                    xi[d] = xi_d;
-                    xi[p] = s[p] * 0.5 * (1.0 + (i == 0 ? -g : g));
-                    xi[q] = s[q] * 0.5 * (1.0 + (j == 0 ? -g : g));
-                    real_t N[8], dN[8][3];
-                    hex8_shape(xi, N);
-                    hex8_shape_derivatives(xi, dN);
-                    Vec3 x = Vec3::Zero(), xp = Vec3::Zero(), xq = Vec3::Zero();
-                    for (int I = 0; I < 8; ++I)
-                        for (int c = 0; c < 3; ++c)
-                        {
-                            x[c] += N[I] * xe[I][c];
-                            xp[c] += dN[I][p] * xe[I][c];
-                            xq[c] += dN[I][q] * xe[I][c];
-                        }
-                    FacetPoint& fp = out.facets[f][k];
-                    fp.xi = Vec3(xi[0], xi[1], xi[2]);
-                    fp.x = x;
-                    // (p, q) follow d cyclically, so x_p x x_q points along +xi_d; the facet spans
-                    // half the natural range in p and q: weight 1/4 per Gauss point
-                    fp.nda = 0.25 * orient * xp.cross(xq);
-                    vol += x.dot(fp.nda);
+                    x[c] += N[I] * xe[I][c];
+                    xp[c] += dN[I][p] * xe[I][c];
+                    xq[c] += dN[I][q] * xe[I][c];
                 }
+            FacetPoint& fp = out[k];
+            fp.xi = Vec3(xi[0], xi[1], xi[2]);
+            fp.x = x;
+            // (p, q) follow d cyclically, so x_p x x_q points along +xi_d; the facet spans
+            // half the natural range in p and q: weight 1/4 per Gauss point
+            fp.nda = 0.25 * orient * xp.cross(xq);
         }
+}
+
+int sub_hex_element_face(int a, int f)
+{
+    return f % 2 == 0 ? -1 : element_face_of(f / 2, hex8_nodes[a][f / 2]);
+}
+
+real_t sub_hex_volume(const real_t xe[8][3], int a)
+{
+    const real_t g = 1.0 / std::sqrt(3.0);
+    real_t vol = 0.0;
+    for (int q = 0; q < 8; ++q)
+    {
+        // the octant between node a and the centre, xi_d = s_d (1 + g n_qd) / 2: Jacobian 1/8
+        real_t xi[3], dN[8][3];
+        for (int d = 0; d < 3; ++d)
+            xi[d] = 0.5 * hex8_nodes[a][d] * (1.0 + g * hex8_nodes[q][d]);
+        hex8_shape_derivatives(xi, dN);
+        real_t J[3][3] = {};
+        for (int I = 0; I < 8; ++I)
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c)
+                    J[r][c] += xe[I][r] * dN[I][c];
+        vol += J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) - J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) +
+               J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
+    }
+    return 0.125 * vol;
+}
+
+void build_sub_hex(const real_t xe[8][3], int a, SubHex& out)
+{
+    real_t vol = 0.0;
+    for (int f = 0; f < 6; ++f)
+    {
+        build_sub_hex_facet(xe, a, f, out.facets[f]);
+        out.element_face[f] = sub_hex_element_face(a, f);
+        for (const FacetPoint& fp : out.facets[f])
+            vol += fp.x.dot(fp.nda);
     }
     out.volume = vol / 3.0;
 }

@@ -32,6 +32,14 @@ struct SubHex
 
 /// The sub-hex of element e (coordinates xe[8][3]) at local node a.
 void build_sub_hex(const real_t xe[8][3], int a, SubHex& out);
+/// Facet f of that sub-hex alone (the same points as build_sub_hex's facets[f]), and its local
+/// element face (SubHex::element_face).
+void build_sub_hex_facet(const real_t xe[8][3], int a, int f, std::array<FacetPoint, 4>& out);
+int sub_hex_element_face(int a, int f);
+/// The sub-hex's volume as the integral of det J over its natural octant by 2 x 2 x 2 Gauss
+/// points (exact: det J of a trilinear map is at most quadratic in each coordinate); the same
+/// as SubHex::volume to round-off at a third of the cost.
+real_t sub_hex_volume(const real_t xe[8][3], int a);
 
 /// For every element face (6 e + f), the neighbouring element across it, or -1 on the boundary.
 std::vector<index_t> face_neighbours(const HexMesh& mesh);

@@ -1,6 +1,7 @@
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <exception>
 #include <limits>
@@ -8,6 +9,7 @@
 
 #include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/core/setup_progress.hpp"
 
 namespace rkfem
@@ -346,15 +348,64 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     colour_elements(mesh, colour_offsets, by_colour);
     const index_t nn = mesh.n_nodes();
     std::vector<Entries> rows(static_cast<std::size_t>(nn));
+    std::vector<real_t> slot_volume(8 * static_cast<std::size_t>(mesh.n_elements()));
     std::exception_ptr error;
 #pragma omp parallel
     {
         RkRegionValues values(rk, drop_tolerance);
-        // per local node a: sum psi n dA [a][component][candidate], and hit [a][candidate] (0 / 1)
-        std::vector<real_t> acc, hit;
+        // per local node a: sum psi n dA [a][component][region particle], hit [a][region particle]
+        // (0 / 1); per facet: the same over its candidates
+        std::vector<real_t> acc, hit, facet_sum, facet_hit;
         Entries scratch;
-        SubHex sh;
+        std::array<FacetPoint, 4> points;
         real_t xe[8][3];
+        // sum over a facet's 4 points of psi n dA into the rows of local nodes a (+) and b (-,
+        // the sub-hex across an internal facet, whose normal is the opposite; b < 0: none)
+        auto add_facet = [&](int a, int b)
+        {
+            Vec3 lo = points[0].x, hi = points[0].x;
+            for (const FacetPoint& fp : points)
+            {
+                lo = lo.cwiseMin(fp.x);
+                hi = hi.cwiseMax(fp.x);
+            }
+            values.focus(lo, hi);
+            const std::size_t n = values.size();
+            facet_sum.assign(3 * n, 0.0);
+            facet_hit.assign(n, 0.0);
+            real_t *f0 = facet_sum.data(), *f1 = f0 + n, *f2 = f1 + n, *fh = facet_hit.data();
+            for (const FacetPoint& fp : points)
+            {
+                values.evaluate(fp.x);
+                const real_t n0 = fp.nda[0], n1 = fp.nda[1], n2 = fp.nda[2];
+                const real_t *psi = values.psi(), *kept = values.kept();
+#pragma omp simd
+                for (std::size_t k = 0; k < n; ++k)
+                {
+                    f0[k] += psi[k] * n0;
+                    f1[k] += psi[k] * n1;
+                    f2[k] += psi[k] * n2;
+                    fh[k] = fh[k] < kept[k] ? kept[k] : fh[k];
+                }
+            }
+            const std::size_t nr = values.region_size();
+            const index_t* slot = values.slots().data();
+            for (const auto& [node, sign] : {std::pair{a, 1.0}, std::pair{b, -1.0}})
+            {
+                if (node < 0)
+                    continue;
+                real_t* g = acc.data() + 3 * nr * static_cast<std::size_t>(node);
+                real_t* h = hit.data() + nr * static_cast<std::size_t>(node);
+                for (std::size_t k = 0; k < n; ++k)
+                {
+                    const std::size_t r = static_cast<std::size_t>(slot[k]);
+                    g[r] += sign * f0[k];
+                    g[nr + r] += sign * f1[k];
+                    g[2 * nr + r] += sign * f2[k];
+                    h[r] = h[r] < fh[k] ? fh[k] : h[r];
+                }
+            }
+        };
         for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
         {
 #pragma omp for schedule(dynamic, 16)
@@ -371,54 +422,34 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
                             lo[d] = std::min(lo[d], xe[I][d]);
                             hi[d] = std::max(hi[d], xe[I][d]);
                         }
-                    values.gather(lo, hi);
-                    const std::size_t n = values.size();
-                    acc.assign(8 * 3 * n, 0.0);
-                    hit.assign(8 * n, 0.0);
-                    // psi (x_q) n dA into the row of local node a (sign +1) or of its partner (-1)
-                    auto add = [&](int a, const Vec3& nda, real_t sign)
-                    {
-                        const real_t n0 = sign * nda[0], n1 = sign * nda[1], n2 = sign * nda[2];
-                        const real_t *psi = values.psi(), *kept = values.kept();
-                        real_t* g = acc.data() + 3 * n * static_cast<std::size_t>(a);
-                        real_t* h = hit.data() + n * static_cast<std::size_t>(a);
-#pragma omp simd
-                        for (std::size_t k = 0; k < n; ++k)
-                        {
-                            g[k] += psi[k] * n0;
-                            g[n + k] += psi[k] * n1;
-                            g[2 * n + k] += psi[k] * n2;
-                            h[k] = h[k] < kept[k] ? kept[k] : h[k];
-                        }
-                    };
                     for (int a = 0; a < 8; ++a)
-                    {
-                        build_sub_hex(xe, a, sh);
+                        slot_volume[8 * static_cast<std::size_t>(e) + a] = sub_hex_volume(xe, a);
+                    values.gather(lo, hi);
+                    const std::size_t nr = values.region_size();
+                    acc.assign(8 * 3 * nr, 0.0);
+                    hit.assign(8 * nr, 0.0);
+                    for (int a = 0; a < 8; ++a)
                         for (int d = 0; d < 3; ++d)
                         {
                             // the internal facet, once for the pair of sub-hexes it separates
                             // (the partner's facet has the same points and the opposite normal)
                             const int b = facets.partner[a][d];
                             if (a < b)
-                                for (const FacetPoint& fp : sh.facets[2 * d])
-                                {
-                                    values.evaluate(fp.x);
-                                    add(a, fp.nda, 1.0);
-                                    add(b, fp.nda, -1.0);
-                                }
+                            {
+                                build_sub_hex_facet(xe, a, 2 * d, points);
+                                add_facet(a, b);
+                            }
                             // the external facet, where the element face is on the boundary
-                            if (nb[6 * e + sh.element_face[2 * d + 1]] < 0)
-                                for (const FacetPoint& fp : sh.facets[2 * d + 1])
-                                {
-                                    values.evaluate(fp.x);
-                                    add(a, fp.nda, 1.0);
-                                }
+                            if (nb[6 * e + sub_hex_element_face(a, 2 * d + 1)] < 0)
+                            {
+                                build_sub_hex_facet(xe, a, 2 * d + 1, points);
+                                add_facet(a, -1);
+                            }
                         }
-                    }
                     for (int a = 0; a < 8; ++a)
-                        merge_partial_row(rows[mesh.conn[8 * e + a]], values.candidates(),
-                                          acc.data() + 3 * n * static_cast<std::size_t>(a),
-                                          hit.data() + n * static_cast<std::size_t>(a), scratch);
+                        merge_partial_row(rows[mesh.conn[8 * e + a]], values.region_particles(),
+                                          acc.data() + 3 * nr * static_cast<std::size_t>(a),
+                                          hit.data() + nr * static_cast<std::size_t>(a), scratch);
                     setup_progress::advance();
                 }
                 catch (...)
@@ -432,19 +463,40 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     }
     if (error)
         std::rethrow_exception(error);
-    std::vector<real_t> volume = nodal_volumes(mesh), position(3 * static_cast<std::size_t>(nn));
-    std::vector<index_t> owner(static_cast<std::size_t>(nn));
+    // nodal volumes: each node's sub-hexes in incidence order (the same bits on any thread count)
+    std::vector<index_t> inc_offsets, slots;
+    node_element_incidence(mesh, inc_offsets, slots);
+    IntegrationOperator op;
+    op.weight.assign(static_cast<std::size_t>(nn), 0.0);
+    op.offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
     for (index_t i = 0; i < nn; ++i)
     {
-        RKFEM_REQUIRE(volume[i] > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << volume[i]);
-        const real_t scale = 1.0 / volume[i];
-        for (auto& [n, g] : rows[i])
-            g *= scale;
-        for (int d = 0; d < 3; ++d)
-            position[3 * i + d] = mesh.x[3 * static_cast<std::size_t>(i) + d];
-        owner[i] = i;
+        for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
+            op.weight[i] += slot_volume[slots[k]];
+        RKFEM_REQUIRE(op.weight[i] > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << op.weight[i]);
+        op.offsets[i + 1] = op.offsets[i] + static_cast<index_t>(rows[i].size());
     }
-    return pack(rows, std::move(volume), std::move(position), std::move(owner));
+    op.position = mesh.x;
+    op.owner.resize(static_cast<std::size_t>(nn));
+    op.nodes.resize(static_cast<std::size_t>(op.offsets[nn]));
+    op.grad.resize(3 * op.nodes.size());
+    // the rows scaled by 1 / V into the CSR, in parallel (each row freed as it is copied)
+    parallel_for("rkfem::build_scni_rk::pack", nn,
+                 [&](index_t i)
+                 {
+                     const real_t scale = 1.0 / op.weight[i];
+                     index_t k = op.offsets[i];
+                     for (const auto& [n, g] : rows[i])
+                     {
+                         op.nodes[k] = n;
+                         for (int d = 0; d < 3; ++d)
+                             op.grad[3 * static_cast<std::size_t>(k) + d] = g[d] * scale;
+                         ++k;
+                     }
+                     op.owner[i] = i;
+                     Entries().swap(rows[i]);
+                 });
+    return op;
 }
 
 IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& shapes)
