@@ -452,3 +452,30 @@ TEST(VoronoiCells, SdScniIsMscniWithUnitCoefficientAndHasOnlyRigidModes)
     EXPECT_LT(rel, 1e-12);
     EXPECT_EQ(zero, 6);
 }
+
+// build_scni_cells_rk (each cell's particles gathered once, RkRegionValues) against
+// build_scni_cells with RkShapes (the plain twin): the same stencils and weights, gradients to
+// round-off, with and without the drop tolerance, on the random cloud's cells.
+TEST(VoronoiCells, ScniOfRkFunctionsByRegionsIsThePointwiseBuildToRoundOff)
+{
+    const VoronoiSetup s = make_setup();
+    for (const real_t tau : {0.0, 1e-5})
+    {
+        const IntegrationOperator plain = build_scni_cells(s.cells, s.x, RkShapes(s.rk, tau));
+        const IntegrationOperator fast = build_scni_cells_rk(s.cells, s.x, s.rk, tau);
+        EXPECT_EQ(fast.weight, plain.weight);
+        EXPECT_EQ(fast.position, plain.position);
+        EXPECT_EQ(fast.owner, plain.owner);
+        ASSERT_EQ(fast.offsets, plain.offsets);
+        ASSERT_EQ(fast.nodes, plain.nodes);
+        real_t worst = 0.0, big = 0.0;
+        for (std::size_t k = 0; k < plain.grad.size(); ++k)
+        {
+            worst = std::max(worst, std::abs(fast.grad[k] - plain.grad[k]));
+            big = std::max(big, std::abs(plain.grad[k]));
+        }
+        std::printf("tau %.0e: %d entries, largest gradient difference %.2e of the largest\n", tau, plain.n_entries(),
+                    worst / big);
+        EXPECT_LT(worst, 1e-13 * big);
+    }
+}

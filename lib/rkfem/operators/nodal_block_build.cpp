@@ -652,7 +652,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
                                                  ps.nodal.scheme == "scni" ? n : 0);
             nb.points = ps.nodal.scheme == "dni"       ? build_dni_cells(cells.volume, cloud.x, shapes)
                         : ps.nodal.scheme == "sd-scni" ? build_sd_cells(cells, shapes)
-                                                       : build_scni_cells(cells, cloud.x, shapes);
+                                                       : build_scni_cells_rk(cells, cloud.x, *rk, ps.rk.drop_tolerance);
         }
         if (ps.nodal.scheme == "scni" && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
         {

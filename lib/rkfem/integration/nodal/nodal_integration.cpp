@@ -556,6 +556,73 @@ IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vecto
                     });
 }
 
+IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::vector<real_t>& x,
+                                        const RkShapeFunctions& rk, real_t drop_tolerance)
+{
+    const index_t n = cells.size();
+    std::vector<Entries> rows(static_cast<std::size_t>(n));
+    std::exception_ptr error;
+#pragma omp parallel
+    {
+        RkRegionValues values(rk, drop_tolerance);
+        std::vector<real_t> acc, hit; // per region particle: sum psi n dA [component][particle], hit (0 / 1)
+        Entries scratch;
+#pragma omp for schedule(dynamic, 16)
+        for (index_t i = 0; i < n; ++i)
+        {
+            try
+            {
+                const index_t q0 = cells.offsets[i], q1 = cells.offsets[i + 1];
+                Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
+                for (index_t q = q0; q < q1; ++q)
+                {
+                    lo = lo.cwiseMin(cells.points[q].x);
+                    hi = hi.cwiseMax(cells.points[q].x);
+                }
+                values.gather(lo, hi);
+                const std::size_t nr = values.region_size();
+                acc.assign(3 * nr, 0.0);
+                hit.assign(nr, 0.0);
+                real_t *g0 = acc.data(), *g1 = g0 + nr, *g2 = g1 + nr, *h = hit.data();
+                for (index_t q = q0; q < q1; ++q)
+                {
+                    const CellFacetPoint& fp = cells.points[q];
+                    values.evaluate(fp.x);
+                    const real_t n0 = fp.nda[0], n1 = fp.nda[1], n2 = fp.nda[2];
+                    const real_t *psi = values.psi(), *kept = values.kept();
+#pragma omp simd
+                    for (std::size_t k = 0; k < nr; ++k)
+                    {
+                        g0[k] += psi[k] * n0;
+                        g1[k] += psi[k] * n1;
+                        g2[k] += psi[k] * n2;
+                        h[k] = h[k] < kept[k] ? kept[k] : h[k];
+                    }
+                }
+                rows[i].clear();
+                merge_partial_row(rows[i], values.region_particles(), acc.data(), hit.data(), scratch);
+                const real_t scale = 1.0 / cells.volume[i];
+                for (auto& [j, g] : rows[i])
+                    g *= scale;
+                setup_progress::advance();
+            }
+            catch (...)
+            {
+#pragma omp critical(rkfem_nodal_build_error)
+                if (!error)
+                    error = std::current_exception();
+            }
+        }
+    }
+    if (error)
+        std::rethrow_exception(error);
+    std::vector<real_t> position(x.begin(), x.begin() + 3 * static_cast<std::ptrdiff_t>(n));
+    std::vector<index_t> owner(static_cast<std::size_t>(n));
+    for (index_t i = 0; i < n; ++i)
+        owner[i] = i;
+    return pack(rows, cells.volume, std::move(position), std::move(owner));
+}
+
 IntegrationOperator build_sd_cells(const VoronoiCells& cells, const ShapeEvaluator& shapes)
 {
     return assemble(static_cast<index_t>(cells.sub_cells.size()),

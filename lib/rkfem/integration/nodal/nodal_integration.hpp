@@ -58,6 +58,12 @@ IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const S
 IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vector<real_t>& x,
                                      const ShapeEvaluator& shapes);
 
+/// The same for RK functions (build_scni_cells with RkShapes(rk, drop_tolerance), to round-off):
+/// each cell gathers the particles near it once (RkRegionValues) and sums its facet points over
+/// them in flat arrays.
+IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::vector<real_t>& x,
+                                        const RkShapeFunctions& rk, real_t drop_tolerance);
+
 /// Sub-cell smoothing on the pyramids of a cloud's Voronoi cells (VoronoiCells::sub_cells): one
 /// point per sub-cell, owner = its cell's particle; the SD operator that MSCNI stabilizes with.
 IntegrationOperator build_sd_cells(const VoronoiCells& cells, const ShapeEvaluator& shapes);
