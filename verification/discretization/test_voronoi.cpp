@@ -14,6 +14,8 @@
 #include <cstdio>
 #include <random>
 
+#include <omp.h>
+
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
@@ -478,4 +480,40 @@ TEST(VoronoiCells, ScniOfRkFunctionsByRegionsIsThePointwiseBuildToRoundOff)
                     worst / big);
         EXPECT_LT(worst, 1e-13 * big);
     }
+}
+
+// The cells are built in parallel, each into a part of its own joined in point order: the same
+// cells, bit for bit, on 1 and 2 threads.
+TEST(VoronoiCells, CellsAreTheSameBitsOnAnyNumberOfThreads)
+{
+    const std::vector<real_t> x = cloud();
+    const auto body = box_halfspaces(Vec3::Zero(), Vec3::Ones());
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const VoronoiCells one = voronoi_cells(x, body);
+    omp_set_num_threads(2);
+    const VoronoiCells two = voronoi_cells(x, body);
+    omp_set_num_threads(threads);
+    EXPECT_EQ(one.volume, two.volume);
+    EXPECT_EQ(one.spacing, two.spacing);
+    EXPECT_EQ(one.offsets, two.offsets);
+    ASSERT_EQ(one.points.size(), two.points.size());
+    for (std::size_t q = 0; q < one.points.size(); ++q)
+    {
+        EXPECT_EQ(one.points[q].x, two.points[q].x);
+        EXPECT_EQ(one.points[q].nda, two.points[q].nda);
+        EXPECT_EQ(one.points[q].neighbour, two.points[q].neighbour);
+    }
+    ASSERT_EQ(one.sub_cells.size(), two.sub_cells.size());
+    for (std::size_t s = 0; s < one.sub_cells.size(); ++s)
+    {
+        EXPECT_EQ(one.sub_cells[s].cell, two.sub_cells[s].cell);
+        EXPECT_EQ(one.sub_cells[s].volume, two.sub_cells[s].volume);
+        EXPECT_EQ(one.sub_cells[s].begin, two.sub_cells[s].begin);
+        EXPECT_EQ(one.sub_cells[s].end, two.sub_cells[s].end);
+    }
+    ASSERT_EQ(one.sub_points.size(), two.sub_points.size());
+    for (std::size_t q = 0; q < one.sub_points.size(); ++q)
+        EXPECT_EQ(one.sub_points[q].nda, two.sub_points[q].nda);
+    EXPECT_EQ(one.rebuilt_with_all_planes, two.rebuilt_with_all_planes);
 }
