@@ -193,267 +193,275 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
     }
     // each cell on its own (its planes, hull and facets are its own; CGAL's lazy exact kernel
     // is thread-safe) into a part of its own, the parts joined in point order: the same cells,
-    // bit for bit, on any number of threads
-    std::vector<VoronoiCells> parts(static_cast<std::size_t>(n));
-    std::exception_ptr error;
-    index_t error_at = n;
+    // bit for bit, on any number of threads; in blocks of points, so that the parts never hold
+    // more than a block's cells
+    VoronoiCells cells_out;
+    cells_out.volume.resize(static_cast<std::size_t>(n));
+    cells_out.spacing.resize(static_cast<std::size_t>(n));
+    constexpr index_t block = 1024;
+    std::vector<VoronoiCells> parts(static_cast<std::size_t>(std::min(n, block)));
+    for (index_t first = 0; first < n; first += block)
+    {
+        const index_t last = std::min(n, first + block);
+        std::exception_ptr error;
+        index_t error_at = n;
 #pragma omp parallel for schedule(dynamic, 8)
-    for (index_t i = 0; i < n; ++i)
-    {
-        VoronoiCells& cells = parts[static_cast<std::size_t>(i)];
-        try
+        for (index_t i = first; i < last; ++i)
         {
-            cells.volume.assign(1, 0.0);
-            cells.spacing.assign(1, 0.0);
-            const Vec3 xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-            const index_t* adj_begin = adj_ids.data() + adj_offsets[i];
-            const index_t* adj_end = adj_ids.data() + adj_offsets[i + 1];
-            // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
-            std::vector<EK::Plane_3> planes;
-            std::vector<index_t> owner; // neighbour per plane, -1 body
-            for (const index_t* v = adj_begin; v != adj_end; ++v)
+            VoronoiCells& cells = parts[static_cast<std::size_t>(i - first)];
+            try
             {
-                const index_t j = *v;
-                const Vec3 xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
-                const Vec3 nrm = xj - xi;
-                const Vec3 mid = 0.5 * (xi + xj);
-                // a x + b y + c z + d <= 0 on x_i's side
-                planes.emplace_back(nrm[0], nrm[1], nrm[2], -nrm.dot(mid));
-                owner.push_back(j);
-            }
-            // the body's planes that can cut the cell: within twice the farthest Delaunay neighbour
-            // (a faceted body has many, and each plane costs every cell's construction); checked
-            // below, all planes when the cell would reach past one left out
-            real_t dmin = 1e300, dmax = 0.0;
-            for (const index_t* v = adj_begin; v != adj_end; ++v)
-            {
-                const index_t j = *v;
-                const real_t d = (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm();
-                dmin = std::min(dmin, d);
-                dmax = std::max(dmax, d);
-            }
-            const std::size_t n_bisectors = planes.size();
-            auto add_body_planes = [&](bool all)
-            {
-                planes.resize(n_bisectors);
-                owner.resize(n_bisectors);
-                for (const HalfSpace& h : body)
-                    if (all || h.offset - h.normal.dot(xi) <= 2.0 * dmax)
-                    {
-                        planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
-                        owner.push_back(-1);
-                    }
-            };
-            // the point inside the cell that CGAL's dual construction starts from: x_i, pushed to at
-            // least 0.2 d_min (d_min: its nearest neighbour's distance) from every body face, the
-            // nearest face first. The dual points scale with 1 / (distance of the point to each
-            // plane), so a point on or near a face (a generated boundary particle, an imported point)
-            // made the construction ill-conditioned: an unoptimized build got cells reaching outside
-            // the body. The push is at most about sqrt(3) 0.2 d_min (a box corner), inside the
-            // bisectors (d_min / 2 away).
-            auto min_body_distance = [&](const Vec3& p)
-            {
-                real_t d = 1e300;
-                for (const HalfSpace& h : body)
-                    d = std::min(d, h.offset - h.normal.dot(p));
-                return d;
-            };
-            Vec3 xin = xi;
-            for (int pass = 0; pass < 8; ++pass)
-            {
-                const HalfSpace* nearest = nullptr;
-                real_t nearest_dist = 0.2 * dmin;
-                for (const HalfSpace& h : body)
+                cells.volume.assign(1, 0.0);
+                cells.spacing.assign(1, 0.0);
+                const Vec3 xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                const index_t* adj_begin = adj_ids.data() + adj_offsets[i];
+                const index_t* adj_end = adj_ids.data() + adj_offsets[i + 1];
+                // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
+                std::vector<EK::Plane_3> planes;
+                std::vector<index_t> owner; // neighbour per plane, -1 body
+                for (const index_t* v = adj_begin; v != adj_end; ++v)
                 {
-                    const real_t dist = h.offset - h.normal.dot(xin); // unit normals
-                    if (dist < nearest_dist)
-                    {
-                        nearest_dist = dist;
-                        nearest = &h;
-                    }
+                    const index_t j = *v;
+                    const Vec3 xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
+                    const Vec3 nrm = xj - xi;
+                    const Vec3 mid = 0.5 * (xi + xj);
+                    // a x + b y + c z + d <= 0 on x_i's side
+                    planes.emplace_back(nrm[0], nrm[1], nrm[2], -nrm.dot(mid));
+                    owner.push_back(j);
                 }
-                if (nearest == nullptr)
-                    break;
-                xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
-            }
-            // a body thinner than 0.2 d_min across (a cloud one spacing thick, a point file of a
-            // plate) has no room for that push: it left the start point outside a face, a broken
-            // precondition on which CGAL's hull freed an invalid pointer or never returned. There the
-            // start point is the centre of the largest ball in the cell (a small linear programme on
-            // the normalized planes, exact)
-            if (min_body_distance(xin) < 0.1 * dmin)
-                xin = deepest_point(planes, body, xi, i);
-            Polyhedron P;
-            add_body_planes(false);
-            CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
-            bool inside_body = true;
-            for (auto v = P.vertices_begin(); v != P.vertices_end() && inside_body; ++v)
-            {
-                const Vec3 p = vec(v->point());
-                for (const HalfSpace& h : body)
-                    inside_body = inside_body && h.normal.dot(p) <= h.offset + tol;
-            }
-            if (!inside_body)
-            {
-                ++cells.rebuilt_with_all_planes;
-                P.clear();
-                add_body_planes(true);
+                // the body's planes that can cut the cell: within twice the farthest Delaunay neighbour
+                // (a faceted body has many, and each plane costs every cell's construction); checked
+                // below, all planes when the cell would reach past one left out
+                real_t dmin = 1e300, dmax = 0.0;
+                for (const index_t* v = adj_begin; v != adj_end; ++v)
+                {
+                    const index_t j = *v;
+                    const real_t d = (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm();
+                    dmin = std::min(dmin, d);
+                    dmax = std::max(dmax, d);
+                }
+                const std::size_t n_bisectors = planes.size();
+                auto add_body_planes = [&](bool all)
+                {
+                    planes.resize(n_bisectors);
+                    owner.resize(n_bisectors);
+                    for (const HalfSpace& h : body)
+                        if (all || h.offset - h.normal.dot(xi) <= 2.0 * dmax)
+                        {
+                            planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
+                            owner.push_back(-1);
+                        }
+                };
+                // the point inside the cell that CGAL's dual construction starts from: x_i, pushed to at
+                // least 0.2 d_min (d_min: its nearest neighbour's distance) from every body face, the
+                // nearest face first. The dual points scale with 1 / (distance of the point to each
+                // plane), so a point on or near a face (a generated boundary particle, an imported point)
+                // made the construction ill-conditioned: an unoptimized build got cells reaching outside
+                // the body. The push is at most about sqrt(3) 0.2 d_min (a box corner), inside the
+                // bisectors (d_min / 2 away).
+                auto min_body_distance = [&](const Vec3& p)
+                {
+                    real_t d = 1e300;
+                    for (const HalfSpace& h : body)
+                        d = std::min(d, h.offset - h.normal.dot(p));
+                    return d;
+                };
+                Vec3 xin = xi;
+                for (int pass = 0; pass < 8; ++pass)
+                {
+                    const HalfSpace* nearest = nullptr;
+                    real_t nearest_dist = 0.2 * dmin;
+                    for (const HalfSpace& h : body)
+                    {
+                        const real_t dist = h.offset - h.normal.dot(xin); // unit normals
+                        if (dist < nearest_dist)
+                        {
+                            nearest_dist = dist;
+                            nearest = &h;
+                        }
+                    }
+                    if (nearest == nullptr)
+                        break;
+                    xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
+                }
+                // a body thinner than 0.2 d_min across (a cloud one spacing thick, a point file of a
+                // plate) has no room for that push: it left the start point outside a face, a broken
+                // precondition on which CGAL's hull freed an invalid pointer or never returned. There the
+                // start point is the centre of the largest ball in the cell (a small linear programme on
+                // the normalized planes, exact)
+                if (min_body_distance(xin) < 0.1 * dmin)
+                    xin = deepest_point(planes, body, xi, i);
+                Polyhedron P;
+                add_body_planes(false);
                 CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
-            }
-            real_t vol = 0.0;
-            // The cell in an order of its own: CGAL's hull lists vertices and facets, and starts each
-            // facet, in an order that follows memory addresses, which vary from run to run
-            // (address-space randomization), and a vertex's double (its lazy construction's interval)
-            // depended on which of the planes through it the hull used; every sum below then rounded
-            // differently from run to run. Each vertex is solved again from the planes through it
-            // (corner_point), facets start at their smallest vertex, and both are sorted.
-            auto before = [](const Vec3& a, const Vec3& b)
-            { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end()); };
-            std::vector<Vec3> corners;
-            std::unordered_map<const void*, std::size_t> corner_of;
-            for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
-            {
-                corner_of[&*v] = corners.size();
-                corners.push_back(corner_point(vec(v->point()), planes, 1e-9 * dmax));
-            }
-            std::vector<std::vector<Vec3>> polygons;
-            for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
-            {
-                std::vector<Vec3> poly;
-                auto h = f->facet_begin();
-                do
+                bool inside_body = true;
+                for (auto v = P.vertices_begin(); v != P.vertices_end() && inside_body; ++v)
                 {
-                    poly.push_back(corners[corner_of.at(&*h->vertex())]);
-                } while (++h != f->facet_begin());
-                std::rotate(poly.begin(), std::min_element(poly.begin(), poly.end(), before), poly.end());
-                polygons.push_back(std::move(poly));
-            }
-            std::sort(polygons.begin(), polygons.end(),
-                      [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b)
-                      {
-                          return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), before);
-                      });
-            // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
-            std::vector<Vec3> sorted_corners = corners;
-            std::sort(sorted_corners.begin(), sorted_corners.end(), before);
-            Vec3 apex = Vec3::Zero();
-            for (const Vec3& p : sorted_corners)
-                apex += p;
-            apex /= static_cast<real_t>(corners.size());
-            std::vector<std::vector<CellFacetPoint>> pyramids; // per facet polygon: its pyramid's boundary
-            for (const std::vector<Vec3>& poly : polygons)
-            {
-                Vec3 c = Vec3::Zero();
-                for (const Vec3& p : poly)
-                    c += p;
-                c /= static_cast<real_t>(poly.size());
-                // which plane this facet lies on: the one with the smallest distance of the centroid
-                // and a normal parallel to the facet's
-                Vec3 area = Vec3::Zero();
-                for (std::size_t k = 0; k < poly.size(); ++k)
-                    area += 0.5 * (poly[k] - c).cross(poly[(k + 1) % poly.size()] - c);
-                if (area.norm() == 0.0)
-                    continue;
-                index_t nb = -1;
-                real_t best = 1e300;
-                for (std::size_t q = 0; q < planes.size(); ++q)
+                    const Vec3 p = vec(v->point());
+                    for (const HalfSpace& h : body)
+                        inside_body = inside_body && h.normal.dot(p) <= h.offset + tol;
+                }
+                if (!inside_body)
                 {
-                    const Vec3 pn(CGAL::to_double(planes[q].a()), CGAL::to_double(planes[q].b()),
-                                  CGAL::to_double(planes[q].c()));
-                    const real_t dist = std::abs(pn.dot(c) + CGAL::to_double(planes[q].d())) / pn.norm();
-                    if (pn.dot(area) > 0 && dist < best)
+                    ++cells.rebuilt_with_all_planes;
+                    P.clear();
+                    add_body_planes(true);
+                    CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P,
+                                                   EK::Point_3(xin[0], xin[1], xin[2]));
+                }
+                real_t vol = 0.0;
+                // The cell in an order of its own: CGAL's hull lists vertices and facets, and starts each
+                // facet, in an order that follows memory addresses, which vary from run to run
+                // (address-space randomization), and a vertex's double (its lazy construction's interval)
+                // depended on which of the planes through it the hull used; every sum below then rounded
+                // differently from run to run. Each vertex is solved again from the planes through it
+                // (corner_point), facets start at their smallest vertex, and both are sorted.
+                auto before = [](const Vec3& a, const Vec3& b)
+                { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end()); };
+                std::vector<Vec3> corners;
+                std::unordered_map<const void*, std::size_t> corner_of;
+                for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
+                {
+                    corner_of[&*v] = corners.size();
+                    corners.push_back(corner_point(vec(v->point()), planes, 1e-9 * dmax));
+                }
+                std::vector<std::vector<Vec3>> polygons;
+                for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
+                {
+                    std::vector<Vec3> poly;
+                    auto h = f->facet_begin();
+                    do
                     {
-                        best = dist;
-                        nb = owner[q];
+                        poly.push_back(corners[corner_of.at(&*h->vertex())]);
+                    } while (++h != f->facet_begin());
+                    std::rotate(poly.begin(), std::min_element(poly.begin(), poly.end(), before), poly.end());
+                    polygons.push_back(std::move(poly));
+                }
+                std::sort(polygons.begin(), polygons.end(),
+                          [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b)
+                          {
+                              return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), before);
+                          });
+                // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
+                std::vector<Vec3> sorted_corners = corners;
+                std::sort(sorted_corners.begin(), sorted_corners.end(), before);
+                Vec3 apex = Vec3::Zero();
+                for (const Vec3& p : sorted_corners)
+                    apex += p;
+                apex /= static_cast<real_t>(corners.size());
+                std::vector<std::vector<CellFacetPoint>> pyramids; // per facet polygon: its pyramid's boundary
+                for (const std::vector<Vec3>& poly : polygons)
+                {
+                    Vec3 c = Vec3::Zero();
+                    for (const Vec3& p : poly)
+                        c += p;
+                    c /= static_cast<real_t>(poly.size());
+                    // which plane this facet lies on: the one with the smallest distance of the centroid
+                    // and a normal parallel to the facet's
+                    Vec3 area = Vec3::Zero();
+                    for (std::size_t k = 0; k < poly.size(); ++k)
+                        area += 0.5 * (poly[k] - c).cross(poly[(k + 1) % poly.size()] - c);
+                    if (area.norm() == 0.0)
+                        continue;
+                    index_t nb = -1;
+                    real_t best = 1e300;
+                    for (std::size_t q = 0; q < planes.size(); ++q)
+                    {
+                        const Vec3 pn(CGAL::to_double(planes[q].a()), CGAL::to_double(planes[q].b()),
+                                      CGAL::to_double(planes[q].c()));
+                        const real_t dist = std::abs(pn.dot(c) + CGAL::to_double(planes[q].d())) / pn.norm();
+                        if (pn.dot(area) > 0 && dist < best)
+                        {
+                            best = dist;
+                            nb = owner[q];
+                        }
                     }
+                    // the facet's sub-cell: the pyramid from the apex over the polygon, bounded by the
+                    // facet's triangles and one side triangle per polygon edge (shared, with the opposite
+                    // normal, by the neighbouring pyramid of the same cell)
+                    pyramids.emplace_back();
+                    std::vector<CellFacetPoint>& pyr = pyramids.back();
+                    for (std::size_t k = 0; k < poly.size(); ++k)
+                    {
+                        const Vec3& a = poly[k];
+                        const Vec3& b = poly[(k + 1) % poly.size()];
+                        const Vec3 nda = 0.5 * (a - c).cross(b - c);
+                        const Vec3 xq = (a + b + c) / 3.0;
+                        cells.points.push_back({xq, nda, nb});
+                        vol += xq.dot(nda) / 3.0;
+                        pyr.push_back({xq, nda, nb});
+                        // side (apex, b, a): outward from the pyramid when the base's normal is outward
+                        pyr.push_back({(apex + a + b) / 3.0, 0.5 * (b - apex).cross(a - apex), -1});
+                    }
+                    if (nb >= 0)
+                        cells.spacing[0] =
+                            std::max(cells.spacing[0], (Vec3(x[3 * nb], x[3 * nb + 1], x[3 * nb + 2]) - xi).norm());
                 }
-                // the facet's sub-cell: the pyramid from the apex over the polygon, bounded by the
-                // facet's triangles and one side triangle per polygon edge (shared, with the opposite
-                // normal, by the neighbouring pyramid of the same cell)
-                pyramids.emplace_back();
-                std::vector<CellFacetPoint>& pyr = pyramids.back();
-                for (std::size_t k = 0; k < poly.size(); ++k)
+                RKFEM_REQUIRE(vol > 0.0, "Voronoi cells: cell " << i << " has non-positive volume " << vol);
+                // sub-cells: the pyramids, those under 1e-3 of the cell's volume (over the tiny facets
+                // that jitter makes) joined to the largest one. A thin pyramid's boundary terms are large
+                // and cancel: alone, its smoothed gradient carries round-off up to 1e-10 of its terms;
+                // joined, the union (two closed pieces) still reproduces linear fields exactly.
+                std::vector<real_t> pv(pyramids.size(), 0.0);
+                std::size_t largest = 0;
+                for (std::size_t k = 0; k < pyramids.size(); ++k)
                 {
-                    const Vec3& a = poly[k];
-                    const Vec3& b = poly[(k + 1) % poly.size()];
-                    const Vec3 nda = 0.5 * (a - c).cross(b - c);
-                    const Vec3 xq = (a + b + c) / 3.0;
-                    cells.points.push_back({xq, nda, nb});
-                    vol += xq.dot(nda) / 3.0;
-                    pyr.push_back({xq, nda, nb});
-                    // side (apex, b, a): outward from the pyramid when the base's normal is outward
-                    pyr.push_back({(apex + a + b) / 3.0, 0.5 * (b - apex).cross(a - apex), -1});
+                    for (const CellFacetPoint& fp : pyramids[k])
+                        pv[k] += fp.x.dot(fp.nda) / 3.0;
+                    if (pv[k] > pv[largest])
+                        largest = k;
                 }
-                if (nb >= 0)
-                    cells.spacing[0] =
-                        std::max(cells.spacing[0], (Vec3(x[3 * nb], x[3 * nb + 1], x[3 * nb + 2]) - xi).norm());
-            }
-            RKFEM_REQUIRE(vol > 0.0, "Voronoi cells: cell " << i << " has non-positive volume " << vol);
-            // sub-cells: the pyramids, those under 1e-3 of the cell's volume (over the tiny facets
-            // that jitter makes) joined to the largest one. A thin pyramid's boundary terms are large
-            // and cancel: alone, its smoothed gradient carries round-off up to 1e-10 of its terms;
-            // joined, the union (two closed pieces) still reproduces linear fields exactly.
-            std::vector<real_t> pv(pyramids.size(), 0.0);
-            std::size_t largest = 0;
-            for (std::size_t k = 0; k < pyramids.size(); ++k)
-            {
-                for (const CellFacetPoint& fp : pyramids[k])
-                    pv[k] += fp.x.dot(fp.nda) / 3.0;
-                if (pv[k] > pv[largest])
-                    largest = k;
-            }
-            for (std::size_t k = 0; k < pyramids.size(); ++k)
-            {
-                if (k == largest || pv[k] < 1e-3 * vol)
-                    continue;
-                cells.sub_cells.push_back({i, pv[k], static_cast<index_t>(cells.sub_points.size()), 0});
-                cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
-                cells.sub_cells.back().end = static_cast<index_t>(cells.sub_points.size());
-            }
-            VoronoiCells::SubCell joined{i, 0.0, static_cast<index_t>(cells.sub_points.size()), 0};
-            for (std::size_t k = 0; k < pyramids.size(); ++k)
-                if (k == largest || pv[k] < 1e-3 * vol)
+                for (std::size_t k = 0; k < pyramids.size(); ++k)
                 {
-                    joined.volume += pv[k];
+                    if (k == largest || pv[k] < 1e-3 * vol)
+                        continue;
+                    cells.sub_cells.push_back({i, pv[k], static_cast<index_t>(cells.sub_points.size()), 0});
                     cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
+                    cells.sub_cells.back().end = static_cast<index_t>(cells.sub_points.size());
                 }
-            joined.end = static_cast<index_t>(cells.sub_points.size());
-            cells.sub_cells.push_back(joined);
-            cells.volume[0] = vol;
-        }
-        catch (...)
-        {
-#pragma omp critical(rkfem_voronoi_error)
-            if (i < error_at) // the first point's error, whatever the threads' order
+                VoronoiCells::SubCell joined{i, 0.0, static_cast<index_t>(cells.sub_points.size()), 0};
+                for (std::size_t k = 0; k < pyramids.size(); ++k)
+                    if (k == largest || pv[k] < 1e-3 * vol)
+                    {
+                        joined.volume += pv[k];
+                        cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
+                    }
+                joined.end = static_cast<index_t>(cells.sub_points.size());
+                cells.sub_cells.push_back(joined);
+                cells.volume[0] = vol;
+            }
+            catch (...)
             {
-                error_at = i;
-                error = std::current_exception();
+#pragma omp critical(rkfem_voronoi_error)
+                if (i < error_at) // the first point's error, whatever the threads' order
+                {
+                    error_at = i;
+                    error = std::current_exception();
+                }
             }
         }
-    }
-    if (error)
-        std::rethrow_exception(error);
-    VoronoiCells cells;
-    cells.volume.resize(static_cast<std::size_t>(n));
-    cells.spacing.resize(static_cast<std::size_t>(n));
-    for (index_t i = 0; i < n; ++i)
-    {
-        VoronoiCells& part = parts[static_cast<std::size_t>(i)];
-        cells.volume[i] = part.volume[0];
-        cells.spacing[i] = part.spacing[0];
-        cells.points.insert(cells.points.end(), part.points.begin(), part.points.end());
-        cells.offsets.push_back(static_cast<index_t>(cells.points.size()));
-        const index_t shift = static_cast<index_t>(cells.sub_points.size());
-        for (VoronoiCells::SubCell sc : part.sub_cells)
+        if (error)
+            std::rethrow_exception(error);
+        VoronoiCells& cells = cells_out; // the join
+        for (index_t i = first; i < last; ++i)
         {
-            sc.begin += shift;
-            sc.end += shift;
-            cells.sub_cells.push_back(sc);
+            VoronoiCells& part = parts[static_cast<std::size_t>(i - first)];
+            cells.volume[i] = part.volume[0];
+            cells.spacing[i] = part.spacing[0];
+            cells.points.insert(cells.points.end(), part.points.begin(), part.points.end());
+            cells.offsets.push_back(static_cast<index_t>(cells.points.size()));
+            const index_t shift = static_cast<index_t>(cells.sub_points.size());
+            for (VoronoiCells::SubCell sc : part.sub_cells)
+            {
+                sc.begin += shift;
+                sc.end += shift;
+                cells.sub_cells.push_back(sc);
+            }
+            cells.sub_points.insert(cells.sub_points.end(), part.sub_points.begin(), part.sub_points.end());
+            cells.rebuilt_with_all_planes += part.rebuilt_with_all_planes;
+            part = VoronoiCells(); // free as we go
         }
-        cells.sub_points.insert(cells.sub_points.end(), part.sub_points.begin(), part.sub_points.end());
-        cells.rebuilt_with_all_planes += part.rebuilt_with_all_planes;
-        part = VoronoiCells(); // free as we go
     }
-    return cells;
+    return cells_out;
 }
 } // namespace rkfem
