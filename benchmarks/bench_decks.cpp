@@ -1,4 +1,4 @@
-// Whole steps of the seed's own decks (studies/decks): the P3 cantilever (1 in hexes / 1,400
+// Set-up (BM_SeedDeckSetup) and whole steps of the seed's own decks (studies/decks): the P3 cantilever (1 in hexes / 1,400
 // particles, J2 steel) and the P1 cylinder (K&C concrete, 0.5 in), each as fem-1pt and rkpm (its
 // defaults: SCNI + NSNI, rk.drop_tolerance 1e-5), one arkode-cd step per iteration with every
 // per-step pass the driver runs (no output). Counters: ns per node-step (the comparison:
@@ -97,7 +97,40 @@ void BM_CloudForcePass(benchmark::State& state)
     state.counters["shared"] = blk.point_stencils.empty() ? 0 : 1;
     omp_set_num_threads(saved);
 }
+/// Set-up: Model::build of a seed deck as rkpm (deck read, mesh, RK functions, SCNI + NSNI,
+/// kinematic map, tables), the deck to the first step less the stepper's start. deck 0: the P1
+/// cylinder at 0.5 in (4,300 particles), 1: at 0.25 in (38,220), 2: column_wave_cloud.yaml
+/// (5,025 particles, Voronoi cells). Counter: seconds per 10^5 particles (the unit).
+void BM_SeedDeckSetup(benchmark::State& state)
+{
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(static_cast<int>(state.range(1)));
+    const int deck = static_cast<int>(state.range(0));
+    const std::string dir = std::string(RKFEM_SOURCE_DIR) + "/studies/decks/";
+    const Deck d = deck == 2 ? read_deck(dir + "column_wave_cloud.yaml")
+                             : read_deck(dir + "p1_uuc_cylinder.yaml",
+                                         {"parts.cylinder.formulation=rkpm",
+                                          std::string("parts.cylinder.generator.element_size=") +
+                                              (deck == 0 ? "0.5in" : "0.25in")});
+    double particles = 0.0;
+    for (auto _ : state)
+    {
+        Model m = Model::build(d);
+        particles = m.nodes.size();
+        benchmark::DoNotOptimize(m.nodes.x0.data());
+    }
+    state.counters["particles"] = particles;
+    state.counters["s_per_1e5_particles"] =
+        benchmark::Counter(particles * 1e-5, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    omp_set_num_threads(saved);
+}
 } // namespace
+
+BENCHMARK(BM_SeedDeckSetup)
+    ->ArgNames({"deck", "threads"})
+    ->ArgsProduct({{0, 1, 2}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 BENCHMARK(BM_CloudForcePass)->ArgNames({"threads"})->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
 

@@ -16,6 +16,7 @@
 #include <cmath>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/setup_progress.hpp"
 
 namespace rkfem
 {
@@ -429,6 +430,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 joined.end = static_cast<index_t>(cells.sub_points.size());
                 cells.sub_cells.push_back(joined);
                 cells.volume[0] = vol;
+                setup_progress::advance();
             }
             catch (...)
             {

@@ -602,7 +602,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     VoronoiCells cells;
     try
     {
-        const setup_progress::Phase progress("part '" + ps.name + "': Voronoi cells of " + std::to_string(n) + " particles", 0);
+        const setup_progress::Phase progress("part '" + ps.name + "': Voronoi cells", n);
         cells = voronoi_cells(cloud.x, cloud_body(g, n));
     }
     catch (const Error& e)
