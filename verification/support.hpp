@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -19,6 +20,26 @@
 
 namespace rkfem::test
 {
+/// A fast operator builder's result against its plain twin's: the same points (positions,
+/// owners) and stencils (offsets, nodes) are expected; returns the largest gradient difference
+/// over the largest gradient (infinity when the stencils differ).
+inline real_t gradient_difference(const IntegrationOperator& fast, const IntegrationOperator& plain)
+{
+    EXPECT_EQ(fast.position, plain.position);
+    EXPECT_EQ(fast.owner, plain.owner);
+    EXPECT_EQ(fast.offsets, plain.offsets);
+    EXPECT_EQ(fast.nodes, plain.nodes);
+    if (fast.offsets != plain.offsets || fast.nodes != plain.nodes)
+        return std::numeric_limits<real_t>::infinity();
+    real_t worst = 0.0, big = 0.0;
+    for (std::size_t k = 0; k < plain.grad.size(); ++k)
+    {
+        worst = std::max(worst, std::abs(fast.grad[k] - plain.grad[k]));
+        big = std::max(big, std::abs(plain.grad[k]));
+    }
+    return worst / big;
+}
+
 /// Box mesh of n^3 unit-ish hexes with interior nodes jittered by up to `jitter` x element size.
 inline HexMesh distorted_box(int n, real_t h, real_t jitter, unsigned seed = 7)
 {

@@ -16,6 +16,7 @@
 
 #include <omp.h>
 
+#include "../support.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
@@ -466,19 +467,10 @@ TEST(VoronoiCells, ScniOfRkFunctionsByRegionsIsThePointwiseBuildToRoundOff)
         const IntegrationOperator plain = build_scni_cells(s.cells, s.x, RkShapes(s.rk, tau));
         const IntegrationOperator fast = build_scni_cells_rk(s.cells, s.x, s.rk, tau);
         EXPECT_EQ(fast.weight, plain.weight);
-        EXPECT_EQ(fast.position, plain.position);
-        EXPECT_EQ(fast.owner, plain.owner);
-        ASSERT_EQ(fast.offsets, plain.offsets);
-        ASSERT_EQ(fast.nodes, plain.nodes);
-        real_t worst = 0.0, big = 0.0;
-        for (std::size_t k = 0; k < plain.grad.size(); ++k)
-        {
-            worst = std::max(worst, std::abs(fast.grad[k] - plain.grad[k]));
-            big = std::max(big, std::abs(plain.grad[k]));
-        }
+        const real_t difference = rkfem::test::gradient_difference(fast, plain);
         std::printf("tau %.0e: %d entries, largest gradient difference %.2e of the largest\n", tau, plain.n_entries(),
-                    worst / big);
-        EXPECT_LT(worst, 1e-13 * big);
+                    difference);
+        EXPECT_LT(difference, 1e-13); // measured up to 3.4e-15
     }
 }
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <limits>
 #include <array>
+#include <exception>
 #include <memory>
 #include <vector>
 #include <omp.h>
@@ -13,6 +14,28 @@
 
 namespace rkfem
 {
+/// The first exception thrown inside a parallel loop, kept to be rethrown after it (an exception
+/// must not leave an OpenMP region): `catch (...) { errors.capture(); }` in the loop, then
+/// `errors.rethrow()`, which throws it with its own type.
+class ParallelErrors
+{
+  public:
+    void capture()
+    {
+#pragma omp critical(rkfem_parallel_errors)
+        if (!error_)
+            error_ = std::current_exception();
+    }
+    void rethrow() const
+    {
+        if (error_)
+            std::rethrow_exception(error_);
+    }
+
+  private:
+    std::exception_ptr error_;
+};
+
 /// Runs body(i) for i in [0, n) on the OpenMP team (static schedule, so the assignment of
 /// indices to threads is reproducible).
 template <class Body> inline void parallel_for(const char* /*label*/, index_t n, Body&& body)

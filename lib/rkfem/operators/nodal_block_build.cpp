@@ -12,6 +12,7 @@
 #include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/core/setup_progress.hpp"
@@ -68,7 +69,7 @@ void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::ve
     std::vector<std::vector<index_t>> block_nodes;
     std::vector<std::vector<real_t>> block_values;
     std::vector<std::vector<index_t>> block_counts;
-    std::exception_ptr error;
+    ParallelErrors errors;
 #pragma omp parallel
     {
 #pragma omp single
@@ -100,14 +101,11 @@ void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::ve
             }
             catch (...)
             {
-#pragma omp critical(rkfem_interpolation_error)
-                if (!error)
-                    error = std::current_exception();
+                errors.capture();
             }
         }
     }
-    if (error)
-        std::rethrow_exception(error);
+    errors.rethrow();
     nb.interp_offsets.assign(1, 0);
     for (std::size_t t = 0; t < block_nodes.size(); ++t)
     {

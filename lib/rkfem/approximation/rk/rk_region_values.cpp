@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "rkfem/approximation/rk/rk_basis.hpp"
+#include "rkfem/core/simd.hpp"
 
 namespace rkfem
 {
@@ -50,6 +51,25 @@ template <KernelType K> inline void window_slope(real_t z, real_t& phi, real_t& 
     }
     else
         kernel_1d(K, z, phi, dphi);
+}
+
+/// The order-1 moment sums of one candidate with weight w at offset d: sum w, sum w d_i,
+/// sum w d_i d_j (i <= j), in scalars the candidate loops reduce over (inlined, so the loops
+/// still vectorize).
+RKFEM_LANE_INLINE void add_moments(real_t w, real_t d0, real_t d1, real_t d2, real_t& m0, real_t& m1, real_t& m2,
+                                   real_t& m3, real_t& m11, real_t& m12, real_t& m13, real_t& m22, real_t& m23,
+                                   real_t& m33)
+{
+    m0 += w;
+    m1 += w * d0;
+    m2 += w * d1;
+    m3 += w * d2;
+    m11 += w * d0 * d0;
+    m12 += w * d0 * d1;
+    m13 += w * d0 * d2;
+    m22 += w * d1 * d1;
+    m23 += w * d1 * d2;
+    m33 += w * d2 * d2;
 }
 
 /// std::max's rule by value (std::max returns a reference, which keeps GCC from vectorizing
@@ -278,16 +298,7 @@ template <KernelType K, SupportShape S> void RkRegionValues::windows(const Vec3&
         kept[k] = covers ? 1.0 : 0.0;
         count += covers ? 1.0 : 0.0;
         a_min = std::min(a_min, covers ? a : std::numeric_limits<real_t>::infinity());
-        s0 += phi;
-        s1 += phi * d0;
-        s2 += phi * d1;
-        s3 += phi * d2;
-        s11 += phi * d0 * d0;
-        s12 += phi * d0 * d1;
-        s13 += phi * d0 * d2;
-        s22 += phi * d1 * d1;
-        s23 += phi * d1 * d2;
-        s33 += phi * d2 * d2;
+        add_moments(phi, d0, d1, d2, s0, s1, s2, s3, s11, s12, s13, s22, s23, s33);
     }
     const real_t sums[10] = {s0, s1, s2, s3, s11, s12, s13, s22, s23, s33};
     std::copy(sums, sums + 10, sum_);
@@ -389,16 +400,7 @@ void RkRegionValues::drop(const Vec3& x)
         const real_t v = keep * value, w = std::abs(v);
         psi[k] = v;
         s = larger(s, keep * larger(std::abs(dx[k]), larger(std::abs(dy[k]), std::abs(dz[k]))));
-        w0 += w;
-        w1 += w * dx[k];
-        w2 += w * dy[k];
-        w3 += w * dz[k];
-        w11 += w * dx[k] * dx[k];
-        w12 += w * dx[k] * dy[k];
-        w13 += w * dx[k] * dz[k];
-        w22 += w * dy[k] * dy[k];
-        w23 += w * dy[k] * dz[k];
-        w33 += w * dz[k] * dz[k];
+        add_moments(w, dx[k], dy[k], dz[k], w0, w1, w2, w3, w11, w12, w13, w22, w23, w33);
         p0 += v;
         p1 += v * dx[k];
         p2 += v * dy[k];
@@ -484,46 +486,10 @@ template <KernelType K, SupportShape S> void RkRegionValues::slopes(const Vec3& 
         kept[k] = covers ? 1.0 : 0.0;
         count += covers ? 1.0 : 0.0;
         a_min = std::min(a_min, covers ? a : std::numeric_limits<real_t>::infinity());
-        s0 += phi;
-        s1 += phi * d0;
-        s2 += phi * d1;
-        s3 += phi * d2;
-        s11 += phi * d0 * d0;
-        s12 += phi * d0 * d1;
-        s13 += phi * d0 * d2;
-        s22 += phi * d1 * d1;
-        s23 += phi * d1 * d2;
-        s33 += phi * d2 * d2;
-        t00 += g0;
-        t01 += g0 * d0;
-        t02 += g0 * d1;
-        t03 += g0 * d2;
-        t011 += g0 * d0 * d0;
-        t012 += g0 * d0 * d1;
-        t013 += g0 * d0 * d2;
-        t022 += g0 * d1 * d1;
-        t023 += g0 * d1 * d2;
-        t033 += g0 * d2 * d2;
-        t10 += g1;
-        t11 += g1 * d0;
-        t12 += g1 * d1;
-        t13 += g1 * d2;
-        t111 += g1 * d0 * d0;
-        t112 += g1 * d0 * d1;
-        t113 += g1 * d0 * d2;
-        t122 += g1 * d1 * d1;
-        t123 += g1 * d1 * d2;
-        t133 += g1 * d2 * d2;
-        t20 += g2;
-        t21 += g2 * d0;
-        t22 += g2 * d1;
-        t23 += g2 * d2;
-        t211 += g2 * d0 * d0;
-        t212 += g2 * d0 * d1;
-        t213 += g2 * d0 * d2;
-        t222 += g2 * d1 * d1;
-        t223 += g2 * d1 * d2;
-        t233 += g2 * d2 * d2;
+        add_moments(phi, d0, d1, d2, s0, s1, s2, s3, s11, s12, s13, s22, s23, s33);
+        add_moments(g0, d0, d1, d2, t00, t01, t02, t03, t011, t012, t013, t022, t023, t033);
+        add_moments(g1, d0, d1, d2, t10, t11, t12, t13, t111, t112, t113, t122, t123, t133);
+        add_moments(g2, d0, d1, d2, t20, t21, t22, t23, t211, t212, t213, t222, t223, t233);
     }
     const real_t sums[10] = {s0, s1, s2, s3, s11, s12, s13, s22, s23, s33};
     const real_t slope_sums[3][10] = {{t00, t01, t02, t03, t011, t012, t013, t022, t023, t033},

@@ -94,7 +94,7 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
     std::vector<Entries> entries(static_cast<std::size_t>(n_points));
     std::vector<real_t> weight(static_cast<std::size_t>(n_points)), position(3 * static_cast<std::size_t>(n_points));
     std::vector<index_t> owner(static_cast<std::size_t>(n_points));
-    std::exception_ptr error;
+    ParallelErrors errors;
 #pragma omp parallel
     {
         std::vector<index_t> nodes;
@@ -118,14 +118,11 @@ IntegrationOperator assemble(index_t n_points, PointFn&& fn)
             }
             catch (...)
             {
-#pragma omp critical(rkfem_nodal_build_error)
-                if (!error)
-                    error = std::current_exception();
+                errors.capture();
             }
         }
     }
-    if (error)
-        std::rethrow_exception(error); // the first failure, with its type (SingularMomentError)
+    errors.rethrow(); // the first failure, with its type (SingularMomentError)
     return pack(entries, std::move(weight), std::move(position), std::move(owner));
 }
 
@@ -349,7 +346,7 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     const index_t nn = mesh.n_nodes();
     std::vector<Entries> rows(static_cast<std::size_t>(nn));
     std::vector<real_t> slot_volume(8 * static_cast<std::size_t>(mesh.n_elements()));
-    std::exception_ptr error;
+    ParallelErrors errors;
 #pragma omp parallel
     {
         RkRegionValues values(rk, drop_tolerance);
@@ -454,15 +451,12 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
                 }
                 catch (...)
                 {
-#pragma omp critical(rkfem_nodal_build_error)
-                    if (!error)
-                        error = std::current_exception();
+                    errors.capture();
                 }
             }
         }
     }
-    if (error)
-        std::rethrow_exception(error);
+    errors.rethrow();
     // nodal volumes: each node's sub-hexes in incidence order (the same bits on any thread count)
     std::vector<index_t> inc_offsets, slots;
     node_element_incidence(mesh, inc_offsets, slots);
@@ -561,7 +555,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
 {
     const index_t n = cells.size();
     std::vector<Entries> rows(static_cast<std::size_t>(n));
-    std::exception_ptr error;
+    ParallelErrors errors;
 #pragma omp parallel
     {
         RkRegionValues values(rk, drop_tolerance);
@@ -608,14 +602,11 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
             }
             catch (...)
             {
-#pragma omp critical(rkfem_nodal_build_error)
-                if (!error)
-                    error = std::current_exception();
+                errors.capture();
             }
         }
     }
-    if (error)
-        std::rethrow_exception(error);
+    errors.rethrow();
     std::vector<real_t> position(x.begin(), x.begin() + 3 * static_cast<std::ptrdiff_t>(n));
     std::vector<index_t> owner(static_cast<std::size_t>(n));
     for (index_t i = 0; i < n; ++i)
@@ -700,7 +691,7 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
                   "NSNI: " << moments.size() << " second moments for " << np << " points");
     std::vector<std::vector<index_t>> nodes(static_cast<std::size_t>(np));
     std::vector<std::vector<Mat3>> hess(static_cast<std::size_t>(np));
-    std::exception_ptr error;
+    ParallelErrors errors;
 #pragma omp parallel
     {
         // the particles near each point gathered once for its six gradient evaluations
@@ -721,14 +712,11 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
             }
             catch (...)
             {
-#pragma omp critical(rkfem_nsni_build_error)
-                if (!error)
-                    error = std::current_exception();
+                errors.capture();
             }
         }
     }
-    if (error)
-        std::rethrow_exception(error);
+    errors.rethrow();
     IntegrationOperator op;
     op.offsets.assign(1, 0);
     std::size_t entries = 0;
