@@ -309,9 +309,10 @@ TEST(NodalIntegration, OnePassScniAndSubCellsAreTheSeparateBuildsBitForBit)
 }
 
 // build_scni_rk (by elements: each facet point evaluated once for both cells, RkRegionValues)
-// against build_scni with RkShapes (node by node, the plain twin): the same points, weights and
-// stencils, gradients to round-off, on a jittered mesh with and without the drop tolerance and
-// with a quadratic basis; the same bits on 1 and 2 threads (colour by colour, no race).
+// against build_scni with RkShapes (node by node, the plain twin), and its sub-cells against
+// build_scni_sd's: the same points, weights and stencils, gradients to round-off, on a jittered
+// mesh with and without the drop tolerance and with a quadratic basis; the same bits on 1 and 2
+// threads (colour by colour, no race).
 TEST(NodalIntegration, ScniByElementsIsTheNodeByNodeBuildToRoundOff)
 {
     const real_t h = 1e-3;
@@ -341,6 +342,18 @@ TEST(NodalIntegration, ScniByElementsIsTheNodeByNodeBuildToRoundOff)
         std::printf("order %d, tau %.0e: %d entries, largest gradient difference %.2e of the largest gradient\n", order,
                     tau, plain.n_entries(), difference);
         EXPECT_LT(difference, 1e-13); // measured up to 3.2e-15
+        // with MSCNI's sub-cells (build_scni_sd's)
+        IntegrationOperator sd, plain_scni, plain_sd;
+        const IntegrationOperator with_sd = build_scni_rk(mesh, rk, tau, &sd);
+        build_scni_sd(mesh, RkShapes(rk, tau), plain_scni, &plain_sd);
+        EXPECT_EQ(with_sd.grad, fast.grad);
+        ASSERT_EQ(sd.weight.size(), plain_sd.weight.size());
+        for (std::size_t p = 0; p < plain_sd.weight.size(); ++p)
+            EXPECT_NEAR(sd.weight[p], plain_sd.weight[p], 1e-14 * plain_sd.weight[p]);
+        const real_t sd_difference = gradient_difference(sd, plain_sd);
+        std::printf("  sub-cells: %d entries, largest gradient difference %.2e of the largest gradient\n",
+                    plain_sd.n_entries(), sd_difference);
+        EXPECT_LT(sd_difference, 1e-13);
         const int threads = omp_get_max_threads();
         omp_set_num_threads(1);
         const IntegrationOperator serial = build_scni_rk(mesh, rk, tau);

@@ -167,14 +167,15 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
         const bool mscni = stabilized && !(ps.nodal.stabilization == "nsni" && rk);
         IntegrationOperator sd; // MSCNI's sub-cells, in the same pass as the SCNI points
         {
-            // RK SCNI by elements (each facet point evaluated once), counted per element
-            const bool by_elements = rk && scheme == NodalScheme::Scni && !mscni;
+            // RK SCNI (and MSCNI's sub-cells) by elements (each facet point evaluated once),
+            // counted per element
+            const bool by_elements = rk && scheme == NodalScheme::Scni;
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.scheme + " gradients",
                                                  by_elements ? mesh.n_elements() : mesh.n_nodes());
-            if (mscni)
+            if (by_elements)
+                nb.points = build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr);
+            else if (mscni)
                 build_scni_sd(mesh, *shapes, nb.points, &sd);
-            else if (by_elements)
-                nb.points = build_scni_rk(mesh, *rk, ps.rk.drop_tolerance);
             else
                 nb.points = build_nodal(scheme, mesh, *shapes);
         }

@@ -337,7 +337,8 @@ struct FacetPartners
 };
 } // namespace
 
-IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance)
+IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
+                                  IntegrationOperator* sd)
 {
     static const FacetPartners facets;
     const std::vector<index_t> nb = face_neighbours(mesh);
@@ -346,6 +347,11 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     const index_t nn = mesh.n_nodes();
     std::vector<Entries> rows(static_cast<std::size_t>(nn));
     std::vector<real_t> slot_volume(8 * static_cast<std::size_t>(mesh.n_elements()));
+    // with sd: the sub-cells' rows, weights, centroids and owners, per slot 8 e + a
+    const std::size_t n_sub = sd ? 8 * static_cast<std::size_t>(mesh.n_elements()) : 0;
+    std::vector<Entries> sub_rows(n_sub);
+    std::vector<real_t> sub_position(3 * n_sub);
+    std::vector<index_t> sub_owner(n_sub);
     ParallelErrors errors;
 #pragma omp parallel
     {
@@ -353,12 +359,14 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
         // per local node a: sum psi n dA [a][component][region particle], hit [a][region particle]
         // (0 / 1); per facet: the same over its candidates
         std::vector<real_t> acc, hit, facet_sum, facet_hit;
+        std::vector<real_t> sub_acc, sub_hit; // the same per sub-hex a, over all six facets (with sd)
         Entries scratch;
         std::array<FacetPoint, 4> points;
         real_t xe[8][3];
         // sum over a facet's 4 points of psi n dA into the rows of local nodes a (+) and b (-,
-        // the sub-hex across an internal facet, whose normal is the opposite; b < 0: none)
-        auto add_facet = [&](int a, int b)
+        // the sub-hex across an internal facet, whose normal is the opposite; b < 0: none) where
+        // node_rows, and of their sub-hexes with sd
+        auto add_facet = [&](int a, int b, bool node_rows)
         {
             Vec3 lo = points[0].x, hi = points[0].x;
             for (const FacetPoint& fp : points)
@@ -387,12 +395,10 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
             }
             const std::size_t nr = values.region_size();
             const index_t* slot = values.slots().data();
-            for (const auto& [node, sign] : {std::pair{a, 1.0}, std::pair{b, -1.0}})
+            auto scatter = [&](std::vector<real_t>& into, std::vector<real_t>& into_hit, int node, real_t sign)
             {
-                if (node < 0)
-                    continue;
-                real_t* g = acc.data() + 3 * nr * static_cast<std::size_t>(node);
-                real_t* h = hit.data() + nr * static_cast<std::size_t>(node);
+                real_t* g = into.data() + 3 * nr * static_cast<std::size_t>(node);
+                real_t* h = into_hit.data() + nr * static_cast<std::size_t>(node);
                 for (std::size_t k = 0; k < n; ++k)
                 {
                     const std::size_t r = static_cast<std::size_t>(slot[k]);
@@ -401,6 +407,15 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
                     g[2 * nr + r] += sign * f2[k];
                     h[r] = h[r] < fh[k] ? fh[k] : h[r];
                 }
+            };
+            for (const auto& [node, sign] : {std::pair{a, 1.0}, std::pair{b, -1.0}})
+            {
+                if (node < 0)
+                    continue;
+                if (node_rows)
+                    scatter(acc, hit, node, sign);
+                if (sd)
+                    scatter(sub_acc, sub_hit, node, sign);
             }
         };
         for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
@@ -425,6 +440,11 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
                     const std::size_t nr = values.region_size();
                     acc.assign(8 * 3 * nr, 0.0);
                     hit.assign(8 * nr, 0.0);
+                    if (sd)
+                    {
+                        sub_acc.assign(8 * 3 * nr, 0.0);
+                        sub_hit.assign(8 * nr, 0.0);
+                    }
                     for (int a = 0; a < 8; ++a)
                         for (int d = 0; d < 3; ++d)
                         {
@@ -434,19 +454,37 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
                             if (a < b)
                             {
                                 build_sub_hex_facet(xe, a, 2 * d, points);
-                                add_facet(a, b);
+                                add_facet(a, b, true);
                             }
-                            // the external facet, where the element face is on the boundary
-                            if (nb[6 * e + sub_hex_element_face(a, 2 * d + 1)] < 0)
+                            // the external facet: the node's row where the element face is on
+                            // the boundary (inside, it is interior to the nodal cell), the
+                            // sub-cell's always
+                            const bool boundary = nb[6 * e + sub_hex_element_face(a, 2 * d + 1)] < 0;
+                            if (boundary || sd)
                             {
                                 build_sub_hex_facet(xe, a, 2 * d + 1, points);
-                                add_facet(a, -1);
+                                add_facet(a, -1, boundary);
                             }
                         }
                     for (int a = 0; a < 8; ++a)
                         merge_partial_row(rows[mesh.conn[8 * e + a]], values.region_particles(),
                                           acc.data() + 3 * nr * static_cast<std::size_t>(a),
                                           hit.data() + nr * static_cast<std::size_t>(a), scratch);
+                    for (std::size_t a = 0; a < (sd ? 8u : 0u); ++a)
+                    {
+                        const std::size_t slot = 8 * static_cast<std::size_t>(e) + a;
+                        RKFEM_REQUIRE(slot_volume[slot] > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
+                                                                                    << " has non-positive volume "
+                                                                                    << slot_volume[slot]);
+                        merge_partial_row(sub_rows[slot], values.region_particles(), sub_acc.data() + 3 * nr * a,
+                                          sub_hit.data() + nr * a, scratch);
+                        for (auto& [j, g] : sub_rows[slot])
+                            g *= 1.0 / slot_volume[slot];
+                        const Vec3 c = sub_hex_centroid(xe, static_cast<int>(a));
+                        for (int d = 0; d < 3; ++d)
+                            sub_position[3 * slot + d] = c[d];
+                        sub_owner[slot] = mesh.conn[slot];
+                    }
                     setup_progress::advance();
                 }
                 catch (...)
@@ -490,6 +528,8 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
                      op.owner[i] = i;
                      Entries().swap(rows[i]);
                  });
+    if (sd)
+        *sd = pack(sub_rows, slot_volume, std::move(sub_position), std::move(sub_owner));
     return op;
 }
 

@@ -44,7 +44,10 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
 /// side). Elements of one colour share no node, so they add into their nodes' rows in parallel,
 /// colour after colour: the rows are the same bits on any number of threads. One progress
 /// count per element.
-IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance);
+/// With sd, also the SD-SCNI sub-cells that MSCNI needs (build_scni_sd's sd, to round-off): every
+/// sub-hex facet point once, the external facets inside the body for the sub-cells alone.
+IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
+                                  IntegrationOperator* sd = nullptr);
 
 /// Greedy colouring of a mesh's elements: no two elements that share a node have one colour.
 /// Returns the elements by colour as CSR (colour c: elements[offsets[c] .. offsets[c + 1]),
