@@ -168,13 +168,18 @@ class Ldlt4
     int perm_[4] = {};
 };
 
+/// evaluate's pivot test on an Eigen LDL^T: every pivot above 1e-12 of the largest in magnitude
+template <int m> bool pivots_ok(const Eigen::LDLT<Eigen::Matrix<real_t, m, m>>& ldlt)
+{
+    const auto D = ldlt.vectorD();
+    return ldlt.info() == Eigen::Success && D.minCoeff() > 1e-12 * D.cwiseAbs().maxCoeff();
+}
+
 /// LDL^T of a moment matrix with evaluate's pivot test; b = M^-1 e_0.
 template <int m> bool solve_moments(const Eigen::Matrix<real_t, m, m>& M, Eigen::Matrix<real_t, m, 1>& b)
 {
     const Eigen::LDLT<Eigen::Matrix<real_t, m, m>> ldlt(M);
-    const auto D = ldlt.vectorD();
-    const real_t dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
+    if (!pivots_ok<m>(ldlt))
         return false;
     Eigen::Matrix<real_t, m, 1> e0 = Eigen::Matrix<real_t, m, 1>::Zero();
     e0[0] = 1.0;
@@ -308,6 +313,15 @@ template <KernelType K, SupportShape S> void RkRegionValues::windows(const Vec3&
 
 void RkRegionValues::evaluate(const Vec3& x)
 {
+    values_at(x);
+    if (tau_ > 0.0)
+        drop(x);
+}
+
+/// The functions at x before any drop (the twin's evaluate(x, false)): windows, the covering
+/// count's test, the moment solve and the values.
+void RkRegionValues::values_at(const Vec3& x)
+{
     (this->*windows_)(x);
     const int m = rk_.params().basis_size();
     if (n_cover_ < m)
@@ -316,8 +330,6 @@ void RkRegionValues::evaluate(const Vec3& x)
         values_linear(x);
     else
         values_quadratic(x);
-    if (tau_ > 0.0)
-        drop(x);
 }
 
 /// Order 1: M = sum phi H H^T with H = (1, d / s) from the sums, then psi_k = phi_k b . H_k.
@@ -579,8 +591,7 @@ void RkRegionValues::gradients_quadratic(const Vec3& x)
             }
         }
     const Eigen::LDLT<Mat10> ldlt(M);
-    const auto D = ldlt.vectorD();
-    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * D.cwiseAbs().maxCoeff()))
+    if (!pivots_ok<10>(ldlt))
         rk_.throw_singular(x, static_cast<index_t>(n_cover_), "pivot ratio below 1e-12");
     Vec10 e0 = Vec10::Zero();
     e0[0] = 1.0;
@@ -610,14 +621,7 @@ void RkRegionValues::hessians(const Vec3& x, std::vector<index_t>& nodes, std::v
     const Vec3 reach = Vec3::Constant(1e-3 * rk_.max_radius());
     gather(x - reach, x + reach);
     // the functions at x itself: the same checks as the twin's evaluate there, and the radius
-    (this->*windows_)(x);
-    const int m = rk_.params().basis_size();
-    if (n_cover_ < m)
-        rk_.throw_singular(x, static_cast<index_t>(n_cover_), "too few neighbours");
-    if (m == 4)
-        values_linear(x);
-    else
-        values_quadratic(x);
+    values_at(x);
     const real_t delta = 1e-3 * a_min_;
     const std::size_t n = ids_.size();
     hess_.assign(9 * n, 0.0); // [candidate][row i][column j]

@@ -59,6 +59,7 @@ class RkRegionValues
   private:
     /// The candidates: the region's particles k with keep(k).
     template <class Keep> void select(Keep&& keep);
+    void values_at(const Vec3& x);
     template <KernelType K, SupportShape S> void windows(const Vec3& x);
     template <KernelType K, SupportShape S> void slopes(const Vec3& x);
     void gradients_linear(const Vec3& x);

@@ -315,6 +315,25 @@ void merge_partial_row(Entries& row, const std::vector<index_t>& ids, const real
     row.assign(scratch.begin(), scratch.end());
 }
 
+/// Evaluates the functions at x and adds psi n dA over the current candidates k into the flat
+/// sums (g[k], g[n + k], g[2 n + k]) and kept into hit[k] (n = values.size()).
+void add_point_values(RkRegionValues& values, const Vec3& x, const Vec3& nda, real_t* g, real_t* hit)
+{
+    values.evaluate(x);
+    const std::size_t n = values.size();
+    const real_t n0 = nda[0], n1 = nda[1], n2 = nda[2];
+    const real_t *psi = values.psi(), *kept = values.kept();
+    real_t *g0 = g, *g1 = g + n, *g2 = g + 2 * n;
+#pragma omp simd
+    for (std::size_t k = 0; k < n; ++k)
+    {
+        g0[k] += psi[k] * n0;
+        g1[k] += psi[k] * n1;
+        g2[k] += psi[k] * n2;
+        hit[k] = hit[k] < kept[k] ? kept[k] : hit[k];
+    }
+}
+
 /// partner[a][d]: the local node across natural direction d from node a (the sub-hex that shares
 /// a's internal facet f = 2 d).
 struct FacetPartners
@@ -380,19 +399,7 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
             facet_hit.assign(n, 0.0);
             real_t *f0 = facet_sum.data(), *f1 = f0 + n, *f2 = f1 + n, *fh = facet_hit.data();
             for (const FacetPoint& fp : points)
-            {
-                values.evaluate(fp.x);
-                const real_t n0 = fp.nda[0], n1 = fp.nda[1], n2 = fp.nda[2];
-                const real_t *psi = values.psi(), *kept = values.kept();
-#pragma omp simd
-                for (std::size_t k = 0; k < n; ++k)
-                {
-                    f0[k] += psi[k] * n0;
-                    f1[k] += psi[k] * n1;
-                    f2[k] += psi[k] * n2;
-                    fh[k] = fh[k] < kept[k] ? kept[k] : fh[k];
-                }
-            }
+                add_point_values(values, fp.x, fp.nda, f0, fh);
             const std::size_t nr = values.region_size();
             const index_t* slot = values.slots().data();
             auto scatter = [&](std::vector<real_t>& into, std::vector<real_t>& into_hit, int node, real_t sign)
@@ -617,22 +624,8 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                 const std::size_t nr = values.region_size();
                 acc.assign(3 * nr, 0.0);
                 hit.assign(nr, 0.0);
-                real_t *g0 = acc.data(), *g1 = g0 + nr, *g2 = g1 + nr, *h = hit.data();
-                for (index_t q = q0; q < q1; ++q)
-                {
-                    const CellFacetPoint& fp = cells.points[q];
-                    values.evaluate(fp.x);
-                    const real_t n0 = fp.nda[0], n1 = fp.nda[1], n2 = fp.nda[2];
-                    const real_t *psi = values.psi(), *kept = values.kept();
-#pragma omp simd
-                    for (std::size_t k = 0; k < nr; ++k)
-                    {
-                        g0[k] += psi[k] * n0;
-                        g1[k] += psi[k] * n1;
-                        g2[k] += psi[k] * n2;
-                        h[k] = h[k] < kept[k] ? kept[k] : h[k];
-                    }
-                }
+                for (index_t q = q0; q < q1; ++q) // the candidates are the region's (no focus)
+                    add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
                 rows[i].clear();
                 merge_partial_row(rows[i], values.region_particles(), acc.data(), hit.data(), scratch);
                 const real_t scale = 1.0 / cells.volume[i];
