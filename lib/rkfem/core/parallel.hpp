@@ -45,6 +45,17 @@ template <class Body> inline void parallel_for(const char* /*label*/, index_t n,
         body(i);
 }
 
+/// Runs body(i) for i in [0, n) on the OpenMP team, each thread taking the next index when it
+/// is free (dynamic schedule): for a few coarse tasks of uneven cost whose results do not depend
+/// on the thread that runs them (ChunkedScatter's chunks, each with its own buffer), where a
+/// static split of 3 chunks over 2 threads would leave one thread idle for a whole chunk.
+template <class Body> inline void parallel_for_tasks(const char* /*label*/, index_t n, Body&& body)
+{
+#pragma omp parallel for schedule(dynamic, 1)
+    for (index_t i = 0; i < n; ++i)
+        body(i);
+}
+
 /// Minimum of f(i) over [0, n). Deterministic: min is exact regardless of order.
 template <class F> inline real_t parallel_reduce_min(const char* /*label*/, index_t n, F&& f)
 {

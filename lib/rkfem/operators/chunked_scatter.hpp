@@ -84,19 +84,19 @@ struct ChunkedScatter
     /// on).
     template <class Batch> void run_chunks(const char* label, index_t c0, index_t c1, index_t width, Batch&& batch)
     {
-        parallel_for(label, c1 - c0,
-                     [&](index_t i)
-                     {
-                         const index_t c = c0 + i;
-                         const Chunk& ch = chunks[static_cast<std::size_t>(c)];
-                         real_t* buf = chunk_buffer(c);
-                         zero(c);
-                         buffer_zero[static_cast<std::size_t>(c)] = 0;
-                         for (index_t b = ch.first / width; b * width < ch.last; ++b)
-                             batch(b, buf, ch.lo);
-                         // the batches may write with streaming stores (core/stream_stores.hpp)
-                         _mm_sfence();
-                     });
+        parallel_for_tasks(label, c1 - c0,
+                           [&](index_t i)
+                           {
+                               const index_t c = c0 + i;
+                               const Chunk& ch = chunks[static_cast<std::size_t>(c)];
+                               real_t* buf = chunk_buffer(c);
+                               zero(c);
+                               buffer_zero[static_cast<std::size_t>(c)] = 0;
+                               for (index_t b = ch.first / width; b * width < ch.last; ++b)
+                                   batch(b, buf, ch.lo);
+                               // the batches may write with streaming stores (core/stream_stores.hpp)
+                               _mm_sfence();
+                           });
     }
     /// f[3 n + a] = the sum over the chunks covering node n of their buffer values, in chunk
     /// order, for the block's nodes. It consumes the buffers: each value is zeroed as it is
