@@ -9,9 +9,9 @@
 
 namespace rkfem
 {
-index_t ChunkedScatter::chunk_size(index_t n, index_t multiple)
+index_t ChunkedScatter::chunk_size(index_t n, index_t multiple, index_t smallest)
 {
-    const index_t c = std::clamp<index_t>(n / 16, 2048, 32768);
+    const index_t c = std::clamp<index_t>(n / 16, smallest, 32768);
     return (c + multiple - 1) / multiple * multiple;
 }
 

@@ -52,8 +52,11 @@ struct ChunkedScatter
     /// reads), so its next pass need not clear it
     std::vector<char> buffer_zero;
 
-    /// Items per chunk for n items: about n / 16 within [2048, 32768], a multiple of `multiple`.
-    static index_t chunk_size(index_t n, index_t multiple);
+    /// Items per chunk for n items: about n / 16 within [smallest, 32768], a multiple of
+    /// `multiple`. The smallest chunk suits the items' cost: 2048 for hex elements (tens of ns
+    /// each); stress points of RK parts cost about 1-2 us each and take smaller chunks, so that
+    /// a part of a few thousand particles still has work for every thread.
+    static index_t chunk_size(index_t n, index_t multiple, index_t smallest = 2048);
 
     /// Appends chunks of `size` consecutive items of [0, n_items); `range(first, last, lo, hi)`
     /// widens [lo, hi) to the nodes that items [first, last) touch. Returns the buffer values

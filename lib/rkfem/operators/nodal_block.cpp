@@ -118,48 +118,58 @@ void NodalBlock::build_tables(Assembly assembly)
     }
 
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
-    // the node range its entries touch
-    scatter.clear();
-    scatter.node_begin = node_begin;
-    scatter.node_end = node_end;
-    n_point_chunks = 0;
+    // the node range its entries touch. Chunks of 512 stress points first, so that a part of a few thousand particles has work
+    // for every thread; where their node ranges overlap too much (the reduce would sum over 3
+    // buffers per node: small lattices with wide supports), chunks of 2048. Either way the
+    // chunks are a function of the operators only, never of the thread count.
     bool local = true;
-    for (const IntegrationOperator* op : {&points, &stabilization})
+    auto cut_chunks = [&](index_t smallest)
     {
-        // NSNI triplets run in their point's batch (nsni_batch): the point chunks cover their nodes
-        if (op == &stabilization && stabilization_triplets)
-            continue;
-        // stabilization chunks cover as many nodes as stress-point chunks (about 8 sub-cells
-        // per node)
-        const index_t n = op->n_points();
-        const index_t size = ChunkedScatter::chunk_size(np, kPointLanes) * std::max<index_t>(1, np > 0 ? n / np : 1);
-        const std::size_t added = scatter.add_chunks(n, size,
-                                                     [&](index_t first, index_t last, index_t& lo, index_t& hi)
-                                                     {
-                                                         const bool triplets = op == &points && stabilization_triplets;
-                                                         const index_t k0 = triplets ? stabilization.offsets[3 * first] : 0,
-                                                                       k1 = triplets ? stabilization.offsets[3 * last] : 0;
-                                                         for (index_t k = k0; k < k1; ++k)
+        scatter.clear();
+        scatter.node_begin = node_begin;
+        scatter.node_end = node_end;
+        n_point_chunks = 0;
+        local = true;
+        for (const IntegrationOperator* op : {&points, &stabilization})
+        {
+            // NSNI triplets run in their point's batch (nsni_batch): the point chunks cover their nodes
+            if (op == &stabilization && stabilization_triplets)
+                continue;
+            // stabilization chunks cover as many nodes as stress-point chunks (about 8 sub-cells
+            // per node)
+            const index_t n = op->n_points();
+            const index_t size = ChunkedScatter::chunk_size(np, kPointLanes, smallest) * std::max<index_t>(1, np > 0 ? n / np : 1);
+            const std::size_t added = scatter.add_chunks(n, size,
+                                                         [&](index_t first, index_t last, index_t& lo, index_t& hi)
                                                          {
-                                                             lo = std::min(lo, stabilization.nodes[k]);
-                                                             hi = std::max(hi, stabilization.nodes[k] + 1);
-                                                         }
-                                                         for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
-                                                         {
-                                                             RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,
-                                                                           "nodal block: entry touches node "
-                                                                               << op->nodes[k] << " outside the part's range ["
-                                                                               << node_begin << ", " << node_end << ")");
-                                                             lo = std::min(lo, op->nodes[k]);
-                                                             hi = std::max(hi, op->nodes[k] + 1);
-                                                         }
-                                                     });
-        if (op == &points)
-            n_point_chunks = static_cast<index_t>(scatter.chunks.size());
-        // a point order without locality (an imported cloud in random order) makes every
-        // chunk's range the whole block: then the transpose gather
-        local = local && added <= 4 * 3 * static_cast<std::size_t>(nn);
-    }
+                                                             const bool triplets = op == &points && stabilization_triplets;
+                                                             const index_t k0 = triplets ? stabilization.offsets[3 * first] : 0,
+                                                                           k1 = triplets ? stabilization.offsets[3 * last] : 0;
+                                                             for (index_t k = k0; k < k1; ++k)
+                                                             {
+                                                                 lo = std::min(lo, stabilization.nodes[k]);
+                                                                 hi = std::max(hi, stabilization.nodes[k] + 1);
+                                                             }
+                                                             for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
+                                                             {
+                                                                 RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,
+                                                                               "nodal block: entry touches node "
+                                                                                   << op->nodes[k] << " outside the part's range ["
+                                                                                   << node_begin << ", " << node_end << ")");
+                                                                 lo = std::min(lo, op->nodes[k]);
+                                                                 hi = std::max(hi, op->nodes[k] + 1);
+                                                             }
+                                                         });
+            if (op == &points)
+                n_point_chunks = static_cast<index_t>(scatter.chunks.size());
+            // a point order without locality (an imported cloud in random order) makes every
+            // chunk's range the whole block: then the transpose gather
+            local = local && added <= 4 * 3 * static_cast<std::size_t>(nn);
+        }
+    };
+    cut_chunks(512);
+    if (!local)
+        cut_chunks(2048);
     const bool use_scatter = assembly == Assembly::Scatter || (assembly == Assembly::Automatic && local);
     if (use_scatter)
         scatter.finish();
