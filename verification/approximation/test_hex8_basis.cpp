@@ -224,8 +224,8 @@ TEST(Hex8Modes, VolumeGradientAndFaceAreasEqualTheNodalForms)
     }
 }
 
-// The element kernels run the same templates on lane vectors (simd::d8, fused multiply-adds):
-// eight distorted elements in the lanes give each element's scalar volume, gradient modes and
+// The element kernels run the same templates on lane vectors (simd::dvec, fused multiply-adds):
+// eight distorted elements in the lanes (one or two vectors) give each element's scalar volume, gradient modes and
 // face area to round-off.
 TEST(Hex8Modes, LaneVectorsGiveTheScalarResults)
 {
@@ -242,17 +242,21 @@ TEST(Hex8Modes, LaneVectorsGiveTheScalarResults)
         Vs[l] = hex8_mode_volume_gradient(A, Bs[l]);
         as[l] = hex8_mode_max_face_area2(A);
     }
-    simd::d8 x[8][3], A[8][3], B[8][3];
-    for (int I = 0; I < 8; ++I)
-        for (int d = 0; d < 3; ++d)
-            x[I][d] = simd::load(xl[I][d]);
-    hex8_to_modes(x, A);
+    // the eight elements in batches of simd::kLanes (8 with AVX-512, else 4)
     alignas(64) real_t V[8], a2[8], Bl[8][3][8];
-    simd::store(V, hex8_mode_volume_gradient(A, B));
-    simd::store(a2, hex8_mode_max_face_area2(A));
-    for (int k = 0; k < 8; ++k)
-        for (int d = 0; d < 3; ++d)
-            simd::store(Bl[k][d], B[k][d]);
+    for (int g = 0; g < 8; g += simd::kLanes)
+    {
+        simd::dvec x[8][3], A[8][3], B[8][3];
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                x[I][d] = simd::load(xl[I][d] + g);
+        hex8_to_modes(x, A);
+        simd::store(V + g, hex8_mode_volume_gradient(A, B));
+        simd::store(a2 + g, hex8_mode_max_face_area2(A));
+        for (int k = 0; k < 8; ++k)
+            for (int d = 0; d < 3; ++d)
+                simd::store(Bl[k][d] + g, B[k][d]);
+    }
     for (int l = 0; l < 8; ++l)
     {
         EXPECT_NEAR(V[l], Vs[l], 1e-14 * Vs[l]) << "lane " << l;
@@ -272,11 +276,14 @@ TEST(Simd, LaneHelpersFollowTheScalarRules)
     alignas(64) const real_t a[8] = {1.0, -2.0, nan, 3.0, nan, 0.0, -0.0, 5.0};
     alignas(64) const real_t b[8] = {2.0, -3.0, 1.0, nan, nan, -0.0, 0.0, -5.0};
     alignas(64) real_t mn[8], mx[8], wn[8], fm[8];
-    const simd::d8 va = simd::load(a), vb = simd::load(b);
-    simd::store(mn, simd::min(va, vb));
-    simd::store(mx, simd::max(va, vb));
-    simd::store(wn, simd::where_negative(va, vb));
-    simd::store(fm, simd::mul_add(va, vb, simd::broadcast(0.5)));
+    for (int g = 0; g < 8; g += simd::kLanes)
+    {
+        const simd::dvec va = simd::load(a + g), vb = simd::load(b + g);
+        simd::store(mn + g, simd::min(va, vb));
+        simd::store(mx + g, simd::max(va, vb));
+        simd::store(wn + g, simd::where_negative(va, vb));
+        simd::store(fm + g, simd::mul_add(va, vb, simd::broadcast(0.5)));
+    }
     for (int l = 0; l < 8; ++l)
     {
         const real_t rmin = std::min(a[l], b[l]), rmax = std::max(a[l], b[l]);

@@ -23,77 +23,82 @@
 #endif
 
 #if !defined(__AVX512F__)
-// GCC notes that a 64-byte vector passed by value has another ABI where AVX-512 is enabled
-// (once per translation unit, wherever d8 first crosses a call): the lane helpers and kernels
+// GCC notes that a 32-byte vector passed by value has another ABI where AVX is enabled (a
+// build for the SSE2 baseline)
+// (once per translation unit, wherever dvec first crosses a call): the lane helpers and kernels
 // are inline or internal, no such call crosses a library boundary.
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
 
 namespace rkfem::simd
 {
-/// A lane vector of 8 doubles for the batch kernels (one batch of 8 elements or points, one
-/// register): an AVX-512 register where the CPU has one, else GCC's generic vector (lowered to
-/// what the CPU has). Arithmetic operators work on it directly; the helpers below add the fused
+/// A lane vector of kLanes doubles for the batch kernels (one batch of kLanes elements, one
+/// register): 8 in an AVX-512 register where the CPU has one, else 4 in GCC's generic vector
+/// (an AVX register; lowered to what the CPU has). Eight lanes without AVX-512 took two
+/// registers each and spilled with 16 of them: the 1-point hex kernel ran 1.9-2.6x slower on
+/// an AVX2 machine (bench_internal_force). Arithmetic operators work on it directly; the helpers below add the fused
 /// multiply-add, sqrt, min and max. The same helpers on real_t let templates run on scalars:
 /// there mul_add is the expression a * b + c, so scalar callers compile as they did when they
 /// wrote it out (GCC contracts it to an FMA where the CPU has one, as it does the written form).
 #if defined(__AVX512F__)
-using d8 = __m512d;
-inline d8 broadcast(double a) { return _mm512_set1_pd(a); }
-inline d8 load(const double* p) { return _mm512_loadu_pd(p); }
-inline void store(double* p, d8 a) { _mm512_storeu_pd(p, a); }
+using dvec = __m512d;
+inline constexpr int kLanes = 8;
+inline dvec broadcast(double a) { return _mm512_set1_pd(a); }
+inline dvec load(const double* p) { return _mm512_loadu_pd(p); }
+inline void store(double* p, dvec a) { _mm512_storeu_pd(p, a); }
 /// a b + c, fused
-inline d8 mul_add(d8 a, d8 b, d8 c) { return _mm512_fmadd_pd(a, b, c); }
+inline dvec mul_add(dvec a, dvec b, dvec c) { return _mm512_fmadd_pd(a, b, c); }
 /// c - a b, fused
-inline d8 neg_mul_add(d8 a, d8 b, d8 c) { return _mm512_fnmadd_pd(a, b, c); }
-inline d8 sqrt(d8 a) { return _mm512_sqrt_pd(a); }
+inline dvec neg_mul_add(dvec a, dvec b, dvec c) { return _mm512_fnmadd_pd(a, b, c); }
+inline dvec sqrt(dvec a) { return _mm512_sqrt_pd(a); }
 /// std::min's lane rule, (b < a) ? b : a (a NaN a is kept)
 // (a compare and a blend: GCC 12's _mm512_min_pd / _mm512_max_pd start from an undefined
 // source that -Wuninitialized reports wherever they are inlined)
-inline d8 min(d8 a, d8 b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(b, a, _CMP_LT_OQ), a, b); }
+inline dvec min(dvec a, dvec b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(b, a, _CMP_LT_OQ), a, b); }
 /// std::max's lane rule, (a < b) ? b : a (a NaN a is kept)
-inline d8 max(d8 a, d8 b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), a, b); }
+inline dvec max(dvec a, dvec b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), a, b); }
 /// v where x < 0, else 0
-inline d8 where_negative(d8 x, d8 v)
+inline dvec where_negative(dvec x, dvec v)
 {
     return _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(x, _mm512_setzero_pd(), _CMP_LT_OQ), v);
 }
 #else
-typedef double d8 __attribute__((vector_size(64)));
-inline d8 broadcast(double a) { return d8{} + a; }
-inline d8 load(const double* p)
+typedef double dvec __attribute__((vector_size(32)));
+inline constexpr int kLanes = 4;
+inline dvec broadcast(double a) { return dvec{} + a; }
+inline dvec load(const double* p)
 {
-    d8 r;
+    dvec r;
     std::memcpy(&r, p, sizeof r);
     return r;
 }
-inline void store(double* p, d8 a) { std::memcpy(p, &a, sizeof a); }
-inline d8 mul_add(d8 a, d8 b, d8 c) { return a * b + c; }
-inline d8 neg_mul_add(d8 a, d8 b, d8 c) { return c - a * b; }
-inline d8 sqrt(d8 a)
+inline void store(double* p, dvec a) { std::memcpy(p, &a, sizeof a); }
+inline dvec mul_add(dvec a, dvec b, dvec c) { return a * b + c; }
+inline dvec neg_mul_add(dvec a, dvec b, dvec c) { return c - a * b; }
+inline dvec sqrt(dvec a)
 {
-    for (int l = 0; l < 8; ++l)
+    for (int l = 0; l < kLanes; ++l)
         a[l] = std::sqrt(a[l]);
     return a;
 }
-inline d8 min(d8 a, d8 b) { return b < a ? b : a; }
-inline d8 max(d8 a, d8 b) { return a < b ? b : a; }
-inline d8 where_negative(d8 x, d8 v) { return x < 0.0 ? v : d8{}; }
+inline dvec min(dvec a, dvec b) { return b < a ? b : a; }
+inline dvec max(dvec a, dvec b) { return a < b ? b : a; }
+inline dvec where_negative(dvec x, dvec v) { return x < 0.0 ? v : dvec{}; }
 #endif
 inline double mul_add(double a, double b, double c) { return a * b + c; }
 inline double neg_mul_add(double a, double b, double c) { return c - a * b; }
 /// A scalar operand among lane vectors is broadcast.
-inline d8 lanes(double a) { return broadcast(a); }
-inline d8 lanes(d8 a) { return a; }
+inline dvec lanes(double a) { return broadcast(a); }
+inline dvec lanes(dvec a) { return a; }
 template <class A, class B, class C>
     requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>))
-inline d8 mul_add(A a, B b, C c)
+inline dvec mul_add(A a, B b, C c)
 {
     return mul_add(lanes(a), lanes(b), lanes(c));
 }
 template <class A, class B, class C>
     requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>))
-inline d8 neg_mul_add(A a, B b, C c)
+inline dvec neg_mul_add(A a, B b, C c)
 {
     return neg_mul_add(lanes(a), lanes(b), lanes(c));
 }

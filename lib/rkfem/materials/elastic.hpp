@@ -35,7 +35,7 @@ struct ElasticParams
 /// independent spin components, W = (L - L^T)/2. The Jaumann rotation is integrated by the
 /// Hughes-Winget rule (objective_rate.hpp), then the elastic increment is added.
 /// The update on scalars (the element kernels' lane loops vectorize over this form).
-/// T is real_t or a lane vector (simd::d8).
+/// T is real_t or a lane vector (simd::dvec).
 template <class T>
 inline void elastic_update(const ElasticParams& p, T d0, T d1, T d2, T d3, T d4, T d5, T w0, T w1, T w2, real_t dt,
                            T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)

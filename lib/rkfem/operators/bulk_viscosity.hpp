@@ -1,9 +1,10 @@
 #pragma once
 /// @file bulk_viscosity.hpp
 /// Bulk viscosity and the stable time step of an element or stress point, shared by the hex and
-/// nodal kernels. T is real_t or a lane vector (simd::d8) of 8 points. Both are written without
-/// branches (min and a select instead of "trD < 0 ? ... : 0") so that the kernels' lane loops
-/// vectorize: GCC keeps a conditional floating-point expression as control flow.
+/// nodal kernels. T is real_t or a lane vector (simd::dvec) of simd::kLanes points. Both are
+/// written without branches (min and a select instead of "trD < 0 ? ... : 0") so that the
+/// kernels' lane loops vectorize: GCC keeps a conditional floating-point expression as control
+/// flow.
 #include <cmath>
 
 #include "rkfem/core/simd.hpp"

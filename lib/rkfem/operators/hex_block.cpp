@@ -27,11 +27,11 @@ namespace rkfem
 {
 namespace
 {
-constexpr int W = 8; // lanes per batch (one AVX-512 register of doubles)
+constexpr int W = simd::kLanes; // lanes per batch (one vector register of doubles)
 
 index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 
-/// One batch of W elements, one element per lane of a simd::d8. FULL: all W lanes are elements
+/// One batch of W elements, one element per lane of a simd::dvec. FULL: all W lanes are elements
 /// (every batch but a partial last one), so loads and stores are whole lane vectors; a partial
 /// batch's lanes past the block's end repeat its first element and are not stored.
 ///
@@ -42,14 +42,14 @@ index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 template <HourglassType HG, bool PLASTIC, bool FULL>
 RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt, real_t* buf, index_t lo)
 {
-    using simd::d8;
+    using simd::dvec;
     using simd::mul_add;
     const index_t ne = blk.n_elements();
     const index_t e0 = batch * W;
     const int nl = FULL ? W : static_cast<int>(std::min<index_t>(W, ne - e0));
     auto lane_element = [&](int l) { return static_cast<std::size_t>(e0 + (FULL || l < nl ? l : 0)); };
     // a field of the block's elements (component stride n) for the batch's lanes
-    auto load_lanes = [&](const real_t* field) -> d8
+    auto load_lanes = [&](const real_t* field) -> dvec
     {
         if constexpr (FULL)
             return simd::load(field + e0);
@@ -61,7 +61,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             return simd::load(t);
         }
     };
-    auto store_lanes = [&](real_t* field, d8 v)
+    auto store_lanes = [&](real_t* field, dvec v)
     {
         if constexpr (FULL)
             simd::store(field + e0, v);
@@ -92,9 +92,9 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 #endif
     // the modes Y_k (k = 1..7; the constant mode is not used) of a nodal field (x or v) over the
     // batch's elements: node I of the 8 elements by line loads or one 8-lane gather per component
-    auto field_modes = [&](const std::vector<real_t>& field, d8 (&Y)[8][3]) __attribute__((always_inline))
+    auto field_modes = [&](const std::vector<real_t>& field, dvec (&Y)[8][3]) __attribute__((always_inline))
     {
-        d8 y[8][3];
+        dvec y[8][3];
 #if defined(__AVX512F__)
         if constexpr (FULL)
         {
@@ -131,21 +131,21 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     // b_I = dV/dx_I in modes (Flanagan-Belytschko, exact volume integration), the volume, and
     // the velocity gradient L_ij = (1/V) sum_I v_iI b_jI = (1/V) sum_k U_ki B_kj (positions
     // first, velocities after: fewer lane vectors live at once)
-    d8 A[8][3], B[8][3];
+    dvec A[8][3], B[8][3];
     field_modes(nodes.x, A);
-    const d8 vol = hex8_mode_volume_gradient(A, B);
+    const dvec vol = hex8_mode_volume_gradient(A, B);
     // characteristic length lc = V / a with a the largest face area: one division for 1/V and 1/a
-    const d8 area = simd::sqrt(hex8_mode_max_face_area2(A));
-    const d8 r = 1.0 / (vol * area);
-    const d8 inv_v = r * area, inv_a = r * vol;
-    const d8 lc = vol * inv_a;
-    d8 U[8][3];
+    const dvec area = simd::sqrt(hex8_mode_max_face_area2(A));
+    const dvec r = 1.0 / (vol * area);
+    const dvec inv_v = r * area, inv_a = r * vol;
+    const dvec lc = vol * inv_a;
+    dvec U[8][3];
     field_modes(nodes.v, U);
-    d8 L[3][3];
+    dvec L[3][3];
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
         {
-            d8 s = U[1][i] * B[1][j];
+            dvec s = U[1][i] * B[1][j];
             for (int k = 2; k <= 6; ++k)
                 s = mul_add(U[k][i], B[k][j], s);
             L[i][j] = s * inv_v;
@@ -159,14 +159,14 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     real_t* s_out = blk.stress_trial.data();
 
     // stress update (strain rate d, old and new stress kept for the stress power)
-    const d8 dl[6] = {L[0][0],
+    const dvec dl[6] = {L[0][0],
                       L[1][1],
                       L[2][2],
                       0.5 * (L[0][1] + L[1][0]),
                       0.5 * (L[1][2] + L[2][1]),
                       0.5 * (L[2][0] + L[0][2])};
-    const d8 wl[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]), 0.5 * (L[2][0] - L[0][2])};
-    d8 so[6], sn[6];
+    const dvec wl[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]), 0.5 * (L[2][0] - L[0][2])};
+    dvec so[6], sn[6];
     for (int k = 0; k < 6; ++k)
         so[k] = load_lanes(s_in + k * ss);
     if constexpr (PLASTIC)
@@ -204,7 +204,13 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         alignas(64) real_t st[6][W];
         for (int k = 0; k < 6; ++k)
             simd::store(st[k], sn[k]);
+#if defined(__AVX512F__)
         store_batch8<6>(st, s_out, ss, static_cast<std::size_t>(e0), buf != nullptr && blk.stream_stress);
+#else
+        for (int k = 0; k < 6; ++k)
+            for (int l = 0; l < W; ++l)
+                s_out[k * ss + static_cast<std::size_t>(e0) + l] = st[k][l];
+#endif
     }
     else
         for (int k = 0; k < 6; ++k)
@@ -212,43 +218,43 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 
     // bulk viscosity, time step, energies, effective stress (characteristic length: volume over
     // the largest face area)
-    const d8 trd = dl[0] + dl[1] + dl[2];
-    const d8 rho = mat.rho * load_lanes(blk.volume0.data()) * inv_v;
-    const d8 q = bulk_q(rho, c, lc, trd, q1, q2);
+    const dvec trd = dl[0] + dl[1] + dl[2];
+    const dvec rho = mat.rho * load_lanes(blk.volume0.data()) * inv_v;
+    const dvec q = bulk_q(rho, c, lc, trd, q1, q2);
     // the stable step, kept as its inverse (no division per element; the batch's smallest step
     // is one division): 1/lc = a/V
-    const d8 inv_dt = element_dt_inverse(c, lc, area * inv_v, trd, q1, q2);
-    d8 power = (so[0] + sn[0]) * dl[0];
+    const dvec inv_dt = element_dt_inverse(c, lc, area * inv_v, trd, q1, q2);
+    dvec power = (so[0] + sn[0]) * dl[0];
     power = mul_add(so[1] + sn[1], dl[1], power);
     power = mul_add(so[2] + sn[2], dl[2], power) * 0.5;
     for (int k = 3; k < 6; ++k)
         power = mul_add(so[k] + sn[k], dl[k], power);
-    const d8 de_int = dt * vol * power;
-    const d8 de_bv = -dt * vol * q * trd;
-    const d8 sig[6] = {sn[0] - q, sn[1] - q, sn[2] - q, sn[3], sn[4], sn[5]};
+    const dvec de_int = dt * vol * power;
+    const dvec de_bv = -dt * vol * q * trd;
+    const dvec sig[6] = {sn[0] - q, sn[1] - q, sn[2] - q, sn[3], sn[4], sn[5]};
 
     // Hourglass control (Flanagan-Belytschko). Mode a (base vector Gamma_a, position mode
     // k = 4 + a) has gamma_aI = Gamma_aI - (1/V) b_I . h_a with h_a = sum_J Gamma_aJ x_J = A_k.
     // With g_a = sum_J Gamma_aJ v_J = U_k the hourglass velocity is qdot_ai = sum_I v_iI gamma_aI
     // = g_ai - L_ij h_aj, and the nodal forces sum_a gamma_aI Q_ai = sum_a Gamma_aI Q_ai - b_jI
     // M_ji with M_ji = (1/V) sum_a h_aj Q_ai, which joins the stress term below.
-    d8 de_hg = simd::broadcast(0.0);
-    d8 T[3][3]; // sigma_ij - M_ji
+    dvec de_hg = simd::broadcast(0.0);
+    dvec T[3][3]; // sigma_ij - M_ji
     static constexpr int voigt[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}};
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             T[i][j] = sig[voigt[i][j]];
-    d8 Q[4][3];
+    dvec Q[4][3];
     if constexpr (HG != HourglassType::None)
     {
         const real_t qm = blk.hourglass.coefficient;
         // hourglass coefficient: viscous a_h = QM rho c V^(2/3) / 4 with V^(2/3) taken as lc^2
         // (equal for cubes); stiffness k = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V)
         // (Flanagan-Belytschko), sum_I |b_I|^2 = 8 sum_k |B_k|^2 by the modes' orthogonality
-        d8 coef;
+        dvec coef;
         if constexpr (HG == HourglassType::Stiffness)
         {
-            d8 bb = B[1][0] * B[1][0];
+            dvec bb = B[1][0] * B[1][0];
             for (int k = 1; k <= 6; ++k)
                 for (int d = k == 1 ? 1 : 0; d < 3; ++d)
                     bb = mul_add(B[k][d], B[k][d], bb);
@@ -260,10 +266,10 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         {
             // stiffness form: the stored force turns with the element's spin first, Q += dt W Q
             // (W = (L - L^T) / 2; the first-order rotation of the Jaumann stress update)
-            d8 Qrot[3];
+            dvec Qrot[3];
             if constexpr (HG == HourglassType::Stiffness)
             {
-                d8 Qo[3];
+                dvec Qo[3];
                 for (int i = 0; i < 3; ++i)
                     Qo[i] = load_lanes(blk.hg_force.data() + static_cast<std::size_t>(3 * a + i) * np);
                 for (int i = 0; i < 3; ++i)
@@ -277,14 +283,14 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             for (int i = 0; i < 3; ++i)
             {
                 const int k = mode_xi_eta + a;
-                d8 qd = U[k][i];
+                dvec qd = U[k][i];
                 if constexpr (HG != HourglassType::ViscousPlain) // the plain form takes gamma = Gamma
                     qd = simd::neg_mul_add(L[i][2], A[k][2],
                                            simd::neg_mul_add(L[i][1], A[k][1], simd::neg_mul_add(L[i][0], A[k][0], qd)));
                 if constexpr (HG == HourglassType::Stiffness)
                 {
                     const std::size_t slot = static_cast<std::size_t>(3 * a + i) * np;
-                    const d8 Qnew = mul_add(coef * dt, qd, Qrot[i]);
+                    const dvec Qnew = mul_add(coef * dt, qd, Qrot[i]);
                     store_lanes(blk.hg_force_trial.data() + slot, Qnew);
                     Q[a][i] = Qnew;
                     de_hg = mul_add((Qrot[i] + Qnew) * qd, 0.5 * dt, de_hg);
@@ -307,7 +313,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 
     // internal force f_iI = (sigma_ij - M_ji) b_jI + sum_a Gamma_aI Q_ai: in modes F_ki =
     // T_ij B_kj (k = 1..6) plus Q_ai in mode 4 + a, then one inverse butterfly
-    d8 F[8][3], f[8][3];
+    dvec F[8][3], f[8][3];
     for (int k = 1; k <= 6; ++k)
         for (int i = 0; i < 3; ++i)
             F[k][i] = mul_add(T[i][2], B[k][2], mul_add(T[i][1], B[k][1], T[i][0] * B[k][0]));
@@ -675,8 +681,13 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
     std::vector<index_t> fill(node_elem_offsets.begin(), node_elem_offsets.end() - 1);
     for (index_t s = 0; s < 8 * ne; ++s)
         node_elem_slots[fill[conn[s] - node_begin]++] = s;
-    // batch-major gather indices: [64 b + 8 I + l] = 3 x (node I of element 8 b + l), full batches
+    // batch-major gather indices: [64 b + 8 I + l] = 3 x (node I of element 8 b + l), full
+    // batches; only the AVX-512 kernel reads them (its vector gathers)
+#if defined(__AVX512F__)
     const index_t n_gather = mesh_only ? 0 : ne / W;
+#else
+    const index_t n_gather = 0;
+#endif
     gather_index.assign(64 * static_cast<std::size_t>(n_gather), 0);
     for (index_t b = 0; b < n_gather; ++b)
         for (int I = 0; I < 8; ++I)

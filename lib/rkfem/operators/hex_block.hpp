@@ -39,8 +39,9 @@ struct HexBlock
     index_t node_end = 0;
     std::vector<index_t> node_elem_offsets; ///< (node_end - node_begin + 1)
     std::vector<index_t> node_elem_slots;   ///< 8 e + I, for each node in order
-    /// 1-point kernel: per full batch of 8 elements, 3 x node id of node I of element 8 b + l at
-    /// [64 b + 8 I + l] (one load per node of the batch for the vector gathers)
+    /// 1-point kernel with AVX-512 (batches of 8 elements): per full batch, 3 x node id of node I
+    /// of element 8 b + l at [64 b + 8 I + l] (one load per node of the batch for the vector
+    /// gathers); empty in builds without AVX-512
     std::vector<index_t> gather_index;
 
     // state (committed / trial), component-major

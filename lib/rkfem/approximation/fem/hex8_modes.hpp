@@ -18,7 +18,7 @@
 /// the velocity, and the nodal force sum_j T_ij b_jI + sum_a Gamma_aI Q_ai is the inverse
 /// butterfly of F_ik = T_ij B_kj plus Q in the hourglass modes.
 ///
-/// T is real_t or a lane vector (simd::d8); simd::mul_add fuses on vectors only.
+/// T is real_t or a lane vector (simd::dvec); simd::mul_add fuses on vectors only.
 #include "rkfem/core/simd.hpp"
 #include "rkfem/core/types.hpp"
 
