@@ -23,10 +23,9 @@
 #endif
 
 #if !defined(__AVX512F__)
-// GCC notes that a 32-byte vector passed by value has another ABI where AVX is enabled (a
-// build for the SSE2 baseline)
-// (once per translation unit, wherever dvec first crosses a call): the lane helpers and kernels
-// are inline or internal, no such call crosses a library boundary.
+// In a build for the SSE2 baseline GCC notes that a 32-byte vector passed by value has another
+// ABI where AVX is enabled (once per translation unit, wherever dvec first crosses a call): the
+// lane helpers and kernels are inline or internal, no such call crosses a library boundary.
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
 
@@ -36,10 +35,11 @@ namespace rkfem::simd
 /// register): 8 in an AVX-512 register where the CPU has one, else 4 in GCC's generic vector
 /// (an AVX register; lowered to what the CPU has). Eight lanes without AVX-512 took two
 /// registers each and spilled with 16 of them: the 1-point hex kernel ran 1.9-2.6x slower on
-/// an AVX2 machine (bench_internal_force). Arithmetic operators work on it directly; the helpers below add the fused
-/// multiply-add, sqrt, min and max. The same helpers on real_t let templates run on scalars:
-/// there mul_add is the expression a * b + c, so scalar callers compile as they did when they
-/// wrote it out (GCC contracts it to an FMA where the CPU has one, as it does the written form).
+/// an AVX2 machine (bench_internal_force). Arithmetic operators work on it directly; the
+/// helpers below add the fused multiply-add, sqrt, min and max. The same helpers on real_t let
+/// templates run on scalars: there mul_add is the expression a * b + c, so scalar callers
+/// compile as they did when they wrote it out (GCC contracts it to an FMA where the CPU has
+/// one, as it does the written form).
 #if defined(__AVX512F__)
 using dvec = __m512d;
 inline constexpr int kLanes = 8;

@@ -82,9 +82,10 @@ struct ChunkedScatter
     real_t* chunk_buffer(index_t c) { return buffer.data() + chunks[static_cast<std::size_t>(c)].buffer; }
     /// Zeroes chunk c's buffer unless it is zero already (a chunk's pass starts with it).
     void zero(index_t c);
-    /// Runs chunks [c0, c1) in parallel: each starts from a zero buffer, then calls batch(b,
-    /// buffer, lo) for its batches b of `width` items in order (the buffer covers nodes from lo
-    /// on).
+    /// Runs chunks [c0, c1) in parallel, each on whichever thread is free (parallel_for_tasks:
+    /// a chunk's sums do not depend on its thread): each starts from a zero buffer, then calls
+    /// batch(b, buffer, lo) for its batches b of `width` items in order (the buffer covers
+    /// nodes from lo on).
     template <class Batch> void run_chunks(const char* label, index_t c0, index_t c1, index_t width, Batch&& batch)
     {
         parallel_for_tasks(label, c1 - c0,

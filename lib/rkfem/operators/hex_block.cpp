@@ -160,11 +160,11 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 
     // stress update (strain rate d, old and new stress kept for the stress power)
     const dvec dl[6] = {L[0][0],
-                      L[1][1],
-                      L[2][2],
-                      0.5 * (L[0][1] + L[1][0]),
-                      0.5 * (L[1][2] + L[2][1]),
-                      0.5 * (L[2][0] + L[0][2])};
+                        L[1][1],
+                        L[2][2],
+                        0.5 * (L[0][1] + L[1][0]),
+                        0.5 * (L[1][2] + L[2][1]),
+                        0.5 * (L[2][0] + L[0][2])};
     const dvec wl[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]), 0.5 * (L[2][0] - L[0][2])};
     dvec so[6], sn[6];
     for (int k = 0; k < 6; ++k)
@@ -199,20 +199,17 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         elastic_update(mat, dl[0], dl[1], dl[2], dl[3], dl[4], dl[5], wl[0], wl[1], wl[2], dt, sn[0], sn[1], sn[2],
                        sn[3], sn[4], sn[5]);
     }
+#if defined(__AVX512F__)
+    // a full batch of 8 is one line per component, which may be streamed (store_batch8)
     if constexpr (FULL)
     {
         alignas(64) real_t st[6][W];
         for (int k = 0; k < 6; ++k)
             simd::store(st[k], sn[k]);
-#if defined(__AVX512F__)
         store_batch8<6>(st, s_out, ss, static_cast<std::size_t>(e0), buf != nullptr && blk.stream_stress);
-#else
-        for (int k = 0; k < 6; ++k)
-            for (int l = 0; l < W; ++l)
-                s_out[k * ss + static_cast<std::size_t>(e0) + l] = st[k][l];
-#endif
     }
     else
+#endif
         for (int k = 0; k < 6; ++k)
             store_lanes(s_out + k * ss, sn[k]);
 

@@ -118,10 +118,11 @@ void NodalBlock::build_tables(Assembly assembly)
     }
 
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
-    // the node range its entries touch. Chunks of 512 stress points first, so that a part of a few thousand particles has work
-    // for every thread; where their node ranges overlap too much (the reduce would sum over 3
-    // buffers per node: small lattices with wide supports), chunks of 2048. Either way the
-    // chunks are a function of the operators only, never of the thread count.
+    // the node range its entries touch. Chunks of 512 stress points first, so that a part of a
+    // few thousand particles has work for every thread; where their node ranges overlap too
+    // much (the reduce would sum over 3 buffers per node: small lattices with wide supports),
+    // chunks of 2048. Either way the chunks are a function of the operators only, never of the
+    // thread count.
     bool local = true;
     auto cut_chunks = [&](index_t smallest)
     {
