@@ -186,6 +186,15 @@ template <int m> bool solve_moments(const Eigen::Matrix<real_t, m, m>& M, Eigen:
     b = ldlt.solve(e0);
     return true;
 }
+/// The order-1 moment matrix M factored, with solve_moments' pivot test: a failed test names
+/// x and its covering count, as RkShapeFunctions::evaluate does.
+Ldlt4 factor_moments(const RkShapeFunctions& rk, const Vec3& x, real_t n_cover, const Eigen::Matrix4d& M)
+{
+    Ldlt4 ldlt(M);
+    if (!ldlt.pivots_ok())
+        rk.throw_singular(x, static_cast<index_t>(n_cover), "pivot ratio below 1e-12");
+    return ldlt;
+}
 } // namespace
 
 RkRegionValues::RkRegionValues(const RkShapeFunctions& rk, real_t drop_tolerance) : rk_(rk), tau_(drop_tolerance)
@@ -323,13 +332,18 @@ void RkRegionValues::evaluate(const Vec3& x)
 void RkRegionValues::values_at(const Vec3& x)
 {
     (this->*windows_)(x);
-    const int m = rk_.params().basis_size();
-    if (n_cover_ < m)
-        rk_.throw_singular(x, static_cast<index_t>(n_cover_), "too few neighbours");
-    if (m == 4)
+    if (checked_basis_size(x) == 4)
         values_linear(x);
     else
         values_quadratic(x);
+}
+
+int RkRegionValues::checked_basis_size(const Vec3& x) const
+{
+    const int m = rk_.params().basis_size();
+    if (n_cover_ < m)
+        rk_.throw_singular(x, static_cast<index_t>(n_cover_), "too few neighbours");
+    return m;
 }
 
 /// Order 1: M = sum phi H H^T with H = (1, d / s) from the sums, then psi_k = phi_k b . H_k.
@@ -337,9 +351,7 @@ void RkRegionValues::values_linear(const Vec3& x)
 {
     const real_t inv_s = 1.0 / a_min_;
     const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
-    const Ldlt4 ldlt(M);
-    if (!ldlt.pivots_ok())
-        rk_.throw_singular(x, static_cast<index_t>(n_cover_), "pivot ratio below 1e-12");
+    const Ldlt4 ldlt = factor_moments(rk_, x, n_cover_, M);
     const Eigen::Vector4d b = ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
     const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
     const std::size_t n = ids_.size();
@@ -518,10 +530,7 @@ template <KernelType K, SupportShape S> void RkRegionValues::slopes(const Vec3& 
 void RkRegionValues::evaluate_gradients(const Vec3& x)
 {
     (this->*slopes_)(x);
-    const int m = rk_.params().basis_size();
-    if (n_cover_ < m)
-        rk_.throw_singular(x, static_cast<index_t>(n_cover_), "too few neighbours");
-    if (m == 4)
+    if (checked_basis_size(x) == 4)
         gradients_linear(x);
     else
         gradients_quadratic(x);
@@ -534,9 +543,7 @@ void RkRegionValues::gradients_linear(const Vec3& x)
 {
     const real_t inv_s = 1.0 / a_min_;
     const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
-    const Ldlt4 ldlt(M);
-    if (!ldlt.pivots_ok())
-        rk_.throw_singular(x, static_cast<index_t>(n_cover_), "pivot ratio below 1e-12");
+    const Ldlt4 ldlt = factor_moments(rk_, x, n_cover_, M);
     const Eigen::Vector4d b = ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
     const Eigen::Vector4d m0 = M.col(0) * inv_s;
     Eigen::Vector4d db[3];

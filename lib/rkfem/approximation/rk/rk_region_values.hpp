@@ -60,6 +60,9 @@ class RkRegionValues
     /// The candidates: the region's particles k with keep(k).
     template <class Keep> void select(Keep&& keep);
     void values_at(const Vec3& x);
+    /// The basis size, after the covering count's test at the last point (too few covering
+    /// particles throw SingularMomentError naming x)
+    int checked_basis_size(const Vec3& x) const;
     template <KernelType K, SupportShape S> void windows(const Vec3& x);
     template <KernelType K, SupportShape S> void slopes(const Vec3& x);
     void gradients_linear(const Vec3& x);
