@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "rkfem/config/deck.hpp"
+#include "rkfem/core/allocator_tuning.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 #include "rkfem/time/stepper.hpp"
@@ -141,4 +142,14 @@ BENCHMARK(BM_SeedDeckStep)
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(600); // the first 600 steps: within each deck's end time
 
-BENCHMARK_MAIN();
+// the driver's allocator (core/allocator_tuning.hpp), so that set-up is timed as `rkfem` runs it
+int main(int argc, char** argv)
+{
+    rkfem::tune_allocator(argv);
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv))
+        return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}

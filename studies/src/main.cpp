@@ -24,6 +24,7 @@
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/config/deck.hpp"
+#include "rkfem/core/allocator_tuning.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/units.hpp"
@@ -117,6 +118,7 @@ bool command_takes_only(const char* command) { return std::string(command) == "s
 
 int main(int argc, char** argv)
 {
+    rkfem::tune_allocator(argv); // glibc's malloc for the set-up's rows (re-executes once; core/allocator_tuning.hpp)
     for (int i = 1; i < argc; ++i)
         if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h")
             return help(i > 1 ? argv[1] : "");

@@ -1,0 +1,25 @@
+#pragma once
+/// @file allocator_tuning.hpp
+/// glibc's malloc set for rkfem's set-up, which builds hundreds of megabytes of short-lived rows
+/// (smoothed-gradient rows that grow element by element, NSNI's per-point Hessians, the
+/// operators packed from them). With glibc's defaults the heap grows and shrinks in small steps
+/// and every fresh 4 KiB page is a fault; on a virtual machine a fault costs microseconds, and
+/// page faults were a quarter of the P1 cylinder's set-up as rkpm (0.25 in, 38k particles).
+/// Two of glibc's own tunables (GLIBC_TUNABLES, glibc 2.35 on):
+///   glibc.malloc.hugetlb=1        the heap and malloc's mappings advised for transparent huge
+///                                 pages (Debian's kernel gives them only where asked for), so a
+///                                 fault brings in 2 MiB;
+///   glibc.malloc.top_pad=67108864 the heap grows by 64 MiB at a time, whole huge pages.
+/// Tunables are read when a process starts, so tune_allocator re-executes the program once with
+/// them (the same arguments; the results are the same bits, only addresses change). It does
+/// nothing where GLIBC_TUNABLES already names glibc.malloc.hugetlb (the user's own choice wins),
+/// with RKFEM_ALLOCATOR=default, under a sanitizer or valgrind, off glibc, or when /proc/self/exe
+/// cannot be executed (then the process goes on as it is).
+namespace rkfem
+{
+/// Call first in main(), before anything allocates or starts a thread. Returns only when the
+/// process is not re-executed.
+void tune_allocator(char** argv);
+/// Whether this build can tune (Linux, glibc, no sanitizer): where not, tune_allocator does nothing.
+bool allocator_tunable();
+} // namespace rkfem
