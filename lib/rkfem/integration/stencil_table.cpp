@@ -37,8 +37,12 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
     t.point_stencil.resize(static_cast<std::size_t>(np));
     t.point_base.resize(static_cast<std::size_t>(np));
     std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets;
-    std::vector<real_t> scale; // per stored stencil: its largest |gradient component|
+    // per stencil found: its first point (whose entries the table will hold: the operator is not
+    // written before the snap, so they are read in place) and its largest |gradient component|
+    std::vector<index_t> first;
+    std::vector<real_t> scale;
     const std::size_t budget = static_cast<std::size_t>(opts.max_entry_fraction * static_cast<real_t>(op.n_entries()));
+    std::size_t stored = 0; // the entries of the stencils found
 
     for (index_t p = 0; p < np; ++p)
     {
@@ -48,17 +52,18 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
         const real_t* g = op.grad.data() + 3 * static_cast<std::size_t>(k0);
         t.point_base[static_cast<std::size_t>(p)] = n > 0 ? nodes[0] : 0;
         std::vector<index_t>& candidates = by_offsets[offsets_hash(nodes, n)];
-        // does stored stencil s have this point's node offsets and, within the tolerance of
-        // its largest gradient, its gradients? (written so that a NaN on either side differs)
+        // does stencil s have this point's node offsets and, within the tolerance of its
+        // largest gradient, its gradients? (written so that a NaN on either side differs)
         auto matches = [&](index_t s)
         {
-            const index_t j0 = t.offsets[static_cast<std::size_t>(s)];
-            if (t.offsets[static_cast<std::size_t>(s) + 1] - j0 != n)
+            const index_t j0 = op.offsets[static_cast<std::size_t>(first[static_cast<std::size_t>(s)])];
+            if (op.offsets[static_cast<std::size_t>(first[static_cast<std::size_t>(s)]) + 1] - j0 != n)
                 return false;
+            const index_t* ns = op.nodes.data() + j0;
             for (index_t k = 1; k < n; ++k)
-                if (t.node_offset[static_cast<std::size_t>(j0 + k)] != nodes[k] - nodes[0])
+                if (ns[k] - ns[0] != nodes[k] - nodes[0])
                     return false;
-            const real_t* gs = t.grad.data() + 3 * static_cast<std::size_t>(j0);
+            const real_t* gs = op.grad.data() + 3 * static_cast<std::size_t>(j0);
             const real_t bound = opts.relative_tolerance * scale[static_cast<std::size_t>(s)];
             for (index_t k = 0; k < 3 * n; ++k)
                 if (!(std::abs(gs[k] - g[k]) <= bound))
@@ -72,20 +77,34 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
                 found = candidates[static_cast<std::size_t>(c)];
         if (found < 0)
         {
-            found = t.n_stencils();
-            for (index_t k = 0; k < n; ++k)
-                t.node_offset.push_back(nodes[k] - nodes[0]);
-            t.grad.insert(t.grad.end(), g, g + 3 * n);
-            t.offsets.push_back(static_cast<index_t>(t.node_offset.size()));
+            found = static_cast<index_t>(first.size());
+            first.push_back(p);
             real_t largest = 0.0;
             for (index_t k = 0; k < 3 * n; ++k)
                 largest = std::max(largest, std::abs(g[k]));
             scale.push_back(largest);
             candidates.push_back(found);
-            if (t.node_offset.size() > budget)
+            stored += static_cast<std::size_t>(n);
+            if (stored > budget)
                 return {}; // sharing does not pay: the operator stays as it was
         }
         t.point_stencil[static_cast<std::size_t>(p)] = found;
+    }
+
+    // the table: each stencil's first point's entries, relative to its first node
+    t.offsets.reserve(first.size() + 1);
+    t.node_offset.reserve(stored);
+    t.grad.reserve(3 * stored);
+    for (const index_t p : first)
+    {
+        const index_t k0 = op.offsets[static_cast<std::size_t>(p)];
+        const index_t n = op.offsets[static_cast<std::size_t>(p) + 1] - k0;
+        const index_t* nodes = op.nodes.data() + k0;
+        for (index_t k = 0; k < n; ++k)
+            t.node_offset.push_back(nodes[k] - nodes[0]);
+        const real_t* g = op.grad.data() + 3 * static_cast<std::size_t>(k0);
+        t.grad.insert(t.grad.end(), g, g + 3 * n);
+        t.offsets.push_back(static_cast<index_t>(t.node_offset.size()));
     }
 
     // snap: every point takes its stencil's gradients
