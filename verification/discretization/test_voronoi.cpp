@@ -4,7 +4,8 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
-// Voronoi cells of a jittered cloud clipped to a box or a cylinder's tangent prism (CGAL): volumes
+// Voronoi cells of a jittered cloud clipped to a box or a cylinder's tangent prism (cut in doubles;
+// CGAL's exact construction is their twin): volumes
 // tile the body, SCNI on the cells satisfies the integration constraint to round-off and passes
 // the static linear patch test.
 #include <gtest/gtest.h>
@@ -508,4 +509,80 @@ TEST(VoronoiCells, CellsAreTheSameBitsOnAnyNumberOfThreads)
     for (std::size_t q = 0; q < one.sub_points.size(); ++q)
         EXPECT_EQ(one.sub_points[q].nda, two.sub_points[q].nda);
     EXPECT_EQ(one.rebuilt_with_all_planes, two.rebuilt_with_all_planes);
+}
+
+// The cut cells (VoronoiHull::Clip, in doubles) against CGAL's exact construction, their plain
+// twin: both solve each vertex again from the planes through it (corner_point), so where the
+// two find the same polygons the facet points, normals, areas, neighbours, volumes and spacings
+// are the same bits; on a jittered box cloud with random points, a generated cylinder cloud
+// (particles on the faceted surface) and a plate thinner than its spacing they are.
+TEST(VoronoiCells, CutCellsAreTheExactConstructionsBits)
+{
+    struct Case
+    {
+        const char* name;
+        std::vector<real_t> x;
+        std::vector<HalfSpace> body;
+    };
+    std::vector<Case> cases;
+    cases.push_back({"box", cloud(), box_halfspaces(Vec3::Zero(), Vec3::Ones())});
+    {
+        GeneratorSpec g;
+        g.type = GeneratorSpec::Type::Cloud;
+        g.body = GeneratorSpec::Body::Cylinder;
+        g.origin = Vec3(0.1, -0.2, 0.3);
+        g.radius = 0.5;
+        g.height = 0.8;
+        g.element_size = 0.125;
+        g.jitter = 0.3;
+        std::vector<real_t> x = generate_cloud(g).x;
+        std::vector<HalfSpace> body = cloud_body(g, static_cast<index_t>(x.size() / 3));
+        cases.push_back({"cylinder", std::move(x), std::move(body)});
+    }
+    {
+        GeneratorSpec g;
+        g.type = GeneratorSpec::Type::Cloud;
+        g.element_size = 1e-3;
+        g.jitter = 0.25;
+        g.size = Vec3(4e-3, 4e-3, 12e-6);
+        std::vector<real_t> x = generate_cloud(g).x;
+        std::vector<HalfSpace> body = cloud_body(g, static_cast<index_t>(x.size() / 3));
+        cases.push_back({"plate", std::move(x), std::move(body)});
+    }
+    for (const Case& c : cases)
+    {
+        const VoronoiCells cut = voronoi_cells(c.x, c.body, VoronoiHull::Clip);
+        const VoronoiCells exact = voronoi_cells(c.x, c.body, VoronoiHull::Exact);
+        ASSERT_EQ(cut.size(), exact.size());
+        ASSERT_EQ(cut.offsets, exact.offsets) << c.name << ": the cells have other facets";
+        ASSERT_EQ(cut.sub_cells.size(), exact.sub_cells.size()) << c.name;
+        real_t h = 0.0; // the largest spacing: the length scale
+        for (real_t s : exact.spacing)
+            h = std::max(h, s);
+        real_t dx = 0.0, dn = 0.0, dv = 0.0, ds = 0.0, dsub = 0.0;
+        int neighbours_differ = 0;
+        for (std::size_t k = 0; k < exact.points.size(); ++k)
+        {
+            dx = std::max(dx, (cut.points[k].x - exact.points[k].x).norm() / h);
+            dn = std::max(dn, (cut.points[k].nda - exact.points[k].nda).norm() / (h * h));
+            neighbours_differ += cut.points[k].neighbour != exact.points[k].neighbour;
+        }
+        for (index_t i = 0; i < exact.size(); ++i)
+        {
+            dv = std::max(dv, std::abs(cut.volume[i] - exact.volume[i]) / exact.volume[i]);
+            ds = std::max(ds, std::abs(cut.spacing[i] - exact.spacing[i]) / h);
+        }
+        for (std::size_t k = 0; k < exact.sub_cells.size(); ++k)
+            dsub = std::max(dsub, std::abs(cut.sub_cells[k].volume - exact.sub_cells[k].volume) / exact.volume[exact.sub_cells[k].cell]);
+        std::printf("%s: %d cells, %zu facet points; cut against exact: points %.1e h, n dA %.1e h^2, volumes %.1e, "
+                    "spacings %.1e h, sub-cell volumes %.1e; rebuilt with all planes %d / %d\n",
+                    c.name, exact.size(), exact.points.size(), dx, dn, dv, ds, dsub, cut.rebuilt_with_all_planes,
+                    exact.rebuilt_with_all_planes);
+        EXPECT_EQ(neighbours_differ, 0) << c.name;
+        EXPECT_EQ(dx, 0.0) << c.name;
+        EXPECT_EQ(dn, 0.0) << c.name;
+        EXPECT_EQ(dv, 0.0) << c.name;
+        EXPECT_EQ(ds, 0.0) << c.name;
+        EXPECT_EQ(dsub, 0.0) << c.name;
+    }
 }

@@ -14,9 +14,11 @@
 #include <exception>
 #include <unordered_map>
 #include <cmath>
+#include <numeric>
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/setup_progress.hpp"
+#include "rkfem/discretization/convex_cell.hpp"
 
 namespace rkfem
 {
@@ -32,6 +34,13 @@ using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 using Polyhedron = CGAL::Polyhedron_3<EK>;
 
 Vec3 vec(const EK::Point_3& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())}; }
+
+/// The half-space n . x + d <= 0 (n not normalized: a bisector's is the offset to the neighbour).
+struct Plane
+{
+    Vec3 n;
+    real_t d = 0.0;
+};
 } // namespace
 
 std::vector<HalfSpace> box_halfspaces(const Vec3& lo, const Vec3& hi)
@@ -68,14 +77,14 @@ namespace
 /// it (within tol) that meet at the widest angles (the largest |det| of their unit normals; the
 /// first such triple in the planes' order), solved in doubles. The same planes give the same
 /// bits whatever CGAL computed before; p itself when fewer than three independent planes pass.
-Vec3 corner_point(const Vec3& p, const std::vector<EK::Plane_3>& planes, real_t tol)
+Vec3 corner_point(const Vec3& p, const std::vector<Plane>& planes, real_t tol)
 {
     std::vector<std::pair<Vec3, real_t>> through; // unit normal, offset: n . x = c
-    for (const EK::Plane_3& q : planes)
+    for (const Plane& q : planes)
     {
-        const Vec3 n(CGAL::to_double(q.a()), CGAL::to_double(q.b()), CGAL::to_double(q.c()));
+        const Vec3& n = q.n;
         const real_t len = n.norm();
-        const real_t c = -CGAL::to_double(q.d()) / len;
+        const real_t c = -q.d / len;
         if (std::abs(n.dot(p) / len - c) <= tol)
             through.emplace_back(n / len, c);
     }
@@ -109,7 +118,7 @@ Vec3 corner_point(const Vec3& p, const std::vector<EK::Plane_3>& planes, real_t 
 /// The centre of the largest ball inside the bisectors and the whole body around x_i: maximize r
 /// subject to n_k . p + r <= c_k for every unit-normal plane (CGAL's LP solver, exact). Throws
 /// when the cell has no interior.
-Vec3 deepest_point(const std::vector<EK::Plane_3>& bisectors, const std::vector<HalfSpace>& body, const Vec3& xi, index_t i)
+Vec3 deepest_point(const std::vector<Plane>& bisectors, const std::vector<HalfSpace>& body, const Vec3& xi, index_t i)
 {
     CGAL::Quadratic_program<double> lp(CGAL::SMALLER, false, 0, false, 0);
     int row = 0;
@@ -122,11 +131,10 @@ Vec3 deepest_point(const std::vector<EK::Plane_3>& bisectors, const std::vector<
         ++row;
     };
     // in coordinates relative to x_i (the cell's size sets the scale, not its position)
-    for (const EK::Plane_3& q : bisectors)
+    for (const Plane& q : bisectors)
     {
-        const Vec3 n(CGAL::to_double(q.a()), CGAL::to_double(q.b()), CGAL::to_double(q.c()));
-        const real_t len = n.norm();
-        add(n / len, -(CGAL::to_double(q.d()) + n.dot(xi)) / len);
+        const real_t len = q.n.norm();
+        add(q.n / len, -(q.d + q.n.dot(xi)) / len);
     }
     for (const HalfSpace& h : body)
         add(h.normal, h.offset - h.normal.dot(xi));
@@ -145,7 +153,7 @@ Vec3 deepest_point(const std::vector<EK::Plane_3>& bisectors, const std::vector<
 }
 } // namespace
 
-VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body)
+VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body, VoronoiHull hull)
 {
     const index_t n = static_cast<index_t>(x.size() / 3);
     RKFEM_REQUIRE(n >= 5, "Voronoi cells: need at least 5 points, got " << n);
@@ -158,6 +166,32 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             hi[d] = std::max(hi[d], x[3 * i + d]);
         }
     const real_t tol = 1e-9 * (hi - lo).norm();
+    // the box every cut cell starts from: the body's (a box around the points' centre, wider than
+    // the body's planes are far from it, cut by them)
+    Vec3 box_lo = lo, box_hi = hi;
+    if (hull == VoronoiHull::Clip)
+    {
+        const Vec3 centre = 0.5 * (lo + hi);
+        real_t reach = (hi - lo).norm();
+        for (const HalfSpace& h : body)
+            reach = std::max(reach, std::abs(h.offset - h.normal.dot(centre)));
+        ConvexCell whole;
+        whole.reset_box(centre - Vec3::Constant(4.0 * reach), centre + Vec3::Constant(4.0 * reach));
+        for (std::size_t q = 0; q < body.size(); ++q)
+            whole.cut(body[q].normal, body[q].offset, static_cast<int>(q), 1e-12 * reach);
+        for (const int t : whole.face_tag())
+            RKFEM_REQUIRE(t != ConvexCell::kBox, "Voronoi cells: the body's planes do not bound it within "
+                                                     << 4.0 * reach << " of the points' centre");
+        box_lo = box_hi = whole.vertices().front();
+        for (const Vec3& p : whole.vertices())
+        {
+            box_lo = box_lo.cwiseMin(p);
+            box_hi = box_hi.cwiseMax(p);
+        }
+        const Vec3 margin = Vec3::Constant(1e-6 * (box_hi - box_lo).norm());
+        box_lo -= margin;
+        box_hi += margin;
+    }
     std::vector<std::pair<K::Point_3, index_t>> pts;
     for (index_t i = 0; i < n; ++i)
     {
@@ -218,7 +252,9 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 const index_t* adj_begin = adj_ids.data() + adj_offsets[i];
                 const index_t* adj_end = adj_ids.data() + adj_offsets[i + 1];
                 // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
-                std::vector<EK::Plane_3> planes;
+                std::vector<Plane> planes;
+                ConvexCell cell;
+                std::vector<int> cut_order;
                 std::vector<index_t> owner; // neighbour per plane, -1 body
                 for (const index_t* v = adj_begin; v != adj_end; ++v)
                 {
@@ -227,7 +263,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                     const Vec3 nrm = xj - xi;
                     const Vec3 mid = 0.5 * (xi + xj);
                     // a x + b y + c z + d <= 0 on x_i's side
-                    planes.emplace_back(nrm[0], nrm[1], nrm[2], -nrm.dot(mid));
+                    planes.push_back({nrm, -nrm.dot(mid)});
                     owner.push_back(j);
                 }
                 // the body's planes that can cut the cell: within twice the farthest Delaunay neighbour
@@ -249,7 +285,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                     for (const HalfSpace& h : body)
                         if (all || h.offset - h.normal.dot(xi) <= 2.0 * dmax)
                         {
-                            planes.emplace_back(h.normal[0], h.normal[1], h.normal[2], -h.offset);
+                            planes.push_back({h.normal, -h.offset});
                             owner.push_back(-1);
                         }
                 };
@@ -267,6 +303,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         d = std::min(d, h.offset - h.normal.dot(p));
                     return d;
                 };
+                auto start_point = [&]()
+                {
                 Vec3 xin = xi;
                 for (int pass = 0; pass < 8; ++pass)
                 {
@@ -292,52 +330,118 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 // the normalized planes, exact)
                 if (min_body_distance(xin) < 0.1 * dmin)
                     xin = deepest_point(planes, body, xi, i);
-                Polyhedron P;
-                add_body_planes(false);
-                CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
-                bool inside_body = true;
-                for (auto v = P.vertices_begin(); v != P.vertices_end() && inside_body; ++v)
-                {
-                    const Vec3 p = vec(v->point());
-                    for (const HalfSpace& h : body)
-                        inside_body = inside_body && h.normal.dot(p) <= h.offset + tol;
-                }
-                if (!inside_body)
-                {
-                    ++cells.rebuilt_with_all_planes;
-                    P.clear();
-                    add_body_planes(true);
-                    CGAL::halfspace_intersection_3(planes.begin(), planes.end(), P,
-                                                   EK::Point_3(xin[0], xin[1], xin[2]));
-                }
-                real_t vol = 0.0;
+                return xin;
+                };
                 // The cell in an order of its own: CGAL's hull lists vertices and facets, and starts each
                 // facet, in an order that follows memory addresses, which vary from run to run
                 // (address-space randomization), and a vertex's double (its lazy construction's interval)
                 // depended on which of the planes through it the hull used; every sum below then rounded
                 // differently from run to run. Each vertex is solved again from the planes through it
-                // (corner_point), facets start at their smallest vertex, and both are sorted.
+                // (corner_point), facets start at their smallest vertex, and both are sorted. The cut
+                // cell's vertices are solved again the same way.
+                std::vector<Vec3> corners;
+                std::vector<std::vector<Vec3>> polygons;
+                auto inside = [&](const Vec3& p)
+                {
+                    bool in = true;
+                    for (const HalfSpace& h : body)
+                        in = in && h.normal.dot(p) <= h.offset + tol;
+                    return in;
+                };
+                if (hull == VoronoiHull::Exact)
+                {
+                    const Vec3 xin = start_point();
+                    std::vector<EK::Plane_3> exact;
+                    auto hull_of_planes = [&](Polyhedron& P)
+                    {
+                        exact.clear();
+                        for (const Plane& q : planes)
+                            exact.emplace_back(q.n[0], q.n[1], q.n[2], q.d);
+                        CGAL::halfspace_intersection_3(exact.begin(), exact.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
+                    };
+                    Polyhedron P;
+                    add_body_planes(false);
+                    hull_of_planes(P);
+                    bool inside_body = true;
+                    for (auto v = P.vertices_begin(); v != P.vertices_end() && inside_body; ++v)
+                        inside_body = inside(vec(v->point()));
+                    if (!inside_body)
+                    {
+                        ++cells.rebuilt_with_all_planes;
+                        P.clear();
+                        add_body_planes(true);
+                        hull_of_planes(P);
+                    }
+                    std::unordered_map<const void*, std::size_t> corner_of;
+                    for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
+                    {
+                        corner_of[&*v] = corners.size();
+                        corners.push_back(corner_point(vec(v->point()), planes, 1e-9 * dmax));
+                    }
+                    for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
+                    {
+                        std::vector<Vec3> poly;
+                        auto h = f->facet_begin();
+                        do
+                        {
+                            poly.push_back(corners[corner_of.at(&*h->vertex())]);
+                        } while (++h != f->facet_begin());
+                        polygons.push_back(std::move(poly));
+                    }
+                }
+                else
+                {
+                    // the points' box, widened by twice its diagonal (the body holds the points),
+                    // cut by the bisectors nearest first, then by the body's planes; a vertex
+                    // within 1e-10 of the farthest neighbour's distance of a plane is on it
+                    auto cut_cell = [&]()
+                    {
+                        cell.reset_box(box_lo, box_hi);
+                        cut_order.resize(planes.size());
+                        std::iota(cut_order.begin(), cut_order.end(), 0);
+                        std::stable_sort(cut_order.begin(), cut_order.begin() + static_cast<std::ptrdiff_t>(n_bisectors),
+                                         [&](int a, int b) { return planes[a].n.squaredNorm() < planes[b].n.squaredNorm(); });
+                        try
+                        {
+                            for (const int q : cut_order)
+                                cell.cut(planes[q].n, -planes[q].d, q, 1e-10 * dmax * planes[q].n.norm());
+                        }
+                        catch (const Error&)
+                        {
+                            throw Error("Voronoi cells: the cell of point " + std::to_string(i) +
+                                        " has no interior (a cut left nothing of it)");
+                        }
+                    };
+                    add_body_planes(false);
+                    cut_cell();
+                    bool inside_body = true;
+                    for (const Vec3& p : cell.vertices())
+                        inside_body = inside_body && inside(p);
+                    if (!inside_body)
+                    {
+                        ++cells.rebuilt_with_all_planes;
+                        add_body_planes(true);
+                        cut_cell();
+                    }
+                    for (const int t : cell.face_tag())
+                        RKFEM_REQUIRE(t != ConvexCell::kBox, "Voronoi cells: the cell of point "
+                                                                 << i << " (" << xi.transpose()
+                                                                 << ") reaches past the body");
+                    for (const Vec3& p : cell.vertices())
+                        corners.push_back(corner_point(p, planes, 1e-9 * dmax));
+                    for (int f = 0; f < cell.n_faces(); ++f)
+                    {
+                        std::vector<Vec3> poly;
+                        for (int k = cell.face_offsets()[f]; k < cell.face_offsets()[f + 1]; ++k)
+                            poly.push_back(corners[static_cast<std::size_t>(cell.face_vertices()[k])]);
+                        polygons.push_back(std::move(poly));
+                    }
+                }
+                real_t vol = 0.0;
                 auto before = [](const Vec3& a, const Vec3& b)
                 { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end()); };
-                std::vector<Vec3> corners;
-                std::unordered_map<const void*, std::size_t> corner_of;
-                for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
-                {
-                    corner_of[&*v] = corners.size();
-                    corners.push_back(corner_point(vec(v->point()), planes, 1e-9 * dmax));
-                }
-                std::vector<std::vector<Vec3>> polygons;
-                for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
-                {
-                    std::vector<Vec3> poly;
-                    auto h = f->facet_begin();
-                    do
-                    {
-                        poly.push_back(corners[corner_of.at(&*h->vertex())]);
-                    } while (++h != f->facet_begin());
+                for (std::vector<Vec3>& poly : polygons)
                     std::rotate(poly.begin(), std::min_element(poly.begin(), poly.end(), before), poly.end());
-                    polygons.push_back(std::move(poly));
-                }
                 std::sort(polygons.begin(), polygons.end(),
                           [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b)
                           {
@@ -368,9 +472,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                     real_t best = 1e300;
                     for (std::size_t q = 0; q < planes.size(); ++q)
                     {
-                        const Vec3 pn(CGAL::to_double(planes[q].a()), CGAL::to_double(planes[q].b()),
-                                      CGAL::to_double(planes[q].c()));
-                        const real_t dist = std::abs(pn.dot(c) + CGAL::to_double(planes[q].d())) / pn.norm();
+                        const Vec3& pn = planes[q].n;
+                        const real_t dist = std::abs(pn.dot(c) + planes[q].d) / pn.norm();
                         if (pn.dot(area) > 0 && dist < best)
                         {
                             best = dist;

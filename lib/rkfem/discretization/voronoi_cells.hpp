@@ -6,8 +6,9 @@
 /// triangle carries one quadrature point (centroid, n dA), which integrates linear fields exactly,
 /// so the cell volume (1/3) sum x . n dA and SCNI gradients of linear fields are exact. Facets
 /// shared by two cells are built from the same polygon on both sides (IC1 up to round-off).
-/// CGAL (Delaunay_triangulation_3 for the neighbours, halfspace_intersection_3 for the cells) is
-/// confined to voronoi_cells.cpp.
+/// CGAL (Delaunay_triangulation_3 for the neighbours; halfspace_intersection_3 for the cells'
+/// exact twin) is confined to voronoi_cells.cpp; the cells themselves are cut in doubles
+/// (convex_cell.hpp).
 #include <vector>
 
 #include "rkfem/core/types.hpp"
@@ -60,7 +61,18 @@ struct VoronoiCells
     index_t size() const { return static_cast<index_t>(volume.size()); }
 };
 
+/// How each cell's polyhedron is built from its planes. Clip: a box cut by each plane in doubles
+/// (discretization/convex_cell.hpp, about 20 us a cell); Exact: CGAL's dual construction in exact
+/// arithmetic (halfspace_intersection_3, about 0.9 ms a cell), the plain twin. Either way each
+/// vertex is then solved again from the planes through it, so the cells agree to round-off.
+enum class VoronoiHull
+{
+    Clip,
+    Exact,
+};
+
 /// Cells of the points x (n x 3) in the convex body (on its surface allowed); throws Error for
 /// points outside it or duplicated.
-VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body);
+VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body,
+                           VoronoiHull hull = VoronoiHull::Clip);
 } // namespace rkfem
