@@ -750,39 +750,48 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
         }
     }
     errors.rethrow();
+    // sub-points 3 p + i of point p, each with p's nodes and row i of each entry's matrix: the
+    // offsets first, then every point's entries written in place, in parallel (each point's
+    // lists freed as they are copied)
     IntegrationOperator op;
-    op.offsets.assign(1, 0);
-    std::size_t entries = 0;
-    for (const auto& n : nodes)
-        entries += 3 * n.size();
-    op.nodes.reserve(entries);
-    op.grad.reserve(3 * entries);
-    op.offsets.reserve(3 * static_cast<std::size_t>(np) + 1);
-    op.weight.reserve(3 * static_cast<std::size_t>(np));
-    op.position.reserve(9 * static_cast<std::size_t>(np));
-    op.owner.reserve(3 * static_cast<std::size_t>(np));
-    op.parent.reserve(3 * static_cast<std::size_t>(np));
+    const std::size_t ns = 3 * static_cast<std::size_t>(np);
+    op.offsets.resize(ns + 1);
+    op.offsets[0] = 0;
     for (index_t p = 0; p < np; ++p)
         for (int i = 0; i < 3; ++i)
         {
-            op.weight.push_back(moments[3 * static_cast<std::size_t>(p) + i]);
-            for (int d = 0; d < 3; ++d)
-                op.position.push_back(points.position[3 * static_cast<std::size_t>(p) + d]);
-            op.owner.push_back(points.owner[p]);
-            op.parent.push_back(p);
-            for (std::size_t k = 0; k < nodes[p].size(); ++k)
-            {
-                op.nodes.push_back(nodes[p][k]);
-                const Mat3& H = hess[p][k];
-                op.grad.insert(op.grad.end(), {H(i, 0), H(i, 1), H(i, 2)});
-            }
-            op.offsets.push_back(op.n_entries());
-            if (i == 2)
-            {
-                std::vector<index_t>().swap(nodes[p]); // free as we go: the peak is the operator
-                std::vector<Mat3>().swap(hess[p]);
-            }
+            const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
+            op.offsets[s + 1] = op.offsets[s] + static_cast<index_t>(nodes[p].size());
         }
+    op.nodes.resize(static_cast<std::size_t>(op.offsets[ns]));
+    op.grad.resize(3 * op.nodes.size());
+    op.weight.resize(ns);
+    op.position.resize(3 * ns);
+    op.owner.resize(ns);
+    op.parent.resize(ns);
+    parallel_for("rkfem::build_nsni_stabilization::pack", np,
+                 [&](index_t p)
+                 {
+                     for (int i = 0; i < 3; ++i)
+                     {
+                         const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
+                         op.weight[s] = moments[3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i)];
+                         for (int d = 0; d < 3; ++d)
+                             op.position[3 * s + d] = points.position[3 * static_cast<std::size_t>(p) + d];
+                         op.owner[s] = points.owner[p];
+                         op.parent[s] = p;
+                         std::size_t q = static_cast<std::size_t>(op.offsets[s]);
+                         for (std::size_t k = 0; k < nodes[p].size(); ++k, ++q)
+                         {
+                             op.nodes[q] = nodes[p][k];
+                             const Mat3& H = hess[p][k];
+                             for (int d = 0; d < 3; ++d)
+                                 op.grad[3 * q + d] = H(i, d);
+                         }
+                     }
+                     std::vector<index_t>().swap(nodes[p]); // free as we go: the peak is the operator
+                     std::vector<Mat3>().swap(hess[p]);
+                 });
     return op;
 }
 
