@@ -245,6 +245,21 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         {
             ASSERT_FALSE(blk.stab_triplets.empty());
             EXPECT_LT(blk.stab_triplets.n_triplets(), blk.n_points() / 4);
+            // the triplets' whole-vector path (one triplet stencil, consecutive bases) and the
+            // lane-by-lane one must both occur too
+            const TripletTable& tt = blk.stab_triplets;
+            index_t uniform_triplets = 0;
+            for (index_t b = 0; b < batches; ++b)
+            {
+                bool same = true;
+                for (int l = 1; l < 8; ++l)
+                    same = same && tt.point_triplet[8 * b + l] == tt.point_triplet[8 * b] &&
+                           tt.point_base[8 * b + l] == tt.point_base[8 * b] + l;
+                uniform_triplets += same;
+            }
+            std::printf("nsni: %d of %d full batches have uniform triplets\n", uniform_triplets, batches);
+            ASSERT_GT(uniform_triplets, 0);
+            ASSERT_LT(uniform_triplets, batches);
         }
         NodeSet nodes = wavy_motion(mesh);
         const real_t dt = 1e-7;
@@ -252,6 +267,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         assemble_nodal_forces(blk, nodes);
         const std::vector<real_t> f_shared = nodes.f_int;
         const LineVector<real_t> s_shared = blk.stress_trial;
+        const std::vector<real_t> stab_shared = blk.stab_stress_trial, stab_energy_shared = blk.stab_energy;
         // the operators' own entries were released to the tables (a part of one formulation);
         // written back, they give the same pass bit for bit
         EXPECT_TRUE(blk.points_in_table && blk.points.nodes.empty() && blk.points.grad.empty()) << stab;
@@ -267,6 +283,8 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
         assemble_nodal_forces(blk, nodes);
         EXPECT_TRUE(s_shared == blk.stress_trial) << stab;
+        EXPECT_EQ(stab_shared, blk.stab_stress_trial) << stab;
+        EXPECT_EQ(stab_energy_shared, blk.stab_energy) << stab;
         EXPECT_EQ(f_shared, nodes.f_int) << stab;
         EXPECT_EQ(a.d_internal, b.d_internal) << stab;
         EXPECT_EQ(a.d_hourglass, b.d_hourglass) << stab;

@@ -380,6 +380,98 @@ inline void scatter_uniform(const StencilView& st, const real_t (&P)[9][8], real
 }
 #endif
 
+#if defined(__AVX512F__)
+/// A batch whose 8 points share one NSNI triplet stencil with consecutive bases (points along a
+/// lattice row): entry k of lane l touches node base + offset[k] + l.
+bool uniform_triplet_batch(const TripletTable& t, index_t p0)
+{
+    if (t.empty())
+        return false;
+    const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_triplet.data() + p0));
+    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_base.data() + p0));
+    const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(t.point_base[static_cast<std::size_t>(p0)]),
+                                         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    return _mm256_cmpeq_epi32_mask(s, _mm256_set1_epi32(t.point_triplet[static_cast<std::size_t>(p0)])) == 0xFF &&
+           _mm256_cmpeq_epi32_mask(b, row) == 0xFF;
+}
+
+/// gather_triplet for the 8 lanes of a uniform triplet batch, into G[i][a][j][l]: per entry the
+/// lanes' 8 consecutive node triples are 3 vectors, each of the six Hessian values one broadcast,
+/// with gather_triplet's FMAs in its order per lane (the same bits); unpacked once at the end.
+inline void gather_triplets_uniform(const TripletView& tv, const real_t* v, real_t (&G)[3][3][3][8])
+{
+    __m512d acc[6][3];
+    for (int q = 0; q < 6; ++q)
+        for (int r = 0; r < 3; ++r)
+            acc[q][r] = _mm512_setzero_pd();
+    for (index_t k = 0; k < tv.size; ++k)
+    {
+        const real_t* vk = v + 3 * static_cast<std::size_t>(tv.base + tv.offset[k]);
+        const __m512d v0 = _mm512_loadu_pd(vk), v1 = _mm512_loadu_pd(vk + 8), v2 = _mm512_loadu_pd(vk + 16);
+        const real_t* h = tv.hess + 6 * static_cast<std::size_t>(k);
+        for (int q = 0; q < 6; ++q)
+        {
+            const __m512d hq = _mm512_set1_pd(h[q]);
+            acc[q][0] = _mm512_fmadd_pd(v0, hq, acc[q][0]);
+            acc[q][1] = _mm512_fmadd_pd(v1, hq, acc[q][1]);
+            acc[q][2] = _mm512_fmadd_pd(v2, hq, acc[q][2]);
+        }
+    }
+    constexpr int sym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+        {
+            __m512d X, Y, Z;
+            const int q = sym[i][j];
+            simd::deinterleave3(acc[q][0], acc[q][1], acc[q][2], X, Y, Z);
+            _mm512_store_pd(G[i][0][j], X);
+            _mm512_store_pd(G[i][1][j], Y);
+            _mm512_store_pd(G[i][2][j], Z);
+        }
+}
+
+/// scatter_triplet for the 8 lanes of a uniform triplet batch (P[i][3 j + a][l]): the six
+/// column sums Q_ij of the lanes as padded quadruples, 4 vectors each; the entries run last to
+/// first, so each node takes its lanes' terms in lane order, with scatter_triplet's operations:
+/// the same bits.
+inline void scatter_triplets_uniform(const TripletView& tv, const real_t (&P)[3][9][8], real_t* buf, index_t lo)
+{
+    constexpr int pairs[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+    __m512d Q[6][4];
+    for (int r = 0; r < 6; ++r)
+    {
+        const int i = pairs[r][0], j = pairs[r][1];
+        __m512d c[3];
+        for (int a = 0; a < 3; ++a)
+        {
+            c[a] = _mm512_load_pd(P[i][3 * j + a]);
+            if (i != j)
+                c[a] = _mm512_add_pd(c[a], _mm512_load_pd(P[j][3 * i + a]));
+        }
+        simd::interleave4(c[0], c[1], c[2], Q[r]);
+    }
+    real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(tv.base - lo);
+    for (index_t k = tv.size - 1; k >= 0; --k)
+    {
+        real_t* f = b + 4 * static_cast<std::size_t>(tv.offset[k]);
+        const real_t* h = tv.hess + 6 * static_cast<std::size_t>(k);
+        const __m512d h0 = _mm512_set1_pd(h[0]), h1 = _mm512_set1_pd(h[1]), h2 = _mm512_set1_pd(h[2]),
+                      h3 = _mm512_set1_pd(h[3]), h4 = _mm512_set1_pd(h[4]), h5 = _mm512_set1_pd(h[5]);
+        for (int m = 0; m < 4; ++m)
+        {
+            // scatter_triplet's two chains, joined at the end
+            __m512d x = _mm512_mul_pd(Q[0][m], h0);
+            __m512d y = _mm512_mul_pd(Q[3][m], h3);
+            x = _mm512_fmadd_pd(Q[1][m], h1, x);
+            y = _mm512_fmadd_pd(Q[4][m], h4, y);
+            x = _mm512_fmadd_pd(Q[2][m], h2, x);
+            y = _mm512_fmadd_pd(Q[5][m], h5, y);
+            _mm512_storeu_pd(f + 8 * m, _mm512_add_pd(_mm512_loadu_pd(f + 8 * m), _mm512_add_pd(x, y)));
+        }
+    }
+}
+#endif
+
 /// V0 P = V0 J (sigma - q 1) F^-T of lane l, by columns ([3 j + i] = P_ij).
 template <int W>
 inline void first_piola(real_t VJ, real_t q, const real_t (&sn)[6][W], const real_t (&Fi)[3][3][W], int l,
@@ -415,7 +507,15 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     const bool packed = !blk.stab_triplets.empty();
     StencilView sv[W][3];
     TripletView tv[W];
-    for (int l = 0; l < W; ++l)
+#if defined(__AVX512F__)
+    // a full batch along a lattice row with one triplet stencil: the whole-vector path
+    const bool uniform = W == 8 && nl == W && packed && uniform_triplet_batch(blk.stab_triplets, p0);
+    if (uniform)
+        gather_triplets_uniform(blk.stab_triplets.view(p0), v, G);
+#else
+    constexpr bool uniform = false;
+#endif
+    for (int l = 0; l < W && !uniform; ++l)
     {
         const index_t t = p0 + (l < nl ? l : 0);
         real_t g[3][3][3];
@@ -476,10 +576,22 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
             energy[s] = e[l];
         }
     }
+#if defined(__AVX512F__)
+    bool all_good = true;
+    for (int l = 0; l < nl; ++l)
+        all_good = all_good && good[l];
+    if (uniform && all_good)
+    {
+        scatter_triplets_uniform(blk.stab_triplets.view(p0), P, buf, lo);
+        return;
+    }
+#endif
     for (int l = 0; l < nl; ++l)
     {
         if (!good[l])
             continue;
+        if (uniform) // a lane was bad: its views were not taken
+            tv[l] = blk.stab_triplets.view(p0 + l);
         real_t Pl[3][9];
         for (int i = 0; i < 3; ++i)
             for (int k = 0; k < 9; ++k)
