@@ -96,13 +96,15 @@ Eigen::Matrix4d scaled_moments(const real_t sums[10], real_t inv_s)
 
 /// LDL^T of a symmetric 4 x 4 with symmetric pivoting on the largest remaining diagonal, as
 /// Eigen::LDLT does it (the same pivots, so evaluate's test on them holds the same), written
-/// out: Eigen's general LDL^T was a tenth of the set-up at this size.
+/// out: Eigen's general LDL^T was a tenth of the set-up at this size. The pivoting permutes an
+/// index (perm_: position -> row of M) instead of moving rows and columns: the same operations on
+/// the same values as the swaps, without the stores (which GCC vectorized into scatters).
 class Ldlt4
 {
   public:
     explicit Ldlt4(const Eigen::Matrix4d& M)
     {
-        real_t A[4][4];
+        real_t A[4][4]; // M's rows and columns, addressed through perm_
         for (int i = 0; i < 4; ++i)
         {
             perm_[i] = i;
@@ -113,24 +115,27 @@ class Ldlt4
         {
             int p = k;
             for (int i = k + 1; i < 4; ++i)
-                if (std::abs(A[i][i]) > std::abs(A[p][p]))
+                if (std::abs(A[perm_[i]][perm_[i]]) > std::abs(A[perm_[p]][perm_[p]]))
                     p = i;
             if (p != k)
             {
-                for (int j = 0; j < 4; ++j)
-                    std::swap(A[k][j], A[p][j]);
-                for (int i = 0; i < 4; ++i)
-                    std::swap(A[i][k], A[i][p]);
                 std::swap(perm_[k], perm_[p]);
                 for (int j = 0; j < k; ++j)
                     std::swap(L_[k][j], L_[p][j]);
             }
-            D_[k] = A[k][k];
+            const int rk = perm_[k];
+            D_[k] = A[rk][rk];
             for (int i = k + 1; i < 4; ++i)
-                L_[i][k] = A[i][k] / D_[k];
+                L_[i][k] = A[perm_[i]][rk] / D_[k];
             for (int i = k + 1; i < 4; ++i)
+            {
+                const int ri = perm_[i];
                 for (int j = k + 1; j <= i; ++j)
-                    A[j][i] = A[i][j] -= L_[i][k] * A[k][j];
+                {
+                    const int rj = perm_[j];
+                    A[rj][ri] = A[ri][rj] -= L_[i][k] * A[rk][rj];
+                }
+            }
         }
     }
     /// evaluate's test: every pivot above 1e-12 of the largest in magnitude
