@@ -7,6 +7,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <sstream>
 #include <utility>
@@ -163,21 +164,40 @@ void RkShapeFunctions::throw_singular(const Vec3& x, index_t n, const char* why)
 
 void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const
 {
-    out.clear();
+    // the hits are marked in a bitmap over the particles (one per thread, all zero between
+    // calls) and read back in ascending order: the sorted list, without a sort
+    thread_local std::vector<std::uint64_t> marks;
+    const std::size_t words = (a_.size() + 63) / 64;
+    if (marks.size() < words)
+        marks.resize(words, 0);
+    index_t first = std::numeric_limits<index_t>::max(), last = -1;
     cells_.for_each_near_box(lo, hi,
                              [&](index_t j)
                              {
                                  // the margin of evaluate_impl's box test: every particle it could keep
                                  const real_t reach = a_[j] * (1.0 + 1e-12);
+                                 bool in = true;
                                  for (int d = 0; d < 3; ++d)
                                  {
                                      const real_t xj = x_[3 * static_cast<std::size_t>(j) + d];
-                                     if (xj + reach < lo[d] || xj - reach > hi[d])
-                                         return;
+                                     in &= !(xj + reach < lo[d]) & !(xj - reach > hi[d]);
                                  }
-                                 out.push_back(j);
+                                 if (in)
+                                 {
+                                     marks[static_cast<std::size_t>(j) >> 6] |= std::uint64_t{1} << (j & 63);
+                                     first = std::min(first, j);
+                                     last = std::max(last, j);
+                                 }
                              });
-    std::sort(out.begin(), out.end());
+    out.clear();
+    if (last < 0)
+        return;
+    for (std::size_t w = static_cast<std::size_t>(first) >> 6; w <= static_cast<std::size_t>(last) >> 6; ++w)
+    {
+        for (std::uint64_t bits = marks[w]; bits != 0; bits &= bits - 1)
+            out.push_back(static_cast<index_t>(64 * w + static_cast<std::size_t>(__builtin_ctzll(bits))));
+        marks[w] = 0;
+    }
 }
 
 void RkShapeFunctions::hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H) const
