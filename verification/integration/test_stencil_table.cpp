@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "nodal_common.hpp"
+#include "rkfem/approximation/rk/kinematic_map.hpp"
 #include "rkfem/integration/stencil_table.hpp"
 #include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
@@ -320,4 +321,80 @@ TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
     EXPECT_EQ(s_packed, blk.stab_stress_trial);
     EXPECT_EQ(a.d_hourglass, b.d_hourglass);
     EXPECT_NE(a.d_hourglass, 0.0);
+}
+
+// The kinematic map's rows (approximation/rk/kinematic_map.hpp) are shared as stencils are: on a
+// structured box the particles' rows repeat, so a few are stored, and every row read back has
+// its own columns and values within the sharing's tolerance (1e-11 of its largest), and still
+// reproduces what RK reproduces, 1 and x (sum Lambda_IJ = 1, sum Lambda_IJ X_J = X_I), to
+// round-off; a jittered mesh's rows are all its own, read back bit for bit.
+TEST(SharedStencils, KinematicMapRowsAreSharedWithinTheirTolerance)
+{
+    struct Case
+    {
+        const char* name;
+        HexMesh mesh;
+        bool shares;
+    };
+    const Case cases[] = {{"box", generate_box(Vec3::Zero(), Vec3(0.2, 0.1, 0.1), {20, 10, 10}), true},
+                          {"jittered", distorted_box(8, 0.01, 0.3), false}};
+    for (const Case& c : cases)
+    {
+        NodalBlock blk = build_nodal_block(elastic_rk_part("nsni"), c.mesh, 0);
+        const index_t n = c.mesh.n_nodes();
+        ASSERT_EQ(static_cast<index_t>(blk.interp_offsets.size()), n + 1);
+        KinematicMap map;
+        map.reset(n);
+        const std::vector<char> all(static_cast<std::size_t>(n), 1);
+        map.set_rows(0, n, blk.interp_offsets, blk.interp_nodes, blk.interp_values, &all);
+        real_t moved = 0.0, unity = 0.0, linear = 0.0;
+        int other_columns = 0;
+        for (index_t i = 0; i < n; ++i)
+        {
+            std::vector<index_t> cols;
+            std::vector<real_t> vals;
+            map.for_row(i,
+                        [&](index_t j, real_t w)
+                        {
+                            cols.push_back(j);
+                            vals.push_back(w);
+                        });
+            const index_t k0 = blk.interp_offsets[i], m = blk.interp_offsets[i + 1] - k0;
+            if (static_cast<index_t>(cols.size()) != m)
+            {
+                ++other_columns;
+                continue;
+            }
+            real_t largest = 0.0, sum = 0.0;
+            Vec3 x = Vec3::Zero();
+            for (index_t k = 0; k < m; ++k)
+            {
+                other_columns += cols[k] != blk.interp_nodes[k0 + k];
+                largest = std::max(largest, std::abs(blk.interp_values[k0 + k]));
+                sum += vals[k];
+                x += vals[k] * c.mesh.node(cols[k]);
+            }
+            for (index_t k = 0; k < m; ++k)
+                moved = std::max(moved, std::abs(vals[k] - blk.interp_values[k0 + k]) / largest);
+            unity = std::max(unity, std::abs(sum - 1.0));
+            linear = std::max(linear, (x - c.mesh.node(i)).norm() / 0.01);
+        }
+        std::printf("%s: %zu of %zu row entries stored; values moved by %.1e of their row's largest; "
+                    "|sum - 1| %.1e, |sum Lambda X - X| / h %.1e\n",
+                    c.name, map.stored_entries(), map.row_entries(), moved, unity, linear);
+        EXPECT_EQ(other_columns, 0) << c.name;
+        EXPECT_EQ(map.row_entries(), blk.interp_nodes.size()) << c.name;
+        if (c.shares)
+        {
+            EXPECT_LT(map.stored_entries(), map.row_entries() / 4) << c.name;
+            EXPECT_LE(moved, 1e-11) << c.name;
+        }
+        else
+        {
+            EXPECT_EQ(map.stored_entries(), map.row_entries()) << c.name;
+            EXPECT_EQ(moved, 0.0) << c.name;
+        }
+        EXPECT_LT(unity, 1e-12) << c.name;
+        EXPECT_LT(linear, 1e-12) << c.name;
+    }
 }

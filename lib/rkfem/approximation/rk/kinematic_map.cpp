@@ -1,6 +1,9 @@
 #include "rkfem/approximation/rk/kinematic_map.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
@@ -10,11 +13,32 @@ namespace rkfem
 void KinematicMap::reset(index_t n_nodes)
 {
     coefficient_.assign(static_cast<std::size_t>(n_nodes), 0);
-    offsets_.assign(static_cast<std::size_t>(n_nodes) + 1, 0);
-    columns_.clear();
-    values_.clear();
+    row_.assign(static_cast<std::size_t>(n_nodes), -1);
+    base_.assign(static_cast<std::size_t>(n_nodes), 0);
+    row_offsets_.assign(1, 0);
+    row_columns_.clear();
+    row_values_.clear();
+    n_row_entries_ = 0;
     n_coefficient_nodes_ = 0;
 }
+
+namespace
+{
+/// FNV-1a over a row's entry count and its column offsets from the first.
+std::uint64_t row_hash(const index_t* columns, index_t size)
+{
+    std::uint64_t h = 1469598103934665603ull;
+    auto mix = [&](std::uint32_t x)
+    {
+        h ^= x;
+        h *= 1099511628211ull;
+    };
+    mix(static_cast<std::uint32_t>(size));
+    for (index_t k = 1; k < size; ++k)
+        mix(static_cast<std::uint32_t>(columns[k] - columns[0]));
+    return h;
+}
+} // namespace
 
 void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_t>& offsets,
                             const std::vector<index_t>& columns, const std::vector<real_t>& values,
@@ -26,14 +50,12 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
     RKFEM_REQUIRE(static_cast<index_t>(offsets.size()) == end - begin + 1, "kinematic map: " << offsets.size()
                                                                                               << " row offsets for "
                                                                                               << end - begin << " rows");
-    // rebuild the CSR with the new rows in place of the old ones for [begin, end)
-    std::vector<index_t> new_offsets(offsets_.size(), 0);
-    std::vector<index_t> new_columns;
-    std::vector<real_t> new_values;
-    new_columns.reserve(columns_.size() + columns.size());
-    new_values.reserve(values_.size() + values.size());
+    // every node's row (the new ones for [begin, end), the others as stored), in node order
     const index_t n = size();
-    n_coefficient_nodes_ = 0;
+    std::vector<index_t> all_offsets(static_cast<std::size_t>(n) + 1, 0), all_columns;
+    std::vector<real_t> all_values;
+    all_columns.reserve(n_row_entries_ + columns.size());
+    all_values.reserve(n_row_entries_ + values.size());
     for (index_t i = 0; i < n; ++i)
     {
         if (i >= begin && i < end)
@@ -41,27 +63,83 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
             const index_t r = i - begin;
             const index_t k0 = offsets[r], k1 = offsets[r + 1];
             const bool identity_row = k1 - k0 == 1 && columns[k0] == i && values[k0] == 1.0;
-            const bool coef = coefficient != nullptr ? (*coefficient)[r] != 0 : !identity_row;
-            coefficient_[i] = coef;
-            if (coef)
-                for (index_t k = k0; k < k1; ++k)
-                {
-                    new_columns.push_back(columns[k]);
-                    new_values.push_back(values[k]);
-                }
+            coefficient_[i] = coefficient != nullptr ? (*coefficient)[r] != 0 : !identity_row;
+            if (coefficient_[i])
+            {
+                all_columns.insert(all_columns.end(), columns.begin() + k0, columns.begin() + k1);
+                all_values.insert(all_values.end(), values.begin() + k0, values.begin() + k1);
+            }
         }
         else if (coefficient_[i])
-            for (index_t k = offsets_[i]; k < offsets_[i + 1]; ++k)
-            {
-                new_columns.push_back(columns_[k]);
-                new_values.push_back(values_[k]);
-            }
-        n_coefficient_nodes_ += coefficient_[i];
-        new_offsets[i + 1] = static_cast<index_t>(new_columns.size());
+            for_row(i,
+                    [&](index_t j, real_t w)
+                    {
+                        all_columns.push_back(j);
+                        all_values.push_back(w);
+                    });
+        all_offsets[i + 1] = static_cast<index_t>(all_columns.size());
     }
-    offsets_ = std::move(new_offsets);
-    columns_ = std::move(new_columns);
-    values_ = std::move(new_values);
+    // shared rows: the same column offsets, values within the tolerance of the stored row's
+    // largest; the first of each kind in node order is stored, the others read it
+    constexpr real_t tolerance = 1e-11;
+    constexpr int max_candidates = 16;
+    std::vector<index_t> new_offsets{0}, new_columns;
+    std::vector<real_t> new_values, scale;
+    std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets;
+    n_coefficient_nodes_ = 0;
+    for (index_t i = 0; i < n; ++i)
+    {
+        row_[i] = -1;
+        base_[i] = 0;
+        if (!coefficient_[i])
+            continue;
+        ++n_coefficient_nodes_;
+        const index_t k0 = all_offsets[i], m = all_offsets[i + 1] - k0;
+        const index_t* c = all_columns.data() + k0;
+        const real_t* v = all_values.data() + k0;
+        base_[i] = m > 0 ? c[0] : 0;
+        std::vector<index_t>& candidates = by_offsets[row_hash(c, m)];
+        auto matches = [&](index_t s)
+        {
+            const index_t j0 = new_offsets[static_cast<std::size_t>(s)];
+            if (new_offsets[static_cast<std::size_t>(s) + 1] - j0 != m)
+                return false;
+            for (index_t k = 0; k < m; ++k)
+                if (new_columns[static_cast<std::size_t>(j0 + k)] != c[k] - c[0])
+                    return false;
+            const real_t bound = tolerance * scale[static_cast<std::size_t>(s)];
+            for (index_t k = 0; k < m; ++k)
+                if (!(std::abs(new_values[static_cast<std::size_t>(j0 + k)] - v[k]) <= bound))
+                    return false;
+            return true;
+        };
+        index_t found = -1;
+        const int searched = std::min<int>(static_cast<int>(candidates.size()), max_candidates);
+        for (int q = 0; q < searched && found < 0; ++q)
+            if (matches(candidates[static_cast<std::size_t>(q)]))
+                found = candidates[static_cast<std::size_t>(q)];
+        if (found < 0)
+        {
+            found = static_cast<index_t>(new_offsets.size()) - 1;
+            real_t largest = 0.0;
+            for (index_t k = 0; k < m; ++k)
+            {
+                new_columns.push_back(c[k] - c[0]);
+                new_values.push_back(v[k]);
+                largest = std::max(largest, std::abs(v[k]));
+            }
+            new_offsets.push_back(static_cast<index_t>(new_columns.size()));
+            scale.push_back(largest);
+            candidates.push_back(found);
+        }
+        row_[i] = found;
+    }
+    n_row_entries_ = all_columns.size();
+    row_offsets_ = std::move(new_offsets);
+    row_columns_ = std::move(new_columns);
+    row_values_ = std::move(new_values);
+    row_columns_.shrink_to_fit();
+    row_values_.shrink_to_fit();
 }
 
 Vec3 KinematicMap::physical(const real_t* field, index_t node) const

@@ -8,6 +8,13 @@
 /// work is the same in either space. Boundary conditions, loads, output, probes and contact
 /// read and write physical values only through this map; it is built once per discretization
 /// (reference configuration) and rebuilt by events that change the particles.
+///
+/// Rows are stored as shared stencils are (integration/stencil_table.hpp): each row relative to
+/// its first column, and the particles whose rows have the same column offsets and values within
+/// 1e-11 of their largest (the translates of a lattice or of a structured mesh's layers: the P1
+/// cylinder's particles along its axis) share one stored row, whose values they all read (the
+/// first in node order: a share moves a value by at most that tolerance, the round-off of its
+/// construction). A cloud's rows are its own.
 #include <vector>
 
 #include "rkfem/core/types.hpp"
@@ -40,9 +47,14 @@ class KinematicMap
             f(node, 1.0);
             return;
         }
-        for (index_t k = offsets_[i]; k < offsets_[i + 1]; ++k)
-            f(columns_[k], values_[k]);
+        const std::size_t r = static_cast<std::size_t>(row_[i]);
+        const index_t base = base_[i];
+        for (index_t k = row_offsets_[r]; k < row_offsets_[r + 1]; ++k)
+            f(base + row_columns_[k], row_values_[k]);
     }
+    /// The entries the map stores (shared rows once) and those its rows have in all.
+    std::size_t stored_entries() const { return row_columns_.size(); }
+    std::size_t row_entries() const { return n_row_entries_; }
 
     /// Physical value at node I of a node-major 3-vector field of unknowns (u, v).
     Vec3 physical(const real_t* field, index_t node) const;
@@ -55,9 +67,12 @@ class KinematicMap
 
   private:
     std::vector<char> coefficient_;
-    std::vector<index_t> offsets_{0}; ///< per node + 1; empty rows for nodes with physical values
-    std::vector<index_t> columns_;
-    std::vector<real_t> values_;
+    std::vector<index_t> row_;  ///< per node carrying coefficients: its stored row
+    std::vector<index_t> base_; ///< per node carrying coefficients: the column its row counts from
+    std::vector<index_t> row_offsets_{0}; ///< stored row r: entries [row_offsets_[r], row_offsets_[r + 1])
+    std::vector<index_t> row_columns_;    ///< per entry: column - base
+    std::vector<real_t> row_values_;
+    std::size_t n_row_entries_ = 0;
     index_t n_coefficient_nodes_ = 0;
 };
 } // namespace rkfem
