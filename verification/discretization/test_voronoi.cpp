@@ -167,11 +167,10 @@ TEST(VoronoiCells, CellsReachingFarBodyPlanesAreRebuiltWithAllOfThem)
     EXPECT_LT(open, 1e-12);
 }
 
-// A cylinder body (cloud parts with body: cylinder): the cells are clipped to the prism of planes
-// tangent to the cylinder, so they tile the prism, whose volume is the cylinder's times
-// sides tan(pi / sides) / pi; SCNI on them satisfies IC1. Generated (jittered, particles on the
-// surface) and random clouds.
-TEST(VoronoiCells, CylinderBodyCellsTileTheTangentPrism)
+namespace
+{
+/// A jittered cloud generated in a cylinder (particles on its side and caps).
+GeneratorSpec cylinder_cloud_spec()
 {
     GeneratorSpec g;
     g.type = GeneratorSpec::Type::Cloud;
@@ -181,6 +180,17 @@ TEST(VoronoiCells, CylinderBodyCellsTileTheTangentPrism)
     g.height = 0.8;
     g.element_size = 0.125;
     g.jitter = 0.3;
+    return g;
+}
+} // namespace
+
+// A cylinder body (cloud parts with body: cylinder): the cells are clipped to the prism of planes
+// tangent to the cylinder, so they tile the prism, whose volume is the cylinder's times
+// sides tan(pi / sides) / pi; SCNI on them satisfies IC1. Generated (jittered, particles on the
+// surface) and random clouds.
+TEST(VoronoiCells, CylinderBodyCellsTileTheTangentPrism)
+{
+    const GeneratorSpec g = cylinder_cloud_spec();
     for (const bool random : {false, true})
     {
         VoronoiSetup s;
@@ -527,14 +537,7 @@ TEST(VoronoiCells, CutCellsAreTheExactConstructionsBits)
     std::vector<Case> cases;
     cases.push_back({"box", cloud(), box_halfspaces(Vec3::Zero(), Vec3::Ones())});
     {
-        GeneratorSpec g;
-        g.type = GeneratorSpec::Type::Cloud;
-        g.body = GeneratorSpec::Body::Cylinder;
-        g.origin = Vec3(0.1, -0.2, 0.3);
-        g.radius = 0.5;
-        g.height = 0.8;
-        g.element_size = 0.125;
-        g.jitter = 0.3;
+        const GeneratorSpec g = cylinder_cloud_spec();
         std::vector<real_t> x = generate_cloud(g).x;
         std::vector<HalfSpace> body = cloud_body(g, static_cast<index_t>(x.size() / 3));
         cases.push_back({"cylinder", std::move(x), std::move(body)});

@@ -223,16 +223,21 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         ASSERT_FALSE(blk.point_stencils.empty()) << stab;
         // batches of 8 points with one stencil and consecutive bases (the whole-vector path)
         // and batches without (the lane-by-lane path) must both occur
-        const StencilTable& t = blk.point_stencils;
-        index_t uniform = 0, batches = blk.n_points() / 8;
-        for (index_t b = 0; b < batches; ++b)
+        const index_t batches = blk.n_points() / 8;
+        // full batches whose 8 points have one class and consecutive bases
+        auto uniform_batches = [&](const std::vector<index_t>& cls, const std::vector<index_t>& base)
         {
-            bool same = true;
-            for (int l = 1; l < 8; ++l)
-                same = same && t.point_stencil[8 * b + l] == t.point_stencil[8 * b] &&
-                       t.point_base[8 * b + l] == t.point_base[8 * b] + l;
-            uniform += same;
-        }
+            index_t n = 0;
+            for (index_t b = 0; b < batches; ++b)
+            {
+                bool same = true;
+                for (int l = 1; l < 8; ++l)
+                    same = same && cls[8 * b + l] == cls[8 * b] && base[8 * b + l] == base[8 * b] + l;
+                n += same;
+            }
+            return n;
+        };
+        const index_t uniform = uniform_batches(blk.point_stencils.point_stencil, blk.point_stencils.point_base);
         std::printf("%s: %d of %d full batches are uniform\n", stab, uniform, batches);
         ASSERT_GT(uniform, 0);
         ASSERT_LT(uniform, batches);
@@ -248,16 +253,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
             EXPECT_LT(blk.stab_triplets.n_triplets(), blk.n_points() / 4);
             // the triplets' whole-vector path (one triplet stencil, consecutive bases) and the
             // lane-by-lane one must both occur too
-            const TripletTable& tt = blk.stab_triplets;
-            index_t uniform_triplets = 0;
-            for (index_t b = 0; b < batches; ++b)
-            {
-                bool same = true;
-                for (int l = 1; l < 8; ++l)
-                    same = same && tt.point_triplet[8 * b + l] == tt.point_triplet[8 * b] &&
-                           tt.point_base[8 * b + l] == tt.point_base[8 * b] + l;
-                uniform_triplets += same;
-            }
+            const index_t uniform_triplets = uniform_batches(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base);
             std::printf("nsni: %d of %d full batches have uniform triplets\n", uniform_triplets, batches);
             ASSERT_GT(uniform_triplets, 0);
             ASSERT_LT(uniform_triplets, batches);

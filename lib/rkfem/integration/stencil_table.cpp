@@ -1,6 +1,7 @@
 #include "rkfem/integration/stencil_table.hpp"
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/offsets_hash.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,24 +11,6 @@
 
 namespace rkfem
 {
-namespace
-{
-/// FNV-1a over the entry count and the node offsets of a stencil.
-std::uint64_t offsets_hash(const index_t* nodes, index_t size)
-{
-    std::uint64_t h = 1469598103934665603ull;
-    auto mix = [&](std::uint32_t x)
-    {
-        h ^= x;
-        h *= 1099511628211ull;
-    };
-    mix(static_cast<std::uint32_t>(size));
-    for (index_t k = 1; k < size; ++k)
-        mix(static_cast<std::uint32_t>(nodes[k] - nodes[0]));
-    return h;
-}
-} // namespace
-
 StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
 {
     const index_t np = op.n_points();

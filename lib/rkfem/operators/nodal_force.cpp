@@ -288,18 +288,19 @@ template <class Triplet> inline void scatter_triplet(const Triplet& tr, const re
 }
 
 #if defined(__AVX512F__)
-/// A batch whose 8 points share one stencil and whose bases are consecutive (points along a
-/// lattice row): entry k of lane l touches node base + offset[k] + l, so each entry's nodes are 8
-/// consecutive ones, read and written as whole vectors instead of lane by lane.
-bool uniform_batch(const StencilTable& t, index_t p0)
+/// Do points p0 .. p0 + 7 have one stencil (stencil[p], a table's per-point class) and
+/// consecutive bases (points along a lattice row)? Then entry k of lane l touches node base +
+/// offset[k] + l, so each entry's nodes are 8 consecutive ones, read and written as whole vectors
+/// instead of lane by lane.
+bool uniform_lanes(const std::vector<index_t>& stencil, const std::vector<index_t>& base, index_t p0)
 {
-    if (t.empty())
+    if (stencil.empty())
         return false;
-    const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_stencil.data() + p0));
-    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_base.data() + p0));
-    const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(t.point_base[static_cast<std::size_t>(p0)]),
+    const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(stencil.data() + p0));
+    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(base.data() + p0));
+    const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(base[static_cast<std::size_t>(p0)]),
                                          _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-    return _mm256_cmpeq_epi32_mask(s, _mm256_set1_epi32(t.point_stencil[static_cast<std::size_t>(p0)])) == 0xFF &&
+    return _mm256_cmpeq_epi32_mask(s, _mm256_set1_epi32(stencil[static_cast<std::size_t>(p0)])) == 0xFF &&
            _mm256_cmpeq_epi32_mask(b, row) == 0xFF;
 }
 
@@ -381,20 +382,6 @@ inline void scatter_uniform(const StencilView& st, const real_t (&P)[9][8], real
 #endif
 
 #if defined(__AVX512F__)
-/// A batch whose 8 points share one NSNI triplet stencil with consecutive bases (points along a
-/// lattice row): entry k of lane l touches node base + offset[k] + l.
-bool uniform_triplet_batch(const TripletTable& t, index_t p0)
-{
-    if (t.empty())
-        return false;
-    const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_triplet.data() + p0));
-    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.point_base.data() + p0));
-    const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(t.point_base[static_cast<std::size_t>(p0)]),
-                                         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-    return _mm256_cmpeq_epi32_mask(s, _mm256_set1_epi32(t.point_triplet[static_cast<std::size_t>(p0)])) == 0xFF &&
-           _mm256_cmpeq_epi32_mask(b, row) == 0xFF;
-}
-
 /// gather_triplet for the 8 lanes of a uniform triplet batch, into G[i][a][j][l]: per entry the
 /// lanes' 8 consecutive node triples are 3 vectors, each of the six Hessian values one broadcast,
 /// with gather_triplet's FMAs in its order per lane (the same bits); unpacked once at the end.
@@ -509,7 +496,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     TripletView tv[W];
 #if defined(__AVX512F__)
     // a full batch along a lattice row with one triplet stencil: the whole-vector path
-    const bool uniform = W == 8 && nl == W && packed && uniform_triplet_batch(blk.stab_triplets, p0);
+    const bool uniform = W == 8 && nl == W && packed && uniform_lanes(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base, p0);
     if (uniform)
         gather_triplets_uniform(blk.stab_triplets.view(p0), v, G);
 #else
@@ -648,7 +635,7 @@ template <bool PLASTIC, bool FULL>
     }
     alignas(64) real_t F[3][3][W], Fd[3][3][W];
 #if defined(__AVX512F__)
-    const bool uniform = FULL && uniform_batch(blk.point_stencils, p0);
+    const bool uniform = FULL && uniform_lanes(blk.point_stencils.point_stencil, blk.point_stencils.point_base, p0);
     if (uniform)
         gather_gradients_uniform(blk.point_stencils.view(p0), u, v, F, Fd);
     else

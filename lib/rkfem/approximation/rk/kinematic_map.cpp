@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/offsets_hash.hpp"
 #include "rkfem/core/parallel.hpp"
 
 namespace rkfem
@@ -21,24 +22,6 @@ void KinematicMap::reset(index_t n_nodes)
     n_row_entries_ = 0;
     n_coefficient_nodes_ = 0;
 }
-
-namespace
-{
-/// FNV-1a over a row's entry count and its column offsets from the first.
-std::uint64_t row_hash(const index_t* columns, index_t size)
-{
-    std::uint64_t h = 1469598103934665603ull;
-    auto mix = [&](std::uint32_t x)
-    {
-        h ^= x;
-        h *= 1099511628211ull;
-    };
-    mix(static_cast<std::uint32_t>(size));
-    for (index_t k = 1; k < size; ++k)
-        mix(static_cast<std::uint32_t>(columns[k] - columns[0]));
-    return h;
-}
-} // namespace
 
 void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_t>& offsets,
                             const std::vector<index_t>& columns, const std::vector<real_t>& values,
@@ -98,7 +81,7 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
         const index_t* c = all_columns.data() + k0;
         const real_t* v = all_values.data() + k0;
         base_[i] = m > 0 ? c[0] : 0;
-        std::vector<index_t>& candidates = by_offsets[row_hash(c, m)];
+        std::vector<index_t>& candidates = by_offsets[offsets_hash(c, m)];
         auto matches = [&](index_t s)
         {
             const index_t j0 = new_offsets[static_cast<std::size_t>(s)];
