@@ -17,15 +17,17 @@
 #define RKFEM_SANITIZED 1
 #endif
 
+#if defined(__linux__) && defined(__GLIBC__) && !defined(RKFEM_SANITIZED)
+#define RKFEM_TUNABLE_ALLOCATOR 1
+#endif
+
 namespace rkfem
 {
+#if defined(RKFEM_TUNABLE_ALLOCATOR)
 namespace
 {
 bool contains(const char* text, const char* what) { return text != nullptr && std::strstr(text, what) != nullptr; }
 } // namespace
-
-#if defined(__linux__) && defined(__GLIBC__) && !defined(RKFEM_SANITIZED)
-#define RKFEM_TUNABLE_ALLOCATOR 1
 #endif
 
 bool allocator_tunable()

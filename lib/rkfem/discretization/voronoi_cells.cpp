@@ -303,34 +303,35 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         d = std::min(d, h.offset - h.normal.dot(p));
                     return d;
                 };
+                // (for the exact construction only)
                 auto start_point = [&]()
                 {
-                Vec3 xin = xi;
-                for (int pass = 0; pass < 8; ++pass)
-                {
-                    const HalfSpace* nearest = nullptr;
-                    real_t nearest_dist = 0.2 * dmin;
-                    for (const HalfSpace& h : body)
+                    Vec3 xin = xi;
+                    for (int pass = 0; pass < 8; ++pass)
                     {
-                        const real_t dist = h.offset - h.normal.dot(xin); // unit normals
-                        if (dist < nearest_dist)
+                        const HalfSpace* nearest = nullptr;
+                        real_t nearest_dist = 0.2 * dmin;
+                        for (const HalfSpace& h : body)
                         {
-                            nearest_dist = dist;
-                            nearest = &h;
+                            const real_t dist = h.offset - h.normal.dot(xin); // unit normals
+                            if (dist < nearest_dist)
+                            {
+                                nearest_dist = dist;
+                                nearest = &h;
+                            }
                         }
+                        if (nearest == nullptr)
+                            break;
+                        xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
                     }
-                    if (nearest == nullptr)
-                        break;
-                    xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
-                }
-                // a body thinner than 0.2 d_min across (a cloud one spacing thick, a point file of a
-                // plate) has no room for that push: it left the start point outside a face, a broken
-                // precondition on which CGAL's hull freed an invalid pointer or never returned. There the
-                // start point is the centre of the largest ball in the cell (a small linear programme on
-                // the normalized planes, exact)
-                if (min_body_distance(xin) < 0.1 * dmin)
-                    xin = deepest_point(planes, body, xi, i);
-                return xin;
+                    // a body thinner than 0.2 d_min across (a cloud one spacing thick, a point file of a
+                    // plate) has no room for that push: it left the start point outside a face, a broken
+                    // precondition on which CGAL's hull freed an invalid pointer or never returned. There the
+                    // start point is the centre of the largest ball in the cell (a small linear programme on
+                    // the normalized planes, exact)
+                    if (min_body_distance(xin) < 0.1 * dmin)
+                        xin = deepest_point(planes, body, xi, i);
+                    return xin;
                 };
                 // The cell in an order of its own: CGAL's hull lists vertices and facets, and starts each
                 // facet, in an order that follows memory addresses, which vary from run to run
@@ -391,9 +392,9 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 }
                 else
                 {
-                    // the points' box, widened by twice its diagonal (the body holds the points),
-                    // cut by the bisectors nearest first, then by the body's planes; a vertex
-                    // within 1e-10 of the farthest neighbour's distance of a plane is on it
+                    // the body's box cut by the bisectors, nearest first, then by the body's
+                    // planes; a vertex within 1e-10 of the farthest neighbour's distance of a
+                    // plane is on it
                     auto cut_cell = [&]()
                     {
                         cell.reset_box(box_lo, box_hi);
