@@ -13,6 +13,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <cstdio>
+#include <map>
 #include <random>
 
 #include <omp.h>
@@ -525,7 +526,9 @@ TEST(VoronoiCells, CellsAreTheSameBitsOnAnyNumberOfThreads)
 // twin: both solve each vertex again from the planes through it (corner_point), so where the
 // two find the same polygons the facet points, normals, areas, neighbours, volumes and spacings
 // are the same bits; on a jittered box cloud with random points, a generated cylinder cloud
-// (particles on the faceted surface) and a plate thinner than its spacing they are.
+// (particles on the faceted surface) and a plate thinner than its spacing they are. (Where more
+// than three planes meet at a vertex, as on an exact lattice, they are not: see
+// LatticeCellsAreCubesOfSixSquares.)
 TEST(VoronoiCells, CutCellsAreTheExactConstructionsBits)
 {
     struct Case
@@ -588,4 +591,84 @@ TEST(VoronoiCells, CutCellsAreTheExactConstructionsBits)
         EXPECT_EQ(ds, 0.0) << c.name;
         EXPECT_EQ(dsub, 0.0) << c.name;
     }
+}
+
+// An exact lattice (jitter 0): more than three bisectors meet at each vertex. Its Voronoi cells
+// are cubes, so the cut cells are 6 squares fanned from their centres, 24 facet points a cell of
+// the body's volume over the particles', each face's n dA the square's area on its axis. CGAL's
+// exact construction represents such a vertex by several coincident ones, which moved its fans'
+// centres (the average of a polygon's vertices, a duplicate counted twice): the same cells and
+// the same area per neighbour, other quadrature points; the cut cells' are the cubes'.
+TEST(VoronoiCells, LatticeCellsAreCubesOfSixSquares)
+{
+    GeneratorSpec g;
+    g.type = GeneratorSpec::Type::Cloud;
+    g.element_size = 1e-3;
+    g.jitter = 0.0;
+    g.size = Vec3(4e-3, 4e-3, 8e-3);
+    const std::vector<real_t> x = generate_cloud(g).x;
+    const std::vector<HalfSpace> body = cloud_body(g, static_cast<index_t>(x.size() / 3));
+    const VoronoiCells cut = voronoi_cells(x, body, VoronoiHull::Clip);
+    const VoronoiCells exact = voronoi_cells(x, body, VoronoiHull::Exact);
+    ASSERT_EQ(cut.size(), exact.size());
+    real_t volume = 0.0, dv = 0.0, darea = 0.0, dcentre = 0.0;
+    int not_24 = 0, exact_not_24 = 0;
+    for (index_t i = 0; i < cut.size(); ++i)
+    {
+        volume += cut.volume[i];
+        dv = std::max(dv, std::abs(cut.volume[i] - exact.volume[i]) / exact.volume[i]);
+        not_24 += cut.offsets[i + 1] - cut.offsets[i] != 24;
+        exact_not_24 += exact.offsets[i + 1] - exact.offsets[i] != 24;
+        // per face (6 of them, 4 triangles each): its n dA, and its points' mean at the square's centre
+        Vec3 face_nda[6], face_x[6];
+        for (int f = 0; f < 6; ++f)
+            face_nda[f] = face_x[f] = Vec3::Zero();
+        for (index_t k = cut.offsets[i]; k < cut.offsets[i + 1]; ++k)
+        {
+            const Vec3& n = cut.points[k].nda;
+            int axis = 0;
+            n.cwiseAbs().maxCoeff(&axis);
+            const int f = 2 * axis + (n[axis] > 0 ? 1 : 0);
+            face_nda[f] += n;
+            face_x[f] += 0.25 * cut.points[k].x;
+        }
+        // against the exact construction: the same n dA per neighbour (or body face)
+        std::map<std::pair<index_t, int>, Vec3> by_cut, by_exact;
+        for (const auto& [cells, into] : {std::pair{&cut, &by_cut}, std::pair{&exact, &by_exact}})
+            for (index_t k = cells->offsets[i]; k < cells->offsets[i + 1]; ++k)
+            {
+                const Vec3& n = cells->points[k].nda;
+                int axis = 0;
+                n.cwiseAbs().maxCoeff(&axis);
+                into->emplace(std::pair{cells->points[k].neighbour, 2 * axis + (n[axis] > 0 ? 1 : 0)}, Vec3::Zero())
+                    .first->second += n;
+            }
+        for (const auto& [key, n] : by_exact)
+        {
+            const auto it = by_cut.find(key);
+            const Vec3 c = it == by_cut.end() ? Vec3::Zero() : it->second;
+            darea = std::max(darea, (c - n).norm() / (g.element_size * g.element_size));
+        }
+        // the cell is the box of half a spacing around the particle, clipped to the body; a
+        // face's centre is the box's, moved to the face along its axis
+        const Vec3 xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+        const Vec3 lo = (xi - Vec3::Constant(0.5 * g.element_size)).cwiseMax(Vec3::Zero());
+        const Vec3 hi = (xi + Vec3::Constant(0.5 * g.element_size)).cwiseMin(g.size);
+        for (int f = 0; f < 6; ++f)
+        {
+            const int axis = f / 2;
+            Vec3 c = 0.5 * (lo + hi);
+            c[axis] = f % 2 ? hi[axis] : lo[axis];
+            dcentre = std::max(dcentre, (face_x[f] - c).norm() / g.element_size);
+        }
+    }
+    std::printf("lattice: %d cells, %d cut cells and %d exact ones not of 24 facet points; volume / body - 1 = %.1e; "
+                "cut against exact: volumes %.1e, n dA per neighbour %.1e h^2; faces' point means off their "
+                "centres by %.1e h\n",
+                cut.size(), not_24, exact_not_24, volume / g.size.prod() - 1.0, dv, darea, dcentre);
+    EXPECT_EQ(not_24, 0);
+    EXPECT_NEAR(volume / g.size.prod(), 1.0, 1e-13);
+    EXPECT_LT(dv, 1e-14);
+    EXPECT_LT(darea, 1e-14);
+    EXPECT_LT(dcentre, 1e-13);
 }
