@@ -301,6 +301,7 @@ TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
     ASSERT_TRUE(blk.stab_in_triplets);
     EXPECT_EQ(blk.stab_triplets.n_triplets(), blk.n_points());
     EXPECT_TRUE(blk.stabilization.nodes.empty() && blk.stabilization.grad.empty());
+    EXPECT_TRUE(blk.stabilization.position.empty()); // the parents' positions, not kept
     NodeSet nodes = wavy_motion(mesh);
     const real_t dt = 1e-7;
     const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
@@ -310,6 +311,9 @@ TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
     const index_t packed_entries = blk.stab_triplets.n_entries();
     blk.expand_operators();
     EXPECT_EQ(blk.stabilization.n_entries(), 3 * packed_entries);
+    ASSERT_EQ(blk.stabilization.position.size(), 3 * static_cast<std::size_t>(blk.n_stab()));
+    for (index_t s = 0; s < blk.n_stab(); ++s)
+        ASSERT_EQ(blk.stabilization.point(s), blk.points.point(s / 3)) << s;
     blk.stab_triplets.clear();
     const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
     assemble_nodal_forces(blk, nodes);

@@ -68,7 +68,15 @@ void NodalBlock::expand_operators()
     if (stab_in_table)
         expand_from(stabilization, stab_stencils);
     if (stab_in_triplets)
+    {
         expand_triplets(stabilization, stab_triplets);
+        // the sub-points' positions: their parents' (build_nsni_stabilization)
+        stabilization.position.resize(3 * static_cast<std::size_t>(stabilization.n_points()));
+        for (index_t s = 0; s < stabilization.n_points(); ++s)
+            for (int d = 0; d < 3; ++d)
+                stabilization.position[3 * static_cast<std::size_t>(s) + d] =
+                    points.position[3 * static_cast<std::size_t>(stabilization.parent[s]) + d];
+    }
     points_in_table = stab_in_table = stab_in_triplets = false;
 }
 
@@ -252,6 +260,9 @@ void NodalBlock::build_tables(Assembly assembly)
     if (compact_operators && !stab_triplets.empty())
     {
         release_entries(stabilization);
+        // NSNI's sub-points sit at their parents (the checks above hold the layout); nothing in
+        // the step reads their positions: 72 bytes per particle, written back by expand_operators
+        std::vector<real_t>().swap(stabilization.position);
         stab_in_triplets = true;
     }
     else if (compact_operators && !stab_stencils.empty())

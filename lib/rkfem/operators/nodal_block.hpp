@@ -71,7 +71,8 @@ struct NodalBlock
     /// six Hessian values per entry), which the force pass reads (nsni_batch); built by
     /// build_tables() from the shared stencils or the operator. With compact_operators it is the
     /// only copy (stab_in_triplets: the sub-point stencils are released too, 52 bytes per
-    /// entry where they took 84), and expand_operators() writes them back.
+    /// entry where they took 84, and the sub-points' positions, their parents'), and
+    /// expand_operators() writes them back.
     TripletTable stab_triplets;
     bool stab_in_triplets = false;
     void expand_operators();
