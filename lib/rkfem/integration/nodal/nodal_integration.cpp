@@ -722,76 +722,107 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
     const index_t np = points.n_points();
     RKFEM_REQUIRE(moments.size() == 3 * static_cast<std::size_t>(np),
                   "NSNI: " << moments.size() << " second moments for " << np << " points");
-    std::vector<std::vector<index_t>> nodes(static_cast<std::size_t>(np));
-    std::vector<std::vector<Mat3>> hess(static_cast<std::size_t>(np));
+    // sub-points 3 p + i of point p, each with p's nodes and row i of each entry's matrix
+    IntegrationOperator op;
+    const std::size_t ns = 3 * static_cast<std::size_t>(np);
+    op.offsets.resize(ns + 1);
+    op.offsets[0] = 0;
+    op.weight.resize(ns);
+    op.position.resize(3 * ns);
+    op.owner.resize(ns);
+    op.parent.resize(ns);
+    // Points go in blocks: each block's Hessians (per point: its nodes and their matrices, 76
+    // bytes per entry) are appended to the operator before the next block is evaluated, so the
+    // set-up holds the operator and one block's lists, not every point's lists beside the
+    // operator they are copied into. The lists' storage is reused from block to block.
+    constexpr index_t kBlock = 4096;
+    const std::size_t nb = static_cast<std::size_t>(std::min<index_t>(np, kBlock));
+    std::vector<std::vector<index_t>> nodes(nb);
+    std::vector<std::vector<Mat3>> hess(nb);
     ParallelErrors errors;
+    bool failed = false;
 #pragma omp parallel
     {
         // the particles near each point gathered once for its six gradient evaluations
         // (RkRegionValues::hessians; RkShapeFunctions::hessians is its plain twin)
         RkRegionValues region(rk, 0.0);
-#pragma omp for schedule(dynamic, 64)
-        for (index_t p = 0; p < np; ++p)
+        for (index_t b0 = 0; b0 < np && !failed; b0 += kBlock)
         {
-            try
+            const index_t b1 = std::min<index_t>(np, b0 + kBlock);
+#pragma omp for schedule(dynamic, 64)
+            for (index_t p = b0; p < b1; ++p)
             {
-                const Vec3 x = rk.position(points.owner[p]);
-                region.hessians(x, nodes[p], hess[p]);
-                if (drop_tolerance > 0.0)
-                    prune_rk_hessians(rk, x, drop_tolerance, nodes[p], hess[p]);
-                nodes[p].shrink_to_fit();
-                hess[p].shrink_to_fit();
-                setup_progress::advance();
+                try
+                {
+                    std::vector<index_t>& n = nodes[static_cast<std::size_t>(p - b0)];
+                    std::vector<Mat3>& h = hess[static_cast<std::size_t>(p - b0)];
+                    const Vec3 x = rk.position(points.owner[p]);
+                    region.hessians(x, n, h);
+                    if (drop_tolerance > 0.0)
+                        prune_rk_hessians(rk, x, drop_tolerance, n, h);
+                    setup_progress::advance();
+                }
+                catch (...)
+                {
+                    errors.capture();
+#pragma omp atomic write
+                    failed = true;
+                }
             }
-            catch (...)
+            // (the loop's barrier: every list of the block is written, `failed` is seen)
+#pragma omp single
+            if (!failed)
             {
-                errors.capture();
+                for (index_t p = b0; p < b1; ++p)
+                    for (int i = 0; i < 3; ++i)
+                    {
+                        const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
+                        op.offsets[s + 1] = op.offsets[s] + static_cast<index_t>(nodes[static_cast<std::size_t>(p - b0)].size());
+                    }
+                const std::size_t total = static_cast<std::size_t>(op.offsets[3 * static_cast<std::size_t>(b1)]);
+                if (b0 == 0 && b1 < np) // room for the rest at the first block's mean, and a tenth more
+                {
+                    const std::size_t estimate = static_cast<std::size_t>(
+                        1.1 * static_cast<double>(total) * static_cast<double>(np) / static_cast<double>(b1));
+                    op.nodes.reserve(estimate);
+                    op.grad.reserve(3 * estimate);
+                }
+                op.nodes.resize(total);
+                op.grad.resize(3 * total);
+            }
+            if (!failed)
+            {
+#pragma omp for schedule(static)
+                for (index_t p = b0; p < b1; ++p)
+                {
+                    const std::vector<index_t>& n = nodes[static_cast<std::size_t>(p - b0)];
+                    const std::vector<Mat3>& h = hess[static_cast<std::size_t>(p - b0)];
+                    for (int i = 0; i < 3; ++i)
+                    {
+                        const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
+                        op.weight[s] = moments[s];
+                        for (int d = 0; d < 3; ++d)
+                            op.position[3 * s + d] = points.position[3 * static_cast<std::size_t>(p) + d];
+                        op.owner[s] = points.owner[p];
+                        op.parent[s] = p;
+                        std::size_t q = static_cast<std::size_t>(op.offsets[s]);
+                        for (std::size_t k = 0; k < n.size(); ++k, ++q)
+                        {
+                            op.nodes[q] = n[k];
+                            for (int d = 0; d < 3; ++d)
+                                op.grad[3 * q + d] = h[k](i, d);
+                        }
+                    }
+                }
             }
         }
     }
     errors.rethrow();
-    // sub-points 3 p + i of point p, each with p's nodes and row i of each entry's matrix: the
-    // offsets first, then every point's entries written in place, in parallel (each point's
-    // lists freed as they are copied)
-    IntegrationOperator op;
-    const std::size_t ns = 3 * static_cast<std::size_t>(np);
-    op.offsets.resize(ns + 1);
-    op.offsets[0] = 0;
-    for (index_t p = 0; p < np; ++p)
-        for (int i = 0; i < 3; ++i)
-        {
-            const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
-            op.offsets[s + 1] = op.offsets[s] + static_cast<index_t>(nodes[p].size());
-        }
-    op.nodes.resize(static_cast<std::size_t>(op.offsets[ns]));
-    op.grad.resize(3 * op.nodes.size());
-    op.weight.resize(ns);
-    op.position.resize(3 * ns);
-    op.owner.resize(ns);
-    op.parent.resize(ns);
-    parallel_for("rkfem::build_nsni_stabilization::pack", np,
-                 [&](index_t p)
-                 {
-                     for (int i = 0; i < 3; ++i)
-                     {
-                         const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
-                         op.weight[s] = moments[3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i)];
-                         for (int d = 0; d < 3; ++d)
-                             op.position[3 * s + d] = points.position[3 * static_cast<std::size_t>(p) + d];
-                         op.owner[s] = points.owner[p];
-                         op.parent[s] = p;
-                         std::size_t q = static_cast<std::size_t>(op.offsets[s]);
-                         for (std::size_t k = 0; k < nodes[p].size(); ++k, ++q)
-                         {
-                             op.nodes[q] = nodes[p][k];
-                             const Mat3& H = hess[p][k];
-                             for (int d = 0; d < 3; ++d)
-                                 op.grad[3 * q + d] = H(i, d);
-                         }
-                     }
-                     std::vector<index_t>().swap(nodes[p]); // free as we go: the peak is the operator
-                     std::vector<Mat3>().swap(hess[p]);
-                 });
+    if (op.nodes.capacity() > op.nodes.size() + op.nodes.size() / 16) // the estimate was far off
+    {
+        op.nodes.shrink_to_fit();
+        op.grad.shrink_to_fit();
+    }
     return op;
 }
 
