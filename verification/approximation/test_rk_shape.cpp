@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <iterator>
 #include <cstdio>
 #include <map>
 #include <random>
@@ -413,6 +414,63 @@ TEST(RkShape, RegionValuesAreThePointwiseValuesToRoundOff)
             EXPECT_GT(dropped, 0u); // the drop and its correction ran
         }
     }
+}
+
+// focus (8 region particles at a time where the CPU has AVX-512) against its plain twin and
+// against the definition: the candidates are exactly the region's particles that
+// particles_near_box finds for the box, ascending, with their positions and radii.
+TEST(RkShape, FocusKeepsTheRegionsParticlesNearTheBox)
+{
+    const real_t h = 1e-3;
+    const HexMesh mesh = rkfem::test::distorted_box(6, h, 0.3);
+    const RkShapeFunctions rk = rk_on_mesh(mesh, RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 2.0});
+    RkRegionValues wide(rk, 0.0), plain(rk, 0.0);
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<real_t> u(0.0, 1.0);
+    std::size_t narrowed = 0;
+    for (const index_t e : {0, 43, 107, 215})
+    {
+        Vec3 lo = Vec3::Constant(1e300), hi = -lo;
+        for (int I = 0; I < 8; ++I)
+        {
+            lo = lo.cwiseMin(mesh.node(mesh.conn[8 * e + I]));
+            hi = hi.cwiseMax(mesh.node(mesh.conn[8 * e + I]));
+        }
+        wide.gather(lo, hi);
+        plain.gather(lo, hi);
+        const std::vector<index_t> region = wide.region_particles();
+        ASSERT_GT(region.size(), 8u); // whole vectors and a remainder
+        for (int q = 0; q < 30; ++q)
+        {
+            // a sub-box of the element's box (a facet's), and at q = 0 the whole box
+            Vec3 a, b;
+            for (int d = 0; d < 3; ++d)
+            {
+                const real_t s = u(gen), t = q == 0 ? 1.0 : s + 0.3 * (1.0 - s) * u(gen);
+                a[d] = q == 0 ? lo[d] : lo[d] + s * (hi[d] - lo[d]);
+                b[d] = lo[d] + t * (hi[d] - lo[d]);
+            }
+            wide.focus(a, b);
+            plain.focus_plain(a, b);
+            std::vector<index_t> near;
+            rk.particles_near_box(a, b, near);
+            std::vector<index_t> expected;
+            std::set_intersection(region.begin(), region.end(), near.begin(), near.end(), std::back_inserter(expected));
+            ASSERT_EQ(wide.candidates(), expected) << "element " << e << " box " << q;
+            ASSERT_EQ(plain.candidates(), expected);
+            ASSERT_EQ(wide.slots(), plain.slots());
+            for (std::size_t k = 0; k < expected.size(); ++k)
+                EXPECT_EQ(region[static_cast<std::size_t>(wide.slots()[k])], expected[k]);
+            narrowed += region.size() - expected.size();
+            // the candidates' values are the same bits either way
+            const Vec3 x = 0.5 * (a + b);
+            wide.evaluate(x);
+            plain.evaluate(x);
+            for (std::size_t k = 0; k < expected.size(); ++k)
+                ASSERT_EQ(wide.psi()[k], plain.psi()[k]);
+        }
+    }
+    EXPECT_GT(narrowed, 0u); // the focus dropped particles
 }
 
 // A point with too few covering particles is the same named error from the fast path.

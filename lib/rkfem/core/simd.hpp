@@ -14,6 +14,15 @@
 #include <cstring>
 #include <type_traits>
 
+/// Marks a small scalar routine whose indexed loads and stores GCC's vectorizers would turn into
+/// gathers and scatters on the stack (a 4 x 4 factorization that pivots through an index): each
+/// scatter stalls the scalar loads that follow it. The routine is then called, not inlined.
+#if defined(__GNUC__) && !defined(__clang__)
+#define RKFEM_SCALAR_CODE __attribute__((optimize("no-tree-vectorize", "no-tree-slp-vectorize")))
+#else
+#define RKFEM_SCALAR_CODE
+#endif
+
 /// Inlined into the batch kernels whatever the size heuristics say: their arguments are arrays
 /// of lane vectors, which stay in registers only when the call is inlined.
 #define RKFEM_LANE_INLINE inline __attribute__((always_inline))

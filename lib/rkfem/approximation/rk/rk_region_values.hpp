@@ -28,6 +28,9 @@ class RkRegionValues
     /// (inside the region), for the points that lie in it: a facet's points need about a third
     /// of its element's particles.
     void focus(const Vec3& lo, const Vec3& hi);
+    /// focus's plain twin (the particles one by one; focus takes 8 at a time where the CPU has
+    /// AVX-512): the same candidates in the same order, the same arrays.
+    void focus_plain(const Vec3& lo, const Vec3& hi);
     /// Candidate particles, ascending; candidate k is particle candidates()[k] and the region's
     /// particle slots()[k] (0 .. region_size() - 1).
     const std::vector<index_t>& candidates() const { return ids_; }
@@ -59,6 +62,11 @@ class RkRegionValues
   private:
     /// The candidates: the region's particles k with keep(k).
     template <class Keep> void select(Keep&& keep);
+    bool reaches(std::size_t k, const Vec3& lo, const Vec3& hi) const;
+    void resize_candidates(std::size_t n);
+#if defined(__AVX512F__)
+    void focus_wide(const Vec3& lo, const Vec3& hi);
+#endif
     void values_at(const Vec3& x);
     /// The basis size, after the covering count's test at the last point (too few covering
     /// particles throw SingularMomentError naming x)
@@ -76,9 +84,9 @@ class RkRegionValues
     // chosen once for the kernel and support
     void (RkRegionValues::*windows_)(const Vec3&) = nullptr;
     void (RkRegionValues::*slopes_)(const Vec3&) = nullptr;
-    // per particle of the region (flat): particle, position, radius
+    // per particle of the region (flat): particle, position, radius, 1 / radius
     std::vector<index_t> region_ids_;
-    std::vector<real_t> region_x_[3], region_a_;
+    std::vector<real_t> region_x_[3], region_a_, region_inv_a_;
     // per candidate (flat): particle, region slot, position, 1 / radius, radius
     std::vector<index_t> ids_, slots_;
     std::vector<real_t> px_, py_, pz_, inv_a_, a_;
