@@ -828,34 +828,40 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
 
 std::vector<real_t> nodal_second_moments(const HexMesh& mesh)
 {
+    // node by node over its sub-hexes in element order (the incidence lists' order: each node's
+    // sums in the order of an element loop), in parallel
+    std::vector<index_t> offsets, slots;
+    node_element_incidence(mesh, offsets, slots);
     std::vector<real_t> m(3 * static_cast<std::size_t>(mesh.n_nodes()), 0.0);
     const real_t g = 1.0 / std::sqrt(3.0);
-    real_t xe[8][3];
-    for (index_t e = 0; e < mesh.n_elements(); ++e)
-    {
-        element_coordinates(mesh, e, xe);
-        for (int a = 0; a < 8; ++a)
-        {
-            // the sub-hex of local node a: xi_d between 0 and the node's natural coordinate
-            const index_t L = mesh.conn[8 * e + a];
-            for (int q = 0; q < 8; ++q)
-            {
-                real_t xi[3], N[8], dNdx[8][3];
-                for (int d = 0; d < 3; ++d)
-                    xi[d] = 0.5 * hex8_nodes[a][d] * (1.0 + g * hex8_nodes[q][d]);
-                hex8_shape(xi, N);
-                const real_t w = 0.125 * hex8_gradients(xe, xi, dNdx); // sub-hex Jacobian 1/8 of the element's
-                for (int d = 0; d < 3; ++d)
-                {
-                    real_t x = 0.0;
-                    for (int I = 0; I < 8; ++I)
-                        x += N[I] * xe[I][d];
-                    const real_t r = x - mesh.x[3 * static_cast<std::size_t>(L) + d];
-                    m[3 * static_cast<std::size_t>(L) + d] += w * r * r;
-                }
-            }
-        }
-    }
+    parallel_for("rkfem::nodal_second_moments", mesh.n_nodes(),
+                 [&](index_t L)
+                 {
+                     real_t xe[8][3];
+                     for (index_t k = offsets[L]; k < offsets[L + 1]; ++k)
+                     {
+                         // the sub-hex of local node a: xi_d between 0 and the node's natural coordinate
+                         const index_t e = slots[k] / 8;
+                         const int a = slots[k] % 8;
+                         element_coordinates(mesh, e, xe);
+                         for (int q = 0; q < 8; ++q)
+                         {
+                             real_t xi[3], N[8], dNdx[8][3];
+                             for (int d = 0; d < 3; ++d)
+                                 xi[d] = 0.5 * hex8_nodes[a][d] * (1.0 + g * hex8_nodes[q][d]);
+                             hex8_shape(xi, N);
+                             const real_t w = 0.125 * hex8_gradients(xe, xi, dNdx); // sub-hex Jacobian 1/8 of the element's
+                             for (int d = 0; d < 3; ++d)
+                             {
+                                 real_t x = 0.0;
+                                 for (int I = 0; I < 8; ++I)
+                                     x += N[I] * xe[I][d];
+                                 const real_t r = x - mesh.x[3 * static_cast<std::size_t>(L) + d];
+                                 m[3 * static_cast<std::size_t>(L) + d] += w * r * r;
+                             }
+                         }
+                     }
+                 });
     return m;
 }
 
