@@ -731,11 +731,11 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
     op.position.resize(3 * ns);
     op.owner.resize(ns);
     op.parent.resize(ns);
-    // Points go in blocks: each block's Hessians (per point: its nodes and their matrices, 76
+    // Points go in blocks of 1024: each block's Hessians (per point: its nodes and their matrices, 76
     // bytes per entry) are appended to the operator before the next block is evaluated, so the
     // set-up holds the operator and one block's lists, not every point's lists beside the
     // operator they are copied into. The lists' storage is reused from block to block.
-    constexpr index_t kBlock = 4096;
+    constexpr index_t kBlock = 1024;
     const std::size_t nb = static_cast<std::size_t>(std::min<index_t>(np, kBlock));
     std::vector<std::vector<index_t>> nodes(nb);
     std::vector<std::vector<Mat3>> hess(nb);
@@ -780,10 +780,13 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
                         op.offsets[s + 1] = op.offsets[s] + static_cast<index_t>(nodes[static_cast<std::size_t>(p - b0)].size());
                     }
                 const std::size_t total = static_cast<std::size_t>(op.offsets[3 * static_cast<std::size_t>(b1)]);
-                if (b0 == 0 && b1 < np) // room for the rest at the first block's mean, and a tenth more
+                if (total > op.nodes.capacity())
                 {
-                    const std::size_t estimate = static_cast<std::size_t>(
-                        1.1 * static_cast<double>(total) * static_cast<double>(np) / static_cast<double>(b1));
+                    // room for the rest at the mean so far and a quarter more: reserved memory
+                    // that is never written costs no page, a reallocation copies the operator
+                    const std::size_t estimate = std::max(
+                        total, static_cast<std::size_t>(1.25 * static_cast<double>(total) * static_cast<double>(np) /
+                                                        static_cast<double>(b1)));
                     op.nodes.reserve(estimate);
                     op.grad.reserve(3 * estimate);
                 }
@@ -818,7 +821,7 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
         }
     }
     errors.rethrow();
-    if (op.nodes.capacity() > op.nodes.size() + op.nodes.size() / 16) // the estimate was far off
+    if (op.nodes.capacity() > op.nodes.size() + op.nodes.size() / 2) // the estimate was far off
     {
         op.nodes.shrink_to_fit();
         op.grad.shrink_to_fit();
