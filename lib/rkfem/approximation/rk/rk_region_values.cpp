@@ -238,8 +238,13 @@ template <class Keep> void RkRegionValues::select(Keep&& keep)
         v->resize(nr);
     ids_.resize(nr);
     slots_.resize(nr);
-    std::size_t n = 0;
-    for (std::size_t k = 0; k < nr; ++k)
+    resize_candidates(copy_kept(0, 0, keep));
+}
+
+/// Region particles k0.. with keep(k) appended to the candidates from position n; the new count.
+template <class Keep> std::size_t RkRegionValues::copy_kept(std::size_t k0, std::size_t n, Keep&& keep)
+{
+    for (std::size_t k = k0; k < region_ids_.size(); ++k)
     {
         // written whether kept or not, kept by advancing: no branch on the test
         ids_[n] = region_ids_[k];
@@ -251,7 +256,7 @@ template <class Keep> void RkRegionValues::select(Keep&& keep)
         inv_a_[n] = region_inv_a_[k];
         n += keep(k) ? 1 : 0;
     }
-    resize_candidates(n);
+    return n;
 }
 
 void RkRegionValues::resize_candidates(std::size_t n)
@@ -349,18 +354,7 @@ void RkRegionValues::focus_wide(const Vec3& lo, const Vec3& hi)
                          _mm512_maskz_compress_pd(m, _mm512_loadu_pd(region_inv_a_.data() + k)));
         n += static_cast<std::size_t>(__builtin_popcount(m));
     }
-    for (; k < nr; ++k)
-    {
-        ids_[n] = region_ids_[k];
-        slots_[n] = static_cast<index_t>(k);
-        px_[n] = region_x_[0][k];
-        py_[n] = region_x_[1][k];
-        pz_[n] = region_x_[2][k];
-        a_[n] = region_a_[k];
-        inv_a_[n] = region_inv_a_[k];
-        n += reaches(k, lo, hi) ? 1 : 0;
-    }
-    resize_candidates(n);
+    resize_candidates(copy_kept(k, n, [&](std::size_t j) { return reaches(j, lo, hi); }));
 }
 #endif
 

@@ -62,6 +62,7 @@ class RkRegionValues
   private:
     /// The candidates: the region's particles k with keep(k).
     template <class Keep> void select(Keep&& keep);
+    template <class Keep> std::size_t copy_kept(std::size_t k0, std::size_t n, Keep&& keep);
     bool reaches(std::size_t k, const Vec3& lo, const Vec3& hi) const;
     void resize_candidates(std::size_t n);
 #if defined(__AVX512F__)
