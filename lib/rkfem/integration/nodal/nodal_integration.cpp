@@ -773,25 +773,33 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
 #pragma omp single
             if (!failed)
             {
-                for (index_t p = b0; p < b1; ++p)
-                    for (int i = 0; i < 3; ++i)
-                    {
-                        const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
-                        op.offsets[s + 1] = op.offsets[s] + static_cast<index_t>(nodes[static_cast<std::size_t>(p - b0)].size());
-                    }
-                const std::size_t total = static_cast<std::size_t>(op.offsets[3 * static_cast<std::size_t>(b1)]);
-                if (total > op.nodes.capacity())
+                try // (an allocation that fails is the builder's error, not the team's)
                 {
-                    // room for the rest at the mean so far and a quarter more: reserved memory
-                    // that is never written costs no page, a reallocation copies the operator
-                    const std::size_t estimate = std::max(
-                        total, static_cast<std::size_t>(1.25 * static_cast<double>(total) * static_cast<double>(np) /
-                                                        static_cast<double>(b1)));
-                    op.nodes.reserve(estimate);
-                    op.grad.reserve(3 * estimate);
+                    for (index_t p = b0; p < b1; ++p)
+                    {
+                        const index_t count = static_cast<index_t>(nodes[static_cast<std::size_t>(p - b0)].size());
+                        for (std::size_t s = 3 * static_cast<std::size_t>(p); s < 3 * static_cast<std::size_t>(p) + 3; ++s)
+                            op.offsets[s + 1] = op.offsets[s] + count;
+                    }
+                    const std::size_t total = static_cast<std::size_t>(op.offsets[3 * static_cast<std::size_t>(b1)]);
+                    if (total > op.nodes.capacity())
+                    {
+                        // room for the rest at the mean so far and a quarter more: reserved memory
+                        // that is never written costs no page, a reallocation copies the operator
+                        const std::size_t estimate = std::max(
+                            total, static_cast<std::size_t>(1.25 * static_cast<double>(total) * static_cast<double>(np) /
+                                                            static_cast<double>(b1)));
+                        op.nodes.reserve(estimate);
+                        op.grad.reserve(3 * estimate);
+                    }
+                    op.nodes.resize(total);
+                    op.grad.resize(3 * total);
                 }
-                op.nodes.resize(total);
-                op.grad.resize(3 * total);
+                catch (...)
+                {
+                    errors.capture();
+                    failed = true;
+                }
             }
             if (!failed)
             {
