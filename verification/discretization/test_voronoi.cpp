@@ -529,6 +529,30 @@ TEST(VoronoiCells, CellsAreTheSameBitsOnAnyNumberOfThreads)
 // (particles on the faceted surface) and a plate thinner than its spacing they are. (Where more
 // than three planes meet at a vertex, as on an exact lattice, they are not: see
 // LatticeCellsAreCubesOfSixSquares.)
+// Cells without their sub-cells (what a cloud that integrates on no sub-cell builds): the same
+// facet points, volumes and spacings bit for bit, no sub-cell, and under half the facet data.
+TEST(VoronoiCells, CellsWithoutSubCellsAreTheSameCells)
+{
+    const std::vector<real_t> x = cloud();
+    const std::vector<HalfSpace> body = box_halfspaces(Vec3::Zero(), Vec3::Ones());
+    const VoronoiCells full = voronoi_cells(x, body);
+    const VoronoiCells bare = voronoi_cells(x, body, VoronoiHull::Clip, false);
+    ASSERT_FALSE(full.sub_cells.empty());
+    EXPECT_TRUE(bare.sub_cells.empty());
+    EXPECT_TRUE(bare.sub_points.empty());
+    EXPECT_EQ(full.sub_points.size(), 2 * full.points.size()); // a base and a side per facet point
+    ASSERT_EQ(bare.offsets, full.offsets);
+    EXPECT_EQ(bare.volume, full.volume);
+    EXPECT_EQ(bare.spacing, full.spacing);
+    ASSERT_EQ(bare.points.size(), full.points.size());
+    for (std::size_t k = 0; k < full.points.size(); ++k)
+    {
+        ASSERT_EQ(bare.points[k].x, full.points[k].x);
+        ASSERT_EQ(bare.points[k].nda, full.points[k].nda);
+        ASSERT_EQ(bare.points[k].neighbour, full.points[k].neighbour);
+    }
+}
+
 TEST(VoronoiCells, CutCellsAreTheExactConstructionsBits)
 {
     struct Case

@@ -153,7 +153,8 @@ Vec3 deepest_point(const std::vector<Plane>& bisectors, const std::vector<HalfSp
 }
 } // namespace
 
-VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body, VoronoiHull hull)
+VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body, VoronoiHull hull,
+                           bool with_sub_cells)
 {
     const index_t n = static_cast<index_t>(x.size() / 3);
     RKFEM_REQUIRE(n >= 5, "Voronoi cells: need at least 5 points, got " << n);
@@ -507,6 +508,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 // that jitter makes) joined to the largest one. A thin pyramid's boundary terms are large
                 // and cancel: alone, its smoothed gradient carries round-off up to 1e-10 of its terms;
                 // joined, the union (two closed pieces) still reproduces linear fields exactly.
+                if (!with_sub_cells)
+                    pyramids.clear();
                 std::vector<real_t> pv(pyramids.size(), 0.0);
                 std::size_t largest = 0;
                 for (std::size_t k = 0; k < pyramids.size(); ++k)
@@ -532,7 +535,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
                     }
                 joined.end = static_cast<index_t>(cells.sub_points.size());
-                cells.sub_cells.push_back(joined);
+                if (with_sub_cells)
+                    cells.sub_cells.push_back(joined);
                 cells.volume[0] = vol;
                 setup_progress::advance();
             }

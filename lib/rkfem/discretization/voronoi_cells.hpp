@@ -72,7 +72,8 @@ enum class VoronoiHull
 };
 
 /// Cells of the points x (n x 3) in the convex body (on its surface allowed); throws Error for
-/// points outside it or duplicated.
+/// points outside it or duplicated. Without with_sub_cells, sub_cells and sub_points stay empty
+/// (only SD-SCNI and MSCNI read them; they hold twice the facet points).
 VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body,
-                           VoronoiHull hull = VoronoiHull::Clip);
+                           VoronoiHull hull = VoronoiHull::Clip, bool with_sub_cells = true);
 } // namespace rkfem

@@ -602,7 +602,10 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     try
     {
         const setup_progress::Phase progress("part '" + ps.name + "': Voronoi cells", n);
-        cells = voronoi_cells(cloud.x, cloud_body(g, n));
+        // the sub-cells only for the schemes that integrate on them (SD-SCNI, MSCNI)
+        const bool mscni = ps.nodal.scheme == "scni" && ps.nodal.stabilization == "mscni" &&
+                           ps.nodal.stabilization_coefficient > 0;
+        cells = voronoi_cells(cloud.x, cloud_body(g, n), VoronoiHull::Clip, ps.nodal.scheme == "sd-scni" || mscni);
     }
     catch (const Error& e)
     {
