@@ -488,6 +488,24 @@ TEST(VoronoiCells, ScniOfRkFunctionsByRegionsIsThePointwiseBuildToRoundOff)
 
 // The cells are built in parallel, each into a part of its own joined in point order: the same
 // cells, bit for bit, on 1 and 2 threads.
+namespace
+{
+// Two builds of one cloud's cells: the same volumes, spacings and facet points, bit for bit.
+void expect_same_cells(const VoronoiCells& a, const VoronoiCells& b)
+{
+    EXPECT_EQ(a.volume, b.volume);
+    EXPECT_EQ(a.spacing, b.spacing);
+    EXPECT_EQ(a.offsets, b.offsets);
+    ASSERT_EQ(a.points.size(), b.points.size());
+    for (std::size_t q = 0; q < a.points.size(); ++q)
+    {
+        EXPECT_EQ(a.points[q].x, b.points[q].x);
+        EXPECT_EQ(a.points[q].nda, b.points[q].nda);
+        EXPECT_EQ(a.points[q].neighbour, b.points[q].neighbour);
+    }
+}
+} // namespace
+
 TEST(VoronoiCells, CellsAreTheSameBitsOnAnyNumberOfThreads)
 {
     const std::vector<real_t> x = cloud();
@@ -498,16 +516,7 @@ TEST(VoronoiCells, CellsAreTheSameBitsOnAnyNumberOfThreads)
     omp_set_num_threads(2);
     const VoronoiCells two = voronoi_cells(x, body);
     omp_set_num_threads(threads);
-    EXPECT_EQ(one.volume, two.volume);
-    EXPECT_EQ(one.spacing, two.spacing);
-    EXPECT_EQ(one.offsets, two.offsets);
-    ASSERT_EQ(one.points.size(), two.points.size());
-    for (std::size_t q = 0; q < one.points.size(); ++q)
-    {
-        EXPECT_EQ(one.points[q].x, two.points[q].x);
-        EXPECT_EQ(one.points[q].nda, two.points[q].nda);
-        EXPECT_EQ(one.points[q].neighbour, two.points[q].neighbour);
-    }
+    expect_same_cells(one, two);
     ASSERT_EQ(one.sub_cells.size(), two.sub_cells.size());
     for (std::size_t s = 0; s < one.sub_cells.size(); ++s)
     {
@@ -541,16 +550,7 @@ TEST(VoronoiCells, CellsWithoutSubCellsAreTheSameCells)
     EXPECT_TRUE(bare.sub_cells.empty());
     EXPECT_TRUE(bare.sub_points.empty());
     EXPECT_EQ(full.sub_points.size(), 2 * full.points.size()); // a base and a side per facet point
-    ASSERT_EQ(bare.offsets, full.offsets);
-    EXPECT_EQ(bare.volume, full.volume);
-    EXPECT_EQ(bare.spacing, full.spacing);
-    ASSERT_EQ(bare.points.size(), full.points.size());
-    for (std::size_t k = 0; k < full.points.size(); ++k)
-    {
-        ASSERT_EQ(bare.points[k].x, full.points[k].x);
-        ASSERT_EQ(bare.points[k].nda, full.points[k].nda);
-        ASSERT_EQ(bare.points[k].neighbour, full.points[k].neighbour);
-    }
+    expect_same_cells(bare, full);
 }
 
 TEST(VoronoiCells, CutCellsAreTheExactConstructionsBits)
