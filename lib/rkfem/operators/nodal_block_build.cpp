@@ -598,14 +598,16 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
 {
     const GeneratorSpec& g = ps.generator;
     const index_t n = cloud.n_nodes();
+    const bool stabilized =
+        ps.nodal.scheme == "scni" && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0;
+    const bool nsni = ps.nodal.stabilization == "nsni";
     VoronoiCells cells;
     try
     {
         const setup_progress::Phase progress("part '" + ps.name + "': Voronoi cells", n);
         // the sub-cells only for the schemes that integrate on them (SD-SCNI, MSCNI)
-        const bool mscni = ps.nodal.scheme == "scni" && ps.nodal.stabilization == "mscni" &&
-                           ps.nodal.stabilization_coefficient > 0;
-        cells = voronoi_cells(cloud.x, cloud_body(g, n), VoronoiHull::Clip, ps.nodal.scheme == "sd-scni" || mscni);
+        cells = voronoi_cells(cloud.x, cloud_body(g, n), VoronoiHull::Clip,
+                              ps.nodal.scheme == "sd-scni" || (stabilized && !nsni));
     }
     catch (const Error& e)
     {
@@ -656,14 +658,13 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
                         : ps.nodal.scheme == "sd-scni" ? build_sd_cells(cells, shapes)
                                                        : build_scni_cells_rk(cells, cloud.x, *rk, ps.rk.drop_tolerance);
         }
-        if (ps.nodal.scheme == "scni" && ps.nodal.stabilization != "none" && ps.nodal.stabilization_coefficient > 0)
+        if (stabilized)
         {
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
-                                                 ps.nodal.stabilization == "nsni" ? nb.points.n_points() : 0);
-            nb.stabilization = ps.nodal.stabilization == "nsni"
-                                   ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume), ps.rk.drop_tolerance)
-                                   : build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
-            nb.stabilization_triplets = ps.nodal.stabilization == "nsni";
+                                                 nsni ? nb.points.n_points() : 0);
+            nb.stabilization = nsni ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume), ps.rk.drop_tolerance)
+                                    : build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
+            nb.stabilization_triplets = nsni;
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
         add_interpolation(nb, *rk, cloud.x, offset);

@@ -302,7 +302,7 @@ void RkRegionValues::focus(const Vec3& lo, const Vec3& hi)
 #if defined(__AVX512F__)
     focus_wide(lo, hi);
 #else
-    select([&](std::size_t k) { return reaches(k, lo, hi); });
+    focus_plain(lo, hi);
 #endif
 }
 
