@@ -36,8 +36,9 @@ struct RunOptions
     /// go on from where it was written.
     const StateArchive* resume = nullptr;
     /// Choose the team size between steps from the steps' wall times (run/thread_governor.hpp):
-    /// on a busy machine a run falls back to one thread; off (or environment
-    /// RKFEM_ADAPTIVE_THREADS=0): every step on the OpenMP default. Results are the same bits.
+    /// on a busy machine, or with a part too small for its threads, a run falls back to one
+    /// thread; off (or environment RKFEM_ADAPTIVE_THREADS=0): every step on the OpenMP default.
+    /// Results are the same bits.
     bool adaptive_threads = true;
     ThreadGovernor::Options thread_governor;
 };

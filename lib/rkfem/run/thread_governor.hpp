@@ -6,17 +6,24 @@
 /// wait at every barrier for the thread that lost its core, and 2 threads took 1.9x as long as 1
 /// on the 100k-hex column deck.
 ///
-/// The run steps in windows of `window` steps on one team size. On the largest size, a window
-/// whose steps were preempted (involuntary context switches of the process) `contention` times
-/// per step or more on average says another process wants the cores (an idle machine: about 0.5
-/// per step on the 100k column, a core held by another process: about 9), and then, at most every
-/// `probe_interval` steps, a window on one thread follows; on one thread a window on the largest
-/// size follows every `probe_interval` steps (is the machine free again?). The size whose
-/// median step time is lower is kept (the other must win by `margin` to take over). A probe that
-/// confirms the current size doubles the interval (up to `max_interval`), a switch resets it. On
-/// an idle machine nothing is probed. Results do not depend on the team size (every reduction sums fixed chunks in order,
-/// see core/parallel.hpp), so a switch changes no bits. The time source is the caller's: the
-/// logic is a pure function of the step times it is given.
+/// The run steps in windows of `window` steps on one team size. Every `probe_interval` steps a
+/// window on the other size follows (one thread while on the largest, the largest while on one),
+/// and the size whose median step time is lower is kept (the other must win by `margin` to take
+/// over). A probe that confirms the current size doubles the interval (up to `max_interval`), a
+/// switch resets it; on the largest size, a probe on one thread whose median step the current
+/// size's beats by `decisive` (a quarter) or more sets it to `max_interval` at once. On an idle
+/// machine and a big part that costs 8 steps on one thread after 16 steps and then every 4,096
+/// (0.2 % of the steps, 1.6x slower each, on the 100k column); a small part, whose steps are
+/// fork-joins of tiny loops, may find one thread faster (on this machine's 2 cores a cache line
+/// takes about 225 ns from one core to the other: the P3 cantilever as fem-1pt steps 1.5x slower
+/// on 2 threads than on 1). When the machine turns busy (a window of steps preempted
+/// `contention` times per step or more on average, involuntary context switches of the process:
+/// about 0.5 per step on an idle machine on the 100k column, 9 while another process holds a
+/// core) the interval is reset once, so that a probe follows as soon as a window of busy steps
+/// has been timed; the spell ends when the average falls below half that. Results do not depend
+/// on the team size (every reduction sums fixed chunks in order, see core/parallel.hpp), so a
+/// switch changes no bits. The time source is the caller's: the logic is a pure function of the
+/// step times it is given.
 #include <algorithm>
 #include <cstdint>
 #include <vector>
@@ -32,7 +39,8 @@ class ThreadGovernor
         std::int64_t probe_interval = 16; ///< steps between probes at first
         std::int64_t max_interval = 4096; ///< the longest interval between probes
         double margin = 0.05;             ///< the other size must be this much faster to take over
-        double contention = 2.0;          ///< preemptions per step that make the largest size probe
+        double decisive = 0.25;           ///< one thread this much slower: probe it again after max_interval
+        double contention = 2.0;          ///< preemptions per step that make the largest size probe soon
     };
 
     /// max_threads: the largest team size (OMP_NUM_THREADS or the cores); 1: the governor idles.
@@ -67,8 +75,17 @@ class ThreadGovernor
             double per_step = 0.0;
             for (double p : preempted_)
                 per_step += p / static_cast<double>(preempted_.size());
-            const bool doubt = current_ == 1 || per_step >= opt_.contention;
-            if (++since_probe_ >= interval_ && static_cast<int>(w.size()) == opt_.window && doubt)
+            // the machine turned busy on the largest size: probe one thread soon (once per busy
+            // spell: it ends below half the threshold), against a window of busy steps only
+            if (current_ == max_ && !busy_ && per_step >= opt_.contention)
+            {
+                busy_ = true;
+                interval_ = opt_.probe_interval;
+                current_times_.clear();
+            }
+            else if (current_ != max_ || per_step < 0.5 * opt_.contention)
+                busy_ = false;
+            if (++since_probe_ >= interval_ && static_cast<int>(w.size()) == opt_.window)
             {
                 probing_ = true;
                 probe_times_.clear();
@@ -88,6 +105,8 @@ class ThreadGovernor
             interval_ = opt_.probe_interval;
             ++switches_;
         }
+        else if (current_ == max_ && median(current_times_) < (1.0 - opt_.decisive) * median(probe_times_))
+            interval_ = opt_.max_interval; // one thread lost by far: a big part, an idle machine
         else
             interval_ = std::min(2 * interval_, opt_.max_interval);
     }
@@ -106,7 +125,7 @@ class ThreadGovernor
     int max_, current_;
     Options opt_;
     std::int64_t interval_ = 0, since_probe_ = 0, steps_ = 0, steps_on_one_ = 0;
-    bool probing_ = false;
+    bool probing_ = false, busy_ = false;
     int switches_ = 0;
     std::vector<double> current_times_, probe_times_, preempted_;
 };
