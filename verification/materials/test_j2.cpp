@@ -1,13 +1,16 @@
 // Materials as pointwise value types: the Hughes-Winget rotation is exactly orthogonal (a rigid
 // spin leaves invariants unchanged), the elastic update reproduces Hooke's law, and the J2 model
 // (MAT_024 analog): uniaxial-stress bilinear response exact at every step, the yield condition
-// after the return, Cowper-Symonds scaling, failure at the stated plastic strain.
+// after the return, Cowper-Symonds scaling, failure at the stated plastic strain; the lane-batched
+// elastic path agrees with update() to round-off on the lanes it takes and leaves the others to it.
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <limits>
 #include <random>
 
 #include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/materials/point_history.hpp"
 
 using namespace rkfem;
 
@@ -220,4 +223,96 @@ TEST(EquationOfState, GruneisenAndLinear)
     EXPECT_GT(en3, 0.0);
     // the last step's energy predictor lags by one step: agreement to the step's energy change
     EXPECT_NEAR(-s3[0], g.pressure(ev3, en3), 1e-3 * std::abs(s3[0]));
+}
+
+TEST(J2Plasticity, ElasticLanesAgreeWithTheUpdate)
+{
+    // 8 points of a piecewise J2 block (some yielded before, one failed) on random rates and
+    // spins, scaled so that about half the lanes stay elastic: the lanes j2_elastic_lanes takes
+    // must carry update()'s stress to round-off (the same operations, some fused differently by
+    // the compiler in the vectorized loop: each of the ~20 roundings of a component is at most
+    // an ulp of the lane's largest stress, so 32 ulp bounds it) and its trial history exactly,
+    // the others must be left as they were and be the yielding (or failed) ones
+    PlasticPoints pp;
+    pp.kind = PlasticPoints::Kind::J2;
+    pp.params.elastic = el;
+    pp.params.curve = {{0.0, 792e6}, {0.01, 946e6}, {0.05, 1026e6}, {1.0, 1302e6}};
+    constexpr int W = 8;
+    pp.resize(W);
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<real_t> u(-1.0, 1.0);
+    int taken = 0, left = 0;
+    real_t worst_ulp = 0.0;
+    for (int round = 0; round < 400; ++round)
+    {
+        const int nl = round % 5 == 0 ? 5 : W; // partial batches too
+        std::size_t pt[W];
+        real_t d[6][W], w[3][W], s[6][W], s0[6][W];
+        for (int l = 0; l < W; ++l)
+        {
+            pt[l] = static_cast<std::size_t>(l < nl ? l : 0);
+            pp.eps_p[l] = l % 3 == 0 ? 0.0 : 0.02 * (0.5 + 0.5 * u(gen));
+            pp.failed[l] = l == 6 ? 1.0 : 0.0;
+            for (int k = 0; k < 6; ++k)
+                s0[k][l] = s[k][l] = 500e6 * u(gen);
+            for (int k = 0; k < 6; ++k)
+                d[k][l] = 1e3 * u(gen) * (round % 2 ? 1.0 : 1e-3);
+            for (int k = 0; k < 3; ++k)
+                w[k][l] = 1e3 * u(gen);
+        }
+        bool elastic[W];
+        const real_t dt = 1e-6;
+        pp.j2_elastic_lanes<W>(pt, nl, d, w, dt, s, elastic);
+        for (int l = 0; l < nl; ++l)
+        {
+            const real_t dl[6] = {d[0][l], d[1][l], d[2][l], d[3][l], d[4][l], d[5][l]};
+            const real_t wl[3] = {w[0][l], w[1][l], w[2][l]};
+            real_t ref[6] = {s0[0][l], s0[1][l], s0[2][l], s0[3][l], s0[4][l], s0[5][l]};
+            PlasticPoints one = pp;
+            one.eps_p_trial[l] = -1.0;
+            one.update(static_cast<std::size_t>(l), dl, wl, dt, ref);
+            if (elastic[l])
+            {
+                ++taken;
+                real_t scale = 0.0;
+                for (int k = 0; k < 6; ++k)
+                    scale = std::max({scale, std::abs(ref[k]), std::abs(s0[k][l])});
+                const real_t ulp = std::numeric_limits<real_t>::epsilon() * scale;
+                for (int k = 0; k < 6; ++k)
+                {
+                    worst_ulp = std::max(worst_ulp, std::abs(s[k][l] - ref[k]) / ulp);
+                    ASSERT_LE(std::abs(s[k][l] - ref[k]), 32 * ulp) << "lane " << l << " component " << k;
+                }
+                EXPECT_EQ(pp.eps_p_trial[l], pp.eps_p[l]);
+                EXPECT_EQ(one.eps_p_trial[l], pp.eps_p[l]); // update() found it elastic too
+                EXPECT_EQ(pp.failed_trial[l], pp.failed[l]);
+            }
+            else
+            {
+                ++left;
+                for (int k = 0; k < 6; ++k)
+                    ASSERT_EQ(s[k][l], s0[k][l]);
+                // yielding or failed: update() moved the plastic strain or zeroed the deviator
+                EXPECT_TRUE(one.eps_p_trial[l] > pp.eps_p[l] || pp.failed[l] != 0.0) << "lane " << l;
+            }
+        }
+    }
+    std::printf("%d lanes taken elastic (largest difference from update() %.1f ulp of the lane's largest "
+                "stress), %d left to update()\n",
+                taken, worst_ulp, left);
+    EXPECT_GT(taken, 500);
+    EXPECT_GT(left, 500);
+    // with a rate effect, at dt = 0 or with an EOS no lane is taken
+    PlasticPoints rate = pp;
+    rate.params.cs_c = 40.0;
+    rate.params.cs_p = 5.0;
+    std::size_t pt[W] = {0, 1, 2, 3, 4, 5, 6, 7};
+    real_t d[6][W] = {}, w[3][W] = {}, s[6][W] = {};
+    bool elastic[W];
+    rate.j2_elastic_lanes<W>(pt, W, d, w, 1e-6, s, elastic);
+    EXPECT_EQ(std::count(elastic, elastic + W, true), 0);
+    pp.j2_elastic_lanes<W>(pt, W, d, w, 0.0, s, elastic);
+    EXPECT_EQ(std::count(elastic, elastic + W, true), 0);
+    pp.j2_elastic_lanes<W>(pt, W, d, w, 1e-6, s, elastic);
+    EXPECT_EQ(std::count(elastic, elastic + W, true), W - 1); // all but the failed point
 }

@@ -180,8 +180,16 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         }
         for (int k = 0; k < 3; ++k)
             simd::store(wv[k], wl[k]);
+        // the lanes that stay elastic (J2) at once, the others one by one
+        std::size_t pt[W];
+        bool elastic[W];
+        for (int l = 0; l < W; ++l)
+            pt[l] = lane_element(l < nl ? l : 0);
+        blk.plastic.j2_elastic_lanes<W>(pt, nl, dv, wv, dt, sv, elastic);
         for (int l = 0; l < nl; ++l)
         {
+            if (elastic[l])
+                continue;
             const real_t d[6] = {dv[0][l], dv[1][l], dv[2][l], dv[3][l], dv[4][l], dv[5][l]};
             const real_t w[3] = {wv[0][l], wv[1][l], wv[2][l]};
             real_t s[6] = {sv[0][l], sv[1][l], sv[2][l], sv[3][l], sv[4][l], sv[5][l]};

@@ -702,7 +702,20 @@ template <bool PLASTIC, bool FULL>
     }
     else
     {
-        // a partial batch or an inelastic block: the point's model update per lane
+        // a partial batch or an inelastic block: the point's model update per lane (J2 lanes
+        // that stay elastic at once)
+        bool elastic[W] = {};
+        if constexpr (PLASTIC)
+        {
+            std::size_t pt[W];
+            for (int l = 0; l < W; ++l)
+            {
+                pt[l] = lane_point(l);
+                for (int k = 0; k < 6; ++k)
+                    sn[k][l] = so[k][l] = s_in[k * snp + pt[l]];
+            }
+            blk.plastic.j2_elastic_lanes<W>(pt, nl, dl, wl, dt, sn, elastic);
+        }
         for (int l = 0; l < W; ++l)
         {
             const std::size_t p = lane_point(l);
@@ -714,7 +727,10 @@ template <bool PLASTIC, bool FULL>
                 so[k][l] = s[k] = s_in[k * snp + p];
             if constexpr (PLASTIC)
             {
-                if (active && Jl[l] > 0.0)
+                if (elastic[l] && Jl[l] > 0.0)
+                    for (int k = 0; k < 6; ++k)
+                        s[k] = sn[k][l];
+                else if (active && Jl[l] > 0.0)
                     blk.plastic.update(static_cast<index_t>(p), d, w, dt, s);
             }
             else
