@@ -169,6 +169,31 @@ TEST(StencilTable, JitteredCloudKeepsItsOwnStencils)
     EXPECT_EQ(op.nodes, own.nodes);
 }
 
+// A thin beam (P3's mesh: 4 x 4 elements across, 55 along, the deck's RK and drop tolerance):
+// with a/h 1.51 every one of the 5 node positions across is within reach of a face, so 5 x 5
+// classes across times 5 along (2 at each end, the interior), exactly 125 stencils. Rows across
+// with one node-offset pattern but different gradients (mirror images) fill one pattern with
+// classes: the search must still find each row's own among them. A row's 56 points are 7
+// batches of 8, of which the 5 between its ends are uniform (the whole-vector path).
+TEST(StencilTable, ThinBeamSharesOneStencilPerBoundaryClass)
+{
+    const real_t h = 0.0254;
+    const HexMesh mesh = generate_box(Vec3::Zero(), Vec3(55 * h, 4 * h, 4 * h), {55, 4, 4});
+    const NodalBlock blk = build_nodal_block(elastic_rk_part("nsni"), mesh, 0);
+    const StencilTable& t = blk.point_stencils;
+    ASSERT_FALSE(t.empty());
+    EXPECT_EQ(t.n_stencils(), 125);
+    index_t uniform = 0;
+    for (index_t b = 0; b < blk.n_points() / 8; ++b)
+    {
+        bool same = true;
+        for (int l = 1; l < 8; ++l)
+            same = same && t.point_stencil[8 * b + l] == t.point_stencil[8 * b] && t.point_base[8 * b + l] == t.point_base[8 * b] + l;
+        uniform += same;
+    }
+    EXPECT_EQ(uniform, 25 * 5);
+}
+
 // Three points with the same node offsets: the second differs from the first by half the
 // tolerance (shared), the third by twice it (its own); a fourth holds a NaN (never shared).
 TEST(StencilTable, ToleranceDecidesWhatIsShared)

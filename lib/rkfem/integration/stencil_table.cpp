@@ -54,8 +54,8 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
             return true;
         };
         index_t found = -1;
-        const int searched = std::min<int>(static_cast<int>(candidates.size()), opts.max_candidates);
-        for (int c = 0; c < searched && found < 0; ++c)
+        const int nc = static_cast<int>(candidates.size());
+        for (int c = nc - 1; c >= std::max(0, nc - opts.max_candidates) && found < 0; --c)
             if (matches(candidates[static_cast<std::size_t>(c)]))
                 found = candidates[static_cast<std::size_t>(c)];
         if (found < 0)

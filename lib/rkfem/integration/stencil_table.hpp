@@ -77,7 +77,9 @@ struct StencilSharing
     /// a face, needs 0.34; an irregular cloud gives up after 60% of its points, whose search costs
     /// little beside the gradients')
     real_t max_entry_fraction = 0.6;
-    /// stencils compared per offset pattern before a point's own is stored without a search
+    /// stencils compared per offset pattern, newest first, before a point's own is stored: the
+    /// newest are those of the lattice row a point is on (rows of one offset pattern that differ
+    /// in their gradients, as the faces of a thin beam make them, pile up in one pattern)
     int max_candidates = 16;
 };
 
