@@ -73,9 +73,9 @@ struct StencilSharing
     real_t relative_tolerance = 1e-11;
     /// sharing is kept only when the table holds at most this fraction of the operator's entries
     /// (the table and its per-point classes replace the operator's entries, so it pays in memory
-    /// well past a half; a structured mesh as thin as P3's 4 x 4 in beam, where most stencils see
-    /// a face, needs 0.34; an irregular cloud gives up after 60% of its points, whose search costs
-    /// little beside the gradients')
+    /// well past a half; on a structured mesh as thin as P3's 4 x 4 in beam most stencils see a
+    /// face; an irregular cloud gives up after 60% of its points, whose search costs little
+    /// beside the gradients')
     real_t max_entry_fraction = 0.6;
     /// stencils compared per offset pattern, newest first, before a point's own is stored: the
     /// newest are those of the lattice row a point is on (rows of one offset pattern that differ
