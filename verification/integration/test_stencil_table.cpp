@@ -88,6 +88,20 @@ real_t largest_snap(const IntegrationOperator& own, const IntegrationOperator& s
     return worst;
 }
 
+/// Full batches of 8 points with one class and consecutive bases (the whole-vector path).
+index_t uniform_batches(index_t n_points, const std::vector<index_t>& cls, const std::vector<index_t>& base)
+{
+    index_t n = 0;
+    for (index_t b = 0; b < n_points / 8; ++b)
+    {
+        bool same = true;
+        for (int l = 1; l < 8; ++l)
+            same = same && cls[8 * b + l] == cls[8 * b] && base[8 * b + l] == base[8 * b] + l;
+        n += same;
+    }
+    return n;
+}
+
 IntegrationOperator scni_on(const HexMesh& mesh, Formulation f, real_t support)
 {
     if (f == Formulation::FemNodal)
@@ -183,15 +197,7 @@ TEST(StencilTable, ThinBeamSharesOneStencilPerBoundaryClass)
     const StencilTable& t = blk.point_stencils;
     ASSERT_FALSE(t.empty());
     EXPECT_EQ(t.n_stencils(), 125);
-    index_t uniform = 0;
-    for (index_t b = 0; b < blk.n_points() / 8; ++b)
-    {
-        bool same = true;
-        for (int l = 1; l < 8; ++l)
-            same = same && t.point_stencil[8 * b + l] == t.point_stencil[8 * b] && t.point_base[8 * b + l] == t.point_base[8 * b] + l;
-        uniform += same;
-    }
-    EXPECT_EQ(uniform, 25 * 5);
+    EXPECT_EQ(uniform_batches(blk.n_points(), t.point_stencil, t.point_base), 25 * 5);
 }
 
 // Three points with the same node offsets: the second differs from the first by half the
@@ -249,20 +255,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         // batches of 8 points with one stencil and consecutive bases (the whole-vector path)
         // and batches without (the lane-by-lane path) must both occur
         const index_t batches = blk.n_points() / 8;
-        // full batches whose 8 points have one class and consecutive bases
-        auto uniform_batches = [&](const std::vector<index_t>& cls, const std::vector<index_t>& base)
-        {
-            index_t n = 0;
-            for (index_t b = 0; b < batches; ++b)
-            {
-                bool same = true;
-                for (int l = 1; l < 8; ++l)
-                    same = same && cls[8 * b + l] == cls[8 * b] && base[8 * b + l] == base[8 * b] + l;
-                n += same;
-            }
-            return n;
-        };
-        const index_t uniform = uniform_batches(blk.point_stencils.point_stencil, blk.point_stencils.point_base);
+        const index_t uniform = uniform_batches(blk.n_points(), blk.point_stencils.point_stencil, blk.point_stencils.point_base);
         std::printf("%s: %d of %d full batches are uniform\n", stab, uniform, batches);
         ASSERT_GT(uniform, 0);
         ASSERT_LT(uniform, batches);
@@ -278,7 +271,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
             EXPECT_LT(blk.stab_triplets.n_triplets(), blk.n_points() / 4);
             // the triplets' whole-vector path (one triplet stencil, consecutive bases) and the
             // lane-by-lane one must both occur too
-            const index_t uniform_triplets = uniform_batches(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base);
+            const index_t uniform_triplets = uniform_batches(blk.n_points(), blk.stab_triplets.point_triplet, blk.stab_triplets.point_base);
             std::printf("nsni: %d of %d full batches have uniform triplets\n", uniform_triplets, batches);
             ASSERT_GT(uniform_triplets, 0);
             ASSERT_LT(uniform_triplets, batches);
