@@ -84,6 +84,31 @@ TEST(Generators, CylinderCoresHaveNoDegenerateElementsAndConvergeToTheVolume)
     }
 }
 
+// The cylinder is numbered column by column, bottom to top (the height varies fastest): node
+// n + 1 is node n raised by one layer, H / nz, within a column, and element e + 1 is element e
+// one layer up (each of its nodes' ids one more). Then a column's particles are translates of
+// each other with consecutive ids, which the force passes read as whole vectors.
+TEST(Generators, CylinderIsNumberedColumnByColumn)
+{
+    const real_t R = 0.0762, H = 0.3048, h = 0.0127; // the seed's P1 cylinder at 0.5 in
+    const HexMesh m = generate_cylinder(Vec3::Zero(), R, H, h, false);
+    const index_t layers = 25, nz = 24; // H / h
+    ASSERT_EQ(m.n_nodes() % layers, 0);
+    ASSERT_EQ(m.n_elements() % nz, 0);
+    for (index_t n = 0; n + 1 < m.n_nodes(); ++n)
+    {
+        const int k = static_cast<int>(n % layers);
+        EXPECT_NEAR(m.x[3 * n + 2], H * k / nz, 1e-15) << "node " << n;
+        if (k + 1 < layers)
+            for (int d = 0; d < 2; ++d)
+                ASSERT_EQ(m.x[3 * (n + 1) + d], m.x[3 * n + d]) << "node " << n << " and the one above it";
+    }
+    for (index_t e = 0; e + 1 < m.n_elements(); ++e)
+        if ((e + 1) % nz != 0)
+            for (int a = 0; a < 8; ++a)
+                ASSERT_EQ(m.conn[8 * (e + 1) + a], m.conn[8 * e + a] + 1) << "element " << e;
+}
+
 TEST(Generators, TubeHasThePolygonalAnnulusVolumeAndNamedFaces)
 {
     // the seed's P2 tube (studies/decks/p2_implosion.yaml): 16 in OD, 1.6 in wall, 16 in high

@@ -10,6 +10,7 @@
 
 #include "nodal_common.hpp"
 #include "rkfem/approximation/rk/kinematic_map.hpp"
+#include "rkfem/discretization/generators.hpp"
 #include "rkfem/integration/stencil_table.hpp"
 #include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
@@ -198,6 +199,45 @@ TEST(StencilTable, ThinBeamSharesOneStencilPerBoundaryClass)
     ASSERT_FALSE(t.empty());
     EXPECT_EQ(t.n_stencils(), 125);
     EXPECT_EQ(uniform_batches(blk.n_points(), t.point_stencil, t.point_base), 25 * 5);
+}
+
+// The P1 cylinder at 0.5 in (172 columns of 25 particles, numbered column by column): in each
+// column the particles away from the caps are translates along the axis, so they share their
+// column's middle stencil with consecutive bases, and every batch of 8 points inside one such
+// run is a uniform batch (the force pass's whole-vector path), for the points' stencils and for
+// NSNI's triplets alike. Layer by layer numbering gave none.
+TEST(StencilTable, CylinderColumnsShareStencilsAlongTheAxis)
+{
+    const HexMesh mesh = generate_cylinder(Vec3::Zero(), 0.0762, 0.3048, 0.0127, false);
+    const NodalBlock blk = build_nodal_block(elastic_rk_part("nsni"), mesh, 0);
+    const index_t L = 25, np = blk.n_points();
+    ASSERT_EQ(np % L, 0);
+    ASSERT_FALSE(blk.point_stencils.empty());
+    ASSERT_FALSE(blk.stab_triplets.empty());
+    auto check = [&](const std::vector<index_t>& cls, const std::vector<index_t>& base, const char* what)
+    {
+        // per point: does it share its column's middle class, with the base one step per layer?
+        std::vector<char> in_run(static_cast<std::size_t>(np), 0);
+        for (index_t c = 0; c < np / L; ++c)
+        {
+            const index_t mid = c * L + L / 2;
+            for (index_t p = c * L; p < (c + 1) * L; ++p)
+                in_run[p] = cls[p] == cls[mid] && base[p] == base[mid] + (p - mid);
+            EXPECT_TRUE(in_run[mid - 1] && in_run[mid + 1]) << what << ": column " << c;
+        }
+        index_t predicted = 0;
+        for (index_t b = 0; b < np / 8; ++b)
+        {
+            bool all = (8 * b) / L == (8 * b + 7) / L; // one column
+            for (int l = 0; l < 8; ++l)
+                all = all && in_run[8 * b + l];
+            predicted += all;
+        }
+        EXPECT_EQ(uniform_batches(np, cls, base), predicted) << what;
+        EXPECT_GT(2 * predicted, np / 8) << what << ": most batches lie inside a column's run";
+    };
+    check(blk.point_stencils.point_stencil, blk.point_stencils.point_base, "points");
+    check(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base, "NSNI triplets");
 }
 
 // Three points with the same node offsets: the second differs from the first by half the

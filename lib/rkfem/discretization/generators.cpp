@@ -174,20 +174,25 @@ HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real
     const index_t np = static_cast<index_t>(pts.size() / 2);
     const int nz = divisions_for(height, h);
     HexMesh m;
+    // node (i, k) of disk node i at height k is (nz + 1) i + k, element (q, k) is nz q + k: the
+    // height varies fastest, so a column's particles are consecutive and translates of each
+    // other (their stencils are shared, and batches of 8 along a column read 8 consecutive
+    // nodes), as are its elements
+    const auto id = [&](index_t i, int k) { return static_cast<index_t>((nz + 1) * i + k); };
     m.x.reserve(static_cast<std::size_t>(np) * (nz + 1) * 3);
-    for (int k = 0; k <= nz; ++k)
-        for (index_t i = 0; i < np; ++i)
+    for (index_t i = 0; i < np; ++i)
+        for (int k = 0; k <= nz; ++k)
             m.x.insert(m.x.end(), {origin[0] + pts[2 * i], origin[1] + pts[2 * i + 1],
                                    origin[2] + height * k / nz});
     const std::size_t nq = quads.size() / 4;
-    for (int k = 0; k < nz; ++k)
-        for (std::size_t q = 0; q < nq; ++q)
+    for (std::size_t q = 0; q < nq; ++q)
+        for (int k = 0; k < nz; ++k)
         {
             index_t e[8];
             for (int j = 0; j < 4; ++j)
             {
-                e[j] = quads[4 * q + j] + np * k;
-                e[j + 4] = quads[4 * q + j] + np * (k + 1);
+                e[j] = id(quads[4 * q + j], k);
+                e[j + 4] = id(quads[4 * q + j], k + 1);
             }
             m.conn.insert(m.conn.end(), e, e + 8);
         }
@@ -328,9 +333,12 @@ HexMesh generate_cloud(const GeneratorSpec& g)
         const real_t h = g.element_size;
         std::mt19937 gen(static_cast<unsigned>(g.seed));
         std::uniform_real_distribution<real_t> jit(-g.jitter, g.jitter);
-        for (index_t i = 0; i < c.n_nodes(); ++i)
+        // the particles layer by layer (the mesh numbers them column by column): the cloud of a
+        // seed, and its order, are those of the layered numbering
+        const index_t layers = divisions_for(g.height, g.element_size) + 1, per_layer = c.n_nodes() / layers;
+        for (index_t n = 0; n < c.n_nodes(); ++n)
         {
-            Vec3 p = c.node(i);
+            Vec3 p = c.node(layers * (n % per_layer) + n / per_layer);
             const real_t r0 = jit(gen), r1 = jit(gen), r2 = jit(gen); // three per particle: seed only
             const real_t dx = p[0] - g.origin[0], dy = p[1] - g.origin[1], z = p[2] - g.origin[2];
             const real_t r = std::hypot(dx, dy);
