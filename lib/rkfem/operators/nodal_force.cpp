@@ -724,7 +724,11 @@ template <bool PLASTIC, bool FULL>
             const real_t w[3] = {wl[0][l], wl[1][l], wl[2][l]};
             real_t s[6];
             for (int k = 0; k < 6; ++k)
-                so[k][l] = s[k] = s_in[k * snp + p];
+            {
+                if constexpr (!PLASTIC) // PLASTIC: loaded above for j2_elastic_lanes
+                    so[k][l] = s_in[k * snp + p];
+                s[k] = so[k][l];
+            }
             if constexpr (PLASTIC)
             {
                 if (elastic[l] && Jl[l] > 0.0)
