@@ -240,6 +240,31 @@ TEST(StencilTable, CylinderColumnsShareStencilsAlongTheAxis)
     check(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base, "NSNI triplets");
 }
 
+// The P1 cylinder at 0.25 in (38,220 particles, the seed's finest assumed mesh), numbered
+// column by column: chunks of n / 16 points are thin bundles of columns whose stencils reach
+// far beyond them (over 3 buffers per node), so the block doubles the chunks until their
+// ranges add up to at most 3 nodes per node, and keeps the chunked scatter with NSNI in the
+// points' batches; with chunks of n / 16 alone it fell back to the transpose gather, which held
+// 13.5 KB per particle against 1.6 KB.
+TEST(StencilTable, FineCylinderKeepsTheChunkedScatter)
+{
+    const HexMesh mesh = generate_cylinder(Vec3::Zero(), 0.0762, 0.3048, 0.00635, false);
+    const NodalBlock blk = build_nodal_block(elastic_rk_part("nsni"), mesh, 0);
+    const index_t np = blk.n_points();
+    ASSERT_EQ(np, 38220);
+    ASSERT_TRUE(blk.scatter_assembly());
+    EXPECT_FALSE(blk.stab_triplets.empty());
+    EXPECT_TRUE(blk.finv.empty()) << "NSNI runs in the points' batches, not in a pass of its own";
+    const index_t first = ChunkedScatter::chunk_size(np, kPointLanes, 512);
+    const ChunkedScatter::Chunk& c0 = blk.scatter.chunks.front();
+    EXPECT_GT(c0.last - c0.first, first) << "the chunks of n / 16 points are not local";
+    std::size_t covered = 0;
+    for (const ChunkedScatter::Chunk& c : blk.scatter.chunks)
+        covered += static_cast<std::size_t>(c.hi - c.lo);
+    EXPECT_LE(covered, 3 * static_cast<std::size_t>(np));
+    EXPECT_GE(blk.scatter.chunks.size(), 4u) << "work for the threads";
+}
+
 // Three points with the same node offsets: the second differs from the first by half the
 // tolerance (shared), the third by twice it (its own); a fourth holds a NaN (never shared).
 TEST(StencilTable, ToleranceDecidesWhatIsShared)

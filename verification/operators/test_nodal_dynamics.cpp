@@ -426,8 +426,8 @@ TEST(NodalAssembly, ScatterAndGatherAgreeAndDoNotDependOnThreads)
     Fixture fx(ps, 13, 0.01, 0.3); // 2744 particles, 17576 sub-cells: several chunks of each
     ASSERT_TRUE(fx.blk.scatter_assembly());
     // MSCNI's sub-cell chunks overlap too much at 512 points per chunk (over 3 buffers per
-    // node), so the block takes chunks of 2048: ceil(2744 / 2048) = 2
-    EXPECT_EQ(fx.blk.n_point_chunks, 2);
+    // node), so the block doubles them: 1024 are local, ceil(2744 / 1024) = 3
+    EXPECT_EQ(fx.blk.n_point_chunks, 3);
     EXPECT_GE(static_cast<index_t>(fx.blk.scatter.chunks.size()) - fx.blk.n_point_chunks, 2);
     std::mt19937 gen(5);
     std::uniform_real_distribution<real_t> r(-1.0, 1.0);
@@ -463,7 +463,8 @@ TEST(NodalAssembly, ScatterAndGatherAgreeAndDoNotDependOnThreads)
         EXPECT_LT(reln, 1e-13);
     }
 
-    // 9261 particles: chunks of 2048, each touching nearly every node when the order is random
+    // 9261 particles: chunks of 512 up to 2315 (a quarter), each touching nearly every node
+    // when the order is random
     const HexMesh random_order = shuffled(distorted_box(20, 0.01, 0.3));
     const NodalBlock b = build_nodal_block(part(Formulation::Rkpm, "scni", "none"), random_order, 0);
     EXPECT_FALSE(b.scatter_assembly());

@@ -126,13 +126,16 @@ void NodalBlock::build_tables(Assembly assembly)
     }
 
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
-    // the node range its entries touch. Chunks of 512 stress points first, so that a part of a
-    // few thousand particles has work for every thread; where their node ranges overlap too
-    // much (the reduce would sum over 3 buffers per node: small lattices with wide supports),
-    // chunks of 2048. Either way the chunks are a function of the operators only, never of the
-    // thread count.
+    // the node range its entries touch. About n / 16 stress points per chunk (at least 512) first,
+    // so that a part of a few thousand particles has work for every thread; where their node
+    // ranges overlap too much (the reduce would sum over more than 3 buffers per node: small
+    // lattices with wide supports, a mesh numbered column by column, whose chunks are thin
+    // bundles of columns with a wide halo), chunks twice as large, and so on up to 2048 points
+    // or a quarter of the block, whichever is larger (a random order stays non-local at every
+    // size that leaves the threads chunks to share: the transpose gather then). Either way the chunks are a function of the operators only, never of the thread
+    // count.
     bool local = true;
-    auto cut_chunks = [&](index_t smallest)
+    auto cut_chunks = [&](index_t point_chunk)
     {
         scatter.clear();
         scatter.node_begin = node_begin;
@@ -147,7 +150,7 @@ void NodalBlock::build_tables(Assembly assembly)
             // stabilization chunks cover as many nodes as stress-point chunks (about 8 sub-cells
             // per node)
             const index_t n = op->n_points();
-            const index_t size = ChunkedScatter::chunk_size(np, kPointLanes, smallest) * std::max<index_t>(1, np > 0 ? n / np : 1);
+            const index_t size = point_chunk * std::max<index_t>(1, np > 0 ? n / np : 1);
             const std::size_t added = scatter.add_chunks(n, size,
                                                          [&](index_t first, index_t last, index_t& lo, index_t& hi)
                                                          {
@@ -176,9 +179,14 @@ void NodalBlock::build_tables(Assembly assembly)
             local = local && added <= 4 * 3 * static_cast<std::size_t>(nn);
         }
     };
-    cut_chunks(512);
-    if (!local)
-        cut_chunks(2048);
+    index_t point_chunk = ChunkedScatter::chunk_size(np, kPointLanes, 512);
+    cut_chunks(point_chunk);
+    const index_t largest = std::max<index_t>(2048, np / 4);
+    while (!local && 2 * point_chunk <= largest)
+    {
+        point_chunk *= 2;
+        cut_chunks(point_chunk);
+    }
     const bool use_scatter = assembly == Assembly::Scatter || (assembly == Assembly::Automatic && local);
     if (use_scatter)
         scatter.finish();
