@@ -8,6 +8,7 @@
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/discretization/keyword_mesh.hpp"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -107,6 +108,29 @@ TEST(Generators, CylinderIsNumberedColumnByColumn)
         if ((e + 1) % nz != 0)
             for (int a = 0; a < 8; ++a)
                 ASSERT_EQ(m.conn[8 * (e + 1) + a], m.conn[8 * e + a] + 1) << "element " << e;
+}
+
+// The disk's nodes go in a sweep across it (ascending x): an element's columns then lie within
+// a few chords of the disk (about 2 R / h nodes each) of each other, a span that grows like R / h;
+// in disk_mesh's block-by-block order a core edge node and the ring block beyond it were nearly a
+// whole disk apart (156 of 172 columns at 0.5 in, 690 of 780 at 0.25 in).
+TEST(Generators, CylinderColumnsAreNumberedInASweepAcrossTheDisk)
+{
+    const real_t R = 0.0762, H = 0.3048;
+    for (const real_t h : {0.0127, 0.00635}) // the seed's P1 at 0.5 and 0.25 in
+    {
+        const HexMesh m = generate_cylinder(Vec3::Zero(), R, H, h, false);
+        const index_t layers = std::lround(H / h) + 1, columns = m.n_nodes() / layers;
+        for (index_t c = 0; c + 1 < columns; ++c)
+            ASSERT_LE(m.x[3 * layers * c], m.x[3 * layers * (c + 1)] + 1e-9 * R) << "column " << c;
+        index_t span = 0;
+        for (index_t e = 0; e < m.n_elements(); ++e)
+        {
+            const auto [lo, hi] = std::minmax_element(m.conn.begin() + 8 * e, m.conn.begin() + 8 * e + 8);
+            span = std::max(span, *hi / layers - *lo / layers);
+        }
+        EXPECT_LE(span, 4 * 2 * R / h) << "h " << h << ": " << columns << " columns";
+    }
 }
 
 TEST(Generators, TubeHasThePolygonalAnnulusVolumeAndNamedFaces)

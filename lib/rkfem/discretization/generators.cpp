@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <sstream>
 
@@ -156,7 +157,64 @@ HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int,
     return m;
 }
 
-HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t h, bool ogrid)
+namespace
+{
+/// The disk's nodes renumbered in a sweep across the disk, by ascending x, then y, and its quads
+/// by their lowest, then highest, node number. The block-by-block order of disk_mesh puts a core
+/// edge node and its neighbours in the ring block beyond it hundreds of nodes apart; in the
+/// sweep a node's neighbours lie within about two chords (about 2 R / h nodes each) of it, so
+/// that a run of the cylinder's columns touches a narrow band of node ids (the chunked scatter's
+/// ranges, ChunkedScatter::add_chunks). The coordinates are compared rounded to 1e-9 R, so that
+/// round-off in the input (0.5 in against 0.0127 m) does not reorder nodes whose x agree
+/// (mirror images, the axis).
+void sweep_order(real_t R, std::vector<real_t>& pts, std::vector<index_t>& quads)
+{
+    const std::size_t np = pts.size() / 2, nq = quads.size() / 4;
+    const real_t quantum = 1e-9 * R;
+    std::vector<std::pair<long long, long long>> at(np);
+    for (std::size_t i = 0; i < np; ++i)
+        at[i] = {std::llround(pts[2 * i] / quantum), std::llround(pts[2 * i + 1] / quantum)};
+    std::vector<index_t> order(np);
+    for (std::size_t i = 0; i < np; ++i)
+        order[i] = static_cast<index_t>(i);
+    std::stable_sort(order.begin(), order.end(), [&](index_t a, index_t b)
+                     { return at[static_cast<std::size_t>(a)] < at[static_cast<std::size_t>(b)]; });
+    std::vector<index_t> rank(np);
+    std::vector<real_t> moved(pts.size());
+    for (std::size_t r = 0; r < np; ++r)
+    {
+        const std::size_t i = static_cast<std::size_t>(order[r]);
+        rank[i] = static_cast<index_t>(r);
+        moved[2 * r] = pts[2 * i];
+        moved[2 * r + 1] = pts[2 * i + 1];
+    }
+    pts.swap(moved);
+    std::vector<std::pair<index_t, index_t>> key(nq);
+    for (std::size_t q = 0; q < nq; ++q)
+    {
+        key[q] = {std::numeric_limits<index_t>::max(), 0};
+        for (int j = 0; j < 4; ++j)
+        {
+            index_t& n = quads[4 * q + j];
+            n = rank[static_cast<std::size_t>(n)];
+            key[q] = {std::min(key[q].first, n), std::max(key[q].second, n)};
+        }
+    }
+    std::vector<index_t> quad_order(nq);
+    for (std::size_t q = 0; q < nq; ++q)
+        quad_order[q] = static_cast<index_t>(q);
+    std::stable_sort(quad_order.begin(), quad_order.end(), [&](index_t a, index_t b)
+                     { return key[static_cast<std::size_t>(a)] < key[static_cast<std::size_t>(b)]; });
+    std::vector<index_t> reordered(quads.size());
+    for (std::size_t r = 0; r < nq; ++r)
+        for (int j = 0; j < 4; ++j)
+            reordered[4 * r + j] = quads[4 * static_cast<std::size_t>(quad_order[r]) + j];
+    quads.swap(reordered);
+}
+
+/// generate_cylinder with the disk in disk_mesh's block order (local = false: the order the
+/// cylinder cloud's particles and jitter follow) or in the sweep (sweep_order).
+HexMesh cylinder_mesh(const Vec3& origin, real_t radius, real_t height, real_t h, bool ogrid, bool sweep)
 {
     std::vector<real_t> pts;
     std::vector<index_t> quads;
@@ -171,6 +229,8 @@ HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real
         for (std::size_t i = 0; i < p3.size() / 3; ++i)
             pts.insert(pts.end(), {p3[3 * i], p3[3 * i + 1]});
     }
+    if (sweep)
+        sweep_order(radius, pts, quads);
     const index_t np = static_cast<index_t>(pts.size() / 2);
     const int nz = divisions_for(height, h);
     HexMesh m;
@@ -199,6 +259,12 @@ HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real
     m.faces = extract_boundary_faces(m.conn);
     name_faces_by_normal(m, {{"top", Vec3::UnitZ()}, {"bottom", -Vec3::UnitZ()}}, "side");
     return m;
+}
+} // namespace
+
+HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t h, bool ogrid)
+{
+    return cylinder_mesh(origin, radius, height, h, ogrid, true);
 }
 
 HexMesh generate_tube(const Vec3& origin, real_t R, real_t Ri, real_t height, real_t h)
@@ -329,7 +395,7 @@ HexMesh generate_cloud(const GeneratorSpec& g)
         // the nodes of the cylinder mesh generator (butterfly core: no clustering at the axis),
         // jittered by +-jitter spacing; a particle on the side keeps its radius (its angle, and
         // off the caps its height, are jittered), one on a cap keeps its height
-        const HexMesh c = generate_cylinder(g.origin, g.radius, g.height, g.element_size, false);
+        const HexMesh c = cylinder_mesh(g.origin, g.radius, g.height, g.element_size, false, false);
         const real_t h = g.element_size;
         std::mt19937 gen(static_cast<unsigned>(g.seed));
         std::uniform_real_distribution<real_t> jit(-g.jitter, g.jitter);

@@ -11,7 +11,10 @@ namespace rkfem
 {
 HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int, 3>& divisions);
 
-/// Cylinder along +z from `origin` (centre of the bottom face).
+/// Cylinder along +z from `origin` (centre of the bottom face): the disk mesh swept along z.
+/// Numbering: the disk's nodes in a sweep (ascending x, then y), each node's column of heights
+/// consecutive (node (i, k) = (nz + 1) i + k, height fastest); elements the same way, the disk's
+/// quads by their nodes' numbers.
 HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t element_size,
                           bool ogrid_core);
 
