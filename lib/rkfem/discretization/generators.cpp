@@ -212,7 +212,7 @@ void sweep_order(real_t R, std::vector<real_t>& pts, std::vector<index_t>& quads
     quads.swap(reordered);
 }
 
-/// generate_cylinder with the disk in disk_mesh's block order (local = false: the order the
+/// generate_cylinder with the disk in disk_mesh's block order (sweep = false: the order the
 /// cylinder cloud's particles and jitter follow) or in the sweep (sweep_order).
 HexMesh cylinder_mesh(const Vec3& origin, real_t radius, real_t height, real_t h, bool ogrid, bool sweep)
 {

@@ -132,8 +132,8 @@ void NodalBlock::build_tables(Assembly assembly)
     // lattices with wide supports, a mesh numbered column by column, whose chunks are thin
     // bundles of columns with a wide halo), chunks twice as large, and so on up to 2048 points
     // or a quarter of the block, whichever is larger (a random order stays non-local at every
-    // size that leaves the threads chunks to share: the transpose gather then). Either way the chunks are a function of the operators only, never of the thread
-    // count.
+    // size that leaves the threads chunks to share: the transpose gather then). Either way the
+    // chunks are a function of the operators only, never of the thread count.
     bool local = true;
     auto cut_chunks = [&](index_t point_chunk)
     {
