@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <sstream>
 
@@ -170,15 +171,20 @@ namespace
 void sweep_order(real_t R, std::vector<real_t>& pts, std::vector<index_t>& quads)
 {
     const std::size_t np = pts.size() / 2, nq = quads.size() / 4;
+    // the items in ascending order of their keys (ties in their own order)
+    auto ascending = [](const auto& key)
+    {
+        std::vector<index_t> order(key.size());
+        std::iota(order.begin(), order.end(), index_t{0});
+        std::stable_sort(order.begin(), order.end(), [&](index_t a, index_t b)
+                         { return key[static_cast<std::size_t>(a)] < key[static_cast<std::size_t>(b)]; });
+        return order;
+    };
     const real_t quantum = 1e-9 * R;
     std::vector<std::pair<long long, long long>> at(np);
     for (std::size_t i = 0; i < np; ++i)
         at[i] = {std::llround(pts[2 * i] / quantum), std::llround(pts[2 * i + 1] / quantum)};
-    std::vector<index_t> order(np);
-    for (std::size_t i = 0; i < np; ++i)
-        order[i] = static_cast<index_t>(i);
-    std::stable_sort(order.begin(), order.end(), [&](index_t a, index_t b)
-                     { return at[static_cast<std::size_t>(a)] < at[static_cast<std::size_t>(b)]; });
+    const std::vector<index_t> order = ascending(at);
     std::vector<index_t> rank(np);
     std::vector<real_t> moved(pts.size());
     for (std::size_t r = 0; r < np; ++r)
@@ -200,11 +206,7 @@ void sweep_order(real_t R, std::vector<real_t>& pts, std::vector<index_t>& quads
             key[q] = {std::min(key[q].first, n), std::max(key[q].second, n)};
         }
     }
-    std::vector<index_t> quad_order(nq);
-    for (std::size_t q = 0; q < nq; ++q)
-        quad_order[q] = static_cast<index_t>(q);
-    std::stable_sort(quad_order.begin(), quad_order.end(), [&](index_t a, index_t b)
-                     { return key[static_cast<std::size_t>(a)] < key[static_cast<std::size_t>(b)]; });
+    const std::vector<index_t> quad_order = ascending(key);
     std::vector<index_t> reordered(quads.size());
     for (std::size_t r = 0; r < nq; ++r)
         for (int j = 0; j < 4; ++j)
