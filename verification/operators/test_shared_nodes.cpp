@@ -7,11 +7,14 @@
 // sums instead of adding to them fails it (the negative control).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <omp.h>
 
 #include "../support.hpp"
+#include "rkfem/core/simd.hpp"
+#include "rkfem/operators/hex_block.hpp"
 #include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
@@ -159,4 +162,54 @@ TEST(SharedNodes, AssemblyDoesNotDependOnTheThreadCount)
     }
     omp_set_num_threads(1);
     EXPECT_TRUE(f[0] == f[1]) << "forces differ between 1 and 2 threads";
+}
+
+// A box numbered column by column (height fastest, the columns row by row): chunks of n / 16
+// elements are a quarter of a row of columns, and their nodes reach into the next row, so
+// their ranges add up to over 3 nodes per node; chunks of twice that are local, and
+// the 1-point block keeps the chunked scatter with them instead of the element force buffer.
+TEST(SharedNodes, ColumnNumberedBoxDoublesItsScatterChunks)
+{
+    const int nx = 160, ny = 4, nz = 100;
+    const real_t h = 0.01;
+    auto node = [&](int i, int j, int k) { return static_cast<index_t>((j * (nx + 1) + i) * (nz + 1) + k); };
+    NodeSet nodes;
+    nodes.resize(static_cast<index_t>((nx + 1) * (ny + 1) * (nz + 1)));
+    for (int j = 0; j <= ny; ++j)
+        for (int i = 0; i <= nx; ++i)
+            for (int k = 0; k <= nz; ++k)
+                for (int d = 0; d < 3; ++d)
+                    nodes.x0[3 * static_cast<std::size_t>(node(i, j, k)) + d] = h * (d == 0 ? i : d == 1 ? j : k);
+    nodes.x = nodes.x0;
+    HexBlock b;
+    b.formulation = Formulation::Fem1pt;
+    b.hourglass = {HourglassType::Stiffness, 0.05};
+    b.material = ElasticParams::from_E_nu(7850, 200e9, 0.3);
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i)
+            for (int k = 0; k < nz; ++k)
+                for (int c = 0; c < 2; ++c)
+                    b.conn.insert(b.conn.end(), {node(i, j, k + c), node(i + 1, j, k + c), node(i + 1, j + 1, k + c),
+                                                 node(i, j + 1, k + c)});
+    b.node_begin = 0;
+    b.node_end = nodes.size();
+    b.initialize(nodes);
+    const index_t ne = b.n_elements(), first = ChunkedScatter::chunk_size(ne, simd::kLanes);
+    ASSERT_EQ(first, 4000);
+    auto covered = [&](index_t size)
+    {
+        std::size_t sum = 0;
+        for (index_t e0 = 0; e0 < ne; e0 += size)
+        {
+            const auto [lo, hi] = std::minmax_element(b.conn.begin() + 8 * e0, b.conn.begin() + 8 * std::min(ne, e0 + size));
+            sum += static_cast<std::size_t>(*hi + 1 - *lo);
+        }
+        return static_cast<real_t>(sum) / static_cast<real_t>(nodes.size());
+    };
+    std::printf("chunk ranges per node: %.2f at %d elements per chunk, %.2f at %d\n", covered(first), first,
+                covered(2 * first), 2 * first);
+    EXPECT_GT(covered(first), 3.0);
+    ASSERT_FALSE(b.scatter.empty()) << "the element force buffer instead of the chunked scatter";
+    EXPECT_EQ(b.scatter.chunks.size(), 8u);
+    EXPECT_LE(covered(2 * first), 3.0);
 }

@@ -58,6 +58,21 @@ struct ChunkedScatter
     /// a part of a few thousand particles still has work for every thread.
     static index_t chunk_size(index_t n, index_t multiple, index_t smallest = 2048);
 
+    /// The chunk size a block takes: from `size` on, cut(size) (which cuts the block's chunks
+    /// anew and says whether their ranges are local, at most 3 buffers per node) with the size
+    /// doubled while they are not and twice it is at most `largest`. Returns whether the last
+    /// cut was local; `size` is its size.
+    template <class Cut> static bool cut_until_local(index_t& size, index_t largest, Cut&& cut)
+    {
+        bool local = cut(size);
+        while (!local && 2 * size <= largest)
+        {
+            size *= 2;
+            local = cut(size);
+        }
+        return local;
+    }
+
     /// Appends chunks of `size` consecutive items of [0, n_items); `range(first, last, lo, hi)`
     /// widens [lo, hi) to the nodes that items [first, last) touch. Returns the buffer values
     /// the new chunks take (4 per covered node), for a locality test.

@@ -640,24 +640,33 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
 {
     const index_t ne = n_elements();
     // 1-point blocks whose element order has locality assemble by chunked scatter (the element
-    // forces are never written out); others (2x2x2, an element order without locality: chunk
-    // ranges adding up to over 3 nodes per node) through the element force buffer
+    // forces are never written out): chunks of n / 16 elements (at least 2048), doubled while
+    // their ranges add up to over 3 nodes per node, up to a quarter of the block (as nodal
+    // blocks do); others (2x2x2, an element order without locality) through the element force
+    // buffer
     scatter.clear();
     if (formulation == Formulation::Fem1pt && assembly != Assembly::Gather && !mesh_only)
     {
-        scatter.node_begin = node_begin;
-        scatter.node_end = node_end;
-        const std::size_t covered = scatter.add_chunks(ne, ChunkedScatter::chunk_size(ne, W),
-                                                       [&](index_t first, index_t last, index_t& lo, index_t& hi)
-                                                       {
-                                                           for (std::size_t k = 8 * static_cast<std::size_t>(first);
-                                                                k < 8 * static_cast<std::size_t>(last); ++k)
+        auto cut = [&](index_t size)
+        {
+            scatter.clear();
+            scatter.node_begin = node_begin;
+            scatter.node_end = node_end;
+            const std::size_t covered = scatter.add_chunks(ne, size,
+                                                           [&](index_t first, index_t last, index_t& lo, index_t& hi)
                                                            {
-                                                               lo = std::min(lo, conn[k]);
-                                                               hi = std::max(hi, conn[k] + 1);
-                                                           }
-                                                       });
-        if (assembly == Assembly::Scatter || covered <= 4 * 3 * static_cast<std::size_t>(node_end - node_begin))
+                                                               for (std::size_t k = 8 * static_cast<std::size_t>(first);
+                                                                    k < 8 * static_cast<std::size_t>(last); ++k)
+                                                               {
+                                                                   lo = std::min(lo, conn[k]);
+                                                                   hi = std::max(hi, conn[k] + 1);
+                                                               }
+                                                           });
+            return covered <= 4 * 3 * static_cast<std::size_t>(node_end - node_begin);
+        };
+        index_t size = ChunkedScatter::chunk_size(ne, W);
+        const bool local = ChunkedScatter::cut_until_local(size, std::max<index_t>(2048, ne / 4), cut);
+        if (assembly == Assembly::Scatter || local)
             scatter.finish();
         else
             scatter.clear();

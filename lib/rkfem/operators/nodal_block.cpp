@@ -134,9 +134,9 @@ void NodalBlock::build_tables(Assembly assembly)
     // or a quarter of the block, whichever is larger (a random order stays non-local at every
     // size that leaves the threads chunks to share: the transpose gather then). Either way the
     // chunks are a function of the operators only, never of the thread count.
-    bool local = true;
     auto cut_chunks = [&](index_t point_chunk)
     {
+        bool local = true;
         scatter.clear();
         scatter.node_begin = node_begin;
         scatter.node_end = node_end;
@@ -178,15 +178,10 @@ void NodalBlock::build_tables(Assembly assembly)
             // chunk's range the whole block: then the transpose gather
             local = local && added <= 4 * 3 * static_cast<std::size_t>(nn);
         }
+        return local;
     };
     index_t point_chunk = ChunkedScatter::chunk_size(np, kPointLanes, 512);
-    cut_chunks(point_chunk);
-    const index_t largest = std::max<index_t>(2048, np / 4);
-    while (!local && 2 * point_chunk <= largest)
-    {
-        point_chunk *= 2;
-        cut_chunks(point_chunk);
-    }
+    const bool local = ChunkedScatter::cut_until_local(point_chunk, std::max<index_t>(2048, np / 4), cut_chunks);
     const bool use_scatter = assembly == Assembly::Scatter || (assembly == Assembly::Automatic && local);
     if (use_scatter)
         scatter.finish();
