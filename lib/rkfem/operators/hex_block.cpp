@@ -641,9 +641,9 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
     const index_t ne = n_elements();
     // 1-point blocks whose element order has locality assemble by chunked scatter (the element
     // forces are never written out): chunks of n / 16 elements (at least 2048), doubled while
-    // their ranges add up to over 3 nodes per node, up to a quarter of the block (as nodal
-    // blocks do); others (2x2x2, an element order without locality) through the element force
-    // buffer
+    // their ranges add up to over 3 nodes per node, up to 2048 or a quarter of the block,
+    // whichever is larger (as nodal blocks do); others (2x2x2, an element order without
+    // locality) through the element force buffer
     scatter.clear();
     if (formulation == Formulation::Fem1pt && assembly != Assembly::Gather && !mesh_only)
     {
