@@ -58,8 +58,12 @@ struct ChunkedScatter
     /// a part of a few thousand particles still has work for every thread.
     static index_t chunk_size(index_t n, index_t multiple, index_t smallest = 2048);
 
+    /// The locality test on the buffer values chunks take (add_chunks) over a block of `nodes`
+    /// nodes: at most 3 buffers per node, so that the reduce sums few and the buffers stay small.
+    static bool local(std::size_t values, index_t nodes) { return values <= 4 * 3 * static_cast<std::size_t>(nodes); }
+
     /// The chunk size a block takes: from `size` on, cut(size) (which cuts the block's chunks
-    /// anew and says whether their ranges are local, at most 3 buffers per node) with the size
+    /// anew and says whether their ranges are local, `local`) with the size
     /// doubled while they are not and twice it is at most `largest`. Returns whether the last
     /// cut was local; `size` is its size.
     template <class Cut> static bool cut_until_local(index_t& size, index_t largest, Cut&& cut)

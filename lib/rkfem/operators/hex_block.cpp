@@ -662,7 +662,7 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
                                                                    hi = std::max(hi, conn[k] + 1);
                                                                }
                                                            });
-            return covered <= 4 * 3 * static_cast<std::size_t>(node_end - node_begin);
+            return ChunkedScatter::local(covered, node_end - node_begin);
         };
         index_t size = ChunkedScatter::chunk_size(ne, W);
         const bool local = ChunkedScatter::cut_until_local(size, std::max<index_t>(2048, ne / 4), cut);

@@ -176,7 +176,7 @@ void NodalBlock::build_tables(Assembly assembly)
                 n_point_chunks = static_cast<index_t>(scatter.chunks.size());
             // a point order without locality (an imported cloud in random order) makes every
             // chunk's range the whole block: then the transpose gather
-            local = local && added <= 4 * 3 * static_cast<std::size_t>(nn);
+            local = local && ChunkedScatter::local(added, nn);
         }
         return local;
     };
