@@ -60,17 +60,33 @@ int sub_hex_element_face(int a, int f)
     return f % 2 == 0 ? -1 : element_face_of(f / 2, hex8_nodes[a][f / 2]);
 }
 
+const SubHexGauss& sub_hex_gauss()
+{
+    static const SubHexGauss table = []
+    {
+        SubHexGauss t;
+        const real_t g = 1.0 / std::sqrt(3.0);
+        for (int a = 0; a < 8; ++a)
+            for (int q = 0; q < 8; ++q)
+            {
+                // the octant between node a and the centre: Jacobian 1/8 of the element's
+                for (int d = 0; d < 3; ++d)
+                    t.xi[a][q][d] = 0.5 * hex8_nodes[a][d] * (1.0 + g * hex8_nodes[q][d]);
+                hex8_shape(t.xi[a][q], t.N[a][q]);
+                hex8_shape_derivatives(t.xi[a][q], t.dN[a][q]);
+            }
+        return t;
+    }();
+    return table;
+}
+
 real_t sub_hex_volume(const real_t xe[8][3], int a)
 {
-    const real_t g = 1.0 / std::sqrt(3.0);
+    const SubHexGauss& gauss = sub_hex_gauss();
     real_t vol = 0.0;
     for (int q = 0; q < 8; ++q)
     {
-        // the octant between node a and the centre, xi_d = s_d (1 + g n_qd) / 2: Jacobian 1/8
-        real_t xi[3], dN[8][3];
-        for (int d = 0; d < 3; ++d)
-            xi[d] = 0.5 * hex8_nodes[a][d] * (1.0 + g * hex8_nodes[q][d]);
-        hex8_shape_derivatives(xi, dN);
+        const real_t(&dN)[8][3] = gauss.dN[a][q];
         real_t J[3][3] = {};
         for (int I = 0; I < 8; ++I)
             for (int r = 0; r < 3; ++r)

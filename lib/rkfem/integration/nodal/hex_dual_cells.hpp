@@ -41,6 +41,17 @@ int sub_hex_element_face(int a, int f);
 /// as SubHex::volume to round-off at a third of the cost.
 real_t sub_hex_volume(const real_t xe[8][3], int a);
 
+/// The 2 x 2 x 2 Gauss points of every sub-hex in the element's natural coordinates (sub-hex
+/// a, point q: xi_d = s_ad (1 + n_qd / sqrt 3) / 2) with the shape functions and their natural
+/// derivatives there, computed once (hex8_shape, hex8_shape_derivatives: the same values).
+struct SubHexGauss
+{
+    real_t xi[8][8][3];
+    real_t N[8][8][8];
+    real_t dN[8][8][8][3];
+};
+const SubHexGauss& sub_hex_gauss();
+
 /// For every element face (6 e + f), the neighbouring element across it, or -1 on the boundary.
 std::vector<index_t> face_neighbours(const HexMesh& mesh);
 

@@ -844,7 +844,7 @@ std::vector<real_t> nodal_second_moments(const HexMesh& mesh)
     std::vector<index_t> offsets, slots;
     node_element_incidence(mesh, offsets, slots);
     std::vector<real_t> m(3 * static_cast<std::size_t>(mesh.n_nodes()), 0.0);
-    const real_t g = 1.0 / std::sqrt(3.0);
+    const SubHexGauss& gauss = sub_hex_gauss();
     parallel_for("rkfem::nodal_second_moments", mesh.n_nodes(),
                  [&](index_t L)
                  {
@@ -857,11 +857,15 @@ std::vector<real_t> nodal_second_moments(const HexMesh& mesh)
                          element_coordinates(mesh, e, xe);
                          for (int q = 0; q < 8; ++q)
                          {
-                             real_t xi[3], N[8], dNdx[8][3];
-                             for (int d = 0; d < 3; ++d)
-                                 xi[d] = 0.5 * hex8_nodes[a][d] * (1.0 + g * hex8_nodes[q][d]);
-                             hex8_shape(xi, N);
-                             const real_t w = 0.125 * hex8_gradients(xe, xi, dNdx); // sub-hex Jacobian 1/8 of the element's
+                             // det J as hex8_gradients computes it (J(a, d) = dx_d / dxi_a)
+                             const real_t(&N)[8] = gauss.N[a][q];
+                             const real_t(&dN)[8][3] = gauss.dN[a][q];
+                             Mat3 J = Mat3::Zero();
+                             for (int I = 0; I < 8; ++I)
+                                 for (int b = 0; b < 3; ++b)
+                                     for (int d = 0; d < 3; ++d)
+                                         J(b, d) += dN[I][b] * xe[I][d];
+                             const real_t w = 0.125 * J.determinant(); // sub-hex Jacobian 1/8 of the element's
                              for (int d = 0; d < 3; ++d)
                              {
                                  real_t x = 0.0;
