@@ -486,3 +486,56 @@ TEST(SharedStencils, KinematicMapRowsAreSharedWithinTheirTolerance)
         EXPECT_LT(linear, 1e-12) << c.name;
     }
 }
+
+// A part's set-up with rk.share_translates (the default) against the same part evaluated
+// element by element and particle by particle (false), on the seed's P1 cylinder at 1 in: the
+// interpolation rows have the same particles and values to round-off, and they still reproduce
+// 1 and x at every particle (sum Psi_J(X_I) = 1, sum Psi_J(X_I) X_J = X_I); the force pass on a
+// wavy motion gives the same nodal forces to round-off of the largest (here the same bits: the
+// shared stencils snap both builds' points to the same class stencils, which differ by less
+// than the sharing's tolerance).
+TEST(SharedStencils, SharingTranslatesKeepsThePartToRoundOff)
+{
+    const real_t inch = 0.0254;
+    const HexMesh mesh = generate_cylinder(Vec3::Zero(), 3 * inch, 12 * inch, inch, false);
+    PartSpec ps = elastic_rk_part("nsni");
+    NodalBlock shared = build_nodal_block(ps, mesh, 0);
+    ps.rk.share_translates = false;
+    NodalBlock plain = build_nodal_block(ps, mesh, 0);
+    ASSERT_EQ(shared.interp_offsets, plain.interp_offsets);
+    ASSERT_EQ(shared.interp_nodes, plain.interp_nodes);
+    real_t value = 0.0, reproduction = 0.0;
+    for (std::size_t k = 0; k < plain.interp_values.size(); ++k)
+        value = std::max(value, std::abs(shared.interp_values[k] - plain.interp_values[k]));
+    for (index_t i = 0; i < mesh.n_nodes(); ++i)
+    {
+        real_t one = 0.0;
+        Vec3 x = Vec3::Zero();
+        for (index_t k = shared.interp_offsets[i]; k < shared.interp_offsets[i + 1]; ++k)
+        {
+            one += shared.interp_values[k];
+            x += shared.interp_values[k] * mesh.node(shared.interp_nodes[k]);
+        }
+        reproduction = std::max({reproduction, std::abs(one - 1.0), (x - mesh.node(i)).norm() / inch});
+    }
+    std::printf("interpolation rows: values differ by %.2e, reproduce 1 and x to %.2e\n", value, reproduction);
+    EXPECT_LT(value, 1e-13);        // measured 1.1e-15
+    EXPECT_LT(reproduction, 1e-13); // 1.5e-14
+    std::vector<real_t> f[2];
+    for (int run = 0; run < 2; ++run)
+    {
+        NodalBlock& blk = run == 0 ? shared : plain;
+        NodeSet nodes = wavy_motion(mesh);
+        nodal_internal_force(blk, nodes, 1e-7);
+        assemble_nodal_forces(blk, nodes);
+        f[run] = nodes.f_int;
+    }
+    real_t worst = 0.0, big = 0.0;
+    for (std::size_t k = 0; k < f[0].size(); ++k)
+    {
+        worst = std::max(worst, std::abs(f[0][k] - f[1][k]));
+        big = std::max(big, std::abs(f[1][k]));
+    }
+    std::printf("nodal forces differ by %.2e of the largest\n", worst / big);
+    EXPECT_LT(worst / big, 1e-11);
+}

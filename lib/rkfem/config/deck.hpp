@@ -134,6 +134,10 @@ struct RkSpec
     /// Smoothed-gradient stencils drop the functions below this fraction of the largest at each
     /// facet point (RkShapes, prune_rk_values; order 1 only): 0 keeps them all
     real_t drop_tolerance = 1e-5;
+    /// The set-up evaluates the RK functions once for elements and particles whose
+    /// neighbourhoods are translates of each other (approximation/rk/rk_translates.hpp) and
+    /// copies the results to the rest; false evaluates every one (the same numbers to round-off)
+    bool share_translates = true;
     SourceLocation loc;
 };
 

@@ -302,7 +302,8 @@ std::string to_yaml(const Deck& d)
             os << "    transition: " << p.transition << "\n";
         if (p.formulation == Formulation::Rkpm || p.coupled())
             os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
-               << ", normalized_support: " << p.rk.normalized_support << ", drop_tolerance: " << p.rk.drop_tolerance << "}\n";
+               << ", normalized_support: " << p.rk.normalized_support << ", drop_tolerance: " << p.rk.drop_tolerance
+               << ", share_translates: " << (p.rk.share_translates ? "true" : "false") << "}\n";
         if (p.formulation == Formulation::Fem1pt)
         {
             const char* t = p.hourglass.type == HourglassType::Viscous     ? "viscous"

@@ -555,7 +555,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     {
         if (p.formulation != Formulation::Rkpm && !p.coupled())
             ignore(p, s, "rk", f);
-        Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support", "drop_tolerance"});
+        Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support", "drop_tolerance", "share_translates"});
         p.rk.loc = r.loc();
         const std::string order = r.choice("order", {"1", "2"}, "1");
         p.rk.order = order == "1" ? 1 : 2;
@@ -565,6 +565,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.rk.drop_tolerance = r.quantity("drop_tolerance", dim::none, p.rk.order == 1 ? 1e-5 : 0.0);
         if (!(p.rk.drop_tolerance >= 0.0 && p.rk.drop_tolerance <= 1e-2))
             r.fail("drop_tolerance", "is outside [0, 0.01]", "expected a small fraction such as 1e-5 (0: keep every function)");
+        p.rk.share_translates = r.choice("share_translates", {"true", "false"}, "true") == "true";
         if (p.rk.drop_tolerance > 0.0 && p.rk.order != 1)
             r.fail("drop_tolerance", "restores linear reproduction only", "expected drop_tolerance: 0 with order 2");
         const real_t c = p.rk.normalized_support;

@@ -5,6 +5,7 @@
 #include <map>
 #include <exception>
 #include <memory>
+#include <optional>
 
 #include <omp.h>
 
@@ -60,15 +61,25 @@ NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset)
     return nb;
 }
 
-/// RK interpolation Psi_J(X_I) at the particles, for physical nodal values.
-void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::vector<real_t>& x, index_t offset)
+/// RK interpolation Psi_J(X_I) at the particles, for physical nodal values. A particle whose
+/// neighbourhood is a translate of an earlier particle's (particles: particle_translates) takes
+/// that particle's row, its particles matched to the source's.
+void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const RkTranslates& particles, index_t offset)
 {
-    // Psi_J(x_i) of every particle i by the region evaluator (particles ascending in each row),
-    // threads over contiguous blocks of particles, their rows joined in particle order
-    const index_t n = static_cast<index_t>(x.size() / 3);
+    // Psi_J(x_i) of every source i by the region evaluator (particles ascending in each row),
+    // threads over contiguous ranges of the sources, their rows joined in source order
+    const index_t n = rk.size();
+    std::vector<index_t> sources, source_index(static_cast<std::size_t>(n), -1);
+    for (index_t i = 0; i < n; ++i)
+        if (particles.computed(i))
+        {
+            source_index[i] = static_cast<index_t>(sources.size());
+            sources.push_back(i);
+        }
+    const index_t ns = static_cast<index_t>(sources.size());
     std::vector<std::vector<index_t>> block_nodes;
     std::vector<std::vector<real_t>> block_values;
-    std::vector<std::vector<index_t>> block_counts;
+    std::vector<index_t> count(static_cast<std::size_t>(ns));
     ParallelErrors errors;
 #pragma omp parallel
     {
@@ -77,27 +88,26 @@ void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::ve
             const std::size_t teams = static_cast<std::size_t>(omp_get_num_threads());
             block_nodes.resize(teams);
             block_values.resize(teams);
-            block_counts.resize(teams);
         }
         const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
         RkRegionValues region(rk, 0.0);
 #pragma omp for schedule(static)
-        for (index_t i = 0; i < n; ++i)
+        for (index_t k = 0; k < ns; ++k)
         {
             try
             {
-                const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                const Vec3 p = rk.position(sources[k]);
                 region.gather(p, p);
                 region.evaluate(p);
-                index_t count = 0;
-                for (std::size_t k = 0; k < region.size(); ++k)
-                    if (region.kept()[k] != 0.0)
+                index_t c = 0;
+                for (std::size_t j = 0; j < region.size(); ++j)
+                    if (region.kept()[j] != 0.0)
                     {
-                        block_nodes[t].push_back(region.candidates()[k] + offset);
-                        block_values[t].push_back(region.psi()[k]);
-                        ++count;
+                        block_nodes[t].push_back(region.candidates()[j]);
+                        block_values[t].push_back(region.psi()[j]);
+                        ++c;
                     }
-                block_counts[t].push_back(count);
+                count[k] = c;
             }
             catch (...)
             {
@@ -106,14 +116,36 @@ void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const std::ve
         }
     }
     errors.rethrow();
-    nb.interp_offsets.assign(1, 0);
+    std::vector<index_t> source_nodes, source_offsets(static_cast<std::size_t>(ns) + 1, 0);
+    std::vector<real_t> source_values;
     for (std::size_t t = 0; t < block_nodes.size(); ++t)
     {
-        nb.interp_nodes.insert(nb.interp_nodes.end(), block_nodes[t].begin(), block_nodes[t].end());
-        nb.interp_values.insert(nb.interp_values.end(), block_values[t].begin(), block_values[t].end());
-        for (index_t c : block_counts[t])
-            nb.interp_offsets.push_back(nb.interp_offsets.back() + c);
+        source_nodes.insert(source_nodes.end(), block_nodes[t].begin(), block_nodes[t].end());
+        source_values.insert(source_values.end(), block_values[t].begin(), block_values[t].end());
     }
+    for (index_t k = 0; k < ns; ++k)
+        source_offsets[k + 1] = source_offsets[k] + count[k];
+    // every particle's row: its source's, read through its own particles
+    nb.interp_offsets.assign(static_cast<std::size_t>(n) + 1, 0);
+    for (index_t i = 0; i < n; ++i)
+    {
+        const index_t k = source_index[particles.source[i]];
+        nb.interp_offsets[i + 1] = nb.interp_offsets[i] + source_offsets[k + 1] - source_offsets[k];
+    }
+    nb.interp_nodes.resize(static_cast<std::size_t>(nb.interp_offsets[n]));
+    nb.interp_values.resize(nb.interp_nodes.size());
+    parallel_for("rkfem::add_interpolation::rows", n,
+                 [&](index_t i)
+                 {
+                     const index_t k = source_index[particles.source[i]];
+                     const bool own = particles.computed(i);
+                     index_t q = nb.interp_offsets[i];
+                     for (index_t j = source_offsets[k]; j < source_offsets[k + 1]; ++j, ++q)
+                     {
+                         nb.interp_nodes[q] = (own ? source_nodes[j] : particles.counterpart(i, source_nodes[j])) + offset;
+                         nb.interp_values[q] = source_values[j];
+                     }
+                 });
 }
 
 DeckError singular_support(const PartSpec& ps, const SingularMomentError& e)
@@ -154,12 +186,19 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     std::unique_ptr<ShapeEvaluator> shapes;
     if (ps.formulation == Formulation::Rkpm)
     {
-        rk = std::make_shared<const RkShapeFunctions>(rk_on_mesh(mesh, rk_params(ps.rk)));
-        shapes = std::make_unique<RkShapes>(*rk, ps.rk.drop_tolerance);
+        rk = std::make_shared<const RkShapeFunctions>(rk_on_mesh(mesh, rk_params(ps.rk)));        shapes = std::make_unique<RkShapes>(*rk, ps.rk.drop_tolerance);
         nb.rk = rk;
     }
     else
         shapes = std::make_unique<FemShapes>(mesh);
+    // the particles' neighbourhoods as translates, for NSNI and the interpolation (found once)
+    std::optional<RkTranslates> translates;
+    auto particles = [&]() -> const RkTranslates&
+    {
+        if (!translates)
+            translates = particle_translates(*rk, ps.rk.share_translates);
+        return *translates;
+    };
     try
     {
         const bool stabilized =
@@ -173,7 +212,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.scheme + " gradients",
                                                  by_elements ? mesh.n_elements() : mesh.n_nodes());
             if (by_elements)
-                nb.points = build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr);
+                nb.points = build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr, ps.rk.share_translates);
             else if (mscni)
                 build_scni_sd(mesh, *shapes, nb.points, &sd);
             else
@@ -184,12 +223,13 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
                                                  mscni ? 0 : nb.points.n_points());
             nb.stabilization = mscni ? build_mscni_stabilization(nb.points, sd)
-                                     : build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh), ps.rk.drop_tolerance);
+                                     : build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh),
+                                                                ps.rk.drop_tolerance, particles());
             nb.stabilization_triplets = ps.nodal.stabilization == "nsni" && rk;
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
         if (rk)
-            add_interpolation(nb, *rk, mesh.x, offset);
+            add_interpolation(nb, *rk, particles(), offset);
     }
     catch (const SingularMomentError& e)
     {
@@ -311,7 +351,7 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
     if (n_rk == 0 && ps.converts() && ps.formulation == Formulation::FemNodal)
     {
         // no RK element yet: nodal-integrated FE on the same cells as a coupled block's
-        NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
         const FemShapes shapes(mesh);
         if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
         {
@@ -646,6 +686,9 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         v *= ps.rk.normalized_support;
     auto rk = std::make_shared<const RkShapeFunctions>(cloud.x, std::move(a), rk_params(ps.rk));
     nb.rk = rk;
+    // the particles' neighbourhoods as translates, for NSNI and the interpolation (a jittered
+    // cloud has none, and its NSNI reads the regions found here)
+    const RkTranslates particles = particle_translates(*rk, ps.rk.share_translates);
     try
     {
         const RkShapes shapes(*rk, ps.rk.drop_tolerance);
@@ -662,12 +705,13 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         {
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
                                                  nsni ? nb.points.n_points() : 0);
-            nb.stabilization = nsni ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume), ps.rk.drop_tolerance)
+            nb.stabilization = nsni ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume),
+                                                               ps.rk.drop_tolerance, particles)
                                     : build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
             nb.stabilization_triplets = nsni;
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
-        add_interpolation(nb, *rk, cloud.x, offset);
+        add_interpolation(nb, *rk, particles, offset);
     }
     catch (const SingularMomentError& e)
     {

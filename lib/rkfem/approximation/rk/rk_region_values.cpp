@@ -273,6 +273,17 @@ void RkRegionValues::resize_candidates(std::size_t n)
 void RkRegionValues::gather(const Vec3& lo, const Vec3& hi)
 {
     rk_.particles_near_box(lo, hi, region_ids_);
+    take_region();
+}
+
+void RkRegionValues::gather(const index_t* ids, std::size_t n)
+{
+    region_ids_.assign(ids, ids + n);
+    take_region();
+}
+
+void RkRegionValues::take_region()
+{
     const std::size_t n = region_ids_.size();
     for (auto* v : {&region_x_[0], &region_x_[1], &region_x_[2], &region_a_, &region_inv_a_})
         v->resize(n);
@@ -700,8 +711,20 @@ void RkRegionValues::gradients_quadratic(const Vec3& x)
 void RkRegionValues::hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H)
 {
     // every particle covering a point within 1e-3 of the largest radius of x
-    const Vec3 reach = Vec3::Constant(1e-3 * rk_.max_radius());
+    const Vec3 reach = hessian_reach();
     gather(x - reach, x + reach);
+    hessians_in_region(x, nodes, H);
+}
+
+void RkRegionValues::hessians(const Vec3& x, const index_t* region, std::size_t n, std::vector<index_t>& nodes,
+                              std::vector<Mat3>& H)
+{
+    gather(region, n);
+    hessians_in_region(x, nodes, H);
+}
+
+void RkRegionValues::hessians_in_region(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H)
+{
     // the functions at x itself: the same checks as the twin's evaluate there, and the radius
     values_at(x);
     const real_t delta = 1e-3 * a_min_;

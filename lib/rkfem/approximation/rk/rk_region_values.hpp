@@ -24,6 +24,9 @@ class RkRegionValues
     /// The region: the box [lo, hi] that every later point lies in (particles_near_box). Its
     /// particles are the candidates until focus narrows them.
     void gather(const Vec3& lo, const Vec3& hi);
+    /// The region given by its particles, ascending (as gather(lo, hi) finds them: a region
+    /// that RkTranslates kept).
+    void gather(const index_t* ids, std::size_t n);
     /// Narrows the candidates to the region's particles whose support reaches the box [lo, hi]
     /// (inside the region), for the points that lie in it: a facet's points need about a third
     /// of its element's particles.
@@ -58,9 +61,18 @@ class RkRegionValues
     /// particles near x (gathered here: the region becomes the box around x), then symmetrized.
     /// nodes: every particle covering one of the six points, ascending.
     void hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H);
+    /// The same with the particles near x given (ascending): those whose support reaches the box
+    /// x -+ hessian_reach(), as the other form gathers them (a region that RkTranslates kept).
+    void hessians(const Vec3& x, const index_t* region, std::size_t n, std::vector<index_t>& nodes,
+                  std::vector<Mat3>& H);
+    /// The half-width of the box around x whose particles hessians reads: 1e-3 of the largest radius.
+    Vec3 hessian_reach() const { return Vec3::Constant(1e-3 * rk_.max_radius()); }
 
   private:
     /// The candidates: the region's particles k with keep(k).
+    void hessians_in_region(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H);
+    /// The region's positions and radii from region_ids_, every particle a candidate.
+    void take_region();
     template <class Keep> void select(Keep&& keep);
     template <class Keep> std::size_t copy_kept(std::size_t k0, std::size_t n, Keep&& keep);
     bool reaches(std::size_t k, const Vec3& lo, const Vec3& hi) const;

@@ -7,7 +7,10 @@
 #include <limits>
 #include <utility>
 
+#include <omp.h>
+
 #include "rkfem/approximation/rk/rk_region_values.hpp"
+#include "rkfem/approximation/rk/rk_translates.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/setup_progress.hpp"
@@ -290,29 +293,26 @@ void colour_elements(const HexMesh& mesh, std::vector<index_t>& offsets, std::ve
 
 namespace
 {
-/// Adds an element's partial row (candidates ids[k], sums (acc[k], acc[n + k], acc[2 n + k]),
-/// present where hit[k] != 0; ascending ids) into a node's row (ascending): one sorted merge,
-/// sums in arrival order.
-void merge_partial_row(Entries& row, const std::vector<index_t>& ids, const real_t* acc, const real_t* hit,
-                       Entries& scratch)
+/// An element's facet sums over its region: list a (local node a's row, then with sub-cells
+/// sub-hex a's as list 8 + a) holds the region slots slot[start[a] .. start[a + 1]) its facets
+/// hit, ascending, and their sums g (3 per entry) of psi n dA.
+struct FacetSums
 {
-    const std::size_t n = ids.size();
-    scratch.clear();
-    std::size_t i = 0;
+    std::array<index_t, 17> start{};
+    std::vector<index_t> slot;
+    std::vector<real_t> g;
+};
+
+/// Appends the entries of a dense partial row (sums (acc[k], acc[n + k], acc[2 n + k]) over the
+/// region's n slots, present where hit[k] != 0) to `into`.
+void append_partial_row(FacetSums& into, std::size_t n, const real_t* acc, const real_t* hit)
+{
     for (std::size_t k = 0; k < n; ++k)
-    {
-        if (hit[k] == 0.0)
-            continue;
-        const Vec3 g(acc[k], acc[n + k], acc[2 * n + k]);
-        while (i < row.size() && row[i].first < ids[k])
-            scratch.push_back(row[i++]);
-        if (i < row.size() && row[i].first == ids[k])
-            scratch.emplace_back(ids[k], row[i++].second + g);
-        else
-            scratch.emplace_back(ids[k], g);
-    }
-    scratch.insert(scratch.end(), row.begin() + static_cast<std::ptrdiff_t>(i), row.end());
-    row.assign(scratch.begin(), scratch.end());
+        if (hit[k] != 0.0)
+        {
+            into.slot.push_back(static_cast<index_t>(k));
+            into.g.insert(into.g.end(), {acc[k], acc[n + k], acc[2 * n + k]});
+        }
 }
 
 /// Evaluates the functions at x and adds psi n dA over the current candidates k into the flat
@@ -354,187 +354,315 @@ struct FacetPartners
                 }
     }
 };
+
+/// The facet sums of one element over its region (values: gathered on it): each internal facet
+/// once for the pair of sub-hexes it separates, external facets for the node rows where the
+/// element face is on the boundary and for the sub-cells always (with_sub).
+class ElementFacetSums
+{
+  public:
+    ElementFacetSums(const RkShapeFunctions& rk, real_t drop_tolerance) : values_(rk, drop_tolerance) {}
+
+    RkRegionValues& values() { return values_; }
+
+    void compute(const real_t (&xe)[8][3], const bool boundary_face[6], bool with_sub, FacetSums& out)
+    {
+        static const FacetPartners facets;
+        const std::size_t nr = values_.region_size();
+        acc_.assign(8 * 3 * nr, 0.0);
+        hit_.assign(8 * nr, 0.0);
+        if (with_sub)
+        {
+            sub_acc_.assign(8 * 3 * nr, 0.0);
+            sub_hit_.assign(8 * nr, 0.0);
+        }
+        for (int a = 0; a < 8; ++a)
+            for (int d = 0; d < 3; ++d)
+            {
+                // the internal facet, once for the pair of sub-hexes it separates (the partner's
+                // facet has the same points and the opposite normal)
+                const int b = facets.partner[a][d];
+                if (a < b)
+                {
+                    build_sub_hex_facet(xe, a, 2 * d, points_);
+                    add_facet(a, b, true, with_sub);
+                }
+                // the external facet: the node's row where the element face is on the boundary
+                // (inside, it is interior to the nodal cell), the sub-cell's always
+                const bool boundary = boundary_face[sub_hex_element_face(a, 2 * d + 1)];
+                if (boundary || with_sub)
+                {
+                    build_sub_hex_facet(xe, a, 2 * d + 1, points_);
+                    add_facet(a, -1, boundary, with_sub);
+                }
+            }
+        out.slot.clear();
+        out.g.clear();
+        for (int a = 0; a < 16; ++a)
+        {
+            out.start[a] = static_cast<index_t>(out.slot.size());
+            if (a < 8)
+                append_partial_row(out, nr, acc_.data() + 3 * nr * a, hit_.data() + nr * a);
+            else if (with_sub)
+                append_partial_row(out, nr, sub_acc_.data() + 3 * nr * (a - 8), sub_hit_.data() + nr * (a - 8));
+        }
+        out.start[16] = static_cast<index_t>(out.slot.size());
+    }
+
+  private:
+    // sum over a facet's 4 points of psi n dA into the rows of local nodes a (+) and b (-, the
+    // sub-hex across an internal facet, whose normal is the opposite; b < 0: none) where
+    // node_rows, and of their sub-hexes with_sub
+    void add_facet(int a, int b, bool node_rows, bool with_sub)
+    {
+        Vec3 lo = points_[0].x, hi = points_[0].x;
+        for (const FacetPoint& fp : points_)
+        {
+            lo = lo.cwiseMin(fp.x);
+            hi = hi.cwiseMax(fp.x);
+        }
+        values_.focus(lo, hi);
+        const std::size_t n = values_.size();
+        facet_sum_.assign(3 * n, 0.0);
+        facet_hit_.assign(n, 0.0);
+        real_t *f0 = facet_sum_.data(), *f1 = f0 + n, *f2 = f1 + n, *fh = facet_hit_.data();
+        for (const FacetPoint& fp : points_)
+            add_point_values(values_, fp.x, fp.nda, f0, fh);
+        const std::size_t nr = values_.region_size();
+        const index_t* slot = values_.slots().data();
+        auto scatter = [&](std::vector<real_t>& into, std::vector<real_t>& into_hit, int node, real_t sign)
+        {
+            real_t* g = into.data() + 3 * nr * static_cast<std::size_t>(node);
+            real_t* h = into_hit.data() + nr * static_cast<std::size_t>(node);
+            for (std::size_t k = 0; k < n; ++k)
+            {
+                const std::size_t r = static_cast<std::size_t>(slot[k]);
+                g[r] += sign * f0[k];
+                g[nr + r] += sign * f1[k];
+                g[2 * nr + r] += sign * f2[k];
+                h[r] = h[r] < fh[k] ? fh[k] : h[r];
+            }
+        };
+        for (const auto& [node, sign] : {std::pair{a, 1.0}, std::pair{b, -1.0}})
+        {
+            if (node < 0)
+                continue;
+            if (node_rows)
+                scatter(acc_, hit_, node, sign);
+            if (with_sub)
+                scatter(sub_acc_, sub_hit_, node, sign);
+        }
+    }
+
+    RkRegionValues values_;
+    // per local node a: sum psi n dA [a][component][region slot], hit [a][region slot] (0 / 1);
+    // the same per sub-hex a over all six facets (with_sub); per facet: over its candidates
+    std::vector<real_t> acc_, hit_, sub_acc_, sub_hit_, facet_sum_, facet_hit_;
+    std::array<FacetPoint, 4> points_;
+};
 } // namespace
 
 IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
-                                  IntegrationOperator* sd)
+                                  IntegrationOperator* sd, bool share_translates)
 {
-    static const FacetPartners facets;
     const std::vector<index_t> nb = face_neighbours(mesh);
-    std::vector<index_t> colour_offsets, by_colour;
-    colour_elements(mesh, colour_offsets, by_colour);
-    const index_t nn = mesh.n_nodes();
-    std::vector<Entries> rows(static_cast<std::size_t>(nn));
-    std::vector<real_t> slot_volume(8 * static_cast<std::size_t>(mesh.n_elements()));
-    // with sd: the sub-cells' rows, weights, centroids and owners, per slot 8 e + a
-    const std::size_t n_sub = sd ? 8 * static_cast<std::size_t>(mesh.n_elements()) : 0;
-    std::vector<Entries> sub_rows(n_sub);
-    std::vector<real_t> sub_position(3 * n_sub);
-    std::vector<index_t> sub_owner(n_sub);
+    const index_t nn = mesh.n_nodes(), ne = mesh.n_elements();
+    // The region of an element: the particles whose supports reach its box (a trilinear element
+    // lies in its nodes' box). Elements whose regions, shapes and boundary faces are translates
+    // of an earlier element's take its facet sums (RkTranslates).
+    auto frame = [&](index_t e, Vec3& lo, Vec3& hi, Vec3& ref, std::vector<real_t>& own)
+    {
+        real_t xe[8][3];
+        element_coordinates(mesh, e, xe);
+        lo = hi = ref = Vec3(xe[0][0], xe[0][1], xe[0][2]);
+        for (int a = 1; a < 8; ++a)
+            for (int d = 0; d < 3; ++d)
+            {
+                lo[d] = std::min(lo[d], xe[a][d]);
+                hi[d] = std::max(hi[d], xe[a][d]);
+                own.push_back(xe[a][d] - xe[0][d]);
+            }
+        for (int f = 0; f < 6; ++f)
+            own.push_back(nb[6 * static_cast<std::size_t>(e) + f] < 0 ? 1.0 : 0.0);
+    };
+    const RkTranslates translates = find_rk_translates(rk, ne, frame, share_translates);
+    // the sources' facet sums, each with the count of elements it serves (the progress count)
+    std::vector<index_t> sources, served(static_cast<std::size_t>(ne), 0);
+    for (index_t e = 0; e < ne; ++e)
+    {
+        if (translates.computed(e))
+            sources.push_back(e);
+        ++served[translates.source[e]];
+    }
+    std::vector<index_t> sums_of(static_cast<std::size_t>(ne), -1);
+    for (std::size_t k = 0; k < sources.size(); ++k)
+        sums_of[sources[k]] = static_cast<index_t>(k);
+    std::vector<FacetSums> sums(sources.size());
     ParallelErrors errors;
 #pragma omp parallel
     {
-        RkRegionValues values(rk, drop_tolerance);
-        // per local node a: sum psi n dA [a][component][region particle], hit [a][region particle]
-        // (0 / 1); per facet: the same over its candidates
-        std::vector<real_t> acc, hit, facet_sum, facet_hit;
-        std::vector<real_t> sub_acc, sub_hit; // the same per sub-hex a, over all six facets (with sd)
-        Entries scratch;
-        std::array<FacetPoint, 4> points;
+        ElementFacetSums element(rk, drop_tolerance);
         real_t xe[8][3];
-        // sum over a facet's 4 points of psi n dA into the rows of local nodes a (+) and b (-,
-        // the sub-hex across an internal facet, whose normal is the opposite; b < 0: none) where
-        // node_rows, and of their sub-hexes with sd
-        auto add_facet = [&](int a, int b, bool node_rows)
-        {
-            Vec3 lo = points[0].x, hi = points[0].x;
-            for (const FacetPoint& fp : points)
-            {
-                lo = lo.cwiseMin(fp.x);
-                hi = hi.cwiseMax(fp.x);
-            }
-            values.focus(lo, hi);
-            const std::size_t n = values.size();
-            facet_sum.assign(3 * n, 0.0);
-            facet_hit.assign(n, 0.0);
-            real_t *f0 = facet_sum.data(), *f1 = f0 + n, *f2 = f1 + n, *fh = facet_hit.data();
-            for (const FacetPoint& fp : points)
-                add_point_values(values, fp.x, fp.nda, f0, fh);
-            const std::size_t nr = values.region_size();
-            const index_t* slot = values.slots().data();
-            auto scatter = [&](std::vector<real_t>& into, std::vector<real_t>& into_hit, int node, real_t sign)
-            {
-                real_t* g = into.data() + 3 * nr * static_cast<std::size_t>(node);
-                real_t* h = into_hit.data() + nr * static_cast<std::size_t>(node);
-                for (std::size_t k = 0; k < n; ++k)
-                {
-                    const std::size_t r = static_cast<std::size_t>(slot[k]);
-                    g[r] += sign * f0[k];
-                    g[nr + r] += sign * f1[k];
-                    g[2 * nr + r] += sign * f2[k];
-                    h[r] = h[r] < fh[k] ? fh[k] : h[r];
-                }
-            };
-            for (const auto& [node, sign] : {std::pair{a, 1.0}, std::pair{b, -1.0}})
-            {
-                if (node < 0)
-                    continue;
-                if (node_rows)
-                    scatter(acc, hit, node, sign);
-                if (sd)
-                    scatter(sub_acc, sub_hit, node, sign);
-            }
-        };
-        for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
-        {
+        bool boundary_face[6];
 #pragma omp for schedule(dynamic, 16)
-            for (index_t q = colour_offsets[c]; q < colour_offsets[c + 1]; ++q)
+        for (std::size_t k = 0; k < sources.size(); ++k)
+        {
+            const index_t e = sources[k];
+            try
             {
-                const index_t e = by_colour[q];
-                try
-                {
-                    element_coordinates(mesh, e, xe);
-                    Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
-                    for (int I = 0; I < 8; ++I) // a trilinear element lies in its nodes' box
-                        for (int d = 0; d < 3; ++d)
-                        {
-                            lo[d] = std::min(lo[d], xe[I][d]);
-                            hi[d] = std::max(hi[d], xe[I][d]);
-                        }
-                    for (int a = 0; a < 8; ++a)
-                        slot_volume[8 * static_cast<std::size_t>(e) + a] = sub_hex_volume(xe, a);
-                    values.gather(lo, hi);
-                    const std::size_t nr = values.region_size();
-                    acc.assign(8 * 3 * nr, 0.0);
-                    hit.assign(8 * nr, 0.0);
-                    if (sd)
-                    {
-                        sub_acc.assign(8 * 3 * nr, 0.0);
-                        sub_hit.assign(8 * nr, 0.0);
-                    }
-                    for (int a = 0; a < 8; ++a)
-                        for (int d = 0; d < 3; ++d)
-                        {
-                            // the internal facet, once for the pair of sub-hexes it separates
-                            // (the partner's facet has the same points and the opposite normal)
-                            const int b = facets.partner[a][d];
-                            if (a < b)
-                            {
-                                build_sub_hex_facet(xe, a, 2 * d, points);
-                                add_facet(a, b, true);
-                            }
-                            // the external facet: the node's row where the element face is on
-                            // the boundary (inside, it is interior to the nodal cell), the
-                            // sub-cell's always
-                            const bool boundary = nb[6 * e + sub_hex_element_face(a, 2 * d + 1)] < 0;
-                            if (boundary || sd)
-                            {
-                                build_sub_hex_facet(xe, a, 2 * d + 1, points);
-                                add_facet(a, -1, boundary);
-                            }
-                        }
-                    for (int a = 0; a < 8; ++a)
-                        merge_partial_row(rows[mesh.conn[8 * e + a]], values.region_particles(),
-                                          acc.data() + 3 * nr * static_cast<std::size_t>(a),
-                                          hit.data() + nr * static_cast<std::size_t>(a), scratch);
-                    for (std::size_t a = 0; a < (sd ? 8u : 0u); ++a)
-                    {
-                        const std::size_t slot = 8 * static_cast<std::size_t>(e) + a;
-                        RKFEM_REQUIRE(slot_volume[slot] > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
-                                                                                    << " has non-positive volume "
-                                                                                    << slot_volume[slot]);
-                        merge_partial_row(sub_rows[slot], values.region_particles(), sub_acc.data() + 3 * nr * a,
-                                          sub_hit.data() + nr * a, scratch);
-                        for (auto& [j, g] : sub_rows[slot])
-                            g *= 1.0 / slot_volume[slot];
-                        const Vec3 c = sub_hex_centroid(xe, static_cast<int>(a));
-                        for (int d = 0; d < 3; ++d)
-                            sub_position[3 * slot + d] = c[d];
-                        sub_owner[slot] = mesh.conn[slot];
-                    }
-                    setup_progress::advance();
-                }
-                catch (...)
-                {
-                    errors.capture();
-                }
+                element_coordinates(mesh, e, xe);
+                for (int f = 0; f < 6; ++f)
+                    boundary_face[f] = nb[6 * static_cast<std::size_t>(e) + f] < 0;
+                element.values().gather(translates.region(e), static_cast<std::size_t>(translates.region_size(e)));
+                element.compute(xe, boundary_face, sd != nullptr, sums[k]);
+                setup_progress::advance(served[e]);
+            }
+            catch (...)
+            {
+                errors.capture();
             }
         }
     }
     errors.rethrow();
+    // Sub-hex volumes, and with sd the sub-cells' rows (each one list of its element's sums,
+    // read through the element's own region), weights, centroids and owners, per slot 8 e + a.
+    std::vector<real_t> slot_volume(8 * static_cast<std::size_t>(ne));
+    const std::size_t n_sub = sd ? 8 * static_cast<std::size_t>(ne) : 0;
+    std::vector<Entries> sub_rows(n_sub);
+    std::vector<real_t> sub_position(3 * n_sub);
+    std::vector<index_t> sub_owner(n_sub);
+    parallel_for("rkfem::build_scni_rk::sub_cells", ne,
+                 [&](index_t e)
+                 {
+                     real_t xe[8][3];
+                     element_coordinates(mesh, e, xe);
+                     for (int a = 0; a < 8; ++a)
+                         slot_volume[8 * static_cast<std::size_t>(e) + a] = sub_hex_volume(xe, a);
+                     if (!sd)
+                         return;
+                     const FacetSums& from = sums[sums_of[translates.source[e]]];
+                     const index_t* ids = translates.region(e);
+                     for (int a = 0; a < 8; ++a)
+                     {
+                         const std::size_t slot = 8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(a);
+                         if (!(slot_volume[slot] > 0.0))
+                             continue; // reported below, in element order
+                         const real_t scale = 1.0 / slot_volume[slot];
+                         for (index_t k = from.start[8 + a]; k < from.start[9 + a]; ++k)
+                         {
+                             const real_t* g = from.g.data() + 3 * static_cast<std::size_t>(k);
+                             sub_rows[slot].emplace_back(ids[from.slot[k]], Vec3(g[0], g[1], g[2]) * scale);
+                         }
+                         const Vec3 c = sub_hex_centroid(xe, a);
+                         for (int d = 0; d < 3; ++d)
+                             sub_position[3 * slot + d] = c[d];
+                         sub_owner[slot] = mesh.conn[slot];
+                     }
+                 });
+    for (std::size_t slot = 0; slot < n_sub; ++slot)
+        RKFEM_REQUIRE(slot_volume[slot] > 0.0, "SD-SCNI: sub-cell " << slot % 8 << " of element " << slot / 8
+                                                                    << " has non-positive volume " << slot_volume[slot]);
     // nodal volumes: each node's sub-hexes in incidence order (the same bits on any thread count)
     std::vector<index_t> inc_offsets, slots;
     node_element_incidence(mesh, inc_offsets, slots);
     IntegrationOperator op;
     op.weight.assign(static_cast<std::size_t>(nn), 0.0);
-    op.offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
     for (index_t i = 0; i < nn; ++i)
     {
         for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
             op.weight[i] += slot_volume[slots[k]];
         RKFEM_REQUIRE(op.weight[i] > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << op.weight[i]);
-        op.offsets[i + 1] = op.offsets[i] + static_cast<index_t>(rows[i].size());
     }
+    // Each node's row: the sums of its sub-hexes merged by particle, each particle's terms added
+    // in the order of their elements' colours (a fixed order, so the same bits on any number of
+    // threads), then scaled by 1 / V. Threads take contiguous ranges of nodes (a static
+    // schedule), so their rows, joined in thread order, are the operator's.
+    std::vector<index_t> colour_offsets, by_colour;
+    colour_elements(mesh, colour_offsets, by_colour);
+    std::vector<index_t> colour_of(static_cast<std::size_t>(ne));
+    for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
+        for (index_t q = colour_offsets[c]; q < colour_offsets[c + 1]; ++q)
+            colour_of[by_colour[q]] = static_cast<index_t>(c);
+    // per node: its sub-hexes' lists in colour order (a count pass, then a pass that writes the
+    // merged rows in place)
+    struct List
+    {
+        index_t colour, next, end;
+        const index_t *ids, *slot;
+        const real_t* g;
+    };
+    auto lists_of = [&](index_t i, std::vector<List>& lists)
+    {
+        lists.clear();
+        for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
+        {
+            const index_t e = slots[k] / 8, a = slots[k] % 8;
+            const FacetSums& from = sums[sums_of[translates.source[e]]];
+            lists.push_back({colour_of[e], from.start[a], from.start[a + 1], translates.region(e), from.slot.data(),
+                             from.g.data()});
+        }
+        std::sort(lists.begin(), lists.end(), [](const List& p, const List& q) { return p.colour < q.colour; });
+    };
+    // the next particle of the merged lists (none: the largest index)
+    auto next_particle = [](const std::vector<List>& lists)
+    {
+        index_t id = std::numeric_limits<index_t>::max();
+        for (const List& l : lists)
+            if (l.next < l.end)
+                id = std::min(id, l.ids[l.slot[l.next]]);
+        return id;
+    };
+    constexpr index_t kDone = std::numeric_limits<index_t>::max();
+    op.offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+#pragma omp parallel
+    {
+        std::vector<List> lists;
+#pragma omp for schedule(static)
+        for (index_t i = 0; i < nn; ++i)
+        {
+            lists_of(i, lists);
+            index_t count = 0;
+            for (index_t id = next_particle(lists); id != kDone; id = next_particle(lists), ++count)
+                for (List& l : lists)
+                    l.next += l.next < l.end && l.ids[l.slot[l.next]] == id ? 1 : 0;
+            op.offsets[i + 1] = count;
+        }
+    }
+    for (index_t i = 0; i < nn; ++i)
+        op.offsets[i + 1] += op.offsets[i];
     op.position = mesh.x;
     op.owner.resize(static_cast<std::size_t>(nn));
     op.nodes.resize(static_cast<std::size_t>(op.offsets[nn]));
     op.grad.resize(3 * op.nodes.size());
-    // the rows scaled by 1 / V into the CSR, in parallel (each row freed as it is copied)
-    parallel_for("rkfem::build_scni_rk::pack", nn,
-                 [&](index_t i)
-                 {
-                     const real_t scale = 1.0 / op.weight[i];
-                     index_t k = op.offsets[i];
-                     for (const auto& [n, g] : rows[i])
-                     {
-                         op.nodes[k] = n;
-                         for (int d = 0; d < 3; ++d)
-                             op.grad[3 * static_cast<std::size_t>(k) + d] = g[d] * scale;
-                         ++k;
-                     }
-                     op.owner[i] = i;
-                     Entries().swap(rows[i]);
-                 });
+#pragma omp parallel
+    {
+        std::vector<List> lists;
+#pragma omp for schedule(static)
+        for (index_t i = 0; i < nn; ++i)
+        {
+            lists_of(i, lists);
+            const real_t scale = 1.0 / op.weight[i];
+            std::size_t k = static_cast<std::size_t>(op.offsets[i]);
+            for (index_t id = next_particle(lists); id != kDone; id = next_particle(lists), ++k)
+            {
+                Vec3 sum = Vec3::Zero();
+                bool started = false;
+                for (List& l : lists)
+                    if (l.next < l.end && l.ids[l.slot[l.next]] == id)
+                    {
+                        const real_t* g = l.g + 3 * static_cast<std::size_t>(l.next++);
+                        const Vec3 term(g[0], g[1], g[2]);
+                        sum = started ? Vec3(sum + term) : term;
+                        started = true;
+                    }
+                op.nodes[k] = id;
+                for (int d = 0; d < 3; ++d)
+                    op.grad[3 * k + d] = sum[d] * scale;
+            }
+            op.owner[i] = i;
+        }
+    }
+    std::vector<FacetSums>().swap(sums);
     if (sd)
         *sd = pack(sub_rows, slot_volume, std::move(sub_position), std::move(sub_owner));
     return op;
@@ -607,7 +735,6 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
     {
         RkRegionValues values(rk, drop_tolerance);
         std::vector<real_t> acc, hit; // per region particle: sum psi n dA [component][particle], hit (0 / 1)
-        Entries scratch;
 #pragma omp for schedule(dynamic, 16)
         for (index_t i = 0; i < n; ++i)
         {
@@ -627,10 +754,10 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                 for (index_t q = q0; q < q1; ++q) // the candidates are the region's (no focus)
                     add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
                 rows[i].clear();
-                merge_partial_row(rows[i], values.region_particles(), acc.data(), hit.data(), scratch);
                 const real_t scale = 1.0 / cells.volume[i];
-                for (auto& [j, g] : rows[i])
-                    g *= scale;
+                for (std::size_t k = 0; k < nr; ++k)
+                    if (hit[k] != 0.0)
+                        rows[i].emplace_back(values.region_particles()[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]) * scale);
                 setup_progress::advance();
             }
             catch (...)
@@ -716,29 +843,61 @@ IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, c
     return op;
 }
 
+RkTranslates particle_translates(const RkShapeFunctions& rk, bool share)
+{
+    const Vec3 reach = RkRegionValues(rk, 0.0).hessian_reach();
+    return find_rk_translates(
+        rk, rk.size(),
+        [&](index_t p, Vec3& lo, Vec3& hi, Vec3& ref, std::vector<real_t>&)
+        {
+            ref = rk.position(p);
+            lo = ref - reach;
+            hi = ref + reach;
+        },
+        share);
+}
+
 IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
-                                             const std::vector<real_t>& moments, real_t drop_tolerance)
+                                             const std::vector<real_t>& moments, real_t drop_tolerance,
+                                             bool share_translates)
+{
+    return build_nsni_stabilization(points, rk, moments, drop_tolerance, particle_translates(rk, share_translates));
+}
+
+IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
+                                             const std::vector<real_t>& moments, real_t drop_tolerance,
+                                             const RkTranslates& translates)
 {
     const index_t np = points.n_points();
     RKFEM_REQUIRE(moments.size() == 3 * static_cast<std::size_t>(np),
                   "NSNI: " << moments.size() << " second moments for " << np << " points");
-    // sub-points 3 p + i of point p, each with p's nodes and row i of each entry's matrix
-    IntegrationOperator op;
-    const std::size_t ns = 3 * static_cast<std::size_t>(np);
-    op.offsets.resize(ns + 1);
-    op.offsets[0] = 0;
-    op.weight.resize(ns);
-    op.position.resize(3 * ns);
-    op.owner.resize(ns);
-    op.parent.resize(ns);
-    // Points go in blocks of 1024: each block's Hessians (per point: its nodes and their matrices, 76
-    // bytes per entry) are appended to the operator before the next block is evaluated, so the
-    // set-up holds the operator and one block's lists, not every point's lists beside the
-    // operator they are copied into. The lists' storage is reused from block to block.
-    constexpr index_t kBlock = 1024;
-    const std::size_t nb = static_cast<std::size_t>(std::min<index_t>(np, kBlock));
-    std::vector<std::vector<index_t>> nodes(nb);
-    std::vector<std::vector<Mat3>> hess(nb);
+    RKFEM_REQUIRE(translates.size() == rk.size() && np == rk.size(),
+                  "NSNI: " << np << " points and " << translates.size() << " particle neighbourhoods for " << rk.size()
+                           << " particles");
+    for (index_t p = 0; p < np; ++p)
+        RKFEM_REQUIRE(points.owner[p] == p, "NSNI: point " << p << " is not at particle " << p << " (node-ordered points)");
+    std::vector<index_t> served(static_cast<std::size_t>(np), 0);
+    for (index_t p = 0; p < np; ++p)
+        ++served[translates.source[p]];
+    // The sources' matrices, in blocks of 1024 sources: each block's lists (per source: its
+    // nodes and their matrices, 76 bytes per entry) are packed into the block's store (a node
+    // and the six distinct values of its symmetric matrix, 52 bytes) before the next block is
+    // evaluated, so the set-up holds the stores and one block's lists; the lists' storage is
+    // reused from block to block.
+    std::vector<index_t> sources;
+    for (index_t p = 0; p < np; ++p)
+        if (translates.computed(p))
+            sources.push_back(p);
+    constexpr std::size_t kBlock = 1024;
+    struct Store
+    {
+        std::vector<index_t> offsets{0}, nodes;
+        std::vector<real_t> h; // 00, 01, 02, 11, 12, 22 per entry
+    };
+    std::vector<Store> stores((sources.size() + kBlock - 1) / kBlock);
+    const std::size_t nl = std::min(sources.size(), kBlock);
+    std::vector<std::vector<index_t>> nodes(nl);
+    std::vector<std::vector<Mat3>> hess(nl);
     ParallelErrors errors;
     bool failed = false;
 #pragma omp parallel
@@ -746,21 +905,22 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
         // the particles near each point gathered once for its six gradient evaluations
         // (RkRegionValues::hessians; RkShapeFunctions::hessians is its plain twin)
         RkRegionValues region(rk, 0.0);
-        for (index_t b0 = 0; b0 < np && !failed; b0 += kBlock)
+        for (std::size_t b = 0; b < stores.size() && !failed; ++b)
         {
-            const index_t b1 = std::min<index_t>(np, b0 + kBlock);
+            const std::size_t k0 = b * kBlock, k1 = std::min(sources.size(), k0 + kBlock);
 #pragma omp for schedule(dynamic, 64)
-            for (index_t p = b0; p < b1; ++p)
+            for (std::size_t k = k0; k < k1; ++k)
             {
+                const index_t p = sources[k];
                 try
                 {
-                    std::vector<index_t>& n = nodes[static_cast<std::size_t>(p - b0)];
-                    std::vector<Mat3>& h = hess[static_cast<std::size_t>(p - b0)];
+                    std::vector<index_t>& n = nodes[k - k0];
+                    std::vector<Mat3>& h = hess[k - k0];
                     const Vec3 x = rk.position(points.owner[p]);
-                    region.hessians(x, n, h);
+                    region.hessians(x, translates.region(p), static_cast<std::size_t>(translates.region_size(p)), n, h);
                     if (drop_tolerance > 0.0)
                         prune_rk_hessians(rk, x, drop_tolerance, n, h);
-                    setup_progress::advance();
+                    setup_progress::advance(served[p]);
                 }
                 catch (...)
                 {
@@ -775,25 +935,19 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
             {
                 try // (an allocation that fails is the builder's error, not the team's)
                 {
-                    for (index_t p = b0; p < b1; ++p)
+                    Store& st = stores[b];
+                    std::size_t total = 0;
+                    for (std::size_t k = k0; k < k1; ++k)
+                        total += nodes[k - k0].size();
+                    st.nodes.reserve(total);
+                    st.h.reserve(6 * total);
+                    for (std::size_t k = k0; k < k1; ++k)
                     {
-                        const index_t count = static_cast<index_t>(nodes[static_cast<std::size_t>(p - b0)].size());
-                        for (std::size_t s = 3 * static_cast<std::size_t>(p); s < 3 * static_cast<std::size_t>(p) + 3; ++s)
-                            op.offsets[s + 1] = op.offsets[s] + count;
+                        st.nodes.insert(st.nodes.end(), nodes[k - k0].begin(), nodes[k - k0].end());
+                        for (const Mat3& m : hess[k - k0])
+                            st.h.insert(st.h.end(), {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)});
+                        st.offsets.push_back(static_cast<index_t>(st.nodes.size()));
                     }
-                    const std::size_t total = static_cast<std::size_t>(op.offsets[3 * static_cast<std::size_t>(b1)]);
-                    if (total > op.nodes.capacity())
-                    {
-                        // room for the rest at the mean so far and a quarter more: reserved memory
-                        // that is never written costs no page, a reallocation copies the operator
-                        const std::size_t estimate = std::max(
-                            total, static_cast<std::size_t>(1.25 * static_cast<double>(total) * static_cast<double>(np) /
-                                                            static_cast<double>(b1)));
-                        op.nodes.reserve(estimate);
-                        op.grad.reserve(3 * estimate);
-                    }
-                    op.nodes.resize(total);
-                    op.grad.resize(3 * total);
                 }
                 catch (...)
                 {
@@ -801,39 +955,70 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
                     failed = true;
                 }
             }
-            if (!failed)
-            {
-#pragma omp for schedule(static)
-                for (index_t p = b0; p < b1; ++p)
-                {
-                    const std::vector<index_t>& n = nodes[static_cast<std::size_t>(p - b0)];
-                    const std::vector<Mat3>& h = hess[static_cast<std::size_t>(p - b0)];
-                    for (int i = 0; i < 3; ++i)
-                    {
-                        const std::size_t s = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
-                        op.weight[s] = moments[s];
-                        for (int d = 0; d < 3; ++d)
-                            op.position[3 * s + d] = points.position[3 * static_cast<std::size_t>(p) + d];
-                        op.owner[s] = points.owner[p];
-                        op.parent[s] = p;
-                        std::size_t q = static_cast<std::size_t>(op.offsets[s]);
-                        for (std::size_t k = 0; k < n.size(); ++k, ++q)
-                        {
-                            op.nodes[q] = n[k];
-                            for (int d = 0; d < 3; ++d)
-                                op.grad[3 * q + d] = h[k](i, d);
-                        }
-                    }
-                }
-            }
         }
     }
     errors.rethrow();
-    if (op.nodes.capacity() > op.nodes.size() + op.nodes.size() / 2) // the estimate was far off
+    std::vector<std::vector<index_t>>().swap(nodes);
+    std::vector<std::vector<Mat3>>().swap(hess);
+    // each point's entries in its source's store
+    std::vector<index_t> source_index(static_cast<std::size_t>(np), -1);
+    for (std::size_t k = 0; k < sources.size(); ++k)
+        source_index[sources[k]] = static_cast<index_t>(k);
+    auto stored = [&](index_t p, const index_t*& n, const real_t*& h)
     {
-        op.nodes.shrink_to_fit();
-        op.grad.shrink_to_fit();
+        const std::size_t k = static_cast<std::size_t>(source_index[translates.source[p]]);
+        const Store& st = stores[k / kBlock];
+        const index_t j0 = st.offsets[k % kBlock];
+        n = st.nodes.data() + j0;
+        h = st.h.data() + 6 * static_cast<std::size_t>(j0);
+        return st.offsets[k % kBlock + 1] - j0;
+    };
+    // sub-points 3 p + i of point p, each with p's nodes and row i of each entry's matrix,
+    // allocated once at their exact size and filled in parallel; a point that takes its source's
+    // matrices reads them with its particles matched to the source's
+    IntegrationOperator op;
+    const std::size_t ns = 3 * static_cast<std::size_t>(np);
+    op.offsets.resize(ns + 1);
+    op.offsets[0] = 0;
+    for (index_t p = 0; p < np; ++p)
+    {
+        const index_t* n;
+        const real_t* h;
+        const index_t count = stored(p, n, h);
+        for (std::size_t q = 3 * static_cast<std::size_t>(p); q < 3 * static_cast<std::size_t>(p) + 3; ++q)
+            op.offsets[q + 1] = op.offsets[q] + count;
     }
+    op.weight = moments;
+    op.position.resize(3 * ns);
+    op.owner.resize(ns);
+    op.parent.resize(ns);
+    op.nodes.resize(static_cast<std::size_t>(op.offsets[ns]));
+    op.grad.resize(3 * op.nodes.size());
+    parallel_for("rkfem::build_nsni_stabilization::fill", np,
+                 [&](index_t p)
+                 {
+                     static constexpr int kSym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}}; // (i, d) in 00, 01, 02, 11, 12, 22
+                     const index_t* n;
+                     const real_t* h;
+                     const index_t count = stored(p, n, h);
+                     const bool own = translates.computed(p);
+                     for (int i = 0; i < 3; ++i)
+                     {
+                         const std::size_t q = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
+                         for (int d = 0; d < 3; ++d)
+                             op.position[3 * q + d] = points.position[3 * static_cast<std::size_t>(p) + d];
+                         op.owner[q] = points.owner[p];
+                         op.parent[q] = p;
+                         const std::size_t k0 = static_cast<std::size_t>(op.offsets[q]);
+                         for (index_t j = 0; j < count; ++j)
+                         {
+                             const std::size_t k = k0 + static_cast<std::size_t>(j);
+                             op.nodes[k] = own ? n[j] : i == 0 ? translates.counterpart(p, n[j]) : op.nodes[k - count];
+                             for (int d = 0; d < 3; ++d)
+                                 op.grad[3 * k + d] = h[6 * static_cast<std::size_t>(j) + kSym[i][d]];
+                         }
+                     }
+                 });
     return op;
 }
 

@@ -15,6 +15,7 @@
 /// in element order, 8 e + a. Positions and gradients are in the mesh's (reference) configuration.
 #include <vector>
 
+#include "rkfem/approximation/rk/rk_translates.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/integration/integration_operator.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
@@ -42,12 +43,16 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
 /// particles near it once (RkRegionValues) and evaluates each of its facet points once, for
 /// both nodal cells an internal facet bounds (build_scni, node by node, evaluates it from each
 /// side). Elements of one colour share no node, so they add into their nodes' rows in parallel,
-/// colour after colour: the rows are the same bits on any number of threads. One progress
-/// count per element.
+/// colour after colour: the rows are the same bits on any number of threads.
 /// With sd, also the SD-SCNI sub-cells that MSCNI needs (build_scni_sd's sd, to round-off): every
 /// sub-hex facet point once, the external facets inside the body for the sub-cells alone.
+/// With share_translates, an element whose shape, boundary faces and particles around it are a
+/// translate of an earlier element's (rk_translates.hpp: the layers of an extruded mesh, the
+/// interior of a structured block) takes that element's facet sums instead of evaluating its
+/// own; without, every element evaluates its own (the plain build: each element's sums as the
+/// shared build computes its sources'). One progress count per element.
 IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
-                                  IntegrationOperator* sd = nullptr);
+                                  IntegrationOperator* sd = nullptr, bool share_translates = true);
 
 /// Greedy colouring of a mesh's elements: no two elements that share a node have one colour.
 /// Returns the elements by colour as CSR (colour c: elements[offsets[c] .. offsets[c + 1]),
@@ -85,9 +90,24 @@ IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, c
 /// quadratic form sum_i M_i eps_,i : C : eps_,i stiffens the modes SCNI leaves soft. Entries
 /// cover the particles around x_p only (27 on a lattice with support 1.51 h), about a fifth of
 /// MSCNI's (8 sub-cells of about 125 entries).
-/// With drop_tolerance > 0 the second derivatives go through prune_rk_hessians.
+/// With drop_tolerance > 0 the second derivatives go through prune_rk_hessians. A point whose
+/// particle's neighbourhood is a translate of an earlier particle's (particle_translates)
+/// takes that point's matrices instead of evaluating its own; with share_translates false every
+/// point evaluates its own.
 IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
-                                             const std::vector<real_t>& moments, real_t drop_tolerance = 0.0);
+                                             const std::vector<real_t>& moments, real_t drop_tolerance = 0.0,
+                                             bool share_translates = true);
+/// The same with the particles' translates given (particle_translates(rk)); the points must be
+/// node-ordered (point p at particle p).
+IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
+                                             const std::vector<real_t>& moments, real_t drop_tolerance,
+                                             const RkTranslates& particles);
+
+/// The particles of rk grouped into translates (rk_translates.hpp) by their neighbourhoods:
+/// particle p's region is the particles whose supports reach the box x_p -+
+/// RkRegionValues::hessian_reach(), the particles NSNI's second derivatives at x_p read (and
+/// a superset of those that cover x_p). With share false, every particle is its own source.
+RkTranslates particle_translates(const RkShapeFunctions& rk, bool share = true);
 
 /// Second moments of the nodal (hex-dual) cells about their nodes, 3 per node:
 /// M_iL = int_{Omega_L} (x_i - X_Li)^2 dOmega, by 2 x 2 x 2 Gauss points on each sub-hex (exact
