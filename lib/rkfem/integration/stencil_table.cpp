@@ -181,6 +181,62 @@ TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable&
     return t;
 }
 
+TripletTable share_triplets(const TripletTable& in, const StencilSharing& opts)
+{
+    TripletTable t;
+    t.point_base = in.point_base;
+    std::vector<index_t> kept(static_cast<std::size_t>(in.n_triplets())); // per stencil of `in`: the stencil of t
+    std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets; // hash -> stencils of t
+    std::vector<real_t> scale;                                          // per stencil of t: its largest value
+    for (index_t c = 0; c < in.n_triplets(); ++c)
+    {
+        const index_t k0 = in.offsets[static_cast<std::size_t>(c)];
+        const index_t n = in.offsets[static_cast<std::size_t>(c) + 1] - k0;
+        const index_t* offset = in.node_offset.data() + k0;
+        const real_t* h = in.hess.data() + 6 * static_cast<std::size_t>(k0);
+        std::vector<index_t>& candidates = by_offsets[offsets_hash(offset, n)];
+        // (written so that a NaN on either side differs)
+        auto matches = [&](index_t s)
+        {
+            const index_t j0 = t.offsets[static_cast<std::size_t>(s)];
+            if (t.offsets[static_cast<std::size_t>(s) + 1] - j0 != n ||
+                !std::equal(offset, offset + n, t.node_offset.data() + j0))
+                return false;
+            const real_t* hs = t.hess.data() + 6 * static_cast<std::size_t>(j0);
+            const real_t bound = opts.relative_tolerance * scale[static_cast<std::size_t>(s)];
+            for (index_t k = 0; k < 6 * n; ++k)
+                if (!(std::abs(hs[k] - h[k]) <= bound))
+                    return false;
+            return true;
+        };
+        index_t found = -1;
+        const int nc = static_cast<int>(candidates.size());
+        for (int q = nc - 1; q >= std::max(0, nc - opts.max_candidates) && found < 0; --q)
+            if (matches(candidates[static_cast<std::size_t>(q)]))
+                found = candidates[static_cast<std::size_t>(q)];
+        if (found < 0)
+        {
+            found = t.n_triplets();
+            t.node_offset.insert(t.node_offset.end(), offset, offset + n);
+            t.hess.insert(t.hess.end(), h, h + 6 * n);
+            t.offsets.push_back(t.n_entries());
+            real_t largest = 0.0;
+            for (index_t k = 0; k < 6 * n; ++k)
+                largest = std::max(largest, std::abs(h[k]));
+            scale.push_back(largest);
+            candidates.push_back(found);
+        }
+        kept[static_cast<std::size_t>(c)] = found;
+    }
+    t.point_triplet.resize(in.point_triplet.size());
+    for (std::size_t p = 0; p < in.point_triplet.size(); ++p)
+        t.point_triplet[p] = kept[static_cast<std::size_t>(in.point_triplet[p])];
+    t.offsets.shrink_to_fit();
+    t.node_offset.shrink_to_fit();
+    t.hess.shrink_to_fit();
+    return t;
+}
+
 void expand_triplets(IntegrationOperator& stab, const TripletTable& table)
 {
     const index_t ns = stab.n_points();

@@ -125,6 +125,13 @@ struct TripletTable
 /// pass reads the sub-point stencils).
 TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable& shared);
 
+/// The triplet stencils of `table` merged where their node offsets agree and their values
+/// agree within opts.relative_tolerance of the largest of the earlier one (compared newest
+/// first, opts.max_candidates per offset pattern, as share_stencils does): the earlier stencil
+/// is kept and the later one's points read it, so a point's values move by at most that much.
+/// The same points and bases.
+TripletTable share_triplets(const TripletTable& table, const StencilSharing& opts = {});
+
 /// Writes the sub-point entries of `stab` from its triplet table: sub-point i of entry k gets
 /// row i of the entry's symmetric matrix. It snaps an operator to its table, as sharing does,
 /// and writes back the entries of a released one.

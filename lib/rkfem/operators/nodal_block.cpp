@@ -82,12 +82,26 @@ void NodalBlock::expand_operators()
 
 void NodalBlock::build_tables(Assembly assembly)
 {
-    expand_operators();
+    // NSNI held as triplets alone (build_nsni_triplets, or an earlier build of a compact block)
+    // stays so: the triplets are already shared, and the sub-point entries are formed only if
+    // the gather assembly below needs them
+    const bool held_as_triplets = stab_in_triplets && stabilization_triplets && compact_operators;
+    if (held_as_triplets)
+    {
+        stab_in_triplets = false;
+        expand_operators();
+        stab_in_triplets = true;
+    }
+    else
+        expand_operators();
     const index_t np = n_points(), ns = n_stab();
-    const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     const index_t nn = node_end - node_begin;
 
-    if (stabilization_triplets)
+    if (stabilization_triplets && held_as_triplets)
+        RKFEM_REQUIRE(ns == 3 * np && stab_triplets.point_triplet.size() == static_cast<std::size_t>(np),
+                      "nodal block: " << ns << " NSNI sub-points and " << stab_triplets.point_triplet.size()
+                                      << " triplets for " << np << " points");
+    else if (stabilization_triplets)
     {
         // NSNI's layout (build_nsni_stabilization): sub-points 3 p + i of parent p, with one node list
         RKFEM_REQUIRE(ns == 3 * np, "nodal block: " << ns << " NSNI sub-points for " << np << " points");
@@ -110,19 +124,23 @@ void NodalBlock::build_tables(Assembly assembly)
     if (share_stencils)
     {
         point_stencils = rkfem::share_stencils(points);
-        stab_stencils = rkfem::share_stencils(stabilization);
+        if (!held_as_triplets)
+            stab_stencils = rkfem::share_stencils(stabilization);
     }
     // NSNI's triplets: per entry the six values the pass reads. They snap the operator, as
     // shared stencils do (whose sub-points, snapped one class at a time, differ from symmetry by
     // up to the sharing's tolerance), so that every reader, the transposes below included, sees
     // one symmetric operator; they replace the sub-points' shared stencils.
-    stab_triplets.clear();
-    if (stabilization_triplets)
-        stab_triplets = build_triplets(stabilization, stab_stencils);
-    if (!stab_triplets.empty())
+    if (!held_as_triplets)
     {
-        stab_stencils.clear();
-        expand_triplets(stabilization, stab_triplets);
+        stab_triplets.clear();
+        if (stabilization_triplets)
+            stab_triplets = build_triplets(stabilization, stab_stencils);
+        if (!stab_triplets.empty())
+        {
+            stab_stencils.clear();
+            expand_triplets(stabilization, stab_triplets);
+        }
     }
 
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
@@ -154,14 +172,24 @@ void NodalBlock::build_tables(Assembly assembly)
             const std::size_t added = scatter.add_chunks(n, size,
                                                          [&](index_t first, index_t last, index_t& lo, index_t& hi)
                                                          {
-                                                             const bool triplets = op == &points && stabilization_triplets;
-                                                             const index_t k0 = triplets ? stabilization.offsets[3 * first] : 0,
-                                                                           k1 = triplets ? stabilization.offsets[3 * last] : 0;
-                                                             for (index_t k = k0; k < k1; ++k)
-                                                             {
-                                                                 lo = std::min(lo, stabilization.nodes[k]);
-                                                                 hi = std::max(hi, stabilization.nodes[k] + 1);
-                                                             }
+                                                             // NSNI's triplets run in their points' batches: their nodes too
+                                                             if (op == &points && stabilization_triplets && !stab_triplets.empty())
+                                                                 for (index_t t = first; t < last; ++t)
+                                                                 {
+                                                                     const TripletView v = stab_triplets.view(t);
+                                                                     for (index_t k = 0; k < v.size; ++k)
+                                                                     {
+                                                                         lo = std::min(lo, v.base + v.offset[k]);
+                                                                         hi = std::max(hi, v.base + v.offset[k] + 1);
+                                                                     }
+                                                                 }
+                                                             else if (op == &points && stabilization_triplets)
+                                                                 for (index_t k = stabilization.offsets[3 * first];
+                                                                      k < stabilization.offsets[3 * last]; ++k)
+                                                                 {
+                                                                     lo = std::min(lo, stabilization.nodes[k]);
+                                                                     hi = std::max(hi, stabilization.nodes[k] + 1);
+                                                                 }
                                                              for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
                                                              {
                                                                  RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,
@@ -190,10 +218,13 @@ void NodalBlock::build_tables(Assembly assembly)
         scatter.clear();
         n_point_chunks = 0;
     }
-    // transpose (node -> entries) for the gather assembly
+    // transpose (node -> entries) for the gather assembly, which reads the sub-point entries
     node_entry_offsets.clear();
     node_point.clear();
     node_grad.clear();
+    if (!use_scatter && held_as_triplets)
+        expand_operators();
+    const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     if (!use_scatter)
     {
         std::vector<index_t> entry_point(static_cast<std::size_t>(ne_p + ne_s));

@@ -148,6 +148,16 @@ void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const RkTrans
                  });
 }
 
+/// NSNI held as its triplets alone from the start (a compact block's form, NodalBlock::
+/// stab_in_triplets): build_tables keeps them and forms no sub-point entries.
+void hold_nsni(NodalBlock& nb, NsniTriplets nsni)
+{
+    nb.stabilization = std::move(nsni.frame);
+    nb.stab_triplets = std::move(nsni.table);
+    nb.stabilization_triplets = true;
+    nb.stab_in_triplets = true;
+}
+
 DeckError singular_support(const PartSpec& ps, const SingularMomentError& e)
 {
     return DeckError({ps.rk.loc.where.empty() ? ps.loc.where : ps.rk.loc.where, ps.loc.path + ".rk.normalized_support"},
@@ -222,10 +232,11 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
         {
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
                                                  mscni ? 0 : nb.points.n_points());
-            nb.stabilization = mscni ? build_mscni_stabilization(nb.points, sd)
-                                     : build_nsni_stabilization(nb.points, *rk, nodal_second_moments(mesh),
-                                                                ps.rk.drop_tolerance, particles());
-            nb.stabilization_triplets = ps.nodal.stabilization == "nsni" && rk;
+            if (mscni)
+                nb.stabilization = build_mscni_stabilization(nb.points, sd);
+            else
+                hold_nsni(nb, build_nsni_triplets(nb.points, *rk, nodal_second_moments(mesh), ps.rk.drop_tolerance,
+                                                  particles()));
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
         if (rk)
@@ -705,10 +716,11 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
         {
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
                                                  nsni ? nb.points.n_points() : 0);
-            nb.stabilization = nsni ? build_nsni_stabilization(nb.points, *rk, cube_second_moments(cells.volume),
-                                                               ps.rk.drop_tolerance, particles)
-                                    : build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
-            nb.stabilization_triplets = nsni;
+            if (nsni)
+                hold_nsni(nb, build_nsni_triplets(nb.points, *rk, cube_second_moments(cells.volume), ps.rk.drop_tolerance,
+                                                  particles));
+            else
+                nb.stabilization = build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
         add_interpolation(nb, *rk, particles, offset);

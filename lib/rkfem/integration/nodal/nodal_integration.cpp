@@ -14,6 +14,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/setup_progress.hpp"
+#include "rkfem/integration/stencil_table.hpp"
 
 namespace rkfem
 {
@@ -864,135 +865,166 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
     return build_nsni_stabilization(points, rk, moments, drop_tolerance, particle_translates(rk, share_translates));
 }
 
+namespace
+{
+/// NSNI's matrices at the source particles (particle_translates): per source its nodes and the
+/// six distinct values of each node's symmetric matrix (00, 01, 02, 11, 12, 22). Sources go in
+/// blocks of 1024: each block's lists (per source: its nodes and their matrices, 76 bytes per
+/// entry) are packed into the block's store (52 bytes per entry) before the next block is
+/// evaluated, so the set-up holds the stores and one block's lists, whose storage is reused.
+class NsniSources
+{
+  public:
+    NsniSources(const IntegrationOperator& points, const RkShapeFunctions& rk, const std::vector<real_t>& moments,
+                real_t drop_tolerance, const RkTranslates& translates)
+        : translates_(translates), source_index_(static_cast<std::size_t>(points.n_points()), -1)
+    {
+        const index_t np = points.n_points();
+        RKFEM_REQUIRE(moments.size() == 3 * static_cast<std::size_t>(np),
+                      "NSNI: " << moments.size() << " second moments for " << np << " points");
+        RKFEM_REQUIRE(translates.size() == rk.size() && np == rk.size(),
+                      "NSNI: " << np << " points and " << translates.size() << " particle neighbourhoods for "
+                               << rk.size() << " particles");
+        std::vector<index_t> sources, served(static_cast<std::size_t>(np), 0);
+        for (index_t p = 0; p < np; ++p)
+        {
+            RKFEM_REQUIRE(points.owner[p] == p, "NSNI: point " << p << " is not at particle " << p << " (node-ordered points)");
+            ++served[translates.source[p]];
+            if (translates.computed(p))
+            {
+                source_index_[p] = static_cast<index_t>(sources.size());
+                sources.push_back(p);
+            }
+        }
+        stores_.resize((sources.size() + kBlock - 1) / kBlock);
+        const std::size_t nl = std::min(sources.size(), kBlock);
+        std::vector<std::vector<index_t>> nodes(nl);
+        std::vector<std::vector<Mat3>> hess(nl);
+        ParallelErrors errors;
+        bool failed = false;
+#pragma omp parallel
+        {
+            // the particles near each point gathered once for its six gradient evaluations
+            // (RkRegionValues::hessians; RkShapeFunctions::hessians is its plain twin)
+            RkRegionValues region(rk, 0.0);
+            for (std::size_t b = 0; b < stores_.size() && !failed; ++b)
+            {
+                const std::size_t k0 = b * kBlock, k1 = std::min(sources.size(), k0 + kBlock);
+#pragma omp for schedule(dynamic, 64)
+                for (std::size_t k = k0; k < k1; ++k)
+                {
+                    const index_t p = sources[k];
+                    try
+                    {
+                        std::vector<index_t>& n = nodes[k - k0];
+                        std::vector<Mat3>& h = hess[k - k0];
+                        const Vec3 x = rk.position(p);
+                        region.hessians(x, translates.region(p), static_cast<std::size_t>(translates.region_size(p)), n, h);
+                        if (drop_tolerance > 0.0)
+                            prune_rk_hessians(rk, x, drop_tolerance, n, h);
+                        setup_progress::advance(served[p]);
+                    }
+                    catch (...)
+                    {
+                        errors.capture();
+#pragma omp atomic write
+                        failed = true;
+                    }
+                }
+                // (the loop's barrier: every list of the block is written, `failed` is seen)
+#pragma omp single
+                if (!failed)
+                {
+                    try // (an allocation that fails is the builder's error, not the team's)
+                    {
+                        Store& st = stores_[b];
+                        std::size_t total = 0;
+                        for (std::size_t k = k0; k < k1; ++k)
+                            total += nodes[k - k0].size();
+                        st.nodes.reserve(total);
+                        st.h.reserve(6 * total);
+                        for (std::size_t k = k0; k < k1; ++k)
+                        {
+                            st.nodes.insert(st.nodes.end(), nodes[k - k0].begin(), nodes[k - k0].end());
+                            for (const Mat3& m : hess[k - k0]) // symmetric bit for bit (hessians, prune)
+                                st.h.insert(st.h.end(), {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)});
+                            st.offsets.push_back(static_cast<index_t>(st.nodes.size()));
+                        }
+                    }
+                    catch (...)
+                    {
+                        errors.capture();
+                        failed = true;
+                    }
+                }
+            }
+        }
+        errors.rethrow();
+    }
+
+    /// Point p's entries, its source's: their count, the source's nodes and their six values each.
+    index_t entries(index_t p, const index_t*& nodes, const real_t*& h) const
+    {
+        const std::size_t k = static_cast<std::size_t>(source_index_[translates_.source[p]]);
+        const Store& st = stores_[k / kBlock];
+        const index_t j0 = st.offsets[k % kBlock];
+        nodes = st.nodes.data() + j0;
+        h = st.h.data() + 6 * static_cast<std::size_t>(j0);
+        return st.offsets[k % kBlock + 1] - j0;
+    }
+
+    /// The sub-points' frame: 3 p + i of point p with p's count of entries, weight moments[3 p + i],
+    /// owner and parent p; positions and entries left to the caller.
+    IntegrationOperator frame(const IntegrationOperator& points, const std::vector<real_t>& moments) const
+    {
+        const index_t np = points.n_points();
+        const std::size_t ns = 3 * static_cast<std::size_t>(np);
+        IntegrationOperator op;
+        op.offsets.resize(ns + 1);
+        op.offsets[0] = 0;
+        op.owner.resize(ns);
+        op.parent.resize(ns);
+        for (index_t p = 0; p < np; ++p)
+        {
+            const index_t* n;
+            const real_t* h;
+            const index_t count = entries(p, n, h);
+            for (std::size_t q = 3 * static_cast<std::size_t>(p); q < 3 * static_cast<std::size_t>(p) + 3; ++q)
+            {
+                op.offsets[q + 1] = op.offsets[q] + count;
+                op.owner[q] = points.owner[p];
+                op.parent[q] = p;
+            }
+        }
+        op.weight = moments;
+        return op;
+    }
+
+  private:
+    static constexpr std::size_t kBlock = 1024;
+    struct Store
+    {
+        std::vector<index_t> offsets{0}, nodes;
+        std::vector<real_t> h;
+    };
+    const RkTranslates& translates_;
+    std::vector<index_t> source_index_;
+    std::vector<Store> stores_;
+};
+} // namespace
+
 IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, const RkShapeFunctions& rk,
                                              const std::vector<real_t>& moments, real_t drop_tolerance,
                                              const RkTranslates& translates)
 {
-    const index_t np = points.n_points();
-    RKFEM_REQUIRE(moments.size() == 3 * static_cast<std::size_t>(np),
-                  "NSNI: " << moments.size() << " second moments for " << np << " points");
-    RKFEM_REQUIRE(translates.size() == rk.size() && np == rk.size(),
-                  "NSNI: " << np << " points and " << translates.size() << " particle neighbourhoods for " << rk.size()
-                           << " particles");
-    for (index_t p = 0; p < np; ++p)
-        RKFEM_REQUIRE(points.owner[p] == p, "NSNI: point " << p << " is not at particle " << p << " (node-ordered points)");
-    std::vector<index_t> served(static_cast<std::size_t>(np), 0);
-    for (index_t p = 0; p < np; ++p)
-        ++served[translates.source[p]];
-    // The sources' matrices, in blocks of 1024 sources: each block's lists (per source: its
-    // nodes and their matrices, 76 bytes per entry) are packed into the block's store (a node
-    // and the six distinct values of its symmetric matrix, 52 bytes) before the next block is
-    // evaluated, so the set-up holds the stores and one block's lists; the lists' storage is
-    // reused from block to block.
-    std::vector<index_t> sources;
-    for (index_t p = 0; p < np; ++p)
-        if (translates.computed(p))
-            sources.push_back(p);
-    constexpr std::size_t kBlock = 1024;
-    struct Store
-    {
-        std::vector<index_t> offsets{0}, nodes;
-        std::vector<real_t> h; // 00, 01, 02, 11, 12, 22 per entry
-    };
-    std::vector<Store> stores((sources.size() + kBlock - 1) / kBlock);
-    const std::size_t nl = std::min(sources.size(), kBlock);
-    std::vector<std::vector<index_t>> nodes(nl);
-    std::vector<std::vector<Mat3>> hess(nl);
-    ParallelErrors errors;
-    bool failed = false;
-#pragma omp parallel
-    {
-        // the particles near each point gathered once for its six gradient evaluations
-        // (RkRegionValues::hessians; RkShapeFunctions::hessians is its plain twin)
-        RkRegionValues region(rk, 0.0);
-        for (std::size_t b = 0; b < stores.size() && !failed; ++b)
-        {
-            const std::size_t k0 = b * kBlock, k1 = std::min(sources.size(), k0 + kBlock);
-#pragma omp for schedule(dynamic, 64)
-            for (std::size_t k = k0; k < k1; ++k)
-            {
-                const index_t p = sources[k];
-                try
-                {
-                    std::vector<index_t>& n = nodes[k - k0];
-                    std::vector<Mat3>& h = hess[k - k0];
-                    const Vec3 x = rk.position(points.owner[p]);
-                    region.hessians(x, translates.region(p), static_cast<std::size_t>(translates.region_size(p)), n, h);
-                    if (drop_tolerance > 0.0)
-                        prune_rk_hessians(rk, x, drop_tolerance, n, h);
-                    setup_progress::advance(served[p]);
-                }
-                catch (...)
-                {
-                    errors.capture();
-#pragma omp atomic write
-                    failed = true;
-                }
-            }
-            // (the loop's barrier: every list of the block is written, `failed` is seen)
-#pragma omp single
-            if (!failed)
-            {
-                try // (an allocation that fails is the builder's error, not the team's)
-                {
-                    Store& st = stores[b];
-                    std::size_t total = 0;
-                    for (std::size_t k = k0; k < k1; ++k)
-                        total += nodes[k - k0].size();
-                    st.nodes.reserve(total);
-                    st.h.reserve(6 * total);
-                    for (std::size_t k = k0; k < k1; ++k)
-                    {
-                        st.nodes.insert(st.nodes.end(), nodes[k - k0].begin(), nodes[k - k0].end());
-                        for (const Mat3& m : hess[k - k0])
-                            st.h.insert(st.h.end(), {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)});
-                        st.offsets.push_back(static_cast<index_t>(st.nodes.size()));
-                    }
-                }
-                catch (...)
-                {
-                    errors.capture();
-                    failed = true;
-                }
-            }
-        }
-    }
-    errors.rethrow();
-    std::vector<std::vector<index_t>>().swap(nodes);
-    std::vector<std::vector<Mat3>>().swap(hess);
-    // each point's entries in its source's store
-    std::vector<index_t> source_index(static_cast<std::size_t>(np), -1);
-    for (std::size_t k = 0; k < sources.size(); ++k)
-        source_index[sources[k]] = static_cast<index_t>(k);
-    auto stored = [&](index_t p, const index_t*& n, const real_t*& h)
-    {
-        const std::size_t k = static_cast<std::size_t>(source_index[translates.source[p]]);
-        const Store& st = stores[k / kBlock];
-        const index_t j0 = st.offsets[k % kBlock];
-        n = st.nodes.data() + j0;
-        h = st.h.data() + 6 * static_cast<std::size_t>(j0);
-        return st.offsets[k % kBlock + 1] - j0;
-    };
+    const NsniSources sources(points, rk, moments, drop_tolerance, translates);
     // sub-points 3 p + i of point p, each with p's nodes and row i of each entry's matrix,
     // allocated once at their exact size and filled in parallel; a point that takes its source's
     // matrices reads them with its particles matched to the source's
-    IntegrationOperator op;
-    const std::size_t ns = 3 * static_cast<std::size_t>(np);
-    op.offsets.resize(ns + 1);
-    op.offsets[0] = 0;
-    for (index_t p = 0; p < np; ++p)
-    {
-        const index_t* n;
-        const real_t* h;
-        const index_t count = stored(p, n, h);
-        for (std::size_t q = 3 * static_cast<std::size_t>(p); q < 3 * static_cast<std::size_t>(p) + 3; ++q)
-            op.offsets[q + 1] = op.offsets[q] + count;
-    }
-    op.weight = moments;
-    op.position.resize(3 * ns);
-    op.owner.resize(ns);
-    op.parent.resize(ns);
-    op.nodes.resize(static_cast<std::size_t>(op.offsets[ns]));
+    IntegrationOperator op = sources.frame(points, moments);
+    const index_t np = points.n_points();
+    op.position.resize(9 * static_cast<std::size_t>(np));
+    op.nodes.resize(static_cast<std::size_t>(op.offsets.back()));
     op.grad.resize(3 * op.nodes.size());
     parallel_for("rkfem::build_nsni_stabilization::fill", np,
                  [&](index_t p)
@@ -1000,15 +1032,13 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
                      static constexpr int kSym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}}; // (i, d) in 00, 01, 02, 11, 12, 22
                      const index_t* n;
                      const real_t* h;
-                     const index_t count = stored(p, n, h);
+                     const index_t count = sources.entries(p, n, h);
                      const bool own = translates.computed(p);
                      for (int i = 0; i < 3; ++i)
                      {
                          const std::size_t q = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
                          for (int d = 0; d < 3; ++d)
                              op.position[3 * q + d] = points.position[3 * static_cast<std::size_t>(p) + d];
-                         op.owner[q] = points.owner[p];
-                         op.parent[q] = p;
                          const std::size_t k0 = static_cast<std::size_t>(op.offsets[q]);
                          for (index_t j = 0; j < count; ++j)
                          {
@@ -1020,6 +1050,44 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
                      }
                  });
     return op;
+}
+
+NsniTriplets build_nsni_triplets(const IntegrationOperator& points, const RkShapeFunctions& rk,
+                                 const std::vector<real_t>& moments, real_t drop_tolerance,
+                                 const RkTranslates& translates)
+{
+    const NsniSources sources(points, rk, moments, drop_tolerance, translates);
+    NsniTriplets out;
+    out.frame = sources.frame(points, moments);
+    // one triplet stencil per source, relative to its first node; a translate whose particles
+    // are its source's plus one number reads the source's stencil from its own first node, any
+    // other its own copy with its own particles
+    const index_t np = points.n_points();
+    TripletTable& t = out.table;
+    t.point_triplet.resize(static_cast<std::size_t>(np));
+    t.point_base.resize(static_cast<std::size_t>(np));
+    std::vector<index_t> stencil_of(static_cast<std::size_t>(np), -1);
+    for (index_t p = 0; p < np; ++p)
+    {
+        const index_t* n;
+        const real_t* h;
+        const index_t count = sources.entries(p, n, h);
+        const index_t s = translates.source[p];
+        const bool shifted = !translates.computed(p) && translates.shift[p] != RkTranslates::kNoShift;
+        t.point_base[p] = count == 0 ? 0 : shifted ? n[0] + translates.shift[p] : translates.counterpart(p, n[0]);
+        if (shifted)
+        {
+            t.point_triplet[p] = stencil_of[s];
+            continue;
+        }
+        for (index_t j = 0; j < count; ++j)
+            t.node_offset.push_back(translates.counterpart(p, n[j]) - t.point_base[p]);
+        t.hess.insert(t.hess.end(), h, h + 6 * static_cast<std::size_t>(count));
+        t.offsets.push_back(t.n_entries());
+        t.point_triplet[p] = stencil_of[p] = t.n_triplets() - 1;
+    }
+    out.table = share_triplets(t);
+    return out;
 }
 
 std::vector<real_t> nodal_second_moments(const HexMesh& mesh)
