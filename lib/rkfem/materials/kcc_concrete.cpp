@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "rkfem/core/error.hpp"
 
@@ -215,9 +216,13 @@ real_t ceb_fracture_energy(real_t fc_pa)
     return 0.030e3 * std::pow(fcm / 10.0, 0.7); // N/mm -> J/m^2 (x 1e3)
 }
 
-real_t kcc_tension_work(const KccModel& m, real_t scale)
+real_t kcc_tension_work(const KccModel& m, real_t scale) { return kcc_tension_test(m, scale).work; }
+
+KccTensionTest kcc_tension_test(const KccModel& m, real_t scale)
 {
-    // uniaxial stress tension, lateral stress held at zero by Newton on the lateral strain rate
+    // uniaxial stress tension, lateral stress held at zero by a safeguarded secant iteration on
+    // the lateral strain rate
+    KccTensionTest out;
     KccState st;
     st.tension_scale = scale;
     real_t s[6] = {};
@@ -225,24 +230,48 @@ real_t kcc_tension_work(const KccModel& m, real_t scale)
     const real_t E = 9.0 * m.bulk * m.shear / (3.0 * m.bulk + m.shear);
     const real_t nu = (3.0 * m.bulk - 2.0 * m.shear) / (2.0 * (3.0 * m.bulk + m.shear));
     const real_t de = 0.02 * ft / E; // 50 steps to the peak
-    const real_t k_lat = 2.0 * (m.bulk + m.shear / 3.0);
+    const real_t elastic = 2.0 * (m.bulk + m.shear / 3.0) * de; // d(lateral stress) / d(lateral rate)
     real_t lat = -nu, work = 0.0, peak = 0.0;
     const real_t w[3] = {0, 0, 0};
     for (int step = 0; step < 200000; ++step)
     {
         real_t trial[6];
         KccState ts;
-        for (int it = 0; it < 60; ++it)
+        // the lateral stress r rises with the lateral rate: lo has r < 0, hi has r > 0 (NaN: none yet)
+        real_t lo = std::numeric_limits<real_t>::quiet_NaN(), hi = lo, lat_prev = 0.0, r_prev = 0.0, r = 0.0;
+        int it = 0;
+        for (; it < 60; ++it)
         {
             std::copy(s, s + 6, trial);
             ts = st;
             const real_t d[6] = {1.0, lat, lat, 0, 0, 0};
             kcc_update(m, d, w, de, trial, ts);
-            const real_t r = 0.5 * (trial[1] + trial[2]);
+            ++out.updates;
+            r = 0.5 * (trial[1] + trial[2]);
             if (std::abs(r) <= 1e-9 * ft)
                 break;
-            lat -= r / (k_lat * de);
+            (r < 0.0 ? lo : hi) = lat;
+            real_t slope = elastic;
+            if (it > 0 && lat != lat_prev)
+            {
+                const real_t secant = (r - r_prev) / (lat - lat_prev);
+                if (secant > 1e-2 * elastic && secant < 1e2 * elastic)
+                    slope = secant;
+            }
+            lat_prev = lat;
+            r_prev = r;
+            lat -= r / slope;
+            if (!std::isnan(lo) && !std::isnan(hi) && !(lat > std::min(lo, hi) && lat < std::max(lo, hi)))
+                lat = 0.5 * (lo + hi);
         }
+        if (it == 60 && std::abs(hi - lo) <= 1e-12 * (1.0 + std::abs(lo)))
+            ++out.jumps;
+        else if (it == 60)
+        {
+            ++out.unheld;
+            out.worst_lateral = std::max(out.worst_lateral, std::abs(r) / ft);
+        }
+        ++out.steps;
         work += 0.5 * (s[0] + trial[0]) * de;
         std::copy(trial, trial + 6, s);
         st = ts;
@@ -250,7 +279,8 @@ real_t kcc_tension_work(const KccModel& m, real_t scale)
         if (peak > 0.5 * ft && s[0] < 1e-3 * ft)
             break;
     }
-    return work;
+    out.work = work;
+    return out;
 }
 
 namespace

@@ -61,6 +61,26 @@ real_t ceb_fracture_energy(real_t fc_pa);
 /// tensile damage rate scaled by `scale` [J/m^3].
 real_t kcc_tension_work(const KccModel& m, real_t scale);
 
+/// kcc_tension_work's test with its diagnostics: strain steps of 0.02 f_t / E along x, each
+/// holding the lateral stresses at zero (|sigma_yy + sigma_zz| / 2 <= 1e-9 f_t) by at most 60
+/// updates of the lateral strain rate: secant steps from the elastic slope, kept inside the
+/// bracket of lateral rates the residual's sign has given (bisection where a step leaves it).
+/// A fixed elastic slope alone failed to hold them on up to 1,804 steps of a test with rate
+/// effects (lateral stress up to 16 % of f_t left standing, the work off by 0.3-30 %).
+struct KccTensionTest
+{
+    real_t work = 0.0;        ///< [J/m^3]
+    int steps = 0;            ///< strain steps taken
+    long updates = 0;         ///< kcc_update calls
+    /// steps on which no lateral rate holds the lateral stress at zero: it jumps across zero
+    /// (the bracket closed to round-off: a brittle point's stress drops to the hydrostatic
+    /// tension cutoff), the step taken at the jump
+    int jumps = 0;
+    int unheld = 0;           ///< steps whose lateral stress the 60 updates did not bring to the bound otherwise
+    real_t worst_lateral = 0; ///< the largest lateral stress left on such a step, / f_t
+};
+KccTensionTest kcc_tension_test(const KccModel& m, real_t scale);
+
 /// The tensile damage scale s such that h x kcc_tension_work(s) = G_f (crack band of width h,
 /// the element or nodal length); regula falsi (Illinois) on log W against log s over [1e-4, 1e4].
 real_t kcc_tension_scale_for_length(const KccModel& m, real_t h);
