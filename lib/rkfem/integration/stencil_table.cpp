@@ -181,26 +181,27 @@ TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable&
     return t;
 }
 
-TripletTable share_triplets(const TripletTable& in, const StencilSharing& opts)
+TripletTable share_triplets(TripletTable t, const StencilSharing& opts)
 {
-    TripletTable t;
-    t.point_base = in.point_base;
-    std::vector<index_t> kept(static_cast<std::size_t>(in.n_triplets())); // per stencil of `in`: the stencil of t
-    std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets; // hash -> stencils of t
-    std::vector<real_t> scale;                                          // per stencil of t: its largest value
-    for (index_t c = 0; c < in.n_triplets(); ++c)
+    // in place: the kept stencils move down over the merged ones (a kept stencil's new place is
+    // never past its old one, and each is compared before it moves)
+    const index_t nt = t.n_triplets();
+    std::vector<index_t> kept(static_cast<std::size_t>(nt)); // per stencil: the stencil it becomes
+    std::vector<index_t> offsets{0};                         // of the kept stencils
+    std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets; // hash -> kept stencils
+    std::vector<real_t> scale;                                          // per kept stencil: its largest value
+    for (index_t c = 0; c < nt; ++c)
     {
-        const index_t k0 = in.offsets[static_cast<std::size_t>(c)];
-        const index_t n = in.offsets[static_cast<std::size_t>(c) + 1] - k0;
-        const index_t* offset = in.node_offset.data() + k0;
-        const real_t* h = in.hess.data() + 6 * static_cast<std::size_t>(k0);
+        const index_t k0 = t.offsets[static_cast<std::size_t>(c)];
+        const index_t n = t.offsets[static_cast<std::size_t>(c) + 1] - k0;
+        const index_t* offset = t.node_offset.data() + k0;
+        const real_t* h = t.hess.data() + 6 * static_cast<std::size_t>(k0);
         std::vector<index_t>& candidates = by_offsets[offsets_hash(offset, n)];
         // (written so that a NaN on either side differs)
         auto matches = [&](index_t s)
         {
-            const index_t j0 = t.offsets[static_cast<std::size_t>(s)];
-            if (t.offsets[static_cast<std::size_t>(s) + 1] - j0 != n ||
-                !std::equal(offset, offset + n, t.node_offset.data() + j0))
+            const index_t j0 = offsets[static_cast<std::size_t>(s)];
+            if (offsets[static_cast<std::size_t>(s) + 1] - j0 != n || !std::equal(offset, offset + n, t.node_offset.data() + j0))
                 return false;
             const real_t* hs = t.hess.data() + 6 * static_cast<std::size_t>(j0);
             const real_t bound = opts.relative_tolerance * scale[static_cast<std::size_t>(s)];
@@ -216,22 +217,24 @@ TripletTable share_triplets(const TripletTable& in, const StencilSharing& opts)
                 found = candidates[static_cast<std::size_t>(q)];
         if (found < 0)
         {
-            found = t.n_triplets();
-            t.node_offset.insert(t.node_offset.end(), offset, offset + n);
-            t.hess.insert(t.hess.end(), h, h + 6 * n);
-            t.offsets.push_back(t.n_entries());
+            found = static_cast<index_t>(offsets.size()) - 1;
             real_t largest = 0.0;
             for (index_t k = 0; k < 6 * n; ++k)
                 largest = std::max(largest, std::abs(h[k]));
+            const index_t w = offsets.back();
+            std::copy(offset, offset + n, t.node_offset.begin() + w);
+            std::copy(h, h + 6 * n, t.hess.begin() + 6 * static_cast<std::ptrdiff_t>(w));
+            offsets.push_back(w + n);
             scale.push_back(largest);
             candidates.push_back(found);
         }
         kept[static_cast<std::size_t>(c)] = found;
     }
-    t.point_triplet.resize(in.point_triplet.size());
-    for (std::size_t p = 0; p < in.point_triplet.size(); ++p)
-        t.point_triplet[p] = kept[static_cast<std::size_t>(in.point_triplet[p])];
-    t.offsets.shrink_to_fit();
+    for (index_t& c : t.point_triplet)
+        c = kept[static_cast<std::size_t>(c)];
+    t.offsets = std::move(offsets);
+    t.node_offset.resize(static_cast<std::size_t>(t.offsets.back()));
+    t.hess.resize(6 * t.node_offset.size());
     t.node_offset.shrink_to_fit();
     t.hess.shrink_to_fit();
     return t;

@@ -130,7 +130,7 @@ TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable&
 /// first, opts.max_candidates per offset pattern, as share_stencils does): the earlier stencil
 /// is kept and the later one's points read it, so a point's values move by at most that much.
 /// The same points and bases.
-TripletTable share_triplets(const TripletTable& table, const StencilSharing& opts = {});
+TripletTable share_triplets(TripletTable table, const StencilSharing& opts = {});
 
 /// Writes the sub-point entries of `stab` from its triplet table: sub-point i of entry k gets
 /// row i of the entry's symmetric matrix. It snaps an operator to its table, as sharing does,

@@ -868,10 +868,12 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
 namespace
 {
 /// NSNI's matrices at the source particles (particle_translates): per source its nodes and the
-/// six distinct values of each node's symmetric matrix (00, 01, 02, 11, 12, 22). Sources go in
-/// blocks of 1024: each block's lists (per source: its nodes and their matrices, 76 bytes per
-/// entry) are packed into the block's store (52 bytes per entry) before the next block is
-/// evaluated, so the set-up holds the stores and one block's lists, whose storage is reused.
+/// six distinct values of each node's symmetric matrix (00, 01, 02, 11, 12, 22), in one store
+/// reserved at the sources' region sizes (a bound on their entries: memory reserved and never
+/// written costs no page). Sources go in blocks of 1024: each block's lists (per source: its
+/// nodes and their matrices, 76 bytes per entry) are packed into the store (52 bytes per entry)
+/// before the next block is evaluated, so the set-up holds the store and one block's lists,
+/// whose storage is reused.
 class NsniSources
 {
   public:
@@ -896,7 +898,13 @@ class NsniSources
                 sources.push_back(p);
             }
         }
-        stores_.resize((sources.size() + kBlock - 1) / kBlock);
+        std::size_t bound = 0;
+        for (const index_t p : sources)
+            bound += static_cast<std::size_t>(translates.region_size(p));
+        nodes_.reserve(bound);
+        h_.reserve(6 * bound);
+        offsets_.reserve(sources.size() + 1);
+        const std::size_t n_blocks = (sources.size() + kBlock - 1) / kBlock;
         const std::size_t nl = std::min(sources.size(), kBlock);
         std::vector<std::vector<index_t>> nodes(nl);
         std::vector<std::vector<Mat3>> hess(nl);
@@ -907,7 +915,7 @@ class NsniSources
             // the particles near each point gathered once for its six gradient evaluations
             // (RkRegionValues::hessians; RkShapeFunctions::hessians is its plain twin)
             RkRegionValues region(rk, 0.0);
-            for (std::size_t b = 0; b < stores_.size() && !failed; ++b)
+            for (std::size_t b = 0; b < n_blocks && !failed; ++b)
             {
                 const std::size_t k0 = b * kBlock, k1 = std::min(sources.size(), k0 + kBlock);
 #pragma omp for schedule(dynamic, 64)
@@ -937,18 +945,12 @@ class NsniSources
                 {
                     try // (an allocation that fails is the builder's error, not the team's)
                     {
-                        Store& st = stores_[b];
-                        std::size_t total = 0;
-                        for (std::size_t k = k0; k < k1; ++k)
-                            total += nodes[k - k0].size();
-                        st.nodes.reserve(total);
-                        st.h.reserve(6 * total);
                         for (std::size_t k = k0; k < k1; ++k)
                         {
-                            st.nodes.insert(st.nodes.end(), nodes[k - k0].begin(), nodes[k - k0].end());
+                            nodes_.insert(nodes_.end(), nodes[k - k0].begin(), nodes[k - k0].end());
                             for (const Mat3& m : hess[k - k0]) // symmetric bit for bit (hessians, prune)
-                                st.h.insert(st.h.end(), {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)});
-                            st.offsets.push_back(static_cast<index_t>(st.nodes.size()));
+                                h_.insert(h_.end(), {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)});
+                            offsets_.push_back(static_cast<index_t>(nodes_.size()));
                         }
                     }
                     catch (...)
@@ -966,11 +968,10 @@ class NsniSources
     index_t entries(index_t p, const index_t*& nodes, const real_t*& h) const
     {
         const std::size_t k = static_cast<std::size_t>(source_index_[translates_.source[p]]);
-        const Store& st = stores_[k / kBlock];
-        const index_t j0 = st.offsets[k % kBlock];
-        nodes = st.nodes.data() + j0;
-        h = st.h.data() + 6 * static_cast<std::size_t>(j0);
-        return st.offsets[k % kBlock + 1] - j0;
+        const index_t j0 = offsets_[k];
+        nodes = nodes_.data() + j0;
+        h = h_.data() + 6 * static_cast<std::size_t>(j0);
+        return offsets_[k + 1] - j0;
     }
 
     /// The sub-points' frame: 3 p + i of point p with p's count of entries, weight moments[3 p + i],
@@ -1000,16 +1001,52 @@ class NsniSources
         return op;
     }
 
+    /// The store as a triplet table (its storage moved, not copied): one stencil per source,
+    /// relative to its first node, which a point reads from the first node of its own particles
+    /// where they are its source's plus one number; any other point gets its own copy with its
+    /// own particles (appended). The store is empty afterwards.
+    TripletTable into_triplets()
+    {
+        const index_t np = static_cast<index_t>(source_index_.size());
+        TripletTable t;
+        t.point_triplet.resize(static_cast<std::size_t>(np));
+        t.point_base.resize(static_cast<std::size_t>(np));
+        for (index_t p = 0; p < np; ++p)
+        {
+            const std::size_t k = static_cast<std::size_t>(source_index_[translates_.source[p]]);
+            const index_t j0 = offsets_[k], count = offsets_[k + 1] - j0;
+            t.point_base[p] = count == 0 ? 0 : translates_.counterpart(p, nodes_[static_cast<std::size_t>(j0)]);
+            if (translates_.computed(p) || translates_.shift[p] != RkTranslates::kNoShift)
+            {
+                t.point_triplet[p] = static_cast<index_t>(k);
+                continue;
+            }
+            for (index_t j = j0; j < j0 + count; ++j)
+            {
+                nodes_.push_back(translates_.counterpart(p, nodes_[static_cast<std::size_t>(j)]));
+                real_t h[6];
+                std::copy_n(h_.begin() + 6 * static_cast<std::ptrdiff_t>(j), 6, h);
+                h_.insert(h_.end(), h, h + 6);
+            }
+            t.point_triplet[p] = static_cast<index_t>(offsets_.size()) - 1;
+            offsets_.push_back(static_cast<index_t>(nodes_.size()));
+        }
+        // every stencil relative to its first node, in place
+        for (std::size_t k = 0; k + 1 < offsets_.size(); ++k)
+            for (index_t j = offsets_[k + 1] - 1; j >= offsets_[k]; --j)
+                nodes_[static_cast<std::size_t>(j)] -= nodes_[static_cast<std::size_t>(offsets_[k])];
+        t.offsets = std::move(offsets_);
+        t.node_offset = std::move(nodes_);
+        t.hess = std::move(h_);
+        return t;
+    }
+
   private:
     static constexpr std::size_t kBlock = 1024;
-    struct Store
-    {
-        std::vector<index_t> offsets{0}, nodes;
-        std::vector<real_t> h;
-    };
     const RkTranslates& translates_;
     std::vector<index_t> source_index_;
-    std::vector<Store> stores_;
+    std::vector<index_t> offsets_{0}, nodes_; // per source k: entries offsets_[k] .. offsets_[k + 1]
+    std::vector<real_t> h_;                    // 6 per entry
 };
 } // namespace
 
@@ -1056,37 +1093,10 @@ NsniTriplets build_nsni_triplets(const IntegrationOperator& points, const RkShap
                                  const std::vector<real_t>& moments, real_t drop_tolerance,
                                  const RkTranslates& translates)
 {
-    const NsniSources sources(points, rk, moments, drop_tolerance, translates);
+    NsniSources sources(points, rk, moments, drop_tolerance, translates);
     NsniTriplets out;
     out.frame = sources.frame(points, moments);
-    // one triplet stencil per source, relative to its first node; a translate whose particles
-    // are its source's plus one number reads the source's stencil from its own first node, any
-    // other its own copy with its own particles
-    const index_t np = points.n_points();
-    TripletTable& t = out.table;
-    t.point_triplet.resize(static_cast<std::size_t>(np));
-    t.point_base.resize(static_cast<std::size_t>(np));
-    std::vector<index_t> stencil_of(static_cast<std::size_t>(np), -1);
-    for (index_t p = 0; p < np; ++p)
-    {
-        const index_t* n;
-        const real_t* h;
-        const index_t count = sources.entries(p, n, h);
-        const index_t s = translates.source[p];
-        const bool shifted = !translates.computed(p) && translates.shift[p] != RkTranslates::kNoShift;
-        t.point_base[p] = count == 0 ? 0 : shifted ? n[0] + translates.shift[p] : translates.counterpart(p, n[0]);
-        if (shifted)
-        {
-            t.point_triplet[p] = stencil_of[s];
-            continue;
-        }
-        for (index_t j = 0; j < count; ++j)
-            t.node_offset.push_back(translates.counterpart(p, n[j]) - t.point_base[p]);
-        t.hess.insert(t.hess.end(), h, h + 6 * static_cast<std::size_t>(count));
-        t.offsets.push_back(t.n_entries());
-        t.point_triplet[p] = stencil_of[p] = t.n_triplets() - 1;
-    }
-    out.table = share_triplets(t);
+    out.table = share_triplets(sources.into_triplets());
     return out;
 }
 
