@@ -11,6 +11,38 @@
 
 namespace rkfem
 {
+namespace
+{
+/// Every |a[k] - b[k]| <= bound for k < n (written so that a NaN on either side differs).
+bool within(const real_t* a, const real_t* b, index_t n, real_t bound)
+{
+    for (index_t k = 0; k < n; ++k)
+        if (!(std::abs(a[k] - b[k]) <= bound))
+            return false;
+    return true;
+}
+
+real_t largest_magnitude(const real_t* a, index_t n)
+{
+    real_t largest = 0.0;
+    for (index_t k = 0; k < n; ++k)
+        largest = std::max(largest, std::abs(a[k]));
+    return largest;
+}
+
+/// The newest of the last opts.max_candidates stored classes that matches, or -1: the newest
+/// are a lattice row's neighbours (share_stencils).
+template <class Matches>
+index_t newest_match(const std::vector<index_t>& candidates, const StencilSharing& opts, Matches&& matches)
+{
+    const int nc = static_cast<int>(candidates.size());
+    for (int c = nc - 1; c >= std::max(0, nc - opts.max_candidates); --c)
+        if (matches(candidates[static_cast<std::size_t>(c)]))
+            return candidates[static_cast<std::size_t>(c)];
+    return -1;
+}
+} // namespace
+
 StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
 {
     const index_t np = op.n_points();
@@ -46,26 +78,15 @@ StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
             for (index_t k = 1; k < n; ++k)
                 if (ns[k] - ns[0] != nodes[k] - nodes[0])
                     return false;
-            const real_t* gs = op.grad.data() + 3 * static_cast<std::size_t>(j0);
-            const real_t bound = opts.relative_tolerance * scale[static_cast<std::size_t>(s)];
-            for (index_t k = 0; k < 3 * n; ++k)
-                if (!(std::abs(gs[k] - g[k]) <= bound))
-                    return false;
-            return true;
+            return within(op.grad.data() + 3 * static_cast<std::size_t>(j0), g, 3 * n,
+                          opts.relative_tolerance * scale[static_cast<std::size_t>(s)]);
         };
-        index_t found = -1;
-        const int nc = static_cast<int>(candidates.size());
-        for (int c = nc - 1; c >= std::max(0, nc - opts.max_candidates) && found < 0; --c)
-            if (matches(candidates[static_cast<std::size_t>(c)]))
-                found = candidates[static_cast<std::size_t>(c)];
+        index_t found = newest_match(candidates, opts, matches);
         if (found < 0)
         {
             found = static_cast<index_t>(first.size());
             first.push_back(p);
-            real_t largest = 0.0;
-            for (index_t k = 0; k < 3 * n; ++k)
-                largest = std::max(largest, std::abs(g[k]));
-            scale.push_back(largest);
+            scale.push_back(largest_magnitude(g, 3 * n));
             candidates.push_back(found);
             stored += static_cast<std::size_t>(n);
             if (stored > budget)
@@ -197,35 +218,23 @@ TripletTable share_triplets(TripletTable t, const StencilSharing& opts)
         const index_t* offset = t.node_offset.data() + k0;
         const real_t* h = t.hess.data() + 6 * static_cast<std::size_t>(k0);
         std::vector<index_t>& candidates = by_offsets[offsets_hash(offset, n)];
-        // (written so that a NaN on either side differs)
         auto matches = [&](index_t s)
         {
             const index_t j0 = offsets[static_cast<std::size_t>(s)];
-            if (offsets[static_cast<std::size_t>(s) + 1] - j0 != n || !std::equal(offset, offset + n, t.node_offset.data() + j0))
-                return false;
-            const real_t* hs = t.hess.data() + 6 * static_cast<std::size_t>(j0);
-            const real_t bound = opts.relative_tolerance * scale[static_cast<std::size_t>(s)];
-            for (index_t k = 0; k < 6 * n; ++k)
-                if (!(std::abs(hs[k] - h[k]) <= bound))
-                    return false;
-            return true;
+            return offsets[static_cast<std::size_t>(s) + 1] - j0 == n &&
+                   std::equal(offset, offset + n, t.node_offset.data() + j0) &&
+                   within(t.hess.data() + 6 * static_cast<std::size_t>(j0), h, 6 * n,
+                          opts.relative_tolerance * scale[static_cast<std::size_t>(s)]);
         };
-        index_t found = -1;
-        const int nc = static_cast<int>(candidates.size());
-        for (int q = nc - 1; q >= std::max(0, nc - opts.max_candidates) && found < 0; --q)
-            if (matches(candidates[static_cast<std::size_t>(q)]))
-                found = candidates[static_cast<std::size_t>(q)];
+        index_t found = newest_match(candidates, opts, matches);
         if (found < 0)
         {
             found = static_cast<index_t>(offsets.size()) - 1;
-            real_t largest = 0.0;
-            for (index_t k = 0; k < 6 * n; ++k)
-                largest = std::max(largest, std::abs(h[k]));
+            scale.push_back(largest_magnitude(h, 6 * n));
             const index_t w = offsets.back();
             std::copy(offset, offset + n, t.node_offset.begin() + w);
             std::copy(h, h + 6 * n, t.hess.begin() + 6 * static_cast<std::ptrdiff_t>(w));
             offsets.push_back(w + n);
-            scale.push_back(largest);
             candidates.push_back(found);
         }
         kept[static_cast<std::size_t>(c)] = found;
