@@ -711,7 +711,7 @@ void RkRegionValues::gradients_quadratic(const Vec3& x)
 void RkRegionValues::hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H)
 {
     // every particle covering a point within 1e-3 of the largest radius of x
-    const Vec3 reach = hessian_reach();
+    const Vec3 reach = hessian_reach(rk_);
     gather(x - reach, x + reach);
     hessians_in_region(x, nodes, H);
 }

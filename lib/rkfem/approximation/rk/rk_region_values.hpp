@@ -66,13 +66,13 @@ class RkRegionValues
     void hessians(const Vec3& x, const index_t* region, std::size_t n, std::vector<index_t>& nodes,
                   std::vector<Mat3>& H);
     /// The half-width of the box around x whose particles hessians reads: 1e-3 of the largest radius.
-    Vec3 hessian_reach() const { return Vec3::Constant(1e-3 * rk_.max_radius()); }
+    static Vec3 hessian_reach(const RkShapeFunctions& rk) { return Vec3::Constant(1e-3 * rk.max_radius()); }
 
   private:
-    /// The candidates: the region's particles k with keep(k).
     void hessians_in_region(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H);
     /// The region's positions and radii from region_ids_, every particle a candidate.
     void take_region();
+    /// The candidates: the region's particles k with keep(k).
     template <class Keep> void select(Keep&& keep);
     template <class Keep> std::size_t copy_kept(std::size_t k0, std::size_t n, Keep&& keep);
     bool reaches(std::size_t k, const Vec3& lo, const Vec3& hi) const;

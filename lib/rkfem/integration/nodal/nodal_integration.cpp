@@ -846,7 +846,7 @@ IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, c
 
 RkTranslates particle_translates(const RkShapeFunctions& rk, bool share)
 {
-    const Vec3 reach = RkRegionValues(rk, 0.0).hessian_reach();
+    const Vec3 reach = RkRegionValues::hessian_reach(rk);
     return find_rk_translates(
         rk, rk.size(),
         [&](index_t p, Vec3& lo, Vec3& hi, Vec3& ref, std::vector<real_t>&)
