@@ -23,7 +23,6 @@
 /// from the taker's own by at most the tolerance (so by about the round-off with which the
 /// coordinates were made); a value near a cut (the drop tolerance's, a support's edge) is cut as
 /// the source's was.
-#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>

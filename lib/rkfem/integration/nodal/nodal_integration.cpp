@@ -576,8 +576,8 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     }
     // Each node's row: the sums of its sub-hexes merged by particle, each particle's terms added
     // in the order of their elements' colours (a fixed order, so the same bits on any number of
-    // threads), then scaled by 1 / V. Threads take contiguous ranges of nodes (a static
-    // schedule), so their rows, joined in thread order, are the operator's.
+    // threads), then scaled by 1 / V: a pass that counts each row's particles, then one that
+    // writes the rows at their offsets.
     std::vector<index_t> colour_offsets, by_colour;
     colour_elements(mesh, colour_offsets, by_colour);
     std::vector<index_t> colour_of(static_cast<std::size_t>(ne));
