@@ -7,6 +7,7 @@
 // so set-up scratch that was freed does not count).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <malloc.h>
@@ -64,6 +65,38 @@ void BM_SeedDeckStep(benchmark::State& state)
         benchmark::Counter(nn * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
     state.counters["ns_per_item_step"] =
         benchmark::Counter(items * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    if (rk && !m.nodal_blocks.empty())
+    {
+        // per particle: SCNI entries, NSNI entries per direction, and the batches of 8 whose
+        // points share one stencil at consecutive bases (the whole-vector path)
+        const NodalBlock& blk = m.nodal_blocks.front();
+        const index_t np = blk.n_points();
+        double entries = 0.0, stab = 0.0, uniform = 0.0, uniform_stab = 0.0;
+        for (index_t p = 0; p < np; ++p)
+        {
+            entries += blk.point_view(p).size;
+            if (!blk.stab_triplets.empty())
+                stab += blk.stab_triplets.view(p).size;
+        }
+        auto uniform_batch = [&](const std::vector<index_t>& cls, const std::vector<index_t>& base, index_t p0) {
+            for (index_t l = 1; l < 8; ++l)
+                if (cls[p0 + l] != cls[p0] || base[p0 + l] != base[p0] + l)
+                    return false;
+            return true;
+        };
+        const index_t nb = np / 8;
+        for (index_t b = 0; b < nb; ++b)
+        {
+            if (!blk.point_stencils.empty())
+                uniform += uniform_batch(blk.point_stencils.point_stencil, blk.point_stencils.point_base, 8 * b);
+            if (!blk.stab_triplets.empty())
+                uniform_stab += uniform_batch(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base, 8 * b);
+        }
+        state.counters["scni_entries"] = entries / np;
+        state.counters["nsni_entries"] = stab / np;
+        state.counters["uniform_batches"] = uniform / std::max<index_t>(nb, 1);
+        state.counters["uniform_nsni_batches"] = uniform_stab / std::max<index_t>(nb, 1);
+    }
     state.counters["bytes_per_item"] = bytes / items;
     state.counters["heap_bytes_per_item"] = heap / items;
     omp_set_num_threads(saved);
