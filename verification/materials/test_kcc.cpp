@@ -174,7 +174,9 @@ TEST(KccConcrete, TensionTestHoldsTheLateralStressAtZero)
                         rate, scale, t.work, t.steps, static_cast<double>(t.updates) / t.steps, t.jumps);
             EXPECT_EQ(t.unheld, 0) << "lateral stress left: " << t.worst_lateral << " f_t";
             if (scale <= 3.0)
+            {
                 EXPECT_EQ(t.jumps, 0);
+            }
             EXPECT_GT(t.steps, 50); // 50 steps to the peak
             EXPECT_EQ(t.work, kcc_tension_work(m, scale));
         }

@@ -144,6 +144,29 @@ inline void load_triples(const double* p, __m512d& X, __m512d& Y, __m512d& Z)
     deinterleave3(_mm512_loadu_pd(p), _mm512_loadu_pd(p + 8), _mm512_loadu_pd(p + 16), X, Y, Z);
 }
 
+/// deinterleave3's inverse: one vector per component to eight (x, y, z) triples, node-major in
+/// a, b, c (x0 y0 z0 x1 ... z7).
+inline void interleave3(__m512d X, __m512d Y, __m512d Z, __m512d& a, __m512d& b, __m512d& c)
+{
+    // a = X0 Y0 Z0 X1 Y1 Z1 X2 Y2, b = Z2 X3 Y3 Z3 X4 Y4 Z4 X5, c = Y5 Z5 X6 Y6 Z6 X7 Y7 Z7
+    const __m512d xya = _mm512_permutex2var_pd(X, _mm512_setr_epi64(0, 8, 0, 1, 9, 0, 2, 10), Y);
+    const __m512d xyb = _mm512_permutex2var_pd(X, _mm512_setr_epi64(0, 3, 11, 0, 4, 12, 0, 5), Y);
+    const __m512d xyc = _mm512_permutex2var_pd(X, _mm512_setr_epi64(13, 0, 6, 14, 0, 7, 15, 0), Y);
+    a = _mm512_permutex2var_pd(xya, _mm512_setr_epi64(0, 1, 8, 3, 4, 9, 6, 7), Z);
+    b = _mm512_permutex2var_pd(xyb, _mm512_setr_epi64(10, 1, 2, 11, 4, 5, 12, 7), Z);
+    c = _mm512_permutex2var_pd(xyc, _mm512_setr_epi64(0, 13, 2, 3, 14, 5, 6, 15), Z);
+}
+
+/// load_triples' inverse: the components of 8 consecutive triples to p[0..23] (node-major).
+inline void store_triples(double* p, __m512d X, __m512d Y, __m512d Z)
+{
+    __m512d a, b, c;
+    interleave3(X, Y, Z, a, b, c);
+    _mm512_storeu_pd(p, a);
+    _mm512_storeu_pd(p + 8, b);
+    _mm512_storeu_pd(p + 16, c);
+}
+
 /// One vector per component to 8 padded quadruples (x, y, z, 0), two per output vector:
 /// q[k] holds lanes 2k and 2k + 1.
 inline void interleave4(__m512d X, __m512d Y, __m512d Z, __m512d q[4])

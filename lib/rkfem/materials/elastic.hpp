@@ -30,6 +30,22 @@ struct ElasticParams
     real_t wave_speed() const { return std::sqrt(plane_wave_modulus() / rho); }
 };
 
+/// s += dt (lambda tr(d) 1 + 2 mu d), the elastic increment after the rotation.
+template <class T>
+inline void add_elastic_increment(const ElasticParams& p, T d0, T d1, T d2, T d3, T d4, T d5, real_t dt, T& s0, T& s1,
+                                  T& s2, T& s3, T& s4, T& s5)
+{
+    const T l = p.lambda * (d0 + d1 + d2);
+    const real_t m2 = 2.0 * p.mu;
+    // s += dt (l + m2 d), s += (dt m2) d: fused on lane vectors (simd::mul_add)
+    s0 = simd::mul_add(dt, simd::mul_add(m2, d0, l), s0);
+    s1 = simd::mul_add(dt, simd::mul_add(m2, d1, l), s1);
+    s2 = simd::mul_add(dt, simd::mul_add(m2, d2, l), s2);
+    s3 = simd::mul_add(dt * m2, d3, s3);
+    s4 = simd::mul_add(dt * m2, d4, s4);
+    s5 = simd::mul_add(dt * m2, d5, s5);
+}
+
 /// Elastic update of one point. `s` is Voigt stress (xx yy zz xy yz zx) updated in place;
 /// d is the rate of deformation (Voigt, tensor shear components); w = (W_xy, W_yz, W_zx) are the
 /// independent spin components, W = (L - L^T)/2. The Jaumann rotation is integrated by the
@@ -41,15 +57,16 @@ inline void elastic_update(const ElasticParams& p, T d0, T d1, T d2, T d3, T d4,
                            T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
 {
     rotate_stress(w0, w1, w2, dt, s0, s1, s2, s3, s4, s5);
-    const T l = p.lambda * (d0 + d1 + d2);
-    const real_t m2 = 2.0 * p.mu;
-    // s += dt (l + m2 d), s += (dt m2) d: fused on lane vectors (simd::mul_add)
-    s0 = simd::mul_add(dt, simd::mul_add(m2, d0, l), s0);
-    s1 = simd::mul_add(dt, simd::mul_add(m2, d1, l), s1);
-    s2 = simd::mul_add(dt, simd::mul_add(m2, d2, l), s2);
-    s3 = simd::mul_add(dt * m2, d3, s3);
-    s4 = simd::mul_add(dt * m2, d4, s4);
-    s5 = simd::mul_add(dt * m2, d5, s5);
+    add_elastic_increment(p, d0, d1, d2, d3, d4, d5, dt, s0, s1, s2, s3, s4, s5);
+}
+
+/// The same with the step's rotation formed already (hughes_winget: points that share a spin).
+template <class T>
+inline void elastic_update(const ElasticParams& p, T d0, T d1, T d2, T d3, T d4, T d5, const Rotation<T>& R, real_t dt,
+                           T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
+{
+    rotate_stress(R, s0, s1, s2, s3, s4, s5);
+    add_elastic_increment(p, d0, d1, d2, d3, d4, d5, dt, s0, s1, s2, s3, s4, s5);
 }
 
 inline void elastic_update(const ElasticParams& p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])

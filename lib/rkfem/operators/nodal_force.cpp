@@ -522,51 +522,118 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
                 for (int j = 0; j < 3; ++j)
                     G[i][a][j][l] = g[i][a][j];
     }
+    bool all_good = nl == W;
+    for (int l = 0; l < nl; ++l)
+        all_good = all_good && good[l];
+    // the lanes' sub-point states by direction, os[i][k][l] = component k of sub-point
+    // 3 (p0 + l) + i (and its weight): the 24 sub-points of a full batch are consecutive, so with
+    // AVX-512 each component is three vector loads split by direction (simd::load_triples)
+    // instead of 24 strided ones inside the lane loop; the same values either way
     const real_t* __restrict s_in = blk.stab_stress.data();
     real_t* __restrict s_out = blk.stab_stress_trial.data();
     real_t* __restrict energy = blk.stab_energy.data();
     const real_t* __restrict weight = st.weight.data();
-    alignas(64) real_t P[3][9][W], sn[6][W], e[W];
+    alignas(64) real_t os[3][6][W], ws[3][W], sn[3][6][W], e[3][W];
+    const std::size_t s0 = 3 * static_cast<std::size_t>(p0);
+#if defined(__AVX512F__)
+    constexpr bool triples = W == 8;
+#else
+    constexpr bool triples = false;
+#endif
+    if (triples && nl == W)
+    {
+#if defined(__AVX512F__)
+        if constexpr (W == 8)
+        {
+            for (int k = 0; k < 6; ++k)
+            {
+                __m512d X, Y, Z;
+                simd::load_triples(s_in + k * sns + s0, X, Y, Z);
+                _mm512_store_pd(os[0][k], X);
+                _mm512_store_pd(os[1][k], Y);
+                _mm512_store_pd(os[2][k], Z);
+            }
+            __m512d X, Y, Z;
+            simd::load_triples(weight + s0, X, Y, Z);
+            _mm512_store_pd(ws[0], X);
+            _mm512_store_pd(ws[1], Y);
+            _mm512_store_pd(ws[2], Z);
+        }
+#endif
+    }
+    else
+        for (int i = 0; i < 3; ++i)
+            for (int l = 0; l < W; ++l)
+            {
+                const std::size_t s = 3 * static_cast<std::size_t>(p0 + (l < nl ? l : 0)) + i;
+                for (int k = 0; k < 6; ++k)
+                    os[i][k][l] = s_in[k * sns + s];
+                ws[i][l] = weight[s];
+            }
+    // the point's rotation of the step, for its three sub-points (elastic_update's from w)
+    alignas(64) real_t R[9][W];
+#pragma omp simd
+    for (int l = 0; l < W; ++l)
+    {
+        const Rotation<real_t> r = hughes_winget(wl[0][l], wl[1][l], wl[2][l], dt);
+        R[0][l] = r.r00, R[1][l] = r.r01, R[2][l] = r.r02, R[3][l] = r.r10, R[4][l] = r.r11, R[5][l] = r.r12;
+        R[6][l] = r.r20, R[7][l] = r.r21, R[8][l] = r.r22;
+    }
+    alignas(64) real_t P[3][9][W];
     for (int i = 0; i < 3; ++i)
     {
 #pragma omp simd
         for (int l = 0; l < W; ++l)
         {
-            const std::size_t s = 3 * static_cast<std::size_t>(p0 + (l < nl ? l : 0)) + i;
             real_t Ls[3][3];
             for (int a = 0; a < 3; ++a)
                 for (int j = 0; j < 3; ++j)
                     Ls[a][j] = G[i][a][0][l] * Fi[0][j][l] + G[i][a][1][l] * Fi[1][j][l] + G[i][a][2][l] * Fi[2][j][l];
             const real_t d0 = Ls[0][0], d1 = Ls[1][1], d2 = Ls[2][2], d3 = 0.5 * (Ls[0][1] + Ls[1][0]),
                          d4 = 0.5 * (Ls[1][2] + Ls[2][1]), d5 = 0.5 * (Ls[2][0] + Ls[0][2]);
-            const real_t o0 = s_in[s], o1 = s_in[sns + s], o2 = s_in[2 * sns + s], o3 = s_in[3 * sns + s],
-                         o4 = s_in[4 * sns + s], o5 = s_in[5 * sns + s];
-            real_t s0 = o0, s1 = o1, s2 = o2, s3 = o3, s4 = o4, s5 = o5;
-            elastic_update(smat, d0, d1, d2, d3, d4, d5, wl[0][l], wl[1][l], wl[2][l], dt, s0, s1, s2, s3, s4, s5);
-            sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
-            const real_t power = 0.5 * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2) + (o3 + s3) * d3 +
-                                 (o4 + s4) * d4 + (o5 + s5) * d5;
-            const real_t VJ = weight[s] * Jl[l];
-            e[l] = dt * VJ * power;
-            const real_t S[3][3] = {{s0, s3, s5}, {s3, s1, s4}, {s5, s4, s2}};
+            const real_t o0 = os[i][0][l], o1 = os[i][1][l], o2 = os[i][2][l], o3 = os[i][3][l], o4 = os[i][4][l],
+                         o5 = os[i][5][l];
+            real_t t0 = o0, t1 = o1, t2 = o2, t3 = o3, t4 = o4, t5 = o5;
+            const Rotation<real_t> r{R[0][l], R[1][l], R[2][l], R[3][l], R[4][l], R[5][l], R[6][l], R[7][l], R[8][l]};
+            elastic_update(smat, d0, d1, d2, d3, d4, d5, r, dt, t0, t1, t2, t3, t4, t5);
+            sn[i][0][l] = t0, sn[i][1][l] = t1, sn[i][2][l] = t2, sn[i][3][l] = t3, sn[i][4][l] = t4, sn[i][5][l] = t5;
+            const real_t power = 0.5 * ((o0 + t0) * d0 + (o1 + t1) * d1 + (o2 + t2) * d2) + (o3 + t3) * d3 +
+                                 (o4 + t4) * d4 + (o5 + t5) * d5;
+            const real_t VJ = ws[i][l] * Jl[l];
+            e[i][l] = dt * VJ * power;
+            const real_t S[3][3] = {{t0, t3, t5}, {t3, t1, t4}, {t5, t4, t2}};
             for (int a = 0; a < 3; ++a)
                 for (int j = 0; j < 3; ++j)
                     P[i][3 * j + a][l] = VJ * (S[a][0] * Fi[j][0][l] + S[a][1] * Fi[j][1][l] + S[a][2] * Fi[j][2][l]);
         }
+    }
+    // the new states and work of the good lanes (a full batch's as three vector stores each)
+    if (triples && all_good)
+    {
+#if defined(__AVX512F__)
+        if constexpr (W == 8)
+        {
+            for (int k = 0; k < 6; ++k)
+                simd::store_triples(s_out + k * sns + s0, _mm512_load_pd(sn[0][k]), _mm512_load_pd(sn[1][k]),
+                                    _mm512_load_pd(sn[2][k]));
+            simd::store_triples(energy + s0, _mm512_load_pd(e[0]), _mm512_load_pd(e[1]), _mm512_load_pd(e[2]));
+        }
+#endif
+    }
+    else
         for (int l = 0; l < nl; ++l)
         {
             if (!good[l])
                 continue;
-            const std::size_t s = 3 * static_cast<std::size_t>(p0 + l) + i;
-            for (int k = 0; k < 6; ++k)
-                s_out[k * sns + s] = sn[k][l];
-            energy[s] = e[l];
+            for (int i = 0; i < 3; ++i)
+            {
+                const std::size_t s = 3 * static_cast<std::size_t>(p0 + l) + i;
+                for (int k = 0; k < 6; ++k)
+                    s_out[k * sns + s] = sn[i][k][l];
+                energy[s] = e[i][l];
+            }
         }
-    }
 #if defined(__AVX512F__)
-    bool all_good = true;
-    for (int l = 0; l < nl; ++l)
-        all_good = all_good && good[l];
     if (uniform && all_good)
     {
         scatter_triplets_uniform(blk.stab_triplets.view(p0), P, buf, lo);
