@@ -772,18 +772,35 @@ template <bool PLASTIC, bool FULL>
         // a partial batch or an inelastic block: the point's model update per lane (J2 lanes
         // that stay elastic at once)
         bool elastic[W] = {};
+        bool all_elastic = false; // a full batch whose lanes all stay elastic (J > 0)
         if constexpr (PLASTIC)
         {
             std::size_t pt[W];
             for (int l = 0; l < W; ++l)
-            {
                 pt[l] = lane_point(l);
+            if constexpr (FULL) // the batch's points are consecutive: a row per component
                 for (int k = 0; k < 6; ++k)
-                    sn[k][l] = so[k][l] = s_in[k * snp + pt[l]];
-            }
+                {
+#pragma omp simd
+                    for (int l = 0; l < W; ++l)
+                        sn[k][l] = so[k][l] = s_in[k * snp + static_cast<std::size_t>(p0) + l];
+                }
+            else
+                for (int l = 0; l < W; ++l)
+                    for (int k = 0; k < 6; ++k)
+                        sn[k][l] = so[k][l] = s_in[k * snp + pt[l]];
             blk.plastic.j2_elastic_lanes<W>(pt, nl, dl, wl, dt, sn, elastic);
+            if constexpr (FULL)
+            {
+                all_elastic = true;
+                for (int l = 0; l < W; ++l)
+                    all_elastic = all_elastic && elastic[l] && Jl[l] > 0.0;
+            }
         }
-        for (int l = 0; l < W; ++l)
+        // then the predictor's stresses are the new ones (what the lane loop below stores)
+        if (all_elastic)
+            store_batch8<6>(sn, s_out, snp, static_cast<std::size_t>(p0), buf != nullptr && blk.stream_stress);
+        for (int l = 0; l < W && !all_elastic; ++l)
         {
             const std::size_t p = lane_point(l);
             const bool active = FULL || l < nl;
