@@ -534,7 +534,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     real_t* __restrict energy = blk.stab_energy.data();
     const real_t* __restrict weight = st.weight.data();
     alignas(64) real_t os[3][6][W], ws[3][W], sn[3][6][W], e[3][W];
-    const std::size_t s0 = 3 * static_cast<std::size_t>(p0);
+    [[maybe_unused]] const std::size_t s0 = 3 * static_cast<std::size_t>(p0); // the batch's first sub-point
 #if defined(__AVX512F__)
     constexpr bool triples = W == 8;
 #else
