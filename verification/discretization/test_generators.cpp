@@ -101,13 +101,21 @@ TEST(Generators, CylinderIsNumberedColumnByColumn)
         const int k = static_cast<int>(n % layers);
         EXPECT_NEAR(m.x[3 * n + 2], H * k / nz, 1e-15) << "node " << n;
         if (k + 1 < layers)
+        {
             for (int d = 0; d < 2; ++d)
+            {
                 ASSERT_EQ(m.x[3 * (n + 1) + d], m.x[3 * n + d]) << "node " << n << " and the one above it";
+            }
+        }
     }
     for (index_t e = 0; e + 1 < m.n_elements(); ++e)
         if ((e + 1) % nz != 0)
+        {
             for (int a = 0; a < 8; ++a)
+            {
                 ASSERT_EQ(m.conn[8 * (e + 1) + a], m.conn[8 * e + a] + 1) << "element " << e;
+            }
+        }
 }
 
 // The disk's nodes go in a sweep across it (ascending x): an element's columns then lie within
