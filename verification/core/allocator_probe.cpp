@@ -2,7 +2,9 @@
 // 64 MiB heap of small blocks (as the set-up's rows are) and prints what the process runs with:
 //   tunables=<GLIBC_TUNABLES or -> marker=<0|1> heap_huge_advised=<0|1> anon_huge_kib=<n>
 // heap_huge_advised: the [heap] mapping carries the kernel's 'hg' flag (madvise MADV_HUGEPAGE,
-// which glibc.malloc.hugetlb=1 asks for); anon_huge_kib: the heap's AnonHugePages.
+// which glibc.malloc.hugetlb=1 asks for); anon_huge_kib: the heap's AnonHugePages; starts: how
+// many times main() began (the environment carries the count across an execution: 2 when
+// tune_allocator executed the probe again, 1 when it arrived tuned or stayed untuned).
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -15,6 +17,9 @@
 
 int main(int, char** argv)
 {
+    const char* before = std::getenv("RKFEM_PROBE_STARTS");
+    const int starts = (before != nullptr ? std::atoi(before) : 0) + 1;
+    setenv("RKFEM_PROBE_STARTS", std::to_string(starts).c_str(), 1);
     rkfem::tune_allocator(argv);
     std::vector<std::unique_ptr<char[]>> blocks; // 64 KiB each: below glibc's mmap threshold, so on the heap
     for (int i = 0; i < 1024; ++i)
@@ -44,7 +49,7 @@ int main(int, char** argv)
         }
     }
     const char* t = std::getenv("GLIBC_TUNABLES");
-    std::printf("tunables=%s marker=%d heap_huge_advised=%d anon_huge_kib=%ld\n", t ? t : "-",
-                std::getenv("RKFEM_ALLOCATOR_TUNED") ? 1 : 0, advised ? 1 : 0, huge_kib);
+    std::printf("tunables=%s marker=%d heap_huge_advised=%d anon_huge_kib=%ld starts=%d\n", t ? t : "-",
+                std::getenv("RKFEM_ALLOCATOR_TUNED") ? 1 : 0, advised ? 1 : 0, huge_kib, starts);
     return 0;
 }

@@ -4,7 +4,7 @@
 #include <cstring>
 #include <string>
 
-#if defined(__linux__)
+#if defined(__unix__)
 #include <unistd.h>
 #endif
 
@@ -39,31 +39,75 @@ bool allocator_tunable()
 #endif
 }
 
-void tune_allocator(char** argv)
-{
 #if defined(RKFEM_TUNABLE_ALLOCATOR)
-    // the marker: set before the one re-execution, so there is never a second (a process whose
+namespace
+{
+/// The environment as it was before set_tuned_environment, to put back when an exec fails.
+struct SavedEnvironment
+{
+    bool had_tunables = false;
+    std::string tunables;
+};
+
+/// Sets the marker and GLIBC_TUNABLES for a tuned process; false (and the environment as it
+/// was) where tuning does not apply: already tuned or marked, the user's own hugetlb choice,
+/// RKFEM_ALLOCATOR=default, valgrind.
+bool set_tuned_environment(SavedEnvironment& saved)
+{
+    // the marker: set before the one (re-)execution, so there is never a second (a process whose
     // tunables the loader dropped still runs, untuned)
     constexpr const char* marker = "RKFEM_ALLOCATOR_TUNED";
     const char* choice = std::getenv("RKFEM_ALLOCATOR");
     const char* env_tunables = std::getenv("GLIBC_TUNABLES");
     if (std::getenv(marker) != nullptr || (choice != nullptr && std::string(choice) == "default") ||
-        contains(env_tunables, "glibc.malloc.hugetlb") || contains(std::getenv("LD_PRELOAD"), "vgpreload") ||
-        argv == nullptr || argv[0] == nullptr)
-        return;
-    const bool had_tunables = env_tunables != nullptr;
-    const std::string tunables = had_tunables ? env_tunables : ""; // getenv's string may not outlive setenv
-    std::string value = tunables.empty() ? std::string() : tunables + ":";
+        contains(env_tunables, "glibc.malloc.hugetlb") || contains(std::getenv("LD_PRELOAD"), "vgpreload"))
+        return false;
+    saved.had_tunables = env_tunables != nullptr;
+    saved.tunables = saved.had_tunables ? env_tunables : ""; // getenv's string may not outlive setenv
+    std::string value = saved.tunables.empty() ? std::string() : saved.tunables + ":";
     value += "glibc.malloc.hugetlb=1:glibc.malloc.top_pad=67108864";
-    if (setenv(marker, "1", 1) != 0 || setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0)
-        return;
-    execv("/proc/self/exe", argv);
-    // not executed: go on untuned, with the environment as it was (the marker stays: no retry)
-    if (had_tunables)
-        setenv("GLIBC_TUNABLES", tunables.c_str(), 1);
+    return setenv(marker, "1", 1) == 0 && setenv("GLIBC_TUNABLES", value.c_str(), 1) == 0;
+}
+
+/// Puts GLIBC_TUNABLES back (the marker stays: no retry).
+void restore_environment(const SavedEnvironment& saved)
+{
+    if (saved.had_tunables)
+        setenv("GLIBC_TUNABLES", saved.tunables.c_str(), 1);
     else
         unsetenv("GLIBC_TUNABLES");
+}
+} // namespace
+#endif
+
+void tune_allocator(char** argv)
+{
+#if defined(RKFEM_TUNABLE_ALLOCATOR)
+    if (argv == nullptr || argv[0] == nullptr)
+        return;
+    SavedEnvironment saved;
+    if (!set_tuned_environment(saved))
+        return;
+    execv("/proc/self/exe", argv);
+    // not executed: go on untuned, with the environment as it was
+    restore_environment(saved);
 #else
+    (void)argv;
+#endif
+}
+
+void exec_tuned(const char* path, char** argv)
+{
+#if defined(RKFEM_TUNABLE_ALLOCATOR)
+    SavedEnvironment saved;
+    const bool tuned = set_tuned_environment(saved);
+    execv(path, argv);
+    if (tuned)
+        restore_environment(saved);
+#elif defined(__unix__)
+    execv(path, argv);
+#else
+    (void)path;
     (void)argv;
 #endif
 }
