@@ -273,6 +273,7 @@ parts:
             m.nodes.x[3 * i + 2] = stretch_z * m.nodes.x0[3 * i + 2];
         }
         const Model::ElementShape g = m.element_shape(0, 2);
+        EXPECT_EQ(m.element_time_step(0, 2), g.time_step); // the step budget's scan reads it alone
         m.apply_events(0.0, 1);
         return std::make_pair(m.eroded_elements(), g);
     };

@@ -224,6 +224,11 @@ class Model final : public ExplicitOperator
         real_t principal_strain = 0.0, volumetric_strain = 0.0, time_step = 0.0;
     };
     ElementShape element_shape(index_t block, index_t e) const;
+    /// element_shape's time_step alone (the same value): the step budget's scan over every
+    /// element needs no strains (an eigen-solve per element).
+    real_t element_time_step(index_t block, index_t e) const;
+    /// Element e's corners now (a coupled part's particles through the kinematic map) and at rest.
+    void element_corners(index_t block, index_t e, real_t (&x)[8][3], real_t (&X)[8][3]) const;
     /// The model's own events after an accepted step (erosion and conversion by the parts'
     /// criteria); true when the discretization changed.
     bool apply_events(real_t t, std::int64_t step);

@@ -41,10 +41,25 @@ void Model::remove_elements(index_t block, const std::vector<char>& keep)
     ++topology_version_;
 }
 
-Model::ElementShape Model::element_shape(index_t block, index_t e) const
+namespace
+{
+/// An element's step as the kernels take it: V over its largest face area, over the wave speed.
+real_t area_time_step(const real_t (&x)[8][3], real_t V, real_t c)
+{
+    real_t area = 0.0;
+    for (const auto& f : hex_faces)
+    {
+        const Vec3 p0(x[f[0]][0], x[f[0]][1], x[f[0]][2]), p1(x[f[1]][0], x[f[1]][1], x[f[1]][2]);
+        const Vec3 p2(x[f[2]][0], x[f[2]][1], x[f[2]][2]), p3(x[f[3]][0], x[f[3]][1], x[f[3]][2]);
+        area = std::max(area, 0.5 * (p2 - p0).cross(p3 - p1).norm());
+    }
+    return area > 0.0 ? V / area / c : 0.0;
+}
+} // namespace
+
+void Model::element_corners(index_t block, index_t e, real_t (&x)[8][3], real_t (&X)[8][3]) const
 {
     const HexBlock& blk = blocks[static_cast<std::size_t>(block)];
-    real_t x[8][3], X[8][3], b[8][3], b0[8][3];
     for (int I = 0; I < 8; ++I)
         for (int d = 0; d < 3; ++d)
         {
@@ -59,6 +74,13 @@ Model::ElementShape Model::element_shape(index_t block, index_t e) const
             for (int d = 0; d < 3; ++d)
                 x[I][d] = p[d];
         }
+}
+
+Model::ElementShape Model::element_shape(index_t block, index_t e) const
+{
+    const HexBlock& blk = blocks[static_cast<std::size_t>(block)];
+    real_t x[8][3], X[8][3], b[8][3], b0[8][3];
+    element_corners(block, e, x, X);
     const real_t V = hex8_volume_gradient(x, b), V0 = hex8_volume_gradient(X, b0);
     // the mean deformation gradient F = sum_I x_I (x) b0_I / V0; lambda_max^2 = largest eigenvalue of F^T F
     Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
@@ -70,16 +92,16 @@ Model::ElementShape Model::element_shape(index_t block, index_t e) const
     ElementShape g;
     g.principal_strain = 0.5 * std::log(std::max(eig.eigenvalues().maxCoeff(), 1e-300));
     g.volumetric_strain = V / V0 - 1.0;
-    // the element step as the kernels take it: V over the largest face area, over the wave speed
-    real_t area = 0.0;
-    for (const auto& f : hex_faces)
-    {
-        const Vec3 p0(x[f[0]][0], x[f[0]][1], x[f[0]][2]), p1(x[f[1]][0], x[f[1]][1], x[f[1]][2]);
-        const Vec3 p2(x[f[2]][0], x[f[2]][1], x[f[2]][2]), p3(x[f[3]][0], x[f[3]][1], x[f[3]][2]);
-        area = std::max(area, 0.5 * (p2 - p0).cross(p3 - p1).norm());
-    }
-    g.time_step = area > 0.0 ? V / area / blk.material.wave_speed() : 0.0;
+    g.time_step = area_time_step(x, V, blk.material.wave_speed());
     return g;
+}
+
+real_t Model::element_time_step(index_t block, index_t e) const
+{
+    real_t x[8][3], X[8][3], b[8][3];
+    element_corners(block, e, x, X);
+    const real_t V = hex8_volume_gradient(x, b);
+    return area_time_step(x, V, blocks[static_cast<std::size_t>(block)].material.wave_speed());
 }
 
 bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const

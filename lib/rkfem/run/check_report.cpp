@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <vector>
 
 #include "rkfem/model/model.hpp"
 
@@ -149,11 +150,20 @@ struct SmallestStep
 SmallestStep smallest_element_step(const Model& model)
 {
     SmallestStep s;
+    std::vector<real_t> dt;
     for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
         if (model.part_nodal[b] < 0)
-            for (index_t e = 0; e < model.blocks[b].n_elements(); ++e)
-                if (const real_t dt = model.element_shape(b, e).time_step; dt < s.dt * (1 - 1e-12))
-                    s = {dt, b, e};
+        {
+            // the elements' steps on the threads, then the first smallest in element order
+            const index_t ne = model.blocks[b].n_elements();
+            dt.resize(static_cast<std::size_t>(ne));
+#pragma omp parallel for schedule(static)
+            for (index_t e = 0; e < ne; ++e)
+                dt[static_cast<std::size_t>(e)] = model.element_time_step(b, e);
+            for (index_t e = 0; e < ne; ++e)
+                if (dt[static_cast<std::size_t>(e)] < s.dt * (1 - 1e-12))
+                    s = {dt[static_cast<std::size_t>(e)], b, e};
+        }
     return s;
 }
 } // namespace
