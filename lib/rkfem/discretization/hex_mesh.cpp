@@ -26,21 +26,33 @@ std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::
             std::sort(k.begin(), k.end());
             entries.push_back({k, e, f});
         }
-    std::vector<std::size_t> order(entries.size());
-    for (std::size_t i = 0; i < order.size(); ++i)
-        order[i] = i;
-    std::sort(order.begin(), order.end(),
-              [&](std::size_t a, std::size_t b) { return entries[a].key < entries[b].key; });
-    std::vector<char> boundary(entries.size(), 0);
-    for (std::size_t i = 0; i < order.size();)
+    // a face is on the boundary when no other element face has its four nodes. Its twin, if
+    // any, has the same smallest node: faces bucketed by it (a counting sort, a dozen faces per
+    // node) are compared within their bucket only (a sort of all 6 n_e keys took most of the
+    // time of a 71k-element mesh)
+    index_t nn = 0;
+    for (const Entry& en : entries)
+        nn = std::max(nn, en.key[0] + 1);
+    std::vector<index_t> start(static_cast<std::size_t>(nn) + 1, 0), bucket(entries.size());
+    for (const Entry& en : entries)
+        ++start[static_cast<std::size_t>(en.key[0]) + 1];
+    for (std::size_t k = 0; k < static_cast<std::size_t>(nn); ++k)
+        start[k + 1] += start[k];
     {
-        std::size_t j = i + 1;
-        while (j < order.size() && entries[order[j]].key == entries[order[i]].key)
-            ++j;
-        if (j - i == 1)
-            boundary[order[i]] = 1;
-        i = j;
+        std::vector<index_t> fill(start.begin(), start.end() - 1);
+        for (std::size_t i = 0; i < entries.size(); ++i)
+            bucket[static_cast<std::size_t>(fill[static_cast<std::size_t>(entries[i].key[0])]++)] = static_cast<index_t>(i);
     }
+    std::vector<char> boundary(entries.size(), 1);
+    for (std::size_t k = 0; k < static_cast<std::size_t>(nn); ++k)
+        for (index_t a = start[k]; a < start[k + 1]; ++a)
+            for (index_t b = a + 1; b < start[k + 1]; ++b)
+            {
+                const std::size_t i = static_cast<std::size_t>(bucket[static_cast<std::size_t>(a)]),
+                                  j = static_cast<std::size_t>(bucket[static_cast<std::size_t>(b)]);
+                if (entries[i].key == entries[j].key)
+                    boundary[i] = boundary[j] = 0;
+            }
     std::vector<Quad> faces;
     if (owner)
         owner->clear();
