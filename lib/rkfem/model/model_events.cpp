@@ -10,6 +10,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace rkfem
@@ -76,33 +77,72 @@ void Model::element_corners(index_t block, index_t e, real_t (&x)[8][3], real_t 
         }
 }
 
+namespace
+{
+/// An element's shape measures, each formed when first asked for (the erosion and conversion
+/// criteria read one or two of them, every step, for every element): the same expressions
+/// whichever are asked, so the same values as element_shape's.
+class ShapeMeasures
+{
+  public:
+    ShapeMeasures(const Model& m, index_t block, index_t e)
+        : c_(m.blocks[static_cast<std::size_t>(block)].material.wave_speed())
+    {
+        m.element_corners(block, e, x_, X_);
+    }
+    /// the largest principal logarithmic strain of the mean deformation gradient
+    /// F = sum_I x_I (x) b0_I / V0 (lambda_max^2 the largest eigenvalue of F^T F)
+    real_t principal_strain()
+    {
+        reference();
+        Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
+        for (int I = 0; I < 8; ++I)
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    F(i, j) += x_[I][i] * b0_[I][j] / V0_;
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(F.transpose() * F, Eigen::EigenvaluesOnly);
+        return 0.5 * std::log(std::max(eig.eigenvalues().maxCoeff(), 1e-300));
+    }
+    real_t volumetric_strain()
+    {
+        reference();
+        return volume() / V0_ - 1.0;
+    }
+    /// the element's step as the kernels take it: V over its largest face area, over the wave speed
+    real_t time_step() { return area_time_step(x_, volume(), c_); }
+
+  private:
+    void reference()
+    {
+        if (!(V0_ > 0.0 || V0_ <= 0.0)) // NaN: not formed yet
+            V0_ = hex8_volume_gradient(X_, b0_);
+    }
+    real_t volume()
+    {
+        if (!(V_ > 0.0 || V_ <= 0.0))
+        {
+            real_t b[8][3];
+            V_ = hex8_volume_gradient(x_, b);
+        }
+        return V_;
+    }
+    real_t x_[8][3], X_[8][3], b0_[8][3];
+    real_t V_ = std::numeric_limits<real_t>::quiet_NaN(), V0_ = std::numeric_limits<real_t>::quiet_NaN();
+    real_t c_;
+};
+} // namespace
+
 Model::ElementShape Model::element_shape(index_t block, index_t e) const
 {
-    const HexBlock& blk = blocks[static_cast<std::size_t>(block)];
-    real_t x[8][3], X[8][3], b[8][3], b0[8][3];
-    element_corners(block, e, x, X);
-    const real_t V = hex8_volume_gradient(x, b), V0 = hex8_volume_gradient(X, b0);
-    // the mean deformation gradient F = sum_I x_I (x) b0_I / V0; lambda_max^2 = largest eigenvalue of F^T F
-    Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
-    for (int I = 0; I < 8; ++I)
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-                F(i, j) += x[I][i] * b0[I][j] / V0;
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(F.transpose() * F, Eigen::EigenvaluesOnly);
+    ShapeMeasures m(*this, block, e);
     ElementShape g;
-    g.principal_strain = 0.5 * std::log(std::max(eig.eigenvalues().maxCoeff(), 1e-300));
-    g.volumetric_strain = V / V0 - 1.0;
-    g.time_step = area_time_step(x, V, blk.material.wave_speed());
+    g.principal_strain = m.principal_strain();
+    g.volumetric_strain = m.volumetric_strain();
+    g.time_step = m.time_step();
     return g;
 }
 
-real_t Model::element_time_step(index_t block, index_t e) const
-{
-    real_t x[8][3], X[8][3], b[8][3];
-    element_corners(block, e, x, X);
-    const real_t V = hex8_volume_gradient(x, b);
-    return area_time_step(x, V, blocks[static_cast<std::size_t>(block)].material.wave_speed());
-}
+real_t Model::element_time_step(index_t block, index_t e) const { return ShapeMeasures(*this, block, e).time_step(); }
 
 bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
 {
@@ -111,10 +151,10 @@ bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
         return true;
     if (!c.geometric())
         return false;
-    const ElementShape g = element_shape(b, e);
-    return (c.principal_strain > 0 && g.principal_strain >= c.principal_strain) ||
-           (c.volumetric_strain > 0 && g.volumetric_strain >= c.volumetric_strain) ||
-           (c.time_step > 0 && g.time_step < c.time_step);
+    ShapeMeasures g(*this, b, e); // only the measures the criteria name
+    return (c.principal_strain > 0 && g.principal_strain() >= c.principal_strain) ||
+           (c.volumetric_strain > 0 && g.volumetric_strain() >= c.volumetric_strain) ||
+           (c.time_step > 0 && g.time_step() < c.time_step);
 }
 
 bool Model::apply_events(real_t t, std::int64_t step)
@@ -140,6 +180,8 @@ bool Model::apply_events(real_t t, std::int64_t step)
             const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(b)];
             std::vector<char> convert(static_cast<std::size_t>(ne), 0);
             bool any = false;
+            // each element on its own (meets reads the committed state): on the threads
+#pragma omp parallel for schedule(static) reduction(|| : any)
             for (index_t e = 0; e < ne; ++e)
                 if (!rk[e] && meets(ps.conversion, b, e))
                 {
@@ -174,6 +216,7 @@ bool Model::apply_events(real_t t, std::int64_t step)
             continue;
         std::vector<char> keep(static_cast<std::size_t>(ne), 1);
         index_t removed = 0;
+#pragma omp parallel for schedule(static) reduction(+ : removed)
         for (index_t e = 0; e < ne; ++e)
         {
             const bool erode = (ps.erosion.active() && meets(ps.erosion, b, e)) ||
