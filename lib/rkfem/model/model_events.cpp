@@ -10,7 +10,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
-#include <limits>
 #include <sstream>
 
 namespace rkfem
@@ -114,20 +113,23 @@ class ShapeMeasures
   private:
     void reference()
     {
-        if (!(V0_ > 0.0 || V0_ <= 0.0)) // NaN: not formed yet
+        if (!have_V0_)
             V0_ = hex8_volume_gradient(X_, b0_);
+        have_V0_ = true;
     }
     real_t volume()
     {
-        if (!(V_ > 0.0 || V_ <= 0.0))
+        if (!have_V_)
         {
             real_t b[8][3];
             V_ = hex8_volume_gradient(x_, b);
         }
+        have_V_ = true;
         return V_;
     }
     real_t x_[8][3], X_[8][3], b0_[8][3];
-    real_t V_ = std::numeric_limits<real_t>::quiet_NaN(), V0_ = std::numeric_limits<real_t>::quiet_NaN();
+    real_t V_ = 0.0, V0_ = 0.0;
+    bool have_V_ = false, have_V0_ = false;
     real_t c_;
 };
 } // namespace
