@@ -84,11 +84,21 @@ real_t hex8_volume_gradient(const real_t xe[8][3], real_t b[8][3])
         cr[p][1] = xk[2] * xl[0] - xk[0] * xl[2];
         cr[p][2] = xk[0] * xl[1] - xk[1] * xl[0];
     }
+    // node by node (the terms are generated so): each b_I summed from zero in term order in
+    // registers, not through b in memory term by term
     for (int I = 0; I < 8; ++I)
-        b[I][0] = b[I][1] = b[I][2] = 0.0;
-    for (int k = 0; k < t.n_terms; ++k)
-        for (int d = 0; d < 3; ++d)
-            b[t.term_node[k]][d] += t.term_coef[k] * cr[t.term_pair[k]][d];
+    {
+        real_t s0 = 0.0, s1 = 0.0, s2 = 0.0;
+        for (int k = t.node_offsets[I]; k < t.node_offsets[I + 1]; ++k)
+        {
+            const real_t c = t.term_coef[k];
+            const real_t* r = cr[t.term_pair[k]];
+            s0 += c * r[0];
+            s1 += c * r[1];
+            s2 += c * r[2];
+        }
+        b[I][0] = s0, b[I][1] = s1, b[I][2] = s2;
+    }
     real_t V = 0.0;
     for (int I = 0; I < 8; ++I)
         V += b[I][0] * xe[I][0] + b[I][1] * xe[I][1] + b[I][2] * xe[I][2];
