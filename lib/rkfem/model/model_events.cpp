@@ -99,7 +99,8 @@ class ShapeMeasures
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j)
                     F(i, j) += x_[I][i] * b0_[I][j] / V0_;
-        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(F.transpose() * F, Eigen::EigenvaluesOnly);
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+        eig.computeDirect(F.transpose() * F, Eigen::EigenvaluesOnly);
         return 0.5 * std::log(std::max(eig.eigenvalues().maxCoeff(), 1e-300));
     }
     real_t volumetric_strain()
