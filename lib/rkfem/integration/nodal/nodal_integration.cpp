@@ -399,6 +399,16 @@ class ElementFacetSums
             }
         out.slot.clear();
         out.g.clear();
+        // room for every entry at once (a source's sums are built once and kept until the rows
+        // merge: grown by doubling they were copied about ten times, into fresh pages)
+        std::size_t entries = 0;
+        for (std::size_t k = 0; k < 8 * nr; ++k)
+            entries += hit_[k] != 0.0;
+        if (with_sub)
+            for (std::size_t k = 0; k < 8 * nr; ++k)
+                entries += sub_hit_[k] != 0.0;
+        out.slot.reserve(entries);
+        out.g.reserve(3 * entries);
         for (int a = 0; a < 16; ++a)
         {
             out.start[a] = static_cast<index_t>(out.slot.size());
