@@ -174,6 +174,10 @@ void finish_block(NodalBlock& nb, index_t offset, const std::vector<real_t>& l0,
         for (auto& o : op->owner)
             o += offset;
     }
+    // NSNI held as its triplets (hold_nsni): each point's stencil counts its nodes from its
+    // base, a node id too (a part after others in the model starts past their nodes)
+    for (auto& b : nb.stab_triplets.point_base)
+        b += offset;
     nb.length0.resize(static_cast<std::size_t>(nb.points.n_points()));
     std::vector<real_t> lengths(nb.length0.size());
     for (index_t p = 0; p < nb.points.n_points(); ++p)
