@@ -200,7 +200,8 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     std::unique_ptr<ShapeEvaluator> shapes;
     if (ps.formulation == Formulation::Rkpm)
     {
-        rk = std::make_shared<const RkShapeFunctions>(rk_on_mesh(mesh, rk_params(ps.rk)));        shapes = std::make_unique<RkShapes>(*rk, ps.rk.drop_tolerance);
+        rk = std::make_shared<const RkShapeFunctions>(rk_on_mesh(mesh, rk_params(ps.rk)));
+        shapes = std::make_unique<RkShapes>(*rk, ps.rk.drop_tolerance);
         nb.rk = rk;
     }
     else
@@ -366,7 +367,7 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
     if (n_rk == 0 && ps.converts() && ps.formulation == Formulation::FemNodal)
     {
         // no RK element yet: nodal-integrated FE on the same cells as a coupled block's
-    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+        NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
         const FemShapes shapes(mesh);
         if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
         {
