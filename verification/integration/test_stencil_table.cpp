@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <limits>
 
+#include <omp.h>
+
 #include "nodal_common.hpp"
 #include "rkfem/approximation/rk/kinematic_map.hpp"
 #include "rkfem/discretization/generators.hpp"
@@ -298,6 +300,62 @@ TEST(StencilTable, ToleranceDecidesWhatIsShared)
     opts.max_entry_fraction = 0.5;
     EXPECT_TRUE(share_stencils(op2, opts).empty());
     EXPECT_EQ(op2.nodes, op.nodes);
+}
+
+// build_scni_rk with a table writes its rows a block at a time straight into shared stencils
+// (StencilSharer): the table is share_stencils' on the whole operator bit for bit, and the
+// operator keeps its frame (offsets, weights, positions, owners) without entries; on 1 and 2
+// threads alike. On the P1 cylinder at 1 in sharing pays; on a jittered mesh it does not, and
+// then the table is empty and the operator the plain build's.
+TEST(StencilTable, ScniRowsGoStraightIntoTheTableShareStencilsFinds)
+{
+    const real_t inch = 0.0254;
+    struct Case
+    {
+        const char* name;
+        HexMesh mesh;
+        bool pays;
+    };
+    const Case cases[] = {{"cylinder", generate_cylinder(Vec3::Zero(), 3 * inch, 12 * inch, inch, false), true},
+                          {"jittered", distorted_box(5, 1e-3, 0.3), false}};
+    for (const Case& c : cases)
+    {
+        const RkShapeFunctions rk = rkfem::rk_on_mesh(c.mesh, RkParams{});
+        IntegrationOperator whole = build_scni_rk(c.mesh, rk, 1e-5);
+        const IntegrationOperator unsnapped = whole;
+        const StencilTable found = share_stencils(whole);
+        ASSERT_EQ(found.empty(), !c.pays) << c.name;
+        const int threads = omp_get_max_threads();
+        for (const int t : {1, 2})
+        {
+            omp_set_num_threads(t);
+            StencilTable direct;
+            direct.point_base = {7}; // cleared by the build
+            const IntegrationOperator op = build_scni_rk(c.mesh, rk, 1e-5, nullptr, true, &direct);
+            omp_set_num_threads(threads);
+            EXPECT_EQ(op.offsets, whole.offsets) << c.name;
+            EXPECT_EQ(op.weight, whole.weight) << c.name;
+            EXPECT_EQ(op.position, whole.position) << c.name;
+            EXPECT_EQ(op.owner, whole.owner) << c.name;
+            EXPECT_EQ(direct.point_stencil, found.point_stencil) << c.name << ", " << t << " thread(s)";
+            EXPECT_EQ(direct.point_base, found.point_base) << c.name;
+            EXPECT_EQ(direct.offsets, found.offsets) << c.name;
+            EXPECT_EQ(direct.node_offset, found.node_offset) << c.name;
+            EXPECT_EQ(direct.grad, found.grad) << c.name;
+            if (c.pays)
+            {
+                EXPECT_TRUE(op.nodes.empty() && op.grad.empty()) << c.name << ": the entries are the table's alone";
+                EXPECT_LE(static_cast<double>(direct.n_entries()), 0.6 * whole.n_entries()) << c.name;
+            }
+            else
+            {
+                EXPECT_EQ(op.nodes, unsnapped.nodes) << c.name;
+                EXPECT_EQ(op.grad, unsnapped.grad) << c.name;
+            }
+        }
+        std::printf("%s: %d points, %d entries, %d in %d shared stencils\n", c.name, whole.n_points(),
+                    whole.n_entries(), found.n_entries(), found.n_stencils());
+    }
 }
 
 // The force pass with the shared stencils gives the bits of the pass that reads the (snapped)

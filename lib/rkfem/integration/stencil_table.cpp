@@ -43,74 +43,76 @@ index_t newest_match(const std::vector<index_t>& candidates, const StencilSharin
 }
 } // namespace
 
+StencilSharer::StencilSharer(index_t n_points, std::size_t n_entries, const StencilSharing& opts)
+    : opts_(opts), budget_(static_cast<std::size_t>(opts.max_entry_fraction * static_cast<real_t>(n_entries)))
+{
+    t_.point_stencil.resize(static_cast<std::size_t>(n_points));
+    t_.point_base.resize(static_cast<std::size_t>(n_points));
+    // room for the budget at once: memory reserved and never written costs no page, and the
+    // stencils are never copied as the table grows
+    t_.node_offset.reserve(budget_ + 1);
+    t_.grad.reserve(3 * (budget_ + 1));
+}
+
+bool StencilSharer::add(const index_t* nodes, const real_t* g, index_t n)
+{
+    const std::size_t p = static_cast<std::size_t>(next_++);
+    t_.point_base[p] = n > 0 ? nodes[0] : 0;
+    std::vector<index_t>& candidates = by_offsets_[offsets_hash(nodes, n)];
+    // does stencil s have this point's node offsets and, within the tolerance of its largest
+    // gradient, its gradients? (written so that a NaN on either side differs)
+    auto matches = [&](index_t s)
+    {
+        const index_t j0 = t_.offsets[static_cast<std::size_t>(s)];
+        if (t_.offsets[static_cast<std::size_t>(s) + 1] - j0 != n)
+            return false;
+        const index_t* offset = t_.node_offset.data() + j0;
+        for (index_t k = 1; k < n; ++k)
+            if (offset[k] != nodes[k] - nodes[0])
+                return false;
+        return within(t_.grad.data() + 3 * static_cast<std::size_t>(j0), g, 3 * n,
+                      opts_.relative_tolerance * scale_[static_cast<std::size_t>(s)]);
+    };
+    index_t found = newest_match(candidates, opts_, matches);
+    if (found < 0)
+    {
+        stored_ += static_cast<std::size_t>(n);
+        if (stored_ > budget_)
+            return false; // sharing does not pay
+        found = t_.n_stencils();
+        scale_.push_back(largest_magnitude(g, 3 * n));
+        candidates.push_back(found);
+        for (index_t k = 0; k < n; ++k)
+            t_.node_offset.push_back(nodes[k] - nodes[0]);
+        t_.grad.insert(t_.grad.end(), g, g + 3 * n);
+        t_.offsets.push_back(t_.n_entries());
+    }
+    t_.point_stencil[p] = found;
+    return true;
+}
+
+StencilTable StencilSharer::take()
+{
+    RKFEM_REQUIRE(next_ == static_cast<index_t>(t_.point_stencil.size()) && stored_ <= budget_,
+                  "StencilSharer: " << next_ << " of " << t_.point_stencil.size() << " points offered, "
+                                    << stored_ << " entries stored for a budget of " << budget_);
+    return std::move(t_);
+}
+
 StencilTable share_stencils(IntegrationOperator& op, const StencilSharing& opts)
 {
     const index_t np = op.n_points();
-    StencilTable t;
     if (np == 0)
-        return t;
-    t.point_stencil.resize(static_cast<std::size_t>(np));
-    t.point_base.resize(static_cast<std::size_t>(np));
-    std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets;
-    // per stencil found: its first point (whose entries the table will hold: the operator is not
-    // written before the snap, so they are read in place) and its largest |gradient component|
-    std::vector<index_t> first;
-    std::vector<real_t> scale;
-    const std::size_t budget = static_cast<std::size_t>(opts.max_entry_fraction * static_cast<real_t>(op.n_entries()));
-    std::size_t stored = 0; // the entries of the stencils found
-
+        return {};
+    StencilSharer sharer(np, static_cast<std::size_t>(op.n_entries()), opts);
     for (index_t p = 0; p < np; ++p)
     {
         const index_t k0 = op.offsets[static_cast<std::size_t>(p)];
-        const index_t n = op.offsets[static_cast<std::size_t>(p) + 1] - k0;
-        const index_t* nodes = op.nodes.data() + k0;
-        const real_t* g = op.grad.data() + 3 * static_cast<std::size_t>(k0);
-        t.point_base[static_cast<std::size_t>(p)] = n > 0 ? nodes[0] : 0;
-        std::vector<index_t>& candidates = by_offsets[offsets_hash(nodes, n)];
-        // does stencil s have this point's node offsets and, within the tolerance of its
-        // largest gradient, its gradients? (written so that a NaN on either side differs)
-        auto matches = [&](index_t s)
-        {
-            const index_t j0 = op.offsets[static_cast<std::size_t>(first[static_cast<std::size_t>(s)])];
-            if (op.offsets[static_cast<std::size_t>(first[static_cast<std::size_t>(s)]) + 1] - j0 != n)
-                return false;
-            const index_t* ns = op.nodes.data() + j0;
-            for (index_t k = 1; k < n; ++k)
-                if (ns[k] - ns[0] != nodes[k] - nodes[0])
-                    return false;
-            return within(op.grad.data() + 3 * static_cast<std::size_t>(j0), g, 3 * n,
-                          opts.relative_tolerance * scale[static_cast<std::size_t>(s)]);
-        };
-        index_t found = newest_match(candidates, opts, matches);
-        if (found < 0)
-        {
-            found = static_cast<index_t>(first.size());
-            first.push_back(p);
-            scale.push_back(largest_magnitude(g, 3 * n));
-            candidates.push_back(found);
-            stored += static_cast<std::size_t>(n);
-            if (stored > budget)
-                return {}; // sharing does not pay: the operator stays as it was
-        }
-        t.point_stencil[static_cast<std::size_t>(p)] = found;
+        if (!sharer.add(op.nodes.data() + k0, op.grad.data() + 3 * static_cast<std::size_t>(k0),
+                        op.offsets[static_cast<std::size_t>(p) + 1] - k0))
+            return {}; // sharing does not pay: the operator stays as it was
     }
-
-    // the table: each stencil's first point's entries, relative to its first node
-    t.offsets.reserve(first.size() + 1);
-    t.node_offset.reserve(stored);
-    t.grad.reserve(3 * stored);
-    for (const index_t p : first)
-    {
-        const index_t k0 = op.offsets[static_cast<std::size_t>(p)];
-        const index_t n = op.offsets[static_cast<std::size_t>(p) + 1] - k0;
-        const index_t* nodes = op.nodes.data() + k0;
-        for (index_t k = 0; k < n; ++k)
-            t.node_offset.push_back(nodes[k] - nodes[0]);
-        const real_t* g = op.grad.data() + 3 * static_cast<std::size_t>(k0);
-        t.grad.insert(t.grad.end(), g, g + 3 * n);
-        t.offsets.push_back(static_cast<index_t>(t.node_offset.size()));
-    }
-
+    StencilTable t = sharer.take();
     // snap: every point takes its stencil's gradients
     for (index_t p = 0; p < np; ++p)
     {

@@ -14,6 +14,8 @@
 /// stencils that differ that little differ by the round-off of their construction (which grows
 /// with |X| / h: 5e-13 at 66 spacings from the origin), and the stencil kept is the one built
 /// nearest the start of the point order.
+#include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include "rkfem/core/types.hpp"
@@ -136,6 +138,31 @@ TripletTable share_triplets(TripletTable table, const StencilSharing& opts = {})
 /// row i of the entry's symmetric matrix. It snaps an operator to its table, as sharing does,
 /// and writes back the entries of a released one.
 void expand_triplets(IntegrationOperator& stab, const TripletTable& table);
+
+/// share_stencils' classes found one point at a time, in point order, for a builder that writes
+/// its points' entries a block at a time and keeps only the table (build_scni_rk): each point's
+/// entries are read when offered and never again, and the table holds the first point of each
+/// class, as share_stencils' does. The same table, bit for bit, as share_stencils on the whole
+/// operator.
+class StencilSharer
+{
+  public:
+    /// `n_points` points will be offered with `n_entries` entries in all.
+    StencilSharer(index_t n_points, std::size_t n_entries, const StencilSharing& opts = {});
+    /// The next point's n entries (nodes, 3 gradients each). False once the stencils stored pass
+    /// opts.max_entry_fraction of the entries: sharing does not pay, and the sharer is spent.
+    bool add(const index_t* nodes, const real_t* grad, index_t n);
+    /// The table, once every point was added (add never returned false).
+    StencilTable take();
+
+  private:
+    StencilSharing opts_;
+    StencilTable t_;
+    index_t next_ = 0;
+    std::size_t budget_ = 0, stored_ = 0;
+    std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets_; ///< offsets hash -> stencils
+    std::vector<real_t> scale_; ///< per stencil: its largest |gradient component|
+};
 
 /// Finds the shared stencils of `op` and snaps its gradients to them (see the file comment).
 /// Returns an empty table, and leaves `op` as it was, when sharing does not pay

@@ -86,14 +86,14 @@ void NodalBlock::build_tables(Assembly assembly)
     // stays so: the triplets are already shared, and the sub-point entries are formed only if
     // the gather assembly below needs them
     const bool held_as_triplets = stab_in_triplets && stabilization_triplets && compact_operators;
-    if (held_as_triplets)
-    {
-        stab_in_triplets = false;
-        expand_operators();
-        stab_in_triplets = true;
-    }
-    else
-        expand_operators();
+    // the stress points held in shared stencils from the start (build_scni_rk's rows straight
+    // into the table) stay so too: the table is the one share_stencils would find
+    const bool points_held = points_in_table && compact_operators && share_stencils && !point_stencils.empty();
+    stab_in_triplets = stab_in_triplets && !held_as_triplets;
+    points_in_table = points_in_table && !points_held;
+    expand_operators();
+    stab_in_triplets = held_as_triplets;
+    points_in_table = points_held;
     const index_t np = n_points(), ns = n_stab();
     const index_t nn = node_end - node_begin;
 
@@ -119,11 +119,13 @@ void NodalBlock::build_tables(Assembly assembly)
         }
     }
     // shared stencils first: they snap the operators' gradients, which the transpose copies
-    point_stencils.clear();
+    if (!points_held)
+        point_stencils.clear();
     stab_stencils.clear();
     if (share_stencils)
     {
-        point_stencils = rkfem::share_stencils(points);
+        if (!points_held)
+            point_stencils = rkfem::share_stencils(points);
         if (!held_as_triplets)
             stab_stencils = rkfem::share_stencils(stabilization);
     }
@@ -190,15 +192,25 @@ void NodalBlock::build_tables(Assembly assembly)
                                                                      lo = std::min(lo, stabilization.nodes[k]);
                                                                      hi = std::max(hi, stabilization.nodes[k] + 1);
                                                                  }
-                                                             for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
+                                                             auto touch = [&](index_t node)
                                                              {
-                                                                 RKFEM_REQUIRE(op->nodes[k] >= node_begin && op->nodes[k] < node_end,
+                                                                 RKFEM_REQUIRE(node >= node_begin && node < node_end,
                                                                                "nodal block: entry touches node "
-                                                                                   << op->nodes[k] << " outside the part's range ["
+                                                                                   << node << " outside the part's range ["
                                                                                    << node_begin << ", " << node_end << ")");
-                                                                 lo = std::min(lo, op->nodes[k]);
-                                                                 hi = std::max(hi, op->nodes[k] + 1);
-                                                             }
+                                                                 lo = std::min(lo, node);
+                                                                 hi = std::max(hi, node + 1);
+                                                             };
+                                                             if (op == &points && points_held)
+                                                                 for (index_t p = first; p < last; ++p)
+                                                                 {
+                                                                     const StencilView v = point_view(p);
+                                                                     for (index_t k = 0; k < v.size; ++k)
+                                                                         touch(v.base + v.offset[k]);
+                                                                 }
+                                                             else
+                                                                 for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
+                                                                     touch(op->nodes[k]);
                                                          });
             if (op == &points)
                 n_point_chunks = static_cast<index_t>(scatter.chunks.size());
@@ -222,7 +234,7 @@ void NodalBlock::build_tables(Assembly assembly)
     node_entry_offsets.clear();
     node_point.clear();
     node_grad.clear();
-    if (!use_scatter && held_as_triplets)
+    if (!use_scatter && (held_as_triplets || points_held))
         expand_operators();
     const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
     if (!use_scatter)

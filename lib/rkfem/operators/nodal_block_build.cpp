@@ -178,6 +178,9 @@ void finish_block(NodalBlock& nb, index_t offset, const std::vector<real_t>& l0,
     // base, a node id too (a part after others in the model starts past their nodes)
     for (auto& b : nb.stab_triplets.point_base)
         b += offset;
+    // the same for SCNI held in shared stencils from the start (build_scni_rk)
+    for (auto& b : nb.point_stencils.point_base)
+        b += offset;
     nb.length0.resize(static_cast<std::size_t>(nb.points.n_points()));
     std::vector<real_t> lengths(nb.length0.size());
     for (index_t p = 0; p < nb.points.n_points(); ++p)
@@ -227,7 +230,14 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.scheme + " gradients",
                                                  by_elements ? mesh.n_elements() : mesh.n_nodes());
             if (by_elements)
-                nb.points = build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr, ps.rk.share_translates);
+            {
+                // the rows straight into shared stencils where they pay (a part of one
+                // formulation keeps only the table: compact_operators below; MSCNI's
+                // stabilization is formed from the rows)
+                nb.points = build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr, ps.rk.share_translates,
+                                          nb.share_stencils && !mscni ? &nb.point_stencils : nullptr);
+                nb.points_in_table = !nb.point_stencils.empty();
+            }
             else if (mscni)
                 build_scni_sd(mesh, *shapes, nb.points, &sd);
             else

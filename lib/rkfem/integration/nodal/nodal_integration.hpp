@@ -52,8 +52,13 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
 /// interior of a structured block) takes that element's facet sums instead of evaluating its
 /// own; without, every element evaluates its own (the plain build: each element's sums as the
 /// shared build computes its sources'). One progress count per element.
+/// With `shared`, the rows go straight into shared stencils (StencilSharer, share_stencils'
+/// classes) where sharing pays: the operator then comes back without entries (offsets, weights,
+/// positions and owners only) and *shared holds them, the table share_stencils would find on
+/// the whole operator. Where sharing does not pay, *shared is empty and the operator whole.
 IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
-                                  IntegrationOperator* sd = nullptr, bool share_translates = true);
+                                  IntegrationOperator* sd = nullptr, bool share_translates = true,
+                                  StencilTable* shared = nullptr);
 
 /// Greedy colouring of a mesh's elements: no two elements that share a node have one colour.
 /// Returns the elements by colour as CSR (colour c: elements[offsets[c] .. offsets[c + 1]),
