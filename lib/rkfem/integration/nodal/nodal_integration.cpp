@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <exception>
 #include <limits>
 #include <utility>
@@ -471,6 +472,96 @@ class ElementFacetSums
     std::vector<real_t> acc_, hit_, sub_acc_, sub_hit_, facet_sum_, facet_hit_;
     std::array<FacetPoint, 4> points_;
 };
+/// A node's SCNI row from its sub-hexes' partial rows (lists, each ascending in particle), merged
+/// by particle: each particle's terms added in the lists' order (their elements' colours: a
+/// fixed order, so the same bits on any number of threads), the row in ascending particle
+/// order. The particles a row touches are marked in a bitmap over all particles and their sums
+/// held densely, so a row costs its lists' entries, not entries times lists as a k-way merge
+/// does; the marks are clear again between rows. One per thread.
+class RowMerger
+{
+  public:
+    struct List
+    {
+        index_t colour, begin, end; ///< entries [begin, end) of the sums
+        const index_t *ids, *slot;  ///< entry k's particle: ids[slot[k]]
+        const real_t* g;            ///< entry k's three sums: g[3 k .. 3 k + 2]
+    };
+
+    explicit RowMerger(index_t n_particles)
+        : marks_((static_cast<std::size_t>(n_particles) + 63) / 64, 0), sum_(3 * static_cast<std::size_t>(n_particles))
+    {
+    }
+
+    /// The number of distinct particles in the lists.
+    index_t count(const std::vector<List>& lists)
+    {
+        for (const List& l : lists)
+            for (index_t k = l.begin; k < l.end; ++k)
+                mark(l.ids[l.slot[k]]);
+        index_t n = 0;
+        for (std::size_t w = first_; w <= last_ && first_ <= last_; ++w)
+        {
+            n += static_cast<index_t>(__builtin_popcountll(marks_[w]));
+            marks_[w] = 0;
+        }
+        reset();
+        return n;
+    }
+
+    /// Writes the merged row, each sum times `scale`: particles to nodes, sums to grad (3 each).
+    void merge(const std::vector<List>& lists, real_t scale, index_t* nodes, real_t* grad)
+    {
+        for (const List& l : lists)
+            for (index_t k = l.begin; k < l.end; ++k)
+            {
+                const index_t id = l.ids[l.slot[k]];
+                const real_t* g = l.g + 3 * static_cast<std::size_t>(k);
+                real_t* s = sum_.data() + 3 * static_cast<std::size_t>(id);
+                if (mark(id))
+                    for (int d = 0; d < 3; ++d)
+                        s[d] = g[d];
+                else
+                    for (int d = 0; d < 3; ++d)
+                        s[d] += g[d];
+            }
+        std::size_t k = 0;
+        for (std::size_t w = first_; w <= last_ && first_ <= last_; ++w)
+        {
+            for (std::uint64_t bits = marks_[w]; bits != 0; bits &= bits - 1, ++k)
+            {
+                const index_t id = static_cast<index_t>(64 * w + static_cast<std::size_t>(__builtin_ctzll(bits)));
+                nodes[k] = id;
+                for (int d = 0; d < 3; ++d)
+                    grad[3 * k + d] = sum_[3 * static_cast<std::size_t>(id) + static_cast<std::size_t>(d)] * scale;
+            }
+            marks_[w] = 0;
+        }
+        reset();
+    }
+
+  private:
+    /// Marks particle id; true when it was not marked yet.
+    bool mark(index_t id)
+    {
+        const std::size_t w = static_cast<std::size_t>(id) >> 6;
+        const std::uint64_t bit = std::uint64_t{1} << (id & 63);
+        first_ = std::min(first_, w);
+        last_ = std::max(last_, w);
+        const bool fresh = (marks_[w] & bit) == 0;
+        marks_[w] |= bit;
+        return fresh;
+    }
+    void reset()
+    {
+        first_ = std::numeric_limits<std::size_t>::max();
+        last_ = 0;
+    }
+
+    std::vector<std::uint64_t> marks_;
+    std::vector<real_t> sum_;
+    std::size_t first_ = std::numeric_limits<std::size_t>::max(), last_ = 0;
+};
 } // namespace
 
 IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
@@ -595,14 +686,8 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
         for (index_t q = colour_offsets[c]; q < colour_offsets[c + 1]; ++q)
             colour_of[by_colour[q]] = static_cast<index_t>(c);
     // per node: its sub-hexes' lists in colour order (a count pass, then a pass that writes the
-    // merged rows in place)
-    struct List
-    {
-        index_t colour, next, end;
-        const index_t *ids, *slot;
-        const real_t* g;
-    };
-    auto lists_of = [&](index_t i, std::vector<List>& lists)
+    // merged rows)
+    auto lists_of = [&](index_t i, std::vector<RowMerger::List>& lists)
     {
         lists.clear();
         for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
@@ -612,31 +697,19 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
             lists.push_back({colour_of[e], from.start[a], from.start[a + 1], translates.region(e), from.slot.data(),
                              from.g.data()});
         }
-        std::sort(lists.begin(), lists.end(), [](const List& p, const List& q) { return p.colour < q.colour; });
+        std::sort(lists.begin(), lists.end(),
+                  [](const RowMerger::List& p, const RowMerger::List& q) { return p.colour < q.colour; });
     };
-    // the next particle of the merged lists (none: the largest index)
-    auto next_particle = [](const std::vector<List>& lists)
-    {
-        index_t id = std::numeric_limits<index_t>::max();
-        for (const List& l : lists)
-            if (l.next < l.end)
-                id = std::min(id, l.ids[l.slot[l.next]]);
-        return id;
-    };
-    constexpr index_t kDone = std::numeric_limits<index_t>::max();
     op.offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
 #pragma omp parallel
     {
-        std::vector<List> lists;
+        RowMerger merger(rk.size());
+        std::vector<RowMerger::List> lists;
 #pragma omp for schedule(static)
         for (index_t i = 0; i < nn; ++i)
         {
             lists_of(i, lists);
-            index_t count = 0;
-            for (index_t id = next_particle(lists); id != kDone; id = next_particle(lists), ++count)
-                for (List& l : lists)
-                    l.next += l.next < l.end && l.ids[l.slot[l.next]] == id ? 1 : 0;
-            op.offsets[i + 1] = count;
+            op.offsets[i + 1] = merger.count(lists);
         }
     }
     for (index_t i = 0; i < nn; ++i)
@@ -646,27 +719,10 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     for (index_t i = 0; i < nn; ++i)
         op.owner[i] = i;
     // node i's row into nodes[0, count), grad[0, 3 count)
-    auto write_row = [&](index_t i, std::vector<List>& lists, index_t* nodes, real_t* grad)
+    auto write_row = [&](index_t i, RowMerger& merger, std::vector<RowMerger::List>& lists, index_t* nodes, real_t* grad)
     {
         lists_of(i, lists);
-        const real_t scale = 1.0 / op.weight[i];
-        std::size_t k = 0;
-        for (index_t id = next_particle(lists); id != kDone; id = next_particle(lists), ++k)
-        {
-            Vec3 sum = Vec3::Zero();
-            bool started = false;
-            for (List& l : lists)
-                if (l.next < l.end && l.ids[l.slot[l.next]] == id)
-                {
-                    const real_t* g = l.g + 3 * static_cast<std::size_t>(l.next++);
-                    const Vec3 term(g[0], g[1], g[2]);
-                    sum = started ? Vec3(sum + term) : term;
-                    started = true;
-                }
-            nodes[k] = id;
-            for (int d = 0; d < 3; ++d)
-                grad[3 * k + d] = sum[d] * scale;
-        }
+        merger.merge(lists, 1.0 / op.weight[i], nodes, grad);
     };
     // Shared stencils straight from the rows: blocks of nodes write their rows in parallel into
     // one buffer, which the sharer reads in node order, so the set-up never holds the whole
@@ -685,14 +741,15 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
         std::vector<real_t> block_grad(3 * room);
 #pragma omp parallel
         {
-            std::vector<List> lists;
+            RowMerger merger(rk.size());
+            std::vector<RowMerger::List> lists;
             for (index_t i0 = 0; i0 < nn && shares; i0 += kBlockNodes)
             {
                 const index_t i1 = std::min(nn, i0 + kBlockNodes);
                 const index_t base = op.offsets[i0];
 #pragma omp for schedule(static)
                 for (index_t i = i0; i < i1; ++i)
-                    write_row(i, lists, block_nodes.data() + (op.offsets[i] - base),
+                    write_row(i, merger, lists, block_nodes.data() + (op.offsets[i] - base),
                               block_grad.data() + 3 * static_cast<std::size_t>(op.offsets[i] - base));
 #pragma omp single
                 for (index_t i = i0; i < i1 && shares; ++i)
@@ -711,10 +768,11 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
         op.grad.resize(3 * op.nodes.size());
 #pragma omp parallel
         {
-            std::vector<List> lists;
+            RowMerger merger(rk.size());
+            std::vector<RowMerger::List> lists;
 #pragma omp for schedule(static)
             for (index_t i = 0; i < nn; ++i)
-                write_row(i, lists, op.nodes.data() + op.offsets[i], op.grad.data() + 3 * static_cast<std::size_t>(op.offsets[i]));
+                write_row(i, merger, lists, op.nodes.data() + op.offsets[i], op.grad.data() + 3 * static_cast<std::size_t>(op.offsets[i]));
         }
     }
     std::vector<FacetSums>().swap(sums);
