@@ -416,6 +416,68 @@ TEST(RkShape, RegionValuesAreThePointwiseValuesToRoundOff)
     }
 }
 
+// particles_near_box (runs of the bins' copy, 8 particles at a time where the CPU has AVX-512)
+// against its plain twin (particle by particle through the cell list) and against the
+// definition (every particle, support box against the query box): the same ascending lists.
+// On a jittered mesh with random boxes of every size, and on a lattice of exact binary
+// coordinates whose boxes end exactly at supports' edges (the ties the comparisons decide).
+TEST(RkShape, ParticlesNearABoxAreThoseOfItsPlainTwin)
+{
+    const real_t h = 1.0 / 64;
+    const RkShapeFunctions jittered =
+        rk_on_mesh(rkfem::test::distorted_box(7, h, 0.3), RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 1.51});
+    const RkShapeFunctions lattice =
+        rk_on_mesh(generate_box(Vec3::Zero(), Vec3::Constant(8 * h), {8, 8, 8}), RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 1.5});
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<real_t> u(-0.2, 1.2);
+    std::uniform_int_distribution<int> cell(-2, 10);
+    std::size_t found = 0, ties = 0;
+    for (const RkShapeFunctions* rk : {&jittered, &lattice})
+    {
+        std::vector<index_t> fast, plain;
+        for (int q = 0; q < 400; ++q)
+        {
+            Vec3 lo, hi;
+            for (int d = 0; d < 3; ++d)
+            {
+                if (rk == &lattice) // lattice boxes: corners on the lattice or half-way, 0 to 3 spacings
+                {
+                    lo[d] = 0.5 * h * cell(gen);
+                    hi[d] = lo[d] + 0.5 * h * (cell(gen) % 7 + 2) / 2;
+                }
+                else
+                {
+                    const real_t a = u(gen) * 7 * h, b = u(gen) * 7 * h;
+                    lo[d] = std::min(a, b);
+                    hi[d] = q % 4 == 0 ? lo[d] : std::max(a, b); // every fourth box flat
+                }
+            }
+            rk->particles_near_box(lo, hi, fast);
+            rk->particles_near_box_plain(lo, hi, plain);
+            ASSERT_EQ(fast, plain) << "box " << q;
+            std::vector<index_t> expected;
+            for (index_t j = 0; j < rk->size(); ++j)
+            {
+                const Vec3 x = rk->position(j);
+                const real_t reach = rk->radius(j) * (1.0 + 1e-12);
+                bool in = true;
+                for (int d = 0; d < 3; ++d)
+                {
+                    in = in && x[d] + reach >= lo[d] && x[d] - reach <= hi[d];
+                    ties += x[d] + rk->radius(j) == lo[d] || x[d] - rk->radius(j) == hi[d];
+                }
+                if (in)
+                    expected.push_back(j);
+            }
+            ASSERT_EQ(fast, expected) << "box " << q;
+            found += fast.size();
+        }
+    }
+    std::printf("%zu particles found in 800 boxes; %zu support edges exactly on a box's face\n", found, ties);
+    EXPECT_GT(found, 10000u);
+    EXPECT_GT(ties, 100u);
+}
+
 // focus (8 region particles at a time where the CPU has AVX-512) against its plain twin and
 // against the definition: the candidates are exactly the region's particles that
 // particles_near_box finds for the box, ascending, with their positions and radii.

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <immintrin.h>
 #include <limits>
 #include <sstream>
 #include <utility>
@@ -106,6 +107,16 @@ RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> ra
     // box support reaches a * sqrt(3) along a diagonal but each axis only a: bins of side a_max
     // cover every axis-aligned offset below a_max
     cells_ = CellList(x_, a_.empty() ? 1.0 : a_max_);
+    const std::vector<index_t>& ids = cells_.ids();
+    const std::size_t n = ids.size();
+    binned_.resize(4 * n);
+    for (std::size_t q = 0; q < n; ++q)
+    {
+        const std::size_t j = static_cast<std::size_t>(ids[q]);
+        for (int d = 0; d < 3; ++d)
+            binned_[d * n + q] = x_[3 * j + static_cast<std::size_t>(d)];
+        binned_[3 * n + q] = a_[j] * (1.0 + 1e-12);
+    }
 }
 
 void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const { evaluate_impl(x, gradients, out, nullptr); }
@@ -162,15 +173,56 @@ void RkShapeFunctions::throw_singular(const Vec3& x, index_t n, const char* why)
     throw SingularMomentError(os.str());
 }
 
-void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const
+namespace
 {
-    // the hits are marked in a bitmap over the particles (one per thread, all zero between
-    // calls) and read back in ascending order: the sorted list, without a sort
-    thread_local std::vector<std::uint64_t> marks;
-    const std::size_t words = (a_.size() + 63) / 64;
-    if (marks.size() < words)
-        marks.resize(words, 0);
-    index_t first = std::numeric_limits<index_t>::max(), last = -1;
+/// The hits marked in a bitmap over the particles (one per thread, all zero between calls) and
+/// read back in ascending order: the sorted list, without a sort.
+class HitMarks
+{
+  public:
+    explicit HitMarks(std::size_t n)
+    {
+        const std::size_t words = (n + 63) / 64;
+        if (marks_.size() < words)
+            marks_.resize(words, 0);
+    }
+    void mark(index_t j)
+    {
+        set(j);
+        span(j, j);
+    }
+    /// Marks j, whose range span() gives.
+    void set(index_t j) { marks_[static_cast<std::size_t>(j) >> 6] |= std::uint64_t{1} << (j & 63); }
+    /// The marked particles lie in [first, last] (as far as these marks go).
+    void span(index_t first, index_t last)
+    {
+        first_ = std::min(first_, first);
+        last_ = std::max(last_, last);
+    }
+    /// The marked particles, ascending, into out; the marks cleared.
+    void take(std::vector<index_t>& out)
+    {
+        out.clear();
+        if (last_ < 0)
+            return;
+        for (std::size_t w = static_cast<std::size_t>(first_) >> 6; w <= static_cast<std::size_t>(last_) >> 6; ++w)
+        {
+            for (std::uint64_t bits = marks_[w]; bits != 0; bits &= bits - 1)
+                out.push_back(static_cast<index_t>(64 * w + static_cast<std::size_t>(__builtin_ctzll(bits))));
+            marks_[w] = 0;
+        }
+    }
+
+  private:
+    static thread_local std::vector<std::uint64_t> marks_;
+    index_t first_ = std::numeric_limits<index_t>::max(), last_ = -1;
+};
+thread_local std::vector<std::uint64_t> HitMarks::marks_;
+} // namespace
+
+void RkShapeFunctions::particles_near_box_plain(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const
+{
+    HitMarks hits(a_.size());
     cells_.for_each_near_box(lo, hi,
                              [&](index_t j)
                              {
@@ -183,21 +235,64 @@ void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::v
                                      in &= !(xj + reach < lo[d]) & !(xj - reach > hi[d]);
                                  }
                                  if (in)
-                                 {
-                                     marks[static_cast<std::size_t>(j) >> 6] |= std::uint64_t{1} << (j & 63);
-                                     first = std::min(first, j);
-                                     last = std::max(last, j);
-                                 }
+                                     hits.mark(j);
                              });
-    out.clear();
-    if (last < 0)
-        return;
-    for (std::size_t w = static_cast<std::size_t>(first) >> 6; w <= static_cast<std::size_t>(last) >> 6; ++w)
-    {
-        for (std::uint64_t bits = marks[w]; bits != 0; bits &= bits - 1)
-            out.push_back(static_cast<index_t>(64 * w + static_cast<std::size_t>(__builtin_ctzll(bits))));
-        marks[w] = 0;
-    }
+    hits.take(out);
+}
+
+void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const
+{
+    HitMarks hits(a_.size());
+    const std::size_t n = a_.size();
+    const real_t *bx = binned_.data(), *by = bx + n, *bz = by + n, *br = bz + n;
+    const index_t* ids = cells_.ids().data();
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+    // the hits' smallest and largest particle per lane, out of the loop's dependency chain
+    __m256i first = _mm256_set1_epi32(std::numeric_limits<index_t>::max()), last = _mm256_set1_epi32(-1);
+#endif
+    cells_.for_each_run_near_box(lo, hi,
+                                 [&](index_t q0, index_t q1)
+                                 {
+                                     index_t q = q0;
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+                                     // !(x + r < lo) and !(x - r > hi) per axis, as the plain
+                                     // test (unordered compares: a NaN is in, as there)
+                                     const __m512d lo0 = _mm512_set1_pd(lo[0]), lo1 = _mm512_set1_pd(lo[1]),
+                                                   lo2 = _mm512_set1_pd(lo[2]), hi0 = _mm512_set1_pd(hi[0]),
+                                                   hi1 = _mm512_set1_pd(hi[1]), hi2 = _mm512_set1_pd(hi[2]);
+                                     for (; q + 8 <= q1; q += 8)
+                                     {
+                                         const __m512d r = _mm512_loadu_pd(br + q), x = _mm512_loadu_pd(bx + q),
+                                                       y = _mm512_loadu_pd(by + q), z = _mm512_loadu_pd(bz + q);
+                                         const __mmask8 in =
+                                             _mm512_cmp_pd_mask(_mm512_add_pd(x, r), lo0, _CMP_NLT_UQ) &
+                                             _mm512_cmp_pd_mask(_mm512_sub_pd(x, r), hi0, _CMP_NGT_UQ) &
+                                             _mm512_cmp_pd_mask(_mm512_add_pd(y, r), lo1, _CMP_NLT_UQ) &
+                                             _mm512_cmp_pd_mask(_mm512_sub_pd(y, r), hi1, _CMP_NGT_UQ) &
+                                             _mm512_cmp_pd_mask(_mm512_add_pd(z, r), lo2, _CMP_NLT_UQ) &
+                                             _mm512_cmp_pd_mask(_mm512_sub_pd(z, r), hi2, _CMP_NGT_UQ);
+                                         const __m256i id = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + q));
+                                         first = _mm256_mask_min_epi32(first, in, first, id);
+                                         last = _mm256_mask_max_epi32(last, in, last, id);
+                                         for (unsigned bits = in; bits != 0; bits &= bits - 1)
+                                             hits.set(ids[q + __builtin_ctz(bits)]);
+                                     }
+#endif
+                                     for (; q < q1; ++q)
+                                     {
+                                         const real_t r = br[q];
+                                         if (!(bx[q] + r < lo[0]) & !(bx[q] - r > hi[0]) & !(by[q] + r < lo[1]) &
+                                             !(by[q] - r > hi[1]) & !(bz[q] + r < lo[2]) & !(bz[q] - r > hi[2]))
+                                             hits.mark(ids[q]);
+                                     }
+                                 });
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+    alignas(32) index_t f[8], l[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(f), first);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(l), last);
+    hits.span(*std::min_element(f, f + 8), *std::max_element(l, l + 8));
+#endif
+    hits.take(out);
 }
 
 void RkShapeFunctions::hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H) const

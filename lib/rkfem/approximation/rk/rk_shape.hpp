@@ -95,7 +95,11 @@ class RkShapeFunctions
 
     /// The particles whose support reaches the box [lo, hi] along every axis, ascending: every
     /// particle that covers some point of the box (and those whose support box only meets it).
+    /// It scans the bins' particles as runs of a copy in bin order (positions and reaches), eight
+    /// at a time with AVX-512.
     void particles_near_box(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const;
+    /// Its plain twin, particle by particle through the cell list: the same list.
+    void particles_near_box_plain(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const;
     /// Throws the SingularMomentError of point x, which n particles cover (`why`: the test failed).
     [[noreturn]] void throw_singular(const Vec3& x, index_t n, const char* why) const;
 
@@ -111,6 +115,9 @@ class RkShapeFunctions
     real_t a_max_ = 0.0;
     RkParams p_;
     CellList cells_;
+    /// per particle in the cell list's bin order: x, y, z and the reach of the box test,
+    /// a (1 + 1e-12) (particles_near_box), 32 bytes per particle
+    std::vector<real_t> binned_;
 };
 
 /// Drops the values psi_k < tau max |psi| of the functions at x (nodes, psi from evaluate) and

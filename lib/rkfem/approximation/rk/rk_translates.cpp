@@ -67,12 +67,15 @@ void join_and_group(RkTranslates& t, std::vector<std::vector<index_t>>& parts, c
     t.offsets.assign(n + 1, 0);
     for (std::size_t i = 0; i < n; ++i)
         t.offsets[i + 1] = t.offsets[i] + counts[i];
+    // the first part in place (find_rk_translates reserves its room for all), the others after it
     t.particles.clear();
+    if (!parts.empty())
+        t.particles.swap(parts.front());
     t.particles.reserve(static_cast<std::size_t>(t.offsets[n]));
-    for (std::vector<index_t>& part : parts)
+    for (std::size_t k = 1; k < parts.size(); ++k)
     {
-        t.particles.insert(t.particles.end(), part.begin(), part.end());
-        std::vector<index_t>().swap(part);
+        t.particles.insert(t.particles.end(), parts[k].begin(), parts[k].end());
+        std::vector<index_t>().swap(parts[k]);
     }
     std::unordered_map<std::uint64_t, index_t> first;
     first.reserve(n);
