@@ -371,6 +371,54 @@ TEST(NodalIntegration, ScniByElementsIsTheNodeByNodeBuildToRoundOff)
 // (whose faces are the boundary's), so the elements fall into 3 x 3 x 3 = 27 classes; a
 // particle's region is its neighbours i - 1 .. i + 1, cut off at nodes 0 and 6: 27 classes again.
 // The lattice is numbered lexicographically, so every translate's particles are its source's
+// The sub-hexes' Gauss points eight at a time (sub_hex_points): the volumes and NSNI's second
+// moments of the nodal cells against their point-by-point twins to round-off on a jittered mesh,
+// and the moments against the exact values on a lattice of spacing h (interior cell a cube of
+// side h: h^5 / 12 per axis; a corner's of side h/2 from its node: h^5 / 96; an edge node's
+// a box h x h/2 x h/2: h^3 / 12 (h/2)^2 along the edge, (h/2)^3 / 3 h h/2 across, both h^5 / 48).
+TEST(NodalIntegration, SubHexPointsAtOnceAreThePlainQuadratureToRoundOff)
+{
+    const real_t h = 1e-3;
+    const HexMesh mesh = distorted_box(6, h, 0.3);
+    real_t worst_volume = 0.0;
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        real_t xe[8][3];
+        for (int I = 0; I < 8; ++I)
+            for (int d = 0; d < 3; ++d)
+                xe[I][d] = mesh.x[3 * static_cast<std::size_t>(mesh.conn[8 * e + I]) + d];
+        for (int a = 0; a < 8; ++a)
+        {
+            const real_t plain = sub_hex_volume_plain(xe, a);
+            ASSERT_GT(plain, 0.0);
+            worst_volume = std::max(worst_volume, std::abs(sub_hex_volume(xe, a) - plain) / plain);
+        }
+    }
+    const std::vector<real_t> m = nodal_second_moments(mesh), plain = nodal_second_moments_plain(mesh);
+    ASSERT_EQ(m.size(), plain.size());
+    real_t worst_moment = 0.0;
+    for (std::size_t k = 0; k < m.size(); ++k)
+    {
+        ASSERT_GT(plain[k], 0.0);
+        worst_moment = std::max(worst_moment, std::abs(m[k] - plain[k]) / plain[k]);
+    }
+    std::printf("largest relative difference: sub-hex volume %.2e, second moment %.2e\n", worst_volume, worst_moment);
+    EXPECT_LT(worst_volume, 1e-14);
+    EXPECT_LT(worst_moment, 1e-13);
+    // exact on a lattice
+    const int n = 4;
+    const HexMesh box = generate_box(Vec3::Zero(), Vec3::Constant(n * h), {n, n, n});
+    const std::vector<real_t> mb = nodal_second_moments(box);
+    const real_t h5 = h * h * h * h * h;
+    auto node = [&](int i, int j, int k) { return static_cast<std::size_t>((k * (n + 1) + j) * (n + 1) + i); };
+    for (int d = 0; d < 3; ++d)
+    {
+        EXPECT_NEAR(mb[3 * node(2, 2, 2) + d], h5 / 12, 1e-13 * h5) << d;
+        EXPECT_NEAR(mb[3 * node(0, 0, 0) + d], h5 / 96, 1e-13 * h5) << d;
+        EXPECT_NEAR(mb[3 * node(2, 0, 0) + d], h5 / 48, 1e-13 * h5) << d;
+    }
+}
+
 // plus one number. Without sharing, every item is its own source.
 TEST(NodalIntegration, TranslatesOfALatticeAreItsTwentySevenBoundaryClasses)
 {

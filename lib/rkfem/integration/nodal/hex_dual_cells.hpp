@@ -38,8 +38,14 @@ void build_sub_hex_facet(const real_t xe[8][3], int a, int f, std::array<FacetPo
 int sub_hex_element_face(int a, int f);
 /// The sub-hex's volume as the integral of det J over its natural octant by 2 x 2 x 2 Gauss
 /// points (exact: det J of a trilinear map is at most quadratic in each coordinate); the same
-/// as SubHex::volume to round-off at a third of the cost.
+/// as SubHex::volume to round-off at a third of the cost. Its 8 points at once (sub_hex_points).
 real_t sub_hex_volume(const real_t xe[8][3], int a);
+/// Its plain twin, point by point: the same volume to round-off.
+real_t sub_hex_volume_plain(const real_t xe[8][3], int a);
+/// Sub-hex a's 2 x 2 x 2 Gauss points (sub_hex_gauss) at once, point q in lane q of each array
+/// (one vector register of eight doubles): det J there (J(b, d) = dx_d / dxi_b, the element's
+/// map; the sub-hex's Jacobian is 1/8 of it) and, where x is given, the points' positions x[d][q].
+void sub_hex_points(const real_t xe[8][3], int a, real_t det[8], real_t (*x)[8] = nullptr);
 
 /// The 2 x 2 x 2 Gauss points of every sub-hex in the element's natural coordinates (sub-hex
 /// a, point q: xi_d = s_ad (1 + n_qd / sqrt 3) / 2) with the shape functions and their natural

@@ -1214,13 +1214,49 @@ NsniTriplets build_nsni_triplets(const IntegrationOperator& points, const RkShap
 
 std::vector<real_t> nodal_second_moments(const HexMesh& mesh)
 {
+    // node by node over its sub-hexes in element order, each sub-hex's 8 Gauss points at once
+    // (sub_hex_points), in parallel
+    std::vector<index_t> offsets, slots;
+    node_element_incidence(mesh, offsets, slots);
+    std::vector<real_t> m(3 * static_cast<std::size_t>(mesh.n_nodes()), 0.0);
+    parallel_for("rkfem::nodal_second_moments", mesh.n_nodes(),
+                 [&](index_t L)
+                 {
+                     real_t xe[8][3];
+                     alignas(64) real_t det[8], x[3][8];
+                     for (index_t k = offsets[L]; k < offsets[L + 1]; ++k)
+                     {
+                         element_coordinates(mesh, slots[k] / 8, xe);
+                         sub_hex_points(xe, slots[k] % 8, det, x);
+                         for (int d = 0; d < 3; ++d)
+                         {
+                             // the points' terms in the lanes, summed pairwise
+                             const real_t xL = mesh.x[3 * static_cast<std::size_t>(L) + d];
+                             alignas(64) real_t t[8];
+                             for (int q = 0; q < 8; ++q)
+                             {
+                                 const real_t r = x[d][q] - xL;
+                                 t[q] = det[q] * r * r;
+                             }
+                             for (int w = 4; w > 0; w /= 2)
+                                 for (int q = 0; q < w; ++q)
+                                     t[q] += t[q + w];
+                             m[3 * static_cast<std::size_t>(L) + d] += 0.125 * t[0]; // sub-hex Jacobian 1/8 of the element's
+                         }
+                     }
+                 });
+    return m;
+}
+
+std::vector<real_t> nodal_second_moments_plain(const HexMesh& mesh)
+{
     // node by node over its sub-hexes in element order (the incidence lists' order: each node's
     // sums in the order of an element loop), in parallel
     std::vector<index_t> offsets, slots;
     node_element_incidence(mesh, offsets, slots);
     std::vector<real_t> m(3 * static_cast<std::size_t>(mesh.n_nodes()), 0.0);
     const SubHexGauss& gauss = sub_hex_gauss();
-    parallel_for("rkfem::nodal_second_moments", mesh.n_nodes(),
+    parallel_for("rkfem::nodal_second_moments_plain", mesh.n_nodes(),
                  [&](index_t L)
                  {
                      real_t xe[8][3];

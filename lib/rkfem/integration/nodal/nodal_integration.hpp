@@ -136,6 +136,8 @@ RkTranslates particle_translates(const RkShapeFunctions& rk, bool share = true);
 /// M_iL = int_{Omega_L} (x_i - X_Li)^2 dOmega, by 2 x 2 x 2 Gauss points on each sub-hex (exact
 /// on parallelepiped elements).
 std::vector<real_t> nodal_second_moments(const HexMesh& mesh);
+/// Its plain twin, Gauss point by Gauss point: the same moments to round-off.
+std::vector<real_t> nodal_second_moments_plain(const HexMesh& mesh);
 
 /// Second moments of cells known by their volume only (Voronoi cells of a cloud), as cubes of
 /// the same volume centred on the particle: M_i = V s^2 / 12, s = V^(1/3).
