@@ -371,6 +371,60 @@ TEST(NodalIntegration, ScniByElementsIsTheNodeByNodeBuildToRoundOff)
 // (whose faces are the boundary's), so the elements fall into 3 x 3 x 3 = 27 classes; a
 // particle's region is its neighbours i - 1 .. i + 1, cut off at nodes 0 and 6: 27 classes again.
 // The lattice is numbered lexicographically, so every translate's particles are its source's
+// face_neighbours (faces bucketed by their smallest node, earlier_twin_faces) against a map of
+// the sorted face keys in element order, the plain twin: the same neighbours on the P1
+// cylinder's mesh and on a jittered box, every neighbour relation symmetric, and the boundary
+// faces those extract_boundary_faces finds. A non-manifold mesh (three elements on one face)
+// gives what the map gave: the first element's neighbour is the last.
+TEST(NodalIntegration, FaceNeighboursAreThoseOfAMapOfTheFaces)
+{
+    auto plain = [](const HexMesh& mesh)
+    {
+        std::vector<index_t> nb(6 * static_cast<std::size_t>(mesh.n_elements()), -1);
+        std::map<std::array<index_t, 4>, index_t> seen;
+        for (index_t e = 0; e < mesh.n_elements(); ++e)
+            for (int f = 0; f < 6; ++f)
+            {
+                std::array<index_t, 4> key;
+                for (int k = 0; k < 4; ++k)
+                    key[k] = mesh.conn[8 * e + hex_faces[f][k]];
+                std::sort(key.begin(), key.end());
+                auto [it, inserted] = seen.emplace(key, 6 * e + f);
+                if (!inserted)
+                {
+                    nb[6 * e + f] = it->second / 6;
+                    nb[it->second] = e;
+                }
+            }
+        return nb;
+    };
+    const real_t inch = 0.0254;
+    HexMesh three = generate_box(Vec3::Zero(), Vec3::Constant(1.0), {2, 1, 1});
+    // a third element on the face between the two: a copy of the second
+    three.conn.insert(three.conn.end(), three.conn.begin() + 8, three.conn.begin() + 16);
+    const HexMesh meshes[] = {generate_cylinder(Vec3::Zero(), 3 * inch, 12 * inch, 0.5 * inch, false),
+                              distorted_box(5, 1e-3, 0.3), three};
+    for (const HexMesh& m : meshes)
+    {
+        const HexMesh* mesh = &m;
+        const std::vector<index_t> nb = face_neighbours(*mesh);
+        EXPECT_EQ(nb, plain(*mesh));
+        if (mesh == &meshes[2])
+            continue;
+        std::size_t boundary = 0;
+        for (std::size_t k = 0; k < nb.size(); ++k)
+        {
+            boundary += nb[k] < 0;
+            if (nb[k] >= 0)
+            {
+                const auto& other = nb.begin() + 6 * nb[k];
+                EXPECT_EQ(std::count(other, other + 6, static_cast<index_t>(k / 6)), 1) << "face " << k;
+            }
+        }
+        EXPECT_EQ(boundary, extract_boundary_faces(mesh->conn).size());
+    }
+}
+
 // The sub-hexes' Gauss points eight at a time (sub_hex_points): the volumes and NSNI's second
 // moments of the nodal cells against their point-by-point twins to round-off on a jittered mesh,
 // and the moments against the exact values on a lattice of spacing h (interior cell a cube of

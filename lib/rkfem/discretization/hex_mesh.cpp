@@ -6,61 +6,68 @@
 
 namespace rkfem
 {
-std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::vector<index_t>* owner)
+std::vector<index_t> earlier_twin_faces(const std::vector<index_t>& conn)
 {
     const index_t ne = static_cast<index_t>(conn.size() / 8);
-    struct Entry
-    {
-        std::array<index_t, 4> key;
-        index_t element;
-        int face;
-    };
-    std::vector<Entry> entries;
-    entries.reserve(static_cast<std::size_t>(ne) * 6);
+    const std::size_t nf = 6 * static_cast<std::size_t>(ne);
+    std::vector<std::array<index_t, 4>> key(nf);
+    index_t nn = 0;
     for (index_t e = 0; e < ne; ++e)
         for (int f = 0; f < 6; ++f)
         {
-            std::array<index_t, 4> k;
+            std::array<index_t, 4>& k = key[6 * static_cast<std::size_t>(e) + static_cast<std::size_t>(f)];
             for (int j = 0; j < 4; ++j)
-                k[j] = conn[8 * e + hex_faces[f][j]];
+                k[j] = conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(hex_faces[f][j])];
             std::sort(k.begin(), k.end());
-            entries.push_back({k, e, f});
+            nn = std::max(nn, k[3] + 1);
         }
-    // a face is on the boundary when no other element face has its four nodes. Its twin, if
-    // any, has the same smallest node: faces bucketed by it (a counting sort, a dozen faces per
-    // node) are compared within their bucket only (a sort of all 6 n_e keys took most of the
-    // time of a 71k-element mesh)
-    index_t nn = 0;
-    for (const Entry& en : entries)
-        nn = std::max(nn, en.key[0] + 1);
-    std::vector<index_t> start(static_cast<std::size_t>(nn) + 1, 0), bucket(entries.size());
-    for (const Entry& en : entries)
-        ++start[static_cast<std::size_t>(en.key[0]) + 1];
+    // a face's twins have its smallest node: faces bucketed by it (a counting sort, a dozen
+    // faces per node, each bucket in face order) are compared within their bucket only (a sort
+    // of all 6 n_e keys, or a map of them, took most of the time of a 71k-element mesh)
+    std::vector<index_t> start(static_cast<std::size_t>(nn) + 1, 0), bucket(nf);
+    for (std::size_t i = 0; i < nf; ++i)
+        ++start[static_cast<std::size_t>(key[i][0]) + 1];
     for (std::size_t k = 0; k < static_cast<std::size_t>(nn); ++k)
         start[k + 1] += start[k];
     {
         std::vector<index_t> fill(start.begin(), start.end() - 1);
-        for (std::size_t i = 0; i < entries.size(); ++i)
-            bucket[static_cast<std::size_t>(fill[static_cast<std::size_t>(entries[i].key[0])]++)] = static_cast<index_t>(i);
+        for (std::size_t i = 0; i < nf; ++i)
+            bucket[static_cast<std::size_t>(fill[static_cast<std::size_t>(key[i][0])]++)] = static_cast<index_t>(i);
     }
-    std::vector<char> boundary(entries.size(), 1);
+    std::vector<index_t> twin(nf, -1);
     for (std::size_t k = 0; k < static_cast<std::size_t>(nn); ++k)
-        for (index_t a = start[k]; a < start[k + 1]; ++a)
-            for (index_t b = a + 1; b < start[k + 1]; ++b)
+        for (index_t b = start[k]; b < start[k + 1]; ++b)
+        {
+            const std::size_t j = static_cast<std::size_t>(bucket[static_cast<std::size_t>(b)]);
+            for (index_t a = start[k]; a < b; ++a)
             {
-                const std::size_t i = static_cast<std::size_t>(bucket[static_cast<std::size_t>(a)]),
-                                  j = static_cast<std::size_t>(bucket[static_cast<std::size_t>(b)]);
-                if (entries[i].key == entries[j].key)
-                    boundary[i] = boundary[j] = 0;
+                const index_t i = bucket[static_cast<std::size_t>(a)];
+                if (key[static_cast<std::size_t>(i)] == key[j])
+                {
+                    twin[j] = i;
+                    break;
+                }
             }
+        }
+    return twin;
+}
+
+std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::vector<index_t>* owner)
+{
+    // a face is on the boundary when no other element face has its four nodes
+    const std::vector<index_t> twin = earlier_twin_faces(conn);
+    std::vector<char> boundary(twin.size(), 1);
+    for (std::size_t j = 0; j < twin.size(); ++j)
+        if (twin[j] >= 0)
+            boundary[j] = boundary[static_cast<std::size_t>(twin[j])] = 0;
     std::vector<Quad> faces;
     if (owner)
         owner->clear();
-    for (std::size_t i = 0; i < entries.size(); ++i)
+    for (std::size_t i = 0; i < twin.size(); ++i)
         if (boundary[i])
         {
-            const index_t e = entries[i].element;
-            const int f = entries[i].face;
+            const index_t e = static_cast<index_t>(i / 6);
+            const int f = static_cast<int>(i % 6);
             if (owner)
                 owner->push_back(e);
             faces.push_back({conn[8 * e + hex_faces[f][0]], conn[8 * e + hex_faces[f][1]],

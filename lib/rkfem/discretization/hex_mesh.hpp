@@ -40,6 +40,10 @@ inline constexpr std::array<std::array<int, 4>, 6> hex_faces{{
     {3, 0, 4, 7}, // xi = -1
 }};
 
+/// Per element face 6 e + f (local faces hex_faces): the first earlier face in that order with
+/// the same four nodes, or -1 (a face of a conforming mesh has at most one twin).
+std::vector<index_t> earlier_twin_faces(const std::vector<index_t>& conn);
+
 /// Finds faces that belong to one element only. Order: by element, then by local face. With
 /// `owner`, the element of each face (an index into conn / 8).
 std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::vector<index_t>* owner = nullptr);

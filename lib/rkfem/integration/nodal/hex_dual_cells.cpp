@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 
@@ -177,23 +176,15 @@ void build_sub_hex(const real_t xe[8][3], int a, SubHex& out)
 
 std::vector<index_t> face_neighbours(const HexMesh& mesh)
 {
-    const index_t ne = mesh.n_elements();
-    std::vector<index_t> nb(6 * static_cast<std::size_t>(ne), -1);
-    std::map<std::array<index_t, 4>, index_t> seen;
-    for (index_t e = 0; e < ne; ++e)
-        for (int f = 0; f < 6; ++f)
+    // each face pairs with its earlier twin (the later of a non-manifold three overwrites the
+    // first's neighbour, as a map of the faces in element order did)
+    const std::vector<index_t> twin = earlier_twin_faces(mesh.conn);
+    std::vector<index_t> nb(twin.size(), -1);
+    for (std::size_t j = 0; j < twin.size(); ++j)
+        if (twin[j] >= 0)
         {
-            std::array<index_t, 4> key;
-            for (int k = 0; k < 4; ++k)
-                key[k] = mesh.conn[8 * e + hex_faces[f][k]];
-            std::sort(key.begin(), key.end());
-            auto [it, inserted] = seen.emplace(key, 6 * e + f);
-            if (!inserted)
-            {
-                const index_t other = it->second;
-                nb[6 * e + f] = other / 6;
-                nb[other] = e;
-            }
+            nb[j] = twin[j] / 6;
+            nb[static_cast<std::size_t>(twin[j])] = static_cast<index_t>(j / 6);
         }
     return nb;
 }
