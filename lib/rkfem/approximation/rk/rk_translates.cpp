@@ -48,16 +48,30 @@ void describe(const RkShapeFunctions& rk, const Vec3& ref, const std::vector<ind
 std::uint64_t hash(const std::vector<real_t>& values, real_t quantum)
 {
     // FNV-1a over the rounded values' bits (rounded as doubles: no integer overflow, and -0 is
-    // made +0 so that a rounded zero hashes one way)
+    // made +0 so that a rounded zero hashes one way), in four streams of every fourth value,
+    // folded at the end: one stream's multiply waits on the one before (4 cycles a value)
     const real_t inv = 1.0 / quantum;
-    std::uint64_t h = 1469598103934665603ull ^ values.size();
-    for (real_t v : values)
+    constexpr std::uint64_t prime = 1099511628211ull;
+    std::uint64_t h[4];
+    for (int s = 0; s < 4; ++s)
+        h[s] = (1469598103934665603ull + static_cast<std::uint64_t>(s)) ^ values.size();
+    auto mix = [&](std::uint64_t& into, real_t v)
+    { into = (into ^ std::bit_cast<std::uint64_t>(std::nearbyint(v * inv) + 0.0)) * prime; };
+    const std::size_t n = values.size();
+    std::size_t k = 0;
+    for (; k + 4 <= n; k += 4)
     {
-        const real_t q = std::nearbyint(v * inv) + 0.0;
-        h ^= std::bit_cast<std::uint64_t>(q);
-        h *= 1099511628211ull;
+        mix(h[0], values[k]);
+        mix(h[1], values[k + 1]);
+        mix(h[2], values[k + 2]);
+        mix(h[3], values[k + 3]);
     }
-    return h;
+    for (; k < n; ++k)
+        mix(h[k % 4], values[k]);
+    std::uint64_t out = h[0];
+    for (int s = 1; s < 4; ++s)
+        out = (out ^ h[s]) * prime;
+    return out;
 }
 
 void join_and_group(RkTranslates& t, std::vector<std::vector<index_t>>& parts, const std::vector<index_t>& counts,
