@@ -542,6 +542,34 @@ TEST(SharedStencils, KinematicMapRowsAreSharedWithinTheirTolerance)
         }
         EXPECT_LT(unity, 1e-12) << c.name;
         EXPECT_LT(linear, 1e-12) << c.name;
+        // rows set again for a middle range (as a conversion does) over the stored ones: the
+        // same map as one call with every row, entry for entry
+        KinematicMap twice;
+        twice.reset(n);
+        twice.set_rows(0, n, blk.interp_offsets, blk.interp_nodes, blk.interp_values, &all);
+        const index_t b = n / 3, e = 2 * n / 3;
+        std::vector<index_t> offsets{0}, columns;
+        std::vector<real_t> values;
+        for (index_t i = b; i < e; ++i)
+        {
+            columns.insert(columns.end(), blk.interp_nodes.begin() + blk.interp_offsets[i],
+                           blk.interp_nodes.begin() + blk.interp_offsets[i + 1]);
+            values.insert(values.end(), blk.interp_values.begin() + blk.interp_offsets[i],
+                          blk.interp_values.begin() + blk.interp_offsets[i + 1]);
+            offsets.push_back(static_cast<index_t>(columns.size()));
+        }
+        twice.set_rows(b, e, offsets, columns, values, nullptr);
+        EXPECT_EQ(twice.stored_entries(), map.stored_entries()) << c.name;
+        EXPECT_EQ(twice.row_entries(), map.row_entries()) << c.name;
+        int differ = 0;
+        for (index_t i = 0; i < n; ++i)
+        {
+            std::vector<std::pair<index_t, real_t>> one, two;
+            map.for_row(i, [&](index_t j, real_t w) { one.emplace_back(j, w); });
+            twice.for_row(i, [&](index_t j, real_t w) { two.emplace_back(j, w); });
+            differ += one != two;
+        }
+        EXPECT_EQ(differ, 0) << c.name;
     }
 }
 

@@ -33,13 +33,14 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
     RKFEM_REQUIRE(static_cast<index_t>(offsets.size()) == end - begin + 1, "kinematic map: " << offsets.size()
                                                                                               << " row offsets for "
                                                                                               << end - begin << " rows");
-    // every node's row (the new ones for [begin, end), the others as stored), in node order
+    // every node's row (the new ones for [begin, end) read in place, the others as stored,
+    // written out with their columns into a scratch row), in node order: the rows are not copied
+    // whole (at P6's target as rkpm that copy was 5 % of the set-up, most of it fresh pages)
     const index_t n = size();
-    std::vector<index_t> all_offsets(static_cast<std::size_t>(n) + 1, 0), all_columns;
-    std::vector<real_t> all_values;
-    all_columns.reserve(n_row_entries_ + columns.size());
-    all_values.reserve(n_row_entries_ + values.size());
-    for (index_t i = 0; i < n; ++i)
+    std::vector<index_t> scratch_columns;
+    std::vector<real_t> scratch_values;
+    // node i's row: whether it carries coefficients, and then its columns, values and count
+    auto row_of = [&](index_t i, const index_t*& c, const real_t*& v, index_t& m)
     {
         if (i >= begin && i < end)
         {
@@ -47,21 +48,26 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
             const index_t k0 = offsets[r], k1 = offsets[r + 1];
             const bool identity_row = k1 - k0 == 1 && columns[k0] == i && values[k0] == 1.0;
             coefficient_[i] = coefficient != nullptr ? (*coefficient)[r] != 0 : !identity_row;
-            if (coefficient_[i])
-            {
-                all_columns.insert(all_columns.end(), columns.begin() + k0, columns.begin() + k1);
-                all_values.insert(all_values.end(), values.begin() + k0, values.begin() + k1);
-            }
+            c = columns.data() + k0;
+            v = values.data() + k0;
+            m = k1 - k0;
+            return static_cast<bool>(coefficient_[i]);
         }
-        else if (coefficient_[i])
-            for_row(i,
-                    [&](index_t j, real_t w)
-                    {
-                        all_columns.push_back(j);
-                        all_values.push_back(w);
-                    });
-        all_offsets[i + 1] = static_cast<index_t>(all_columns.size());
-    }
+        if (!coefficient_[i])
+            return false;
+        scratch_columns.clear();
+        scratch_values.clear();
+        for_row(i,
+                [&](index_t j, real_t w)
+                {
+                    scratch_columns.push_back(j);
+                    scratch_values.push_back(w);
+                });
+        c = scratch_columns.data();
+        v = scratch_values.data();
+        m = static_cast<index_t>(scratch_columns.size());
+        return true;
+    };
     // shared rows: the same column offsets, values within the tolerance of the stored row's
     // largest; the first of each kind in node order is stored, the others read it
     constexpr real_t tolerance = 1e-11;
@@ -70,16 +76,19 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
     std::vector<real_t> new_values, scale;
     std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets;
     n_coefficient_nodes_ = 0;
+    std::size_t row_entries = 0;
     for (index_t i = 0; i < n; ++i)
     {
+        const index_t* c = nullptr;
+        const real_t* v = nullptr;
+        index_t m = 0;
+        const bool carries = row_of(i, c, v, m); // (reads a stored row before it is replaced)
         row_[i] = -1;
         base_[i] = 0;
-        if (!coefficient_[i])
+        if (!carries)
             continue;
         ++n_coefficient_nodes_;
-        const index_t k0 = all_offsets[i], m = all_offsets[i + 1] - k0;
-        const index_t* c = all_columns.data() + k0;
-        const real_t* v = all_values.data() + k0;
+        row_entries += static_cast<std::size_t>(m);
         base_[i] = m > 0 ? c[0] : 0;
         std::vector<index_t>& candidates = by_offsets[offsets_hash(c, m)];
         auto matches = [&](index_t s)
@@ -117,7 +126,7 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
         }
         row_[i] = found;
     }
-    n_row_entries_ = all_columns.size();
+    n_row_entries_ = row_entries;
     row_offsets_ = std::move(new_offsets);
     row_columns_ = std::move(new_columns);
     row_values_ = std::move(new_values);
