@@ -346,6 +346,9 @@ TEST(StencilTable, ScniRowsGoStraightIntoTheTableShareStencilsFinds)
             {
                 EXPECT_TRUE(op.nodes.empty() && op.grad.empty()) << c.name << ": the entries are the table's alone";
                 EXPECT_LE(static_cast<double>(direct.n_entries()), 0.6 * whole.n_entries()) << c.name;
+                // the table lives as long as its block: no spare room from the budget reserved
+                EXPECT_EQ(direct.node_offset.capacity(), direct.node_offset.size()) << c.name;
+                EXPECT_EQ(direct.grad.capacity(), direct.grad.size()) << c.name;
             }
             else
             {

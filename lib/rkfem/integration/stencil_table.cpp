@@ -96,6 +96,9 @@ StencilTable StencilSharer::take()
     RKFEM_REQUIRE(next_ == static_cast<index_t>(t_.point_stencil.size()) && stored_ <= budget_,
                   "StencilSharer: " << next_ << " of " << t_.point_stencil.size() << " points offered, "
                                     << stored_ << " entries stored for a budget of " << budget_);
+    // the table lives as long as its block: the budget's spare room is returned
+    t_.node_offset.shrink_to_fit();
+    t_.grad.shrink_to_fit();
     return std::move(t_);
 }
 
