@@ -49,22 +49,13 @@ class CellList
     /// in a fixed order, each point once.
     template <class F> void for_each_near_box(const Vec3& lo, const Vec3& hi, F&& f) const
     {
-        int c0[3], c1[3];
-        for (int d = 0; d < 3; ++d)
-        {
-            c0[d] = clamped_bin(lo[d] - h_, d);
-            c1[d] = clamped_bin(hi[d] + h_, d);
-        }
-        for (int k = c0[2]; k <= c1[2]; ++k)
-            for (int j = c0[1]; j <= c1[1]; ++j)
-                for (int i = c0[0]; i <= c1[0]; ++i)
-                {
-                    const std::size_t b = (static_cast<std::size_t>(k) * dims_[1] + j) * dims_[0] + i;
-                    for (index_t q = offsets_[b]; q < offsets_[b + 1]; ++q)
-                        f(ids_[q]);
-                }
+        for_each_run_near_box(lo, hi,
+                              [&](index_t q0, index_t q1)
+                              {
+                                  for (index_t q = q0; q < q1; ++q)
+                                      f(ids_[q]);
+                              });
     }
-
     /// The same bins as for_each_near_box, as runs of the bins' order: f(q0, q1) for each row of
     /// bins along the first axis, whose points are ids()[q0 .. q1) (bins in a fixed order).
     template <class F> void for_each_run_near_box(const Vec3& lo, const Vec3& hi, F&& f) const
