@@ -527,6 +527,15 @@ TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
                     cloud_deck(", spacing: 1 mm",
                                "    formulation: rkpm\n    nodal_integration: {scheme: sd-scni, stabilization: mscni}\n"),
                     ":9: parts.col.nodal_integration.stabilization", "mscni stabilizes scheme scni only");
+    // one SCNI point per Voronoi face runs; a name it does not know is named with the choices
+    const std::string per_face = write_deck(
+        "cloud_per_face.yaml",
+        cloud_deck(", spacing: 0.5 mm, jitter: 0.2", "    formulation: rkpm\n    nodal_integration: {facet_points: faces}\n"));
+    const Result pf = run("run " + per_face + " --out " + (out.string() + "_faces") + " --quiet");
+    EXPECT_EQ(pf.code, 0) << pf.output;
+    expect_rejected("cloud_centroid.yaml",
+                    cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n    nodal_integration: {facet_points: centroid}\n"),
+                    ":9: parts.col.nodal_integration.facet_points", "expected one of triangles | faces");
     expect_rejected("cloud_jitter.yaml", cloud_deck(", spacing: 1 mm, jitter: 0.6", "    formulation: rkpm\n"),
                     ":6: parts.col.generator.jitter", "is outside [0, 0.45]");
     expect_rejected("cloud_both.yaml", cloud_deck(", spacing: 1 mm, points: p.csv", "    formulation: rkpm\n"),

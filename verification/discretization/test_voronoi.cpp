@@ -468,6 +468,40 @@ TEST(VoronoiCells, SdScniIsMscniWithUnitCoefficientAndHasOnlyRigidModes)
     EXPECT_EQ(zero, 6);
 }
 
+// One SCNI point per Voronoi face (merge_face_points, deck key nodal_integration.facet_points:
+// faces): the face's area centroid and n dA. The cells' volumes from the face points are the
+// triangles' to round-off, the integration constraint and the gradient of x hold as with the
+// triangles, the static linear patch test passes (its tractions on the same face points), and
+// the build by regions is the pointwise one to round-off; with about a fifth of the points.
+TEST(VoronoiCells, OnePointPerFaceKeepsScniExactForLinearFields)
+{
+    VoronoiSetup s = make_setup();
+    const std::size_t triangles = s.cells.points.size();
+    merge_face_points(s.cells);
+    real_t worst_volume = 0.0;
+    for (index_t i = 0; i < s.cells.size(); ++i)
+    {
+        real_t v = 0.0;
+        for (index_t q = s.cells.offsets[i]; q < s.cells.offsets[i + 1]; ++q)
+            v += s.cells.points[q].x.dot(s.cells.points[q].nda) / 3.0;
+        worst_volume = std::max(worst_volume, std::abs(v - s.cells.volume[i]) / s.cells.volume[i]);
+    }
+    build_scni(s);
+    const auto [ic, lin] = scni_consistency(s);
+    const real_t patch = voronoi_patch_error(s, s.op, "SCNI, one point per face");
+    const IntegrationOperator fast = build_scni_cells_rk(s.cells, s.x, s.rk, 0.0);
+    const real_t by_regions = rkfem::test::gradient_difference(fast, s.op);
+    std::printf("%zu face points for %zu triangles; volumes to %.2e, IC1 %.2e, linear gradient %.2e, "
+                "by regions %.2e\n",
+                s.cells.points.size(), triangles, worst_volume, ic, lin, by_regions);
+    EXPECT_LT(5 * s.cells.points.size(), 2 * triangles) << "at most 40 % of the points";
+    EXPECT_LT(worst_volume, 1e-13);
+    EXPECT_LT(ic, 1e-12);
+    EXPECT_LT(lin, 1e-11);
+    EXPECT_LT(patch, 1e-10);
+    EXPECT_LT(by_regions, 1e-13);
+}
+
 // build_scni_cells_rk (each cell's particles gathered once, RkRegionValues) against
 // build_scni_cells with RkShapes (the plain twin): the same stencils and weights, gradients to
 // round-off, with and without the drop tolerance, on the random cloud's cells.

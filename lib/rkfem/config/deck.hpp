@@ -122,6 +122,10 @@ struct NodalIntegrationSpec
     std::string stabilization = "mscni"; ///< none | mscni | nsni (scheme scni only; nsni: rkpm only)
     real_t stabilization_coefficient = 1.0; ///< c_s (MSCNI: 1 = RKPM2D default; NSNI: kNsniCoefficient)
     real_t dt_factor = 0.0; ///< alpha in dt = alpha J^(1/3) l0 / c (l0: shortest edge at the node); 0: calibrated default
+    /// Cloud parts: SCNI's points on the Voronoi faces, one per triangle of each face's fan
+    /// (`triangles`) or one per face at its centroid (`faces`: exact for linear fields too, about
+    /// half the set-up; merge_face_points)
+    std::string facet_points = "triangles";
 };
 
 /// RK approximation of `rkpm` parts.

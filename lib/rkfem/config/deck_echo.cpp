@@ -287,7 +287,7 @@ std::string to_yaml(const Deck& d)
         if (is_nodal(p.formulation) || p.coupled())
             os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
                << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
-               << ", dt_factor: " << p.nodal.dt_factor << "}\n";
+               << ", dt_factor: " << p.nodal.dt_factor << ", facet_points: " << p.nodal.facet_points << "}\n";
         if (!p.regions.empty())
         {
             os << "    regions:\n";

@@ -494,7 +494,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         if (!is_nodal(p.formulation) && !s.has("regions"))
             ignore(p, s, "nodal_integration", f); // read (and checked) below, then not used
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
-                   {"scheme", "stabilization", "stabilization_coefficient", "dt_factor"});
+                   {"scheme", "stabilization", "stabilization_coefficient", "dt_factor", "facet_points"});
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
         p.nodal.stabilization =
             ni.choice("stabilization", {"mscni", "nsni", "none"}, p.nodal.scheme == "scni" ? default_stab : "none");
@@ -511,6 +511,10 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.nodal.dt_factor = ni.quantity("dt_factor", dim::none, 0.0);
         if (!(p.nodal.dt_factor >= 0.0 && p.nodal.dt_factor <= 2.0))
             ni.fail("dt_factor", "is outside [0, 2]", "expected alpha in (0, 2], or 0 for the calibrated default");
+        p.nodal.facet_points = ni.choice("facet_points", {"triangles", "faces"}, "triangles");
+        if (p.nodal.facet_points == "faces" && p.generator.type != GeneratorSpec::Type::Cloud)
+            ni.fail("facet_points", "faces chooses the points on a cloud's Voronoi faces, and this part is a mesh",
+                    "expected facet_points: triangles (or none) on a mesh part; its nodal cells' facets take 2 x 2 Gauss points");
     }
     if (p.generator.type == GeneratorSpec::Type::Cloud)
     {

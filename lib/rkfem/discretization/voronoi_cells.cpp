@@ -493,7 +493,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         const Vec3& b = poly[(k + 1) % poly.size()];
                         const Vec3 nda = 0.5 * (a - c).cross(b - c);
                         const Vec3 xq = (a + b + c) / 3.0;
-                        cells.points.push_back({xq, nda, nb});
+                        cells.points.push_back({xq, nda, nb, k == 0});
                         vol += xq.dot(nda) / 3.0;
                         pyr.push_back({xq, nda, nb});
                         // side (apex, b, a): outward from the pyramid when the base's normal is outward
@@ -577,4 +577,37 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
     }
     return cells_out;
 }
+void merge_face_points(VoronoiCells& cells)
+{
+    std::vector<CellFacetPoint> points;
+    std::vector<index_t> offsets{0};
+    points.reserve(cells.points.size() / 4);
+    offsets.reserve(cells.offsets.size());
+    for (index_t i = 0; i < cells.size(); ++i)
+    {
+        const index_t end = cells.offsets[i + 1];
+        for (index_t q = cells.offsets[i]; q < end;)
+        {
+            index_t r = q + 1;
+            while (r < end && !cells.points[r].starts_face)
+                ++r;
+            // the triangles' centroids weighted by their areas: the polygon's centroid
+            Vec3 x = Vec3::Zero(), nda = Vec3::Zero();
+            real_t area = 0.0;
+            for (index_t k = q; k < r; ++k)
+            {
+                const real_t a = cells.points[k].nda.norm();
+                x += a * cells.points[k].x;
+                area += a;
+                nda += cells.points[k].nda;
+            }
+            points.push_back({area > 0.0 ? Vec3(x / area) : cells.points[q].x, nda, cells.points[q].neighbour, true});
+            q = r;
+        }
+        offsets.push_back(static_cast<index_t>(points.size()));
+    }
+    cells.points = std::move(points);
+    cells.offsets = std::move(offsets);
+}
+
 } // namespace rkfem

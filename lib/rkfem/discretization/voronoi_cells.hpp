@@ -35,6 +35,7 @@ struct CellFacetPoint
     Vec3 x;               ///< quadrature point
     Vec3 nda;             ///< outward normal times area of its triangle
     index_t neighbour = -1; ///< particle on the other side, -1 on the body boundary
+    bool starts_face = false; ///< the first point of its face polygon (the cell's points run face by face)
 };
 
 struct VoronoiCells
@@ -70,6 +71,14 @@ enum class VoronoiHull
     Clip,
     Exact,
 };
+
+/// One quadrature point per face polygon instead of one per triangle of its fan: the face's area
+/// centroid with the face's n dA (the sum of its triangles'). A planar polygon integrates linear
+/// fields exactly at its centroid, so the cell volume and SCNI's gradients of linear fields stay
+/// exact and a shared face is still the same point from both sides (to round-off); about 5
+/// times fewer points, and fewer RK evaluations, than the triangles. The sub-cells' points are
+/// left as they are.
+void merge_face_points(VoronoiCells& cells);
 
 /// Cells of the points x (n x 3) in the convex body (on its surface allowed); throws Error for
 /// points outside it or duplicated. Without with_sub_cells, sub_cells and sub_points stay empty

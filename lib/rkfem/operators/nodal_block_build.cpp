@@ -706,6 +706,10 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
             throw DeckError({g.loc.where, ps.loc.path + ".generator"}, "particle " + std::to_string(i) + " has no neighbour",
                             "expected at least 2 particles");
     }
+    // one SCNI point per Voronoi face where the deck asks (after the reach, which reads the
+    // triangles' areas per neighbour): the SCNI rows and the body's facets for loads alike
+    if (ps.nodal.facet_points == "faces")
+        merge_face_points(cells);
     NodalBlock nb = block_frame(ps, n, offset);
     std::vector<real_t> a = reach;
     for (auto& v : a)
