@@ -574,6 +574,17 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             cells.rebuilt_with_all_planes += part.rebuilt_with_all_planes;
             part = VoronoiCells(); // free as we go
         }
+        // after the first block, room for every cell's points at once from its points per cell,
+        // with a margin (grown by doubling, the points were copied into fresh pages about ten
+        // times: 200 MB of pages touched for the 100 MB of a 24k-particle column). Memory
+        // reserved and never written costs no page; the cells live for the part's set-up only.
+        if (first == 0 && last < n)
+        {
+            const real_t per_cell = static_cast<real_t>(cells_out.points.size()) / static_cast<real_t>(last);
+            cells_out.points.reserve(static_cast<std::size_t>(1.25 * per_cell * static_cast<real_t>(n)) + 64);
+            const real_t sub_per_cell = static_cast<real_t>(cells_out.sub_points.size()) / static_cast<real_t>(last);
+            cells_out.sub_points.reserve(static_cast<std::size_t>(1.25 * sub_per_cell * static_cast<real_t>(n)));
+        }
     }
     return cells_out;
 }
