@@ -33,7 +33,7 @@ constexpr real_t nan = std::numeric_limits<real_t>::quiet_NaN();
 
 const std::vector<std::string> history_kinds = {"max",           "min",          "abs_max", "time_of_max",
                                                 "time_of_min",   "time_of_abs_max", "first", "final",
-                                                "at",            "event_load"};
+                                                "at",            "event_load",   "mean"};
 
 /// A display unit: "" (SI), "%" or a unit expression; its SI scale and dimension.
 Unit display_unit(const Section& s, const std::string& key)
@@ -60,7 +60,7 @@ bool valid_name(const std::string& n)
 
 StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& p)
 {
-    const Section s(ctx, n, p, {"kind", "column", "response", "key", "time", "fraction", "scale", "unit"});
+    const Section s(ctx, n, p, {"kind", "column", "response", "key", "time", "from", "to", "fraction", "scale", "unit"});
     StudyMetric m;
     m.name = name;
     m.loc = s.loc();
@@ -72,7 +72,7 @@ StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML:
     if (m.kind == "summary")
     {
         m.key = s.text("key");
-        for (const char* k : {"column", "response", "time", "fraction"})
+        for (const char* k : {"column", "response", "time", "from", "to", "fraction"})
             if (s.has(k))
                 s.fail(k, "is not used by kind summary", "expected key, scale, unit");
     }
@@ -85,6 +85,15 @@ StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML:
             m.time = s.quantity("time", dim::time);
         else if (s.has("time"))
             s.fail("time", "is used by kind at only", "remove it, or use kind: at");
+        if (m.kind == "mean")
+        {
+            m.from = s.quantity("from", dim::time);
+            m.to = s.quantity("to", dim::time);
+            if (!(m.to > m.from))
+                s.fail("to", "is not after from", "expected a window from < to");
+        }
+        else if (s.has("from") || s.has("to"))
+            s.fail(s.has("from") ? "from" : "to", "is used by kind mean only", "remove it, or use kind: mean");
         if (m.kind == "event_load")
         {
             m.response = s.text("response");
@@ -554,6 +563,32 @@ real_t extract_metric(const StudyMetric& m, const HistoryTable& h, const YAML::N
             return m.scale * v.back();
         const real_t w = t[i] > t[i - 1] ? (m.time - t[i - 1]) / (t[i] - t[i - 1]) : 1.0;
         return m.scale * ((1 - w) * v[i - 1] + w * v[i]);
+    }
+    if (m.kind == "mean")
+    {
+        // the time average over [from, to] of the column's piecewise linear interpolant
+        // (trapezoids, the window's ends interpolated); empty when the run does not cover it
+        const auto& t = *time;
+        if (m.from < t.front() || m.to > t.back())
+            return nan;
+        auto value_at = [&](real_t s)
+        {
+            const std::size_t i = std::max<std::size_t>(1, std::upper_bound(t.begin(), t.end(), s) - t.begin());
+            if (i >= t.size())
+                return v.back();
+            const real_t w = t[i] > t[i - 1] ? (s - t[i - 1]) / (t[i] - t[i - 1]) : 1.0;
+            return (1 - w) * v[i - 1] + w * v[i];
+        };
+        real_t area = 0.0, t0 = m.from, v0 = value_at(m.from);
+        for (std::size_t i = 0; i < t.size(); ++i)
+            if (t[i] > m.from && t[i] < m.to)
+            {
+                area += 0.5 * (v0 + v[i]) * (t[i] - t0);
+                t0 = t[i];
+                v0 = v[i];
+            }
+        area += 0.5 * (v0 + value_at(m.to)) * (m.to - t0);
+        return m.scale * area / (m.to - m.from);
     }
     // extrema of scale * value (so "max" of a downward displacement with scale -1 is its peak)
     std::size_t best = 0;
