@@ -451,6 +451,12 @@ TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
     EXPECT_EQ(blk.stab_triplets.n_triplets(), blk.n_points());
     EXPECT_TRUE(blk.stabilization.nodes.empty() && blk.stabilization.grad.empty());
     EXPECT_TRUE(blk.stabilization.position.empty()); // the parents' positions, not kept
+    // no point shares: the table keeps the room its builder reserved from the first block's
+    // share of the region particles, at most 1/16 spare (not copied once more to shed it)
+    const TripletTable& t = blk.stab_triplets;
+    EXPECT_LE(t.node_offset.capacity(), t.node_offset.size() + t.node_offset.size() / 16);
+    EXPECT_LE(t.hess.capacity(), t.hess.size() + t.hess.size() / 16 + 6);
+    std::printf("jittered NSNI table: %zu entries, room for %zu\n", t.node_offset.size(), t.node_offset.capacity());
     NodeSet nodes = wavy_motion(mesh);
     const real_t dt = 1e-7;
     const ForcePassResult a = nodal_internal_force(blk, nodes, dt);

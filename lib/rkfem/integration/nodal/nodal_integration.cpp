@@ -1010,11 +1010,13 @@ class NsniSources
                 sources.push_back(p);
             }
         }
-        std::size_t bound = 0;
-        for (const index_t p : sources)
-            bound += static_cast<std::size_t>(translates.region_size(p));
-        nodes_.reserve(bound);
-        h_.reserve(6 * bound);
+        // room for the entries: the first block's own at their exact count, then, from the
+        // share of its region particles it kept, the others' with a margin of 1/16 (the sharing
+        // keeps the table when at most that is spare: a jittered cloud's table is not copied
+        // once more to shed the region sizes' bound, 150 MB at 24k particles)
+        std::vector<std::size_t> bound_from(sources.size() + 1, 0); // region particles of sources [k, end)
+        for (std::size_t k = sources.size(); k-- > 0;)
+            bound_from[k] = bound_from[k + 1] + static_cast<std::size_t>(translates.region_size(sources[k]));
         offsets_.reserve(sources.size() + 1);
         const std::size_t n_blocks = (sources.size() + kBlock - 1) / kBlock;
         const std::size_t nl = std::min(sources.size(), kBlock);
@@ -1057,6 +1059,22 @@ class NsniSources
                 {
                     try // (an allocation that fails is the builder's error, not the team's)
                     {
+                        if (b == 1 || (b == 0 && n_blocks == 1))
+                        {
+                            // the kept share of the region particles so far (block 0), applied to the rest
+                            const std::size_t so_far = nodes_.size(), regions = bound_from[0] - bound_from[k0];
+                            std::size_t expect = 0;
+                            for (std::size_t k = k0; k < k1; ++k)
+                                expect += nodes[k - k0].size();
+                            if (regions > 0)
+                            {
+                                const std::size_t rest = static_cast<std::size_t>(
+                                    static_cast<double>(bound_from[k1]) * static_cast<double>(so_far) / static_cast<double>(regions));
+                                expect += rest + rest / 16;
+                            }
+                            nodes_.reserve(so_far + expect);
+                            h_.reserve(6 * (so_far + expect));
+                        }
                         for (std::size_t k = k0; k < k1; ++k)
                         {
                             nodes_.insert(nodes_.end(), nodes[k - k0].begin(), nodes[k - k0].end());
