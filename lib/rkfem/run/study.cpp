@@ -553,32 +553,28 @@ real_t extract_metric(const StudyMetric& m, const HistoryTable& h, const YAML::N
     }
     if (!time)
         throw Error("metric " + m.name + ": history.csv has no time column");
+    // the column's piecewise linear interpolant at s (t.front() <= s <= t.back())
+    const auto& t = *time;
+    auto value_at = [&](real_t s)
+    {
+        const std::size_t i = std::upper_bound(t.begin(), t.end(), s) - t.begin();
+        if (i >= t.size())
+            return v.back();
+        const real_t w = t[i] > t[i - 1] ? (s - t[i - 1]) / (t[i] - t[i - 1]) : 1.0;
+        return (1 - w) * v[i - 1] + w * v[i];
+    };
     if (m.kind == "at")
     {
-        const auto& t = *time;
         if (m.time < t.front() || m.time > t.back())
             return nan; // the run did not reach it
-        const std::size_t i = std::upper_bound(t.begin(), t.end(), m.time) - t.begin();
-        if (i >= t.size())
-            return m.scale * v.back();
-        const real_t w = t[i] > t[i - 1] ? (m.time - t[i - 1]) / (t[i] - t[i - 1]) : 1.0;
-        return m.scale * ((1 - w) * v[i - 1] + w * v[i]);
+        return m.scale * value_at(m.time);
     }
     if (m.kind == "mean")
     {
         // the time average over [from, to] of the column's piecewise linear interpolant
         // (trapezoids, the window's ends interpolated); empty when the run does not cover it
-        const auto& t = *time;
         if (m.from < t.front() || m.to > t.back())
             return nan;
-        auto value_at = [&](real_t s)
-        {
-            const std::size_t i = std::max<std::size_t>(1, std::upper_bound(t.begin(), t.end(), s) - t.begin());
-            if (i >= t.size())
-                return v.back();
-            const real_t w = t[i] > t[i - 1] ? (s - t[i - 1]) / (t[i] - t[i - 1]) : 1.0;
-            return (1 - w) * v[i - 1] + w * v[i];
-        };
         real_t area = 0.0, t0 = m.from, v0 = value_at(m.from);
         for (std::size_t i = 0; i < t.size(); ++i)
             if (t[i] > m.from && t[i] < m.to)
