@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "rkfem/approximation/rk/rk_basis.hpp"
+#include "rkfem/core/mark_set.hpp"
 
 namespace rkfem
 {
@@ -175,54 +176,18 @@ void RkShapeFunctions::throw_singular(const Vec3& x, index_t n, const char* why)
 
 namespace
 {
-/// The hits marked in a bitmap over the particles (one per thread, all zero between calls) and
-/// read back in ascending order: the sorted list, without a sort.
-class HitMarks
+/// The hits of a search (one set per thread, empty between calls), read back ascending.
+MarkSet& search_hits(std::size_t n)
 {
-  public:
-    explicit HitMarks(std::size_t n)
-    {
-        const std::size_t words = (n + 63) / 64;
-        if (marks_.size() < words)
-            marks_.resize(words, 0);
-    }
-    void mark(index_t j)
-    {
-        set(j);
-        span(j, j);
-    }
-    /// Marks j, whose range span() gives.
-    void set(index_t j) { marks_[static_cast<std::size_t>(j) >> 6] |= std::uint64_t{1} << (j & 63); }
-    /// The marked particles lie in [first, last] (as far as these marks go).
-    void span(index_t first, index_t last)
-    {
-        first_ = std::min(first_, first);
-        last_ = std::max(last_, last);
-    }
-    /// The marked particles, ascending, into out; the marks cleared.
-    void take(std::vector<index_t>& out)
-    {
-        out.clear();
-        if (last_ < 0)
-            return;
-        for (std::size_t w = static_cast<std::size_t>(first_) >> 6; w <= static_cast<std::size_t>(last_) >> 6; ++w)
-        {
-            for (std::uint64_t bits = marks_[w]; bits != 0; bits &= bits - 1)
-                out.push_back(static_cast<index_t>(64 * w + static_cast<std::size_t>(__builtin_ctzll(bits))));
-            marks_[w] = 0;
-        }
-    }
-
-  private:
-    static thread_local std::vector<std::uint64_t> marks_;
-    index_t first_ = std::numeric_limits<index_t>::max(), last_ = -1;
-};
-thread_local std::vector<std::uint64_t> HitMarks::marks_;
+    thread_local MarkSet hits;
+    hits.reserve(n);
+    return hits;
+}
 } // namespace
 
 void RkShapeFunctions::particles_near_box_plain(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const
 {
-    HitMarks hits(a_.size());
+    MarkSet& hits = search_hits(a_.size());
     cells_.for_each_near_box(lo, hi,
                              [&](index_t j)
                              {
@@ -235,14 +200,15 @@ void RkShapeFunctions::particles_near_box_plain(const Vec3& lo, const Vec3& hi, 
                                      in &= !(xj + reach < lo[d]) & !(xj - reach > hi[d]);
                                  }
                                  if (in)
-                                     hits.mark(j);
+                                     hits.insert(j);
                              });
-    hits.take(out);
+    out.clear();
+    hits.drain([&](index_t j) { out.push_back(j); });
 }
 
 void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::vector<index_t>& out) const
 {
-    HitMarks hits(a_.size());
+    MarkSet& hits = search_hits(a_.size());
     const std::size_t n = a_.size();
     const real_t *bx = binned_.data(), *by = bx + n, *bz = by + n, *br = bz + n;
     const index_t* ids = cells_.ids().data();
@@ -283,16 +249,17 @@ void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::v
                                          const real_t r = br[q];
                                          if (!(bx[q] + r < lo[0]) & !(bx[q] - r > hi[0]) & !(by[q] + r < lo[1]) &
                                              !(by[q] - r > hi[1]) & !(bz[q] + r < lo[2]) & !(bz[q] - r > hi[2]))
-                                             hits.mark(ids[q]);
+                                             hits.insert(ids[q]);
                                      }
                                  });
 #if defined(__AVX512F__) && defined(__AVX512VL__)
     alignas(32) index_t f[8], l[8];
     _mm256_store_si256(reinterpret_cast<__m256i*>(f), first);
     _mm256_store_si256(reinterpret_cast<__m256i*>(l), last);
-    hits.span(*std::min_element(f, f + 8), *std::max_element(l, l + 8));
+    hits.cover(*std::min_element(f, f + 8), *std::max_element(l, l + 8));
 #endif
-    hits.take(out);
+    out.clear();
+    hits.drain([&](index_t j) { out.push_back(j); });
 }
 
 void RkShapeFunctions::hessians(const Vec3& x, std::vector<index_t>& nodes, std::vector<Mat3>& H) const

@@ -13,6 +13,7 @@
 #include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/approximation/rk/rk_translates.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/mark_set.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/setup_progress.hpp"
 #include "rkfem/integration/stencil_table.hpp"
@@ -488,9 +489,9 @@ class RowMerger
         const real_t* g;            ///< entry k's three sums: g[3 k .. 3 k + 2]
     };
 
-    explicit RowMerger(index_t n_particles)
-        : marks_((static_cast<std::size_t>(n_particles) + 63) / 64, 0), sum_(3 * static_cast<std::size_t>(n_particles))
+    explicit RowMerger(index_t n_particles) : sum_(3 * static_cast<std::size_t>(n_particles))
     {
+        marks_.reserve(static_cast<std::size_t>(n_particles));
     }
 
     /// The number of distinct particles in the lists.
@@ -498,15 +499,8 @@ class RowMerger
     {
         for (const List& l : lists)
             for (index_t k = l.begin; k < l.end; ++k)
-                mark(l.ids[l.slot[k]]);
-        index_t n = 0;
-        for (std::size_t w = first_; w <= last_ && first_ <= last_; ++w)
-        {
-            n += static_cast<index_t>(__builtin_popcountll(marks_[w]));
-            marks_[w] = 0;
-        }
-        reset();
-        return n;
+                marks_.insert(l.ids[l.slot[k]]);
+        return marks_.drain_count();
     }
 
     /// Writes the merged row, each sum times `scale`: particles to nodes, sums to grad (3 each).
@@ -518,7 +512,7 @@ class RowMerger
                 const index_t id = l.ids[l.slot[k]];
                 const real_t* g = l.g + 3 * static_cast<std::size_t>(k);
                 real_t* s = sum_.data() + 3 * static_cast<std::size_t>(id);
-                if (mark(id))
+                if (marks_.insert(id))
                     for (int d = 0; d < 3; ++d)
                         s[d] = g[d];
                 else
@@ -526,41 +520,19 @@ class RowMerger
                         s[d] += g[d];
             }
         std::size_t k = 0;
-        for (std::size_t w = first_; w <= last_ && first_ <= last_; ++w)
-        {
-            for (std::uint64_t bits = marks_[w]; bits != 0; bits &= bits - 1, ++k)
+        marks_.drain(
+            [&](index_t id)
             {
-                const index_t id = static_cast<index_t>(64 * w + static_cast<std::size_t>(__builtin_ctzll(bits)));
                 nodes[k] = id;
                 for (int d = 0; d < 3; ++d)
                     grad[3 * k + d] = sum_[3 * static_cast<std::size_t>(id) + static_cast<std::size_t>(d)] * scale;
-            }
-            marks_[w] = 0;
-        }
-        reset();
+                ++k;
+            });
     }
 
   private:
-    /// Marks particle id; true when it was not marked yet.
-    bool mark(index_t id)
-    {
-        const std::size_t w = static_cast<std::size_t>(id) >> 6;
-        const std::uint64_t bit = std::uint64_t{1} << (id & 63);
-        first_ = std::min(first_, w);
-        last_ = std::max(last_, w);
-        const bool fresh = (marks_[w] & bit) == 0;
-        marks_[w] |= bit;
-        return fresh;
-    }
-    void reset()
-    {
-        first_ = std::numeric_limits<std::size_t>::max();
-        last_ = 0;
-    }
-
-    std::vector<std::uint64_t> marks_;
+    MarkSet marks_;
     std::vector<real_t> sum_;
-    std::size_t first_ = std::numeric_limits<std::size_t>::max(), last_ = 0;
 };
 } // namespace
 
