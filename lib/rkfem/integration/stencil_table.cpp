@@ -281,4 +281,48 @@ void expand_triplets(IntegrationOperator& stab, const TripletTable& table)
         }
     }
 }
+
+std::vector<index_t> uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
+                                       index_t lanes)
+{
+    std::vector<index_t> order(node_offset.size());
+    std::vector<index_t> waits; // per entry: later entries with an overlapping window not yet added
+    std::vector<char> done;
+    for (std::size_t s = 0; s + 1 < offsets.size(); ++s)
+    {
+        const index_t k0 = offsets[s], n = offsets[s + 1] - k0;
+        const index_t* o = node_offset.data() + k0;
+        auto overlap = [&](index_t a, index_t b) { return std::abs(o[a] - o[b]) < lanes; };
+        waits.assign(static_cast<std::size_t>(n), 0);
+        done.assign(static_cast<std::size_t>(n), 0);
+        for (index_t k = 0; k < n; ++k)
+            for (index_t j = k + 1; j < n; ++j)
+                waits[static_cast<std::size_t>(k)] += overlap(j, k);
+        index_t last[2] = {-1, -1};
+        for (index_t step = 0; step < n; ++step)
+        {
+            // of the ready entries (waiting on none), the latest apart from the last two added,
+            // else the latest apart from the last one, else the latest
+            index_t pick[3] = {-1, -1, -1};
+            for (index_t k = n - 1; k >= 0; --k)
+            {
+                if (done[static_cast<std::size_t>(k)] || waits[static_cast<std::size_t>(k)] > 0)
+                    continue;
+                const bool apart0 = last[0] < 0 || !overlap(k, last[0]);
+                const bool apart1 = last[1] < 0 || !overlap(k, last[1]);
+                const int rank = apart0 && apart1 ? 0 : apart0 ? 1 : 2;
+                if (pick[rank] < 0)
+                    pick[rank] = k;
+            }
+            const index_t k = pick[0] >= 0 ? pick[0] : pick[1] >= 0 ? pick[1] : pick[2];
+            done[static_cast<std::size_t>(k)] = 1;
+            for (index_t i = 0; i < k; ++i)
+                waits[static_cast<std::size_t>(i)] -= overlap(k, i);
+            order[static_cast<std::size_t>(k0 + step)] = k;
+            last[1] = last[0];
+            last[0] = k;
+        }
+    }
+    return order;
+}
 } // namespace rkfem

@@ -294,6 +294,9 @@ void NodalBlock::build_tables(Assembly assembly)
     stab_energy.assign(static_cast<std::size_t>(ns), 0.0);
 
     prefetch_stencils = point_stencils.empty() && points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
+    // the order the uniform batches add a stencil's entries in (nodal_force.cpp)
+    point_stencils.add_order = uniform_add_order(point_stencils.offsets, point_stencils.node_offset, kPointLanes);
+    stab_triplets.add_order = uniform_add_order(stab_triplets.offsets, stab_triplets.node_offset, kPointLanes);
     if (compact_operators && !point_stencils.empty())
     {
         release_entries(points);

@@ -356,16 +356,18 @@ inline void gather_gradients_uniform(const StencilView& st, const real_t* u, con
 
 /// buf += V0 P g for the 8 lanes of a uniform batch (P[3 j + i][l] = P_ij of lane l). Column j
 /// of the lanes' P as padded quadruples (x, y, z, 0), 4 vectors; per entry the 8 consecutive
-/// nodes' quadruples are 4 vectors of the buffer. The entries run last to first, so each node
-/// takes its lanes' terms in lane order, with the FMAs of scatter_point: the same bits.
+/// nodes' quadruples are 4 vectors of the buffer. The entries run in the table's add order
+/// (uniform_add_order), so each node takes its lanes' terms in lane order, with the FMAs of
+/// scatter_point: the same bits.
 inline void scatter_uniform(const StencilView& st, const real_t (&P)[9][8], real_t* buf, index_t lo)
 {
     __m512d c[3][4];
     for (int j = 0; j < 3; ++j)
         simd::interleave4(_mm512_load_pd(P[3 * j]), _mm512_load_pd(P[3 * j + 1]), _mm512_load_pd(P[3 * j + 2]), c[j]);
     real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(st.base - lo);
-    for (index_t k = st.size - 1; k >= 0; --k)
+    for (index_t e = 0; e < st.size; ++e)
     {
+        const index_t k = st.add_order ? st.add_order[e] : st.size - 1 - e;
         real_t* f = b + 4 * static_cast<std::size_t>(st.offset[k]);
         const real_t* g = st.grad + 3 * static_cast<std::size_t>(k);
         const __m512d g0 = _mm512_set1_pd(g[0]), g1 = _mm512_set1_pd(g[1]), g2 = _mm512_set1_pd(g[2]);
@@ -418,9 +420,9 @@ inline void gather_triplets_uniform(const TripletView& tv, const real_t* v, real
 }
 
 /// scatter_triplet for the 8 lanes of a uniform triplet batch (P[i][3 j + a][l]): the six
-/// column sums Q_ij of the lanes as padded quadruples, 4 vectors each; the entries run last to
-/// first, so each node takes its lanes' terms in lane order, with scatter_triplet's operations:
-/// the same bits.
+/// column sums Q_ij of the lanes as padded quadruples, 4 vectors each; the entries run in the
+/// table's add order (uniform_add_order), so each node takes its lanes' terms in lane order, with
+/// scatter_triplet's operations: the same bits.
 inline void scatter_triplets_uniform(const TripletView& tv, const real_t (&P)[3][9][8], real_t* buf, index_t lo)
 {
     constexpr int pairs[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
@@ -438,8 +440,9 @@ inline void scatter_triplets_uniform(const TripletView& tv, const real_t (&P)[3]
         simd::interleave4(c[0], c[1], c[2], Q[r]);
     }
     real_t* const b = buf + 4 * static_cast<std::ptrdiff_t>(tv.base - lo);
-    for (index_t k = tv.size - 1; k >= 0; --k)
+    for (index_t e = 0; e < tv.size; ++e)
     {
+        const index_t k = tv.add_order ? tv.add_order[e] : tv.size - 1 - e;
         real_t* f = b + 4 * static_cast<std::size_t>(tv.offset[k]);
         const real_t* h = tv.hess + 6 * static_cast<std::size_t>(k);
         const __m512d h0 = _mm512_set1_pd(h[0]), h1 = _mm512_set1_pd(h[1]), h2 = _mm512_set1_pd(h[2]),
