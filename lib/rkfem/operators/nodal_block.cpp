@@ -289,7 +289,7 @@ void NodalBlock::build_tables(Assembly assembly)
     finv.assign(own_stab_pass ? 9 * static_cast<std::size_t>(np) : 0, 0.0);
     spin.assign(own_stab_pass ? 3 * static_cast<std::size_t>(np) : 0, 0.0);
     const std::size_t nb = static_cast<std::size_t>((np + kPointLanes - 1) / kPointLanes);
-    batch_sums.assign(3 * nb, 0.0);
+    batch_sums.assign(4 * nb, 0.0);
     batch_idx.assign(2 * nb, -1);
     stab_energy.assign(static_cast<std::size_t>(ns), 0.0);
 

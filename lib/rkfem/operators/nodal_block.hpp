@@ -137,7 +137,7 @@ struct NodalBlock
     std::vector<real_t> point_tensor; ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
     std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for the stabilization's own pass (empty without one)
     std::vector<real_t> spin;         ///< 3 x n_points: W of the point (the same)
-    std::vector<real_t> batch_sums;  ///< per batch of stress points x 3: d_int, d_bv, dt_min
+    std::vector<real_t> batch_sums;  ///< per batch of stress points x 4: d_int, d_bv, dt_min, NSNI's d_stab (nsni_batch)
     std::vector<index_t> batch_idx;  ///< per batch x 2: the point of dt_min, the first bad point (-1: none)
     std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell
 

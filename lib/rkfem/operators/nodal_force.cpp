@@ -636,6 +636,14 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
                 energy[s] = e[i][l];
             }
         }
+    // the batch's share of the pass's stabilization work, its good sub-points' in their order
+    // (the pass sums the batches: no sweep over every sub-point's work per step)
+    real_t work = 0.0;
+    for (int l = 0; l < nl; ++l)
+        if (good[l])
+            for (int i = 0; i < 3; ++i)
+                work += e[i][l];
+    blk.batch_sums[4 * static_cast<std::size_t>(p0 / W) + 3] = work;
 #if defined(__AVX512F__)
     if (uniform && all_good)
     {
@@ -930,9 +938,9 @@ template <bool PLASTIC, bool FULL>
         }
     (void)uniform;
     const std::size_t b = static_cast<std::size_t>(batch);
-    blk.batch_sums[3 * b] = sum_int;
-    blk.batch_sums[3 * b + 1] = sum_bv;
-    blk.batch_sums[3 * b + 2] = dt_min;
+    blk.batch_sums[4 * b] = sum_int;
+    blk.batch_sums[4 * b + 1] = sum_bv;
+    blk.batch_sums[4 * b + 2] = dt_min;
     blk.batch_idx[2 * b] = dt_point;
     blk.batch_idx[2 * b + 1] = bad;
 }
@@ -975,9 +983,9 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
             r.bad_element = blk.batch_idx[2 * b + 1];
             return r;
         }
-        if (blk.batch_sums[3 * b + 2] < r.dt_stable)
+        if (blk.batch_sums[4 * b + 2] < r.dt_stable)
         {
-            r.dt_stable = blk.batch_sums[3 * b + 2];
+            r.dt_stable = blk.batch_sums[4 * b + 2];
             r.dt_element = blk.batch_idx[2 * b];
         }
     }
@@ -1069,10 +1077,15 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                          [&](index_t s) { sub_cell(s, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + s)]); });
     }
 
-    r.d_internal = parallel_reduce_sum("rkfem::nodal_energy", nb, [&](index_t b) { return blk.batch_sums[3 * b]; });
+    r.d_internal = parallel_reduce_sum("rkfem::nodal_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b]; });
     r.d_bulk_viscosity =
-        parallel_reduce_sum("rkfem::nodal_bv_energy", nb, [&](index_t b) { return blk.batch_sums[3 * b + 1]; });
-    r.d_hourglass = parallel_reduce_sum("rkfem::nodal_stab_energy", ns, [&](index_t s) { return blk.stab_energy[s]; });
+        parallel_reduce_sum("rkfem::nodal_bv_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b + 1]; });
+    // NSNI in the points' batches summed its sub-points' work per batch (nsni_batch)
+    if (ns > 0 && blk.stabilization_triplets && blk.scatter_assembly())
+        r.d_hourglass =
+            parallel_reduce_sum("rkfem::nodal_stab_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b + 3]; });
+    else
+        r.d_hourglass = parallel_reduce_sum("rkfem::nodal_stab_energy", ns, [&](index_t s) { return blk.stab_energy[s]; });
     return r;
 }
 
