@@ -4,6 +4,7 @@
 // table exactly as it would read the operator.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -204,7 +205,8 @@ TEST(StencilTable, ThinBeamSharesOneStencilPerBoundaryClass)
 }
 
 // The order a uniform batch adds a stencil's entries in (uniform_add_order), on the P3 beam's
-// tables: a permutation of each stencil's entries in which two entries whose windows of 8 nodes
+// tables, for the stencils its uniform batches read (uniform_batch_stencils; the others keep
+// last to first) and for every stencil: a permutation of each stencil's entries in which two entries whose windows of 8 nodes
 // overlap keep their last-to-first order (so every node takes its lanes' terms in lane order,
 // the bits of last to first; ForcePassReadsTheTableAsTheOperator holds the pass to the plain
 // one), and in which an entry overlaps the one added just before it only where no other was
@@ -216,9 +218,18 @@ TEST(StencilTable, UniformAddOrderKeepsTheLaneOrderAndSeparatesNeighbours)
     const HexMesh mesh = generate_box(Vec3::Zero(), Vec3(55 * h, 4 * h, 4 * h), {55, 4, 4});
     const NodalBlock blk = build_nodal_block(elastic_rk_part("nsni"), mesh, 0);
     auto check = [](const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
-                    const std::vector<index_t>& order, const char* what)
+                    const std::vector<index_t>& cls, const std::vector<index_t>& base,
+                    const std::vector<index_t>& block_order, const char* what)
     {
-        ASSERT_EQ(order, uniform_add_order(offsets, node_offset, 8)) << what;
+        // the block orders the stencils its uniform batches read, the others last to first
+        const index_t n_stencils = static_cast<index_t>(offsets.size()) - 1;
+        const std::vector<char> wanted = uniform_batch_stencils(cls, base, n_stencils, 8);
+        EXPECT_GT(std::count(wanted.begin(), wanted.end(), 1), 0) << what;
+        EXPECT_LT(std::count(wanted.begin(), wanted.end(), 1), n_stencils) << what;
+        const std::vector<index_t> order = uniform_add_order(offsets, node_offset, 8); // every stencil's
+        for (index_t s = 0; s < n_stencils; ++s)
+            for (index_t k = offsets[s]; k < offsets[s + 1]; ++k)
+                ASSERT_EQ(block_order[k], wanted[s] ? order[k] : offsets[s + 1] - 1 - k) << what; // local indices
         index_t back_to_back = 0, back_to_back_last_first = 0;
         for (std::size_t s = 0; s + 1 < offsets.size(); ++s)
         {
@@ -263,8 +274,10 @@ TEST(StencilTable, UniformAddOrderKeepsTheLaneOrderAndSeparatesNeighbours)
     };
     ASSERT_FALSE(blk.point_stencils.empty());
     ASSERT_FALSE(blk.stab_triplets.empty());
-    check(blk.point_stencils.offsets, blk.point_stencils.node_offset, blk.point_stencils.add_order, "SCNI stencils");
-    check(blk.stab_triplets.offsets, blk.stab_triplets.node_offset, blk.stab_triplets.add_order, "NSNI triplets");
+    const StencilTable& st = blk.point_stencils;
+    const TripletTable& tt = blk.stab_triplets;
+    check(st.offsets, st.node_offset, st.point_stencil, st.point_base, st.add_order, "SCNI stencils");
+    check(tt.offsets, tt.node_offset, tt.point_triplet, tt.point_base, tt.add_order, "NSNI triplets");
 }
 
 // The P1 cylinder at 0.5 in (172 columns of 25 particles, numbered column by column): in each

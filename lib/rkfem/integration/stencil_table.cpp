@@ -282,8 +282,24 @@ void expand_triplets(IntegrationOperator& stab, const TripletTable& table)
     }
 }
 
+std::vector<char> uniform_batch_stencils(const std::vector<index_t>& point_class, const std::vector<index_t>& point_base,
+                                         index_t n_stencils, index_t lanes)
+{
+    std::vector<char> used(static_cast<std::size_t>(n_stencils), 0);
+    const std::size_t w = static_cast<std::size_t>(lanes);
+    for (std::size_t p0 = 0; p0 + w <= point_class.size(); p0 += w)
+    {
+        bool uniform = true;
+        for (std::size_t l = 1; l < w && uniform; ++l)
+            uniform = point_class[p0 + l] == point_class[p0] && point_base[p0 + l] == point_base[p0] + static_cast<index_t>(l);
+        if (uniform)
+            used[static_cast<std::size_t>(point_class[p0])] = 1;
+    }
+    return used;
+}
+
 std::vector<index_t> uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
-                                       index_t lanes)
+                                       index_t lanes, const std::vector<char>& wanted)
 {
     std::vector<index_t> order(node_offset.size());
     std::vector<index_t> waits; // per entry: later entries with an overlapping window not yet added
@@ -291,6 +307,12 @@ std::vector<index_t> uniform_add_order(const std::vector<index_t>& offsets, cons
     for (std::size_t s = 0; s + 1 < offsets.size(); ++s)
     {
         const index_t k0 = offsets[s], n = offsets[s + 1] - k0;
+        if (!wanted.empty() && !wanted[s])
+        {
+            for (index_t e = 0; e < n; ++e)
+                order[static_cast<std::size_t>(k0 + e)] = n - 1 - e;
+            continue;
+        }
         const index_t* o = node_offset.data() + k0;
         auto overlap = [&](index_t a, index_t b) { return std::abs(o[a] - o[b]) < lanes; };
         waits.assign(static_cast<std::size_t>(n), 0);

@@ -43,9 +43,18 @@ struct StencilView
 /// where a choice allows. A load of a window that overlaps a store still pending only in part
 /// cannot take its values from the store and waits until the store reaches the cache: the
 /// neighbours along a row (offsets o - 1, o, o + 1) added back to back made P3's force pass wait
-/// on every entry (bench_decks, P3 rkpm, 1 thread: about 3 % of the step).
+/// on every entry (bench_decks, P3 rkpm, 1 thread: about 3 % of the step). `wanted` (per
+/// stencil; empty: all) names the stencils some uniform batch reads; the others keep last to
+/// first, which costs nothing to find (a cloud's table holds a stencil per point, and no batch
+/// of it is uniform).
 std::vector<index_t> uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
-                                       index_t lanes = 8);
+                                       index_t lanes = 8, const std::vector<char>& wanted = {});
+
+/// Per stencil of a table (its per-point classes and bases): does a full batch of `lanes`
+/// consecutive points from a multiple of `lanes` on read it as one uniform batch (one class,
+/// consecutive bases)? What uniform_add_order's `wanted` takes.
+std::vector<char> uniform_batch_stencils(const std::vector<index_t>& point_class, const std::vector<index_t>& point_base,
+                                         index_t n_stencils, index_t lanes = 8);
 
 struct StencilTable
 {
