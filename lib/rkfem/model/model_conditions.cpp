@@ -31,6 +31,11 @@ struct RkVelocityConstraint
     /// particle of the P1 cylinder), and its solve allocates nothing
     Eigen::KLU<SparseMatrix> lu;
     Eigen::VectorXd rhs, x;
+    /// per constrained node q: its row's entries on free particles, in row order (the dof
+    /// 3 J + component and Lambda_qJ), [free_offsets[q], free_offsets[q + 1]): what the step's
+    /// right-hand side subtracts, read as flat arrays rather than searched row by row
+    std::vector<index_t> free_offsets, free_dof;
+    std::vector<real_t> free_w;
 };
 
 void Model::impose_velocity(real_t t, real_t dt, bool half_step) { impose_velocity(t, dt, half_step, nodes.v.data()); }
@@ -109,7 +114,6 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
     // rkpm parts: the values just set are targets for the physical velocity
     for (auto& rc : rk_constraints_)
     {
-        const NodalBlock& nb = nodal_blocks[rc->block];
         const int k = rc->component;
         const index_t nb_count = static_cast<index_t>(rc->node.size());
         if (rc->at_rest)
@@ -128,12 +132,8 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
                 const real_t uh = physical(nodes.u, rc->node[q])[k];
                 r = dt > 0 ? ((*c.value)(t + dt) - uh) / dt : 0.0;
             }
-            kinematics.for_row(rc->node[q],
-                               [&](index_t J, real_t w)
-                               {
-                                   if (rc->slot[J - nb.node_begin] < 0)
-                                       r -= w * vel[3 * J + k];
-                               });
+            for (index_t e = rc->free_offsets[q]; e < rc->free_offsets[q + 1]; ++e)
+                r -= rc->free_w[e] * vel[rc->free_dof[e]];
             rc->rhs[q] = r;
         }
         rc->x = rc->lu.solve(rc->rhs);
@@ -205,6 +205,20 @@ void Model::build_rk_constraints()
             }
             rc->rhs.resize(m);
             rc->x.resize(m);
+            rc->free_offsets.assign(1, 0);
+            for (index_t q = 0; q < m; ++q)
+            {
+                kinematics.for_row(rc->node[q],
+                                   [&](index_t J, real_t w)
+                                   {
+                                       if (rc->slot[J - nb.node_begin] < 0)
+                                       {
+                                           rc->free_dof.push_back(3 * J + k);
+                                           rc->free_w.push_back(w);
+                                       }
+                                   });
+                rc->free_offsets.push_back(static_cast<index_t>(rc->free_dof.size()));
+            }
             rk_constraints_.push_back(std::move(rc));
         }
     }
