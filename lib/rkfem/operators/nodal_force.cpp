@@ -495,8 +495,13 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     alignas(64) real_t G[3][3][3][W];
     // the packed triplets when built (build_tables), else the three sub-point stencils
     const bool packed = !blk.stab_triplets.empty();
-    StencilView sv[W][3];
-    TripletView tv[W];
+    // the views are taken where they are read (a few loads each): arrays of them for the lanes
+    // were value-initialized, a 1.3 KB memset per batch
+    auto sub_point_views = [&](index_t t, StencilView (&sv)[3])
+    {
+        for (int i = 0; i < 3; ++i)
+            sv[i] = stencil_view(st, blk.stab_stencils, 3 * t + i);
+    };
 #if defined(__AVX512F__)
     // a full batch along a lattice row with one triplet stencil: the whole-vector path
     const bool uniform = W == 8 && nl == W && packed && uniform_lanes(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base, p0);
@@ -510,15 +515,12 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
         const index_t t = p0 + (l < nl ? l : 0);
         real_t g[3][3][3];
         if (packed)
-        {
-            tv[l] = blk.stab_triplets.view(t);
-            gather_triplet(PackedTriplet{tv[l]}, v, g);
-        }
+            gather_triplet(PackedTriplet{blk.stab_triplets.view(t)}, v, g);
         else
         {
-            for (int i = 0; i < 3; ++i)
-                sv[l][i] = stencil_view(st, blk.stab_stencils, 3 * t + i);
-            gather_triplet(SubPointTriplet{sv[l]}, v, g);
+            StencilView sv[3];
+            sub_point_views(t, sv);
+            gather_triplet(SubPointTriplet{sv}, v, g);
         }
         for (int i = 0; i < 3; ++i)
             for (int a = 0; a < 3; ++a)
@@ -655,16 +657,18 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     {
         if (!good[l])
             continue;
-        if (uniform) // a lane was bad: its views were not taken
-            tv[l] = blk.stab_triplets.view(p0 + l);
         real_t Pl[3][9];
         for (int i = 0; i < 3; ++i)
             for (int k = 0; k < 9; ++k)
                 Pl[i][k] = P[i][k][l];
         if (packed)
-            scatter_triplet(PackedTriplet{tv[l]}, Pl, buf, lo);
+            scatter_triplet(PackedTriplet{blk.stab_triplets.view(p0 + l)}, Pl, buf, lo);
         else
-            scatter_triplet(SubPointTriplet{sv[l]}, Pl, buf, lo);
+        {
+            StencilView sv[3];
+            sub_point_views(p0 + l, sv);
+            scatter_triplet(SubPointTriplet{sv}, Pl, buf, lo);
+        }
     }
 }
 
