@@ -291,7 +291,7 @@ void NodalBlock::build_tables(Assembly assembly)
     const std::size_t nb = static_cast<std::size_t>((np + kPointLanes - 1) / kPointLanes);
     batch_sums.assign(4 * nb, 0.0);
     batch_idx.assign(2 * nb, -1);
-    stab_energy.assign(static_cast<std::size_t>(ns), 0.0);
+    stab_energy.assign(own_stab_pass ? static_cast<std::size_t>(ns) : 0, 0.0);
 
     prefetch_stencils = point_stencils.empty() && points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
     // the order the uniform batches add a stencil's entries in (nodal_force.cpp)

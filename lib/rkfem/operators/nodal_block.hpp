@@ -139,7 +139,7 @@ struct NodalBlock
     std::vector<real_t> spin;         ///< 3 x n_points: W of the point (the same)
     std::vector<real_t> batch_sums;  ///< per batch of stress points x 4: d_int, d_bv, dt_min, NSNI's d_stab (nsni_batch)
     std::vector<index_t> batch_idx;  ///< per batch x 2: the point of dt_min, the first bad point (-1: none)
-    std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell
+    std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell (the own pass's; NSNI in the points' batches sums it per batch)
 
     index_t n_points() const { return points.n_points(); }
     index_t n_stab() const { return stabilization.n_points(); }

@@ -536,7 +536,6 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     // instead of 24 strided ones inside the lane loop; the same values either way
     const real_t* __restrict s_in = blk.stab_stress.data();
     real_t* __restrict s_out = blk.stab_stress_trial.data();
-    real_t* __restrict energy = blk.stab_energy.data();
     const real_t* __restrict weight = st.weight.data();
     alignas(64) real_t os[3][6][W], ws[3][W], sn[3][6][W], e[3][W];
     [[maybe_unused]] const std::size_t s0 = 3 * static_cast<std::size_t>(p0); // the batch's first sub-point
@@ -612,7 +611,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
                     P[i][3 * j + a][l] = VJ * (S[a][0] * Fi[j][0][l] + S[a][1] * Fi[j][1][l] + S[a][2] * Fi[j][2][l]);
         }
     }
-    // the new states and work of the good lanes (a full batch's as three vector stores each)
+    // the new states of the good lanes (a full batch's as three vector stores each)
     if (triples && all_good)
     {
 #if defined(__AVX512F__)
@@ -621,7 +620,6 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
             for (int k = 0; k < 6; ++k)
                 simd::store_triples(s_out + k * sns + s0, _mm512_load_pd(sn[0][k]), _mm512_load_pd(sn[1][k]),
                                     _mm512_load_pd(sn[2][k]));
-            simd::store_triples(energy + s0, _mm512_load_pd(e[0]), _mm512_load_pd(e[1]), _mm512_load_pd(e[2]));
         }
 #endif
     }
@@ -635,11 +633,10 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
                 const std::size_t s = 3 * static_cast<std::size_t>(p0 + l) + i;
                 for (int k = 0; k < 6; ++k)
                     s_out[k * sns + s] = sn[i][k][l];
-                energy[s] = e[i][l];
             }
         }
     // the batch's share of the pass's stabilization work, its good sub-points' in their order
-    // (the pass sums the batches: no sweep over every sub-point's work per step)
+    // (the pass sums the batches: no per-sub-point work is stored, nor swept per step)
     real_t work = 0.0;
     for (int l = 0; l < nl; ++l)
         if (good[l])
