@@ -298,21 +298,27 @@ std::vector<char> uniform_batch_stencils(const std::vector<index_t>& point_class
     return used;
 }
 
-std::vector<index_t> uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
-                                       index_t lanes, const std::vector<char>& wanted)
+AddOrder uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset, index_t lanes,
+                           const std::vector<char>& wanted)
 {
-    std::vector<index_t> order(node_offset.size());
+    AddOrder ao;
+    const std::size_t n_stencils = offsets.empty() ? 0 : offsets.size() - 1;
+    ao.start.assign(n_stencils, -1);
+    std::size_t room = 0;
+    auto ordered = [&](std::size_t s)
+    { return (wanted.empty() || wanted[s]) && offsets[s + 1] - offsets[s] <= index_t{65535}; };
+    for (std::size_t s = 0; s < n_stencils; ++s)
+        if (ordered(s))
+            room += static_cast<std::size_t>(offsets[s + 1] - offsets[s]);
+    ao.order.reserve(room);
     std::vector<index_t> waits; // per entry: later entries with an overlapping window not yet added
     std::vector<char> done;
-    for (std::size_t s = 0; s + 1 < offsets.size(); ++s)
+    for (std::size_t s = 0; s < n_stencils; ++s)
     {
-        const index_t k0 = offsets[s], n = offsets[s + 1] - k0;
-        if (!wanted.empty() && !wanted[s])
-        {
-            for (index_t e = 0; e < n; ++e)
-                order[static_cast<std::size_t>(k0 + e)] = n - 1 - e;
+        if (!ordered(s))
             continue;
-        }
+        const index_t k0 = offsets[s], n = offsets[s + 1] - k0;
+        ao.start[s] = static_cast<index_t>(ao.order.size());
         const index_t* o = node_offset.data() + k0;
         auto overlap = [&](index_t a, index_t b) { return std::abs(o[a] - o[b]) < lanes; };
         waits.assign(static_cast<std::size_t>(n), 0);
@@ -340,11 +346,11 @@ std::vector<index_t> uniform_add_order(const std::vector<index_t>& offsets, cons
             done[static_cast<std::size_t>(k)] = 1;
             for (index_t i = 0; i < k; ++i)
                 waits[static_cast<std::size_t>(i)] -= overlap(k, i);
-            order[static_cast<std::size_t>(k0 + step)] = k;
+            ao.order.push_back(static_cast<std::uint16_t>(k));
             last[1] = last[0];
             last[0] = k;
         }
     }
-    return order;
+    return ao;
 }
 } // namespace rkfem

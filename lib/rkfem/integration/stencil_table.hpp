@@ -32,23 +32,38 @@ struct StencilView
     index_t base = 0;
     /// a table's stencil: the order its uniform batches add the entries in (uniform_add_order),
     /// null where none was set (then last to first)
-    const index_t* add_order = nullptr;
+    const std::uint16_t* add_order = nullptr;
 };
 
 /// The order in which a batch of `lanes` points along a lattice row (point l's entry k touches
-/// node base + offset[k] + l) adds its n entries into a force buffer, as local entry indices.
-/// Each node takes its lanes' terms in lane order, so two entries whose windows of `lanes` nodes
-/// overlap keep their last-to-first order: the bits are those of last to first. The entries of
-/// windows apart are interleaved, so that an entry's window does not overlap the last two added
-/// where a choice allows. A load of a window that overlaps a store still pending only in part
-/// cannot take its values from the store and waits until the store reaches the cache: the
-/// neighbours along a row (offsets o - 1, o, o + 1) added back to back made P3's force pass wait
-/// on every entry (bench_decks, P3 rkpm, 1 thread: about 3 % of the step). `wanted` (per
-/// stencil; empty: all) names the stencils some uniform batch reads; the others keep last to
-/// first, which costs nothing to find (a cloud's table holds a stencil per point, and no batch
-/// of it is uniform).
-std::vector<index_t> uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
-                                       index_t lanes = 8, const std::vector<char>& wanted = {});
+/// node base + offset[k] + l) adds a stencil's n entries into a force buffer, as local entry
+/// indices. Each node takes its lanes' terms in lane order, so two entries whose windows of
+/// `lanes` nodes overlap keep their last-to-first order: the bits are those of last to first.
+/// The entries of windows apart are interleaved, so that an entry's window does not overlap the
+/// last two added where a choice allows. A load of a window that overlaps a store still pending
+/// only in part cannot take its values from the store and waits until the store reaches the
+/// cache: the neighbours along a row (offsets o - 1, o, o + 1) added back to back made P3's force
+/// pass wait on every entry (bench_decks, P3 rkpm, 1 thread: about 3 % of the step).
+struct AddOrder
+{
+    std::vector<index_t> start;       ///< per stencil: its order's first index in `order`, -1 for none
+    std::vector<std::uint16_t> order; ///< the ordered stencils' local entry indices, one after another
+    /// stencil s's order, null where it has none (then last to first)
+    const std::uint16_t* of(index_t s) const
+    {
+        if (start.empty())
+            return nullptr;
+        const index_t i = start[static_cast<std::size_t>(s)];
+        return i < 0 ? nullptr : order.data() + i;
+    }
+};
+
+/// The add orders of a table's stencils (offsets, node_offset as the tables hold them).
+/// `wanted` (per stencil; empty: all) names those some uniform batch reads: the others get
+/// none, and take no room (a cloud's table holds a stencil per point, and no batch of it is
+/// uniform; P1's most), nor do stencils of over 65,535 entries (the indices are 16 bits).
+AddOrder uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
+                           index_t lanes = 8, const std::vector<char>& wanted = {});
 
 /// Per stencil of a table (its per-point classes and bases): does a full batch of `lanes`
 /// consecutive points from a multiple of `lanes` on read it as one uniform batch (one class,
@@ -63,7 +78,7 @@ struct StencilTable
     std::vector<index_t> offsets{0};    ///< stencil s: entries [offsets[s], offsets[s + 1])
     std::vector<index_t> node_offset;   ///< per entry: node - base
     std::vector<real_t> grad;           ///< 3 per entry [1/m]
-    std::vector<index_t> add_order;     ///< per entry: uniform_add_order (empty: last to first)
+    AddOrder add_order;                 ///< uniform_add_order's (none: last to first)
 
     bool empty() const { return point_stencil.empty(); }
     index_t n_stencils() const { return static_cast<index_t>(offsets.size()) - 1; }
@@ -76,8 +91,7 @@ struct StencilTable
         const index_t s = point_stencil[static_cast<std::size_t>(p)];
         const index_t k0 = offsets[static_cast<std::size_t>(s)];
         return {node_offset.data() + k0, grad.data() + 3 * static_cast<std::size_t>(k0),
-                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)],
-                add_order.empty() ? nullptr : add_order.data() + k0};
+                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)], add_order.of(s)};
     }
 };
 
@@ -121,7 +135,7 @@ struct TripletView
     const real_t* hess = nullptr; ///< 6 per entry
     index_t size = 0;
     index_t base = 0;
-    const index_t* add_order = nullptr; ///< as StencilView's
+    const std::uint16_t* add_order = nullptr; ///< as StencilView's
 };
 
 struct TripletTable
@@ -131,7 +145,7 @@ struct TripletTable
     std::vector<index_t> offsets{0};    ///< triplet stencil s: entries [offsets[s], offsets[s + 1])
     std::vector<index_t> node_offset;   ///< per entry: node - base
     std::vector<real_t> hess;           ///< 6 per entry [1/m]
-    std::vector<index_t> add_order;     ///< per entry: uniform_add_order (empty: last to first)
+    AddOrder add_order;                 ///< uniform_add_order's (none: last to first)
 
     bool empty() const { return point_triplet.empty(); }
     index_t n_triplets() const { return static_cast<index_t>(offsets.size()) - 1; }
@@ -142,8 +156,7 @@ struct TripletTable
         const index_t s = point_triplet[static_cast<std::size_t>(p)];
         const index_t k0 = offsets[static_cast<std::size_t>(s)];
         return {node_offset.data() + k0, hess.data() + 6 * static_cast<std::size_t>(k0),
-                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)],
-                add_order.empty() ? nullptr : add_order.data() + k0};
+                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)], add_order.of(s)};
     }
 };
 
