@@ -77,43 +77,63 @@ namespace
 /// it (within tol) that meet at the widest angles (the largest |det| of their unit normals; the
 /// first such triple in the planes' order), solved in doubles. The same planes give the same
 /// bits whatever CGAL computed before; p itself when fewer than three independent planes pass.
-Vec3 corner_point(const Vec3& p, const std::vector<Plane>& planes, real_t tol)
+/// Built once per cell: each plane's length and offset are formed once for all the cell's
+/// vertices (the same operations as per vertex, so the same bits).
+class CornerSolver
 {
-    std::vector<std::pair<Vec3, real_t>> through; // unit normal, offset: n . x = c
-    for (const Plane& q : planes)
+  public:
+    explicit CornerSolver(const std::vector<Plane>& planes)
     {
-        const Vec3& n = q.n;
-        const real_t len = n.norm();
-        const real_t c = -q.d / len;
-        if (std::abs(n.dot(p) / len - c) <= tol)
-            through.emplace_back(n / len, c);
+        planes_.reserve(planes.size());
+        for (const Plane& q : planes)
+        {
+            const real_t len = q.n.norm();
+            planes_.push_back({q.n, len, -q.d / len, q.n / len});
+        }
     }
-    real_t best = 1e-6;
-    std::array<std::size_t, 3> pick{0, 0, 0};
-    bool found = false;
-    for (std::size_t a = 0; a < through.size(); ++a)
-        for (std::size_t b = a + 1; b < through.size(); ++b)
-            for (std::size_t c = b + 1; c < through.size(); ++c)
-            {
-                const real_t det = std::abs(through[a].first.dot(through[b].first.cross(through[c].first)));
-                if (det > best)
+    Vec3 operator()(const Vec3& p, real_t tol)
+    {
+        through_.clear(); // unit normal, offset: n . x = c
+        for (const Unit& q : planes_)
+            if (std::abs(q.n.dot(p) / q.len - q.c) <= tol)
+                through_.emplace_back(q.unit, q.c);
+        real_t best = 1e-6;
+        std::array<std::size_t, 3> pick{0, 0, 0};
+        bool found = false;
+        for (std::size_t a = 0; a < through_.size(); ++a)
+            for (std::size_t b = a + 1; b < through_.size(); ++b)
+                for (std::size_t c = b + 1; c < through_.size(); ++c)
                 {
-                    best = det;
-                    pick = {a, b, c};
-                    found = true;
+                    const real_t det = std::abs(through_[a].first.dot(through_[b].first.cross(through_[c].first)));
+                    if (det > best)
+                    {
+                        best = det;
+                        pick = {a, b, c};
+                        found = true;
+                    }
                 }
-            }
-    if (!found)
-        return p;
-    Mat3 A;
-    Vec3 rhs;
-    for (int r = 0; r < 3; ++r)
-    {
-        A.row(r) = through[pick[r]].first.transpose();
-        rhs[r] = through[pick[r]].second;
+        if (!found)
+            return p;
+        Mat3 A;
+        Vec3 rhs;
+        for (int r = 0; r < 3; ++r)
+        {
+            A.row(r) = through_[pick[r]].first.transpose();
+            rhs[r] = through_[pick[r]].second;
+        }
+        return A.partialPivLu().solve(rhs);
     }
-    return A.partialPivLu().solve(rhs);
-}
+
+  private:
+    struct Unit
+    {
+        Vec3 n;
+        real_t len, c;
+        Vec3 unit;
+    };
+    std::vector<Unit> planes_;
+    std::vector<std::pair<Vec3, real_t>> through_;
+};
 
 /// The centre of the largest ball inside the bisectors and the whole body around x_i: maximize r
 /// subject to n_k . p + r <= c_k for every unit-normal plane (CGAL's LP solver, exact). Throws
@@ -339,7 +359,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 // (address-space randomization), and a vertex's double (its lazy construction's interval)
                 // depended on which of the planes through it the hull used; every sum below then rounded
                 // differently from run to run. Each vertex is solved again from the planes through it
-                // (corner_point), facets start at their smallest vertex, and both are sorted. The cut
+                // (CornerSolver), facets start at their smallest vertex, and both are sorted. The cut
                 // cell's vertices are solved again the same way.
                 std::vector<Vec3> corners;
                 std::vector<std::vector<Vec3>> polygons;
@@ -375,10 +395,11 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         hull_of_planes(P);
                     }
                     std::unordered_map<const void*, std::size_t> corner_of;
+                    CornerSolver corner_point(planes);
                     for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
                     {
                         corner_of[&*v] = corners.size();
-                        corners.push_back(corner_point(vec(v->point()), planes, 1e-9 * dmax));
+                        corners.push_back(corner_point(vec(v->point()), 1e-9 * dmax));
                     }
                     for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
                     {
@@ -429,8 +450,9 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         RKFEM_REQUIRE(t != ConvexCell::kBox, "Voronoi cells: the cell of point "
                                                                  << i << " (" << xi.transpose()
                                                                  << ") reaches past the body");
+                    CornerSolver corner_point(planes);
                     for (const Vec3& p : cell.vertices())
-                        corners.push_back(corner_point(p, planes, 1e-9 * dmax));
+                        corners.push_back(corner_point(p, 1e-9 * dmax));
                     for (int f = 0; f < cell.n_faces(); ++f)
                     {
                         std::vector<Vec3> poly;
