@@ -811,8 +811,9 @@ IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vecto
 }
 
 IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::vector<real_t>& x,
-                                        const RkShapeFunctions& rk, real_t drop_tolerance)
+                                        const RkShapeFunctions& rk, real_t drop_tolerance, index_t block)
 {
+    RKFEM_REQUIRE(block > 0, "build_scni_cells_rk: blocks of " << block << " cells");
     const index_t n = cells.size();
     IntegrationOperator op;
     op.weight = cells.volume;
@@ -822,42 +823,167 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
         op.owner[i] = i;
     op.offsets.assign(1, 0);
     op.offsets.reserve(static_cast<std::size_t>(n) + 1);
-    // the rows a block of cells at a time, appended in cell order: the operator pack() gives
-    // of all the rows, without holding them all (24k cells: 54 MB of rows in 24k vectors)
-    constexpr index_t block = 2048;
+    // The rows a block of cells at a time, appended in cell order as they come. A face between
+    // cells i < j no further apart than a block is evaluated once, by i: its points are the same
+    // from both sides (each triangle of a face's centroid fan is an edge and the centroid, up to
+    // the vertices' round-off) and j's normals are i's reversed, so i hands j its face sums
+    // (particle, sum psi n dA) and j subtracts them instead of evaluating the face again. A face
+    // that i does not see (a sliver one side's round-off kept) j evaluates itself.
+    // The sums go to a pool per thread and block parity, reused two blocks on (a block's cells
+    // take only from their own block and the one before): sums held in vectors of their own came
+    // back from the heap fragmented and raised the set-up's peak by a tenth.
+    struct FaceSums
+    {
+        index_t to = -1;              ///< the cell across
+        int pool = 0;                 ///< in pools[pool], entries [begin, end): by particle,
+        std::size_t begin = 0, end = 0; ///< ascending, where some point of the face kept it
+    };
+    std::vector<std::vector<FaceSums>> outbox(static_cast<std::size_t>(n)); // per cell: its faces' sums for later cells
+    std::vector<Entries> pools(2 * static_cast<std::size_t>(omp_get_max_threads()));
     std::vector<Entries> rows(static_cast<std::size_t>(std::min(n, block)));
+    std::vector<std::vector<index_t>> taken(rows.size()); // per cell of the block: its faces' first points, to take from earlier cells
+    auto shared = [&](index_t i, index_t j) { return j >= 0 && std::abs(i - j) <= block; };
+    auto face_end = [&](index_t i, index_t f0)
+    {
+        index_t f1 = f0 + 1;
+        while (f1 < cells.offsets[i + 1] && !cells.points[f1].starts_face)
+            ++f1;
+        return f1;
+    };
     ParallelErrors errors;
 #pragma omp parallel
     {
         RkRegionValues values(rk, drop_tolerance);
-        std::vector<real_t> acc, hit; // per region particle: sum psi n dA [component][particle], hit (0 / 1)
+        // per region particle: sum psi n dA [component][particle], hit (0 / 1); the same of one face
+        std::vector<real_t> acc, hit, face_acc, face_hit;
+        Entries merged;
+        // evaluates points [q0, q1) of cell i over the region of their box into acc / hit
+        auto evaluate = [&](index_t q0, index_t q1)
+        {
+            Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
+            for (index_t q = q0; q < q1; ++q)
+            {
+                lo = lo.cwiseMin(cells.points[q].x);
+                hi = hi.cwiseMax(cells.points[q].x);
+            }
+            values.gather(lo, hi);
+            const std::size_t nr = values.region_size();
+            acc.assign(3 * nr, 0.0);
+            hit.assign(nr, 0.0);
+            return nr;
+        };
+        // row += sign * sums[0 .. m), both by particle ascending (a merge)
+        auto add_sums = [&](Entries& row, const std::pair<index_t, Vec3>* sums, std::size_t m, real_t sign)
+        {
+            merged.clear();
+            std::size_t a = 0, b = 0;
+            while (a < row.size() || b < m)
+                if (b == m || (a < row.size() && row[a].first < sums[b].first))
+                    merged.push_back(row[a++]);
+                else if (a == row.size() || sums[b].first < row[a].first)
+                {
+                    merged.emplace_back(sums[b].first, sign * sums[b].second);
+                    ++b;
+                }
+                else
+                {
+                    merged.emplace_back(row[a].first, row[a].second + sign * sums[b].second);
+                    ++a, ++b;
+                }
+            row.swap(merged);
+        };
         for (index_t b0 = 0; b0 < n; b0 += block)
         {
             const index_t b1 = std::min(n, b0 + block);
+            // this thread's pool for the block: it held the sums of two blocks back
+            const int my_pool = 2 * omp_get_thread_num() + static_cast<int>((b0 / block) % 2);
+            Entries& pool = pools[static_cast<std::size_t>(my_pool)];
+            pool.clear();
+            // each cell's own faces, and the sums of those it hands on
 #pragma omp for schedule(dynamic, 16)
             for (index_t i = b0; i < b1; ++i)
             {
                 Entries& row = rows[static_cast<std::size_t>(i - b0)];
+                std::vector<index_t>& take = taken[static_cast<std::size_t>(i - b0)];
                 row.clear();
+                take.clear();
                 try
                 {
                     const index_t q0 = cells.offsets[i], q1 = cells.offsets[i + 1];
-                    Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
-                    for (index_t q = q0; q < q1; ++q)
+                    const std::size_t nr = evaluate(q0, q1);
+                    const index_t* particle = values.region_particles().data();
+                    for (index_t f0 = q0; f0 < q1;)
                     {
-                        lo = lo.cwiseMin(cells.points[q].x);
-                        hi = hi.cwiseMax(cells.points[q].x);
+                        const index_t f1 = face_end(i, f0), j = cells.points[f0].neighbour;
+                        if (shared(i, j) && j < i)
+                            take.push_back(f0);
+                        else if (shared(i, j))
+                        {
+                            face_acc.assign(3 * nr, 0.0);
+                            face_hit.assign(nr, 0.0);
+                            for (index_t q = f0; q < f1; ++q)
+                                add_point_values(values, cells.points[q].x, cells.points[q].nda, face_acc.data(), face_hit.data());
+                            FaceSums fs{j, my_pool, pool.size(), 0};
+                            for (std::size_t k = 0; k < nr; ++k)
+                            {
+                                acc[k] += face_acc[k];
+                                acc[nr + k] += face_acc[nr + k];
+                                acc[2 * nr + k] += face_acc[2 * nr + k];
+                                hit[k] = hit[k] < face_hit[k] ? face_hit[k] : hit[k];
+                                if (face_hit[k] != 0.0)
+                                    pool.emplace_back(particle[k], Vec3(face_acc[k], face_acc[nr + k], face_acc[2 * nr + k]));
+                            }
+                            fs.end = pool.size();
+                            outbox[static_cast<std::size_t>(i)].push_back(fs);
+                        }
+                        else
+                            for (index_t q = f0; q < f1; ++q)
+                                add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
+                        f0 = f1;
                     }
-                    values.gather(lo, hi);
-                    const std::size_t nr = values.region_size();
-                    acc.assign(3 * nr, 0.0);
-                    hit.assign(nr, 0.0);
-                    for (index_t q = q0; q < q1; ++q) // the candidates are the region's (no focus)
-                        add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
-                    const real_t scale = 1.0 / cells.volume[i];
                     for (std::size_t k = 0; k < nr; ++k)
                         if (hit[k] != 0.0)
-                            row.emplace_back(values.region_particles()[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]) * scale);
+                            row.emplace_back(particle[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]));
+                }
+                catch (...)
+                {
+                    errors.capture();
+                }
+            }
+            // the faces earlier cells evaluated, subtracted (their normals are this cell's
+            // reversed); then the row over the cell's volume
+#pragma omp for schedule(dynamic, 16)
+            for (index_t i = b0; i < b1; ++i)
+            {
+                Entries& row = rows[static_cast<std::size_t>(i - b0)];
+                try
+                {
+                    for (const index_t f0 : taken[static_cast<std::size_t>(i - b0)])
+                    {
+                        const index_t j = cells.points[f0].neighbour;
+                        const FaceSums* from = nullptr;
+                        for (const FaceSums& fs : outbox[static_cast<std::size_t>(j)])
+                            if (fs.to == i)
+                                from = &fs;
+                        if (from)
+                        {
+                            add_sums(row, pools[static_cast<std::size_t>(from->pool)].data() + from->begin,
+                                     from->end - from->begin, -1.0);
+                            continue;
+                        }
+                        const index_t f1 = face_end(i, f0);
+                        const std::size_t nr = evaluate(f0, f1);
+                        for (index_t q = f0; q < f1; ++q)
+                            add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
+                        Entries own;
+                        for (std::size_t k = 0; k < nr; ++k)
+                            if (hit[k] != 0.0)
+                                own.emplace_back(values.region_particles()[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]));
+                        add_sums(row, own.data(), own.size(), 1.0);
+                    }
+                    const real_t scale = 1.0 / cells.volume[i];
+                    for (auto& e : row)
+                        e.second *= scale;
                     setup_progress::advance();
                 }
                 catch (...)
@@ -888,6 +1014,9 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                     }
                     op.offsets.push_back(op.n_entries());
                 }
+                // the cells a block back: no later cell takes from them
+                for (index_t i = std::max<index_t>(0, b0 - block); i < b0; ++i)
+                    std::vector<FaceSums>().swap(outbox[static_cast<std::size_t>(i)]);
             }
         }
     }

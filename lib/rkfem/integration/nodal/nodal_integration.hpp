@@ -74,9 +74,12 @@ IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vecto
 
 /// The same for RK functions (build_scni_cells with RkShapes(rk, drop_tolerance), to round-off):
 /// each cell gathers the particles near it once (RkRegionValues) and sums its facet points over
-/// them in flat arrays.
+/// them in flat arrays, `block` cells at a time. A face between two cells at most `block` apart
+/// in the particle order is evaluated once, by the first, which hands its sums to the second
+/// (the second evaluates it where the first has no such face); faces of cells farther apart are
+/// evaluated from both sides.
 IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::vector<real_t>& x,
-                                        const RkShapeFunctions& rk, real_t drop_tolerance);
+                                        const RkShapeFunctions& rk, real_t drop_tolerance, index_t block = 2048);
 
 /// Sub-cell smoothing on the pyramids of a cloud's Voronoi cells (VoronoiCells::sub_cells): one
 /// point per sub-cell, owner = its cell's particle; the SD operator that MSCNI stabilizes with.
