@@ -171,7 +171,9 @@ void Model::build_rk_constraints()
                 continue;
             const index_t m = static_cast<index_t>(rc->node.size());
             std::vector<Eigen::Triplet<real_t, int>> t;
-            bool reaches_free = false;
+            // the rows' entries on constrained particles make Lambda_bb; those on free ones, in
+            // row order, are what the step's right-hand side subtracts
+            rc->free_offsets.assign(1, 0);
             for (index_t q = 0; q < m; ++q)
             {
                 kinematics.for_row(rc->node[q],
@@ -181,9 +183,14 @@ void Model::build_rk_constraints()
                                        if (col >= 0)
                                            t.emplace_back(q, col, w);
                                        else
-                                           reaches_free = true;
+                                       {
+                                           rc->free_dof.push_back(3 * J + k);
+                                           rc->free_w.push_back(w);
+                                       }
                                    });
+                rc->free_offsets.push_back(static_cast<index_t>(rc->free_dof.size()));
             }
+            const bool reaches_free = !rc->free_dof.empty();
             rc->at_rest = !reaches_free && std::all_of(rc->condition.begin(), rc->condition.end(),
                                                        [&](index_t ci) { return conditions[ci].kind == BoundarySpec::Kind::Fixed; });
             if (rc->at_rest)
@@ -205,20 +212,6 @@ void Model::build_rk_constraints()
             }
             rc->rhs.resize(m);
             rc->x.resize(m);
-            rc->free_offsets.assign(1, 0);
-            for (index_t q = 0; q < m; ++q)
-            {
-                kinematics.for_row(rc->node[q],
-                                   [&](index_t J, real_t w)
-                                   {
-                                       if (rc->slot[J - nb.node_begin] < 0)
-                                       {
-                                           rc->free_dof.push_back(3 * J + k);
-                                           rc->free_w.push_back(w);
-                                       }
-                                   });
-                rc->free_offsets.push_back(static_cast<index_t>(rc->free_dof.size()));
-            }
             rk_constraints_.push_back(std::move(rc));
         }
     }
