@@ -624,12 +624,9 @@ void merge_face_points(VoronoiCells& cells)
     offsets.reserve(cells.offsets.size());
     for (index_t i = 0; i < cells.size(); ++i)
     {
-        const index_t end = cells.offsets[i + 1];
-        for (index_t q = cells.offsets[i]; q < end;)
+        for (index_t q = cells.offsets[i]; q < cells.offsets[i + 1];)
         {
-            index_t r = q + 1;
-            while (r < end && !cells.points[r].starts_face)
-                ++r;
+            const index_t r = cells.face_end(i, q);
             // the triangles' centroids weighted by their areas: the polygon's centroid
             Vec3 x = Vec3::Zero(), nda = Vec3::Zero();
             real_t area = 0.0;

@@ -60,6 +60,15 @@ struct VoronoiCells
     /// than twice the farthest Delaunay neighbour, and a cell that reaches past one is redone.
     index_t rebuilt_with_all_planes = 0;
     index_t size() const { return static_cast<index_t>(volume.size()); }
+    /// The end of the face whose points start at q, a point of cell i that starts a face: the
+    /// next point of the cell that starts one, or the cell's end.
+    index_t face_end(index_t i, index_t q) const
+    {
+        index_t r = q + 1;
+        while (r < offsets[static_cast<std::size_t>(i) + 1] && !points[static_cast<std::size_t>(r)].starts_face)
+            ++r;
+        return r;
+    }
 };
 
 /// How each cell's polyhedron is built from its planes. Clip: a box cut by each plane in doubles

@@ -81,6 +81,17 @@ void add_facets(const ShapeEvaluator& shapes, index_t e, const SubHex& sh, const
 IntegrationOperator pack(std::vector<Entries>& entries, std::vector<real_t> weight, std::vector<real_t> position,
                          std::vector<index_t> owner);
 
+/// Appends a point's row to op: its nodes, their gradients (3 each), the point's end offset.
+void append_row(IntegrationOperator& op, const Entries& row)
+{
+    for (const auto& [n, g] : row)
+    {
+        op.nodes.push_back(n);
+        op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
+    }
+    op.offsets.push_back(op.n_entries());
+}
+
 /// The centroid of sub-hex a of an element: the natural centre of its octant.
 Vec3 sub_hex_centroid(const real_t xe[8][3], int a)
 {
@@ -149,12 +160,7 @@ IntegrationOperator pack(std::vector<Entries>& entries, std::vector<real_t> weig
     op.offsets.reserve(entries.size() + 1);
     for (auto& e : entries)
     {
-        for (const auto& [n, g] : e)
-        {
-            op.nodes.push_back(n);
-            op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
-        }
-        op.offsets.push_back(op.n_entries());
+        append_row(op, e);
         Entries().swap(e); // free as we go
     }
     return op;
@@ -843,13 +849,6 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
     std::vector<Entries> rows(static_cast<std::size_t>(std::min(n, block)));
     std::vector<std::vector<index_t>> taken(rows.size()); // per cell of the block: its faces' first points, to take from earlier cells
     auto shared = [&](index_t i, index_t j) { return j >= 0 && std::abs(i - j) <= block; };
-    auto face_end = [&](index_t i, index_t f0)
-    {
-        index_t f1 = f0 + 1;
-        while (f1 < cells.offsets[i + 1] && !cells.points[f1].starts_face)
-            ++f1;
-        return f1;
-    };
     ParallelErrors errors;
 #pragma omp parallel
     {
@@ -857,8 +856,8 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
         // per region particle: sum psi n dA [component][particle], hit (0 / 1); the same of one face
         std::vector<real_t> acc, hit, face_acc, face_hit;
         Entries merged;
-        // evaluates points [q0, q1) of cell i over the region of their box into acc / hit
-        auto evaluate = [&](index_t q0, index_t q1)
+        // the region of the box of points [q0, q1) of a cell gathered, and acc / hit zeroed over it
+        auto gather_region = [&](index_t q0, index_t q1)
         {
             Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
             for (index_t q = q0; q < q1; ++q)
@@ -910,11 +909,11 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                 try
                 {
                     const index_t q0 = cells.offsets[i], q1 = cells.offsets[i + 1];
-                    const std::size_t nr = evaluate(q0, q1);
+                    const std::size_t nr = gather_region(q0, q1);
                     const index_t* particle = values.region_particles().data();
                     for (index_t f0 = q0; f0 < q1;)
                     {
-                        const index_t f1 = face_end(i, f0), j = cells.points[f0].neighbour;
+                        const index_t f1 = cells.face_end(i, f0), j = cells.points[f0].neighbour;
                         if (shared(i, j) && j < i)
                             take.push_back(f0);
                         else if (shared(i, j))
@@ -971,8 +970,8 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                                      from->end - from->begin, -1.0);
                             continue;
                         }
-                        const index_t f1 = face_end(i, f0);
-                        const std::size_t nr = evaluate(f0, f1);
+                        const index_t f1 = cells.face_end(i, f0);
+                        const std::size_t nr = gather_region(f0, f1);
                         for (index_t q = f0; q < f1; ++q)
                             add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
                         Entries own;
@@ -1006,14 +1005,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                     op.grad.reserve(3 * room);
                 }
                 for (index_t i = b0; i < b1; ++i)
-                {
-                    for (const auto& [node, g] : rows[static_cast<std::size_t>(i - b0)])
-                    {
-                        op.nodes.push_back(node);
-                        op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
-                    }
-                    op.offsets.push_back(op.n_entries());
-                }
+                    append_row(op, rows[static_cast<std::size_t>(i - b0)]);
                 // the cells a block back: no later cell takes from them
                 for (index_t i = std::max<index_t>(0, b0 - block); i < b0; ++i)
                     std::vector<FaceSums>().swap(outbox[static_cast<std::size_t>(i)]);
