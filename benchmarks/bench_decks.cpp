@@ -71,27 +71,19 @@ void BM_SeedDeckStep(benchmark::State& state)
         // points share one stencil at consecutive bases (the whole-vector path)
         const NodalBlock& blk = m.nodal_blocks.front();
         const index_t np = blk.n_points();
-        double entries = 0.0, stab = 0.0, uniform = 0.0, uniform_stab = 0.0;
+        double entries = 0.0, stab = 0.0;
         for (index_t p = 0; p < np; ++p)
         {
             entries += blk.point_view(p).size;
             if (!blk.stab_triplets.empty())
                 stab += blk.stab_triplets.view(p).size;
         }
-        auto uniform_batch = [&](const std::vector<index_t>& cls, const std::vector<index_t>& base, index_t p0) {
-            for (index_t l = 1; l < 8; ++l)
-                if (cls[p0 + l] != cls[p0] || base[p0 + l] != base[p0] + l)
-                    return false;
-            return true;
-        };
+        // the flags the force pass reads (NodalBlock::build_tables)
         const index_t nb = np / 8;
-        for (index_t b = 0; b < nb; ++b)
-        {
-            if (!blk.point_stencils.empty())
-                uniform += uniform_batch(blk.point_stencils.point_stencil, blk.point_stencils.point_base, 8 * b);
-            if (!blk.stab_triplets.empty())
-                uniform_stab += uniform_batch(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base, 8 * b);
-        }
+        const auto& su = blk.point_stencils.uniform;
+        const auto& tu = blk.stab_triplets.uniform;
+        const double uniform = static_cast<double>(std::count(su.begin(), su.end(), 1));
+        const double uniform_stab = static_cast<double>(std::count(tu.begin(), tu.end(), 1));
         state.counters["scni_entries"] = entries / np;
         state.counters["nsni_entries"] = stab / np;
         state.counters["uniform_batches"] = uniform / std::max<index_t>(nb, 1);

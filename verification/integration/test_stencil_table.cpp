@@ -224,7 +224,7 @@ TEST(StencilTable, UniformAddOrderKeepsTheLaneOrderAndSeparatesNeighbours)
         // the block orders the stencils its uniform batches read (and holds no order for the
         // others: last to first)
         const index_t n_stencils = static_cast<index_t>(offsets.size()) - 1;
-        const std::vector<char> wanted = uniform_batch_stencils(cls, base, n_stencils, 8);
+        const std::vector<char> wanted = uniform_batch_stencils(uniform_batches(cls, base, 8), cls, n_stencils, 8);
         const index_t n_wanted = static_cast<index_t>(std::count(wanted.begin(), wanted.end(), 1));
         EXPECT_GT(n_wanted, 0) << what;
         EXPECT_LT(n_wanted, n_stencils) << what;
@@ -473,6 +473,10 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         std::printf("%s: %d of %d full batches are uniform\n", stab, uniform, batches);
         ASSERT_GT(uniform, 0);
         ASSERT_LT(uniform, batches);
+        // the flags the force pass reads (build_tables) are those batches
+        const std::vector<char>& flags = blk.point_stencils.uniform;
+        ASSERT_EQ(static_cast<index_t>(flags.size()), batches) << stab;
+        EXPECT_EQ(std::count(flags.begin(), flags.end(), 1), uniform) << stab;
         if (blk.n_stab() > 0 && !nsni)
         {
             ASSERT_FALSE(blk.stab_stencils.empty());
@@ -489,6 +493,9 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
             std::printf("nsni: %d of %d full batches have uniform triplets\n", uniform_triplets, batches);
             ASSERT_GT(uniform_triplets, 0);
             ASSERT_LT(uniform_triplets, batches);
+            const std::vector<char>& tflags = blk.stab_triplets.uniform;
+            ASSERT_EQ(static_cast<index_t>(tflags.size()), batches);
+            EXPECT_EQ(std::count(tflags.begin(), tflags.end(), 1), uniform_triplets);
             // the table lives as long as the block: its growth's spare capacity is returned
             // (it was a third of the table on the P1 cylinder)
             const TripletTable& t = blk.stab_triplets;

@@ -282,19 +282,29 @@ void expand_triplets(IntegrationOperator& stab, const TripletTable& table)
     }
 }
 
-std::vector<char> uniform_batch_stencils(const std::vector<index_t>& point_class, const std::vector<index_t>& point_base,
+std::vector<char> uniform_batches(const std::vector<index_t>& point_class, const std::vector<index_t>& point_base,
+                                  index_t lanes)
+{
+    const std::size_t w = static_cast<std::size_t>(lanes);
+    std::vector<char> uniform(point_class.size() / w, 0);
+    for (std::size_t b = 0; b < uniform.size(); ++b)
+    {
+        const std::size_t p0 = w * b;
+        bool same = true;
+        for (std::size_t l = 1; l < w && same; ++l)
+            same = point_class[p0 + l] == point_class[p0] && point_base[p0 + l] == point_base[p0] + static_cast<index_t>(l);
+        uniform[b] = same;
+    }
+    return uniform;
+}
+
+std::vector<char> uniform_batch_stencils(const std::vector<char>& uniform, const std::vector<index_t>& point_class,
                                          index_t n_stencils, index_t lanes)
 {
     std::vector<char> used(static_cast<std::size_t>(n_stencils), 0);
-    const std::size_t w = static_cast<std::size_t>(lanes);
-    for (std::size_t p0 = 0; p0 + w <= point_class.size(); p0 += w)
-    {
-        bool uniform = true;
-        for (std::size_t l = 1; l < w && uniform; ++l)
-            uniform = point_class[p0 + l] == point_class[p0] && point_base[p0 + l] == point_base[p0] + static_cast<index_t>(l);
-        if (uniform)
-            used[static_cast<std::size_t>(point_class[p0])] = 1;
-    }
+    for (std::size_t b = 0; b < uniform.size(); ++b)
+        if (uniform[b])
+            used[static_cast<std::size_t>(point_class[static_cast<std::size_t>(lanes) * b])] = 1;
     return used;
 }
 

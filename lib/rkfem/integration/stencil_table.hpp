@@ -65,10 +65,17 @@ struct AddOrder
 AddOrder uniform_add_order(const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
                            index_t lanes = 8, const std::vector<char>& wanted = {});
 
-/// Per stencil of a table (its per-point classes and bases): does a full batch of `lanes`
-/// consecutive points from a multiple of `lanes` on read it as one uniform batch (one class,
-/// consecutive bases)? What uniform_add_order's `wanted` takes.
-std::vector<char> uniform_batch_stencils(const std::vector<index_t>& point_class, const std::vector<index_t>& point_base,
+/// Per full batch of `lanes` consecutive points from a multiple of `lanes` on (a table's
+/// per-point classes and bases): 1 where the batch is uniform, its points of one class at
+/// consecutive bases (points along a lattice row). Entry k of lane l then touches node base +
+/// offset[k] + l, so each entry's nodes are `lanes` consecutive ones, which the force pass reads
+/// and writes as whole vectors instead of lane by lane.
+std::vector<char> uniform_batches(const std::vector<index_t>& point_class, const std::vector<index_t>& point_base,
+                                  index_t lanes = 8);
+
+/// Per stencil of a table: does some uniform batch (`uniform`, uniform_batches') read it? What
+/// uniform_add_order's `wanted` takes.
+std::vector<char> uniform_batch_stencils(const std::vector<char>& uniform, const std::vector<index_t>& point_class,
                                          index_t n_stencils, index_t lanes = 8);
 
 struct StencilTable
@@ -79,6 +86,7 @@ struct StencilTable
     std::vector<index_t> node_offset;   ///< per entry: node - base
     std::vector<real_t> grad;           ///< 3 per entry [1/m]
     AddOrder add_order;                 ///< uniform_add_order's (none: last to first)
+    std::vector<char> uniform;          ///< per batch of points: uniform_batches' (empty: none uniform)
 
     bool empty() const { return point_stencil.empty(); }
     index_t n_stencils() const { return static_cast<index_t>(offsets.size()) - 1; }
@@ -146,6 +154,7 @@ struct TripletTable
     std::vector<index_t> node_offset;   ///< per entry: node - base
     std::vector<real_t> hess;           ///< 6 per entry [1/m]
     AddOrder add_order;                 ///< uniform_add_order's (none: last to first)
+    std::vector<char> uniform;          ///< per batch of points: uniform_batches' (empty: none uniform)
 
     bool empty() const { return point_triplet.empty(); }
     index_t n_triplets() const { return static_cast<index_t>(offsets.size()) - 1; }

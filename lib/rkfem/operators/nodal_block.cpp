@@ -294,15 +294,16 @@ void NodalBlock::build_tables(Assembly assembly)
     stab_energy.assign(own_stab_pass ? static_cast<std::size_t>(ns) : 0, 0.0);
 
     prefetch_stencils = point_stencils.empty() && points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
-    // the order the uniform batches add a stencil's entries in (nodal_force.cpp)
-    point_stencils.add_order =
-        uniform_add_order(point_stencils.offsets, point_stencils.node_offset, kPointLanes,
-                          uniform_batch_stencils(point_stencils.point_stencil, point_stencils.point_base,
-                                                 point_stencils.n_stencils(), kPointLanes));
-    stab_triplets.add_order =
-        uniform_add_order(stab_triplets.offsets, stab_triplets.node_offset, kPointLanes,
-                          uniform_batch_stencils(stab_triplets.point_triplet, stab_triplets.point_base,
-                                                 stab_triplets.n_triplets(), kPointLanes));
+    // the batches the force pass takes as whole vectors, and the order they add a stencil's
+    // entries in (nodal_force.cpp)
+    point_stencils.uniform = uniform_batches(point_stencils.point_stencil, point_stencils.point_base, kPointLanes);
+    point_stencils.add_order = uniform_add_order(
+        point_stencils.offsets, point_stencils.node_offset, kPointLanes,
+        uniform_batch_stencils(point_stencils.uniform, point_stencils.point_stencil, point_stencils.n_stencils(), kPointLanes));
+    stab_triplets.uniform = uniform_batches(stab_triplets.point_triplet, stab_triplets.point_base, kPointLanes);
+    stab_triplets.add_order = uniform_add_order(
+        stab_triplets.offsets, stab_triplets.node_offset, kPointLanes,
+        uniform_batch_stencils(stab_triplets.uniform, stab_triplets.point_triplet, stab_triplets.n_triplets(), kPointLanes));
     if (compact_operators && !point_stencils.empty())
     {
         release_entries(points);

@@ -288,20 +288,11 @@ template <class Triplet> inline void scatter_triplet(const Triplet& tr, const re
 }
 
 #if defined(__AVX512F__)
-/// Do points p0 .. p0 + 7 have one stencil (stencil[p], a table's per-point class) and
-/// consecutive bases (points along a lattice row)? Then entry k of lane l touches node base +
-/// offset[k] + l, so each entry's nodes are 8 consecutive ones, read and written as whole vectors
-/// instead of lane by lane.
-bool uniform_lanes(const std::vector<index_t>& stencil, const std::vector<index_t>& base, index_t p0)
+/// Is batch b uniform (uniform_batches, which the table holds from build_tables)? Then its 8
+/// points read one stencil at consecutive bases, as whole vectors.
+inline bool uniform_batch(const std::vector<char>& uniform, index_t b)
 {
-    if (stencil.empty())
-        return false;
-    const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(stencil.data() + p0));
-    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(base.data() + p0));
-    const __m256i row = _mm256_add_epi32(_mm256_set1_epi32(base[static_cast<std::size_t>(p0)]),
-                                         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-    return _mm256_cmpeq_epi32_mask(s, _mm256_set1_epi32(stencil[static_cast<std::size_t>(p0)])) == 0xFF &&
-           _mm256_cmpeq_epi32_mask(b, row) == 0xFF;
+    return static_cast<std::size_t>(b) < uniform.size() && uniform[static_cast<std::size_t>(b)] != 0;
 }
 
 /// F = 1 + sum_k u_k (x) g_k and Fd = sum_k v_k (x) g_k for the 8 lanes of a uniform batch,
@@ -504,7 +495,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     };
 #if defined(__AVX512F__)
     // a full batch along a lattice row with one triplet stencil: the whole-vector path
-    const bool uniform = W == 8 && nl == W && packed && uniform_lanes(blk.stab_triplets.point_triplet, blk.stab_triplets.point_base, p0);
+    const bool uniform = W == 8 && nl == W && packed && uniform_batch(blk.stab_triplets.uniform, p0 / W);
     if (uniform)
         gather_triplets_uniform(blk.stab_triplets.view(p0), v, G);
 #else
@@ -714,7 +705,7 @@ template <bool PLASTIC, bool FULL>
     }
     alignas(64) real_t F[3][3][W], Fd[3][3][W];
 #if defined(__AVX512F__)
-    const bool uniform = FULL && uniform_lanes(blk.point_stencils.point_stencil, blk.point_stencils.point_base, p0);
+    const bool uniform = FULL && uniform_batch(blk.point_stencils.uniform, batch);
     if (uniform)
         gather_gradients_uniform(blk.point_stencils.view(p0), u, v, F, Fd);
     else
