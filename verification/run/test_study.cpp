@@ -128,6 +128,50 @@ TEST(Study, CasesReproduceTheirOwnRunsRerunsSkipAndAChangedOverrideRerunsOne)
     EXPECT_TRUE(fs::file_size(d / "out/study.h5") > 0);
 }
 
+// A completed case is reused only when it was run by this build: summary.json carries the
+// executable's hash (`build`), and a case whose summary names another build, or none (written
+// before builds were recorded), runs again, so that a study rerun after a rebuild does not
+// tabulate the old solver's numbers.
+TEST(Study, ACaseRunByAnotherBuildRunsAgain)
+{
+    const fs::path d = scratch("build");
+    const std::string study = write(d / "study.yaml", column_study("1 mm", "1 mm", false));
+    const auto r1 = run("study " + study + " --out " + (d / "out").string() + " --quiet");
+    ASSERT_EQ(r1.code, 0) << r1.output;
+    const std::string build = summary_of(d / "out/cases/a")["build"].as<std::string>();
+    ASSERT_EQ(build.size(), 16u);
+    EXPECT_EQ(build.find_first_not_of("0123456789abcdef"), std::string::npos) << build;
+    // the same executable, run directly, records the same build
+    const auto direct = run("run " + column_deck + " --out " + (d / "direct").string() +
+                            " --quiet --set 'parts.column.generator.size=[2 mm, 2 mm, 200 mm]' --set time.end=1us");
+    ASSERT_EQ(direct.code, 0) << direct.output;
+    EXPECT_EQ(summary_of(d / "direct")["build"].as<std::string>(), build);
+    // a's summary as another build left it, b's as one from before builds were recorded
+    auto rewrite = [&](const fs::path& f, const std::string& from, const std::string& to)
+    {
+        std::ifstream in(f);
+        std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        in.close();
+        const std::size_t at = text.find(from);
+        ASSERT_NE(at, std::string::npos) << f;
+        text.replace(at, from.size(), to);
+        std::ofstream(f) << text;
+    };
+    rewrite(d / "out/cases/a/summary.json", "\"build\": \"" + build + "\"", "\"build\": \"0123456789abcdef\"");
+    rewrite(d / "out/cases/b/summary.json", "  \"build\": \"" + build + "\",\n", "");
+    const auto r2 = run("study " + study + " --out " + (d / "out").string());
+    ASSERT_EQ(r2.code, 0) << r2.output;
+    EXPECT_NE(r2.output.find("[1/2] a: running"), std::string::npos) << r2.output;
+    EXPECT_NE(r2.output.find("[2/2] b: running"), std::string::npos) << r2.output;
+    EXPECT_EQ(summary_of(d / "out/cases/a")["build"].as<std::string>(), build);
+    EXPECT_EQ(summary_of(d / "out/cases/b")["build"].as<std::string>(), build);
+    // and now, by this build, both are reused
+    const auto r3 = run("study " + study + " --out " + (d / "out").string());
+    ASSERT_EQ(r3.code, 0) << r3.output;
+    EXPECT_NE(r3.output.find("[1/2] a: reused"), std::string::npos) << r3.output;
+    EXPECT_NE(r3.output.find("[2/2] b: reused"), std::string::npos) << r3.output;
+}
+
 TEST(Study, OnlyRunsAndTabulatesTheNamedCases)
 {
     const fs::path d = scratch("only");

@@ -710,8 +710,11 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
                 try
                 {
                     const YAML::Node old = YAML::LoadFile((dir / "summary.json").string());
+                    // the same problem run to its end by this very build (a rebuilt solver,
+                    // or a summary from before builds were recorded, runs again)
                     reuse = old["deck_hash"] && old["deck_hash"].as<std::string>() == hash && old["status"] &&
-                            old["status"].as<std::string>() == "completed";
+                            old["status"].as<std::string>() == "completed" && !solver_build_id().empty() &&
+                            old["build"] && old["build"].as<std::string>() == solver_build_id();
                 }
                 catch (const YAML::Exception&)
                 {

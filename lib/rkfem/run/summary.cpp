@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iomanip>
 #include <sstream>
+#include <vector>
 
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/run/simulation.hpp"
@@ -67,6 +68,33 @@ std::string resolved_deck_hash(const Deck& deck)
     return text;
 }
 
+const std::string& solver_build_id()
+{
+    static const std::string id = []
+    {
+        std::ifstream in("/proc/self/exe", std::ios::binary);
+        if (!in)
+            return std::string();
+        std::uint64_t h = 14695981039346656037ull;
+        std::vector<char> chunk(1 << 16);
+        while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0)
+        {
+            const std::streamsize got = in.gcount();
+            for (std::streamsize k = 0; k < got; ++k)
+            {
+                h ^= static_cast<unsigned char>(chunk[static_cast<std::size_t>(k)]);
+                h *= 1099511628211ull;
+            }
+            if (!in)
+                break;
+        }
+        char text[17];
+        std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+        return std::string(text);
+    }();
+    return id;
+}
+
 void write_summary_json(const std::string& path, const Model& model, const RunOptions& opt,
                         const RunSummary& s)
 {
@@ -81,6 +109,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "],\n";
     o << "  \"resolved_deck_si\": " << quote(to_yaml(model.deck())) << ",\n";
     o << "  \"deck_hash\": " << quote(resolved_deck_hash(model.deck())) << ",\n";
+    o << "  \"build\": " << quote(solver_build_id()) << ",\n";
     o << "  \"status\": " << quote(s.status) << ",\n";
     o << "  \"message\": " << quote(s.message) << ",\n";
     o << "  \"nodes\": " << model.nodes.size() << ",\n";

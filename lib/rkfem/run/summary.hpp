@@ -16,6 +16,13 @@ struct RunSummary;
 /// same hash ran the same problem. summary.json carries it as deck_hash; studies skip on it.
 std::string resolved_deck_hash(const Deck& deck);
 
+/// A 16-hex-digit hash (FNV-1a, 64 bit) of the running executable's file (/proc/self/exe, read
+/// once per process): two runs with the same id ran the same solver build. summary.json carries
+/// it as `build`, and a study reuses a completed case only when both its deck_hash and its build
+/// match (a rebuilt solver runs every case again). Empty where the file cannot be read; a case
+/// without a build is never reused.
+const std::string& solver_build_id();
+
 void write_summary_json(const std::string& path, const Model& model, const RunOptions& options,
                         const RunSummary& summary);
 } // namespace rkfem
