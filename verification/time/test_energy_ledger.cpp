@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <random>
 
+#include "rkfem/core/state_archive.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/central_difference.hpp"
@@ -151,6 +152,40 @@ TEST(ContactChannel, BooksTheTrapezoidWorkOverChangingNodes)
         ch.commit();
         f_prev = ch.f;
     }
+}
+
+// The channel holds no arrays until a force reaches it (a model without contact keeps none,
+// 25 bytes a node): force() reads 0 before, the first force allocates them, and a checkpoint
+// taken before it restores an empty channel into one that had forces, and back.
+TEST(ContactChannel, HoldsNoArraysUntilAForceArrives)
+{
+    const index_t n = 50;
+    ContactChannel ch;
+    ch.resize(n);
+    EXPECT_TRUE(ch.f.empty());
+    EXPECT_EQ(ch.force(7), 0.0);
+    StateArchive before;
+    ch.save_state(before);
+    ch.clear();
+    ch.add(7, Vec3(1.0, 2.0, 3.0));
+    ASSERT_EQ(ch.f.size(), 3u * n);
+    EXPECT_EQ(ch.force(3 * 7 + 1), 2.0);
+    EXPECT_EQ(ch.force(3 * 8), 0.0);
+    ch.commit();
+    StateArchive after;
+    ch.save_state(after);
+    ch.load_state(before);
+    EXPECT_TRUE(ch.f.empty());
+    EXPECT_TRUE(ch.nodes().empty());
+    EXPECT_EQ(ch.step_work(std::vector<real_t>(3 * n, 1.0).data(), std::vector<real_t>(3 * n, 0.0).data()), 0.0);
+    ch.load_state(after);
+    ASSERT_EQ(ch.f.size(), 3u * n);
+    EXPECT_EQ(ch.force(3 * 7 + 2), 3.0);
+    ASSERT_EQ(ch.nodes().size(), 1u);
+    // a model built from a deck without contact: its channel holds nothing
+    const Model m = test::model_from(driven_bar, {});
+    EXPECT_TRUE(m.contacts.empty());
+    EXPECT_TRUE(m.contact.f.empty());
 }
 
 namespace

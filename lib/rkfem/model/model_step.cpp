@@ -280,7 +280,7 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
         {
             const index_t j = conditions[k].dof;
             bc_v_prev_[k] = nodes.v[j];
-            reaction_prev_[k] = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
+            reaction_prev_[k] = nodes.f_int[j] - nodes.f_ext[j] - contact.force(static_cast<std::size_t>(j)) + reaction_inertia_[k];
         }
         return;
     }
@@ -303,7 +303,7 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
         const real_t ap = (nodes.v[j] - bc_v_prev_[k]) / dt;
         bc_v_prev_[k] = nodes.v[j];
         reaction_inertia_[k] = nodes.mass[j / 3] * ap;
-        const real_t r = nodes.f_int[j] - nodes.f_ext[j] - contact.f[j] + reaction_inertia_[k];
+        const real_t r = nodes.f_int[j] - nodes.f_ext[j] - contact.force(static_cast<std::size_t>(j)) + reaction_inertia_[k];
         energy.external_work += 0.5 * (reaction_prev_[k] + r) * du;
         reaction_prev_[k] = r;
     }

@@ -8,8 +8,9 @@ namespace rkfem
 {
 void ContactChannel::resize(index_t n_nodes)
 {
-    f.assign(3 * static_cast<std::size_t>(n_nodes), 0.0);
-    mark_.assign(static_cast<std::size_t>(n_nodes), 0);
+    n_nodes_ = n_nodes;
+    std::vector<real_t>().swap(f);
+    std::vector<char>().swap(mark_);
     touched_.clear();
     prev_nodes_.clear();
     prev_f_.clear();
@@ -33,8 +34,16 @@ void ContactChannel::add(index_t node, const Vec3& force)
     map_->for_row(node, [&](index_t j, real_t w) { add_unknown(j, w * force); });
 }
 
+void ContactChannel::allocate()
+{
+    f.assign(3 * static_cast<std::size_t>(n_nodes_), 0.0);
+    mark_.assign(static_cast<std::size_t>(n_nodes_), 0);
+}
+
 void ContactChannel::add_unknown(index_t node, const Vec3& force)
 {
+    if (f.empty())
+        allocate();
     const std::size_t i = static_cast<std::size_t>(node);
     if (!mark_[i])
     {
@@ -83,9 +92,18 @@ void ContactChannel::save_state(StateArchive& a) const
 
 void ContactChannel::load_state(const StateArchive& a)
 {
-    a.get_same_size("contact_channel.f", f);
+    // the arrays as the checkpoint's run had them: none before its first contact force
+    std::vector<real_t> saved_f;
+    a.get("contact_channel.f", saved_f);
+    if (saved_f.empty())
+        resize(n_nodes_);
+    else
+    {
+        allocate();
+        a.get_same_size("contact_channel.f", f);
+        a.get_same_size("contact_channel.mark", mark_);
+    }
     a.get("contact_channel.touched", touched_);
-    a.get_same_size("contact_channel.mark", mark_);
     a.get("contact_channel.prev_nodes", prev_nodes_);
     a.get("contact_channel.prev_f", prev_f_);
 }

@@ -21,7 +21,9 @@ class ContactChannel
     /// Forces then act at physical points: add() spreads a force at an RK particle's point to
     /// the coefficients of its row (null: every node carries its physical value).
     void set_map(const KinematicMap* map) { map_ = map; }
-    /// Sizes the channel for n nodes, with no force anywhere.
+    /// Sizes the channel for n nodes, with no force anywhere. Its arrays (25 bytes a node) are
+    /// allocated by the first force added, so a model without contact holds none; force()
+    /// reads 0 until then.
     void resize(index_t n_nodes);
     /// Starts a force evaluation: zeroes the forces of this pass's nodes (the previous pass of the
     /// same step). The forces of the last committed step are kept for the work.
@@ -42,10 +44,14 @@ class ContactChannel
     void save_state(StateArchive& archive) const;
     void load_state(const StateArchive& archive);
 
-    std::vector<real_t> f; ///< 3 n, node-major, on the unknowns; zero on every node not in nodes()
+    std::vector<real_t> f; ///< 3 n, node-major, on the unknowns; zero on every node not in nodes(); empty before the first force
+    /// f[j], and 0 before any force was added (f is empty until then)
+    real_t force(std::size_t j) const { return f.empty() ? 0.0 : f[j]; }
 
   private:
     void add_unknown(index_t node, const Vec3& f);
+    void allocate();
+    index_t n_nodes_ = 0;
     const KinematicMap* map_ = nullptr;
     std::vector<index_t> touched_;
     std::vector<char> mark_;
