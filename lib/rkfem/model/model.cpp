@@ -541,6 +541,10 @@ Model Model::build(const Deck& deck)
     for (const DofCondition& c : m.conditions)
         m.constrained_dofs_.push_back(c.dof);
     std::sort(m.constrained_dofs_.begin(), m.constrained_dofs_.end());
+    // the RK parts' shape functions served the set-up (the face loads above sample them); the
+    // run reads only what was built from them (64 bytes a P1 particle)
+    for (NodalBlock& nb : m.nodal_blocks)
+        nb.rk.reset();
     return m;
 }
 } // namespace rkfem

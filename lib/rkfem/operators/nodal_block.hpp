@@ -88,7 +88,8 @@ struct NodalBlock
     /// empty for FE parts. Model moves these rows into its KinematicMap (and empties them here).
     std::vector<index_t> interp_offsets, interp_nodes;
     /// RK parts: the shape functions (local node numbering, reference configuration), kept for
-    /// set-up work that samples them (pressure faces); null for FE parts.
+    /// set-up work that samples them (pressure faces); Model::build releases them when its
+    /// set-up is done (null then, and for FE parts).
     std::shared_ptr<const RkShapeFunctions> rk;
     std::vector<real_t> interp_values;
     /// Coupled FE-RK parts: per local node, whether its unknowns are RK coefficients, and per
