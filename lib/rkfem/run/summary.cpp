@@ -53,19 +53,30 @@ std::string num(double v)
     os << std::setprecision(12) << v;
     return os.str();
 }
+
+/// FNV-1a (64 bit) of n bytes, continuing from h
+std::uint64_t fnv1a(const char* bytes, std::size_t n, std::uint64_t h = 14695981039346656037ull)
+{
+    for (std::size_t k = 0; k < n; ++k)
+    {
+        h ^= static_cast<unsigned char>(bytes[k]);
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+std::string hex16(std::uint64_t h)
+{
+    char text[17];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+    return text;
+}
 } // namespace
 
 std::string resolved_deck_hash(const Deck& deck)
 {
-    std::uint64_t h = 14695981039346656037ull;
-    for (const unsigned char c : to_yaml(deck))
-    {
-        h ^= c;
-        h *= 1099511628211ull;
-    }
-    char text[17];
-    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
-    return text;
+    const std::string text = to_yaml(deck);
+    return hex16(fnv1a(text.data(), text.size()));
 }
 
 const std::string& solver_build_id()
@@ -75,22 +86,14 @@ const std::string& solver_build_id()
         std::ifstream in("/proc/self/exe", std::ios::binary);
         if (!in)
             return std::string();
-        std::uint64_t h = 14695981039346656037ull;
+        std::uint64_t h = fnv1a(nullptr, 0);
         std::vector<char> chunk(1 << 16);
-        while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0)
+        while (in)
         {
-            const std::streamsize got = in.gcount();
-            for (std::streamsize k = 0; k < got; ++k)
-            {
-                h ^= static_cast<unsigned char>(chunk[static_cast<std::size_t>(k)]);
-                h *= 1099511628211ull;
-            }
-            if (!in)
-                break;
+            in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+            h = fnv1a(chunk.data(), static_cast<std::size_t>(in.gcount()), h);
         }
-        char text[17];
-        std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
-        return std::string(text);
+        return hex16(h);
     }();
     return id;
 }
