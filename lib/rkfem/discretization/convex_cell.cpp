@@ -65,18 +65,29 @@ bool ConvexCell::cut(const Vec3& n, real_t c, int tag, real_t eps)
     new_offsets_.assign(1, 0);
     new_vertices_.clear();
     new_tags_.clear();
+    new_vertices_.reserve(face_vertices_.size() + 2 * static_cast<std::size_t>(nv));
     for (int f = 0; f < n_faces(); ++f)
     {
         const int k0 = face_offsets_[f], m = face_offsets_[f + 1] - k0;
+        const int* fv = face_vertices_.data() + k0;
         const std::size_t start = new_vertices_.size();
+        // most faces lie wholly on the kept side of a cut: their vertices carry over, renumbered
+        // (what the loop below does for them, without its tests)
+        bool beyond = false;
         for (int k = 0; k < m; ++k)
-        {
-            const int a = face_vertices_[k0 + k], b = face_vertices_[k0 + (k + 1) % m];
-            if (side_[a] <= 0)
-                new_vertices_.push_back(new_id_[a]);
-            if (side_[a] * side_[b] < 0)
-                new_vertices_.push_back(crossing(a, b));
-        }
+            beyond = beyond || side_[fv[k]] > 0;
+        if (!beyond)
+            for (int k = 0; k < m; ++k)
+                new_vertices_.push_back(new_id_[fv[k]]);
+        else
+            for (int k = 0; k < m; ++k)
+            {
+                const int a = fv[k], b = fv[k + 1 < m ? k + 1 : 0];
+                if (side_[a] <= 0)
+                    new_vertices_.push_back(new_id_[a]);
+                if (side_[a] * side_[b] < 0)
+                    new_vertices_.push_back(crossing(a, b));
+            }
         if (new_vertices_.size() - start < 3)
         {
             new_vertices_.resize(start);
