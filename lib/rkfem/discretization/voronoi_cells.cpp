@@ -507,8 +507,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                     // the facet's sub-cell: the pyramid from the apex over the polygon, bounded by the
                     // facet's triangles and one side triangle per polygon edge (shared, with the opposite
                     // normal, by the neighbouring pyramid of the same cell)
-                    pyramids.emplace_back();
-                    std::vector<CellFacetPoint>& pyr = pyramids.back();
+                    if (with_sub_cells)
+                        pyramids.emplace_back();
                     for (std::size_t k = 0; k < poly.size(); ++k)
                     {
                         const Vec3& a = poly[k];
@@ -517,6 +517,9 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         const Vec3 xq = (a + b + c) / 3.0;
                         cells.points.push_back({xq, nda, nb, k == 0});
                         vol += xq.dot(nda) / 3.0;
+                        if (!with_sub_cells)
+                            continue;
+                        std::vector<CellFacetPoint>& pyr = pyramids.back();
                         pyr.push_back({xq, nda, nb});
                         // side (apex, b, a): outward from the pyramid when the base's normal is outward
                         pyr.push_back({(apex + a + b) / 3.0, 0.5 * (b - apex).cross(a - apex), -1});
@@ -530,11 +533,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 // that jitter makes) joined to the largest one. A thin pyramid's boundary terms are large
                 // and cancel: alone, its smoothed gradient carries round-off up to 1e-10 of its terms;
                 // joined, the union (two closed pieces) still reproduces linear fields exactly.
-                // Without sub-cells the passes below run on no pyramid. (Putting them under an
-                // `if` instead changed GCC's code for them and the sub-cells' round-off: MSCNI's
-                // zero lateral reactions moved by 1e-13 N.)
-                if (!with_sub_cells)
-                    pyramids.clear();
+                // Without sub-cells no pyramid was built (above), and the passes below run on none.
                 std::vector<real_t> pv(pyramids.size(), 0.0);
                 std::size_t largest = 0;
                 for (std::size_t k = 0; k < pyramids.size(); ++k)
