@@ -31,4 +31,16 @@ struct IntegrationOperator
     /// Appends the operator `other` (points, entries), shifting its parent indices.
     void append(const IntegrationOperator& other);
 };
+
+/// A table that lives as long as its block (an entry index and its values, reserved together
+/// from an estimate by its builder) returns its spare room where that passes 1/16 of its
+/// entries: a copy, so not for the last few percent (the builders reserve about that margin).
+template <class I, class V> void return_spare_room(std::vector<I>& index, std::vector<V>& values)
+{
+    if (index.capacity() > index.size() + index.size() / 16)
+    {
+        index.shrink_to_fit();
+        values.shrink_to_fit();
+    }
+}
 } // namespace rkfem

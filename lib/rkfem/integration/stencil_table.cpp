@@ -249,13 +249,7 @@ TripletTable share_triplets(TripletTable t, const StencilSharing& opts)
     t.offsets = std::move(offsets);
     t.node_offset.resize(static_cast<std::size_t>(t.offsets.back()));
     t.hess.resize(6 * t.node_offset.size());
-    // the table lives as long as its block: spare room past 1/16 of it is returned (a copy;
-    // the builders reserve about that much, build_nsni_triplets)
-    if (t.node_offset.capacity() > t.node_offset.size() + t.node_offset.size() / 16)
-    {
-        t.node_offset.shrink_to_fit();
-        t.hess.shrink_to_fit();
-    }
+    return_spare_room(t.node_offset, t.hess); // (build_nsni_triplets reserves about the margin)
     return t;
 }
 

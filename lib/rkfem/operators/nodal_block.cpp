@@ -296,14 +296,14 @@ void NodalBlock::build_tables(Assembly assembly)
     prefetch_stencils = point_stencils.empty() && points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
     // the batches the force pass takes as whole vectors, and the order they add a stencil's
     // entries in (nodal_force.cpp)
-    point_stencils.uniform = uniform_batches(point_stencils.point_stencil, point_stencils.point_base, kPointLanes);
-    point_stencils.add_order = uniform_add_order(
-        point_stencils.offsets, point_stencils.node_offset, kPointLanes,
-        uniform_batch_stencils(point_stencils.uniform, point_stencils.point_stencil, point_stencils.n_stencils(), kPointLanes));
-    stab_triplets.uniform = uniform_batches(stab_triplets.point_triplet, stab_triplets.point_base, kPointLanes);
-    stab_triplets.add_order = uniform_add_order(
-        stab_triplets.offsets, stab_triplets.node_offset, kPointLanes,
-        uniform_batch_stencils(stab_triplets.uniform, stab_triplets.point_triplet, stab_triplets.n_triplets(), kPointLanes));
+    auto batches = [](auto& table, const std::vector<index_t>& point_class, index_t n_classes)
+    {
+        table.uniform = uniform_batches(point_class, table.point_base, kPointLanes);
+        table.add_order = uniform_add_order(table.offsets, table.node_offset, kPointLanes,
+                                            uniform_batch_stencils(table.uniform, point_class, n_classes, kPointLanes));
+    };
+    batches(point_stencils, point_stencils.point_stencil, point_stencils.n_stencils());
+    batches(stab_triplets, stab_triplets.point_triplet, stab_triplets.n_triplets());
     if (compact_operators && !point_stencils.empty())
     {
         release_entries(points);

@@ -871,6 +871,15 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
             hit.assign(nr, 0.0);
             return nr;
         };
+        // the region's particles that some point reached, with their sums, onto out (ascending)
+        auto collect_hits = [&](Entries& out)
+        {
+            const std::size_t nr = values.region_size();
+            const index_t* particle = values.region_particles().data();
+            for (std::size_t k = 0; k < nr; ++k)
+                if (hit[k] != 0.0)
+                    out.emplace_back(particle[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]));
+        };
         // row += sign * sums[0 .. m), both by particle ascending (a merge)
         auto add_sums = [&](Entries& row, const std::pair<index_t, Vec3>* sums, std::size_t m, real_t sign)
         {
@@ -940,9 +949,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                                 add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
                         f0 = f1;
                     }
-                    for (std::size_t k = 0; k < nr; ++k)
-                        if (hit[k] != 0.0)
-                            row.emplace_back(particle[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]));
+                    collect_hits(row);
                 }
                 catch (...)
                 {
@@ -971,13 +978,11 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                             continue;
                         }
                         const index_t f1 = cells.face_end(i, f0);
-                        const std::size_t nr = gather_region(f0, f1);
+                        gather_region(f0, f1);
                         for (index_t q = f0; q < f1; ++q)
                             add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
                         Entries own;
-                        for (std::size_t k = 0; k < nr; ++k)
-                            if (hit[k] != 0.0)
-                                own.emplace_back(values.region_particles()[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]));
+                        collect_hits(own);
                         add_sums(row, own.data(), own.size(), 1.0);
                     }
                     const real_t scale = 1.0 / cells.volume[i];
@@ -1013,12 +1018,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
         }
     }
     errors.rethrow();
-    // the estimate's spare room, returned where it passes a sixteenth
-    if (op.nodes.capacity() > op.nodes.size() + op.nodes.size() / 16)
-    {
-        op.nodes.shrink_to_fit();
-        op.grad.shrink_to_fit();
-    }
+    return_spare_room(op.nodes, op.grad); // the estimate's
     return op;
 }
 
