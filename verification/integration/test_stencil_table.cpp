@@ -573,6 +573,45 @@ TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
     EXPECT_NE(a.d_hourglass, 0.0);
 }
 
+// A part whose tables stream from memory asks for the next batch's stencils while it scatters
+// (NodalBlock::prefetch_points, prefetch_triplets): prefetches move no number, so the pass with
+// them on gives the bits of the pass without, through the chunked scatter with NSNI in the
+// batches (the points' stencils asked for while NSNI scatters, the triplets while the points
+// do) and without a stabilization (the points' stencils while the points scatter).
+TEST(SharedStencils, AskingForTheNextBatchsStencilsKeepsTheBits)
+{
+    const HexMesh mesh = distorted_box(8, 0.01, 0.3);
+    for (const char* stab : {"nsni", "none"})
+    {
+        NodalBlock blk = build_nodal_block(elastic_rk_part(stab), mesh, 0);
+        ASSERT_TRUE(blk.point_stencils.empty()) << stab;
+        ASSERT_GT(blk.n_point_chunks, 0) << stab; // the chunked scatter
+        // a small part's tables stay in cache: no prefetch
+        EXPECT_FALSE(blk.prefetch_points || blk.prefetch_triplets) << stab;
+        NodeSet nodes = wavy_motion(mesh);
+        const real_t dt = 1e-7;
+        const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
+        assemble_nodal_forces(blk, nodes);
+        const std::vector<real_t> f = nodes.f_int;
+        const LineVector<real_t> s = blk.stress_trial;
+        const std::vector<real_t> s_stab = blk.stab_stress_trial;
+        blk.prefetch_points = true;
+        blk.prefetch_triplets = std::string(stab) == "nsni";
+        if (blk.prefetch_triplets)
+        {
+            ASSERT_FALSE(blk.stab_triplets.empty());
+        }
+        const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
+        assemble_nodal_forces(blk, nodes);
+        EXPECT_EQ(f, nodes.f_int) << stab;
+        EXPECT_TRUE(s == blk.stress_trial) << stab;
+        EXPECT_EQ(s_stab, blk.stab_stress_trial) << stab;
+        EXPECT_EQ(a.d_internal, b.d_internal) << stab;
+        EXPECT_EQ(a.d_hourglass, b.d_hourglass) << stab;
+        EXPECT_EQ(a.dt_stable, b.dt_stable) << stab;
+    }
+}
+
 // The kinematic map's rows (approximation/rk/kinematic_map.hpp) are shared as stencils are: on a
 // structured box the particles' rows repeat, so a few are stored, and every row read back has
 // its own columns and values within the sharing's tolerance (1e-11 of its largest), and still

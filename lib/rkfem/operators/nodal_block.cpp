@@ -293,7 +293,6 @@ void NodalBlock::build_tables(Assembly assembly)
     batch_idx.assign(2 * nb, -1);
     stab_energy.assign(own_stab_pass ? static_cast<std::size_t>(ns) : 0, 0.0);
 
-    prefetch_stencils = point_stencils.empty() && points.grad.size() * sizeof(real_t) > (std::size_t{32} << 20);
     // the batches the force pass takes as whole vectors, and the order they add a stencil's
     // entries in (nodal_force.cpp)
     auto batches = [](auto& table, const std::vector<index_t>& point_class, index_t n_classes)
@@ -313,6 +312,15 @@ void NodalBlock::build_tables(Assembly assembly)
     // assembly's own pass reads the (snapped) operator and its transposes
     if (!use_scatter)
         stab_triplets.clear();
+    // prefetch_points' rule: the bytes the pass streams per step from each table
+    {
+        const std::size_t point_bytes =
+            point_stencils.empty() ? points.nodes.size() * (sizeof(index_t) + 3 * sizeof(real_t)) : 0;
+        const std::size_t triplet_bytes = stab_triplets.node_offset.size() * (sizeof(index_t) + 6 * sizeof(real_t));
+        const bool streams = point_bytes + triplet_bytes > prefetch_bytes;
+        prefetch_points = streams && point_bytes > (std::size_t{1} << 20);
+        prefetch_triplets = streams && triplet_bytes > (std::size_t{1} << 20);
+    }
     if (compact_operators && !stab_triplets.empty())
     {
         release_entries(stabilization);

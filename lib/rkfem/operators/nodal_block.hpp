@@ -131,8 +131,19 @@ struct NodalBlock
     std::vector<real_t> stab_stress, stab_stress_trial; ///< 6 x n_stab [Pa]
     std::vector<real_t> jacobian;                     ///< n_points, det F
 
-    /// The force pass prefetches the next batch's stencils: for gradient tables over 32 MiB
-    bool prefetch_stencils = false;
+    /// The force pass asks for the next batch's stencils, lane by lane into the second-level
+    /// cache, while it scatters this batch's forces (the gathers that read them first otherwise
+    /// wait on memory, and the scatters, which find their stencils in cache, leave memory idle):
+    /// the points' stencils while NSNI scatters (or the points do, without NSNI in the batches),
+    /// NSNI's triplets while the points scatter. Only for tables that stream from memory: set
+    /// where the per-point tables (an irregular cloud's, whose stencils are not shared) hold more
+    /// than prefetch_bytes together, for each table over 1 MiB; in cache the prefetches only cost.
+    bool prefetch_points = false;
+    bool prefetch_triplets = false;
+    /// The column cloud's force pass (bench_decks CloudForcePass, 1 thread) lost with them at
+    /// 9 MB of tables (80 mm: 355-362 -> 393-402 ns per particle-step) and gained from 14 MB on
+    /// (120 mm, 200 mm, 400 mm) on this machine's 32 MiB third-level cache.
+    static constexpr std::size_t prefetch_bytes = std::size_t{12} << 20;
 
     // per-step scratch
     std::vector<real_t> point_tensor; ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <immintrin.h>
 #include <memory>
 
@@ -19,6 +20,27 @@ namespace
 #if defined(__AVX2__) && defined(__FMA__)
 const __m256i lanes3 = _mm256_setr_epi64x(-1, -1, -1, 0);
 #endif
+
+/// Asks for the lines of [p, p + bytes) in the second-level cache (one software prefetch per
+/// line). The force pass streams the next batch's stencils in so while it scatters this one's:
+/// see NodalBlock::prefetch_points.
+inline void prefetch_to_l2(const void* p, std::size_t bytes)
+{
+    const std::uintptr_t first = reinterpret_cast<std::uintptr_t>(p) & ~std::uintptr_t{63};
+    const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(p) + bytes;
+    for (std::uintptr_t a = first; a < end; a += 64)
+        _mm_prefetch(reinterpret_cast<const char*>(a), _MM_HINT_T1);
+}
+inline void prefetch_to_l2(const StencilView& s)
+{
+    prefetch_to_l2(s.grad, 3 * sizeof(real_t) * static_cast<std::size_t>(s.size));
+    prefetch_to_l2(s.offset, sizeof(index_t) * static_cast<std::size_t>(s.size));
+}
+inline void prefetch_to_l2(const TripletView& t)
+{
+    prefetch_to_l2(t.hess, 6 * sizeof(real_t) * static_cast<std::size_t>(t.size));
+    prefetch_to_l2(t.offset, sizeof(index_t) * static_cast<std::size_t>(t.size));
+}
 
 /// F = 1 + sum_k u_k (x) g_k and Fd = sum_k v_k (x) g_k over the entries of point p. With AVX2
 /// each column is one 4-lane FMA (lane 3 unused): 6 FMAs per entry instead of 18 scalar ones.
@@ -643,6 +665,9 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
 #endif
     for (int l = 0; l < nl; ++l)
     {
+        // the next batch's lane l: its stencil, which the next gather reads first
+        if (blk.prefetch_points && p0 + W + l < blk.n_points())
+            prefetch_to_l2(stencil_view(blk.points, blk.point_stencils, p0 + W + l));
         if (!good[l])
             continue;
         real_t Pl[3][9];
@@ -684,25 +709,6 @@ template <bool PLASTIC, bool FULL>
     const real_t alpha = blk.dt_factor;
     const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
 
-    // the next batch's stencil (gradients and node ids) is requested now, so that it streams in
-    // while this batch computes: the loads of a stencil otherwise wait on memory latency. Only
-    // for stencils far larger than the caches: in cache the prefetches only cost (bench_rkpm,
-    // 1 thread: 10k particles 94 -> 83 ns per particle-step without them, 30k 97 -> 89; 100k
-    // 135 -> 113 and 300k 144 -> 140 with them)
-    if (FULL && blk.prefetch_stencils)
-    {
-        const index_t pn = std::min<index_t>(p0 + 2 * W, np);
-        if (p0 + W < pn)
-        {
-            const std::size_t k0 = static_cast<std::size_t>(op.offsets[p0 + W]), k1 = static_cast<std::size_t>(op.offsets[pn]);
-            const char* g = reinterpret_cast<const char*>(op.grad.data());
-            for (std::size_t b = 24 * k0; b < 24 * k1; b += 64)
-                _mm_prefetch(g + b, _MM_HINT_T0);
-            const char* n = reinterpret_cast<const char*>(op.nodes.data());
-            for (std::size_t b = 4 * k0; b < 4 * k1; b += 64)
-                _mm_prefetch(n + b, _MM_HINT_T0);
-        }
-    }
     alignas(64) real_t F[3][3][W], Fd[3][3][W];
 #if defined(__AVX512F__)
     const bool uniform = FULL && uniform_batch(blk.point_stencils.uniform, batch);
@@ -907,7 +913,8 @@ template <bool PLASTIC, bool FULL>
                 blk.spin[3 * p + k] = wl[k][l];
         }
     }
-    if (blk.stabilization_triplets && buf)
+    const bool nsni_here = blk.stabilization_triplets && buf;
+    if (nsni_here)
         nsni_batch<W>(blk, v, p0, nl, good, Fi, wl, Jl, dt, buf, lo);
     // V0 P g into the chunk's buffer (or V0 P out for the transpose gather), for the good points
 #if defined(__AVX512F__)
@@ -918,6 +925,15 @@ template <bool PLASTIC, bool FULL>
         for (int l = 0; l < nl; ++l)
         {
             const std::size_t p = static_cast<std::size_t>(p0 + l);
+            // the next batch's lane l: its triplet when NSNI runs in the batches (its stencil was
+            // asked for while NSNI scattered), else its stencil
+            if (p + W < static_cast<std::size_t>(np))
+            {
+                if (nsni_here && blk.prefetch_triplets)
+                    prefetch_to_l2(blk.stab_triplets.view(static_cast<index_t>(p + W)));
+                else if (!nsni_here && blk.prefetch_points)
+                    prefetch_to_l2(stencil_view(op, blk.point_stencils, static_cast<index_t>(p + W)));
+            }
             if (!good[l])
                 continue;
             real_t Pp[9];
