@@ -99,12 +99,15 @@ void BM_SeedDeckStep(benchmark::State& state)
 /// + NSNI, a/h 1.51), whose stencils are not translates of each other, so none are shared.
 /// length 200 (mm): the deck, 5,025 particles, whose tables (about 23 MB) stream from memory
 /// each pass; 20: a tenth of the column (525 particles, 2.3 MB), whose tables stay in cache.
+/// support: 100 a/h of the box support, the deck's 151 or 135 (fewer entries per point; the
+/// plateau each gives: studies/tables/cloud_quadrature.yaml, cases box135_*).
 void BM_CloudForcePass(benchmark::State& state)
 {
     const int saved = omp_get_max_threads();
     omp_set_num_threads(static_cast<int>(state.range(0)));
     Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_cloud.yaml",
-                                     {"parts.column.generator.size=[4 mm, 4 mm, " + std::to_string(state.range(1)) + " mm]"}));
+                                     {"parts.column.generator.size=[4 mm, 4 mm, " + std::to_string(state.range(1)) + " mm]",
+                                      "parts.column.rk.normalized_support=" + std::to_string(state.range(2) / 100.0)}));
     NodalBlock& blk = m.nodal_blocks.at(0);
     NodeSet& nodes = m.nodes;
     for (std::size_t i = 0; i < nodes.x0.size(); ++i)
@@ -162,8 +165,8 @@ BENCHMARK(BM_SeedDeckSetup)
     ->UseRealTime();
 
 BENCHMARK(BM_CloudForcePass)
-    ->ArgNames({"threads", "length"})
-    ->ArgsProduct({{1, 2}, {200, 20}})
+    ->ArgNames({"threads", "length", "support"})
+    ->ArgsProduct({{1, 2}, {200, 20}, {151, 135}})
     ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
 
