@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
@@ -65,6 +66,20 @@ std::uint64_t fnv1a(const char* bytes, std::size_t n, std::uint64_t h = 14695981
     return h;
 }
 
+/// FNV-1a's step over 64-bit words (n a multiple of 8), continuing from h: a byte at a time the
+/// multiply's latency made the driver's 17 MB take 20 ms, about 1 % of a short run
+std::uint64_t fnv1a_words(const char* bytes, std::size_t n, std::uint64_t h)
+{
+    for (std::size_t k = 0; k + 8 <= n; k += 8)
+    {
+        std::uint64_t w;
+        std::memcpy(&w, bytes + k, 8);
+        h ^= w;
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
 std::string hex16(std::uint64_t h)
 {
     char text[17];
@@ -86,12 +101,14 @@ const std::string& solver_build_id()
         std::ifstream in("/proc/self/exe", std::ios::binary);
         if (!in)
             return std::string();
+        // the file's 64-bit words, then its last bytes one at a time
         std::uint64_t h = fnv1a(nullptr, 0);
         std::vector<char> chunk(1 << 16);
         while (in)
         {
             in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-            h = fnv1a(chunk.data(), static_cast<std::size_t>(in.gcount()), h);
+            const std::size_t n = static_cast<std::size_t>(in.gcount()), whole = n / 8 * 8;
+            h = fnv1a(chunk.data() + whole, n - whole, fnv1a_words(chunk.data(), whole, h));
         }
         return hex16(h);
     }();
