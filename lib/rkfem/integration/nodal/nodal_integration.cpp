@@ -816,6 +816,24 @@ IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vecto
                     });
 }
 
+namespace
+{
+/// Appends (particle[k], (s[k], s[nr + k], s[2 nr + k])) to out for each k < nr whose mark[k] is
+/// not 0, in k order: every entry is written and kept by moving the end on by its mark, without
+/// a branch on the marks (a region's hit particles come in short runs)
+void append_marked(Entries& out, const index_t* particle, const real_t* s, const real_t* mark, std::size_t nr)
+{
+    std::size_t m = out.size();
+    out.resize(m + nr);
+    for (std::size_t k = 0; k < nr; ++k)
+    {
+        out[m] = {particle[k], Vec3(s[k], s[nr + k], s[2 * nr + k])};
+        m += mark[k] != 0.0 ? 1 : 0;
+    }
+    out.resize(m);
+}
+} // namespace
+
 IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::vector<real_t>& x,
                                         const RkShapeFunctions& rk, real_t drop_tolerance, index_t block)
 {
@@ -874,11 +892,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
         // the region's particles that some point reached, with their sums, onto out (ascending)
         auto collect_hits = [&](Entries& out)
         {
-            const std::size_t nr = values.region_size();
-            const index_t* particle = values.region_particles().data();
-            for (std::size_t k = 0; k < nr; ++k)
-                if (hit[k] != 0.0)
-                    out.emplace_back(particle[k], Vec3(acc[k], acc[nr + k], acc[2 * nr + k]));
+            append_marked(out, values.region_particles().data(), acc.data(), hit.data(), values.region_size());
         };
         // row += sign * sums[0 .. m), both by particle ascending (a merge)
         auto add_sums = [&](Entries& row, const std::pair<index_t, Vec3>* sums, std::size_t m, real_t sign)
@@ -938,9 +952,8 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                                 acc[nr + k] += face_acc[nr + k];
                                 acc[2 * nr + k] += face_acc[2 * nr + k];
                                 hit[k] = hit[k] < face_hit[k] ? face_hit[k] : hit[k];
-                                if (face_hit[k] != 0.0)
-                                    pool.emplace_back(particle[k], Vec3(face_acc[k], face_acc[nr + k], face_acc[2 * nr + k]));
                             }
+                            append_marked(pool, particle, face_acc.data(), face_hit.data(), nr);
                             fs.end = pool.size();
                             outbox[static_cast<std::size_t>(i)].push_back(fs);
                         }
