@@ -577,39 +577,45 @@ TEST(SharedStencils, JitteredNsniPacksEachPointsTriplet)
 // (NodalBlock::prefetch_points, prefetch_triplets): prefetches move no number, so the pass with
 // them on gives the bits of the pass without, through the chunked scatter with NSNI in the
 // batches (the points' stencils asked for while NSNI scatters, the triplets while the points
-// do) and without a stabilization (the points' stencils while the points scatter).
+// do), without a stabilization (the points' stencils while the points scatter), and through the
+// transpose gather (while the points store their tensors).
 TEST(SharedStencils, AskingForTheNextBatchsStencilsKeepsTheBits)
 {
     const HexMesh mesh = distorted_box(8, 0.01, 0.3);
     for (const char* stab : {"nsni", "none"})
-    {
-        NodalBlock blk = build_nodal_block(elastic_rk_part(stab), mesh, 0);
-        ASSERT_TRUE(blk.point_stencils.empty()) << stab;
-        ASSERT_GT(blk.n_point_chunks, 0) << stab; // the chunked scatter
-        // a small part's tables stay in cache: no prefetch
-        EXPECT_FALSE(blk.prefetch_points || blk.prefetch_triplets) << stab;
-        NodeSet nodes = wavy_motion(mesh);
-        const real_t dt = 1e-7;
-        const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
-        assemble_nodal_forces(blk, nodes);
-        const std::vector<real_t> f = nodes.f_int;
-        const LineVector<real_t> s = blk.stress_trial;
-        const std::vector<real_t> s_stab = blk.stab_stress_trial;
-        blk.prefetch_points = true;
-        blk.prefetch_triplets = std::string(stab) == "nsni";
-        if (blk.prefetch_triplets)
+        for (const Assembly assembly : {Assembly::Scatter, Assembly::Gather})
         {
-            ASSERT_FALSE(blk.stab_triplets.empty());
+            const std::string name = std::string(stab) + (assembly == Assembly::Gather ? ", gather" : ", scatter");
+            NodalBlock blk = build_nodal_block(elastic_rk_part(stab), mesh, 0);
+            if (assembly == Assembly::Gather)
+                blk.build_tables(Assembly::Gather);
+            ASSERT_TRUE(blk.point_stencils.empty()) << name;
+            ASSERT_EQ(blk.n_point_chunks > 0, assembly == Assembly::Scatter) << name;
+            // a small part's tables stay in cache: no prefetch
+            EXPECT_FALSE(blk.prefetch_points || blk.prefetch_triplets) << name;
+            NodeSet nodes = wavy_motion(mesh);
+            const real_t dt = 1e-7;
+            const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
+            assemble_nodal_forces(blk, nodes);
+            const std::vector<real_t> f = nodes.f_int;
+            const LineVector<real_t> s = blk.stress_trial;
+            const std::vector<real_t> s_stab = blk.stab_stress_trial;
+            blk.prefetch_points = true;
+            blk.prefetch_triplets = !blk.stab_triplets.empty();
+            if (std::string(stab) == "nsni" && assembly == Assembly::Scatter)
+            {
+                ASSERT_TRUE(blk.prefetch_triplets);
+            }
+            const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
+            assemble_nodal_forces(blk, nodes);
+            EXPECT_EQ(f, nodes.f_int) << name;
+            EXPECT_TRUE(s == blk.stress_trial) << name;
+            EXPECT_EQ(s_stab, blk.stab_stress_trial) << name;
+            EXPECT_EQ(a.d_internal, b.d_internal) << name;
+            EXPECT_EQ(a.d_hourglass, b.d_hourglass) << name;
+            EXPECT_EQ(a.dt_stable, b.dt_stable) << name;
+            EXPECT_NE(a.d_internal, 0.0) << name;
         }
-        const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
-        assemble_nodal_forces(blk, nodes);
-        EXPECT_EQ(f, nodes.f_int) << stab;
-        EXPECT_TRUE(s == blk.stress_trial) << stab;
-        EXPECT_EQ(s_stab, blk.stab_stress_trial) << stab;
-        EXPECT_EQ(a.d_internal, b.d_internal) << stab;
-        EXPECT_EQ(a.d_hourglass, b.d_hourglass) << stab;
-        EXPECT_EQ(a.dt_stable, b.dt_stable) << stab;
-    }
 }
 
 // The kinematic map's rows (approximation/rk/kinematic_map.hpp) are shared as stencils are: on a
