@@ -369,9 +369,13 @@ int main(int argc, char** argv)
             std::remove(probe.c_str());
         }
         if (!quiet)
+        {
             for (const auto& part : deck.parts)
                 for (const auto& note : part.ignored)
                     std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
+            for (const auto& note : model.setup_notes)
+                std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
+        }
         if (!quiet)
             std::fprintf(stderr, "rkfem: %s: %d nodes, %d elements, %d thread(s)\n",
                          deck_path.c_str(), model.nodes.size(), model.n_elements(),

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <sstream>
 #include <unistd.h>
@@ -10,7 +11,9 @@
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/core/setup_progress.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/operators/nodal_step_estimate.hpp"
 
 namespace rkfem
 {
@@ -133,6 +136,44 @@ void check_size(const Deck& d)
 }
 } // namespace
 
+namespace
+{
+/// A nodal part outside the configurations whose default step factor the test suite holds
+/// below the critical one (nodal_step_estimate.hpp): its critical factor measured, and the
+/// default lowered to kMeasuredStepShare of it where it is larger; a deck's own dt_factor above
+/// the critical one is kept, with a warning.
+void measure_step_factor(const PartSpec& ps, NodalBlock& nb, Model& m)
+{
+    HighestFrequency hf;
+    {
+        const setup_progress::Phase progress("part '" + ps.name + "': highest frequency", 0);
+        hf = nodal_highest_frequency(nb, m.nodes.mass);
+    }
+    if (!(hf.alpha_crit > 0.0))
+        return;
+    char text[400];
+    const real_t measured = kMeasuredStepShare * hf.alpha_crit;
+    if (ps.nodal.dt_factor == 0.0 && measured < nb.dt_factor)
+    {
+        std::snprintf(text, sizeof text,
+                      "%s.nodal_integration.dt_factor: %.3g, not the default %.3g: the part's highest frequency "
+                      "(%d force passes of Lanczos) puts the critical factor at %.3g for its RK functions and "
+                      "stabilization, which the default is not calibrated for",
+                      ps.loc.path.c_str(), measured, nb.dt_factor, hf.passes, hf.alpha_crit);
+        nb.dt_factor = measured;
+        m.setup_notes.emplace_back(text);
+    }
+    else if (ps.nodal.dt_factor > hf.alpha_crit)
+    {
+        std::snprintf(text, sizeof text,
+                      "%s.nodal_integration.dt_factor: %.3g is above the part's critical factor %.3g (its highest "
+                      "frequency, %d force passes of Lanczos): the run may go unstable; kept as the deck says",
+                      ps.loc.path.c_str(), ps.nodal.dt_factor, hf.alpha_crit, hf.passes);
+        m.setup_notes.emplace_back(text);
+    }
+}
+} // namespace
+
 Model Model::build(const Deck& deck)
 {
     check_size(deck);
@@ -207,6 +248,8 @@ Model Model::build(const Deck& deck)
                                                                             : build_nodal_block(ps, mesh, offset);
             nb.part = static_cast<index_t>(ip);
             add_nodal_mass(nb, m.nodes);
+            if (!ps.coupled() && !nodal_step_calibrated(ps))
+                measure_step_factor(ps, nb, m);
             m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
             if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
             {

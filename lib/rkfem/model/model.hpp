@@ -70,6 +70,9 @@ class Model final : public ExplicitOperator
                                   ///< integrates only fem-1pt / fem-2x2x2 parts)
     std::vector<NodalBlock> nodal_blocks; ///< fem-nodal and rkpm parts
     std::vector<index_t> part_nodal;      ///< per part: index into nodal_blocks, -1 for Gauss-point FE
+    /// What the set-up decided that the user should read (the driver prints each as a warning,
+    /// `check` lists them): a nodal part's step factor lowered to its measured critical value.
+    std::vector<std::string> setup_notes;
     /// Coupled parts with a fem-1pt FE side: the 1-point block of their FE elements, integrated
     /// besides the part's nodal block (which holds the transition and RK elements' nodes).
     struct FeSide

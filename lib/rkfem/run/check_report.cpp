@@ -209,6 +209,8 @@ std::string check_report(Model& model)
     }
     if (!any)
         os << "#   none (every material's parameters are the deck's own)\n";
+    for (const std::string& note : model.setup_notes)
+        os << "# note: " << note << "\n";
     // the stable step at t = 0 and what sets it
     const ForceReport rep = model.internal_forces(0.0, 0.0, 0);
     const real_t scale = model.deck().time.dt_scale;
