@@ -106,6 +106,36 @@ index_t uniform_batches(index_t n_points, const std::vector<index_t>& cls, const
     return n;
 }
 
+/// One force pass of `blk` from `nodes` (and its assembly), and what it wrote.
+struct PassBits
+{
+    ForcePassResult r;
+    std::vector<real_t> f, stab_stress, stab_energy;
+    LineVector<real_t> stress;
+};
+PassBits pass_bits(NodalBlock& blk, NodeSet& nodes, real_t dt)
+{
+    PassBits p;
+    p.r = nodal_internal_force(blk, nodes, dt);
+    assemble_nodal_forces(blk, nodes);
+    p.f = nodes.f_int;
+    p.stress = blk.stress_trial;
+    p.stab_stress = blk.stab_stress_trial;
+    p.stab_energy = blk.stab_energy;
+    return p;
+}
+/// Two passes gave the same bits.
+void expect_same_bits(const PassBits& a, const PassBits& b, const std::string& name)
+{
+    EXPECT_EQ(a.f, b.f) << name;
+    EXPECT_TRUE(a.stress == b.stress) << name;
+    EXPECT_EQ(a.stab_stress, b.stab_stress) << name;
+    EXPECT_EQ(a.stab_energy, b.stab_energy) << name;
+    EXPECT_EQ(a.r.d_internal, b.r.d_internal) << name;
+    EXPECT_EQ(a.r.d_hourglass, b.r.d_hourglass) << name;
+    EXPECT_EQ(a.r.dt_stable, b.r.dt_stable) << name;
+}
+
 IntegrationOperator scni_on(const HexMesh& mesh, Formulation f, real_t support)
 {
     if (f == Formulation::FemNodal)
@@ -504,11 +534,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         }
         NodeSet nodes = wavy_motion(mesh);
         const real_t dt = 1e-7;
-        const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
-        assemble_nodal_forces(blk, nodes);
-        const std::vector<real_t> f_shared = nodes.f_int;
-        const LineVector<real_t> s_shared = blk.stress_trial;
-        const std::vector<real_t> stab_shared = blk.stab_stress_trial, stab_energy_shared = blk.stab_energy;
+        const PassBits shared = pass_bits(blk, nodes, dt);
         // the operators' own entries were released to the tables (a part of one formulation);
         // written back, they give the same pass bit for bit
         EXPECT_TRUE(blk.points_in_table && blk.points.nodes.empty() && blk.points.grad.empty()) << stab;
@@ -521,15 +547,7 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         blk.point_stencils.clear();
         blk.stab_stencils.clear();
         blk.stab_triplets.clear(); // NSNI then reads the three sub-point stencils from the operator
-        const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
-        assemble_nodal_forces(blk, nodes);
-        EXPECT_TRUE(s_shared == blk.stress_trial) << stab;
-        EXPECT_EQ(stab_shared, blk.stab_stress_trial) << stab;
-        EXPECT_EQ(stab_energy_shared, blk.stab_energy) << stab;
-        EXPECT_EQ(f_shared, nodes.f_int) << stab;
-        EXPECT_EQ(a.d_internal, b.d_internal) << stab;
-        EXPECT_EQ(a.d_hourglass, b.d_hourglass) << stab;
-        EXPECT_EQ(a.dt_stable, b.dt_stable) << stab;
+        expect_same_bits(shared, pass_bits(blk, nodes, dt), stab);
     }
 }
 
@@ -595,26 +613,15 @@ TEST(SharedStencils, AskingForTheNextBatchsStencilsKeepsTheBits)
             EXPECT_FALSE(blk.prefetch_points || blk.prefetch_triplets) << name;
             NodeSet nodes = wavy_motion(mesh);
             const real_t dt = 1e-7;
-            const ForcePassResult a = nodal_internal_force(blk, nodes, dt);
-            assemble_nodal_forces(blk, nodes);
-            const std::vector<real_t> f = nodes.f_int;
-            const LineVector<real_t> s = blk.stress_trial;
-            const std::vector<real_t> s_stab = blk.stab_stress_trial;
+            const PassBits plain = pass_bits(blk, nodes, dt);
+            EXPECT_NE(plain.r.d_internal, 0.0) << name;
             blk.prefetch_points = true;
             blk.prefetch_triplets = !blk.stab_triplets.empty();
             if (std::string(stab) == "nsni" && assembly == Assembly::Scatter)
             {
                 ASSERT_TRUE(blk.prefetch_triplets);
             }
-            const ForcePassResult b = nodal_internal_force(blk, nodes, dt);
-            assemble_nodal_forces(blk, nodes);
-            EXPECT_EQ(f, nodes.f_int) << name;
-            EXPECT_TRUE(s == blk.stress_trial) << name;
-            EXPECT_EQ(s_stab, blk.stab_stress_trial) << name;
-            EXPECT_EQ(a.d_internal, b.d_internal) << name;
-            EXPECT_EQ(a.d_hourglass, b.d_hourglass) << name;
-            EXPECT_EQ(a.dt_stable, b.dt_stable) << name;
-            EXPECT_NE(a.d_internal, 0.0) << name;
+            expect_same_bits(plain, pass_bits(blk, nodes, dt), name);
         }
 }
 
