@@ -10,8 +10,8 @@
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/core/error.hpp"
-#include "rkfem/discretization/generators.hpp"
 #include "rkfem/core/setup_progress.hpp"
+#include "rkfem/discretization/generators.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_step_estimate.hpp"
 
@@ -134,10 +134,7 @@ void check_size(const Deck& d)
         }
     }
 }
-} // namespace
 
-namespace
-{
 /// A nodal part outside the configurations whose default step factor the test suite holds
 /// below the critical one (nodal_step_estimate.hpp): its critical factor measured, and the
 /// default lowered to kMeasuredStepShare of it where it is larger; a deck's own dt_factor above

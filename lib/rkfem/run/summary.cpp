@@ -132,6 +132,10 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"build\": " << quote(solver_build_id()) << ",\n";
     o << "  \"status\": " << quote(s.status) << ",\n";
     o << "  \"message\": " << quote(s.message) << ",\n";
+    o << "  \"setup_notes\": [";
+    for (std::size_t i = 0; i < model.setup_notes.size(); ++i)
+        o << (i ? ", " : "") << quote(model.setup_notes[i]);
+    o << "],\n";
     o << "  \"nodes\": " << model.nodes.size() << ",\n";
     o << "  \"elements\": " << model.n_elements() << ",\n";
     o << "  \"eroded_elements\": " << model.eroded_elements() << ",\n";
