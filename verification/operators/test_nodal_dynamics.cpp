@@ -198,7 +198,7 @@ TEST(NodalTimeStep, PowerIterationFindsTheCriticalFactor)
 // kMeasuredStepShare of it (Model::build, nodal_step_estimate.hpp), and says so: NSNI with the
 // box at a/h 1.35 on a regular box (alpha_crit about 0.68 against the default 1) is lowered; the
 // default support keeps 1 without a pass; a deck's own dt_factor above alpha_crit is kept and
-// warned about.
+// warned about; a conversion's RK region, which is not measured, is warned about.
 TEST(NodalTimeStep, SetUpMeasuresTheFactorWhereTheDefaultIsNotCalibrated)
 {
     const std::string deck = R"(
@@ -231,6 +231,20 @@ parts:
         EXPECT_EQ(m.nodal_blocks.at(0).dt_factor, 1.2);
         ASSERT_EQ(m.setup_notes.size(), 1u);
         EXPECT_NE(m.setup_notes[0].find("above the part's critical factor"), std::string::npos) << m.setup_notes[0];
+    }
+    // a part whose RK region a conversion makes is not measured: with RK settings off the
+    // calibrated ones it says so; with the defaults it says nothing
+    for (const char* support : {"1.51", "1.35"})
+    {
+        Model m = test::model_from(deck, {"parts.b.formulation=fem-nodal", "parts.b.nodal_integration={scheme: scni}",
+                                          "parts.b.conversion={principal_strain: 0.1}",
+                                          std::string("parts.b.rk.normalized_support=") + support});
+        EXPECT_EQ(m.nodal_blocks.at(0).dt_factor, 0.95) << support; // fem-nodal's default
+        ASSERT_EQ(m.setup_notes.size(), std::string(support) == "1.51" ? 0u : 1u) << support;
+        if (!m.setup_notes.empty())
+        {
+            EXPECT_NE(m.setup_notes[0].find("not measured"), std::string::npos) << m.setup_notes[0];
+        }
     }
 }
 

@@ -247,6 +247,15 @@ Model Model::build(const Deck& deck)
             add_nodal_mass(nb, m.nodes);
             if (!ps.coupled() && !nodal_step_calibrated(ps))
                 measure_step_factor(ps, nb, m);
+            // RK regions of coupled parts and those a conversion makes are not measured
+            PartSpec rk_side = ps;
+            rk_side.formulation = Formulation::Rkpm;
+            if ((ps.coupled() || ps.conversion.active()) && !nodal_step_calibrated(rk_side) && ps.nodal.dt_factor == 0.0)
+                m.setup_notes.push_back(ps.loc.path +
+                                        ".nodal_integration.dt_factor: the default, which is calibrated for the default RK "
+                                        "functions and stabilization only; the step of a coupled part's or a conversion's "
+                                        "RK region is not measured (set dt_factor below the default if the run goes "
+                                        "unstable)");
             m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
             if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
             {
