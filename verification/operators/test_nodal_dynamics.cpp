@@ -154,13 +154,13 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValueOnClouds)
     }
 }
 
-// The set-up's estimate of the highest frequency (nodal_highest_frequency: a power iteration
+// The set-up's estimate of the highest frequency (nodal_highest_frequency: Lanczos
 // whose product is the block's own force pass) against the dense eigenvalues above, on the
 // free blocks where the default alpha is calibrated and where it is not (NSNI with the box at
 // a/h 1.35, whose alpha_crit on a regular block, 0.68, is below the default 1): the estimate
 // approaches omega_max from below, so its alpha_crit lies at or above the dense one, within
 // 0.2 % (measured: the same four digits, in 23-38 passes).
-TEST(NodalTimeStep, PowerIterationFindsTheCriticalFactor)
+TEST(NodalTimeStep, LanczosFindsTheCriticalFactor)
 {
     struct Row
     {
@@ -187,7 +187,7 @@ TEST(NodalTimeStep, PowerIterationFindsTheCriticalFactor)
         Fixture fx = r.cloud ? cloud_fixture(r.ps, r.jitter, 1) : Fixture(r.ps, 5, 0.01, r.jitter);
         const real_t dense = critical_dt_factor(fx);
         const HighestFrequency hf = nodal_highest_frequency(fx.blk, fx.nodes.mass);
-        std::printf("%-36s alpha_crit dense %.4f, power iteration %.4f (%d passes)\n", r.name, dense, hf.alpha_crit,
+        std::printf("%-36s alpha_crit dense %.4f, Lanczos %.4f (%d passes)\n", r.name, dense, hf.alpha_crit,
                     hf.passes);
         EXPECT_GE(hf.alpha_crit, dense * (1.0 - 1e-9)) << r.name;
         EXPECT_LT(hf.alpha_crit, 1.002 * dense) << r.name;

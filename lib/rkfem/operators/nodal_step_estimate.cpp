@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <limits>
 
-#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 
 #include "rkfem/operators/nodal_force.hpp"
 
@@ -92,14 +92,10 @@ HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real
         beta.push_back(bj);
         // the tridiagonal's largest eigenvalue and its eigenvector's last component
         const int n = static_cast<int>(alpha.size());
-        Eigen::MatrixXd T = Eigen::MatrixXd::Zero(n, n);
-        for (int i = 0; i < n; ++i)
-        {
-            T(i, i) = alpha[static_cast<std::size_t>(i)];
-            if (i + 1 < n)
-                T(i, i + 1) = T(i + 1, i) = beta[static_cast<std::size_t>(i)];
-        }
-        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(T);
+        const Eigen::VectorXd diag = Eigen::Map<const Eigen::VectorXd>(alpha.data(), n);
+        const Eigen::VectorXd sub = Eigen::Map<const Eigen::VectorXd>(beta.data(), n - 1);
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
+        es.computeFromTridiagonal(diag, sub, Eigen::ComputeEigenvectors);
         lambda = es.eigenvalues()(n - 1);
         const real_t residual = bj * std::abs(es.eigenvectors()(n - 1, n - 1));
         if (residual <= tolerance * lambda || !(bj > 1e-14 * lambda))
