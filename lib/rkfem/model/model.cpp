@@ -248,9 +248,8 @@ Model Model::build(const Deck& deck)
             if (!ps.coupled() && !nodal_step_calibrated(ps))
                 measure_step_factor(ps, nb, m);
             // RK regions of coupled parts and those a conversion makes are not measured
-            PartSpec rk_side = ps;
-            rk_side.formulation = Formulation::Rkpm;
-            if ((ps.coupled() || ps.conversion.active()) && !nodal_step_calibrated(rk_side) && ps.nodal.dt_factor == 0.0)
+            if ((ps.coupled() || ps.conversion.active()) && !nodal_step_calibrated(Formulation::Rkpm, ps.nodal, ps.rk) &&
+                ps.nodal.dt_factor == 0.0)
                 m.setup_notes.push_back(ps.loc.path +
                                         ".nodal_integration.dt_factor: the default, which is calibrated for the default RK "
                                         "functions and stabilization only; the step of a coupled part's or a conversion's "

@@ -24,8 +24,11 @@ HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real
     auto m_of = [&](std::size_t dof) { return mass[dof / 3]; };
     // w0: a fixed pseudo-random sign per dof (a hash of its index), M-normalized; a start with
     // a share of every mode, the highest included
+    // the probe's nodes: only the arrays the pass reads (u, v) and the assembly writes (f_int),
+    // up to the block's last node (global numbering)
     NodeSet probe;
-    probe.resize(static_cast<index_t>(mass.size()));
+    for (auto* a : {&probe.u, &probe.v, &probe.f_int})
+        a->assign(e, 0.0);
     std::vector<real_t> w(e - b);
     for (std::size_t k = 0; k < w.size(); ++k)
     {
@@ -114,15 +117,14 @@ HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real
     return out;
 }
 
-bool nodal_step_calibrated(const PartSpec& ps)
+bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& nodal, const RkSpec& rk)
 {
-    const PartSpec defaults;
-    const bool coefficient = ps.nodal.stabilization_coefficient ==
-                             (ps.nodal.stabilization == "nsni" ? kNsniCoefficient : 1.0);
-    if (ps.formulation == Formulation::FemNodal)
-        return coefficient && ps.nodal.scheme != "dni";
-    return ps.formulation == Formulation::Rkpm && coefficient && ps.nodal.scheme != "dni" &&
-           ps.rk.order == defaults.rk.order && ps.rk.kernel == defaults.rk.kernel &&
-           ps.rk.support == defaults.rk.support && ps.rk.normalized_support == defaults.rk.normalized_support;
+    const RkSpec defaults;
+    const bool coefficient = nodal.stabilization_coefficient == (nodal.stabilization == "nsni" ? kNsniCoefficient : 1.0);
+    if (formulation == Formulation::FemNodal)
+        return coefficient && nodal.scheme != "dni";
+    return formulation == Formulation::Rkpm && coefficient && nodal.scheme != "dni" && rk.order == defaults.order &&
+           rk.kernel == defaults.kernel && rk.support == defaults.support &&
+           rk.normalized_support == defaults.normalized_support;
 }
 } // namespace rkfem

@@ -36,10 +36,11 @@ struct HighestFrequency
 HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real_t>& mass, int max_passes = 60,
                                          real_t tolerance = 1e-3);
 
-/// Whether the test suite holds the part's default alpha below alpha_crit: a nodal part with
-/// the default RK functions (order 1, cubic B-spline, box at a/h 1.51) and the default
-/// stabilization coefficient. Elsewhere the set-up measures alpha_crit.
-bool nodal_step_calibrated(const PartSpec& ps);
+/// Whether the test suite holds the default alpha below alpha_crit: a nodal part of
+/// `formulation` with the default RK functions (order 1, cubic B-spline, box at a/h 1.51; rkpm)
+/// and the default stabilization coefficient. Elsewhere the set-up measures alpha_crit.
+bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& nodal, const RkSpec& rk);
+inline bool nodal_step_calibrated(const PartSpec& ps) { return nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk); }
 
 /// The fraction of the measured alpha_crit a part without a calibrated default steps at (the
 /// quotient approaches omega_max from below; time.dt_scale applies on top, as for every part).
