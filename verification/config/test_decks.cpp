@@ -173,6 +173,47 @@ TEST(Decks, KccTablesRoundTrip)
                     ":7: parts.col.material.eta", "expected eta = 1 at the peak");
 }
 
+TEST(Decks, KccRateLawsRoundTripAndTheirMistakesNameTheKey)
+{
+    const std::string kcc = "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}";
+    auto with = [&](const std::string& rate)
+    { return replace(good, kcc, "{model: kcc, rho: 2400 kg/m^3, fc: 35 MPa, rate_effects: " + rate + "}"); };
+    // true is the capped built-in law; a curve (LCRATE's sign: negative = tension) prints as read
+    for (const auto& [name, rate, echoed, dif] :
+         std::array<std::array<std::string, 4>, 3>{
+             {{"rate_true.yaml", "true", "rate_effects: {law: ceb-fip, compression_cap: 2.5, tension_cap: 6}",
+               "DIF at 1, 10^2, 10^4 1/s: compression 1.3401 2.20268 2.5; tension 1.61026 6 6"},
+              {"rate_law.yaml", "{law: ceb-fip, compression_cap: none, tension_cap: 4}",
+               "rate_effects: {law: ceb-fip, compression_cap: none, tension_cap: 4}",
+               "DIF at 1, 10^2, 10^4 1/s: compression 1.3401 2.20268 10.2239; tension 1.61026 4 4"},
+              {"rate_curve.yaml", "{curve: [[-100 1/s, 4], [0, 1], [100 1/s, 2]], compression_cap: 1.5}",
+               "rate_effects: {curve: [[-100, 4], [0, 1], [100, 2]], compression_cap: 1.5, tension_cap: none}",
+               "DIF(rate [1/s]): (-100, 4) (0, 1) (100, 2)"}}})
+    {
+        const Result first = run("check " + write_deck(name, with(rate)));
+        ASSERT_EQ(first.code, 0) << first.output;
+        EXPECT_NE(first.output.find(echoed), std::string::npos) << first.output;
+        EXPECT_NE(first.output.find(dif), std::string::npos) << first.output;
+        const Result q = run("check " + write_deck(name, with(rate)) + " --quiet");
+        const Result second = run("check " + write_deck("again_" + name, q.output) + " --quiet");
+        ASSERT_EQ(second.code, 0) << second.output;
+        EXPECT_EQ(q.output, second.output);
+    }
+    expect_rejected("rate_cap.yaml", with("{law: ceb-fip, compression_cap: 0.5}"),
+                    ":7: parts.col.material.rate_effects.compression_cap", "expected a largest DIF >= 1, or none");
+    expect_rejected("rate_both.yaml", with("{law: ceb-fip, curve: [[0, 1], [1, 2]]}"),
+                    ":7: parts.col.material.rate_effects.law", "is given beside curve");
+    expect_rejected("rate_order.yaml", with("{curve: [[0, 1], [-1 1/s, 2]]}"),
+                    ":7: parts.col.material.rate_effects.curve.1", "rates strictly increasing");
+    expect_rejected("rate_unit.yaml", with("{curve: [[0, 1], [1 m/s, 2]]}"),
+                    ":7: parts.col.material.rate_effects.curve.1.0", "");
+    expect_rejected("rate_law_name.yaml", with("{law: tedesco}"), ":7: parts.col.material.rate_effects.law",
+                    "expected one of ceb-fip");
+    expect_rejected("rate_cscm.yaml",
+                    replace(good, kcc, "{model: cscm, rho: 2400 kg/m^3, fc: 35 MPa, rate_effects: {law: ceb-fip}}"),
+                    ":7: parts.col.material.rate_effects", "expected true or false");
+}
+
 TEST(Decks, CapModelOverridesResolveToSI)
 {
     const Result r = run("check " + write_deck("cscm_over.yaml",

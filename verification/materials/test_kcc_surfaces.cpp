@@ -4,7 +4,10 @@
 
 #include <cstdio>
 
+#include <Eigen/Geometry>
+
 #include "rkfem/materials/kcc_surfaces.hpp"
+#include "rkfem/materials/rate_law.hpp"
 
 using namespace rkfem;
 
@@ -104,4 +107,69 @@ TEST(KccSurfaces, DynamicIncreaseFactors)
     EXPECT_NEAR(dif_tension_malvar_ross(100.0, 45.3 * MPa), 6.72, 0.01);
     EXPECT_NEAR(dif_tension_malvar_ross(1.0 * (1 - 1e-12), fc), dif_tension_malvar_ross(1.0 * (1 + 1e-12), fc), 1e-9);
     EXPECT_NEAR(dif_compression_ceb(30.0 * (1 - 1e-12), fc), dif_compression_ceb(30.0 * (1 + 1e-12), fc), 1e-9);
+}
+
+TEST(RateLaw, BuiltInLawsWithTheirCaps)
+{
+    // the default (rate_effects: true) caps CEB-FIP compression at 2.5 and Malvar-Ross tension at 6;
+    // below the caps it is the laws themselves
+    const real_t fc = 35 * MPa;
+    const RateLaw law = RateLaw::standard(fc);
+    EXPECT_EQ(law.dif(1.0, false), dif_compression_ceb(1.0, fc));
+    EXPECT_EQ(law.dif(1.0, true), dif_tension_malvar_ross(1.0, fc));
+    EXPECT_EQ(law.dif(1e4, false), RateLaw::kDefaultCompressionCap);
+    EXPECT_EQ(law.dif(1e4, true), RateLaw::kDefaultTensionCap);
+    // where each law reaches its cap: CEB-FIP 2.5 at 146 1/s and Malvar-Ross 6 at 56 1/s for 35 MPa
+    // (the laws above 30 and 1 1/s are g (r / rs)^(1/3): r = rs (DIF / g)^3)
+    const real_t as = 1.0 / (5.0 + 9.0 * 3.5), gs = std::pow(10.0, 6.156 * as - 2.0);
+    const real_t r_c = 30e-6 * std::pow(2.5 / gs, 3.0);
+    const real_t d = 1.0 / (1.0 + 8.0 * 3.5), b = std::pow(10.0, 6.0 * d - 2.0);
+    const real_t r_t = 1e-6 * std::pow(6.0 / b, 3.0);
+    std::printf("35 MPa: compression cap reached at %.1f 1/s, tension cap at %.1f 1/s; uncapped at 1e4 1/s: %.2f, %.2f\n",
+                r_c, r_t, dif_compression_ceb(1e4, fc), dif_tension_malvar_ross(1e4, fc));
+    EXPECT_NEAR(law.dif(0.999 * r_c, false), 2.5, 2.5e-3);
+    EXPECT_NEAR(law.dif(0.999 * r_t, true), 6.0, 6e-3);
+    EXPECT_LT(law.dif(0.99 * r_c, false), 2.5);
+    EXPECT_LT(law.dif(0.99 * r_t, true), 6.0);
+    // without caps the laws go on (CEB-FIP 10.2 at 10^4 1/s for 35 MPa: why they are capped)
+    RateLaw open = law;
+    open.compression_cap = open.tension_cap = 0.0;
+    EXPECT_NEAR(open.dif(1e4, false), 10.2, 0.1);
+    EXPECT_EQ(open.dif(1e4, true), dif_tension_malvar_ross(1e4, fc));
+    EXPECT_EQ(RateLaw{}.dif(1e4, false), 1.0);
+}
+
+TEST(RateLaw, CurveTakesLcratesSignConvention)
+{
+    // negative abscissa = tension; linear between points, constant beyond the ends
+    RateLaw law;
+    law.kind = RateLaw::Kind::Curve;
+    law.curve = {{-100, 5.0}, {-1, 1.5}, {0, 1.0}, {1, 1.2}, {100, 2.0}};
+    EXPECT_NEAR(law.dif(10, true), 1.5 + 9.0 / 99.0 * 3.5, 1e-14);
+    EXPECT_NEAR(law.dif(10, false), 1.2 + 9.0 / 99.0 * 0.8, 1e-14);
+    EXPECT_NEAR(law.dif(0.5, false), 1.1, 1e-14);
+    EXPECT_NEAR(law.dif(0.5, true), 1.25, 1e-14);
+    EXPECT_EQ(law.dif(1e6, true), 5.0);
+    EXPECT_EQ(law.dif(1e6, false), 2.0);
+    law.compression_cap = 1.5;
+    EXPECT_EQ(law.dif(1e6, false), 1.5);
+    EXPECT_EQ(law.dif(1e6, true), 5.0);
+}
+
+TEST(RateLaw, LoadingRateIsTheExtremePrincipalRate)
+{
+    // d = R diag(2, -1, -5) R^T for a rotation R about (1, 2, 3) by 0.7 rad: compression reads 5,
+    // tension 2; a pure expansion reads 0 in compression
+    const Eigen::Vector3d axis = Eigen::Vector3d(1, 2, 3).normalized();
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, axis).toRotationMatrix();
+    const Eigen::Matrix3d D = R * Eigen::Vector3d(2, -1, -5).asDiagonal() * R.transpose();
+    const real_t d[6] = {D(0, 0), D(1, 1), D(2, 2), D(0, 1), D(1, 2), D(0, 2)};
+    EXPECT_NEAR(RateLaw::loading_rate(d, false), 5.0, 1e-13);
+    EXPECT_NEAR(RateLaw::loading_rate(d, true), 2.0, 1e-13);
+    const real_t iso[6] = {3, 3, 3, 0, 0, 0};
+    EXPECT_EQ(RateLaw::loading_rate(iso, false), 0.0);
+    EXPECT_EQ(RateLaw::loading_rate(iso, true), 3.0);
+    // uniaxial stress with lateral expansion larger than the axial rate (a dilating specimen)
+    const real_t dil[6] = {-1, 0.8, 0.8, 0, 0, 0};
+    EXPECT_NEAR(RateLaw::loading_rate(dil, false), 1.0, 1e-15);
 }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "rkfem/config/time_function.hpp"
+#include "rkfem/materials/rate_law.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
@@ -48,7 +49,8 @@ struct MaterialSpec
     real_t eos_c0 = 0.0, eos_s = 0.0, eos_gamma0 = 0.0, eos_a = 0.0; ///< gruneisen
     // kcc (K&C concrete) and cscm (cap model): parameters generated from f'c; E and nu optional
     real_t fc = 0.0;
-    bool rate_effects = false;
+    bool rate_effects = false; ///< cscm; kcc: rate_law.active()
+    RateLaw rate_law;          ///< kcc: the DIF law (rate_effects: true | false | {law | curve, caps})
     real_t fracture_energy = 0.0; ///< G_f [J/m^2] for the crack-band scaling of b2; < 0: CEB-FIP (auto); 0: none
     /// kcc: the damage table (lambda, eta) and the EOS_8 table (10 strains <= 0, decreasing;
     /// pressures; unloading bulk moduli) in place of the generated ones (empty: generated)

@@ -245,7 +245,31 @@ std::string to_yaml(const Deck& d)
         }
         if (p.material.model == "kcc" || p.material.model == "cscm")
         {
-            os << ", fc: " << p.material.fc << ", rate_effects: " << (p.material.rate_effects ? "true" : "false");
+            os << ", fc: " << p.material.fc << ", rate_effects: ";
+            const RateLaw& rl = p.material.rate_law;
+            auto caps = [&]
+            {
+                os << "compression_cap: ";
+                rl.compression_cap > 0.0 ? os << rl.compression_cap : os << "none";
+                os << ", tension_cap: ";
+                rl.tension_cap > 0.0 ? os << rl.tension_cap : os << "none";
+                os << "}";
+            };
+            if (p.material.model == "cscm" || !rl.active())
+                os << (p.material.rate_effects ? "true" : "false");
+            else if (rl.kind == RateLaw::Kind::CebMalvarRoss)
+            {
+                os << "{law: ceb-fip, ";
+                caps();
+            }
+            else
+            {
+                os << "{curve: [";
+                for (std::size_t i = 0; i < rl.curve.size(); ++i)
+                    os << (i ? ", " : "") << "[" << rl.curve[i].first << ", " << rl.curve[i].second << "]";
+                os << "], ";
+                caps();
+            }
             if (p.material.fracture_energy < 0)
                 os << ", fracture_energy: auto";
             else

@@ -200,6 +200,76 @@ GeneratorSpec read_generator(const Section& part)
     return g;
 }
 
+/// rate_effects of a kcc or cscm material: true | false, and for kcc a mapping: {law: ceb-fip,
+/// compression_cap, tension_cap} (caps: a DIF >= 1 or none) or {curve: [[rate, DIF], ...]} (the
+/// LS-DYNA LCRATE form: negative rates are tension; caps allowed too).
+void read_rate_effects(const Section& s, MaterialSpec& m)
+{
+    const bool kcc = m.model == "kcc";
+    if (!s.has("rate_effects"))
+        return;
+    const YAML::Node rn = s.node("rate_effects");
+    if (!rn.IsMap())
+    {
+        m.rate_effects = s.choice("rate_effects", {"true", "false"}, "false") == "true";
+        if (kcc && m.rate_effects)
+            m.rate_law = RateLaw::standard(m.fc);
+        return;
+    }
+    if (!kcc)
+        s.fail("rate_effects", "is a mapping", "expected true or false (cscm's rate law is its own)");
+    Section r(s.ctx(), rn, s.path("rate_effects"), {"law", "curve", "compression_cap", "tension_cap"});
+    RateLaw law;
+    law.fc = m.fc;
+    if (r.has("curve") == r.has("law"))
+        r.fail("law", r.has("curve") ? "is given beside curve" : "is missing",
+               "expected law: ceb-fip (CEB-FIP compression, Malvar-Ross tension) or curve: [[rate, DIF], ...]");
+    if (r.has("law"))
+    {
+        r.choice("law", {"ceb-fip"}, "");
+        law = RateLaw::standard(m.fc);
+    }
+    else
+    {
+        law.kind = RateLaw::Kind::Curve;
+        const YAML::Node c = r.node("curve");
+        const std::string expected =
+            "expected [[rate, DIF], ...]: at least two points, rates strictly increasing (negative = tension, as "
+            "LS-DYNA's LCRATE), DIF > 0";
+        if (!c.IsSequence() || c.size() < 2)
+            r.fail("curve", "needs at least two points", expected);
+        for (std::size_t i = 0; i < c.size(); ++i)
+        {
+            const std::string pi = r.path("curve") + "." + std::to_string(i);
+            if (!c[i].IsSequence() || c[i].size() != 2)
+                throw DeckError(locate(r.ctx(), c[i], pi), "is not a [rate, DIF] pair", expected);
+            const real_t rate = r.quantity_of(c[i][0], pi + ".0", Dimension{0, 0, -1});
+            const real_t dif = r.quantity_of(c[i][1], pi + ".1", dim::none);
+            if ((i > 0 && !(rate > law.curve.back().first)) || !(dif > 0.0))
+                throw DeckError(locate(r.ctx(), c[i], pi), "is out of order or range", expected);
+            law.curve.emplace_back(rate, dif);
+        }
+        law.compression_cap = law.tension_cap = 0.0;
+    }
+    auto cap = [&](const char* key, real_t& out)
+    {
+        if (!r.has(key))
+            return;
+        if (r.scalar_text(key, "a DIF >= 1 or none") == "none")
+        {
+            out = 0.0;
+            return;
+        }
+        out = r.quantity(key, dim::none);
+        if (!(out >= 1.0))
+            r.fail(key, "is below 1", "expected a largest DIF >= 1, or none");
+    };
+    cap("compression_cap", law.compression_cap);
+    cap("tension_cap", law.tension_cap);
+    m.rate_law = law;
+    m.rate_effects = true;
+}
+
 MaterialSpec read_material(const Section& part)
 {
     part.require("material", "a mapping with model: elastic, rho, E, nu");
@@ -302,7 +372,7 @@ MaterialSpec read_material(const Section& part)
                     s.fail(k, "must be positive", "expected a positive " + k);
                 m.overrides.emplace_back(k, v);
             }
-        m.rate_effects = s.has("rate_effects") && s.choice("rate_effects", {"true", "false"}, "false") == "true";
+        read_rate_effects(s, m);
         if (s.has("fracture_energy"))
         {
             if (s.scalar_text("fracture_energy", "") == "auto")

@@ -106,13 +106,10 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
         const real_t wlode = willam_warnke(theta, k.psi(p));
         // rate enhancement: radial scaling Delta sigma_e(p) = r_f Delta sigma(p / r_f)
         real_t rf = 1.0;
-        if (m.rate_effects)
+        if (m.rate.active())
         {
-            real_t dd = 0.0;
-            for (int c = 0; c < 3; ++c)
-                dd += (d[c] - tr / 3.0) * (d[c] - tr / 3.0) + 2.0 * d[c + 3] * d[c + 3];
-            const real_t rate = std::sqrt(2.0 / 3.0 * dd);
-            rf = p >= 0.0 ? dif_compression_ceb(rate, k.fc) : dif_tension_malvar_ross(rate, k.fc);
+            const real_t rate = RateLaw::loading_rate(d, p < 0.0);
+            rf = m.rate.dif(rate, p < 0.0);
         }
         auto surface = [&](real_t lambda)
         {

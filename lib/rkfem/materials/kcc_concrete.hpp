@@ -19,6 +19,7 @@
 
 #include "rkfem/materials/kcc_surfaces.hpp"
 #include "rkfem/materials/objective_rate.hpp"
+#include "rkfem/materials/rate_law.hpp"
 
 namespace rkfem
 {
@@ -28,7 +29,7 @@ struct KccModel
     real_t rho = 2400.0;
     real_t bulk = 0.0;  ///< K_1, initial (elastic) bulk modulus [Pa]
     real_t shear = 0.0; ///< G from K_1 and nu [Pa]
-    bool rate_effects = false;
+    RateLaw rate; ///< strain-rate enhancement (radial scaling of the surfaces by the DIF)
     /// Fracture energy G_f [J/m^2] for the crack-band scaling of the tensile damage (0: none).
     real_t fracture_energy = 0.0;
     std::array<real_t, 10> eos_strain{}; ///< volumetric strain ln(V/V0) (<= 0, decreasing)

@@ -119,27 +119,4 @@ real_t willam_warnke(real_t theta, real_t psi)
     return num / den;
 }
 
-real_t dif_compression_ceb(real_t rate, real_t fc_pa)
-{
-    const real_t rs = 30e-6;
-    const real_t as = 1.0 / (5.0 + 9.0 * (fc_pa / MPa) / 10.0);
-    if (rate <= rs)
-        return 1.0;
-    if (rate <= 30.0)
-        return std::pow(rate / rs, 1.026 * as);
-    const real_t gs = std::pow(10.0, 6.156 * as - 2.0);
-    return gs * std::cbrt(rate / rs);
-}
-
-real_t dif_tension_malvar_ross(real_t rate, real_t fc_pa)
-{
-    const real_t rs = 1e-6;
-    const real_t d = 1.0 / (1.0 + 8.0 * (fc_pa / MPa) / 10.0);
-    if (rate <= rs)
-        return 1.0;
-    if (rate <= 1.0)
-        return std::pow(rate / rs, d);
-    const real_t b = std::pow(10.0, 6.0 * d - 2.0);
-    return b * std::cbrt(rate / rs);
-}
 } // namespace rkfem

@@ -2,8 +2,8 @@
 /// @file kcc_surfaces.hpp
 /// K&C concrete model, Release III (LS-DYNA MAT_072R3 analog): the parameter set generated from
 /// f'c alone, the three fixed surfaces with their low-pressure branches, the Willam-Warnke Lode
-/// dependence psi(p), the damage table eta(lambda), the scaled damage delta, and the strain-rate
-/// dynamic increase factors. Formulas and default tables: ../shared/reference/materials.md
+/// dependence psi(p), the damage table eta(lambda) and the scaled damage delta (the strain-rate
+/// dynamic increase factors: rate_law.hpp). Formulas and default tables: ../shared/reference/materials.md
 /// sections 1.2-1.6, 1.8, 1.9 (marked there [K] known / [C] confirmed / [U] uncertain). Choices
 /// where the reference is uncertain are marked [U] below. Pressures and strengths in Pa
 /// (compression positive for p and for the surfaces' stress difference Delta sigma).
@@ -73,8 +73,4 @@ struct KccParameters
 /// psi in [1/2, 1] (clamped).
 real_t willam_warnke(real_t theta, real_t psi);
 
-/// Dynamic increase factors (f'c in Pa, strain rate in 1/s): CEB-FIP 1990 compression and
-/// Malvar & Ross (1998) tension (section 1.8).
-real_t dif_compression_ceb(real_t rate, real_t fc_pa);
-real_t dif_tension_malvar_ross(real_t rate, real_t fc_pa);
 } // namespace rkfem

@@ -70,7 +70,8 @@ struct PlasticPoints
         {
             kind = Kind::Kcc;
             kcc = KccModel::from_fc(m.fc, m.rho, m.nu, m.E);
-            kcc.rate_effects = m.rate_effects;
+            kcc.rate = m.rate_law;
+            kcc.rate.fc = m.fc;
             KccParameters& k = kcc.surfaces;
             apply_overrides(m.overrides, {{"a0", &k.a0}, {"a1", &k.a1}, {"a2", &k.a2}, {"a0y", &k.a0y}, {"a1y", &k.a1y},
                                           {"a2y", &k.a2y}, {"a1f", &k.a1f}, {"a2f", &k.a2f}, {"b1", &k.b1}, {"b2", &k.b2},

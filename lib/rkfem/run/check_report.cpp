@@ -69,9 +69,26 @@ void kcc(std::ostringstream& os, const KccModel& m)
     l.add("fbc/fc", k.alpha_biaxial, "");
     l.add("fyc", k.fyc, "Pa");
     l.add("psi_biaxial", k.psi_biaxial, "");
-    l.add("rate_effects", m.rate_effects ? 1 : 0, "");
     l.add("fracture_energy", m.fracture_energy, "J/m^2");
     l.flush();
+    os << "#     rate effects: " << m.rate.describe() << "\n";
+    if (m.rate.kind == RateLaw::Kind::Curve)
+    {
+        os << "#     DIF(rate [1/s]):";
+        for (const auto& [r, d] : m.rate.curve)
+            os << " (" << r << ", " << d << ")";
+        os << "\n";
+    }
+    else if (m.rate.active())
+    {
+        os << "#     DIF at 1, 10^2, 10^4 1/s: compression";
+        for (real_t r : {1.0, 1e2, 1e4})
+            os << " " << m.rate.dif(r, false);
+        os << "; tension";
+        for (real_t r : {1.0, 1e2, 1e4})
+            os << " " << m.rate.dif(r, true);
+        os << "\n";
+    }
     os << "#     eta(lambda):";
     for (const auto& [lam, eta] : k.eta_table)
         os << " (" << lam << ", " << eta << ")";
