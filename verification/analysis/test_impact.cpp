@@ -95,3 +95,43 @@ TEST(Impact, DeckErrorsNameTheKey)
         EXPECT_NE(std::string(e.what()).find("impact.point"), std::string::npos) << e.what();
     }
 }
+
+// The crater of the interpolated damage on a known field: a 6 x 6 x 4 block of 1 mm hexes whose
+// 4 x 4 centre column (x, y in [1, 5] mm) is eroded through its top two layers (z in [2, 4] mm).
+// Nodal damage is the fraction of the node's elements eroded: 1 at the column's inner nodes
+// (x, y in [2, 4], z in [2, 4] except z = 2), 1/2 on its sides and at z = 2 under it. The
+// threshold 0.95 then lies a tenth of an element from the inner nodes: depth 1 + 0.1 = 1.1 mm
+// (the element-based depth is the column's 2 mm); on the surface the farthest crossing is on the
+// edge from (2, 2) to (1, 2) mm at (1.9, 2), so the diameter is 2 sqrt(1.1^2 + 1^2) mm; the
+// volume is the four top elements inside the inner nodes, 4 mm^3 (the rest of the field stays
+// below 0.95 at every sample point: it reaches it only within a tenth of an element of a node).
+TEST(Impact, InterpolatedCraterOfAKnownDamageField)
+{
+    Model m = test::model_from(deck, {"parts.target.generator.size=[6 mm, 6 mm, 4 mm]",
+                                      "parts.target.generator.divisions=[6, 6, 4]", "impact.point=[3 mm, 3 mm, 4 mm]"});
+    const ImpactAnalysis impact(m, m.deck().impact);
+    EXPECT_EQ(impact.crater(m).depth, 0.0);
+    std::vector<char> keep(static_cast<std::size_t>(m.blocks[0].n_elements()), 1);
+    for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+    {
+        Vec3 c = Vec3::Zero();
+        for (int j = 0; j < 8; ++j)
+        {
+            const index_t n = m.blocks[0].conn[8 * e + j];
+            c += 0.125 * Vec3(m.nodes.x0[3 * n], m.nodes.x0[3 * n + 1], m.nodes.x0[3 * n + 2]);
+        }
+        if (c[0] > 1e-3 && c[0] < 5e-3 && c[1] > 1e-3 && c[1] < 5e-3 && c[2] > 2e-3)
+            keep[static_cast<std::size_t>(e)] = 0;
+    }
+    m.remove_elements(0, keep);
+    const ImpactAnalysis::Crater c = impact.crater(m);
+    const ImpactMeasures r = impact.measure(m);
+    std::printf("interpolated crater: depth %.6f mm, diameter %.6f mm, volume %.6f mm^3; element-based depth %.4f mm\n",
+                1e3 * c.depth, 1e3 * c.diameter, 1e9 * c.volume, 1e3 * r.actual_depth);
+    EXPECT_NEAR(c.depth, 1.1e-3, 1e-15);
+    EXPECT_NEAR(c.diameter, 2.0 * std::sqrt(1.1 * 1.1 + 1.0) * 1e-3, 1e-15);
+    EXPECT_NEAR(c.volume, 4e-9, 1e-21);
+    EXPECT_NEAR(r.actual_depth, 2e-3, 1e-15);
+    EXPECT_EQ(r.crater_depth, c.depth);
+    EXPECT_EQ(r.crater_volume, c.volume);
+}

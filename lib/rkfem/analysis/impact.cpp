@@ -150,11 +150,132 @@ real_t ImpactAnalysis::actual_depth(const Model& model) const
     return depth;
 }
 
+ImpactAnalysis::Crater ImpactAnalysis::crater(const Model& model) const
+{
+    Crater out;
+    const HexBlock& blk = model.blocks[static_cast<std::size_t>(target_)];
+    const Model::ErodedElements& gone = model.eroded(target_);
+    const PartInfo& part = model.parts[static_cast<std::size_t>(target_)];
+    const index_t n0 = part.node_begin, nn = part.node_end - part.node_begin;
+    // nodal damage: volume-weighted mean over the elements around each node (eroded: 1)
+    std::vector<real_t> sum(static_cast<std::size_t>(nn), 0.0), weight(static_cast<std::size_t>(nn), 0.0);
+    auto spread = [&](const index_t* c, real_t d, real_t v)
+    {
+        for (int j = 0; j < 8; ++j)
+        {
+            sum[static_cast<std::size_t>(c[j] - n0)] += d * v;
+            weight[static_cast<std::size_t>(c[j] - n0)] += v;
+        }
+    };
+    for (index_t e = 0; e < blk.n_elements(); ++e)
+        spread(blk.conn.data() + 8 * e, model.element_history(target_, e, Model::History::Damage),
+               blk.volume0[static_cast<std::size_t>(e)]);
+    for (std::size_t k = 0; k < gone.volume0.size(); ++k)
+        spread(gone.conn.data() + 8 * k, 1.0, gone.volume0[k]);
+    std::vector<real_t> dn(static_cast<std::size_t>(nn), 0.0);
+    for (std::size_t i = 0; i < dn.size(); ++i)
+        dn[i] = weight[i] > 0.0 ? sum[i] / weight[i] : 0.0;
+    const real_t th = spec_.damage;
+    auto d_at = [&](index_t g) { return dn[static_cast<std::size_t>(g - n0)]; };
+    auto depth_of = [&](const Vec3& x) { return (x - spec_.point).dot(spec_.direction); };
+    auto on_surface = [&](const Vec3& x) { return std::abs(depth_of(x)) <= tolerance_; };
+    auto radius_of = [&](const Vec3& x)
+    {
+        const Vec3 r = x - spec_.point;
+        return (r - r.dot(spec_.direction) * spec_.direction).norm();
+    };
+    // all cells (live and eroded) and the node-to-cell adjacency through their edges
+    std::vector<const index_t*> cells;
+    for (index_t e = 0; e < blk.n_elements(); ++e)
+        cells.push_back(blk.conn.data() + 8 * e);
+    for (std::size_t k = 0; k < gone.volume0.size(); ++k)
+        cells.push_back(gone.conn.data() + 8 * k);
+    static constexpr int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                         {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+    std::vector<std::vector<index_t>> node_cells(static_cast<std::size_t>(nn));
+    for (std::size_t c = 0; c < cells.size(); ++c)
+        for (int j = 0; j < 8; ++j)
+            node_cells[static_cast<std::size_t>(cells[c][j] - n0)].push_back(static_cast<index_t>(c));
+    // the crater's nodes: at or above the threshold, reached from the surface along edges whose
+    // both ends are at or above it
+    std::vector<char> in(static_cast<std::size_t>(nn), 0);
+    std::vector<index_t> stack;
+    for (index_t g = part.node_begin; g < part.node_end; ++g)
+        if (d_at(g) >= th && on_surface(reference(model, g)) && weight[static_cast<std::size_t>(g - n0)] > 0.0)
+        {
+            in[static_cast<std::size_t>(g - n0)] = 1;
+            stack.push_back(g);
+        }
+    std::vector<char> touched(cells.size(), 0);
+    while (!stack.empty())
+    {
+        const index_t g = stack.back();
+        stack.pop_back();
+        const Vec3 xg = reference(model, g);
+        out.depth = std::max(out.depth, depth_of(xg));
+        if (on_surface(xg))
+            out.diameter = std::max(out.diameter, 2.0 * radius_of(xg));
+        for (index_t c : node_cells[static_cast<std::size_t>(g - n0)])
+        {
+            touched[static_cast<std::size_t>(c)] = 1;
+            for (const auto& ed : edges)
+            {
+                const index_t a = cells[c][ed[0]], b = cells[c][ed[1]];
+                if (a != g && b != g)
+                    continue;
+                const index_t o = a == g ? b : a;
+                if (d_at(o) >= th)
+                {
+                    if (!in[static_cast<std::size_t>(o - n0)])
+                    {
+                        in[static_cast<std::size_t>(o - n0)] = 1;
+                        stack.push_back(o);
+                    }
+                    continue;
+                }
+                // the threshold's crossing on the edge g -> o
+                const real_t t = (d_at(g) - th) / (d_at(g) - d_at(o));
+                const Vec3 x = xg + t * (reference(model, o) - xg);
+                out.depth = std::max(out.depth, depth_of(x));
+                if (on_surface(xg) && on_surface(reference(model, o)))
+                    out.diameter = std::max(out.diameter, 2.0 * radius_of(x));
+            }
+        }
+    }
+    // volume: the touched cells sampled at 4 x 4 x 4 points of the trilinear field
+    static constexpr real_t sx[8] = {-1, 1, 1, -1, -1, 1, 1, -1}, sy[8] = {-1, -1, 1, 1, -1, -1, 1, 1},
+                            sz[8] = {-1, -1, -1, -1, 1, 1, 1, 1};
+    for (std::size_t c = 0; c < cells.size(); ++c)
+    {
+        if (!touched[c])
+            continue;
+        const real_t v = c < static_cast<std::size_t>(blk.n_elements()) ? blk.volume0[c]
+                                                                          : gone.volume0[c - static_cast<std::size_t>(blk.n_elements())];
+        int hits = 0;
+        for (int i = 0; i < 4; ++i)
+            for (int j = 0; j < 4; ++j)
+                for (int k = 0; k < 4; ++k)
+                {
+                    const real_t xi = -0.75 + 0.5 * i, eta = -0.75 + 0.5 * j, zeta = -0.75 + 0.5 * k;
+                    real_t d = 0.0;
+                    for (int a = 0; a < 8; ++a)
+                        d += 0.125 * (1 + sx[a] * xi) * (1 + sy[a] * eta) * (1 + sz[a] * zeta) * d_at(cells[c][a]);
+                    hits += d >= th;
+                }
+        out.volume += v * hits / 64.0;
+    }
+    return out;
+}
+
 ImpactMeasures ImpactAnalysis::measure(const Model& model) const
 {
     ImpactMeasures r;
     r.apparent_depth = apparent_depth(model);
     r.actual_depth = actual_depth(model);
+    const Crater cr = crater(model);
+    r.crater_depth = cr.depth;
+    r.crater_diameter = cr.diameter;
+    r.crater_volume = cr.volume;
     r.residual_velocity = residual_velocity(model);
     const PartInfo& target = model.parts[static_cast<std::size_t>(target_)];
     for (index_t i = target.node_begin; i < target.node_end; ++i)

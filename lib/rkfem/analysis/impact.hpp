@@ -10,6 +10,15 @@
 ///     removed elements joined by shared faces to one with a face on the original surface (all
 ///     four nodes on the plane through p normal to d). Its depth: the largest (X - p) . d over the
 ///     crater elements' nodes, X their reference positions (where the material was);
+///   - the crater without the mesh's quantization: damage averaged to the nodes (each node the
+///     volume-weighted mean over the target elements around it, an eroded element counting as
+///     damage 1) and interpolated trilinearly in each element; the crater is the region where
+///     that field is at or above the threshold, connected through element edges to the
+///     original surface. Its depth: the deepest point, along d, of the crater's nodes and of the
+///     threshold's crossings on element edges that leave them (linear along the edge); its
+///     diameter: twice the largest distance from the shot line of the crater's outline on the
+///     original surface; its volume: the elements touched by it, each sampled at 4 x 4 x 4 points
+///     of the interpolated field (reference positions throughout);
 ///   - the projectile's residual velocity (its momentum along d over its mass) and mass (of its
 ///     remaining elements), the momentum the target carries along d, the target's volume with
 ///     damage above 0.5 and above the threshold (eroded elements included: they failed), and the
@@ -22,6 +31,9 @@ struct ImpactMeasures
 {
     real_t apparent_depth = 0.0;     ///< [m]
     real_t actual_depth = 0.0;       ///< [m]
+    real_t crater_depth = 0.0;       ///< interpolated damage at the threshold [m]
+    real_t crater_diameter = 0.0;    ///< at the original surface [m]
+    real_t crater_volume = 0.0;      ///< [m^3]
     real_t residual_velocity = 0.0;  ///< projectile, along d [m/s] (0 without a projectile)
     real_t projectile_mass = 0.0;    ///< [kg]
     real_t target_momentum = 0.0;    ///< along d [kg m/s]
@@ -41,6 +53,12 @@ class ImpactAnalysis
     real_t residual_velocity(const Model& model) const;
     /// The crater's actual depth (a pass over the target's elements).
     real_t actual_depth(const Model& model) const;
+    /// The crater of the interpolated damage: depth, diameter, volume (ImpactMeasures' fields).
+    struct Crater
+    {
+        real_t depth = 0.0, diameter = 0.0, volume = 0.0;
+    };
+    Crater crater(const Model& model) const;
     /// Everything.
     ImpactMeasures measure(const Model& model) const;
     index_t surface_node() const { return surface_node_; }

@@ -184,7 +184,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     {
         const ImpactMeasures& im = s.impact;
         o << "  \"impact\": {\"apparent_depth\": " << num(im.apparent_depth) << ", \"actual_depth\": "
-          << num(im.actual_depth) << ", \"residual_velocity\": " << num(im.residual_velocity)
+          << num(im.actual_depth) << ", \"crater_depth\": " << num(im.crater_depth) << ", \"crater_diameter\": "
+          << num(im.crater_diameter) << ", \"crater_volume\": " << num(im.crater_volume) << ", \"residual_velocity\": " << num(im.residual_velocity)
           << ", \"projectile_mass\": " << num(im.projectile_mass) << ", \"target_momentum\": "
           << num(im.target_momentum) << ", \"damaged_volume_0.5\": " << num(im.damaged_volume_half)
           << ", \"damaged_volume_threshold\": " << num(im.damaged_volume_threshold)
