@@ -161,6 +161,13 @@ TEST(Decks, KccTablesRoundTrip)
     const Result first = run("check " + fixed + " --quiet");
     ASSERT_EQ(first.code, 0) << first.output;
     EXPECT_NE(first.output.find("a0: 14000000"), std::string::npos) << first.output;
+    // check prints the deck's values beside the generated ones (a0 = 0.29559 f'c at 45.6 MPa)
+    const Result report = run("check " + fixed);
+    EXPECT_NE(report.output.find("a0 = 1.4e+07 Pa (deck; generated 1.34789e+07)"), std::string::npos) << report.output;
+    EXPECT_NE(report.output.find("a1 = 0.4463"), std::string::npos) << report.output;
+    EXPECT_EQ(report.output.find("a1 = 0.4463 (deck"), std::string::npos) << report.output;
+    EXPECT_NE(report.output.find("eta(lambda) (deck's)"), std::string::npos) << report.output;
+    EXPECT_NE(report.output.find("EOS_8 (deck's) ln(V/V0)"), std::string::npos) << report.output;
     EXPECT_NE(first.output.find("eta: [[0, 0], [0.0001, 1], [0.0003, 0]]"), std::string::npos) << first.output;
     EXPECT_NE(first.output.find("pressure: [0, 33000000, 72000000"), std::string::npos) << first.output;
     const Result second = run("check " + write_deck("kcc_tables3.yaml", first.output) + " --quiet");

@@ -17,10 +17,15 @@ class Lines
 {
   public:
     explicit Lines(std::ostringstream& os) : os_(os) {}
-    void add(const char* name, real_t value, const char* unit)
+    /// With `generated` (a value the deck overrode), the generated one follows in brackets.
+    void add(const char* name, real_t value, const char* unit, real_t generated = std::nan(""))
     {
-        char b[96];
-        std::snprintf(b, sizeof b, "%s = %.6g%s%s", name, value, *unit ? " " : "", unit);
+        char b[128];
+        if (!std::isnan(generated) && std::abs(value - generated) > 1e-9 * std::abs(generated))
+            std::snprintf(b, sizeof b, "%s = %.6g%s%s (deck; generated %.6g)", name, value, *unit ? " " : "", unit,
+                          generated);
+        else
+            std::snprintf(b, sizeof b, "%s = %.6g%s%s", name, value, *unit ? " " : "", unit);
         if (width_ + std::string(b).size() > 96)
             flush();
         line_ += (line_.empty() ? "" : ", ") + std::string(b);
@@ -44,31 +49,34 @@ void kcc(std::ostringstream& os, const KccModel& m)
 {
     const KccParameters& k = m.surfaces;
     const real_t E = 9 * m.bulk * m.shear / (3 * m.bulk + m.shear);
+    const real_t nu = (3 * m.bulk - 2 * m.shear) / (2 * (3 * m.bulk + m.shear));
+    const KccModel gen = KccModel::from_fc(k.fc, m.rho, nu, E); // what f'c alone generates
+    const KccParameters& g = gen.surfaces;
     os << "#   K&C concrete Release III (MAT_072R3), generated from f'c:\n";
     Lines l(os);
     l.add("fc", k.fc, "Pa");
-    l.add("ft", k.ft, "Pa");
+    l.add("ft", k.ft, "Pa", g.ft);
     l.add("E", E, "Pa");
-    l.add("nu", (3 * m.bulk - 2 * m.shear) / (2 * (3 * m.bulk + m.shear)), "");
+    l.add("nu", nu, "");
     l.add("K1", m.bulk, "Pa");
     l.add("G", m.shear, "Pa");
-    l.add("a0", k.a0, "Pa");
-    l.add("a1", k.a1, "");
-    l.add("a2", k.a2, "1/Pa");
-    l.add("a0y", k.a0y, "Pa");
-    l.add("a1y", k.a1y, "");
-    l.add("a2y", k.a2y, "1/Pa");
-    l.add("a1f", k.a1f, "");
-    l.add("a2f", k.a2f, "1/Pa");
-    l.add("b1", k.b1, "");
-    l.add("b2", k.b2, "");
-    l.add("b3", k.b3, "");
-    l.add("omega", k.omega, "");
-    l.add("lambda_m", k.lambda_m, "");
-    l.add("lambda_z", k.lambda_z, "");
+    l.add("a0", k.a0, "Pa", g.a0);
+    l.add("a1", k.a1, "", g.a1);
+    l.add("a2", k.a2, "1/Pa", g.a2);
+    l.add("a0y", k.a0y, "Pa", g.a0y);
+    l.add("a1y", k.a1y, "", g.a1y);
+    l.add("a2y", k.a2y, "1/Pa", g.a2y);
+    l.add("a1f", k.a1f, "", g.a1f);
+    l.add("a2f", k.a2f, "1/Pa", g.a2f);
+    l.add("b1", k.b1, "", g.b1);
+    l.add("b2", k.b2, "", g.b2);
+    l.add("b3", k.b3, "", g.b3);
+    l.add("omega", k.omega, "", g.omega);
+    l.add("lambda_m", k.lambda_m, "", g.lambda_m);
+    l.add("lambda_z", k.lambda_z, "", g.lambda_z);
     l.add("fbc/fc", k.alpha_biaxial, "");
-    l.add("fyc", k.fyc, "Pa");
-    l.add("psi_biaxial", k.psi_biaxial, "");
+    l.add("fyc", k.fyc, "Pa", g.fyc);
+    l.add("psi_biaxial", k.psi_biaxial, "", g.psi_biaxial);
     l.add("fracture_energy", m.fracture_energy, "J/m^2");
     l.flush();
     os << "#     rate effects: " << m.rate.describe() << "\n";
@@ -89,10 +97,20 @@ void kcc(std::ostringstream& os, const KccModel& m)
             os << " " << m.rate.dif(r, true);
         os << "\n";
     }
-    os << "#     eta(lambda):";
+    os << "#     eta(lambda)" << (k.eta_table == g.eta_table ? "" : " (deck's)") << ":";
     for (const auto& [lam, eta] : k.eta_table)
         os << " (" << lam << ", " << eta << ")";
-    os << "\n#     EOS_8 ln(V/V0):";
+    // (to 1e-9: E and nu printed and read back move the generated table at round-off)
+    auto differs = [](const std::array<real_t, 10>& a, const std::array<real_t, 10>& b)
+    {
+        for (std::size_t i = 0; i < a.size(); ++i)
+            if (std::abs(a[i] - b[i]) > 1e-9 * std::max(std::abs(a[i]), std::abs(b[i])))
+                return true;
+        return false;
+    };
+    const bool eos_own = differs(m.eos_strain, gen.eos_strain) || differs(m.eos_pressure, gen.eos_pressure) ||
+                         differs(m.eos_unload, gen.eos_unload);
+    os << "\n#     EOS_8" << (eos_own ? " (deck's)" : "") << " ln(V/V0):";
     for (real_t v : m.eos_strain)
         os << " " << v;
     os << "\n#     EOS_8 pressure [Pa]:";
