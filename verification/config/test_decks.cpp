@@ -206,6 +206,9 @@ TEST(Decks, KccRateLawsRoundTripAndTheirMistakesNameTheKey)
         ASSERT_EQ(second.code, 0) << second.output;
         EXPECT_EQ(q.output, second.output);
     }
+    // omega 0 (no dilatancy) is a valid K&C input; past 1 it is not
+    EXPECT_EQ(run("check " + write_deck("omega0.yaml", with("false, omega: 0"))).code, 0);
+    expect_rejected("omega2.yaml", with("false, omega: 1.5"), ":7: parts.col.material.omega", "expected 0 <= omega <= 1");
     expect_rejected("rate_cap.yaml", with("{law: ceb-fip, compression_cap: 0.5}"),
                     ":7: parts.col.material.rate_effects.compression_cap", "expected a largest DIF >= 1, or none");
     expect_rejected("rate_both.yaml", with("{law: ceb-fip, curve: [[0, 1], [1, 2]]}"),

@@ -368,7 +368,13 @@ MaterialSpec read_material(const Section& part)
                 const real_t v = s.quantity(k, dimension);
                 // exponents and shape factors may be any sign; strengths and scales must be positive
                 const bool any_sign = k == "theta" || k == "b1" || k == "b2" || k == "b3";
-                if (!(v > 0) && !any_sign)
+                if (k == "omega" && model == "kcc")
+                {
+                    // the fraction of associated dilatancy: 0 (volume-preserving flow) to 1
+                    if (!(v >= 0.0 && v <= 1.0))
+                        s.fail(k, "is out of range", "expected 0 <= omega <= 1 (0: no dilatancy, 1: associated flow)");
+                }
+                else if (!(v > 0) && !any_sign)
                     s.fail(k, "must be positive", "expected a positive " + k);
                 m.overrides.emplace_back(k, v);
             }
