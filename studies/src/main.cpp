@@ -21,6 +21,7 @@
 #include <vector>
 #include <unistd.h>
 
+#include "rkfem/core/interrupt.hpp"
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/config/deck.hpp"
@@ -240,6 +241,7 @@ int main(int argc, char** argv)
             std::fprintf(stderr, "rkfem: study needs --out DIR\n");
             return 2;
         }
+        rkfem::install_interrupt_handlers();
         int incomplete = 0;
         const int rc = run_guarded(
             [&]
@@ -253,6 +255,13 @@ int main(int argc, char** argv)
                     std::fprintf(stderr, "rkfem: study %s: %zu case(s), %d not completed -> %s/table.md\n",
                                  st.title.c_str(), st.cases.size(), incomplete, out_dir.c_str());
             });
+        if (rc == 0 && rkfem::interrupt_signal() != 0)
+        {
+            std::fprintf(stderr, "rkfem: study interrupted by %s: the case running then wrote its last state, later "
+                                 "cases did not run; the table is written (%s/table.md)\n",
+                         rkfem::interrupt_signal_name(rkfem::interrupt_signal()), out_dir.c_str());
+            return 5;
+        }
         return rc != 0 ? rc : incomplete > 0 ? 4 : 0;
     }
     if (command == "convergence")
@@ -269,6 +278,8 @@ int main(int argc, char** argv)
         std::fprintf(stderr, "rkfem: run needs --out DIR\n");
         return 2;
     }
+    if (command == "run" || command == "restart")
+        rkfem::install_interrupt_handlers();
     try
     {
         const auto setup_start = std::chrono::steady_clock::now();
@@ -396,6 +407,12 @@ int main(int argc, char** argv)
         }
         opt.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
         const rkfem::RunSummary s = rkfem::run_simulation(model, opt);
+        if (s.status == "interrupted")
+        {
+            std::fprintf(stderr, "rkfem: %s; summary.json says so (output kept in %s)\n", s.message.c_str(),
+                         out_dir.c_str());
+            return 5;
+        }
         if (s.status != "completed")
         {
             std::fprintf(stderr, "rkfem: run stopped: %s (output so far kept in %s)\n",

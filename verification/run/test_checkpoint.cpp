@@ -233,3 +233,54 @@ TEST(Checkpoint, WhatCannotBeRestartedIsRefusedWithOneLine)
               0);
     expect_refused("restart " + d.string() + " --until '1 us'", "expected --until past the checkpoint");
 }
+
+// SIGINT and SIGTERM: the run finishes the step it is in, writes that state (a frame, the history
+// row, a checkpoint when checkpoints are on), marks summary.json interrupted, says so on one line
+// and exits 5; restarting from that checkpoint gives, at every time the uninterrupted run wrote,
+// the same bits (the interrupted run's own frame and row at the signal's time stay beside them).
+TEST(Checkpoint, ASignalStopsTheRunAtAStepAndItsStateRestarts)
+{
+    // the column wave at 2 mm, run to 1.5 ms (about 4 s)
+    const std::string deck = deck_path("column_wave.yaml");
+    const std::string sets = " --quiet --set output.precision=double --set parts.column.generator.element_size=2mm "
+                             "--set time.end=1.5ms --set time.output_interval=0.15ms";
+    const fs::path u = fs::temp_directory_path() / "rkfem_signal_whole";
+    fs::remove_all(u);
+    ASSERT_EQ(run("run " + deck + " --out " + u.string() + sets).code, 0);
+    const Frames whole = read_frames(u);
+    for (const char* sig : {"INT", "TERM"})
+    {
+        const fs::path d = fs::temp_directory_path() / (std::string("rkfem_signal_") + sig);
+        fs::remove_all(d);
+        // the signal arrives once the run has written its first frame (it is stepping then)
+        const Result r = rkfem::test::run_shell(
+            std::string(RKFEM_EXE) + " run " + deck + " --out " + d.string() + sets +
+            " --checkpoint-interval 0.5ms > " + d.string() + ".log 2>&1 & p=$!; for i in $(seq 200); do [ -s " +
+            (d / "history.csv").string() + " ] && break; sleep 0.05; done; sleep 0.3; kill -" + sig +
+            " $p; wait $p; echo rc=$?; cat " + d.string() + ".log");
+        std::printf("SIG%s: %s", sig, r.output.c_str());
+        EXPECT_NE(r.output.find("rc=5"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(std::string("interrupted by SIG") + sig + " at t = "), std::string::npos) << r.output;
+        EXPECT_NE(slurp(d / "summary.json").find("\"status\": \"interrupted\""), std::string::npos);
+        const Frames cut = read_frames(d);
+        ASSERT_FALSE(cut.times.empty());
+        ASSERT_TRUE(fs::exists(d / "checkpoint.h5"));
+        EXPECT_LT(cut.times.back(), 1.5e-3) << "the signal came after the end";
+        const Result rs = run("restart " + d.string() + " --quiet");
+        ASSERT_EQ(rs.code, 0) << rs.output;
+        const Frames again = read_frames(d);
+        std::size_t common = 0, differ = 0;
+        for (std::size_t f = 0; f < again.times.size(); ++f)
+            for (std::size_t g = 0; g < whole.times.size(); ++g)
+                if (again.times[f] == whole.times[g])
+                {
+                    ++common;
+                    differ += again.data[f] != whole.data[g];
+                }
+        std::printf("SIG%s: stopped at t = %.6g s; restarted: %zu frames, %zu at the uninterrupted run's times, %zu differ\n",
+                    sig, cut.times.back(), again.times.size(), common, differ);
+        EXPECT_EQ(common, whole.times.size());
+        EXPECT_EQ(differ, 0u);
+        EXPECT_LE(again.times.size(), whole.times.size() + 1);
+    }
+}

@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/interrupt.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/io/checkpoint.hpp"
@@ -470,7 +471,10 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             element_steps += static_cast<std::size_t>(ne);
             // the nodes' motion (kinetic energy, the parts' momentum) for what reads it this step:
             // the balance check (every kBalanceEvery steps), history rows, fields, checkpoints
-            const bool last = t >= ts.end * (1 - 1e-12) || (ts.max_steps > 0 && step >= ts.max_steps);
+            // SIGINT / SIGTERM: this step is the last; its state is written as the end's is
+            const int stop_signal = interrupt_signal();
+            const bool last =
+                t >= ts.end * (1 - 1e-12) || (ts.max_steps > 0 && step >= ts.max_steps) || stop_signal != 0;
             const bool check_due =
                 !defer_motion || step % kBalanceEvery == 0 || last || t >= next_history - 1e-15 * ts.end ||
                 (writer && t >= next_output - 1e-12 * ts.end) ||
@@ -512,6 +516,15 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                         write_checkpoint_now();
                     });
             progress.update(t, ts.end, step, dt, energy_ratio(model.energy), elapsed());
+            if (stop_signal != 0)
+            {
+                std::ostringstream os;
+                os << "interrupted by " << interrupt_signal_name(stop_signal) << " at t = " << t << " s, step " << step
+                   << "; the state there written" << (checkpointing ? " (frame, history row and checkpoint)" : " (frame and history row)");
+                sum.status = "interrupted";
+                sum.message = os.str();
+                break;
+            }
         }
         model.refresh_motion();
         progress.update(t, ts.end, step, dt_last, energy_ratio(model.energy), elapsed(), true);

@@ -48,7 +48,7 @@ std::string checkpoint_path(const std::string& dir, int k = 0);
 
 struct RunSummary
 {
-    std::string status = "completed"; ///< completed | unstable
+    std::string status = "completed"; ///< completed | unstable | interrupted (SIGINT / SIGTERM: the state at the step it arrived in written)
     std::string message;
     std::int64_t steps = 0;
     real_t end_time = 0.0;

@@ -15,6 +15,7 @@
 
 #include "rkfem/config/deck_section.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/interrupt.hpp"
 #include "rkfem/core/units.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/model/model.hpp"
@@ -359,7 +360,7 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
         }
         bool any_failed = false;
         for (const auto& r : results)
-            if (r.status == "failed" || r.status == "unstable")
+            if (r.status == "failed" || r.status == "unstable" || r.status == "interrupted")
             {
                 if (!any_failed)
                     md << "\nCases that did not complete:\n\n";
@@ -700,6 +701,14 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
         r.values.assign(st.metrics.size(), nan);
         const fs::path dir = out / "cases" / sc.name;
         const auto t0 = std::chrono::steady_clock::now();
+        if (interrupt_signal() != 0)
+        {
+            // SIGINT / SIGTERM: the case that was running wrote its last state; later ones do not run
+            r.status = "interrupted";
+            r.message = std::string("not run: the study was interrupted by ") + interrupt_signal_name(interrupt_signal());
+            results.push_back(std::move(r));
+            continue;
+        }
         try
         {
             const Deck deck = read_deck(sc.deck, sc.overrides);
