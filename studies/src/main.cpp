@@ -19,17 +19,20 @@
 #include <sstream>
 #include <string>
 #include <vector>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
-#include "rkfem/core/interrupt.hpp"
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/config/deck.hpp"
 #include "rkfem/core/allocator_tuning.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/interrupt.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/units.hpp"
 #include "rkfem/io/checkpoint.hpp"
+#include "rkfem/io/results_writer.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/setup_progress.hpp"
 #include "rkfem/model/model.hpp"
@@ -116,6 +119,41 @@ int help(const std::string& command)
 }
 
 bool command_takes_only(const char* command) { return std::string(command) == "study"; }
+
+/// One run owns its output directory: an advisory lock on DIR/.rkfem.lock (flock, released by
+/// the system when the process ends, however it ends) held from before the first output to the
+/// exit. Returns false, having said why on one line, when another process holds it.
+bool lock_output_directory(const std::string& dir, const char* what)
+{
+    const std::string path = dir + "/.rkfem.lock";
+    const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0)
+    {
+        std::fprintf(stderr, "rkfem: %s %s: cannot open %s (%s); expected a writable directory\n", what, dir.c_str(),
+                     path.c_str(), std::strerror(errno));
+        return false;
+    }
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0)
+    {
+        char pid[32] = {};
+        const ssize_t n = ::pread(fd, pid, sizeof pid - 1, 0);
+        std::string who = n > 0 ? std::string(pid, static_cast<std::size_t>(n)) : std::string("?");
+        while (!who.empty() && (who.back() == '\n' || who.back() == ' '))
+            who.pop_back();
+        std::fprintf(stderr,
+                     "rkfem: %s %s: another rkfem (pid %s) is writing in this directory; expected a directory no other "
+                     "run uses (nothing was written)\n",
+                     what, dir.c_str(), who.c_str());
+        ::close(fd);
+        return false;
+    }
+    const std::string me = std::to_string(::getpid()) + "\n";
+    if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, me.data(), me.size(), 0) < 0)
+    {
+        // the lock holds without the pid in it
+    }
+    return true; // the descriptor stays open (and locked) until the process ends
+}
 
 int main(int argc, char** argv)
 {
@@ -243,18 +281,29 @@ int main(int argc, char** argv)
         }
         rkfem::install_interrupt_handlers();
         int incomplete = 0;
+        bool taken = false; // another process is writing in out_dir
         const int rc = run_guarded(
             [&]
             {
                 rkfem::Study st = rkfem::read_study(deck_path);
                 if (!only.empty())
                     st = rkfem::select_cases(st, only);
+                // the study is valid: its directory, and nobody else writing in it
+                std::error_code mk;
+                std::filesystem::create_directories(out_dir, mk);
+                if (!mk && !lock_output_directory(out_dir, "study --out"))
+                {
+                    taken = true;
+                    return;
+                }
                 for (const auto& r : rkfem::run_study(st, out_dir, !quiet))
                     incomplete += r.status != "completed" && r.status != "reused";
                 if (!quiet)
                     std::fprintf(stderr, "rkfem: study %s: %zu case(s), %d not completed -> %s/table.md\n",
                                  st.title.c_str(), st.cases.size(), incomplete, out_dir.c_str());
             });
+        if (taken)
+            return 2;
         if (rc == 0 && rkfem::interrupt_signal() != 0)
         {
             std::fprintf(stderr, "rkfem: study interrupted by %s: the case running then wrote its last state, later "
@@ -291,7 +340,7 @@ int main(int argc, char** argv)
             out_dir = deck_path; // restart DIR
             try
             {
-                checkpoint = rkfem::read_checkpoint(from.empty() ? rkfem::checkpoint_path(out_dir) : from);
+                checkpoint = rkfem::read_checkpoint(from.empty() ? rkfem::newest_checkpoint(out_dir) : from);
                 deck_text = checkpoint.text("run.deck_text");
                 overrides.clear();
                 std::istringstream os(checkpoint.text("run.overrides"));
@@ -378,6 +427,24 @@ int main(int argc, char** argv)
             }
             std::fclose(f);
             std::remove(probe.c_str());
+        }
+        if (!lock_output_directory(out_dir, command == "restart" ? "restart" : "--out"))
+            return 2;
+        if (command == "restart")
+        {
+            // the checkpoint must be this directory's run's: a later run into the same directory
+            // replaced its outputs, and splicing the old state onto them would mix two runs
+            const std::string ours = checkpoint.has("run.run_id") ? checkpoint.text("run.run_id") : "";
+            const std::string theirs = rkfem::results_run_id(out_dir);
+            if (ours != theirs)
+            {
+                std::fprintf(stderr,
+                             "rkfem: restart %s: the checkpoint belongs to run %s, the results.h5 beside it to run %s; "
+                             "expected the checkpoint the run in this directory wrote (nothing was changed)\n",
+                             out_dir.c_str(), ours.empty() ? "(none recorded)" : ours.c_str(),
+                             theirs.empty() ? "(none recorded)" : theirs.c_str());
+                return 2;
+            }
         }
         if (!quiet)
         {

@@ -9,6 +9,7 @@
 // exit 2.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <hdf5.h>
@@ -283,4 +284,74 @@ TEST(Checkpoint, ASignalStopsTheRunAtAStepAndItsStateRestarts)
         EXPECT_EQ(differ, 0u);
         EXPECT_LE(again.times.size(), whole.times.size() + 1);
     }
+}
+
+// One run owns its directory: a second run (or a restart) on a directory a run is writing in is
+// refused before it touches anything (exit 2, one line naming the other process), and the first
+// run finishes with a results.h5 that opens, every frame in it.
+TEST(Checkpoint, ASecondRunOnTheSameDirectoryIsRefusedBeforeItWrites)
+{
+    const std::string deck = deck_path("column_wave.yaml");
+    const std::string sets = " --quiet --set parts.column.generator.element_size=2mm --set time.end=1.5ms "
+                             "--set time.output_interval=0.15ms";
+    const fs::path d = fs::temp_directory_path() / "rkfem_two_runs";
+    fs::remove_all(d);
+    const Result r = rkfem::test::run_shell(
+        std::string(RKFEM_EXE) + " run " + deck + " --out " + d.string() + sets + " --checkpoint-interval 0.1ms > " +
+        d.string() + ".a.log 2>&1 & p=$!; for i in $(seq 200); do [ -s " + (d / "checkpoint.h5").string() +
+        " ] && break; sleep 0.05; done; " + RKFEM_EXE + " run " + deck + " --out " + d.string() + sets +
+        " 2>&1; echo second=$?; " + RKFEM_EXE + " restart " + d.string() + " 2>&1; echo restart=$?; wait $p; echo first=$?");
+    std::printf("%s", r.output.c_str());
+    EXPECT_NE(r.output.find("second=2"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("another rkfem (pid "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("restart=2"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("rkfem: restart " + d.string() + ": another rkfem (pid "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("first=0"), std::string::npos) << r.output;
+    EXPECT_EQ(read_frames(d).times.size(), 11u);
+}
+
+// A restart refuses a checkpoint that another run wrote: run A with checkpoints, then run B
+// without into the same directory (A's checkpoint.h5 stays), then restart: exit 2, one line
+// naming both runs, and B's results.h5 and history untouched (they spliced A's state onto B's
+// mesh before, exit 0).
+TEST(Checkpoint, ARestartRefusesTheCheckpointOfAnotherRun)
+{
+    const fs::path d = fs::temp_directory_path() / "rkfem_stale_checkpoint";
+    fs::remove_all(d);
+    ASSERT_EQ(run("run " + deck_path("column_wave.yaml") + " --out " + d.string() +
+                  " --quiet --set parts.column.generator.element_size=2mm --set time.end=40us --checkpoint-interval 20us")
+                  .code,
+              0);
+    ASSERT_TRUE(fs::exists(d / "checkpoint.h5"));
+    ASSERT_EQ(run("run " + deck_path("concrete_bar_kcc.yaml") + " --out " + d.string() + " --quiet").code, 0);
+    const std::string results = slurp(d / "results.h5"), history = slurp(d / "history.csv");
+    const Result r = run("restart " + d.string() + " --until 80us");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("the checkpoint belongs to run "), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_EQ(slurp(d / "results.h5"), results);
+    EXPECT_EQ(slurp(d / "history.csv"), history);
+}
+
+// A run stopped between the renames of a rotation (--checkpoint-keep above 1) has no
+// checkpoint.h5: the newest whole checkpoint is checkpoint.new.h5 (renamed there only once
+// whole), the one before checkpoint.1.h5. `restart DIR` takes the newest there is; it answered
+// "no checkpoint" before.
+TEST(Checkpoint, ARestartFindsTheNewestWholeCheckpointOfAnInterruptedRotation)
+{
+    const fs::path d = fs::temp_directory_path() / "rkfem_rotation";
+    fs::remove_all(d);
+    ASSERT_EQ(run("run " + deck_path("column_wave.yaml") + " --out " + d.string() +
+                  " --quiet --set parts.column.generator.element_size=2mm --set time.end=40us --checkpoint-interval 10us "
+                  "--checkpoint-keep 3")
+                  .code,
+              0);
+    fs::rename(d / "checkpoint.h5", d / "checkpoint.new.h5"); // the state a kill between the renames leaves
+    const Result a = run("restart " + d.string() + " --until 50us --quiet");
+    EXPECT_EQ(a.code, 0) << a.output;
+    EXPECT_NE(slurp(d / "summary.json").find("\"end_time\": 5e-05"), std::string::npos) << slurp(d / "summary.json");
+    fs::remove(d / "checkpoint.h5");
+    fs::remove(d / "checkpoint.new.h5");
+    const Result b = run("restart " + d.string() + " --until 60us --quiet"); // checkpoint.1.h5 is left
+    EXPECT_EQ(b.code, 0) << b.output;
 }

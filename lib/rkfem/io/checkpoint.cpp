@@ -1,8 +1,12 @@
 #include "rkfem/io/checkpoint.hpp"
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <hdf5.h>
+#include <unistd.h>
 
 #include "rkfem/core/error.hpp"
 
@@ -68,10 +72,31 @@ void write_checkpoint(const std::string& path, const StateArchive& archive)
                 throw Error("cannot write checkpoint " + tmp + " (disk full?)");
             }
         });
+    // the file's bytes on the disk before its name says it is whole
+    if (const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC); fd >= 0)
+    {
+        const int rc = ::fsync(fd);
+        ::close(fd);
+        if (rc != 0)
+        {
+            std::remove(tmp.c_str());
+            throw Error("cannot write checkpoint " + tmp + " (fsync: " + std::strerror(errno) + ")");
+        }
+    }
     std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
     if (ec)
         throw Error("cannot rename " + tmp + " to " + path + ": " + ec.message());
+    sync_directory(std::filesystem::path(path).parent_path().string());
+}
+
+void sync_directory(const std::string& dir)
+{
+    if (const int fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); fd >= 0)
+    {
+        ::fsync(fd);
+        ::close(fd);
+    }
 }
 
 StateArchive read_checkpoint(const std::string& path)

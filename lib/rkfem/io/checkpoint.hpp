@@ -19,4 +19,8 @@ void write_checkpoint(const std::string& path, const StateArchive& archive);
 /// Reads a checkpoint written by write_checkpoint. Throws Error naming the file when it cannot be
 /// opened, is not a checkpoint, or has another format.
 StateArchive read_checkpoint(const std::string& path);
+/// fsync of a directory (after renames in it), so that they survive a crash of the machine;
+/// errors are ignored (a file system without it).
+void sync_directory(const std::string& dir);
+
 } // namespace rkfem

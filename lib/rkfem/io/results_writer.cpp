@@ -33,6 +33,55 @@ ResultsWriter::ResultsWriter(const std::string& directory, const OutputSpec& sto
         throw Error("cannot create " + path);
 }
 
+void ResultsWriter::write_run_id(const std::string& run_id) const
+{
+    const hid_t f = static_cast<hid_t>(file_);
+    const hid_t type = H5Tcopy(H5T_C_S1);
+    H5Tset_size(type, run_id.size() + 1);
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t a = H5Acreate2(f, "run_id", type, space, H5P_DEFAULT, H5P_DEFAULT);
+    const herr_t w = a >= 0 ? H5Awrite(a, type, run_id.c_str()) : -1;
+    if (a >= 0)
+        H5Aclose(a);
+    H5Sclose(space);
+    H5Tclose(type);
+    if (w < 0)
+        throw Error("cannot write the run id into " + dir_ + "/results.h5");
+}
+
+std::string results_run_id(const std::string& directory)
+{
+    const std::string path = directory + "/results.h5";
+    if (!std::filesystem::is_regular_file(path))
+        return "";
+    H5E_auto2_t func = nullptr;
+    void* data = nullptr;
+    H5Eget_auto2(H5E_DEFAULT, &func, &data);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    std::string id;
+    const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (f >= 0)
+    {
+        if (H5Aexists(f, "run_id") > 0)
+        {
+            const hid_t a = H5Aopen(f, "run_id", H5P_DEFAULT);
+            const hid_t type = H5Aget_type(a);
+            const std::size_t n = H5Tget_size(type);
+            std::string buf(n, '\0');
+            const hid_t mem = H5Tcopy(H5T_C_S1);
+            H5Tset_size(mem, n);
+            if (H5Aread(a, mem, buf.data()) >= 0)
+                id = buf.c_str();
+            H5Tclose(mem);
+            H5Tclose(type);
+            H5Aclose(a);
+        }
+        H5Fclose(f);
+    }
+    H5Eset_auto2(H5E_DEFAULT, func, data);
+    return id;
+}
+
 ResultsWriter::ResultsWriter(const std::string& directory, const OutputSpec& storage, const StateArchive& a)
     : dir_(directory), storage_(storage)
 {

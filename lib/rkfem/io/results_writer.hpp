@@ -27,6 +27,9 @@ namespace rkfem
 class Model;
 class StateArchive;
 
+/// The run_id attribute of DIR/results.h5 ("" without one, or without a readable file).
+std::string results_run_id(const std::string& directory);
+
 class ResultsWriter
 {
   public:
@@ -42,6 +45,9 @@ class ResultsWriter
     ResultsWriter& operator=(const ResultsWriter&) = delete;
 
     void write_mesh(const Model& model);
+    /// Marks results.h5 with the run that writes it (root attribute run_id), which checkpoints
+    /// carry too: a restart refuses a checkpoint of another run (results_run_id).
+    void write_run_id(const std::string& run_id) const;
     void write_step(const Model& model, real_t time);
     /// Time history table (same content as history.csv).
     void write_history(const std::vector<std::string>& columns, const std::vector<real_t>& rows);

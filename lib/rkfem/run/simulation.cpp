@@ -10,6 +10,7 @@
 #include <iomanip>
 #include <limits>
 #include <map>
+#include <random>
 #include <sstream>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -224,6 +225,24 @@ std::string checkpoint_path(const std::string& dir, int k)
     return dir + (k == 0 ? "/checkpoint.h5" : "/checkpoint." + std::to_string(k) + ".h5");
 }
 
+std::string new_run_id()
+{
+    std::random_device rd;
+    const std::uint64_t v = (static_cast<std::uint64_t>(rd()) << 32) ^ rd() ^
+                            static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+    char b[17];
+    std::snprintf(b, sizeof b, "%016llx", static_cast<unsigned long long>(v));
+    return b;
+}
+
+std::string newest_checkpoint(const std::string& dir)
+{
+    for (const std::string& p : {dir + "/checkpoint.new.h5", checkpoint_path(dir), checkpoint_path(dir, 1)})
+        if (std::filesystem::is_regular_file(p))
+            return p;
+    return checkpoint_path(dir);
+}
+
 RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserver& observer)
 {
     const TimeSpec& ts = model.deck().time;
@@ -247,6 +266,11 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         RKFEM_REQUIRE(!opt.out_dir.empty(), "a restart continues a run's directory: out_dir is empty");
         resume->get("run.history", sum.history);
     }
+    // the run's id: a restart continues its checkpoint's run (one from before ids: none)
+    sum.run_id = !opt.run_id.empty()                             ? opt.run_id
+                 : resume && resume->has("run.run_id")           ? resume->text("run.run_id")
+                 : resume                                        ? std::string()
+                                                                 : new_run_id();
     std::unique_ptr<ResultsWriter> writer;
     std::ofstream csv;
     if (!opt.out_dir.empty())
@@ -258,6 +282,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                 else
                 {
                     writer = std::make_unique<ResultsWriter>(opt.out_dir, model.deck().output);
+                    writer->write_run_id(sum.run_id);
                     writer->write_mesh(model);
                 }
                 csv.open(opt.out_dir + "/history.csv");
@@ -326,6 +351,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     auto write_checkpoint_now = [&]
     {
         StateArchive a;
+        a.put_text("run.run_id", sum.run_id);
         a.put_text("run.deck_text", opt.deck_text);
         a.put_text("run.deck_path", opt.deck_path);
         std::string overrides;
@@ -361,6 +387,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         std::filesystem::rename(fresh, checkpoint_path(opt.out_dir), ec);
         if (ec)
             throw Error("cannot rename " + fresh + " to " + checkpoint_path(opt.out_dir) + ": " + ec.message());
+        sync_directory(opt.out_dir); // the renames reach the disk
     };
     bool in_step = false; // a step is under way: a failure in it leaves t and step at the last good one
     // the team size per step (run/thread_governor.hpp); the OpenMP default again after the loop

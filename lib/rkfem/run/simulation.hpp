@@ -35,6 +35,9 @@ struct RunOptions
     /// its state (Model::load_state); the loop, the output cursors, results.h5 and the history
     /// go on from where it was written.
     const StateArchive* resume = nullptr;
+    /// The run's id, in results.h5, every checkpoint and summary.json ("": a new random one; a
+    /// restart keeps its checkpoint's).
+    std::string run_id;
     /// Choose the team size between steps from the steps' wall times (run/thread_governor.hpp):
     /// on a busy machine, or with a part too small for its threads, a run falls back to one
     /// thread; off (or environment RKFEM_ADAPTIVE_THREADS=0): every step on the OpenMP default.
@@ -43,13 +46,22 @@ struct RunOptions
     ThreadGovernor::Options thread_governor;
 };
 
+/// A new run id: 16 hexadecimal digits from the system's random source.
+std::string new_run_id();
+
 /// The file of checkpoint k in a run's directory (0: the newest, checkpoint.h5).
 std::string checkpoint_path(const std::string& dir, int k = 0);
+
+/// The newest whole checkpoint in a run's directory, for `restart DIR`: checkpoint.new.h5 where
+/// a run was stopped while rotating (it is renamed there only once whole, and is newer than
+/// checkpoint.h5), else checkpoint.h5, else checkpoint.1.h5; checkpoint.h5 when none exists.
+std::string newest_checkpoint(const std::string& dir);
 
 struct RunSummary
 {
     std::string status = "completed"; ///< completed | unstable | interrupted (SIGINT / SIGTERM: the state at the step it arrived in written)
     std::string message;
+    std::string run_id;
     std::int64_t steps = 0;
     real_t end_time = 0.0;
     real_t failed_time = -1.0;   ///< unstable runs: the time of the state written as the last frame (-1: none)

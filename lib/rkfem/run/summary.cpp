@@ -131,6 +131,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"deck_hash\": " << quote(resolved_deck_hash(model.deck())) << ",\n";
     o << "  \"build\": " << quote(solver_build_id()) << ",\n";
     o << "  \"status\": " << quote(s.status) << ",\n";
+    o << "  \"run_id\": " << quote(s.run_id) << ",\n";
     o << "  \"message\": " << quote(s.message) << ",\n";
     o << "  \"setup_notes\": [";
     for (std::size_t i = 0; i < model.setup_notes.size(); ++i)
