@@ -170,6 +170,26 @@ TEST(Generators, TubeHasThePolygonalAnnulusVolumeAndNamedFaces)
         }
 }
 
+// A thin tube (R 10 mm, Ri 9.5 mm, 5 mm elements: the outer faces' chord centroids lie at
+// R cos(pi / 12) = 9.66 mm, inside the mid-radius 9.75 mm): the faces are named by their own
+// outward normal, so the outer surface is 'side' and the bore 'inner', nt x nz faces each; by
+// the centroid's radius the outer surface was named 'inner' too and a bore pressure pushed the
+// whole tube in.
+TEST(Generators, ThinTubeFacesAreNamedByTheirNormal)
+{
+    const real_t R = 0.010, Ri = 0.0095, H = 0.010, h = 0.005;
+    const HexMesh m = generate_tube(Vec3(0.1, -0.2, 0), R, Ri, H, h);
+    const int nt = 12, nz = 2; // max(8, 4 round(pi (R + Ri) / 4 / h)) = 4 x 3
+    ASSERT_EQ(m.named_faces.count("side"), 1u);
+    EXPECT_EQ(m.named_faces.at("side").size(), static_cast<std::size_t>(nt * nz));
+    EXPECT_EQ(m.named_faces.at("inner").size(), static_cast<std::size_t>(nt * nz));
+    for (const char* name : {"side", "inner"})
+        for (index_t f : m.named_faces.at(name))
+            for (index_t k : m.faces[f])
+                EXPECT_NEAR(std::hypot(m.x[3 * k] - 0.1, m.x[3 * k + 1] + 0.2), std::string(name) == "side" ? R : Ri, 1e-12)
+                    << name;
+}
+
 TEST(Generators, ProjectileNamesNoseAndTail)
 {
     GeneratorSpec g;

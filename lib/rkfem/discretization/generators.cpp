@@ -297,7 +297,9 @@ HexMesh generate_tube(const Vec3& origin, real_t R, real_t Ri, real_t height, re
             }
     m.faces = extract_boundary_faces(m.conn);
     name_faces_by_normal(m, {{"top", Vec3::UnitZ()}, {"bottom", -Vec3::UnitZ()}}, "");
-    const real_t mid = 0.5 * (R + Ri);
+    // the curved faces by their own outward normal: away from the axis on the outer surface,
+    // towards it on the bore (a centroid's radius cannot tell them apart on a thin tube: a
+    // chord's centroid falls inside the mid-radius once the wall is thinner than the sagitta)
     for (index_t f = 0; f < static_cast<index_t>(m.faces.size()); ++f)
     {
         Vec3 c = Vec3::Zero();
@@ -307,7 +309,8 @@ HexMesh generate_tube(const Vec3& origin, real_t R, real_t Ri, real_t height, re
         const Vec3 n = quad_normal(m.x, m.faces[f]).normalized();
         if (std::abs(n[2]) > 0.999)
             continue;
-        m.named_faces[std::hypot(c[0] - origin[0], c[1] - origin[1]) > mid ? "side" : "inner"].push_back(f);
+        const real_t radial = n[0] * (c[0] - origin[0]) + n[1] * (c[1] - origin[1]);
+        m.named_faces[radial > 0 ? "side" : "inner"].push_back(f);
     }
     return m;
 }
