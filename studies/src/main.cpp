@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 #include <fcntl.h>
+#include <hdf5.h>
 #include <sys/file.h>
 #include <unistd.h>
 
@@ -28,6 +29,7 @@
 #include "rkfem/config/deck.hpp"
 #include "rkfem/core/allocator_tuning.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/file_output.hpp"
 #include "rkfem/core/interrupt.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/units.hpp"
@@ -158,6 +160,11 @@ bool lock_output_directory(const std::string& dir, const char* what)
 int main(int argc, char** argv)
 {
     rkfem::tune_allocator(argv); // glibc's malloc for the set-up's rows (re-executes once; core/allocator_tuning.hpp)
+    // HDF5: every call's result is checked and reported on one line, so its own error stack is not
+    // printed; and no clean-up at exit, where a file whose last flush failed (a full disk) made
+    // HDF5's library termination crash (every file is closed by its owner before exit)
+    H5dont_atexit();
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
     for (int i = 1; i < argc; ++i)
         if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h")
             return help(i > 1 ? argv[1] : "");
@@ -281,7 +288,7 @@ int main(int argc, char** argv)
         }
         rkfem::install_interrupt_handlers();
         int incomplete = 0;
-        bool taken = false; // another process is writing in out_dir
+        bool taken = false; // out_dir refused: another process writes in it, or an output is in the way
         const int rc = run_guarded(
             [&]
             {
@@ -296,6 +303,17 @@ int main(int argc, char** argv)
                     taken = true;
                     return;
                 }
+                for (const char* name : {"table.csv", "table.md", "study.h5"})
+                    try
+                    {
+                        rkfem::require_writable_file_path(out_dir + "/" + name);
+                    }
+                    catch (const rkfem::Error& e)
+                    {
+                        std::fprintf(stderr, "rkfem: study --out %s: %s\n", out_dir.c_str(), e.what());
+                        taken = true;
+                        return;
+                    }
                 for (const auto& r : rkfem::run_study(st, out_dir, !quiet))
                     incomplete += r.status != "completed" && r.status != "reused";
                 if (!quiet)
@@ -430,6 +448,17 @@ int main(int argc, char** argv)
         }
         if (!lock_output_directory(out_dir, command == "restart" ? "restart" : "--out"))
             return 2;
+        // every output a run writes must be writable where it goes, before the run starts
+        for (const char* name : {"results.h5", "results.xdmf", "history.csv", "summary.json"})
+            try
+            {
+                rkfem::require_writable_file_path(out_dir + "/" + name);
+            }
+            catch (const rkfem::Error& e)
+            {
+                std::fprintf(stderr, "rkfem: --out %s: %s\n", out_dir.c_str(), e.what());
+                return 2;
+            }
         if (command == "restart")
         {
             // the checkpoint must be this directory's run's: a later run into the same directory

@@ -38,9 +38,11 @@ void write_dataset_as(hid_t loc, const char* name, const T* data, hsize_t rows, 
         H5Sclose(space);
         throw Error(std::string("HDF5: cannot create dataset ") + name);
     }
-    H5Dwrite(set, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+    const herr_t written = H5Dwrite(set, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
     H5Dclose(set);
     H5Sclose(space);
+    if (written < 0)
+        throw Error(std::string("HDF5: cannot write dataset ") + name + " (disk full?)");
 }
 
 inline void write_dataset(hid_t loc, const char* name, const real_t* data, hsize_t rows, hsize_t cols = 1)

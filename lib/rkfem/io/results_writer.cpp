@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/file_output.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/model/model.hpp"
@@ -141,7 +142,7 @@ ResultsWriter::ResultsWriter(const std::string& directory, const OutputSpec& sto
         throw Error("cannot continue " + path + ": missing, damaged, or without the " + std::to_string(times_.size()) +
                     " frame(s) the checkpoint lists");
     }
-    H5Fflush(f, H5F_SCOPE_GLOBAL);
+    flush();
     write_xdmf();
 }
 
@@ -226,10 +227,25 @@ void ResultsWriter::write_mesh(const Model& model)
         H5Gclose(s);
     }
     meshes_.push_back(std::move(mesh));
-    H5Fflush(f, H5F_SCOPE_GLOBAL);
+    flush();
 }
 
 void ResultsWriter::write_step(const Model& model, real_t time)
+{
+    try
+    {
+        write_frame(model, time);
+    }
+    catch (const Error& e)
+    {
+        std::ostringstream os;
+        os << "cannot write the frame at t = " << time << " s into " << dir_ << "/results.h5: " << e.what() << "; "
+           << "results.xdmf indexes the " << indexed_ << " frame(s) before it";
+        throw Error(os.str());
+    }
+}
+
+void ResultsWriter::write_frame(const Model& model, real_t time)
 {
     const hid_t f = static_cast<hid_t>(file_);
     if (meshes_.empty() || meshes_.back().version != model.topology_version())
@@ -311,7 +327,7 @@ void ResultsWriter::write_step(const Model& model, real_t time)
     write_field(g, "kcc_scaled_damage", delta.data(), n_cells, 1);
     write_field(g, "zone", zone.data(), n_cells, 1); // 0 FE, 1 transition, 2 RK
     H5Gclose(g);
-    H5Fflush(f, H5F_SCOPE_GLOBAL);
+    flush(); // a failure leaves times_ and results.xdmf at the frames before
     times_.push_back(time);
     step_mesh_.push_back(static_cast<int>(meshes_.size()) - 1);
     write_xdmf();
@@ -334,15 +350,20 @@ void ResultsWriter::write_history(const std::vector<std::string>& columns,
         write_dataset(g, columns[c].c_str(), col.data(), nr, 1);
     }
     H5Gclose(g);
-    H5Fflush(f, H5F_SCOPE_GLOBAL);
+    flush();
+}
+
+void ResultsWriter::flush() const
+{
+    if (H5Fflush(static_cast<hid_t>(file_), H5F_SCOPE_GLOBAL) < 0)
+        throw Error("cannot write " + dir_ + "/results.h5 (disk full?)");
 }
 
 void ResultsWriter::write_xdmf() const
 {
     const std::string path = dir_ + "/results.xdmf";
-    const std::string tmp = path + ".tmp";
     {
-        std::ofstream x(tmp);
+        std::ostringstream x; // written whole (write_file_whole): a failure keeps the last index
         x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n<Domain>\n"
           << "<Grid Name=\"rkfem\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
         x << std::setprecision(17);
@@ -388,7 +409,8 @@ void ResultsWriter::write_xdmf() const
             x << " </Grid>\n";
         }
         x << "</Grid>\n</Domain>\n</Xdmf>\n";
+        write_file_whole(path, x.str());
+        indexed_ = times_.size();
     }
-    std::filesystem::rename(tmp, path);
 }
 } // namespace rkfem

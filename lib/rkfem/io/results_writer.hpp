@@ -57,6 +57,10 @@ class ResultsWriter
 
   private:
     void write_xdmf() const;
+    void write_frame(const Model& model, real_t time); ///< write_step's work
+    mutable std::size_t indexed_ = 0; ///< frames results.xdmf indexes (its last whole write)
+    /// H5Fflush, throwing rkfem::Error naming results.h5 when it fails (a full disk).
+    void flush() const;
     /// A field dataset (rows x cols) at the deck's precision and compression.
     void write_field(long long group, const char* name, const real_t* data, long long rows, long long cols) const;
     std::string dir_;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -286,6 +287,8 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                     writer->write_mesh(model);
                 }
                 csv.open(opt.out_dir + "/history.csv");
+                if (!csv)
+                    throw Error("cannot write " + opt.out_dir + "/history.csv (" + std::strerror(errno) + ")");
                 for (std::size_t i = 0; i < sum.history_columns.size(); ++i)
                     csv << (i ? "," : "") << sum.history_columns[i];
                 csv << "\n" << std::setprecision(12);
@@ -613,6 +616,12 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     {
         sum.has_impact = true;
         sum.impact = impact->measure(model);
+    }
+    if (csv.is_open())
+    {
+        csv.flush();
+        if (!csv)
+            throw Error("cannot write " + opt.out_dir + "/history.csv (disk full?); results.h5 holds the history too");
     }
     if (writer)
     {

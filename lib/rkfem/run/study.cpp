@@ -15,6 +15,7 @@
 
 #include "rkfem/config/deck_section.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/file_output.hpp"
 #include "rkfem/core/interrupt.hpp"
 #include "rkfem/core/units.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
@@ -267,7 +268,7 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
 {
     // table.csv: one row per case and metric (long form, for notebooks)
     {
-        std::ofstream csv(out / "table.csv");
+        std::ostringstream csv; // written whole (write_file_whole)
         csv << "case,metric,unit,ours,published,rel_diff,source,status\n";
         for (std::size_t c = 0; c < results.size(); ++c)
             for (std::size_t k = 0; k < st.metrics.size(); ++k)
@@ -282,6 +283,7 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                     << csv_field(it == st.cases[c].published.end() ? "" : it->second.source) << ","
                     << results[c].status << "\n";
             }
+        write_file_whole((out / "table.csv").string(), csv.str());
     }
     // table.md: a cell "ours (published[n], diff)" per case and metric; cases as rows (or, with
     // table_rows: metrics, metrics as rows, the layout of the seed's Table 2)
@@ -312,7 +314,7 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                 cells[c][k] = cell;
             }
         auto metric_label = [&](const StudyMetric& m) { return m.name + (m.unit.empty() ? "" : " [" + m.unit + "]"); };
-        std::ofstream md(out / "table.md");
+        std::ostringstream md; // written whole (write_file_whole)
         md << "# " << one_line(st.title) << "\n\n";
         md << "Each cell: ours (published, relative difference). Study file: `" << st.path << "`.\n\n";
         if (!st.rows_are_metrics)
@@ -367,6 +369,7 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                 any_failed = true;
                 md << "- " << r.name << " (" << r.status << "): " << one_line(r.message) << "\n";
             }
+        write_file_whole((out / "table.md").string(), md.str());
     }
     // study.h5: metric names and units, per case its values, published values and its history
     const std::string h5 = (out / "study.h5").string();

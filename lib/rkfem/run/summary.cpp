@@ -10,6 +10,7 @@
 #include <sstream>
 #include <vector>
 
+#include "rkfem/core/file_output.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/run/simulation.hpp"
 
@@ -118,7 +119,7 @@ const std::string& solver_build_id()
 void write_summary_json(const std::string& path, const Model& model, const RunOptions& opt,
                         const RunSummary& s)
 {
-    std::ofstream o(path);
+    std::ostringstream o; // written whole at the end (write_file_whole)
     const Energies& e = s.energy;
     o << "{\n";
     o << "  \"deck\": " << quote(opt.deck_path) << ",\n";
@@ -217,5 +218,6 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     }
     o << (probes.empty() ? "}\n" : "\n  }\n");
     o << "}\n";
+    write_file_whole(path, o.str());
 }
 } // namespace rkfem
