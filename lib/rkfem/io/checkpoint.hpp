@@ -11,7 +11,7 @@
 namespace rkfem
 {
 /// The format written and the only one read.
-inline constexpr int kCheckpointFormat = 1;
+inline constexpr int kCheckpointFormat = 2; ///< 2: every entry with a Fletcher-32 checksum (1 still read)
 
 /// Writes `archive` to `path` (through path + ".tmp" and a rename). Throws Error.
 void write_checkpoint(const std::string& path, const StateArchive& archive);
