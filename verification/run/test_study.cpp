@@ -172,6 +172,29 @@ TEST(Study, ACaseRunByAnotherBuildRunsAgain)
     EXPECT_NE(r3.output.find("[2/2] b: reused"), std::string::npos) << r3.output;
 }
 
+// A case whose history.csv was cut short or deleted (its summary.json intact) runs again: its
+// metrics came from the rows left (a peak of 0 against the run's, marked reused), and a
+// deleted history marked the case failed without running it.
+TEST(Study, ACaseWhoseHistoryIsNotWholeRunsAgain)
+{
+    const fs::path d = scratch("history");
+    const std::string study = write(d / "study.yaml", column_study("1 mm", "1 mm", false));
+    ASSERT_EQ(run("study " + study + " --out " + (d / "out").string() + " --quiet").code, 0);
+    const double steps = table_value(d / "out", "a", "steps");
+    const fs::path h = d / "out/cases/a/history.csv";
+    fs::resize_file(h, fs::file_size(h) / 2);
+    const auto r1 = run("study " + study + " --out " + (d / "out").string());
+    ASSERT_EQ(r1.code, 0) << r1.output;
+    EXPECT_NE(r1.output.find("[1/2] a: running"), std::string::npos) << r1.output;
+    EXPECT_NE(r1.output.find("[2/2] b: reused"), std::string::npos) << r1.output;
+    EXPECT_EQ(table_value(d / "out", "a", "steps"), steps);
+    fs::remove(h);
+    const auto r2 = run("study " + study + " --out " + (d / "out").string());
+    ASSERT_EQ(r2.code, 0) << r2.output;
+    EXPECT_NE(r2.output.find("[1/2] a: running"), std::string::npos) << r2.output;
+    EXPECT_TRUE(fs::exists(h));
+}
+
 TEST(Study, OnlyRunsAndTabulatesTheNamedCases)
 {
     const fs::path d = scratch("only");

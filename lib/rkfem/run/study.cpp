@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <iterator>
 #include <limits>
 #include <sstream>
 
@@ -262,6 +263,17 @@ void write_strings(hid_t loc, const char* name, const std::vector<std::string>& 
     }
     H5Sclose(space);
     H5Tclose(type);
+}
+
+/// The data rows of a history.csv (whole lines after the header), -1 without the file.
+long long history_csv_rows(const fs::path& p)
+{
+    std::ifstream in(p, std::ios::binary);
+    if (!in)
+        return -1;
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    const long long lines = static_cast<long long>(std::count(text.begin(), text.end(), '\n'));
+    return lines - 1; // the header; a row cut short has no newline and does not count
 }
 
 void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results, const fs::path& out)
@@ -727,6 +739,10 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
                     reuse = old["deck_hash"] && old["deck_hash"].as<std::string>() == hash && old["status"] &&
                             old["status"].as<std::string>() == "completed" && !solver_build_id().empty() &&
                             old["build"] && old["build"].as<std::string>() == solver_build_id();
+                    // and its history whole: as many rows as the run wrote (a truncated or deleted
+                    // history.csv runs the case again; its metrics came from what was left)
+                    reuse = reuse && old["history_rows"] &&
+                            history_csv_rows(dir / "history.csv") == old["history_rows"].as<long long>();
                 }
                 catch (const YAML::Exception&)
                 {

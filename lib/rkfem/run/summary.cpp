@@ -146,6 +146,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"thread_switches\": " << s.thread_switches << ",\n";
     o << "  \"steps_on_one_thread\": " << s.steps_on_one_thread << ",\n";
     o << "  \"steps\": " << s.steps << ",\n";
+    o << "  \"history_rows\": " << (s.history_columns.empty() ? 0 : s.history.size() / s.history_columns.size())
+      << ",\n";
     o << "  \"end_time\": " << num(s.end_time) << ",\n";
     if (s.failed_time >= 0.0)
         o << "  \"failed_time\": " << num(s.failed_time) << ",\n";
