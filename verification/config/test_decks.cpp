@@ -737,6 +737,54 @@ TEST(Decks, TinyOutputIntervalsWriteEveryStepAndEnd)
                     ":4: time.dt_max", "is negative");
 }
 
+// A run bounded by time.max_steps with an end time of 1e30 s keeps its output and history
+// intervals: the same frames and rows as the same steps with an end of 1 ms (the schedule's
+// tolerance was 1e-12 of the end time, 1e18 s: frames at the start and the last step only, a row
+// every step)
+TEST(Decks, AHugeEndTimeBoundedByMaxStepsKeepsTheIntervals)
+{
+    auto counts = [&](const std::string& end)
+    {
+        const fs::path out = fs::temp_directory_path() / ("rkfem_out_end_" + end);
+        fs::remove_all(out);
+        const Result r = run("run " + write_deck("huge_end.yaml", good) + " --out " + out.string() +
+                             " --quiet --set time.end=" + end +
+                             " --set time.max_steps=45 --set time.output_interval=0.2us --set time.history_interval=0.2us");
+        EXPECT_EQ(r.code, 0) << r.output;
+        std::ifstream in(out / "history.csv");
+        const std::string h((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        std::ifstream sj(out / "summary.json");
+        const std::string summary((std::istreambuf_iterator<char>(sj)), std::istreambuf_iterator<char>());
+        std::smatch outputs;
+        EXPECT_TRUE(std::regex_search(summary, outputs, std::regex("\"outputs\": ([0-9]+)")));
+        return std::make_pair(std::stoi(outputs[1]), std::count(h.begin(), h.end(), '\n'));
+    };
+    const auto huge = counts("1e30"), small = counts("1e-3");
+    std::printf("end 1e30 s: %d frames, %ld lines; end 1 ms: %d frames, %ld lines\n", huge.first,
+                static_cast<long>(huge.second), small.first, static_cast<long>(small.second));
+    EXPECT_EQ(huge, small);
+    EXPECT_GT(small.first, 3);
+    EXPECT_LT(small.second, 40); // not a row every step
+}
+
+// A run whose stable step collapses stops as unstable (exit 3, one line) once the step falls
+// below time.dt_min_fraction of the first (default 1e-5): the small column of single 1-point hexes
+// buckles through its zero-energy bending modes under its 400 MPa wave by 2.5 us; with the energy
+// check loosened, its step fell to 1e-13 s and the run went on for good (minutes of steps to move
+// a picosecond)
+TEST(Decks, ACollapsingTimeStepStopsTheRun)
+{
+    const std::string deck = write_deck("collapse.yaml", replace(good, "  end: 1 us\n", "  end: 5 us\n  energy_error_limit: 100\n"));
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_collapse";
+    fs::remove_all(out);
+    const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
+    EXPECT_EQ(r.code, 3) << r.output;
+    EXPECT_NE(r.output.find("below time.dt_min_fraction 1e-05 of the first step"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    expect_rejected("dt_min_fraction.yaml", replace(good, "  end: 1 us\n", "  end: 1 us\n  dt_min_fraction: 1\n"),
+                    ":4: time.dt_min_fraction", "expected 0 <= dt_min_fraction < 1");
+}
+
 TEST(Decks, QuantitiesMustBeFiniteAndDecksOneDocument)
 {
     // a value that overflows to infinity through its unit, and a second YAML document, were

@@ -362,6 +362,9 @@ struct TimeSpec
     StepperKind stepper = StepperKind::ArkodeCd; ///< the default: within a few % of the hand loop
     std::string erk_table = "ARKODE_BOGACKI_SHAMPINE_4_2_3"; ///< arkode-erk: built-in name, RK4 or SSPRK3
     real_t energy_error_limit = 0.05; ///< stop when the balance error exceeds this (fraction)
+    /// stop (as unstable) when the step falls below this fraction of the first step (0: no floor;
+    /// LS-DYNA's DTMIN of *CONTROL_TERMINATION)
+    real_t dt_min_fraction = 1e-5;
     real_t mass_damping = 0.0; ///< dynamic-relaxation damping coefficient [1/s] (a -= c v)
 };
 

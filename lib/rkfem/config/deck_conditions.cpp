@@ -252,7 +252,7 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
                         "expected a mapping with at least end: (e.g. end: 26 us)");
     Section s(ctx, root["time"], "time",
               {"end", "output_interval", "history_interval", "dt_scale", "dt_max", "max_steps",
-               "stepper", "erk_table", "energy_error_limit", "mass_damping"});
+               "stepper", "erk_table", "energy_error_limit", "dt_min_fraction", "mass_damping"});
     TimeSpec t;
     t.end = s.positive("end", dim::time);
     t.output_interval = s.quantity("output_interval", dim::time, 0.0);
@@ -282,6 +282,9 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
     t.energy_error_limit = s.quantity("energy_error_limit", dim::none, 0.05);
     if (!(t.energy_error_limit > 0))
         s.fail("energy_error_limit", "must be positive", "expected a fraction > 0 (e.g. 0.05)");
+    t.dt_min_fraction = s.quantity("dt_min_fraction", dim::none, 1e-5);
+    if (!(t.dt_min_fraction >= 0 && t.dt_min_fraction < 1))
+        s.fail("dt_min_fraction", "is out of range", "expected 0 <= dt_min_fraction < 1 (0: no floor; default 1e-5)");
     t.mass_damping = s.quantity("mass_damping", Dimension{0, 0, -1}, 0.0);
     if (t.mass_damping < 0)
         s.fail("mass_damping", "is negative", "expected a rate >= 0 (1/s)");

@@ -163,7 +163,7 @@ std::string to_yaml(const Deck& d)
            : d.time.stepper == StepperKind::ArkodeErk ? "arkode-erk"
                                                       : "central-difference")
        << (d.time.stepper == StepperKind::ArkodeErk ? ", erk_table: " + d.time.erk_table : std::string())
-       << ", energy_error_limit: " << d.time.energy_error_limit
+       << ", energy_error_limit: " << d.time.energy_error_limit << ", dt_min_fraction: " << d.time.dt_min_fraction
        << ", mass_damping: " << d.time.mass_damping << "}\n";
     os << "output: {precision: " << (d.output.single ? "single" : "double") << ", compression: " << d.output.compression
        << "}\n";

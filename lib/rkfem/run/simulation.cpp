@@ -226,6 +226,16 @@ std::string checkpoint_path(const std::string& dir, int k)
     return dir + (k == 0 ? "/checkpoint.h5" : "/checkpoint." + std::to_string(k) + ".h5");
 }
 
+namespace
+{
+/// How far below a scheduled time (a frame, a history row, a checkpoint) a step's end may fall and
+/// still be at it: the round-off the summed steps carry, relative to the time itself (relative to
+/// time.end, a run whose end was 1e30 s, bounded by max_steps, wrote every step's row and no frame
+/// between the first and the last).
+constexpr real_t kScheduleSlack = 1e-12;
+constexpr real_t kHistorySlack = 1e-15;
+} // namespace
+
 std::string new_run_id()
 {
     std::random_device rd;
@@ -429,10 +439,10 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         start_seconds = elapsed() - sum.output_seconds;
         auto observe = [&](bool final_step)
         {
-            const bool output_now = (writer && t >= next_output - 1e-12 * ts.end) || final_step || step == 0;
+            const bool output_now = (writer && t >= next_output - kScheduleSlack * t) || final_step || step == 0;
             if (impact && output_now)
                 actual_depth = impact->actual_depth(model); // a pass over the target: at outputs only
-            if (t >= next_history - 1e-15 * ts.end || final_step)
+            if (t >= next_history - kHistorySlack * t || final_step)
                 output_clock(
                     [&]
                     {
@@ -442,13 +452,13 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                         if (ts.history_interval > 0)
                             advance_past(next_history, t, ts.history_interval);
                     });
-            if (writer && (t >= next_output - 1e-12 * ts.end || final_step))
+            if (writer && (t >= next_output - kScheduleSlack * t || final_step))
                 output_clock(
                     [&]
                     {
                         writer->write_step(model, t);
                         if (ts.output_interval > 0)
-                            advance_past(next_output, t + 1e-12 * ts.end, ts.output_interval);
+                            advance_past(next_output, t + kScheduleSlack * t, ts.output_interval);
                         else
                             next_output = 2 * ts.end + 1; // start and end only
                         if (csv.is_open())
@@ -481,6 +491,16 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             if (!(dt > 0) || !std::isfinite(dt))
                 throw InstabilityError("time step collapsed to " + std::to_string(dt) + " s at t = " +
                                        std::to_string(t) + " s, step " + std::to_string(step));
+            if (step > 0 && ts.dt_min_fraction > 0 && dt_stable * ts.dt_scale < ts.dt_min_fraction * sum.dt_first)
+            {
+                // a collapsing stable step (crushed elements, a run gone unstable past the energy
+                // check) would take ever more steps and never end (the stable step, not the step
+                // taken: the last step is cut short to land on the end time)
+                std::ostringstream os;
+                os << "time step fell to " << dt_stable * ts.dt_scale << " s, below time.dt_min_fraction " << ts.dt_min_fraction
+                   << " of the first step (" << sum.dt_first << " s), at t = " << t << " s, step " << step;
+                throw InstabilityError(os.str());
+            }
             ++step;
             in_step = true;
             if (governor.active())
@@ -506,9 +526,9 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             const bool last =
                 t >= ts.end * (1 - 1e-12) || (ts.max_steps > 0 && step >= ts.max_steps) || stop_signal != 0;
             const bool check_due =
-                !defer_motion || step % kBalanceEvery == 0 || last || t >= next_history - 1e-15 * ts.end ||
-                (writer && t >= next_output - 1e-12 * ts.end) ||
-                (checkpointing && t >= next_checkpoint - 1e-12 * ts.end);
+                !defer_motion || step % kBalanceEvery == 0 || last || t >= next_history - kHistorySlack * t ||
+                (writer && t >= next_output - kScheduleSlack * t) ||
+                (checkpointing && t >= next_checkpoint - kScheduleSlack * t);
             if (check_due)
                 model.refresh_motion();
             const bool own = model.apply_events(t, step);
@@ -538,11 +558,11 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
                    << ts.energy_error_limit << " at t = " << t << " s, step " << step;
                 throw InstabilityError(os.str());
             }
-            if (checkpointing && (t >= next_checkpoint - 1e-12 * ts.end || last))
+            if (checkpointing && (t >= next_checkpoint - kScheduleSlack * t || last))
                 output_clock(
                     [&]
                     {
-                        advance_past(next_checkpoint, t + 1e-12 * ts.end, opt.checkpoint_interval);
+                        advance_past(next_checkpoint, t + kScheduleSlack * t, opt.checkpoint_interval);
                         write_checkpoint_now();
                     });
             progress.update(t, ts.end, step, dt, energy_ratio(model.energy), elapsed());
