@@ -41,6 +41,7 @@
 #include "rkfem/run/check_report.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/run/study.hpp"
+#include "rkfem/run/summary.hpp"
 
 namespace
 {
@@ -393,8 +394,34 @@ int main(int argc, char** argv)
                 2.0, tty ? 0.5 : 5.0);
         }
         const std::string deck_name = command == "restart" ? checkpoint.text("run.deck_path") : deck_path;
-        const rkfem::Deck deck = command == "restart" ? rkfem::parse_deck(deck_text, deck_name, overrides)
+        // a restart reads the deck's data files from the deck's folder as the run found it
+        // (absolute: the restart may start in another working folder)
+        const std::string deck_dir = command == "restart" ? (checkpoint.has("run.deck_dir") ? checkpoint.text("run.deck_dir") : "")
+                                                          : std::filesystem::absolute(deck_path).parent_path().string();
+        const std::string parse_name =
+            deck_dir.empty() ? deck_name : (std::filesystem::path(deck_dir) / std::filesystem::path(deck_name).filename()).string();
+        const rkfem::Deck deck = command == "restart" ? rkfem::parse_deck(deck_text, parse_name, overrides)
                                                       : rkfem::read_deck(deck_path, overrides);
+        if (command == "restart" && checkpoint.has("run.data_files"))
+        {
+            // the keyword meshes and point files must be the ones the run read
+            const std::string then = checkpoint.text("run.data_files"), now = rkfem::data_file_hashes(deck);
+            if (then != now)
+            {
+                std::istringstream a(then), b(now);
+                std::string la, lb;
+                while (std::getline(a, la) && std::getline(b, lb) && la == lb)
+                {
+                }
+                const std::string file = la.substr(0, la.find('\t'));
+                std::fprintf(stderr,
+                             "rkfem: restart %s: the data file %s is not the one the run read (its hash was %s, is "
+                             "%s); expected the file as it was\n",
+                             out_dir.c_str(), file.c_str(), la.substr(la.find('\t') + 1).c_str(),
+                             lb.empty() ? "different" : lb.substr(lb.find('\t') + 1).c_str());
+                return 2;
+            }
+        }
         rkfem::Model model = rkfem::Model::build(deck); // all validation before any output
         if (command == "restart")
         {
@@ -495,6 +522,10 @@ int main(int argc, char** argv)
         opt.checkpoint_interval = checkpoint_seconds;
         opt.checkpoint_keep = checkpoint_keep;
         opt.deck_text = deck_text;
+        opt.deck_dir = deck_dir;
+        if (checkpoint_seconds > 0)
+            opt.data_files = command == "restart" && checkpoint.has("run.data_files") ? checkpoint.text("run.data_files")
+                                                                                       : rkfem::data_file_hashes(deck);
         if (command == "restart")
         {
             opt.resume = &checkpoint;

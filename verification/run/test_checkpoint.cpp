@@ -478,3 +478,64 @@ TEST(Checkpoint, AChangedByteInACheckpointIsRefused)
         EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     }
 }
+
+// The data files a deck reads (keyword meshes, point files) are hashed into the checkpoint and
+// resolved from the deck's folder as the run found it: a restart from another working folder
+// finds them (it could not), and one whose mesh file changed since the run is refused, exit 2
+// with one line naming the file (a mesh whose coordinates moved restarted silently with other
+// results).
+TEST(Checkpoint, ARestartReadsTheDataFilesTheRunReadOrRefuses)
+{
+    const fs::path d = fs::temp_directory_path() / "rkfem_ckpt_kmesh";
+    fs::remove_all(d);
+    fs::create_directories(d / "model");
+    auto write_mesh = [&](double dz)
+    {
+        std::ofstream k(d / "model" / "mesh.k");
+        k << "*KEYWORD\n*NODE\n";
+        int id = 1;
+        for (int z = 0; z < 3; ++z)
+            for (int y = 0; y < 3; ++y)
+                for (int x = 0; x < 3; ++x)
+                    k << id++ << "," << x << "," << y << "," << z + (z == 2 ? dz : 0.0) << "\n";
+        k << "*ELEMENT_SOLID\n";
+        int e = 1;
+        auto n = [](int x, int y, int z) { return 1 + x + 3 * y + 9 * z; };
+        for (int z = 0; z < 2; ++z)
+            for (int y = 0; y < 2; ++y)
+                for (int x = 0; x < 2; ++x)
+                    k << e++ << ",1," << n(x, y, z) << "," << n(x + 1, y, z) << "," << n(x + 1, y + 1, z) << ","
+                      << n(x, y + 1, z) << "," << n(x, y, z + 1) << "," << n(x + 1, y, z + 1) << ","
+                      << n(x + 1, y + 1, z + 1) << "," << n(x, y + 1, z + 1) << "\n";
+        k << "*END\n";
+    };
+    write_mesh(0.0);
+    std::ofstream(d / "model" / "deck.yaml") << R"(title: keyword block
+time: {end: 2 us, output_interval: 0.5 us}
+parts:
+  blk:
+    generator: {type: keyword, file: mesh.k, unit: mm}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-1pt
+node_sets:
+  bot: {part: blk, select: {type: plane, point: [0, 0, 0], normal: [0, 0, 1], tolerance: 1e-6}}
+loads:
+  - {type: nodal_force, node_set: bot, force: {z: 1 kN}, total: true}
+)";
+    // run from the model's folder with a relative deck path, restart from elsewhere
+    const Result r = rkfem::test::run_shell("cd " + (d / "model").string() + " && " + RKFEM_EXE +
+                                            " run deck.yaml --out ../out --quiet --checkpoint-interval 0.5us "
+                                            "--checkpoint-keep 5 2>&1");
+    ASSERT_EQ(r.code, 0) << r.output;
+    fs::copy(d / "out", d / "out2");
+    const Result a = rkfem::test::run_shell("cd / && " + std::string(RKFEM_EXE) + " restart " + (d / "out").string() +
+                                            " --from " + (d / "out" / "checkpoint.2.h5").string() + " --quiet 2>&1");
+    EXPECT_EQ(a.code, 0) << a.output;
+    write_mesh(0.01); // the top nodes 1 % higher
+    const Result b = run("restart " + (d / "out2").string() + " --from " + (d / "out2" / "checkpoint.2.h5").string());
+    EXPECT_EQ(b.code, 2) << b.output;
+    EXPECT_NE(b.output.find("the data file " + (d / "model" / "mesh.k").string() + " is not the one the run read"),
+              std::string::npos)
+        << b.output;
+    EXPECT_EQ(std::count(b.output.begin(), b.output.end(), '\n'), 1) << b.output;
+}

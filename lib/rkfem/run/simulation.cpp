@@ -367,6 +367,8 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         a.put_text("run.run_id", sum.run_id);
         a.put_text("run.deck_text", opt.deck_text);
         a.put_text("run.deck_path", opt.deck_path);
+        a.put_text("run.deck_dir", opt.deck_dir);
+        a.put_text("run.data_files", opt.data_files);
         std::string overrides;
         for (const auto& o : opt.overrides)
             overrides += o + "\n";

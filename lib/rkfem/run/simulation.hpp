@@ -31,6 +31,10 @@ struct RunOptions
     /// Checkpoints kept: checkpoint.h5 the newest, checkpoint.1.h5 the one before, ...
     int checkpoint_keep = 1;
     std::string deck_text;
+    /// The deck's folder, absolute: a restart from another working folder resolves the data
+    /// files the deck names from it. And the data files' hashes (data_file_hashes).
+    std::string deck_dir;
+    std::string data_files;
     /// Continue from this checkpoint (restart): the model was built from its deck and has loaded
     /// its state (Model::load_state); the loop, the output cursors, results.h5 and the history
     /// go on from where it was written.

@@ -5,8 +5,10 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <iterator>
 #include <sstream>
 #include <vector>
 
@@ -93,6 +95,27 @@ std::string resolved_deck_hash(const Deck& deck)
 {
     const std::string text = to_yaml(deck);
     return hex16(fnv1a(text.data(), text.size()));
+}
+
+std::string data_file_hashes(const Deck& deck)
+{
+    std::string out;
+    for (const PartSpec& p : deck.parts)
+        for (const std::string* f : {&p.generator.mesh_file, &p.generator.points_file})
+        {
+            if (f->empty())
+                continue;
+            const std::string path = std::filesystem::absolute(*f).lexically_normal().string();
+            std::ifstream in(*f, std::ios::binary);
+            if (!in)
+            {
+                out += path + "\tmissing\n";
+                continue;
+            }
+            const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+            out += path + "\t" + hex16(fnv1a(bytes.data(), bytes.size())) + "\n";
+        }
+    return out;
 }
 
 const std::string& solver_build_id()

@@ -23,6 +23,11 @@ std::string resolved_deck_hash(const Deck& deck);
 /// without a build is never reused.
 const std::string& solver_build_id();
 
+/// The data files a deck reads (keyword meshes, point files), each as "absolute path<TAB>hash" on its own
+/// line, the hash a 16-hex-digit FNV-1a of the file's bytes ("missing" where it cannot be read).
+/// A checkpoint stores it; restart compares it with the files it finds.
+std::string data_file_hashes(const Deck& deck);
+
 void write_summary_json(const std::string& path, const Model& model, const RunOptions& options,
                         const RunSummary& summary);
 } // namespace rkfem
