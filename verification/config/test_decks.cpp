@@ -209,6 +209,9 @@ TEST(Decks, KccRateLawsRoundTripAndTheirMistakesNameTheKey)
     // omega 0 (no dilatancy) is a valid K&C input; past 1 it is not
     EXPECT_EQ(run("check " + write_deck("omega0.yaml", with("false, omega: 0"))).code, 0);
     expect_rejected("omega2.yaml", with("false, omega: 1.5"), ":7: parts.col.material.omega", "expected 0 <= omega <= 1");
+    expect_rejected("fc_huge.yaml",
+                    replace(good, kcc, "{model: kcc, rho: 2400 kg/m^3, fc: 1e6 MPa}"), ":7: parts.col.material.fc",
+                    "expected 1 MPa <= fc <= 500 MPa");
     expect_rejected("rate_cap.yaml", with("{law: ceb-fip, compression_cap: 0.5}"),
                     ":7: parts.col.material.rate_effects.compression_cap", "expected a largest DIF >= 1, or none");
     expect_rejected("rate_both.yaml", with("{law: ceb-fip, curve: [[0, 1], [1, 2]]}"),
@@ -783,6 +786,23 @@ TEST(Decks, ACollapsingTimeStepStopsTheRun)
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     expect_rejected("dt_min_fraction.yaml", replace(good, "  end: 1 us\n", "  end: 1 us\n  dt_min_fraction: 1\n"),
                     ":4: time.dt_min_fraction", "expected 0 <= dt_min_fraction < 1");
+}
+
+// Material constants outside their model's validity are refused with the range (a Gruneisen s of
+// -5 and gamma0 of -20 were accepted, exit 0)
+TEST(Decks, GruneisenConstantsOutsideTheirRangeAreRefused)
+{
+    const std::string mat = "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}";
+    auto with = [&](const std::string& eos)
+    {
+        return replace(good, mat,
+                       "{model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 300 MPa, etan: 1 GPa, eos: {type: gruneisen, "
+                       "c0: 4569 m/s, " + eos + "}}");
+    };
+    expect_rejected("eos_s.yaml", with("s: -5, gamma0: 2"), ":7: parts.col.material.eos.s", "expected 0 <= s <= 10");
+    expect_rejected("eos_g.yaml", with("s: 1.5, gamma0: -20"), ":7: parts.col.material.eos.gamma0",
+                    "expected 0 <= gamma0 <= 10");
+    EXPECT_EQ(run("check " + write_deck("eos_ok.yaml", with("s: 1.49, gamma0: 2.17, a: 0.46"))).code, 0);
 }
 
 TEST(Decks, QuantitiesMustBeFiniteAndDecksOneDocument)

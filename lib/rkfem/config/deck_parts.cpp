@@ -306,6 +306,10 @@ MaterialSpec read_material(const Section& part)
         if (!(m.rho > 0))
             s.fail("rho", "density must be positive", "expected rho > 0 (e.g. 2400 kg/m^3)");
         m.fc = s.positive("fc", dim::pressure);
+        if (model == "kcc" && !(m.fc >= 1e6 && m.fc <= 500e6))
+            s.fail("fc", "is outside the range of concrete",
+                   "expected 1 MPa <= fc <= 500 MPa (normal concrete to UHPC; the generated K&C parameters are fitted "
+                   "on 20-60 MPa concrete)");
         const bool cscm = model == "cscm";
         m.nu = s.quantity("nu", dim::none, cscm ? 0.2 : 0.19);
         if (!(m.nu > -1.0 && m.nu < 0.5))
@@ -469,6 +473,14 @@ MaterialSpec read_material(const Section& part)
                     m.eos_s = e.quantity("s", dim::none);
                     m.eos_gamma0 = e.quantity("gamma0", dim::none);
                     m.eos_a = e.quantity("a", dim::none, 0.0);
+                    // the ranges of published Us-up fits (metals and polymers: s 0.5-3.5,
+                    // gamma0 0.5-4, a 0-1): a negative slope or Gruneisen gamma has no meaning
+                    if (!(m.eos_s >= 0.0 && m.eos_s <= 10.0))
+                        e.fail("s", "is out of range", "expected 0 <= s <= 10 (the slope of Us against up; 1-2 for metals)");
+                    if (!(m.eos_gamma0 >= 0.0 && m.eos_gamma0 <= 10.0))
+                        e.fail("gamma0", "is out of range", "expected 0 <= gamma0 <= 10 (Gruneisen gamma; 1.5-2.2 for metals)");
+                    if (!(m.eos_a >= 0.0 && m.eos_a <= 10.0))
+                        e.fail("a", "is out of range", "expected 0 <= a <= 10 (the first-order volume correction)");
                 }
                 else
                     throw DeckError(locate(s.ctx(), en.IsMap() && en["type"].IsDefined() ? en["type"] : en, s.path("eos") + ".type"),
