@@ -12,30 +12,29 @@ constexpr real_t MPa = 1e6;
 
 /// min(dif, cap), cap 0 meaning none
 real_t capped(real_t dif, real_t cap) { return cap > 0.0 ? std::min(dif, cap) : dif; }
+
+/// The form both built-in laws take: 1 up to the static rate rs, (r / rs)^e up to the
+/// transition rate, g (r / rs)^(1/3) above it.
+real_t two_branch(real_t rate, real_t rs, real_t e, real_t transition, real_t g)
+{
+    if (rate <= rs)
+        return 1.0;
+    if (rate <= transition)
+        return std::pow(rate / rs, e);
+    return g * std::cbrt(rate / rs);
+}
 } // namespace
 
 real_t dif_compression_ceb(real_t rate, real_t fc_pa)
 {
-    const real_t rs = 30e-6;
     const real_t as = 1.0 / (5.0 + 9.0 * (fc_pa / MPa) / 10.0);
-    if (rate <= rs)
-        return 1.0;
-    if (rate <= 30.0)
-        return std::pow(rate / rs, 1.026 * as);
-    const real_t gs = std::pow(10.0, 6.156 * as - 2.0);
-    return gs * std::cbrt(rate / rs);
+    return two_branch(rate, 30e-6, 1.026 * as, 30.0, std::pow(10.0, 6.156 * as - 2.0));
 }
 
 real_t dif_tension_malvar_ross(real_t rate, real_t fc_pa)
 {
-    const real_t rs = 1e-6;
     const real_t d = 1.0 / (1.0 + 8.0 * (fc_pa / MPa) / 10.0);
-    if (rate <= rs)
-        return 1.0;
-    if (rate <= 1.0)
-        return std::pow(rate / rs, d);
-    const real_t b = std::pow(10.0, 6.0 * d - 2.0);
-    return b * std::cbrt(rate / rs);
+    return two_branch(rate, 1e-6, d, 1.0, std::pow(10.0, 6.0 * d - 2.0));
 }
 
 real_t RateLaw::loading_rate(const real_t d[6], bool tension)
