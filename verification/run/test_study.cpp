@@ -305,6 +305,9 @@ TEST(Study, BadStudyFilesGetOneLocatedLine)
         {"deck: x.yaml\nmetrics:\n  p: {kind: max, column: c}\n", "cases: missing required key"},
         {"metrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n", "cases.0.deck: missing, and the study has no deck"},
         {"? [a, b]\n: 1\n", "study.yaml:1"},
+        // decks that do not exist (every case ran and failed, exit 4)
+        {"deck: x.yaml\nmetrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n", ":1: deck: '"},
+        {head + "cases:\n  - {name: a, deck: nope.yaml}\n", "cases.0.deck: '"},
         {"deck: [x\n", "study.yaml:"},
     };
     for (const Bad& b : cases)

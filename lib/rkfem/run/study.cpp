@@ -663,6 +663,14 @@ Study read_study(const std::string& path)
                                     "each case once (first as cases." + std::to_string(j) + ", " + st.cases[j].loc.where + ")");
             st.cases.push_back(std::move(c));
         }
+        // the decks exist (checked last: the study's own keys first); a missing one ran every
+        // case as failed, exit 4
+        if (!base.empty() && !fs::is_regular_file(base))
+            s.fail("deck", "'" + base + "' is not a file", "expected the path of a deck, relative to the study file");
+        for (const StudyCase& c : st.cases)
+            if (!fs::is_regular_file(c.deck))
+                throw DeckError({c.loc.where, c.loc.path + ".deck"}, "'" + c.deck + "' is not a file",
+                                "expected the path of a deck, relative to the study file");
         return st;
     }
     catch (const YAML::Exception& e)
