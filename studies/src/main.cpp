@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <cmath>
+#include <initializer_list>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -132,8 +133,8 @@ bool lock_output_directory(const std::string& dir, const char* what)
     const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0)
     {
-        std::fprintf(stderr, "rkfem: %s %s: cannot open %s (%s); expected a writable directory\n", what, dir.c_str(),
-                     path.c_str(), std::strerror(errno));
+        std::fprintf(stderr, "rkfem: %s %s: cannot write in the output directory (%s); expected a writable directory\n",
+                     what, dir.c_str(), std::strerror(errno));
         return false;
     }
     if (::flock(fd, LOCK_EX | LOCK_NB) != 0)
@@ -156,6 +157,23 @@ bool lock_output_directory(const std::string& dir, const char* what)
         // the lock holds without the pid in it
     }
     return true; // the descriptor stays open (and locked) until the process ends
+}
+
+/// Every output NAME in DIR can be written where it goes (nothing not a regular file in the way);
+/// otherwise one line and false.
+bool outputs_writable(const std::string& dir, const char* what, std::initializer_list<const char*> names)
+{
+    for (const char* name : names)
+        try
+        {
+            rkfem::require_writable_file_path(dir + "/" + name);
+        }
+        catch (const rkfem::Error& e)
+        {
+            std::fprintf(stderr, "rkfem: %s %s: %s\n", what, dir.c_str(), e.what());
+            return false;
+        }
+    return true;
 }
 
 int main(int argc, char** argv)
@@ -299,22 +317,12 @@ int main(int argc, char** argv)
                 // the study is valid: its directory, and nobody else writing in it
                 std::error_code mk;
                 std::filesystem::create_directories(out_dir, mk);
-                if (!mk && !lock_output_directory(out_dir, "study --out"))
+                if (!mk && (!lock_output_directory(out_dir, "study --out") ||
+                            !outputs_writable(out_dir, "study --out", {"table.csv", "table.md", "study.h5"})))
                 {
                     taken = true;
                     return;
                 }
-                for (const char* name : {"table.csv", "table.md", "study.h5"})
-                    try
-                    {
-                        rkfem::require_writable_file_path(out_dir + "/" + name);
-                    }
-                    catch (const rkfem::Error& e)
-                    {
-                        std::fprintf(stderr, "rkfem: study --out %s: %s\n", out_dir.c_str(), e.what());
-                        taken = true;
-                        return;
-                    }
                 for (const auto& r : rkfem::run_study(st, out_dir, !quiet))
                     incomplete += r.status != "completed" && r.status != "reused";
                 if (!quiet)
@@ -461,31 +469,12 @@ int main(int argc, char** argv)
                          out_dir.c_str(), ec.message().c_str());
             return 2;
         }
-        {
-            const std::string probe = out_dir + "/.rkfem_write_test";
-            std::FILE* f = std::fopen(probe.c_str(), "w");
-            if (!f)
-            {
-                std::fprintf(stderr, "rkfem: --out %s: cannot write in the output directory (%s); expected a writable directory\n",
-                             out_dir.c_str(), std::strerror(errno));
-                return 2;
-            }
-            std::fclose(f);
-            std::remove(probe.c_str());
-        }
-        if (!lock_output_directory(out_dir, command == "restart" ? "restart" : "--out"))
+        // nobody else writing in it (the lock file's creation is also the write test), and every
+        // output a run writes writable where it goes, before the run starts
+        const char* what = command == "restart" ? "restart" : "--out";
+        if (!lock_output_directory(out_dir, what) ||
+            !outputs_writable(out_dir, "--out", {"results.h5", "results.xdmf", "history.csv", "summary.json"}))
             return 2;
-        // every output a run writes must be writable where it goes, before the run starts
-        for (const char* name : {"results.h5", "results.xdmf", "history.csv", "summary.json"})
-            try
-            {
-                rkfem::require_writable_file_path(out_dir + "/" + name);
-            }
-            catch (const rkfem::Error& e)
-            {
-                std::fprintf(stderr, "rkfem: --out %s: %s\n", out_dir.c_str(), e.what());
-                return 2;
-            }
         if (command == "restart")
         {
             // the checkpoint must be this directory's run's: a later run into the same directory

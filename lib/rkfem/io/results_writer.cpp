@@ -359,7 +359,7 @@ void ResultsWriter::flush() const
         throw Error("cannot write " + dir_ + "/results.h5 (disk full?)");
 }
 
-void ResultsWriter::write_xdmf() const
+void ResultsWriter::write_xdmf()
 {
     const std::string path = dir_ + "/results.xdmf";
     {

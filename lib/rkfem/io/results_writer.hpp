@@ -56,9 +56,9 @@ class ResultsWriter
     real_t last_time() const { return times_.empty() ? -std::numeric_limits<real_t>::infinity() : times_.back(); }
 
   private:
-    void write_xdmf() const;
+    void write_xdmf();
     void write_frame(const Model& model, real_t time); ///< write_step's work
-    mutable std::size_t indexed_ = 0; ///< frames results.xdmf indexes (its last whole write)
+    std::size_t indexed_ = 0; ///< frames results.xdmf indexes (its last whole write)
     /// H5Fflush, throwing rkfem::Error naming results.h5 when it fails (a full disk).
     void flush() const;
     /// A field dataset (rows x cols) at the deck's precision and compression.

@@ -277,11 +277,11 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         RKFEM_REQUIRE(!opt.out_dir.empty(), "a restart continues a run's directory: out_dir is empty");
         resume->get("run.history", sum.history);
     }
-    // the run's id: a restart continues its checkpoint's run (one from before ids: none)
-    sum.run_id = !opt.run_id.empty()                             ? opt.run_id
-                 : resume && resume->has("run.run_id")           ? resume->text("run.run_id")
-                 : resume                                        ? std::string()
-                                                                 : new_run_id();
+    // the run's id (results.h5, checkpoints, summary.json): a new one, or a restart continues its
+    // checkpoint's run (one from before ids: none)
+    sum.run_id = !resume                    ? new_run_id()
+                 : resume->has("run.run_id") ? resume->text("run.run_id")
+                                             : std::string();
     std::unique_ptr<ResultsWriter> writer;
     std::ofstream csv;
     if (!opt.out_dir.empty())

@@ -39,9 +39,6 @@ struct RunOptions
     /// its state (Model::load_state); the loop, the output cursors, results.h5 and the history
     /// go on from where it was written.
     const StateArchive* resume = nullptr;
-    /// The run's id, in results.h5, every checkpoint and summary.json ("": a new random one; a
-    /// restart keeps its checkpoint's).
-    std::string run_id;
     /// Choose the team size between steps from the steps' wall times (run/thread_governor.hpp):
     /// on a busy machine, or with a part too small for its threads, a run falls back to one
     /// thread; off (or environment RKFEM_ADAPTIVE_THREADS=0): every step on the OpenMP default.
