@@ -306,7 +306,7 @@ TEST(Decks, ZeroVolumeElement)
     expect_rejected("zero_volume.yaml",
                     replace(good, "size: [1 mm, 1 mm, 10 mm], element_size: 1 mm",
                             "size: [1e-200 m, 1e-200 m, 10 mm], divisions: [1, 1, 10]"),
-                    ":6: parts.col.generator", "non-positive volume");
+                    ":6: parts.col.generator", "element 0 is degenerate at its local node 0 (scaled Jacobian 0)");
 }
 
 TEST(Decks, BadOverrideIsLocatedAtTheSetArgument)
@@ -870,6 +870,38 @@ contacts:
                   std::string::npos)
             << rm.output;
     }
+    // parts that overlap deeper than the contact reaches (max_penetration 0.5 of a 1 mm element
+    // behind the surface) are refused at the contact, with the count: b's bottom face 1.1 mm
+    // into a's 2 mm cube leaves one node of b out of reach (the face's centre, 0.9 mm above a's
+    // bottom, its nearest surface); the face's edge and corner nodes lie on a's sides and its
+    // nodes 0.1 mm under a's top are within reach (held); a's nodes inside b come second
+    {
+        const std::string deep = R"(title: overlap
+time: {end: 2 us}
+parts:
+  a:
+    generator: {type: box, size: [2 mm, 2 mm, 2 mm], divisions: [2, 2, 2]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+  b:
+    generator: {type: box, origin: [0, 0, 0.9 mm], size: [2 mm, 2 mm, 2 mm], divisions: [2, 2, 2]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+contacts:
+  - {type: surface-to-surface, surfaces: [a, b]}
+)";
+        expect_rejected("overlap_deep.yaml", deep, ":11: contacts.0",
+                        "1 node(s) of part 'b' start inside part 'a' deeper than the contact reaches (first: node 4 "
+                        "of part 'b' (0-based; node 31 in results.h5), 0.0009 m behind its surface)");
+        expect_rejected("overlap_deep_single.yaml", replace(deep, "type: surface-to-surface", "type: single-surface"),
+                        ":11: contacts.0", "1 node(s) of part 'b' start inside part 'a'");
+        // a larger max_penetration reaches the node: held, not refused
+        const Result held = run("check " + write_deck("overlap_held.yaml", replace(deep, "surfaces: [a, b]}",
+                                                                                   "surfaces: [a, b], max_penetration: 1}")));
+        EXPECT_EQ(held.code, 0) << held.output;
+    }
+    // a single-surface contact over clouds alone has no surface
+    expect_rejected("contact_clouds.yaml",
+                    cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n") + "contacts:\n  - {type: single-surface}\n",
+                    ":14: contacts.0.surfaces", "has no surface: every part it names is a particle cloud");
     // mortar contact holds no offsets: it says the nodes are pushed out
     {
         const std::string mortar = good + "contacts:\n  - {type: surface-to-surface, surfaces: [col, col], formulation: mortar}\n";
@@ -1373,7 +1405,7 @@ TEST(Decks, KeywordMeshesResolveAgainstTheDeckAndTheResolvedDeckReadsBack)
     k << "*ELEMENT_SOLID\n";
     for (int j = 0; j < 10; ++j)
     {
-        k << j + 1 << ",3";
+        k << 1001 + j << ",3";
         for (int c = 0; c < 8; ++c)
             k << "," << 4 * (j + c / 4) + c % 4 + 1;
         k << "\n";
@@ -1392,4 +1424,27 @@ TEST(Decks, KeywordMeshesResolveAgainstTheDeckAndTheResolvedDeckReadsBack)
     // a unit that is not a length
     expect_rejected("keyword_unit.yaml", replace(deck, "unit: mm", "unit: kg"), ":6: parts.col.generator.unit",
                     "'kg' is not a length unit");
+    // two cubes that touch but do not share their nodes (an unmerged mesh): noted, not refused
+    write_deck("unmerged.k", "*NODE\n1,0,0,0\n2,1,0,0\n3,1,1,0\n4,0,1,0\n5,0,0,1\n6,1,0,1\n7,1,1,1\n8,0,1,1\n"
+                             "9,0,0,1\n10,1,0,1\n11,1,1,1\n12,0,1,1\n13,0,0,2\n14,1,0,2\n15,1,1,2\n16,0,1,2\n"
+                             "*ELEMENT_SOLID\n1,3,1,2,3,4,5,6,7,8\n2,3,9,10,11,12,13,14,15,16\n");
+    const Result unmerged = run("check " + write_deck("unmerged.yaml", replace(deck, "column.k", "unmerged.k")));
+    EXPECT_EQ(unmerged.code, 0) << unmerged.output;
+    EXPECT_NE(unmerged.output.find("parts.col: 4 node(s) share their position with another node of the part (first: "
+                                   "NIDs 5 and 9); the elements on either side are not connected there"),
+              std::string::npos)
+        << unmerged.output;
+    // an element that inverts is named by the file's EID (its cell in results.h5 beside it)
+    const fs::path out = fs::temp_directory_path() / "rkfem_out_keyword_unstable";
+    fs::remove_all(out);
+    const Result u = run("run " +
+                         write_deck("keyword_unstable.yaml",
+                                    replace(deck, "boundary_conditions:\n  - {node_set: end, velocity: {z: 10 m/s}}\n",
+                                            "face_sets:\n  top: {part: col, select: {type: plane, point: [0, 0, 10 mm], "
+                                            "normal: [0, 0, 1]}}\nloads:\n  - {type: pressure, face_set: top, pressure: 1e16 Pa}\n")) +
+                         " --out " + out.string() + " --quiet");
+    EXPECT_EQ(u.code, 3) << u.output;
+    EXPECT_NE(u.output.find("element 1010 (the mesh file's EID; part 'col', cell 9 in results.h5) has non-positive volume"),
+              std::string::npos)
+        << u.output;
 }

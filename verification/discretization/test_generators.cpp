@@ -319,6 +319,31 @@ TEST(KeywordMesh, FixedColumnsTwoCardSolidsPartIdsAndUnits)
     EXPECT_EQ(second.node(0), Vec3(1e-3, 0, 0)); // the file's order: node 2 first
 }
 
+TEST(HexMesh, TheWorstCornerIsTheSmallestScaledJacobian)
+{
+    // a unit cube: 1 at every corner; sheared by angle theta in the x-z plane (a parallelepiped):
+    // sin(90 deg - theta) = cos(theta) at every corner; corner 6 pulled past the centre: negative
+    HexMesh m;
+    m.x = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+    m.conn = {0, 1, 2, 3, 4, 5, 6, 7};
+    HexCorner c = worst_corner(m);
+    EXPECT_EQ(c.element, 0);
+    EXPECT_NEAR(c.scaled_jacobian, 1.0, 1e-15);
+    const double theta = 0.3;
+    HexMesh sheared = m;
+    for (int i = 4; i < 8; ++i)
+        sheared.x[3 * i] += std::tan(theta);
+    EXPECT_NEAR(worst_corner(sheared).scaled_jacobian, std::cos(theta), 1e-14);
+    HexMesh bad = m;
+    bad.x[18] = bad.x[19] = bad.x[20] = 0.2; // node 6 at (0.2, 0.2, 0.2)
+    c = worst_corner(bad);
+    EXPECT_EQ(c.corner, 6);
+    // edges from node 6 to 7, 5, 2: (-0.2, 0.8, 0.8), (0.8, -0.2, 0.8), (0.8, 0.8, -0.2)
+    const Vec3 a(-0.2, 0.8, 0.8), b(0.8, -0.2, 0.8), d(0.8, 0.8, -0.2);
+    EXPECT_NEAR(c.scaled_jacobian, -a.dot(b.cross(d)) / (a.norm() * b.norm() * d.norm()), 1e-14);
+    EXPECT_LT(c.scaled_jacobian, 0.0);
+}
+
 TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)
 {
     const std::string nodes = "*NODE\n1,0,0,0\n2,1,0,0\n3,1,1,0\n4,0,1,0\n5,0,0,1\n6,1,0,1\n7,1,1,1\n8,0,1,1\n";
@@ -336,7 +361,19 @@ TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)
     expect(keyword_error("k_prism.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,3,5,6,7,7\n"), "k_prism.k:11",
            "repeats node 3");
     expect(keyword_error("k_inverted.k", nodes + "*ELEMENT_SOLID\n1,1,5,6,7,8,1,2,3,4\n"), "k_inverted.k:11",
-           "is inside out");
+           "element 1 is inverted at its node 5 (scaled Jacobian -1 there)");
+    // node 7 pushed through the opposite corner: the centre stays positive, corner 7 does not
+    expect(keyword_error("k_corner.k", "*NODE\n1,0,0,0\n2,1,0,0\n3,1,1,0\n4,0,1,0\n5,0,0,1\n6,1,0,1\n7,-0.5,-0.5,-0.5\n"
+                                       "8,0,1,1\n*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,8\n"),
+           "k_corner.k:11", "element 1 is inverted at its node 7");
+    // two nodes at one place in one solid: a corner of no volume
+    expect(keyword_error("k_flat.k", nodes + "9,0,0,0\n*ELEMENT_SOLID\n7,1,1,2,3,4,9,6,7,8\n"), "k_flat.k:12",
+           "element 7 is degenerate at its node 1 (scaled Jacobian 0 there)");
+    expect(keyword_error("k_eid.k", nodes + "9,2,0,0\n10,2,1,0\n11,2,0,1\n12,2,1,1\n*ELEMENT_SOLID\n"
+                                            "1,1,1,2,3,4,5,6,7,8\n1,1,2,9,10,3,6,11,12,7\n"),
+           "k_eid.k:16", "element 1 is defined again (first on line 15)");
+    expect(keyword_error("k_twin.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,8\n2,1,2,3,4,1,6,7,8,5\n"),
+           "k_twin.k:12", "element 2 has the same eight nodes as element 1 (line 11)");
     expect(keyword_error("k_none.k", nodes), "k_none.k", "has no *ELEMENT_SOLID elements");
     expect(keyword_error("k_short.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4\n"), "k_short.k:11", "fewer than 8 nodes");
     expect(keyword_error("k_include.k", "*INCLUDE\nmesh.k\n"), "k_include.k:1", "*INCLUDE is not followed");

@@ -6,6 +6,37 @@
 
 namespace rkfem
 {
+namespace
+{
+/// Per local node: its neighbours along xi, eta, zeta and the sign of xi * eta * zeta there
+constexpr int kCornerEdges[8][4] = {{1, 3, 4, -1}, {0, 2, 5, 1}, {3, 1, 6, -1}, {2, 0, 7, 1},
+                                    {5, 7, 0, 1},  {4, 6, 1, -1}, {7, 5, 2, 1}, {6, 4, 3, -1}};
+} // namespace
+
+HexCorner worst_corner(const HexMesh& m)
+{
+    HexCorner worst;
+    for (index_t e = 0; e < m.n_elements(); ++e)
+        for (int a = 0; a < 8; ++a)
+        {
+            const Vec3 xa = m.node(m.conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(a)]);
+            Vec3 edge[3];
+            real_t length = 1.0;
+            for (int k = 0; k < 3; ++k)
+            {
+                edge[k] = m.node(m.conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(kCornerEdges[a][k])]) - xa;
+                length *= edge[k].norm();
+            }
+            // d x / d xi along an edge from a corner at xi = s runs against s: the product of
+            // the three edge directions carries -s_xi s_eta s_zeta
+            const real_t triple = -kCornerEdges[a][3] * edge[0].dot(edge[1].cross(edge[2]));
+            const real_t scaled = length > 0.0 ? triple / length : 0.0;
+            if (worst.element < 0 || !(scaled >= worst.scaled_jacobian))
+                worst = {e, a, scaled};
+        }
+    return worst;
+}
+
 std::vector<index_t> earlier_twin_faces(const std::vector<index_t>& conn)
 {
     const index_t ne = static_cast<index_t>(conn.size() / 8);

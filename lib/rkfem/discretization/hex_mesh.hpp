@@ -24,10 +24,16 @@ struct HexMesh
     std::map<std::string, std::vector<index_t>> named_faces; ///< name -> indices into `faces`
     /// Node groups of a cloud (no elements, no faces): xmin..zmax, top, bottom, side
     std::map<std::string, std::vector<index_t>> named_nodes;
+    /// The file's element and node ids (keyword meshes; empty for generated ones), the names
+    /// messages use
+    std::vector<long long> element_ids, node_ids;
 
     index_t n_nodes() const { return static_cast<index_t>(x.size() / 3); }
     index_t n_elements() const { return static_cast<index_t>(conn.size() / 8); }
     Vec3 node(index_t i) const { return {x[3 * i], x[3 * i + 1], x[3 * i + 2]}; }
+    /// How messages name element e and node i: the file's id, or the 0-based index (results.h5's order)
+    long long element_label(index_t e) const { return element_ids.empty() ? e : element_ids[static_cast<std::size_t>(e)]; }
+    long long node_label(index_t i) const { return node_ids.empty() ? i : node_ids[static_cast<std::size_t>(i)]; }
 };
 
 /// The six faces of a hex as local node indices, outward normals.
@@ -50,6 +56,21 @@ std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::
 
 /// Area-weighted normal of a quad (|n| = area for a planar quad): (x2 - x0) x (x3 - x1) / 2.
 Vec3 quad_normal(const std::vector<real_t>& x, const Quad& q);
+
+/// The worst corner of a hex mesh by the scaled Jacobian: at a corner, the triple product of
+/// the unit edges to its xi, eta and zeta neighbours (signed so that a right-handed element in
+/// LS-DYNA's node order is positive; 1 for a cube, 0 for a flat corner or an edge of no length,
+/// negative where the corner is inverted). The trilinear map of the element is one to one
+/// where every corner is positive, and inverted or singular somewhere where one is not.
+struct HexCorner
+{
+    index_t element = -1; ///< -1: no elements
+    int corner = -1;      ///< local node 0-7
+    real_t scaled_jacobian = 1.0;
+};
+HexCorner worst_corner(const HexMesh& m);
+/// At or below this scaled Jacobian a corner is degenerate (a solid refused at set-up)
+inline constexpr real_t kDegenerateScaledJacobian = 1e-6;
 
 /// Merges nodes closer than `tol` and renumbers `conn`; returns the number of nodes kept.
 index_t merge_coincident_nodes(std::vector<real_t>& x, std::vector<index_t>& conn, real_t tol);

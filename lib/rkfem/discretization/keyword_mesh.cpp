@@ -1,14 +1,16 @@
 #include "rkfem/discretization/keyword_mesh.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <charconv>
 #include <fstream>
+#include <map>
+#include <sstream>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
-#include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/core/error.hpp"
 
 namespace rkfem
@@ -102,6 +104,7 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
     std::vector<long long> node_ids;
     std::unordered_map<long long, index_t> node_of; // NID -> index into x / 3
     std::unordered_map<long long, int> node_line;
+    std::unordered_map<long long, int> element_line; // EID -> line of its card (every PID)
     struct Solid
     {
         long long nodes[8];
@@ -167,6 +170,10 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
                 pend = Solid{};
                 pend.line = rd.line;
                 pend.eid = rd.integer(f[0], "EID");
+                if (const auto [it, fresh] = element_line.emplace(pend.eid, rd.line); !fresh)
+                    rd.fail("element " + std::to_string(pend.eid) + " is defined again (first on line " +
+                                std::to_string(it->second) + ")",
+                            "expected each EID once in *ELEMENT_SOLID");
                 const long long pid = f.size() > 1 ? rd.integer(f[1], "PID") : 0;
                 const bool take = g.mesh_pids.empty() ||
                                   std::find(g.mesh_pids.begin(), g.mesh_pids.end(), pid) != g.mesh_pids.end();
@@ -231,6 +238,8 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
             new_index[i] = kept++;
             m.x.insert(m.x.end(), {x[3 * i], x[3 * i + 1], x[3 * i + 2]});
         }
+    // the same eight nodes twice: two solids in one place (mass and stiffness doubled)
+    std::map<std::array<long long, 8>, const Solid*> by_nodes;
     for (const Solid& s : solids)
     {
         rd.line = s.line;
@@ -240,19 +249,31 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
                     rd.fail("element " + std::to_string(s.eid) + " repeats node " + std::to_string(s.nodes[a]) +
                                 " (a degenerate prism or tetrahedron)",
                             "expected hexahedra with 8 distinct nodes");
-        real_t xe[8][3];
+        std::array<long long, 8> key;
+        std::copy(std::begin(s.nodes), std::end(s.nodes), key.begin());
+        std::sort(key.begin(), key.end());
+        if (const auto [it, fresh] = by_nodes.emplace(key, &s); !fresh)
+            rd.fail("element " + std::to_string(s.eid) + " has the same eight nodes as element " +
+                        std::to_string(it->second->eid) + " (line " + std::to_string(it->second->line) + ")",
+                    "expected one solid per place (a duplicate doubles its mass and stiffness)");
         for (int a = 0; a < 8; ++a)
-        {
-            const index_t k = new_index[static_cast<std::size_t>(node_of.at(s.nodes[a]))];
-            m.conn.push_back(k);
-            for (int d = 0; d < 3; ++d)
-                xe[a][d] = m.x[3 * static_cast<std::size_t>(k) + static_cast<std::size_t>(d)];
-        }
-        const real_t centre[3] = {0.0, 0.0, 0.0};
-        real_t dNdx[8][3];
-        if (!(hex8_gradients(xe, centre, dNdx) > 0.0))
-            rd.fail("element " + std::to_string(s.eid) + " is inside out (negative volume at its centre)",
-                    "expected N1..N4 counter-clockwise seen from N5..N8, LS-DYNA's node order");
+            m.conn.push_back(new_index[static_cast<std::size_t>(node_of.at(s.nodes[a]))]);
+        m.element_ids.push_back(s.eid);
+    }
+    for (std::size_t i = 0; i < new_index.size(); ++i)
+        if (new_index[i] >= 0)
+            m.node_ids.push_back(node_ids[i]);
+    // inverted or degenerate corners, by the file's ids (the trilinear map must be one to one)
+    if (const HexCorner c = worst_corner(m); c.element >= 0 && !(c.scaled_jacobian > kDegenerateScaledJacobian))
+    {
+        const Solid& s = solids[static_cast<std::size_t>(c.element)];
+        rd.line = s.line;
+        std::ostringstream what;
+        what.precision(3);
+        what << "element " << s.eid << " is " << (c.scaled_jacobian < 0.0 ? "inverted" : "degenerate")
+             << " at its node " << s.nodes[c.corner] << " (scaled Jacobian " << c.scaled_jacobian << " there)";
+        rd.fail(what.str(), "expected N1..N4 counter-clockwise seen from N5..N8, LS-DYNA's node order, and every "
+                            "corner of a solid convex (scaled Jacobian above 0)");
     }
     m.faces = extract_boundary_faces(m.conn);
     std::vector<index_t>& all = m.named_faces["all"];

@@ -169,7 +169,65 @@ void measure_step_factor(const PartSpec& ps, NodalBlock& nb, Model& m)
         m.setup_notes.emplace_back(text);
     }
 }
+/// A generated mesh whose corners are not all convex (a generator's parameters out of reach)
+/// is refused; nodes of a part that share a position (an unmerged keyword mesh: its pieces are
+/// not connected there) are noted. Keyword meshes check their corners as they are read.
+void check_mesh(const PartSpec& ps, const HexMesh& mesh, std::vector<std::string>& notes)
+{
+    if (const HexCorner c = worst_corner(mesh); c.element >= 0 && !(c.scaled_jacobian > kDegenerateScaledJacobian))
+    {
+        std::ostringstream what;
+        what.precision(3);
+        what << "element " << mesh.element_label(c.element) << " is "
+             << (c.scaled_jacobian < 0.0 ? "inverted" : "degenerate") << " at its local node " << c.corner
+             << " (scaled Jacobian " << c.scaled_jacobian << ")";
+        throw DeckError({ps.generator.loc.where, ps.loc.path + ".generator"}, what.str(),
+                        "expected a generator that makes valid (convex, positive-volume) hexahedra");
+    }
+    // exact repeats of a position (pre-processors write the same digits for an unmerged node)
+    const index_t n = mesh.n_nodes();
+    std::vector<index_t> order(static_cast<std::size_t>(n));
+    for (index_t i = 0; i < n; ++i)
+        order[static_cast<std::size_t>(i)] = i;
+    auto position = [&](index_t i) { return std::array<real_t, 3>{mesh.x[3 * i], mesh.x[3 * i + 1], mesh.x[3 * i + 2]}; };
+    std::sort(order.begin(), order.end(), [&](index_t a, index_t b) { return position(a) < position(b); });
+    index_t shared = 0, first_a = -1, first_b = -1;
+    for (std::size_t k = 1; k < order.size(); ++k)
+        if (position(order[k]) == position(order[k - 1]))
+        {
+            if (shared++ == 0)
+                first_a = std::min(order[k - 1], order[k]), first_b = std::max(order[k - 1], order[k]);
+        }
+    if (shared > 0)
+    {
+        std::ostringstream note;
+        note << ps.loc.path << ": " << shared << " node(s) share their position with another node of the part (first: "
+             << (mesh.node_ids.empty() ? "nodes " : "NIDs ") << mesh.node_label(first_a) << " and "
+             << mesh.node_label(first_b) << "); the " << (mesh.n_elements() > 0 ? "elements" : "particles")
+             << " on either side are not connected there";
+        notes.push_back(note.str());
+    }
+}
 } // namespace
+
+std::string PartInfo::element_name(index_t e) const
+{
+    const index_t cell = element_offset + e;
+    if (!element_ids.empty())
+        return "element " + std::to_string(element_ids[static_cast<std::size_t>(e)]) + " (the mesh file's EID; part '" +
+               name + "', cell " + std::to_string(cell) + " in results.h5)";
+    return "element " + std::to_string(e) + " of part '" + name + "' (0-based; cell " + std::to_string(cell) +
+           " in results.h5)";
+}
+
+std::string PartInfo::node_name(index_t i) const
+{
+    if (!node_ids.empty())
+        return "node " + std::to_string(node_ids[static_cast<std::size_t>(i)]) + " (the mesh file's NID; part '" + name +
+               "', node " + std::to_string(node_begin + i) + " in results.h5)";
+    return "node " + std::to_string(i) + " of part '" + name + "' (0-based; node " + std::to_string(node_begin + i) +
+           " in results.h5)";
+}
 
 Model Model::build(const Deck& deck)
 {
@@ -183,6 +241,7 @@ Model Model::build(const Deck& deck)
     for (const auto& p : d.parts)
     {
         meshes.push_back(generate(p.generator));
+        check_mesh(p, meshes.back(), m.setup_notes);
         n_nodes += meshes.back().n_nodes();
     }
     m.nodes.resize(n_nodes);
@@ -208,6 +267,8 @@ Model Model::build(const Deck& deck)
         for (const auto& f : mesh.faces)
             info.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset, f[3] + offset});
         info.named_faces = mesh.named_faces;
+        info.element_ids = mesh.element_ids;
+        info.node_ids = mesh.node_ids;
         for (const auto& [name, ids] : mesh.named_nodes)
             for (index_t i : ids)
                 info.named_nodes[name].push_back(i + offset);
@@ -585,6 +646,7 @@ Model Model::build(const Deck& deck)
     m.contact.resize(m.nodes.size());
     m.eroded_.resize(m.blocks.size());
     m.build_contacts();
+    m.check_initial_overlaps();
     m.plan_assembly();
     for (const DofCondition& c : m.conditions)
         m.constrained_dofs_.push_back(c.dof);

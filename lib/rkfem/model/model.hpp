@@ -34,6 +34,11 @@ struct PartInfo
     std::vector<Quad> faces;    ///< boundary faces (global node ids)
     std::map<std::string, std::vector<index_t>> named_faces;
     std::map<std::string, std::vector<index_t>> named_nodes; ///< cloud parts: generator node groups (global ids)
+    std::vector<long long> element_ids, node_ids; ///< the file's ids (keyword meshes), empty otherwise
+    /// How messages name the part's element e and node i (local): the file's id, or "element 7"
+    /// by the 0-based index, with the global one results.h5 uses
+    std::string element_name(index_t e) const;
+    std::string node_name(index_t i) const;
 };
 
 /// Prescribed motion of one degree of freedom (3 node + component).
@@ -308,6 +313,9 @@ class Model final : public ExplicitOperator
     real_t dt_critical_ = 0.0; ///< the elements' critical step at the last force evaluation
     std::vector<ContactSurface> contact_surfaces(const ContactSpec& c) const;
     void build_contacts();
+    /// Refuses (DeckError at the contact) a part whose surface nodes start inside a contacted
+    /// part deeper than the contact can hold them
+    void check_initial_overlaps() const;
     /// After erosion: every contact's surfaces again from the remaining elements.
     void refresh_contact_surfaces();
     /// The dofs any load can put a force on (ascending): f_ext is zero everywhere else, so the

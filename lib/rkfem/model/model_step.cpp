@@ -12,6 +12,22 @@
 
 namespace rkfem
 {
+namespace
+{
+/// What is wrong with an element the force pass flagged, given its whole volume
+std::string bad_volume(real_t volume)
+{
+    std::ostringstream os;
+    if (volume > 0.0) // its volume is positive: one of its integration points is not
+        os << "a non-positive Jacobian at an integration point (its volume " << volume << " m^3 in all)";
+    else if (volume <= 0.0)
+        os << "non-positive volume " << volume << " m^3";
+    else
+        os << "a NaN volume";
+    return os.str();
+}
+} // namespace
+
 void Model::update_coordinates()
 {
     const index_t n3 = 3 * nodes.size();
@@ -75,9 +91,10 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
             if (r.bad_element >= 0)
             {
                 std::ostringstream os;
-                os << "integration point " << r.bad_element << " (owner node " << nb.points.owner[r.bad_element]
-                   << ", part '" << parts[ib].name << "') has non-positive or NaN det F = "
-                   << nb.jacobian[r.bad_element] << " at t = " << t << " s, step " << step;
+                os << "the integration point of " << parts[ib].node_name(nb.points.owner[r.bad_element] - parts[ib].node_begin)
+                   << " has " << (nb.jacobian[r.bad_element] > 0.0 ? "a NaN deformation (det F = " : "non-positive det F = ")
+                   << nb.jacobian[r.bad_element] << (nb.jacobian[r.bad_element] > 0.0 ? ")" : "") << " at t = " << t
+                   << " s, step " << step;
                 throw InstabilityError(os.str(), t);
             }
             book(r, offset, ib); // first element of the part; nodal points are not elements
@@ -92,10 +109,9 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
                 if (rf.bad_element >= 0)
                 {
                     std::ostringstream os;
-                    os << "element " << offset + part_element(rf.bad_element) << " (part '" << parts[ib].name
-                       << "', local " << part_element(rf.bad_element) << ") has non-positive or NaN volume "
-                       << element_volume(side.block, nodes, rf.bad_element) << " m^3 at t = " << t << " s, step "
-                       << step;
+                    os << parts[ib].element_name(part_element(rf.bad_element)) << " has "
+                       << bad_volume(element_volume(side.block, nodes, rf.bad_element)) << " at t = " << t
+                       << " s, step " << step;
                     throw InstabilityError(os.str(), t);
                 }
                 book(rf, rf.dt_element >= 0 ? offset + part_element(rf.dt_element) : offset, ib);
@@ -108,9 +124,8 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
         if (r.bad_element >= 0)
         {
             std::ostringstream os;
-            os << "element " << offset + r.bad_element << " (part '" << parts[ib].name
-               << "', local " << r.bad_element << ") has non-positive or NaN volume "
-               << element_volume(blk, nodes, r.bad_element) << " m^3 at t = " << t << " s, step " << step;
+            os << parts[ib].element_name(r.bad_element) << " has " << bad_volume(element_volume(blk, nodes, r.bad_element))
+               << " at t = " << t << " s, step " << step;
             throw InstabilityError(os.str(), t);
         }
         book(r, offset + r.dt_element, ib);

@@ -161,7 +161,9 @@ void hold_nsni(NodalBlock& nb, NsniTriplets nsni)
 DeckError singular_support(const PartSpec& ps, const SingularMomentError& e)
 {
     return DeckError({ps.rk.loc.where.empty() ? ps.loc.where : ps.rk.loc.where, ps.loc.path + ".rk.normalized_support"},
-                     e.what(), "expected a support large enough that every point is covered by 4 particles not in one plane");
+                     e.what(),
+                     "expected a support large enough that every point is covered by 4 particles not in one plane "
+                     "(near one spacing, rk.drop_tolerance: 0 keeps the small functions)");
 }
 
 /// Operators to global node ids, l0 per point from the owner node, state arrays, crack bands.

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 
 #include "rkfem/approximation/rk/rk_basis.hpp"
 #include "rkfem/core/simd.hpp"
@@ -526,8 +527,13 @@ void RkRegionValues::drop(const Vec3& x)
         -is * w3, is2 * w13, is2 * w23, is2 * w33;
     const Eigen::Vector4d r(1.0 - p0, is * p1, is * p2, is * p3);
     const Eigen::Vector4d c = Ldlt4(M).solve(r);
-    RKFEM_REQUIRE(c.allFinite(), "RK drop tolerance: the functions left at (" << x.transpose()
-                                                                              << ") do not span a linear field");
+    if (!c.allFinite())
+    {
+        std::ostringstream os;
+        os << "RK drop tolerance: the functions left at x = (" << x[0] << ", " << x[1] << ", " << x[2]
+           << ") m after dropping those below " << tau_ << " of the largest do not span a linear field";
+        throw SingularMomentError(os.str());
+    }
     const real_t c0 = c[0], c1 = is * c[1], c2 = is * c[2], c3 = is * c[3];
 #pragma omp simd
     for (std::size_t k = 0; k < n; ++k)
