@@ -18,6 +18,7 @@
 #include <initializer_list>
 #include <iostream>
 #include <sstream>
+#include <new>
 #include <string>
 #include <vector>
 #include <fcntl.h>
@@ -37,6 +38,7 @@
 #include "rkfem/io/checkpoint.hpp"
 #include "rkfem/io/results_writer.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/memory_limit.hpp"
 #include "rkfem/core/setup_progress.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/run/check_report.hpp"
@@ -46,6 +48,16 @@
 
 namespace
 {
+/// An allocation failed: the model outgrew what set-up estimated, or another limit
+void out_of_memory()
+{
+    const rkfem::MemoryLimit limit = rkfem::usable_memory();
+    std::fprintf(stderr,
+                 "rkfem: error: out of memory (this process may use %.3g GB more, by %s); expected a model that fits: "
+                 "a coarser mesh, fewer parts, or a larger limit\n",
+                 limit.bytes / 1e9, limit.what);
+}
+
 /// Runs a subcommand body: 0 when it returns, 2 for bad input (the one-line DeckError), 1 otherwise.
 template <class Body> int run_guarded(Body&& body)
 {
@@ -58,6 +70,11 @@ template <class Body> int run_guarded(Body&& body)
     {
         std::fprintf(stderr, "%s\n", e.what());
         return 2;
+    }
+    catch (const std::bad_alloc&)
+    {
+        out_of_memory();
+        return 1;
     }
     catch (const std::exception& e)
     {
@@ -317,6 +334,17 @@ int main(int argc, char** argv)
                 // the study is valid: its directory, and nobody else writing in it
                 std::error_code mk;
                 std::filesystem::create_directories(out_dir, mk);
+                std::error_code cases_ec;
+                const auto cases = std::filesystem::status(out_dir + "/cases", cases_ec);
+                if (!mk && std::filesystem::exists(cases) && !std::filesystem::is_directory(cases))
+                {
+                    std::fprintf(stderr,
+                                 "rkfem: study --out %s: %s/cases exists and is not a directory; expected the folder of "
+                                 "the cases' outputs (move what is in the way)\n",
+                                 out_dir.c_str(), out_dir.c_str());
+                    taken = true;
+                    return;
+                }
                 if (!mk && (!lock_output_directory(out_dir, "study --out") ||
                             !outputs_writable(out_dir, "study --out", {"table.csv", "table.md", "study.h5"})))
                 {
@@ -487,7 +515,7 @@ int main(int argc, char** argv)
                              "rkfem: restart %s: the checkpoint belongs to run %s, the results.h5 beside it to run %s; "
                              "expected the checkpoint the run in this directory wrote (nothing was changed)\n",
                              out_dir.c_str(), ours.empty() ? "(none recorded)" : ours.c_str(),
-                             theirs.empty() ? "(none recorded)" : theirs.c_str());
+                             theirs.empty() ? "(none: results.h5 is missing or cannot be read)" : theirs.c_str());
                 return 2;
             }
         }
@@ -552,6 +580,11 @@ int main(int argc, char** argv)
     catch (const rkfem::Error& e)
     {
         std::fprintf(stderr, "rkfem: error: %s\n", e.what());
+        return 1;
+    }
+    catch (const std::bad_alloc&)
+    {
+        out_of_memory();
         return 1;
     }
     catch (const std::exception& e)

@@ -978,6 +978,14 @@ TEST(Decks, MeshesThatCannotFitAreRefusedBeforeAllocation)
     const std::string big = replace(replace(good, "size: [1 mm, 1 mm, 10 mm]", "size: [20 mm, 20 mm, 500 mm]"),
                                     "element_size: 1 mm", "element_size: 0.1 mm");
     expect_rejected("huge_mesh.yaml", big, ":6: parts.col.generator", "GB");
+    // under a process limit the machine's memory is not what counts: 1e7 hexes (about 15 GB)
+    // under `ulimit -v` of 2 GB ended in "internal error: std::bad_alloc"
+    const std::string ten_million = write_deck(
+        "ulimit_mesh.yaml", replace(good, "element_size: 1 mm", "divisions: [215, 215, 215]"));
+    const Result r = run_shell("ulimit -v 2000000 && " + std::string(RKFEM_EXE) + " check " + ten_million + " 2>&1");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("ulimit_mesh.yaml:6: parts.col.generator: needs about"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("GB this process may use (ulimit -v (address space))"), std::string::npos) << r.output;
 }
 
 TEST(Decks, OptionsASubcommandDoesNotTakeAreRefused)

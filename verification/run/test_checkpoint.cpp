@@ -235,6 +235,22 @@ TEST(Checkpoint, WhatCannotBeRestartedIsRefusedWithOneLine)
                   .code,
               0);
     expect_refused("restart " + d.string() + " --until '1 us'", "expected --until past the checkpoint");
+    // a checkpoint that is a link to itself is no checkpoint (was exit 1, "filesystem error: Too
+    // many levels of symbolic links"); a results.h5 that is damaged or gone leaves the checkpoint
+    // without its run (was exit 1, "cannot continue")
+    const fs::path loop = fs::temp_directory_path() / "rkfem_ckpt_loop";
+    fs::remove_all(loop);
+    fs::copy(d, loop, fs::copy_options::recursive);
+    fs::remove(loop / "checkpoint.h5");
+    fs::create_symlink("checkpoint.h5", loop / "checkpoint.h5");
+    expect_refused("restart " + loop.string() + " --from " + (loop / "checkpoint.h5").string(), "no checkpoint");
+    fs::remove_all(loop);
+    fs::copy(d, loop, fs::copy_options::recursive);
+    fs::resize_file(loop / "results.h5", fs::file_size(loop / "results.h5") - 8);
+    expect_refused("restart " + loop.string() + " --until '20 us'",
+                   "the results.h5 beside it to run (none: results.h5 is missing or cannot be read)");
+    fs::remove(loop / "results.h5");
+    expect_refused("restart " + loop.string() + " --until '20 us'", "results.h5 is missing or cannot be read");
 }
 
 // SIGINT and SIGTERM: the run finishes the step it is in, writes that state (a frame, the history

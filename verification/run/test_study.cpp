@@ -326,6 +326,14 @@ TEST(Study, BadStudyFilesGetOneLocatedLine)
     EXPECT_NE(only.output.find("--only zz: cases: 'zz' is not a case of " + ok + "; expected one of a, b"), std::string::npos)
         << only.output;
     EXPECT_FALSE(fs::exists(d / "out"));
+    // a file where the cases' folder goes: refused before any case runs (was exit 1, "cannot create")
+    fs::create_directories(d / "in_the_way");
+    write(d / "in_the_way" / "cases", "x");
+    const auto in_the_way = run("study " + ok + " --out " + (d / "in_the_way").string());
+    EXPECT_EQ(in_the_way.code, 2) << in_the_way.output;
+    EXPECT_NE(in_the_way.output.find("/cases exists and is not a directory"), std::string::npos) << in_the_way.output;
+    EXPECT_EQ(std::count(in_the_way.output.begin(), in_the_way.output.end(), '\n'), 1) << in_the_way.output;
+    EXPECT_FALSE(fs::exists(d / "in_the_way" / "table.csv"));
     // --out is required and --set refused
     EXPECT_EQ(run("study " + (d / "study.yaml").string()).code, 2);
     EXPECT_EQ(run("study " + (d / "study.yaml").string() + " --out x --set a=1").code, 2);

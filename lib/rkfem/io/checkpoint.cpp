@@ -117,7 +117,8 @@ StateArchive read_checkpoint(const std::string& path)
     return quietly(
         [&]
         {
-            if (!std::filesystem::is_regular_file(path))
+            std::error_code ec; // a link loop or an unreadable folder: no checkpoint, not an exception
+            if (!std::filesystem::is_regular_file(path, ec))
                 throw Error("no checkpoint " + path + " (run with --checkpoint-interval writes one)");
             const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
             if (f < 0)

@@ -53,7 +53,8 @@ void ResultsWriter::write_run_id(const std::string& run_id) const
 std::string results_run_id(const std::string& directory)
 {
     const std::string path = directory + "/results.h5";
-    if (!std::filesystem::is_regular_file(path))
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
         return "";
     H5E_auto2_t func = nullptr;
     void* data = nullptr;
@@ -107,7 +108,8 @@ ResultsWriter::ResultsWriter(const std::string& directory, const OutputSpec& sto
     void* data = nullptr;
     H5Eget_auto2(H5E_DEFAULT, &func, &data);
     H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); // a missing or damaged file: one line, below
-    file_ = std::filesystem::is_regular_file(path) ? H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT) : -1;
+    std::error_code ec;
+    file_ = std::filesystem::is_regular_file(path, ec) ? H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT) : -1;
     bool ok = file_ >= 0;
     const hid_t f = static_cast<hid_t>(file_);
     for (std::size_t m = 0; ok && m < meshes_.size(); ++m)

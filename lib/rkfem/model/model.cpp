@@ -6,10 +6,10 @@
 #include <cstdio>
 #include <memory>
 #include <sstream>
-#include <unistd.h>
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/memory_limit.hpp"
 #include "rkfem/core/setup_progress.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
@@ -105,8 +105,8 @@ real_t estimated_cells(const GeneratorSpec& g)
 /// 45 kB per nodal point: measured) past the machine's memory.
 void check_size(const Deck& d)
 {
-    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-    const real_t memory = pages > 0 && page > 0 ? static_cast<real_t>(pages) * static_cast<real_t>(page) : 1e300;
+    const MemoryLimit limit = usable_memory();
+    const real_t memory = limit.bytes;
     real_t total = 0.0, cells_total = 0.0;
     for (const PartSpec& p : d.parts)
     {
@@ -129,7 +129,8 @@ void check_size(const Deck& d)
             what << "needs about " << total / 1e9 << " GB (" << cells_total << " cells so far)";
             std::ostringstream mem;
             mem.precision(3);
-            mem << "expected meshes that fit in this machine's " << memory / 1e9 << " GB";
+            mem << "expected meshes that fit in the " << memory / 1e9 << " GB this process may use (" << limit.what
+                << ")";
             throw DeckError({p.generator.loc.where, "parts." + p.name + ".generator"}, what.str(), mem.str());
         }
     }

@@ -248,8 +248,9 @@ std::string new_run_id()
 
 std::string newest_checkpoint(const std::string& dir)
 {
+    std::error_code ec;
     for (const std::string& p : {dir + "/checkpoint.new.h5", checkpoint_path(dir), checkpoint_path(dir, 1)})
-        if (std::filesystem::is_regular_file(p))
+        if (std::filesystem::is_regular_file(p, ec))
             return p;
     return checkpoint_path(dir);
 }
@@ -397,7 +398,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         write_checkpoint(fresh, a);
         std::error_code ec;
         for (int k = opt.checkpoint_keep - 1; k > 0; --k)
-            if (std::filesystem::exists(checkpoint_path(opt.out_dir, k - 1)))
+            if (std::filesystem::exists(checkpoint_path(opt.out_dir, k - 1), ec))
                 std::filesystem::rename(checkpoint_path(opt.out_dir, k - 1), checkpoint_path(opt.out_dir, k), ec);
         std::filesystem::rename(fresh, checkpoint_path(opt.out_dir), ec);
         if (ec)

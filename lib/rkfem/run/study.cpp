@@ -665,10 +665,11 @@ Study read_study(const std::string& path)
         }
         // the decks exist (checked last: the study's own keys first); a missing one ran every
         // case as failed, exit 4
-        if (!base.empty() && !fs::is_regular_file(base))
+        std::error_code ec;
+        if (!base.empty() && !fs::is_regular_file(base, ec))
             s.fail("deck", "'" + base + "' is not a file", "expected the path of a deck, relative to the study file");
         for (const StudyCase& c : st.cases)
-            if (!fs::is_regular_file(c.deck))
+            if (!fs::is_regular_file(c.deck, ec))
                 throw DeckError({c.loc.where, c.loc.path + ".deck"}, "'" + c.deck + "' is not a file",
                                 "expected the path of a deck, relative to the study file");
         return st;
@@ -737,7 +738,8 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
             const Deck deck = read_deck(sc.deck, sc.overrides);
             const std::string hash = resolved_deck_hash(deck);
             bool reuse = false;
-            if (fs::exists(dir / "summary.json"))
+            std::error_code ec;
+            if (fs::exists(dir / "summary.json", ec))
             {
                 try
                 {
@@ -794,7 +796,8 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
             r.message = e.what();
         }
         // what a case that stopped early left (study.h5 carries every history there is)
-        if (r.history.columns.empty() && fs::exists(dir / "history.csv"))
+        std::error_code ec;
+        if (r.history.columns.empty() && fs::exists(dir / "history.csv", ec))
             r.history = read_history_csv((dir / "history.csv").string());
         const real_t took = std::chrono::duration<real_t>(std::chrono::steady_clock::now() - t0).count();
         if (progress)
