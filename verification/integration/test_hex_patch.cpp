@@ -1,7 +1,7 @@
 // Patch test on a distorted 3x3x3 patch: a linear velocity field, held for several steps, gives
 // uniform rate of deformation and stress (to 1e-10 relative) and zero force on the 8 interior
 // nodes (below 1e-10 of the force scale), for 1-point integration with each hourglass form that
-// projects out linear fields (none, viscous IHQ 3, stiffness IHQ 5) and for 2x2x2. The viscous
+// projects out linear fields (none, viscous IHQ 3, stiffness IHQ 5, assumed strain IHQ 6) and for 2x2x2. The viscous
 // form on the raw base vectors (LS-DYNA IHQ 1 analog) is shown to fail, as Schwer et al. (2005)
 // report for LS-DYNA's default.
 #include <gtest/gtest.h>
@@ -80,6 +80,13 @@ TEST(HexPatch, OnePointViscousExactVolumeIHQ3Passes)
 TEST(HexPatch, OnePointStiffnessExactVolumeIHQ5Passes)
 {
     const PatchResult r = run_patch(Formulation::Fem1pt, HourglassType::Stiffness);
+    EXPECT_LT(r.stress_spread, 1e-10);
+    EXPECT_LT(r.interior_residual, 1e-10);
+}
+
+TEST(HexPatch, OnePointAssumedStrainIHQ6Passes)
+{
+    const PatchResult r = run_patch(Formulation::Fem1pt, HourglassType::AssumedStrain);
     EXPECT_LT(r.stress_spread, 1e-10);
     EXPECT_LT(r.interior_residual, 1e-10);
 }

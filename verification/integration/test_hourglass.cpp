@@ -3,8 +3,11 @@
 // a_h gamma (gamma . v), and the stiffness form stores exactly the work done on it.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include "../support.hpp"
 #include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/operators/linear_static.hpp"
 
 using namespace rkfem;
 
@@ -162,4 +165,238 @@ TEST(Hourglass, StiffnessFormIsObjectiveUnderRigidRotation)
                 err / scale, e_hg);
     EXPECT_LT(err / scale, 1e-3); // first-order rotation: (1 + (omega dt)^2)^(n/2) - 1 = 3e-4
     EXPECT_LT(std::abs(e_hg), 1e-12 * scale * h);
+}
+
+// ---- assumed strain (Belytschko-Bindeman ASQBI, LS-DYNA IHQ 6 analog) ----
+
+namespace
+{
+/// A box of edges (lx, ly, lz) turned by `rot`, one element, the assumed-strain form at QM 1.
+struct TurnedBox
+{
+    HexMesh mesh;
+    NodeSet nodes;
+    HexBlock blk;
+    Eigen::Matrix3d rot;
+    TurnedBox(const Vec3& edges, const Eigen::Matrix3d& r, real_t E, real_t nu) : rot(r)
+    {
+        mesh = generate_box(Vec3::Zero(), edges, {1, 1, 1});
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+        {
+            const Vec3 x = rot * mesh.node(i);
+            for (int d = 0; d < 3; ++d)
+                mesh.x[3 * i + d] = x[d];
+        }
+        blk = test::make_block(mesh, nodes, Formulation::Fem1pt, {HourglassType::AssumedStrain, 1.0},
+                               ElasticParams::from_E_nu(7850, E, nu));
+    }
+    /// node velocities of the displacement rate u_dir = H_mode(xi, eta, zeta) in the box's frame
+    void set_mode(int mode, int dir)
+    {
+        for (int I = 0; I < 8; ++I)
+        {
+            const Vec3 local = Vec3::Unit(dir) * hex8_hourglass_base[mode][I];
+            const Vec3 v = rot * local;
+            for (int d = 0; d < 3; ++d)
+                nodes.v[3 * blk.conn[I] + d] = v[d];
+        }
+    }
+};
+
+Eigen::Matrix3d some_rotation()
+{
+    return (Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()) * Eigen::AngleAxisd(-0.4, Vec3::UnitX())).toRotationMatrix();
+}
+} // namespace
+
+TEST(Hourglass, AssumedStrainModesCarryTheEnergiesOfTheirStrainFields)
+{
+    // one step of dt from rest with the nodes moving as mode H (u = d H with d = dt) stores
+    // W = 1/2 K d^2, K the energy of the assumed strain field of a box of edges L (V = Lx Ly Lz):
+    //   bending u_x = zeta xi d or xi eta d: E / (1 - nu^2) 4 V / (3 Lx^2) (transverse normal stress
+    //     free, no parasitic shear), u_y = xi eta d: E / (1 - nu^2) 4 V / (3 Ly^2), ...
+    //   warping u_x = xi eta zeta d: E 4 V / (9 Lx^2) (uniaxial)
+    //   shear u_x = eta zeta d: G 4 V / 3 (1 / Ly^2 + 1 / Lz^2)
+    // for a box turned in space (the co-rotational frame finds its axes), to round-off
+    const real_t E = 200e9, nu = 0.3, G = E / (2 * (1 + nu)), dt = 1e-9;
+    const Vec3 Lv(0.02, 0.05, 0.03);
+    const real_t V = Lv.prod();
+    const Eigen::Matrix3d rot = some_rotation();
+    for (int mode = 0; mode < 4; ++mode) // hex8 order: xi eta, eta zeta, zeta xi, xi eta zeta
+        for (int dir = 0; dir < 3; ++dir)
+        {
+            TurnedBox b(Lv, rot, E, nu);
+            b.set_mode(mode, dir);
+            const ForcePassResult r = hex_internal_force(b.blk, b.nodes, dt);
+            // which natural coordinates the mode holds (xi, eta, zeta: 0, 1, 2)
+            static constexpr int has[4][3] = {{1, 1, 0}, {0, 1, 1}, {1, 0, 1}, {1, 1, 1}};
+            real_t K;
+            if (mode == 3)
+                K = E * 4 * V / (9 * Lv[dir] * Lv[dir]);
+            else if (has[mode][dir])
+                K = E / (1 - nu * nu) * 4 * V / (3 * Lv[dir] * Lv[dir]);
+            else
+            {
+                const int o1 = (dir + 1) % 3, o2 = (dir + 2) % 3;
+                K = G * 4 * V / 3 * (1 / (Lv[o1] * Lv[o1]) + 1 / (Lv[o2] * Lv[o2]));
+            }
+            const real_t want = 0.5 * K * dt * dt;
+            EXPECT_NEAR(r.d_hourglass, want, 1e-12 * want) << "mode " << mode << " direction " << dir;
+            EXPECT_NEAR(r.d_internal, 0.0, 1e-12 * want) << "a pure hourglass rate strains nothing";
+        }
+}
+
+TEST(Hourglass, AssumedStrainPassesThePatchTestAndIsObjective)
+{
+    // a linear velocity field has no hourglass rate in the FB projection, so the stored stress
+    // stays zero on a distorted patch; and a loaded element turned rigidly keeps its energy and
+    // turns its forces (the stored stress lives in the element's frame)
+    const HexMesh mesh = test::distorted_box(3, 0.01, 0.25);
+    NodeSet nodes;
+    HexBlock blk = test::make_block(mesh, nodes, Formulation::Fem1pt, {HourglassType::AssumedStrain, 1.0},
+                                    ElasticParams::from_E_nu(7850, 200e9, 0.3));
+    const real_t A[3][3] = {{1.0, 0.3, -0.2}, {0.1, -0.5, 0.4}, {0.25, 0.2, 0.7}};
+    for (int step = 0; step < 5; ++step)
+    {
+        test::linear_velocity_step(nodes, A, 1e-7);
+        EXPECT_NEAR(hex_internal_force(blk, nodes, 1e-7).d_hourglass, 0.0, 1e-20);
+        blk.commit();
+    }
+    real_t stored = 0.0;
+    for (real_t s : blk.hg_force)
+        stored = std::max(stored, std::abs(s));
+    EXPECT_LT(stored, 1e-6) << "hourglass stress under a linear field (Pa x m: would be ~1e6 if it leaked)";
+
+    // objectivity: load bending mode zeta xi along x, then turn the element a quarter turn about z
+    TurnedBox b(Vec3(0.02, 0.05, 0.03), Eigen::Matrix3d::Identity(), 200e9, 0.3);
+    const real_t dt = 1e-8;
+    b.set_mode(2, 0);
+    for (int n = 0; n < 20; ++n)
+    {
+        for (std::size_t j = 0; j < b.nodes.x.size(); ++j)
+            b.nodes.x[j] += dt * b.nodes.v[j];
+        hex_internal_force(b.blk, b.nodes, dt);
+        b.blk.commit();
+    }
+    const std::vector<real_t> x1 = b.nodes.x;
+    std::fill(b.nodes.v.begin(), b.nodes.v.end(), 0.0);
+    hex_internal_force(b.blk, b.nodes, dt);
+    assemble_block_forces(b.blk, b.nodes);
+    const std::vector<real_t> f0 = b.nodes.f_int;
+    const int steps = 500;
+    const real_t omega = 0.5 * M_PI / (steps * dt);
+    const Vec3 c(0.01, 0.025, 0.015);
+    real_t e_hg = 0.0;
+    for (int n = 1; n <= steps; ++n)
+    {
+        const real_t th = n * dt * omega;
+        for (int I = 0; I < 8; ++I)
+        {
+            const Vec3 r(x1[3 * I] - c[0], x1[3 * I + 1] - c[1], x1[3 * I + 2] - c[2]);
+            const Vec3 xr(std::cos(th) * r[0] - std::sin(th) * r[1], std::sin(th) * r[0] + std::cos(th) * r[1], r[2]);
+            for (int d = 0; d < 3; ++d)
+                b.nodes.x[3 * I + d] = c[d] + xr[d];
+            b.nodes.v[3 * I] = -omega * xr[1];
+            b.nodes.v[3 * I + 1] = omega * xr[0];
+            b.nodes.v[3 * I + 2] = 0.0;
+        }
+        e_hg += hex_internal_force(b.blk, b.nodes, dt).d_hourglass;
+        b.blk.commit();
+    }
+    std::fill(b.nodes.v.begin(), b.nodes.v.end(), 0.0);
+    hex_internal_force(b.blk, b.nodes, dt);
+    assemble_block_forces(b.blk, b.nodes);
+    real_t err = 0.0, scale = 0.0;
+    for (int I = 0; I < 8; ++I)
+    {
+        const Vec3 want(-f0[3 * I + 1], f0[3 * I], f0[3 * I + 2]);
+        const Vec3 got(b.nodes.f_int[3 * I], b.nodes.f_int[3 * I + 1], b.nodes.f_int[3 * I + 2]);
+        err = std::max(err, (got - want).norm());
+        scale = std::max(scale, want.norm());
+    }
+    EXPECT_LT(err, 1e-6 * scale) << "the frame turns exactly with a rigid rotation";
+    EXPECT_LT(std::abs(e_hg), 1e-12) << "a rigid rotation does no hourglass work";
+}
+
+namespace
+{
+/// The tip deflection of a cantilever of n x 1 x 1 one-point hexes (length l along x, height t
+/// along z, width w) under an end couple M, clamped at x = 0: the linear stiffness from one force
+/// pass per degree of freedom (a unit velocity over dt = 1 from rest, geometry fixed), solved by
+/// CHOLMOD (operators/linear_static.hpp). Returns the mean |u_z| of the tip nodes.
+real_t cantilever_tip(int n, real_t l, real_t t, real_t w, HourglassSpec hg, Formulation f, real_t E, real_t nu, real_t M)
+{
+    const HexMesh mesh = generate_box(Vec3::Zero(), Vec3(l, w, t), {n, 1, 1});
+    NodeSet nodes;
+    HexBlock blk = test::make_block(mesh, nodes, f, hg, ElasticParams::from_E_nu(7850, E, nu));
+    const int nd = 3 * static_cast<int>(nodes.size());
+    std::vector<Eigen::Triplet<real_t>> entries;
+    for (int k = 0; k < nd; ++k)
+    {
+        std::fill(nodes.v.begin(), nodes.v.end(), 0.0);
+        nodes.v[static_cast<std::size_t>(k)] = 1.0;
+        hex_internal_force(blk, nodes, 1.0); // trial state only: the committed one stays at rest
+        std::fill(nodes.f_int.begin(), nodes.f_int.end(), 0.0);
+        assemble_block_forces(blk, nodes);
+        for (int j = 0; j < nd; ++j)
+            if (nodes.f_int[static_cast<std::size_t>(j)] != 0.0)
+            {
+                // K is symmetric: each column entered as half of itself and half of its transpose
+                entries.emplace_back(j, k, 0.5 * nodes.f_int[static_cast<std::size_t>(j)]);
+                entries.emplace_back(k, j, 0.5 * nodes.f_int[static_cast<std::size_t>(j)]);
+            }
+    }
+    SparseMatrix K(nd, nd);
+    K.setFromTriplets(entries.begin(), entries.end());
+    std::vector<real_t> fext(static_cast<std::size_t>(nd), 0.0), fixed_values;
+    std::vector<index_t> fixed;
+    for (index_t i = 0; i < nodes.size(); ++i)
+    {
+        const Vec3 x = mesh.node(i);
+        if (x[0] > l * (1 - 1e-9)) // the end couple: compression on top
+            fext[3 * static_cast<std::size_t>(i)] = (x[2] > 0.5 * t ? -1.0 : 1.0) * M / (2 * t);
+        if (x[0] < 1e-9 * l)
+            for (int d = 0; d < 3; ++d)
+            {
+                fixed.push_back(3 * i + d);
+                fixed_values.push_back(0.0);
+            }
+    }
+    const std::vector<real_t> u = solve_static(K, fext, fixed, fixed_values);
+    real_t tip = 0.0;
+    for (index_t i = 0; i < nodes.size(); ++i)
+        if (mesh.node(i)[0] > l * (1 - 1e-9))
+            tip += std::abs(u[3 * static_cast<std::size_t>(i) + 2]) / 4;
+    return tip;
+}
+} // namespace
+
+TEST(Hourglass, AssumedStrainBendsOneElementThroughTheThicknessExactly)
+{
+    // Belytschko & Bindeman's point: with one element through the thickness the assumed strain
+    // form bends as the beam does. A cantilever under an end couple (pure bending; with nu = 0
+    // 3-D elasticity gives Euler-Bernoulli's u_z = M x^2 / (2 E I) with the clamp satisfied
+    // exactly): the tip deflection M L^2 / (2 E I) to round-off with 1, 2 and 5 elements along
+    // it; with nu = 0.3 the bending modes are plane strain across the width, so E / (1 - nu^2)
+    // sets the hourglass part and the tip lies between the two. The controls, each far off on
+    // the same mesh: Flanagan-Belytschko's stiffness form at LS-DYNA's QM 0.1 (its stiffness
+    // grows with sum |b_I|^2 / V, about 1 / t^2 on these slender elements, where bending needs
+    // 1 / l^2: 0.006 of the deflection at 1 element) and full 2x2x2 integration (shear locking).
+    const real_t E = 200e9, l = 0.1, t = 0.01, w = 0.01, M = 100.0;
+    const real_t I = w * t * t * t / 12, exact = M * l * l / (2 * E * I);
+    for (int n : {1, 2, 5})
+    {
+        const real_t asqbi = cantilever_tip(n, l, t, w, {HourglassType::AssumedStrain, 1.0}, Formulation::Fem1pt, E, 0.0, M);
+        const real_t fb = cantilever_tip(n, l, t, w, {HourglassType::Stiffness, 0.1}, Formulation::Fem1pt, E, 0.0, M);
+        const real_t full = cantilever_tip(n, l, t, w, {HourglassType::None, 0.0}, Formulation::Fem2x2x2, E, 0.0, M);
+        const real_t nu3 = cantilever_tip(n, l, t, w, {HourglassType::AssumedStrain, 1.0}, Formulation::Fem1pt, E, 0.3, M);
+        std::printf("cantilever, end couple, %d element(s): tip / beam theory: assumed strain %.12f (nu 0.3: %.4f), "
+                    "FB stiffness QM 0.1 %.3f, 2x2x2 %.4f\n",
+                    n, asqbi / exact, nu3 / exact, fb / exact, full / exact);
+        EXPECT_NEAR(asqbi / exact, 1.0, 1e-9) << n;
+        EXPECT_GT(nu3 / exact, 1 - 0.3 * 0.3 - 1e-9) << n;
+        EXPECT_LT(nu3 / exact, 1 + 1e-9) << n;
+        EXPECT_LT(fb / exact, 0.5) << n;
+        EXPECT_LT(full / exact, 0.5) << n;
+    }
 }

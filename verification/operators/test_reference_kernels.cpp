@@ -74,7 +74,7 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly)
             s_scale = std::max(s_scale, std::abs(r.stress[k]));
             c.stress = std::max(c.stress, std::abs(blk.stress_trial[k * blk.stress_stride + e] - r.stress[k]));
         }
-        if (hg == HourglassType::Stiffness)
+        if (hg == HourglassType::Stiffness || hg == HourglassType::AssumedStrain)
             for (int a = 0; a < 4; ++a)
                 for (int i = 0; i < 3; ++i)
                 {
@@ -115,6 +115,7 @@ const char* name(HourglassType t)
     case HourglassType::Viscous: return "viscous";
     case HourglassType::Stiffness: return "stiffness";
     case HourglassType::ViscousPlain: return "viscous-plain";
+    case HourglassType::AssumedStrain: return "assumed-strain";
     }
     return "?";
 }
@@ -143,7 +144,7 @@ TEST_P(Hex1ptReference, FastKernelEqualsThePlainOneToRoundOff)
 
 INSTANTIATE_TEST_SUITE_P(Forms, Hex1ptReference,
                          ::testing::Values(HourglassType::None, HourglassType::Viscous, HourglassType::Stiffness,
-                                           HourglassType::ViscousPlain),
+                                           HourglassType::ViscousPlain, HourglassType::AssumedStrain),
                          [](const auto& info)
                          {
                              std::string s = name(info.param);

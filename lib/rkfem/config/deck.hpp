@@ -78,6 +78,7 @@ enum class HourglassType
     Viscous,      ///< Flanagan-Belytschko viscous, exact volume integration (LS-DYNA IHQ 3)
     Stiffness,    ///< Flanagan-Belytschko stiffness, exact volume integration (LS-DYNA IHQ 5)
     ViscousPlain, ///< viscous on the raw base vectors Gamma (LS-DYNA IHQ 1 analog): fails the patch test
+    AssumedStrain, ///< Belytschko-Bindeman assumed strain, co-rotational stiffness (LS-DYNA IHQ 6)
 };
 
 struct HourglassSpec

@@ -330,10 +330,11 @@ std::string to_yaml(const Deck& d)
                << ", share_translates: " << (p.rk.share_translates ? "true" : "false") << "}\n";
         if (p.formulation == Formulation::Fem1pt)
         {
-            const char* t = p.hourglass.type == HourglassType::Viscous     ? "viscous"
-                            : p.hourglass.type == HourglassType::Stiffness ? "stiffness"
-                            : p.hourglass.type == HourglassType::None      ? "none"
-                                                                           : "viscous-plain";
+            const char* t = p.hourglass.type == HourglassType::Viscous         ? "viscous"
+                            : p.hourglass.type == HourglassType::Stiffness     ? "stiffness"
+                            : p.hourglass.type == HourglassType::AssumedStrain ? "assumed-strain"
+                            : p.hourglass.type == HourglassType::None          ? "none"
+                                                                               : "viscous-plain";
             os << "    hourglass: {type: " << t << ", coefficient: " << p.hourglass.coefficient
                << "}\n";
         }

@@ -674,11 +674,12 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
             ignore(p, s, "hourglass", f);
         Section h(ctx, s.node("hourglass"), s.path("hourglass"), {"type", "coefficient"});
         const std::string t =
-            h.choice("type", {"viscous", "stiffness", "none", "viscous-plain"}, "viscous");
-        p.hourglass.type = t == "viscous"     ? HourglassType::Viscous
-                           : t == "stiffness" ? HourglassType::Stiffness
-                           : t == "none"      ? HourglassType::None
-                                              : HourglassType::ViscousPlain;
+            h.choice("type", {"viscous", "stiffness", "assumed-strain", "none", "viscous-plain"}, "viscous");
+        p.hourglass.type = t == "viscous"          ? HourglassType::Viscous
+                           : t == "stiffness"      ? HourglassType::Stiffness
+                           : t == "assumed-strain" ? HourglassType::AssumedStrain
+                           : t == "none"           ? HourglassType::None
+                                                   : HourglassType::ViscousPlain;
         p.hourglass.coefficient = h.quantity("coefficient", dim::none, 0.1);
         if (!(p.hourglass.coefficient >= 0.0))
             h.fail("coefficient", "is negative", "expected QM >= 0 (LS-DYNA default 0.1)");

@@ -12,6 +12,7 @@
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/huge_pages.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/simd.hpp"
 #include "rkfem/core/stream_stores.hpp"
@@ -250,7 +251,52 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         for (int j = 0; j < 3; ++j)
             T[i][j] = sig[voigt[i][j]];
     dvec Q[4][3];
-    if constexpr (HG != HourglassType::None)
+    if constexpr (HG == HourglassType::AssumedStrain)
+    {
+        // assumed strain in the co-rotational frame (kernels/assumed_strain_hourglass.hpp): the
+        // stored stress S (frame components, 12 per element) grows with the frame's hourglass
+        // velocities; Q back in the global frame, scaled to the FB base vectors (1/8)
+        dvec e[3][3], Jf[3];
+        assumed_strain_frame(A[mode_xi], A[mode_eta], A[mode_zeta], e, Jf);
+        const dvec inv_j[3] = {1.0 / Jf[0], 1.0 / Jf[1], 1.0 / Jf[2]};
+        const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
+        const real_t gain = blk.hourglass.coefficient * mat.mu / 3.0 * dt;
+        dvec q[4][3], Sn[4][3], Sm[4][3];
+        for (int m = 0; m < 4; ++m)
+        {
+            const int k = mode_xi_eta + kAssumedStrainMode[m];
+            dvec qd[3];
+            for (int i = 0; i < 3; ++i)
+                qd[i] = simd::neg_mul_add(L[i][2], A[k][2],
+                                          simd::neg_mul_add(L[i][1], A[k][1], simd::neg_mul_add(L[i][0], A[k][0], U[k][i])));
+            for (int i = 0; i < 3; ++i)
+            {
+                q[m][i] = 0.125 * mul_add(e[i][2], qd[2], mul_add(e[i][1], qd[1], e[i][0] * qd[0]));
+                const std::size_t slot = static_cast<std::size_t>(3 * m + i) * np;
+                const dvec So = load_lanes(blk.hg_force.data() + slot);
+                Sn[m][i] = mul_add(gain * q[m][i], inv_j[i], So);
+                Sm[m][i] = 0.5 * (So + Sn[m][i]);
+                store_lanes(blk.hg_force_trial.data() + slot, Sn[m][i]);
+            }
+        }
+        dvec Qn[4][3], Qm[4][3];
+        assumed_strain_forces(Sn, Jf, nu, Qn);
+        assumed_strain_forces(Sm, Jf, nu, Qm);
+        for (int m = 0; m < 4; ++m)
+        {
+            const int a = kAssumedStrainMode[m];
+            for (int i = 0; i < 3; ++i)
+                de_hg = mul_add(Qm[m][i] * q[m][i], dt, de_hg);
+            for (int j = 0; j < 3; ++j)
+                Q[a][j] = 0.125 * mul_add(e[2][j], Qn[m][2], mul_add(e[1][j], Qn[m][1], e[0][j] * Qn[m][0]));
+        }
+        for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i)
+                T[i][j] = simd::neg_mul_add(
+                    inv_v, mul_add(A[7][j], Q[3][i], mul_add(A[6][j], Q[2][i], mul_add(A[5][j], Q[1][i], A[4][j] * Q[0][i]))),
+                    T[i][j]);
+    }
+    else if constexpr (HG != HourglassType::None)
     {
         const real_t qm = blk.hourglass.coefficient;
         // hourglass coefficient: viscous a_h = QM rho c V^(2/3) / 4 with V^(2/3) taken as lc^2
@@ -762,6 +808,9 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
             break;
         case HourglassType::ViscousPlain:
             run_1pt<HourglassType::ViscousPlain>(blk, nodes, nb, dt);
+            break;
+        case HourglassType::AssumedStrain:
+            run_1pt<HourglassType::AssumedStrain>(blk, nodes, nb, dt);
             break;
         }
     }

@@ -8,6 +8,7 @@
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 
 namespace rkfem
 {
@@ -68,11 +69,79 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
     // T = sigma - q 1 - (1/V) sum_a Q_a (x) h_a, by rows
     static constexpr int voigt[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}};
     real_t T[3][3];
+    real_t Q_fb[4][3] = {}; // assumed strain: the generalized forces on the FB base vectors
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             T[i][j] = out.stress[voigt[i][j]] - (i == j ? q : 0.0);
     const HourglassType hg = blk.hourglass.type;
-    if (hg != HourglassType::None)
+    if (hg == HourglassType::AssumedStrain)
+    {
+        // the element's axes r, s, t give the co-rotational frame and its sizes
+        real_t axes[3][3] = {};
+        for (int J = 0; J < 8; ++J)
+            for (int k = 0; k < 3; ++k)
+                for (int d = 0; d < 3; ++d)
+                    axes[k][d] += hex8_nodes[J][k] * x[J][d];
+        real_t frame[3][3], Jf[3];
+        assumed_strain_frame(axes[0], axes[1], axes[2], frame, Jf);
+        const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
+        real_t q[4][3], S_new[4][3], S_mid[4][3];
+        for (int m = 0; m < 4; ++m)
+        {
+            const int a = kAssumedStrainMode[m];
+            real_t h[3] = {}, g[3] = {};
+            for (int J = 0; J < 8; ++J)
+                for (int d = 0; d < 3; ++d)
+                {
+                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
+                    g[d] += hex8_hourglass_base[a][J] * v[J][d];
+                }
+            real_t qdot[3];
+            for (int i = 0; i < 3; ++i)
+            {
+                qdot[i] = g[i];
+                for (int j = 0; j < 3; ++j)
+                    qdot[i] -= L[i][j] * h[j];
+            }
+            for (int i = 0; i < 3; ++i)
+            {
+                q[m][i] = (frame[i][0] * qdot[0] + frame[i][1] * qdot[1] + frame[i][2] * qdot[2]) / 8.0;
+                const real_t S_old = blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
+                S_new[m][i] = S_old + dt * blk.hourglass.coefficient * mat.mu / 3.0 * q[m][i] / Jf[i];
+                S_mid[m][i] = 0.5 * (S_old + S_new[m][i]);
+                out.hg_force[m][i] = S_new[m][i];
+            }
+        }
+        real_t Q_new[4][3], Q_mid[4][3];
+        assumed_strain_forces(S_new, Jf, nu, Q_new);
+        assumed_strain_forces(S_mid, Jf, nu, Q_mid);
+        for (int m = 0; m < 4; ++m)
+        {
+            const int a = kAssumedStrainMode[m];
+            real_t h[3] = {};
+            for (int J = 0; J < 8; ++J)
+                for (int d = 0; d < 3; ++d)
+                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
+            for (int i = 0; i < 3; ++i)
+                out.d_hourglass += dt * Q_mid[m][i] * q[m][i];
+            for (int j = 0; j < 3; ++j)
+            {
+                // the generalized force on FB mode a, global component j
+                Q_fb[a][j] = (frame[0][j] * Q_new[m][0] + frame[1][j] * Q_new[m][1] + frame[2][j] * Q_new[m][2]) / 8.0;
+            }
+        }
+        for (int a = 0; a < 4; ++a)
+        {
+            real_t h[3] = {};
+            for (int J = 0; J < 8; ++J)
+                for (int d = 0; d < 3; ++d)
+                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    T[i][j] -= Q_fb[a][i] * h[j] / V;
+        }
+    }
+    else if (hg != HourglassType::None)
     {
         const real_t qm = blk.hourglass.coefficient;
         real_t bb = 0.0;
@@ -138,7 +207,7 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                 f += T[i][j] * b[I][j];
             if (hg != HourglassType::None)
                 for (int a = 0; a < 4; ++a)
-                    f += hex8_hourglass_base[a][I] * out.hg_force[a][i];
+                    f += hex8_hourglass_base[a][I] * (hg == HourglassType::AssumedStrain ? Q_fb[a][i] : out.hg_force[a][i]);
             out.f[I][i] = f;
         }
     return out;

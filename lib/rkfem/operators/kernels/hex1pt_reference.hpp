@@ -14,6 +14,7 @@
 ///     g_a = sum_J Gamma_aJ v_J, qdot_a = g_a - L h_a (the plain viscous form: g_a);
 ///     Q_a = c_h qdot_a (viscous, c_h = QM rho0 c lc^2 / 4) or Q_a += c_h dt qdot_a (stiffness,
 ///     c_h = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V));
+///     assumed strain (LS-DYNA IHQ 6): kernels/assumed_strain_hourglass.hpp;
 ///   f_I = (sigma - q 1 - (1/V) sum_a Q_a (x) h_a) b_I + sum_a Gamma_aI Q_a;
 ///   energies over dt: stress power V (sigma_old + sigma_new)/2 : d, hourglass Q . qdot
 ///   (stiffness: (Q_old + Q_new)/2 . qdot), bulk viscosity -V q tr d;
@@ -27,7 +28,8 @@ struct Hex1ptElement
 {
     real_t f[8][3] = {};       ///< nodal internal forces [N]
     real_t stress[6] = {};     ///< trial stress, Voigt (xx yy zz xy yz zx) [Pa]
-    real_t hg_force[4][3] = {}; ///< hourglass generalized forces Q_a (stiffness form: trial)
+    real_t hg_force[4][3] = {}; ///< hourglass generalized forces Q_a (stiffness form: trial; assumed
+                                ///< strain: the trial stored stresses S_m, frame components)
     real_t volume = 0.0;
     real_t d_internal = 0.0, d_hourglass = 0.0, d_bulk_viscosity = 0.0; ///< [J] over dt
     real_t dt_stable = 0.0;                                             ///< [s]

@@ -1,0 +1,116 @@
+#pragma once
+/// @file assumed_strain_hourglass.hpp
+/// Hourglass control by assumed strain (Belytschko & Bindeman 1993, ASQBI; LS-DYNA's IHQ 6
+/// analog), in the element's co-rotational frame, for the 1-point hexahedron. T is real_t (the
+/// plain twin in hex1pt_reference.cpp) or a lane vector (hex_block.cpp).
+///
+/// The hourglass velocities qdot_a = sum_I v_I gamma_aI (Flanagan-Belytschko gamma, modes
+/// a = xi eta, eta zeta, zeta xi, xi eta zeta as hex8_modes.hpp orders them) are turned into the
+/// frame e_1, e_2, e_3 of the element's axes r = sum xi_I x_I, s = sum eta_I x_I, t = sum zeta_I x_I
+/// (each normalised, then three passes of e_1 <- e_2 x e_3 + e_1 (and cyclic) and a Gram-Schmidt
+/// close, so the frame turns with the element and is the same for any node numbering of a box),
+/// where the element's sizes are J_1 = e_1 . r, J_2 = e_2 . s, J_3 = e_3 . t (4 L_i for a box of
+/// edges L_i). With q = qdot / 8 in that frame, the stored hourglass stress grows as
+///   S_ai += dt QM (G / 3) q_ai / J_i,   T_ai = J_i S_ai,
+/// and the generalized forces are, with H_11 = J_2 J_3 / J_1 (cyclic), H_12 = J_3, H_13 = J_2,
+/// H_23 = J_1, c1 = 2 / (1 - nu), c2 = 2 nu / (1 - nu), c3 = 2 (1 + nu) / 3 (subscripts: the
+/// component x, y, z and the mode 1 = eta zeta, 2 = zeta xi, 3 = xi eta, 4 = xi eta zeta),
+///   shear:   Q_x1 = (H_22 + H_33) T_x1 + H_12 T_y2 + H_13 T_z3   (and cyclic for Q_y2, Q_z3),
+///   bending: Q_x2 = c1 H_11 T_x2 + c2 H_12 T_y1,  Q_x3 = c1 H_11 T_x3 + c2 H_13 T_z1,
+///            Q_y1 = c1 H_22 T_y1 + c2 H_12 T_x2,  Q_y3 = c1 H_22 T_y3 + c2 H_23 T_z2,
+///            Q_z1 = c1 H_33 T_z1 + c2 H_13 T_x3,  Q_z2 = c1 H_33 T_z2 + c2 H_23 T_y3,
+///   warping: Q_i4 = c3 H_ii T_i4,
+/// and f_iI = sum_a Q_ai gamma_aI / 8 back in the global frame. For a box of edges L_i these are
+/// the energies of the assumed strain fields exactly (at QM = 1): the bending modes carry
+/// E / (1 - nu^2) 4 V / (3 L_x^2) (pure bending with the transverse normal stress free, no
+/// parasitic shear, no volumetric locking as nu -> 1/2), the shear modes G (4 V / 3)(1 / L_y^2 +
+/// 1 / L_z^2) with their couplings, the warping modes E 4 V / (9 L_x^2). The closed form is the
+/// one OpenRadioss's HEPH solid uses (its szhour3.F); LS-DYNA documents IHQ 6 as this stabilization
+/// in a co-rotational frame (QM = 1: accurate coarse-mesh bending) but not its frame or any plastic
+/// scaling, so none is applied here: the stiffness is the elastic one at every state.
+#include "rkfem/core/simd.hpp"
+#include "rkfem/core/types.hpp"
+
+namespace rkfem
+{
+/// The FB hourglass mode a (hex8_modes order: xi eta, eta zeta, zeta xi, xi eta zeta) of the
+/// assumed-strain mode m (1 = eta zeta, 2 = zeta xi, 3 = xi eta, 4 = xi eta zeta, 0-based here)
+inline constexpr int kAssumedStrainMode[4] = {1, 2, 0, 3};
+
+/// The co-rotational frame e[i][d] and sizes J[i] of an element from its axes r, s, t.
+template <class T> RKFEM_LANE_INLINE void assumed_strain_frame(const T r[3], const T s[3], const T t[3], T e[3][3], T J[3])
+{
+    auto normalize = [](T v[3])
+    {
+        const T inv = 1.0 / simd::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        for (int d = 0; d < 3; ++d)
+            v[d] = v[d] * inv;
+    };
+    auto cross = [](const T a[3], const T b[3], T c[3])
+    {
+        c[0] = a[1] * b[2] - a[2] * b[1];
+        c[1] = a[2] * b[0] - a[0] * b[2];
+        c[2] = a[0] * b[1] - a[1] * b[0];
+    };
+    T u[3] = {r[0], r[1], r[2]}, v[3] = {s[0], s[1], s[2]}, w[3] = {t[0], t[1], t[2]};
+    normalize(u);
+    normalize(v);
+    normalize(w);
+    for (int pass = 0; pass < 3; ++pass)
+    {
+        T a[3], b[3], c[3];
+        cross(v, w, a);
+        cross(w, u, b);
+        cross(u, v, c);
+        for (int d = 0; d < 3; ++d)
+        {
+            u[d] = u[d] + a[d];
+            v[d] = v[d] + b[d];
+            w[d] = w[d] + c[d];
+        }
+        normalize(u);
+        normalize(v);
+        normalize(w);
+    }
+    cross(u, v, w);
+    normalize(w);
+    cross(w, u, v);
+    for (int d = 0; d < 3; ++d)
+    {
+        e[0][d] = u[d];
+        e[1][d] = v[d];
+        e[2][d] = w[d];
+    }
+    J[0] = e[0][0] * r[0] + e[0][1] * r[1] + e[0][2] * r[2];
+    J[1] = e[1][0] * s[0] + e[1][1] * s[1] + e[1][2] * s[2];
+    J[2] = e[2][0] * t[0] + e[2][1] * t[1] + e[2][2] * t[2];
+}
+
+/// The generalized forces Q[m][i] (frame components, assumed-strain modes m) of the stored
+/// hourglass stress S[m][i], for sizes J and Poisson's ratio nu.
+template <class T> RKFEM_LANE_INLINE void assumed_strain_forces(const T S[4][3], const T J[3], real_t nu, T Q[4][3])
+{
+    const real_t c1 = 2.0 / (1.0 - nu), c2 = 2.0 * nu / (1.0 - nu), c3 = 2.0 * (1.0 + nu) / 3.0;
+    T Tm[4][3];
+    for (int m = 0; m < 4; ++m)
+        for (int i = 0; i < 3; ++i)
+            Tm[m][i] = J[i] * S[m][i];
+    const T H11 = J[1] * J[2] / J[0], H22 = J[0] * J[2] / J[1], H33 = J[0] * J[1] / J[2];
+    const T H12 = J[2], H13 = J[1], H23 = J[0];
+    // shear (x1, y2, z3)
+    Q[0][0] = (H22 + H33) * Tm[0][0] + H12 * Tm[1][1] + H13 * Tm[2][2];
+    Q[1][1] = (H11 + H33) * Tm[1][1] + H12 * Tm[0][0] + H23 * Tm[2][2];
+    Q[2][2] = (H11 + H22) * Tm[2][2] + H13 * Tm[0][0] + H23 * Tm[1][1];
+    // bending, coupled in pairs through Poisson's ratio
+    Q[1][0] = c1 * H11 * Tm[1][0] + c2 * H12 * Tm[0][1]; // x2, y1
+    Q[0][1] = c1 * H22 * Tm[0][1] + c2 * H12 * Tm[1][0];
+    Q[2][0] = c1 * H11 * Tm[2][0] + c2 * H13 * Tm[0][2]; // x3, z1
+    Q[0][2] = c1 * H33 * Tm[0][2] + c2 * H13 * Tm[2][0];
+    Q[2][1] = c1 * H22 * Tm[2][1] + c2 * H23 * Tm[1][2]; // y3, z2
+    Q[1][2] = c1 * H33 * Tm[1][2] + c2 * H23 * Tm[2][1];
+    // warping
+    Q[3][0] = c3 * H11 * Tm[3][0];
+    Q[3][1] = c3 * H22 * Tm[3][1];
+    Q[3][2] = c3 * H33 * Tm[3][2];
+}
+} // namespace rkfem
