@@ -7,6 +7,8 @@
 
 #include "../support.hpp"
 #include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/operators/linear_static.hpp"
 
 using namespace rkfem;
@@ -399,4 +401,41 @@ TEST(Hourglass, AssumedStrainBendsOneElementThroughTheThicknessExactly)
         EXPECT_LT(fb / exact, 0.5) << n;
         EXPECT_LT(full / exact, 0.5) << n;
     }
+}
+
+TEST(Hourglass, AssumedStrainGrowsByTheShareTheMaterialTakesElastically)
+{
+    // the plastic scaling of the assumed-strain stiffness: of a deviatoric strain increment, the
+    // share r the point's own update took elastically. J2 with linear hardening (plastic modulus
+    // H) sheared on its yield surface, with spin: r = H / (3 mu + H); an elastic
+    // step (below yield): 1; perfectly plastic: 0; no deviatoric strain rate: 1
+    const real_t E = 200e9, nu = 0.3, sigy = 300e6, dt = 1e-7;
+    const ElasticParams el = ElasticParams::from_E_nu(7850, E, nu);
+    const real_t mu = el.mu;
+    for (real_t etan : {20e9, 2e9, 0.0})
+    {
+        const J2Params p = J2Params::bilinear(el, E, sigy, etan);
+        const real_t H = E * etan / (E - etan);
+        // on the surface in shear along xy, then more shear (d_xy) with a spin about z
+        real_t s[6] = {0, 0, 0, sigy / std::sqrt(3.0), 0, 0};
+        real_t eps_p = 0.0, failed = 0.0;
+        const real_t d[6] = {0, 0, 0, 100.0, 0, 0}, w[3] = {30.0, 0, 0};
+        real_t so[6];
+        std::copy(s, s + 6, so);
+        j2_update(p, d, w, dt, s, eps_p, failed);
+        const real_t r = assumed_strain_tangent_share(so, s, d, w, mu, dt);
+        std::printf("J2, etan %.0e Pa: share %.12f, H / (3 mu + H) %.12f\n", etan, r, H / (3 * mu + H));
+        // the share removes the spin's first-order turn of the old stress; the update's exact
+        // (Hughes-Winget) turn differs by (dt w)^2 sigma / (2 mu dt d) = 1e-11 x 115 here
+        EXPECT_NEAR(r, H / (3 * mu + H), 1e-8) << etan;
+        EXPECT_GT(eps_p, 0.0);
+    }
+    real_t s[6] = {1e6, 0, 0, 2e6, 0, 0}, so[6];
+    std::copy(s, s + 6, so);
+    const real_t d[6] = {10.0, -5.0, -5.0, 3.0, 1.0, 0.0}, w[3] = {0.0, 40.0, -7.0};
+    real_t eps_p = 0.0, failed = 0.0;
+    j2_update(J2Params::bilinear(el, E, sigy, 2e9), d, w, dt, s, eps_p, failed);
+    EXPECT_NEAR(assumed_strain_tangent_share(so, s, d, w, mu, dt), 1.0, 1e-6) << "an elastic step";
+    const real_t none[6] = {0.1, 0.1, 0.1, 0, 0, 0}; // volumetric only
+    EXPECT_EQ(assumed_strain_tangent_share(so, so, none, w, mu, dt), 1.0);
 }

@@ -260,7 +260,9 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         assumed_strain_frame(A[mode_xi], A[mode_eta], A[mode_zeta], e, Jf);
         const dvec inv_j[3] = {1.0 / Jf[0], 1.0 / Jf[1], 1.0 / Jf[2]};
         const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
-        const real_t gain = blk.hourglass.coefficient * mat.mu / 3.0 * dt;
+        dvec gain = simd::broadcast(blk.hourglass.coefficient * mat.mu / 3.0 * dt);
+        if constexpr (PLASTIC) // an elastic material takes the whole increment
+            gain = gain * assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
         dvec q[4][3], Sn[4][3], Sm[4][3];
         for (int m = 0; m < 4; ++m)
         {

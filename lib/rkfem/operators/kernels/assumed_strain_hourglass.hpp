@@ -26,8 +26,10 @@
 /// parasitic shear, no volumetric locking as nu -> 1/2), the shear modes G (4 V / 3)(1 / L_y^2 +
 /// 1 / L_z^2) with their couplings, the warping modes E 4 V / (9 L_x^2). The closed form is the
 /// one OpenRadioss's HEPH solid uses (its szhour3.F); LS-DYNA documents IHQ 6 as this stabilization
-/// in a co-rotational frame (QM = 1: accurate coarse-mesh bending) but not its frame or any plastic
-/// scaling, so none is applied here: the stiffness is the elastic one at every state.
+/// in a co-rotational frame (QM = 1: accurate coarse-mesh bending) but not its frame or how its
+/// stiffness scales with plasticity. Ours: for materials with history the increment is scaled by
+/// the share of the deviatoric strain increment the point's update took elastically
+/// (assumed_strain_tangent_share below), so a crushed element stores no elastic hourglass energy.
 #include "rkfem/core/simd.hpp"
 #include "rkfem/core/types.hpp"
 
@@ -84,6 +86,42 @@ template <class T> RKFEM_LANE_INLINE void assumed_strain_frame(const T r[3], con
     J[0] = e[0][0] * r[0] + e[0][1] * r[1] + e[0][2] * r[2];
     J[1] = e[1][0] * s[0] + e[1][1] * s[1] + e[1][2] * s[2];
     J[2] = e[2][0] * t[0] + e[2][1] * t[1] + e[2][2] * t[2];
+}
+
+/// The share of the element's deviatoric strain increment dt d' that its own stress update took
+/// elastically, r = (sigma_new - sigma_old - dt (W sigma_old - sigma_old W)) : d' / (2 mu dt d' : d')
+/// in [0, 1] (Voigt, shear components d_ij and w = (W_01, W_12, W_20) of the tensors; the spin's
+/// first-order turn of the old stress is not the material's): 1 for an elastic step, H / (3 mu +
+/// H) for J2 flow with hardening modulus H along the flow direction, 0 on a perfectly plastic or
+/// softening surface; 1 where d' vanishes (a pure hourglass or rigid motion). For materials with
+/// history the hourglass stress grows by r times the elastic increment, so an element that flows
+/// does not store elastic energy its material cannot hold.
+template <class T>
+RKFEM_LANE_INLINE T assumed_strain_tangent_share(const T so[6], const T sn[6], const T d[6], const T w[3], real_t mu, real_t dt)
+{
+    // old stress as a tensor, and its turn W s - s W
+    const T S[3][3] = {{so[0], so[3], so[5]}, {so[3], so[1], so[4]}, {so[5], so[4], so[2]}};
+    const T zero = so[0] - so[0];
+    const T Wt[3][3] = {{zero, w[0], -w[2]}, {-w[0], zero, w[1]}, {w[2], -w[1], zero}};
+    T turn[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+        {
+            T t = zero;
+            for (int k = 0; k < 3; ++k)
+                t = t + Wt[i][k] * S[k][j] - S[i][k] * Wt[k][j];
+            turn[i][j] = t;
+        }
+    const T ds[6] = {sn[0] - so[0] - dt * turn[0][0], sn[1] - so[1] - dt * turn[1][1], sn[2] - so[2] - dt * turn[2][2],
+                     sn[3] - so[3] - dt * turn[0][1], sn[4] - so[4] - dt * turn[1][2], sn[5] - so[5] - dt * turn[2][0]};
+    const T m = (d[0] + d[1] + d[2]) * (1.0 / 3.0);
+    const T d0 = d[0] - m, d1 = d[1] - m, d2 = d[2] - m;
+    const T num = ds[0] * d0 + ds[1] * d1 + ds[2] * d2 + 2.0 * (ds[3] * d[3] + ds[4] * d[4] + ds[5] * d[5]);
+    const T dd = d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
+    // eps: a strain rate of 1e-10 1/s squared, far below any a run resolves
+    const real_t eps = 2.0 * mu * dt * 1e-20 + 1e-300; // (and dt = 0: the first pass)
+    const T r = (num + eps) / (2.0 * mu * dt * dd + eps);
+    return simd::min(simd::max(r, zero), zero + 1.0);
 }
 
 /// The generalized forces Q[m][i] (frame components, assumed-strain modes m) of the stored
