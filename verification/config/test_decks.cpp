@@ -295,6 +295,21 @@ TEST(Decks, TooSmallRkSupportNamesTheKey)
                     ":9: parts.col.rk.normalized_support", "RK moment matrix is singular");
 }
 
+TEST(Decks, RkFunctionsTheDropToleranceLeavesShortAreNamedAtTheSupport)
+{
+    // a / h = 1.01 with the default drop tolerance: near one spacing the functions kept above
+    // 1e-5 of the largest do not span a linear field; this ended in exit 1 with no key
+    const std::string deck = replace(good, "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                                     "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
+                                     "    formulation: rkpm\n    rk: {normalized_support: 1.01}\n");
+    expect_rejected("rk_drop.yaml", deck, ":9: parts.col.rk.normalized_support",
+                    "RK drop tolerance: the functions left at x = (");
+    // keeping every function (drop_tolerance: 0) builds the same support
+    const Result r = run("check " + write_deck("rk_drop_zero.yaml", replace(deck, "normalized_support: 1.01}",
+                                                                             "normalized_support: 1.01, drop_tolerance: 0}")));
+    EXPECT_EQ(r.code, 0) << r.output;
+}
+
 TEST(Decks, EmptyNodeSet)
 {
     expect_rejected("empty_set.yaml", replace(good, "point: [0, 0, 0]", "point: [0, 0, 5 m]"),

@@ -254,8 +254,8 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     if constexpr (HG == HourglassType::AssumedStrain)
     {
         // assumed strain in the co-rotational frame (kernels/assumed_strain_hourglass.hpp): the
-        // stored stress S (frame components, 12 per element) grows with the frame's hourglass
-        // velocities; Q back in the global frame, scaled to the FB base vectors (1/8)
+        // stored generalized forces (frame components, 12 per element) grow with the frame's
+        // hourglass velocities; Q back in the global frame, scaled to the FB base vectors (1/8)
         dvec e[3][3], Jf[3];
         assumed_strain_frame(A[mode_xi], A[mode_eta], A[mode_zeta], e, Jf);
         const dvec inv_j[3] = {1.0 / Jf[0], 1.0 / Jf[1], 1.0 / Jf[2]};
@@ -263,7 +263,9 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         dvec gain = simd::broadcast(blk.hourglass.coefficient * mat.mu / 3.0 * dt);
         if constexpr (PLASTIC) // an elastic material takes the whole increment
             gain = gain * assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
-        dvec q[4][3], Sn[4][3], Sm[4][3];
+        // the stored forces Q (frame components) grow by the stiffness of the present shape
+        // applied to the step's hourglass stress increment dS = gain q / J
+        dvec q[4][3], dS[4][3], dQ[4][3], Qn[4][3];
         for (int m = 0; m < 4; ++m)
         {
             const int k = mode_xi_eta + kAssumedStrainMode[m];
@@ -274,21 +276,21 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             for (int i = 0; i < 3; ++i)
             {
                 q[m][i] = 0.125 * mul_add(e[i][2], qd[2], mul_add(e[i][1], qd[1], e[i][0] * qd[0]));
-                const std::size_t slot = static_cast<std::size_t>(3 * m + i) * np;
-                const dvec So = load_lanes(blk.hg_force.data() + slot);
-                Sn[m][i] = mul_add(gain * q[m][i], inv_j[i], So);
-                Sm[m][i] = 0.5 * (So + Sn[m][i]);
-                store_lanes(blk.hg_force_trial.data() + slot, Sn[m][i]);
+                dS[m][i] = gain * q[m][i] * inv_j[i];
             }
         }
-        dvec Qn[4][3], Qm[4][3];
-        assumed_strain_forces(Sn, Jf, nu, Qn);
-        assumed_strain_forces(Sm, Jf, nu, Qm);
+        assumed_strain_forces(dS, Jf, nu, dQ);
         for (int m = 0; m < 4; ++m)
         {
             const int a = kAssumedStrainMode[m];
             for (int i = 0; i < 3; ++i)
-                de_hg = mul_add(Qm[m][i] * q[m][i], dt, de_hg);
+            {
+                const std::size_t slot = static_cast<std::size_t>(3 * m + i) * np;
+                const dvec Qo = load_lanes(blk.hg_force.data() + slot);
+                Qn[m][i] = Qo + dQ[m][i];
+                store_lanes(blk.hg_force_trial.data() + slot, Qn[m][i]);
+                de_hg = mul_add(mul_add(0.5, dQ[m][i], Qo) * q[m][i], dt, de_hg);
+            }
             for (int j = 0; j < 3; ++j)
                 Q[a][j] = 0.125 * mul_add(e[2][j], Qn[m][2], mul_add(e[1][j], Qn[m][1], e[0][j] * Qn[m][0]));
         }

@@ -1,6 +1,7 @@
 #include "rkfem/run/summary.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -218,6 +219,28 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
           << ", \"damaged_volume_threshold\": " << num(im.damaged_volume_threshold)
           << ", \"eroded_mass\": " << num(im.eroded_mass) << "},\n";
     }
+    // each part's extent at the end (its nodes' current positions; nodes of eroded elements
+    // included): a Taylor bar's final length and foot
+    o << "  \"parts\": {";
+    for (std::size_t ip = 0; ip < model.parts.size(); ++ip)
+    {
+        const PartInfo& part = model.parts[ip];
+        Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::infinity()), hi = -lo;
+        for (index_t i = part.node_begin; i < part.node_end; ++i)
+        {
+            const std::size_t k = 3 * static_cast<std::size_t>(i);
+            const Vec3 x(model.nodes.x[k], model.nodes.x[k + 1], model.nodes.x[k + 2]);
+            lo = lo.cwiseMin(x);
+            hi = hi.cwiseMax(x);
+        }
+        o << (ip ? ",\n" : "\n") << "    " << quote(part.name) << ": {";
+        const char* axis = "xyz";
+        for (int d = 0; d < 3; ++d)
+            o << (d ? ", " : "") << "\"" << axis[d] << "min\": " << num(lo[d]) << ", \"" << axis[d] << "max\": " << num(hi[d])
+              << ", \"length_" << axis[d] << "\": " << num(hi[d] - lo[d]);
+        o << "}";
+    }
+    o << "},\n";
     o << "  \"probes\": {";
     const std::size_t nc = s.history_columns.size();
     const std::size_t nr = nc ? s.history.size() / nc : 0;

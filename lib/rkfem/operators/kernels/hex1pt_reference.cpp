@@ -85,7 +85,8 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
         real_t frame[3][3], Jf[3];
         assumed_strain_frame(axes[0], axes[1], axes[2], frame, Jf);
         const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
-        real_t q[4][3], S_new[4][3], S_mid[4][3];
+        // the step's hourglass stress increment dS = QM (G / 3) dt q / J, and the forces it adds
+        real_t q[4][3], dS[4][3];
         for (int m = 0; m < 4; ++m)
         {
             const int a = kAssumedStrainMode[m];
@@ -106,29 +107,25 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
             for (int i = 0; i < 3; ++i)
             {
                 q[m][i] = (frame[i][0] * qdot[0] + frame[i][1] * qdot[1] + frame[i][2] * qdot[2]) / 8.0;
-                const real_t S_old = blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
-                S_new[m][i] = S_old + dt * blk.hourglass.coefficient * mat.mu / 3.0 * q[m][i] / Jf[i];
-                S_mid[m][i] = 0.5 * (S_old + S_new[m][i]);
-                out.hg_force[m][i] = S_new[m][i];
+                dS[m][i] = dt * blk.hourglass.coefficient * mat.mu / 3.0 * q[m][i] / Jf[i];
             }
         }
-        real_t Q_new[4][3], Q_mid[4][3];
-        assumed_strain_forces(S_new, Jf, nu, Q_new);
-        assumed_strain_forces(S_mid, Jf, nu, Q_mid);
+        real_t dQ[4][3];
+        assumed_strain_forces(dS, Jf, nu, dQ);
         for (int m = 0; m < 4; ++m)
         {
             const int a = kAssumedStrainMode[m];
-            real_t h[3] = {};
-            for (int J = 0; J < 8; ++J)
-                for (int d = 0; d < 3; ++d)
-                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
+            real_t Q_new[3];
             for (int i = 0; i < 3; ++i)
-                out.d_hourglass += dt * Q_mid[m][i] * q[m][i];
-            for (int j = 0; j < 3; ++j)
             {
-                // the generalized force on FB mode a, global component j
-                Q_fb[a][j] = (frame[0][j] * Q_new[m][0] + frame[1][j] * Q_new[m][1] + frame[2][j] * Q_new[m][2]) / 8.0;
+                const real_t Q_old = blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
+                Q_new[i] = Q_old + dQ[m][i];
+                out.hg_force[m][i] = Q_new[i];
+                out.d_hourglass += dt * (Q_old + 0.5 * dQ[m][i]) * q[m][i];
             }
+            // the generalized force on FB mode a, global component j
+            for (int j = 0; j < 3; ++j)
+                Q_fb[a][j] = (frame[0][j] * Q_new[0] + frame[1][j] * Q_new[1] + frame[2][j] * Q_new[2]) / 8.0;
         }
         for (int a = 0; a < 4; ++a)
         {

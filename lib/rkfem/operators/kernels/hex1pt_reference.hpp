@@ -29,7 +29,7 @@ struct Hex1ptElement
     real_t f[8][3] = {};       ///< nodal internal forces [N]
     real_t stress[6] = {};     ///< trial stress, Voigt (xx yy zz xy yz zx) [Pa]
     real_t hg_force[4][3] = {}; ///< hourglass generalized forces Q_a (stiffness form: trial; assumed
-                                ///< strain: the trial stored stresses S_m, frame components)
+                                ///< strain: the trial stored forces of modes m, frame components)
     real_t volume = 0.0;
     real_t d_internal = 0.0, d_hourglass = 0.0, d_bulk_viscosity = 0.0; ///< [J] over dt
     real_t dt_stable = 0.0;                                             ///< [s]
