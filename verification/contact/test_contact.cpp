@@ -482,7 +482,8 @@ TEST(ErodingContact, NewlyExposedFacesJoinTheSurface)
 {
     // a plate pressed 1.1 mm into a block of 1 mm layers: deeper than max_penetration (0.5 of
     // the top layer's depth), so the top surface releases it; once the top layer is eroded, the
-    // exposed faces of the second layer catch it 0.1 mm deep
+    // exposed faces of the second layer catch it 0.1 mm deep. (A deck that starts the parts so
+    // far inside each other is refused at set-up; the plate is built on the block and moved in.)
     Model m = test::model_from(R"(
 title: eroded layer
 time: {end: 1 us, stepper: central-difference}
@@ -494,13 +495,19 @@ parts:
     hourglass: {type: stiffness, coefficient: 0.05}
     erosion: {effective_plastic_strain: 0.5}
   plate:
-    generator: {type: box, origin: [1 mm, 1 mm, 1.9 mm], size: [2 mm, 2 mm, 0.5 mm], divisions: [2, 2, 1]}
+    generator: {type: box, origin: [1 mm, 1 mm, 3 mm], size: [2 mm, 2 mm, 0.5 mm], divisions: [2, 2, 1]}
     material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
     formulation: fem-1pt
     hourglass: {type: stiffness, coefficient: 0.05}
 contacts:
   - {type: surface-to-surface, surfaces: [plate, block]}
 )");
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (m.nodes.part[i] == 1)
+        {
+            m.nodes.x0[3 * i + 2] -= 1.1e-3;
+            m.nodes.x[3 * i + 2] -= 1.1e-3;
+        }
     const index_t segments_before = m.contact_surface({"block"}, {}).n_segments();
     m.compute_forces(0.0, 0.0, 0);
     EXPECT_EQ(m.contacts[0]->active_nodes(), 0);
