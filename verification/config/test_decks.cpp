@@ -310,6 +310,24 @@ TEST(Decks, RkFunctionsTheDropToleranceLeavesShortAreNamedAtTheSupport)
     EXPECT_EQ(r.code, 0) << r.output;
 }
 
+TEST(Decks, HourglassPlasticScalingIsForTheStiffnessForms)
+{
+    const std::string with = replace(good, "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n",
+                                     "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
+                                     "    hourglass: {type: viscous, plastic_scaling: true}\n");
+    expect_rejected("hg_scaling.yaml", with, ":8: parts.col.hourglass.plastic_scaling",
+                    "applies to the stiffness forms only");
+    // the resolved deck says what applies: on for assumed-strain, off for stiffness by default
+    const Result a = run("check " + write_deck("hg_scaling_as.yaml", replace(with, "type: viscous, plastic_scaling: true",
+                                                                              "type: assumed-strain")));
+    EXPECT_NE(a.output.find("hourglass: {type: assumed-strain, coefficient: 0.1, plastic_scaling: true}"), std::string::npos)
+        << a.output;
+    const Result st = run("check " + write_deck("hg_scaling_st.yaml", replace(with, "type: viscous, plastic_scaling: true",
+                                                                               "type: stiffness")));
+    EXPECT_NE(st.output.find("hourglass: {type: stiffness, coefficient: 0.1, plastic_scaling: false}"), std::string::npos)
+        << st.output;
+}
+
 TEST(Decks, EmptyNodeSet)
 {
     expect_rejected("empty_set.yaml", replace(good, "point: [0, 0, 0]", "point: [0, 0, 5 m]"),

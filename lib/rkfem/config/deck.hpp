@@ -85,6 +85,10 @@ struct HourglassSpec
 {
     HourglassType type = HourglassType::Viscous;
     real_t coefficient = 0.1; ///< QM
+    /// stiffness forms, materials with history: each increment scaled by the share of the
+    /// step's deviatoric strain the point's update took elastically (assumed_strain_hourglass.hpp);
+    /// default on for assumed-strain, off for stiffness (LS-DYNA's IHQ 5 as documented)
+    bool plastic_scaling = true;
 };
 
 /// Per-element criteria read after each step from committed values (point averages over the

@@ -335,8 +335,10 @@ std::string to_yaml(const Deck& d)
                             : p.hourglass.type == HourglassType::AssumedStrain ? "assumed-strain"
                             : p.hourglass.type == HourglassType::None          ? "none"
                                                                                : "viscous-plain";
-            os << "    hourglass: {type: " << t << ", coefficient: " << p.hourglass.coefficient
-               << "}\n";
+            os << "    hourglass: {type: " << t << ", coefficient: " << p.hourglass.coefficient;
+            if (p.hourglass.type == HourglassType::Stiffness || p.hourglass.type == HourglassType::AssumedStrain)
+                os << ", plastic_scaling: " << (p.hourglass.plastic_scaling ? "true" : "false");
+            os << "}\n";
         }
         os << "    bulk_viscosity: {linear: " << p.bulk_viscosity.linear
            << ", quadratic: " << p.bulk_viscosity.quadratic << "}\n";

@@ -672,7 +672,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     {
         if (p.formulation != Formulation::Fem1pt)
             ignore(p, s, "hourglass", f);
-        Section h(ctx, s.node("hourglass"), s.path("hourglass"), {"type", "coefficient"});
+        Section h(ctx, s.node("hourglass"), s.path("hourglass"), {"type", "coefficient", "plastic_scaling"});
         const std::string t =
             h.choice("type", {"viscous", "stiffness", "assumed-strain", "none", "viscous-plain"}, "viscous");
         p.hourglass.type = t == "viscous"          ? HourglassType::Viscous
@@ -681,6 +681,13 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                            : t == "none"           ? HourglassType::None
                                                    : HourglassType::ViscousPlain;
         p.hourglass.coefficient = h.quantity("coefficient", dim::none, 0.1);
+        p.hourglass.plastic_scaling =
+            h.choice("plastic_scaling", {"true", "false"},
+                     p.hourglass.type == HourglassType::AssumedStrain ? "true" : "false") == "true";
+        if (h.has("plastic_scaling") && p.hourglass.type != HourglassType::Stiffness &&
+            p.hourglass.type != HourglassType::AssumedStrain)
+            h.fail("plastic_scaling", "applies to the stiffness forms only",
+                   "expected type: stiffness or assumed-strain with plastic_scaling");
         if (!(p.hourglass.coefficient >= 0.0))
             h.fail("coefficient", "is negative", "expected QM >= 0 (LS-DYNA default 0.1)");
     }

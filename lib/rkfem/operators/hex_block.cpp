@@ -262,7 +262,8 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
         dvec gain = simd::broadcast(blk.hourglass.coefficient * mat.mu / 3.0 * dt);
         if constexpr (PLASTIC) // an elastic material takes the whole increment
-            gain = gain * assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
+            if (blk.hourglass.plastic_scaling)
+                gain = gain * assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
         // the stored forces Q (frame components) grow by the stiffness of the present shape
         // applied to the step's hourglass stress increment dS = gain q / J
         dvec q[4][3], dS[4][3], dQ[4][3], Qn[4][3];
@@ -317,6 +318,11 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         }
         else
             coef = 0.25 * qm * mat.rho * c * lc * lc;
+        // the stiffness form's increment, scaled where the material flows (plastic_scaling)
+        dvec coef_dt = coef * dt;
+        if constexpr (PLASTIC && HG == HourglassType::Stiffness)
+            if (blk.hourglass.plastic_scaling)
+                coef_dt = coef_dt * assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
         for (int a = 0; a < 4; ++a)
         {
             // stiffness form: the stored force turns with the element's spin first, Q += dt W Q
@@ -345,7 +351,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                 if constexpr (HG == HourglassType::Stiffness)
                 {
                     const std::size_t slot = static_cast<std::size_t>(3 * a + i) * np;
-                    const dvec Qnew = mul_add(coef * dt, qd, Qrot[i]);
+                    const dvec Qnew = mul_add(coef_dt, qd, Qrot[i]);
                     store_lanes(blk.hg_force_trial.data() + slot, Qnew);
                     Q[a][i] = Qnew;
                     de_hg = mul_add((Qrot[i] + Qnew) * qd, 0.5 * dt, de_hg);
