@@ -106,6 +106,19 @@ inline bool is_interior(const HexMesh& m, index_t i, real_t lo, real_t hi)
     return true;
 }
 
+/// A bilinear J2 material (model j2, sigy and the total-strain tangent modulus etan).
+inline MaterialSpec j2_material(real_t rho, real_t E, real_t nu, real_t sigy, real_t etan)
+{
+    MaterialSpec m;
+    m.model = "j2";
+    m.rho = rho;
+    m.E = E;
+    m.nu = nu;
+    m.sigy = sigy;
+    m.etan = etan;
+    return m;
+}
+
 /// A single block (part 0) over all nodes of `mesh`.
 inline HexBlock make_block(const HexMesh& mesh, NodeSet& nodes, Formulation f, HourglassSpec hg,
                            ElasticParams mat, BulkViscositySpec bv = {0.0, 0.0})

@@ -34,6 +34,62 @@ struct OneElement
                 nodes.v[3 * blk.conn[I] + d] = d == dir ? amp * hex8_hourglass_base[mode][I] : 0.0;
     }
 };
+
+/// Loads the element of (blk, nodes) by moving its nodes 20 steps of dt at their velocities, then
+/// turns it rigidly by a quarter turn about the z line through c in `steps` steps (x = R(theta)
+/// x1, v = omega z-hat x (x - c)), committing each step. Returns the hourglass work during the
+/// turn, the largest force at rest before it (`scale`), and the largest difference of the forces
+/// at rest after it from those before turned by the quarter turn ((fx, fy) -> (-fy, fx)).
+struct QuarterTurn
+{
+    real_t work = 0.0, scale = 0.0, error = 0.0;
+};
+
+QuarterTurn load_then_quarter_turn(HexBlock& blk, NodeSet& nodes, const Vec3& c, int steps, real_t dt)
+{
+    for (int n = 0; n < 20; ++n)
+    {
+        for (std::size_t j = 0; j < nodes.x.size(); ++j)
+            nodes.x[j] += dt * nodes.v[j];
+        hex_internal_force(blk, nodes, dt);
+        blk.commit();
+    }
+    const std::vector<real_t> x1 = nodes.x;
+    // the force of the loaded state, at rest
+    std::fill(nodes.v.begin(), nodes.v.end(), 0.0);
+    QuarterTurn t;
+    t.work += hex_internal_force(blk, nodes, dt).d_hourglass;
+    assemble_block_forces(blk, nodes);
+    const std::vector<real_t> f0 = nodes.f_int;
+    const real_t omega = 0.5 * M_PI / (steps * dt);
+    for (int n = 1; n <= steps; ++n)
+    {
+        const real_t th = n * dt * omega;
+        for (int I = 0; I < 8; ++I)
+        {
+            const Vec3 r(x1[3 * I] - c[0], x1[3 * I + 1] - c[1], x1[3 * I + 2] - c[2]);
+            const Vec3 xr(std::cos(th) * r[0] - std::sin(th) * r[1], std::sin(th) * r[0] + std::cos(th) * r[1], r[2]);
+            for (int d = 0; d < 3; ++d)
+                nodes.x[3 * I + d] = c[d] + xr[d];
+            nodes.v[3 * I] = -omega * xr[1];
+            nodes.v[3 * I + 1] = omega * xr[0];
+            nodes.v[3 * I + 2] = 0.0;
+        }
+        t.work += hex_internal_force(blk, nodes, dt).d_hourglass;
+        blk.commit();
+    }
+    std::fill(nodes.v.begin(), nodes.v.end(), 0.0);
+    hex_internal_force(blk, nodes, dt);
+    assemble_block_forces(blk, nodes);
+    for (int I = 0; I < 8; ++I)
+    {
+        const Vec3 want(-f0[3 * I + 1], f0[3 * I], f0[3 * I + 2]);
+        const Vec3 got(nodes.f_int[3 * I], nodes.f_int[3 * I + 1], nodes.f_int[3 * I + 2]);
+        t.error = std::max(t.error, (got - want).norm());
+        t.scale = std::max(t.scale, want.norm());
+    }
+    return t;
+}
 } // namespace
 
 TEST(Hourglass, PureModeProducesNoStrainWithoutControl)
@@ -115,53 +171,9 @@ TEST(Hourglass, StiffnessFormIsObjectiveUnderRigidRotation)
     // and the stored forces must turn with the element (Q += dt W Q each step); kept in the
     // global frame they would still point along x (an error of sqrt(2) of the force)
     OneElement e(HourglassType::Stiffness, 0.1);
-    const real_t dt = 1e-8;
     e.set_hourglass_velocity(0, 0, 1.0);
-    for (int n = 0; n < 20; ++n)
-    {
-        for (std::size_t j = 0; j < e.nodes.x.size(); ++j)
-            e.nodes.x[j] += dt * e.nodes.v[j];
-        hex_internal_force(e.blk, e.nodes, dt);
-        e.blk.commit();
-    }
-    const std::vector<real_t> x1 = e.nodes.x;
-    // the force of the loaded state, at rest
-    std::fill(e.nodes.v.begin(), e.nodes.v.end(), 0.0);
-    real_t e_hg = 0.0;
-    e_hg += hex_internal_force(e.blk, e.nodes, dt).d_hourglass;
-    assemble_block_forces(e.blk, e.nodes);
-    const std::vector<real_t> f0 = e.nodes.f_int;
-    const int steps = 2000;
-    const real_t omega = 0.5 * M_PI / (steps * dt);
-    const Vec3 c(0.5 * h, 0.5 * h, 0.5 * h); // turn about the element's centre line
-    for (int n = 1; n <= steps; ++n)
-    {
-        const real_t th = n * dt * omega;
-        for (int I = 0; I < 8; ++I)
-        {
-            const Vec3 r(x1[3 * I] - c[0], x1[3 * I + 1] - c[1], x1[3 * I + 2] - c[2]);
-            const Vec3 xr(std::cos(th) * r[0] - std::sin(th) * r[1], std::sin(th) * r[0] + std::cos(th) * r[1], r[2]);
-            for (int d = 0; d < 3; ++d)
-                e.nodes.x[3 * I + d] = c[d] + xr[d];
-            e.nodes.v[3 * I] = -omega * xr[1];
-            e.nodes.v[3 * I + 1] = omega * xr[0];
-            e.nodes.v[3 * I + 2] = 0.0;
-        }
-        e_hg += hex_internal_force(e.blk, e.nodes, dt).d_hourglass;
-        e.blk.commit();
-    }
-    std::fill(e.nodes.v.begin(), e.nodes.v.end(), 0.0);
-    hex_internal_force(e.blk, e.nodes, dt);
-    assemble_block_forces(e.blk, e.nodes);
-    // f1 should be f0 turned by a quarter turn: (fx, fy) -> (-fy, fx)
-    real_t err = 0.0, scale = 0.0;
-    for (int I = 0; I < 8; ++I)
-    {
-        const Vec3 want(-f0[3 * I + 1], f0[3 * I], f0[3 * I + 2]);
-        const Vec3 got(e.nodes.f_int[3 * I], e.nodes.f_int[3 * I + 1], e.nodes.f_int[3 * I + 2]);
-        err = std::max(err, (got - want).norm());
-        scale = std::max(scale, want.norm());
-    }
+    const QuarterTurn t = load_then_quarter_turn(e.blk, e.nodes, Vec3(0.5 * h, 0.5 * h, 0.5 * h), 2000, 1e-8);
+    const real_t err = t.error, scale = t.scale, e_hg = t.work;
     std::printf("stiffness hourglass after a quarter turn: forces within %.2e of the turned ones (relative), "
                 "hourglass work during the turn %.2e J\n",
                 err / scale, e_hg);
@@ -271,51 +283,9 @@ TEST(Hourglass, AssumedStrainPassesThePatchTestAndIsObjective)
 
     // objectivity: load bending mode zeta xi along x, then turn the element a quarter turn about z
     TurnedBox b(Vec3(0.02, 0.05, 0.03), Eigen::Matrix3d::Identity(), 200e9, 0.3);
-    const real_t dt = 1e-8;
     b.set_mode(2, 0);
-    for (int n = 0; n < 20; ++n)
-    {
-        for (std::size_t j = 0; j < b.nodes.x.size(); ++j)
-            b.nodes.x[j] += dt * b.nodes.v[j];
-        hex_internal_force(b.blk, b.nodes, dt);
-        b.blk.commit();
-    }
-    const std::vector<real_t> x1 = b.nodes.x;
-    std::fill(b.nodes.v.begin(), b.nodes.v.end(), 0.0);
-    hex_internal_force(b.blk, b.nodes, dt);
-    assemble_block_forces(b.blk, b.nodes);
-    const std::vector<real_t> f0 = b.nodes.f_int;
-    const int steps = 500;
-    const real_t omega = 0.5 * M_PI / (steps * dt);
-    const Vec3 c(0.01, 0.025, 0.015);
-    real_t e_hg = 0.0;
-    for (int n = 1; n <= steps; ++n)
-    {
-        const real_t th = n * dt * omega;
-        for (int I = 0; I < 8; ++I)
-        {
-            const Vec3 r(x1[3 * I] - c[0], x1[3 * I + 1] - c[1], x1[3 * I + 2] - c[2]);
-            const Vec3 xr(std::cos(th) * r[0] - std::sin(th) * r[1], std::sin(th) * r[0] + std::cos(th) * r[1], r[2]);
-            for (int d = 0; d < 3; ++d)
-                b.nodes.x[3 * I + d] = c[d] + xr[d];
-            b.nodes.v[3 * I] = -omega * xr[1];
-            b.nodes.v[3 * I + 1] = omega * xr[0];
-            b.nodes.v[3 * I + 2] = 0.0;
-        }
-        e_hg += hex_internal_force(b.blk, b.nodes, dt).d_hourglass;
-        b.blk.commit();
-    }
-    std::fill(b.nodes.v.begin(), b.nodes.v.end(), 0.0);
-    hex_internal_force(b.blk, b.nodes, dt);
-    assemble_block_forces(b.blk, b.nodes);
-    real_t err = 0.0, scale = 0.0;
-    for (int I = 0; I < 8; ++I)
-    {
-        const Vec3 want(-f0[3 * I + 1], f0[3 * I], f0[3 * I + 2]);
-        const Vec3 got(b.nodes.f_int[3 * I], b.nodes.f_int[3 * I + 1], b.nodes.f_int[3 * I + 2]);
-        err = std::max(err, (got - want).norm());
-        scale = std::max(scale, want.norm());
-    }
+    const QuarterTurn t = load_then_quarter_turn(b.blk, b.nodes, Vec3(0.01, 0.025, 0.015), 500, 1e-8);
+    const real_t err = t.error, scale = t.scale, e_hg = t.work;
     EXPECT_LT(err, 1e-6 * scale) << "the frame turns exactly with a rigid rotation";
     EXPECT_LT(std::abs(e_hg), 1e-12) << "a rigid rotation does no hourglass work";
 }
@@ -454,13 +424,7 @@ TEST(Hourglass, StiffnessFormsStoreNothingWhereThePointFlowsPerfectlyPlastically
         {
             const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(0.01), {1, 1, 1});
             NodeSet nodes;
-            MaterialSpec ms;
-            ms.model = "j2";
-            ms.rho = 7850;
-            ms.E = 200e9;
-            ms.nu = 0.3;
-            ms.sigy = 300e6;
-            ms.etan = 0.0;
+            const MaterialSpec ms = test::j2_material(7850, 200e9, 0.3, 300e6, 0.0);
             HourglassSpec hg{t, 0.1};
             hg.plastic_scaling = scaled;
             HexBlock blk = test::make_block(mesh, nodes, Formulation::Fem1pt, hg,

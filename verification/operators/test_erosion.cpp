@@ -207,13 +207,7 @@ TEST(PointState, MovesBetweenBlockKinds)
     // J2 state of a 1-point hex block's points copied onto a nodal block's points (what a
     // conversion of elements into particles does): stress and history arrive whole, committed
     // and trial; a block of another model is refused
-    MaterialSpec j2;
-    j2.model = "j2";
-    j2.rho = 7850;
-    j2.E = 205e9;
-    j2.nu = 0.29;
-    j2.sigy = 500e6;
-    j2.etan = 1e9;
+    const MaterialSpec j2 = test::j2_material(7850, 205e9, 0.29, 500e6, 1e9);
     const HexMesh mesh = test::distorted_box(3, 0.01, 0.2);
     NodeSet nodes;
     HexBlock hex = test::make_block(mesh, nodes, Formulation::Fem1pt, {HourglassType::Viscous, 0.1},

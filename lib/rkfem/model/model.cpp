@@ -175,7 +175,9 @@ void measure_step_factor(const PartSpec& ps, NodalBlock& nb, Model& m)
 /// not connected there) are noted. Keyword meshes check their corners as they are read.
 void check_mesh(const PartSpec& ps, const HexMesh& mesh, std::vector<std::string>& notes)
 {
-    if (const HexCorner c = worst_corner(mesh); c.element >= 0 && !(c.scaled_jacobian > kDegenerateScaledJacobian))
+    const bool read_from_file = !mesh.element_ids.empty(); // its corners were checked with the file's lines
+    if (const HexCorner c = read_from_file ? HexCorner{} : worst_corner(mesh);
+        c.element >= 0 && !(c.scaled_jacobian > kDegenerateScaledJacobian))
     {
         std::ostringstream what;
         what.precision(3);

@@ -164,8 +164,13 @@ void Model::check_initial_overlaps() const
                 ++first_face[static_cast<std::size_t>(o) + 1];
             for (std::size_t e = 0; e < static_cast<std::size_t>(ne); ++e)
                 first_face[e + 1] += first_face[e];
+            std::vector<FacePlane> planes; // of the boundary faces, once
+            planes.reserve(boundary.size());
             for (const Quad& q : boundary)
-                volume += face_plane(nodes.x0, q).c.dot(quad_normal(nodes.x0, q)) / 3.0;
+            {
+                planes.push_back(face_plane(nodes.x0, q));
+                volume += planes.back().c.dot(planes.back().n) * planes.back().area / 3.0;
+            }
             const CellList bins(px, std::cbrt(std::max(volume, 1e-300) / static_cast<real_t>(ne)));
             // per probe node: the least depth past the contact's reach over the elements that
             // hold it (NaN: in none); an element with no boundary face is a whole element deep
@@ -200,7 +205,7 @@ void Model::check_initial_overlaps() const
                     real_t depth = std::numeric_limits<real_t>::infinity(), over = depth;
                     for (index_t b = first_face[e]; b < first_face[e + 1]; ++b)
                     {
-                        const FacePlane fp = face_plane(nodes.x0, boundary[static_cast<std::size_t>(b)]);
+                        const FacePlane& fp = planes[static_cast<std::size_t>(b)];
                         const real_t d = -(x - fp.c).dot(fp.n);
                         depth = std::min(depth, d);
                         over = std::min(over, d - (c.max_penetration * ev / fp.area + c.thickness));

@@ -295,11 +295,6 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             for (int j = 0; j < 3; ++j)
                 Q[a][j] = 0.125 * mul_add(e[2][j], Qn[m][2], mul_add(e[1][j], Qn[m][1], e[0][j] * Qn[m][0]));
         }
-        for (int j = 0; j < 3; ++j)
-            for (int i = 0; i < 3; ++i)
-                T[i][j] = simd::neg_mul_add(
-                    inv_v, mul_add(A[7][j], Q[3][i], mul_add(A[6][j], Q[2][i], mul_add(A[5][j], Q[1][i], A[4][j] * Q[0][i]))),
-                    T[i][j]);
     }
     else if constexpr (HG != HourglassType::None)
     {
@@ -363,14 +358,14 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                 }
             }
         }
-        if constexpr (HG != HourglassType::ViscousPlain)
-            for (int j = 0; j < 3; ++j)
-                for (int i = 0; i < 3; ++i)
-                    T[i][j] = simd::neg_mul_add(
-                        inv_v,
-                        mul_add(A[7][j], Q[3][i], mul_add(A[6][j], Q[2][i], mul_add(A[5][j], Q[1][i], A[4][j] * Q[0][i]))),
-                        T[i][j]);
     }
+    // the hourglass forces' share of the gradient term, M_ji (not for the plain form)
+    if constexpr (HG != HourglassType::None && HG != HourglassType::ViscousPlain)
+        for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i)
+                T[i][j] = simd::neg_mul_add(
+                    inv_v, mul_add(A[7][j], Q[3][i], mul_add(A[6][j], Q[2][i], mul_add(A[5][j], Q[1][i], A[4][j] * Q[0][i]))),
+                    T[i][j]);
 
     // internal force f_iI = (sigma_ij - M_ji) b_jI + sum_a Gamma_aI Q_ai: in modes F_ki =
     // T_ij B_kj (k = 1..6) plus Q_ai in mode 4 + a, then one inverse butterfly

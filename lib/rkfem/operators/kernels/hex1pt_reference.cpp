@@ -69,130 +69,118 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
     // T = sigma - q 1 - (1/V) sum_a Q_a (x) h_a, by rows
     static constexpr int voigt[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}};
     real_t T[3][3];
-    real_t Q_fb[4][3] = {}; // assumed strain: the generalized forces on the FB base vectors
+    real_t Q_fb[4][3] = {}; // the hourglass generalized forces on the FB base vectors (global)
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             T[i][j] = out.stress[voigt[i][j]] - (i == j ? q : 0.0);
     const HourglassType hg = blk.hourglass.type;
-    if (hg == HourglassType::AssumedStrain)
+    if (hg != HourglassType::None)
     {
-        // the element's axes r, s, t give the co-rotational frame and its sizes
-        real_t axes[3][3] = {};
-        for (int J = 0; J < 8; ++J)
-            for (int k = 0; k < 3; ++k)
-                for (int d = 0; d < 3; ++d)
-                    axes[k][d] += hex8_nodes[J][k] * x[J][d];
-        real_t frame[3][3], Jf[3];
-        assumed_strain_frame(axes[0], axes[1], axes[2], frame, Jf);
-        const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
-        // the step's hourglass stress increment dS = QM (G / 3) dt q / J, and the forces it adds
-        real_t q[4][3], dS[4][3];
-        for (int m = 0; m < 4; ++m)
-        {
-            const int a = kAssumedStrainMode[m];
-            real_t h[3] = {}, g[3] = {};
-            for (int J = 0; J < 8; ++J)
-                for (int d = 0; d < 3; ++d)
-                {
-                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
-                    g[d] += hex8_hourglass_base[a][J] * v[J][d];
-                }
-            real_t qdot[3];
-            for (int i = 0; i < 3; ++i)
-            {
-                qdot[i] = g[i];
-                for (int j = 0; j < 3; ++j)
-                    qdot[i] -= L[i][j] * h[j];
-            }
-            for (int i = 0; i < 3; ++i)
-            {
-                q[m][i] = (frame[i][0] * qdot[0] + frame[i][1] * qdot[1] + frame[i][2] * qdot[2]) / 8.0;
-                dS[m][i] = dt * blk.hourglass.coefficient * mat.mu / 3.0 * q[m][i] / Jf[i];
-            }
-        }
-        real_t dQ[4][3];
-        assumed_strain_forces(dS, Jf, nu, dQ);
-        for (int m = 0; m < 4; ++m)
-        {
-            const int a = kAssumedStrainMode[m];
-            real_t Q_new[3];
-            for (int i = 0; i < 3; ++i)
-            {
-                const real_t Q_old = blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
-                Q_new[i] = Q_old + dQ[m][i];
-                out.hg_force[m][i] = Q_new[i];
-                out.d_hourglass += dt * (Q_old + 0.5 * dQ[m][i]) * q[m][i];
-            }
-            // the generalized force on FB mode a, global component j
-            for (int j = 0; j < 3; ++j)
-                Q_fb[a][j] = (frame[0][j] * Q_new[0] + frame[1][j] * Q_new[1] + frame[2][j] * Q_new[2]) / 8.0;
-        }
+        // per FB mode a: h_a = sum_J Gamma_aJ x_J and the hourglass velocity qdot_a = sum_J
+        // Gamma_aJ v_J - L h_a (the plain viscous form: without - L h_a)
+        real_t h[4][3] = {}, qdot[4][3] = {};
         for (int a = 0; a < 4; ++a)
         {
-            real_t h[3] = {};
             for (int J = 0; J < 8; ++J)
                 for (int d = 0; d < 3; ++d)
-                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
-            for (int i = 0; i < 3; ++i)
-                for (int j = 0; j < 3; ++j)
-                    T[i][j] -= Q_fb[a][i] * h[j] / V;
-        }
-    }
-    else if (hg != HourglassType::None)
-    {
-        const real_t qm = blk.hourglass.coefficient;
-        real_t bb = 0.0;
-        for (int I = 0; I < 8; ++I)
-            for (int d = 0; d < 3; ++d)
-                bb += b[I][d] * b[I][d];
-        const real_t ch = hg == HourglassType::Stiffness ? qm * mat.plane_wave_modulus() * bb / (3.0 * V)
-                                                         : 0.25 * qm * mat.rho * c * lc * lc;
-        for (int a = 0; a < 4; ++a)
-        {
-            // stiffness form: the stored force turns with the element's spin W first (Q += dt W Q,
-            // the first-order rotation the Jaumann stress update makes), so it is objective
-            real_t Q_rot[3] = {};
-            if (hg == HourglassType::Stiffness)
-            {
-                real_t Q_old[3];
+                {
+                    h[a][d] += hex8_hourglass_base[a][J] * x[J][d];
+                    qdot[a][d] += hex8_hourglass_base[a][J] * v[J][d];
+                }
+            if (hg != HourglassType::ViscousPlain)
                 for (int i = 0; i < 3; ++i)
-                    Q_old[i] = blk.hg_force[static_cast<std::size_t>(3 * a + i) * ne + static_cast<std::size_t>(e)];
+                    for (int j = 0; j < 3; ++j)
+                        qdot[a][i] -= L[i][j] * h[a][j];
+        }
+        if (hg == HourglassType::AssumedStrain)
+        {
+            // the element's axes r, s, t give the co-rotational frame and its sizes
+            real_t axes[3][3] = {};
+            for (int J = 0; J < 8; ++J)
+                for (int k = 0; k < 3; ++k)
+                    for (int d = 0; d < 3; ++d)
+                        axes[k][d] += hex8_nodes[J][k] * x[J][d];
+            real_t frame[3][3], Jf[3];
+            assumed_strain_frame(axes[0], axes[1], axes[2], frame, Jf);
+            const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
+            // the step's hourglass stress increment dS = QM (G / 3) dt q / J, and the forces it adds
+            real_t q[4][3], dS[4][3];
+            for (int m = 0; m < 4; ++m)
+            {
+                const int a = kAssumedStrainMode[m];
                 for (int i = 0; i < 3; ++i)
                 {
-                    Q_rot[i] = Q_old[i];
-                    for (int j = 0; j < 3; ++j)
-                        Q_rot[i] += dt * 0.5 * (L[i][j] - L[j][i]) * Q_old[j];
+                    q[m][i] = (frame[i][0] * qdot[a][0] + frame[i][1] * qdot[a][1] + frame[i][2] * qdot[a][2]) / 8.0;
+                    dS[m][i] = dt * blk.hourglass.coefficient * mat.mu / 3.0 * q[m][i] / Jf[i];
                 }
             }
-            real_t h[3] = {}, g[3] = {};
-            for (int J = 0; J < 8; ++J)
-                for (int d = 0; d < 3; ++d)
-                {
-                    h[d] += hex8_hourglass_base[a][J] * x[J][d];
-                    g[d] += hex8_hourglass_base[a][J] * v[J][d];
-                }
-            for (int i = 0; i < 3; ++i)
+            real_t dQ[4][3];
+            assumed_strain_forces(dS, Jf, nu, dQ);
+            for (int m = 0; m < 4; ++m)
             {
-                real_t qdot = g[i];
-                if (hg != HourglassType::ViscousPlain)
-                    for (int j = 0; j < 3; ++j)
-                        qdot -= L[i][j] * h[j];
-                real_t& Q = out.hg_force[a][i];
+                const int a = kAssumedStrainMode[m];
+                real_t Q_new[3];
+                for (int i = 0; i < 3; ++i)
+                {
+                    const real_t Q_old = blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
+                    Q_new[i] = Q_old + dQ[m][i];
+                    out.hg_force[m][i] = Q_new[i];
+                    out.d_hourglass += dt * (Q_old + 0.5 * dQ[m][i]) * q[m][i];
+                }
+                // the generalized force on FB mode a, global component j
+                for (int j = 0; j < 3; ++j)
+                    Q_fb[a][j] = (frame[0][j] * Q_new[0] + frame[1][j] * Q_new[1] + frame[2][j] * Q_new[2]) / 8.0;
+            }
+        }
+        else
+        {
+            const real_t qm = blk.hourglass.coefficient;
+            real_t bb = 0.0;
+            for (int I = 0; I < 8; ++I)
+                for (int d = 0; d < 3; ++d)
+                    bb += b[I][d] * b[I][d];
+            const real_t ch = hg == HourglassType::Stiffness ? qm * mat.plane_wave_modulus() * bb / (3.0 * V)
+                                                             : 0.25 * qm * mat.rho * c * lc * lc;
+            for (int a = 0; a < 4; ++a)
+            {
+                // stiffness form: the stored force turns with the element's spin W first (Q += dt W Q,
+                // the first-order rotation the Jaumann stress update makes), so it is objective
+                real_t Q_rot[3] = {};
                 if (hg == HourglassType::Stiffness)
                 {
-                    Q = Q_rot[i] + ch * dt * qdot;
-                    out.d_hourglass += 0.5 * dt * (Q_rot[i] + Q) * qdot;
+                    real_t Q_old[3];
+                    for (int i = 0; i < 3; ++i)
+                        Q_old[i] = blk.hg_force[static_cast<std::size_t>(3 * a + i) * ne + static_cast<std::size_t>(e)];
+                    for (int i = 0; i < 3; ++i)
+                    {
+                        Q_rot[i] = Q_old[i];
+                        for (int j = 0; j < 3; ++j)
+                            Q_rot[i] += dt * 0.5 * (L[i][j] - L[j][i]) * Q_old[j];
+                    }
                 }
-                else
+                for (int i = 0; i < 3; ++i)
                 {
-                    Q = ch * qdot;
-                    out.d_hourglass += dt * Q * qdot;
+                    real_t& Q = Q_fb[a][i];
+                    if (hg == HourglassType::Stiffness)
+                    {
+                        Q = Q_rot[i] + ch * dt * qdot[a][i];
+                        out.d_hourglass += 0.5 * dt * (Q_rot[i] + Q) * qdot[a][i];
+                    }
+                    else
+                    {
+                        Q = ch * qdot[a][i];
+                        out.d_hourglass += dt * Q * qdot[a][i];
+                    }
+                    out.hg_force[a][i] = Q;
                 }
-                if (hg != HourglassType::ViscousPlain)
-                    for (int j = 0; j < 3; ++j)
-                        T[i][j] -= Q * h[j] / V;
             }
         }
+        // the hourglass forces' share of the gradient term (not for the plain form)
+        if (hg != HourglassType::ViscousPlain)
+            for (int a = 0; a < 4; ++a)
+                for (int i = 0; i < 3; ++i)
+                    for (int j = 0; j < 3; ++j)
+                        T[i][j] -= Q_fb[a][i] * h[a][j] / V;
     }
 
     // nodal forces
@@ -204,7 +192,7 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                 f += T[i][j] * b[I][j];
             if (hg != HourglassType::None)
                 for (int a = 0; a < 4; ++a)
-                    f += hex8_hourglass_base[a][I] * (hg == HourglassType::AssumedStrain ? Q_fb[a][i] : out.hg_force[a][i]);
+                    f += hex8_hourglass_base[a][I] * Q_fb[a][i];
             out.f[I][i] = f;
         }
     return out;
