@@ -19,6 +19,7 @@
 #include "rkfem/contact/contact_algorithm.hpp"
 #include "rkfem/operators/contact_channel.hpp"
 #include "rkfem/operators/energy_ledger.hpp"
+#include "rkfem/operators/force_block.hpp"
 #include "rkfem/operators/hex_block.hpp"
 #include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/time/explicit_operator.hpp"
@@ -244,9 +245,10 @@ class Model final : public ExplicitOperator
     bool meets(const ElementCriteria& c, index_t block, index_t e) const;
     index_t eroded_elements() const { return eroded_elements_; }
 
-    /// Evolutionary coupling (seed Table 1, feature 4; ../shared/reference/rkpm-methods.md
-    /// s. 4.2, 4.6): the elements of a fem-nodal part with convert[e] != 0 become RK. Their nodes
-    /// become particles whose coefficients take the nodes' current values (exact for linear
+    /// Evolutionary coupling (seed Table 1, feature 4; Wu, Choi & Crawford 2013, Interaction and
+    /// Multiscale Mechanics 6; transition: Huerta & Fernandez-Mendez 2000, IJNME 48, and
+    /// coupled_shapes.hpp): the elements of a fem-nodal part with convert[e] != 0 become RK. Their
+    /// nodes become particles whose coefficients take the nodes' current values (exact for linear
     /// fields: the new approximation reproduces them), neighbouring FE elements become transition
     /// elements (mixed interpolation or ramp, the part's `transition`), and the part's tables,
     /// kinematic map, RK constraints and loaded dofs are rebuilt in the reference configuration.
@@ -306,7 +308,16 @@ class Model final : public ExplicitOperator
     /// The part's mesh in the reference configuration, local node numbering.
     HexMesh part_mesh(index_t part) const;
     std::vector<ErodedElements> eroded_; ///< per block
-    std::vector<char> block_adds_;                                 ///< per block
+    /// The integration blocks as the step sees them (operators/force_block.hpp), in the order of
+    /// the parts (a part's nodal block, then its FE side): views of blocks, nodal_blocks and
+    /// fe_sides that plan_assembly() rebuilds whenever those change.
+    struct PlannedBlock
+    {
+        std::unique_ptr<ForceBlock> block;
+        index_t part = 0;
+        bool add = false; ///< adds into f_int (its nodes are shared with another block) or writes them
+    };
+    std::vector<PlannedBlock> force_blocks_;
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();

@@ -178,7 +178,7 @@ bool Model::apply_events(real_t t, std::int64_t step)
                 real_t& next = next_conversion_check_[static_cast<std::size_t>(b)];
                 if (t < next)
                     continue;
-                next = (std::floor(t / interval * (1 + 1e-12)) + 1) * interval;
+                next = (std::floor(t / interval * (1 + kScheduleSlack)) + 1) * interval;
             }
             const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(b)];
             std::vector<char> convert(static_cast<std::size_t>(ne), 0);
@@ -246,20 +246,38 @@ void Model::plan_assembly()
             range.emplace_back(nodal_blocks[part_nodal[ib]].node_begin, nodal_blocks[part_nodal[ib]].node_end);
         else
             range.emplace_back(blocks[ib].node_begin, blocks[ib].node_end);
-    block_adds_.assign(blocks.size(), 0);
+    std::vector<char> adds(blocks.size(), 0);
     for (std::size_t a = 0; a < range.size(); ++a)
     {
         // a coupled part's FE side shares the part's nodes with its nodal block: both add
         if (part_fe_side[a] >= 0)
-            block_adds_[a] = 1;
+            adds[a] = 1;
         for (std::size_t b = 0; b < range.size(); ++b)
             if (a != b && range[a].first < range[b].second && range[b].first < range[a].second)
-                block_adds_[a] = 1;
+                adds[a] = 1;
+    }
+    // the step's view of the blocks, part by part: a nodal part's block and its FE side, or the
+    // part's Gauss-point block
+    force_blocks_.clear();
+    for (std::size_t ib = 0; ib < blocks.size(); ++ib)
+    {
+        const index_t part = static_cast<index_t>(ib);
+        if (part_nodal[ib] >= 0)
+        {
+            force_blocks_.push_back({std::make_unique<NodalForceBlock>(nodal_blocks[part_nodal[ib]]), part, adds[ib] != 0});
+            if (part_fe_side[ib] >= 0)
+            {
+                FeSide& side = fe_sides[static_cast<std::size_t>(part_fe_side[ib])];
+                force_blocks_.push_back({std::make_unique<FeSideForceBlock>(side.block, side.local), part, true});
+            }
+        }
+        else
+            force_blocks_.push_back({std::make_unique<HexForceBlock>(blocks[ib]), part, adds[ib] != 0});
     }
     // the union of the adding blocks' ranges, as disjoint sorted intervals
     std::vector<std::pair<index_t, index_t>> shared;
     for (std::size_t a = 0; a < range.size(); ++a)
-        if (block_adds_[a])
+        if (adds[a])
             shared.push_back(range[a]);
     std::sort(shared.begin(), shared.end());
     shared_node_ranges_.clear();

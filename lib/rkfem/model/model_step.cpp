@@ -12,22 +12,6 @@
 
 namespace rkfem
 {
-namespace
-{
-/// What is wrong with an element the force pass flagged, given its whole volume
-std::string bad_volume(real_t volume)
-{
-    std::ostringstream os;
-    if (volume > 0.0) // its volume is positive: one of its integration points is not
-        os << "a non-positive Jacobian at an integration point (its volume " << volume << " m^3 in all)";
-    else if (volume <= 0.0)
-        os << "non-positive volume " << volume << " m^3";
-    else
-        os << "a NaN volume";
-    return os.str();
-}
-} // namespace
-
 void Model::update_coordinates()
 {
     const index_t n3 = 3 * nodes.size();
@@ -58,7 +42,6 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
 {
     ForceReport rep;
     pending_int_ = pending_hg_ = pending_bv_ = 0.0;
-    index_t offset = 0;
     // energy increments and the controlling stable step of one block's pass
     std::fill(part_pending_.begin(), part_pending_.end(), PartEnergy{});
     auto book = [&](const ForcePassResult& r, index_t dt_element, std::size_t part)
@@ -80,57 +63,22 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
     for (const auto& [lo, hi] : shared_node_ranges_)
         std::fill(nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(lo),
                   nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(hi), 0.0);
-    for (std::size_t ib = 0; ib < blocks.size(); ++ib)
+    for (const PlannedBlock& pb : force_blocks_)
     {
-        HexBlock& blk = blocks[ib];
-        const bool add = block_adds_[ib] != 0;
-        if (part_nodal[ib] >= 0)
-        {
-            NodalBlock& nb = nodal_blocks[part_nodal[ib]];
-            const ForcePassResult r = nodal_internal_force(nb, nodes, dt);
-            if (r.bad_element >= 0)
-            {
-                std::ostringstream os;
-                os << "the integration point of " << parts[ib].node_name(nb.points.owner[r.bad_element] - parts[ib].node_begin)
-                   << " has " << (nb.jacobian[r.bad_element] > 0.0 ? "a NaN deformation (det F = " : "non-positive det F = ")
-                   << nb.jacobian[r.bad_element] << (nb.jacobian[r.bad_element] > 0.0 ? ")" : "") << " at t = " << t
-                   << " s, step " << step;
-                throw InstabilityError(os.str(), t);
-            }
-            book(r, offset, ib); // first element of the part; nodal points are not elements
-            assemble_nodal_forces(nb, nodes, add);
-            if (part_fe_side[ib] >= 0)
-            {
-                // the FE elements of a coupled part with a fem-1pt FE side
-                FeSide& side = fe_sides[static_cast<std::size_t>(part_fe_side[ib])];
-                auto part_element = [&](index_t local)
-                { return static_cast<index_t>(std::find(side.local.begin(), side.local.end(), local) - side.local.begin()); };
-                const ForcePassResult rf = hex_internal_force(side.block, nodes, dt);
-                if (rf.bad_element >= 0)
-                {
-                    std::ostringstream os;
-                    os << parts[ib].element_name(part_element(rf.bad_element)) << " has "
-                       << bad_volume(element_volume(side.block, nodes, rf.bad_element)) << " at t = " << t
-                       << " s, step " << step;
-                    throw InstabilityError(os.str(), t);
-                }
-                book(rf, rf.dt_element >= 0 ? offset + part_element(rf.dt_element) : offset, ib);
-                assemble_block_forces(side.block, nodes, true);
-            }
-            offset += blk.n_elements();
-            continue;
-        }
-        const ForcePassResult r = hex_internal_force(blk, nodes, dt);
+        const ForcePassResult r = pb.block->add_forces(nodes, dt, pb.add);
+        const PartInfo& part = parts[static_cast<std::size_t>(pb.part)];
         if (r.bad_element >= 0)
         {
+            const PointFault f = pb.block->fault(r.bad_element, nodes);
             std::ostringstream os;
-            os << parts[ib].element_name(r.bad_element) << " has " << bad_volume(element_volume(blk, nodes, r.bad_element))
-               << " at t = " << t << " s, step " << step;
+            if (f.at_node)
+                os << "the integration point of " << part.node_name(f.node - part.node_begin);
+            else
+                os << part.element_name(f.element);
+            os << " " << f.what << " at t = " << t << " s, step " << step;
             throw InstabilityError(os.str(), t);
         }
-        book(r, offset + r.dt_element, ib);
-        assemble_block_forces(blk, nodes, add);
-        offset += blk.n_elements();
+        book(r, part.element_offset + pb.block->part_element(r.dt_element), static_cast<std::size_t>(pb.part));
     }
     dt_critical_ = rep.dt_stable;
     // penalty contact bounds the step too (dt_element still names the element with the smallest)
@@ -187,12 +135,8 @@ void Model::accelerations()
 
 void Model::commit()
 {
-    for (auto& b : blocks)
-        b.commit();
-    for (auto& b : nodal_blocks)
-        b.commit();
-    for (auto& side : fe_sides)
-        side.block.commit();
+    for (const PlannedBlock& pb : force_blocks_)
+        pb.block->commit();
     energy.internal += pending_int_;
     energy.hourglass += pending_hg_;
     energy.bulk_viscosity += pending_bv_;
