@@ -41,14 +41,14 @@ ImpactAnalysis::ImpactAnalysis(const Model& model, const ImpactSpec& spec) : spe
     projectile_ = spec.projectile.empty() ? -1 : part_index(model, spec.projectile);
     RKFEM_REQUIRE(target_ >= 0, "impact: no part '" << spec.target << "'");
     const PartInfo& part = model.parts[static_cast<std::size_t>(target_)];
-    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
     for (index_t i = part.node_begin; i < part.node_end; ++i)
     {
         lo = lo.cwiseMin(reference(model, i));
         hi = hi.cwiseMax(reference(model, i));
     }
     tolerance_ = 1e-6 * (hi - lo).norm();
-    real_t best = 1e300;
+    real_t best = kNoLimit;
     for (index_t i = part.node_begin; i < part.node_end; ++i)
     {
         const Vec3 r = reference(model, i) - spec.point;

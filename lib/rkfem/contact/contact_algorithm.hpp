@@ -83,8 +83,8 @@ class ContactAlgorithm
     /// Adds the forces at clock.t from the current physical positions and velocities; the
     /// channel takes forces at physical points.
     virtual void add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel) = 0;
-    /// The largest stable step the contact stiffness allows (1e300: no bound).
-    virtual real_t stable_step() const { return 1e300; }
+    /// The largest stable step the contact stiffness allows (kNoLimit: no bound).
+    virtual real_t stable_step() const { return kNoLimit; }
     /// The surfaces again, after an event changed them (erosion exposes new faces); the same
     /// number and order as at construction.
     virtual void set_surfaces(std::vector<ContactSurface> surfaces) = 0;

@@ -110,8 +110,8 @@ bool SlaveFrame::set(const Vec3 (&s)[4])
         return false;
     e1.normalize();
     e2 = n.cross(e1);
-    lo[0] = lo[1] = 1e300;
-    hi[0] = hi[1] = -1e300;
+    lo[0] = lo[1] = kNoLimit;
+    hi[0] = hi[1] = -kNoLimit;
     for (int a = 0; a < 4; ++a)
     {
         p[a][0] = (s[a] - c).dot(e1);
@@ -128,7 +128,7 @@ bool SlaveFrame::set(const Vec3 (&s)[4])
 int overlap_points(const SlaveFrame& f, const Vec3 (&m)[4], OverlapPoint* out)
 {
     P2 sp[4], mp[4];
-    real_t mlo[2] = {1e300, 1e300}, mhi[2] = {-1e300, -1e300};
+    real_t mlo[2] = {kNoLimit, kNoLimit}, mhi[2] = {-kNoLimit, -kNoLimit};
     for (int a = 0; a < 4; ++a)
     {
         sp[a] = {f.p[a][0], f.p[a][1]};
@@ -241,7 +241,7 @@ void MortarContact::search(const PhysicalNodes& nodes)
     s_.record_search(nodes, all_nodes_);
     auto box = [&](const Quad& q, Vec3& lo, Vec3& hi)
     {
-        lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+        lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
         for (index_t n : q)
         {
             const Vec3 x = nodes.x(n);
@@ -321,7 +321,7 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
     const std::size_t is = static_cast<std::size_t>(pass.slave), im = static_cast<std::size_t>(pass.master);
     const ContactSurface& master = surfaces_[im];
     const ContactSurface& slave = surfaces_[is];
-    const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < 1e299;
+    const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < kNoLimit;
     parallel_for("rkfem::contact_mortar", slave.n_segments(),
                  [&](index_t s)
                  {
@@ -355,7 +355,7 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                      }
                      const Vec3& n = frame.n;
                      // the slave corners' greatest height over its centre plane (the gap bound below)
-                     real_t s_hi = -1e300;
+                     real_t s_hi = -kNoLimit;
                      for (int a = 0; a < 4; ++a)
                          s_hi = std::max(s_hi, (xs[a] - frame.c).dot(n));
                      for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
@@ -379,7 +379,7 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                              continue; // not facing
                          // the gap anywhere between them is at least the master corners' least
                          // height over the slave's centre plane less the slave corners' greatest
-                         real_t m_lo = 1e300;
+                         real_t m_lo = kNoLimit;
                          for (int a = 0; a < 4; ++a)
                              m_lo = std::min(m_lo, (xm[a] - frame.c).dot(n));
                          if (m_lo - s_hi >= p_.thickness)

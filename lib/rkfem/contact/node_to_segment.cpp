@@ -101,7 +101,7 @@ void NodeToSegmentContact::search(const PhysicalNodes& nodes)
         hi_.resize(3 * static_cast<std::size_t>(ns));
         for (index_t s = 0; s < ns; ++s)
         {
-            Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+            Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
             for (index_t n : master.segments[s])
             {
                 const Vec3 x = nodes.x(n);
@@ -172,7 +172,7 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
     const ContactSurface& master = surfaces_[static_cast<std::size_t>(pass.master)];
     const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
     const index_t n_slave = static_cast<index_t>(slave.nodes.size());
-    const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < 1e299;
+    const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < kNoLimit;
     parallel_for("rkfem::contact_node_to_segment", n_slave,
                  [&](index_t k)
                  {
@@ -181,7 +181,7 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                      const index_t i = slave.nodes[k];
                      const Vec3 xs = nodes.x(i);
                      const Vec3& ns = node_normal_[static_cast<std::size_t>(pass.slave)][static_cast<std::size_t>(k)];
-                     real_t best = 1e300;
+                     real_t best = kNoLimit;
                      SegmentPoint at;
                      for (index_t c = pass.offsets[k]; c < pass.offsets[k + 1]; ++c)
                      {

@@ -27,7 +27,7 @@ void RigidWall::set_surfaces(std::vector<ContactSurface> surfaces)
 
 void RigidWall::add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel)
 {
-    if (dt0_ == 0.0 && clock.dt_critical > 0.0 && clock.dt_critical < 1e299)
+    if (dt0_ == 0.0 && clock.dt_critical > 0.0 && clock.dt_critical < kNoLimit)
         dt0_ = clock.dt_critical;
     resultant_ = Vec3::Zero();
     active_ = 0;

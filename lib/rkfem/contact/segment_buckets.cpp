@@ -19,7 +19,7 @@ void SegmentBuckets::build(const std::vector<real_t>& lo, const std::vector<real
     const index_t n = static_cast<index_t>(lo.size() / 3);
     lo_.resize(lo.size());
     hi_.resize(hi.size());
-    Vec3 blo = Vec3::Constant(1e300), bhi = Vec3::Constant(-1e300);
+    Vec3 blo = Vec3::Constant(kNoLimit), bhi = Vec3::Constant(-kNoLimit);
     real_t mean_size = 0.0;
     for (index_t s = 0; s < n; ++s)
     {

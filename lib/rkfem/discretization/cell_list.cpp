@@ -12,8 +12,8 @@ CellList::CellList(const std::vector<real_t>& x, real_t cell_size) : h_(cell_siz
 {
     RKFEM_REQUIRE(cell_size > 0.0, "cell list: cell size must be positive, got " << cell_size);
     const index_t n = static_cast<index_t>(x.size() / 3);
-    Vec3 hi = Vec3::Constant(-1e300);
-    lo_ = Vec3::Constant(1e300);
+    Vec3 hi = Vec3::Constant(-kNoLimit);
+    lo_ = Vec3::Constant(kNoLimit);
     for (index_t i = 0; i < n; ++i)
         for (int d = 0; d < 3; ++d)
         {

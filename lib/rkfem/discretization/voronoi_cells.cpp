@@ -179,7 +179,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
     const index_t n = static_cast<index_t>(x.size() / 3);
     RKFEM_REQUIRE(n >= 5, "Voronoi cells: need at least 5 points, got " << n);
     // points may lie on the body's surface (generated clouds keep their boundary particles there)
-    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
     for (index_t i = 0; i < n; ++i)
         for (int d = 0; d < 3; ++d)
         {
@@ -290,7 +290,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 // the body's planes that can cut the cell: within twice the farthest Delaunay neighbour
                 // (a faceted body has many, and each plane costs every cell's construction); checked
                 // below, all planes when the cell would reach past one left out
-                real_t dmin = 1e300, dmax = 0.0;
+                real_t dmin = kNoLimit, dmax = 0.0;
                 for (const index_t* v = adj_begin; v != adj_end; ++v)
                 {
                     const index_t j = *v;
@@ -319,7 +319,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                 // bisectors (d_min / 2 away).
                 auto min_body_distance = [&](const Vec3& p)
                 {
-                    real_t d = 1e300;
+                    real_t d = kNoLimit;
                     for (const HalfSpace& h : body)
                         d = std::min(d, h.offset - h.normal.dot(p));
                     return d;
@@ -493,7 +493,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                     if (area.norm() == 0.0)
                         continue;
                     index_t nb = -1;
-                    real_t best = 1e300;
+                    real_t best = kNoLimit;
                     for (std::size_t q = 0; q < planes.size(); ++q)
                     {
                         const Vec3& pn = planes[q].n;

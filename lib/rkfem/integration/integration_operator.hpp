@@ -1,6 +1,6 @@
 #pragma once
 /// @file integration_operator.hpp
-/// What every integration scheme produces (../shared/design/architecture.md): a list of
+/// What every integration scheme produces (docs/architecture.md): a list of
 /// integration points, each with a weight (reference volume), a position, the node that owns it,
 /// and the nodes it touches with one gradient vector per node, as CSR. The force loop, the
 /// material update and the stepper never ask which scheme built it.

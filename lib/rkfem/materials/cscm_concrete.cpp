@@ -323,7 +323,7 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
             if (rate > 0.0)
             {
                 const real_t eta_t = m.eta0t / std::pow(rate, m.nt), eta_s = m.srate * eta_t;
-                const real_t ratio = J2T > 0.0 ? std::abs(PT) / std::sqrt(3.0 * J2T) : 1e300;
+                const real_t ratio = J2T > 0.0 ? std::abs(PT) / std::sqrt(3.0 * J2T) : kNoLimit;
                 real_t eta, over;
                 if (PT < 0.0)
                 {

@@ -1,9 +1,9 @@
 #pragma once
 /// @file cscm_concrete.hpp
 /// Continuous surface cap model for concrete (LS-DYNA MAT_159 / CSCM analog, Murray 2007), with
-/// the parameter set generated from f'c by Murray's fits. Formulas: ../shared/reference/
-/// materials.md section 3.2. Murray's sign convention: the first invariant I1 = -tr(sigma) is
-/// positive in compression (here `P`); deviators are tension-positive.
+/// the parameter set generated from f'c by Murray's fits. Formulas: Murray 2007 (FHWA-HRT-05-062
+/// user manual; FHWA-HRT-05-063 evaluation). Murray's sign convention: the first invariant
+/// I1 = -tr(sigma) is positive in compression (here `P`); deviators are tension-positive.
 ///
 ///   yield   f = J2 - Rubin(beta_hat)^2 Ff(P)^2 Fc(P, kappa)
 ///   shear   Ff(P) = alpha - lambda exp(-beta P) + theta P          (compressive meridian, TXC)
@@ -15,7 +15,7 @@
 ///   rate    Duvaut-Lions: sigma^vp = sigma^P + (1 - gamma)(sigma^T - sigma^P),
 ///           gamma = dt / (eta + dt), eta = eta0 / rate^N (tension, compression, shear blend)
 ///
-/// Choices where the reference is silent or uncertain are marked [U]:
+/// Choices where Murray's reports are silent or uncertain are marked [U]:
 ///  - plastic return: cutting-plane iterations (Ortiz-Simo) with the Lode angle of the trial
 ///    state held fixed and associated flow in the meridian plane; apex return in tension;
 ///  - the cap does not contract below X0 (X = X0 while the compaction eps_v^p <= 0);
@@ -70,7 +70,7 @@ struct CscmModel
     real_t r0c = 0, r0t = 0; ///< uniaxial damage thresholds [sqrt(Pa)]
     Softening soft0;         ///< softening at default_length
 
-    /// Murray's generic fits from f'c [Pa] (REV_1 of the reference, valid ~20-58 MPa), then
+    /// Murray's generic fits from f'c [Pa] (Murray 2007's defaults, valid ~20-58 MPa), then
     /// finish(). E <= 0 and Gft <= 0 pick the defaults above.
     static CscmModel from_fc(real_t fc_pa, real_t rho, real_t nu = 0.2, real_t E = 0.0, real_t Gft = 0.0);
 

@@ -1,7 +1,8 @@
 #pragma once
 /// @file j2_plasticity.hpp
 /// Piecewise-linear J2 plasticity with failure (LS-DYNA *MAT_PIECEWISE_LINEAR_PLASTICITY analog,
-/// ../shared/reference/materials.md section 2): hypoelastic, Jaumann rate (Hughes-Winget rotation),
+/// LS-DYNA Keyword Manual Vol II, MAT_024; return: Simo & Hughes 1998, Computational Inelasticity):
+/// hypoelastic, Jaumann rate (Hughes-Winget rotation),
 /// radial return, yield stress piecewise linear in the effective plastic strain (extrapolated
 /// with the last slope) or bilinear from SIGY and ETAN, Cowper-Symonds scaling by the total
 /// strain rate sqrt(d:d) (VP = 0 form), and failure at a plastic strain: a failed point carries
@@ -109,7 +110,7 @@ inline real_t j2_update(const J2Params& p, const real_t d[6], const real_t w[3],
                 const real_t r = q - 3.0 * G * (e - eps_p) - beta * sy; // residual at e
                 const real_t step = r / (3.0 * G + beta * h);
                 // next breakpoint of the curve above e
-                real_t next = 1e300;
+                real_t next = kNoLimit;
                 for (const auto& c : p.curve)
                     if (c.first > e * (1 + 1e-14) + 1e-300)
                     {

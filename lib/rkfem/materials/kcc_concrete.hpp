@@ -1,15 +1,15 @@
 #pragma once
 #include <vector>
 /// @file kcc_concrete.hpp
-/// K&C concrete, Release III (MAT_072R3 analog) stress update at one material point, following
-/// the per-point algorithm of ../shared/reference/materials.md section 1.12: pressure from the
-/// tabulated-compaction EOS (generic shape scaled by K_1, section 1.7) with unloading history and
-/// a tensile cutoff, trial deviator, Willam-Warnke Lode scaling, current surface interpolated by
-/// eta(lambda) between yield/maximum (hardening) and maximum/residual (softening), radial return
-/// in the deviatoric plane solved by bisection on the plastic strain increment, damage lambda
-/// with b1 (compression) / b2 (tension), partially associated dilatancy omega, radial rate
-/// scaling by the dynamic increase factor. Choices where the reference is uncertain are marked
-/// [U]: K_1 from E = 4700 sqrt(f'c [MPa]) and nu = 0.19 when not given; the tensile cutoff
+/// K&C concrete, Release III (MAT_072R3 analog) stress update at one material point, after Malvar,
+/// Crawford, Wesevich & Simons 1997 (IJIE 19) and LS-DYNA Keyword Manual Vol II, MAT_072R3: pressure
+/// from the tabulated-compaction EOS (*EOS_TABULATED_COMPACTION, generic shape scaled by K_1) with
+/// unloading history and a tensile cutoff, trial deviator, Willam-Warnke Lode scaling, current
+/// surface interpolated by eta(lambda) between yield/maximum (hardening) and maximum/residual
+/// (softening), radial return in the deviatoric plane solved by bisection on the plastic strain
+/// increment, damage lambda with b1 (compression) / b2 (tension), partially associated dilatancy
+/// omega, radial rate scaling by the dynamic increase factor. Choices where these sources are
+/// uncertain are marked [U]: K_1 from E = 4700 sqrt(f'c [MPa]) and nu = 0.19 when not given; the tensile cutoff
 /// follows eta after the peak, and volumetric strain past it is plastic (the pressure unloads
 /// from the cutoff); b3 volumetric damage with k_d = 1; with a fracture energy, the tensile damage
 /// rate (p < 0, including the b3 part) is scaled per point by s(h) so that the crack band h

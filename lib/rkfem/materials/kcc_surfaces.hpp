@@ -3,10 +3,11 @@
 /// K&C concrete model, Release III (LS-DYNA MAT_072R3 analog): the parameter set generated from
 /// f'c alone, the three fixed surfaces with their low-pressure branches, the Willam-Warnke Lode
 /// dependence psi(p), the damage table eta(lambda) and the scaled damage delta (the strain-rate
-/// dynamic increase factors: rate_law.hpp). Formulas and default tables: ../shared/reference/materials.md
-/// sections 1.2-1.6, 1.8, 1.9 (marked there [K] known / [C] confirmed / [U] uncertain). Choices
-/// where the reference is uncertain are marked [U] below. Pressures and strengths in Pa
-/// (compression positive for p and for the surfaces' stress difference Delta sigma).
+/// dynamic increase factors: rate_law.hpp). Formulas and default tables: Malvar, Crawford, Wesevich &
+/// Simons 1997 (IJIE 19); Malvar, Crawford & Morrill 2000 (K&C TR-99-24-B1, generation from f'c);
+/// Schwer & Malvar 2005 (LS-DYNA User Week); LS-DYNA Keyword Manual Vol II, MAT_072R3. [K] marks a
+/// known published result, [U] a choice where these sources are uncertain. Pressures and strengths
+/// in Pa (compression positive for p and for the surfaces' stress difference Delta sigma).
 /// The stress update that uses these pieces is not part of this file.
 #include <array>
 #include <cmath>
@@ -32,7 +33,7 @@ struct KccParameters
     real_t fyc = 0.0;        ///< uniaxial compressive yield strength (from the yield hyperbola)
     real_t psi_biaxial = 0.0; ///< psi at p = 2 alpha f'c / 3
 
-    /// The generic parameter set scaled from the 45.4 MPa reference concrete (section 1.9 a-c):
+    /// The generic parameter set scaled from the 45.4 MPa reference concrete (Schwer & Malvar 2005):
     /// a0, a0y proportional to f'c; a2, a2y, a2f inversely proportional; a1, a1y, a1f fixed;
     /// f_t = 1.58 (f'c^2)^(1/3) in psi. [K/U: that LS-DYNA scales exactly linearly]
     static KccParameters from_fc(real_t fc_pa);
@@ -46,7 +47,7 @@ struct KccParameters
     real_t yield_surface(real_t p) const;
     real_t residual_surface(real_t p) const;
 
-    /// psi(p) = r_t / r_c, piecewise linear through the breakpoints of section 1.3.
+    /// psi(p) = r_t / r_c, piecewise linear through the breakpoints of Malvar et al. 1997.
     real_t psi(real_t p) const;
 
     /// eta(lambda), linear in the table; delta = 2 lambda / (lambda + lambda_m).

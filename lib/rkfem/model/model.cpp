@@ -43,7 +43,7 @@ bool matches(const SelectorSpec& s, const Vec3& p, real_t tol)
 
 real_t default_tolerance(const NodeSet& nodes, index_t begin, index_t end)
 {
-    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
     for (index_t i = begin; i < end; ++i)
         for (int d = 0; d < 3; ++d)
         {
@@ -536,7 +536,7 @@ Model Model::build(const Deck& deck)
     for (const auto& p : d.probes)
     {
         index_t best = -1;
-        real_t best_d = 1e300;
+        real_t best_d = kNoLimit;
         for (index_t ip : part_range(p.part))
             for (index_t i = m.parts[ip].node_begin; i < m.parts[ip].node_end; ++i)
             {

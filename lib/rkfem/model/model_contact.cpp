@@ -180,7 +180,7 @@ void Model::check_initial_overlaps() const
             {
                 FacePlane f[6];
                 real_t ev = 0.0;
-                Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+                Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
                 for (int a = 0; a < 8; ++a)
                 {
                     const index_t i = ab.conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(a)];

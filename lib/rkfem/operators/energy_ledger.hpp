@@ -57,7 +57,7 @@ struct Energies
 /// What a force evaluation reports back to the stepper and the run loop.
 struct ForceReport
 {
-    real_t dt_stable = 1e300; ///< before the scale factor
+    real_t dt_stable = kNoLimit; ///< before the scale factor
     index_t dt_element = -1;  ///< global element index controlling dt
 };
 } // namespace rkfem

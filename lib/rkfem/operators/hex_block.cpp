@@ -534,7 +534,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     blk.batch_sums[4 * batch + 0] = sum_int;
     blk.batch_sums[4 * batch + 1] = sum_hg;
     blk.batch_sums[4 * batch + 2] = sum_bv;
-    blk.batch_sums[4 * batch + 3] = dt_elem >= 0 ? 1.0 / inv_dt_max : 1e300;
+    blk.batch_sums[4 * batch + 3] = dt_elem >= 0 ? 1.0 / inv_dt_max : kNoLimit;
     blk.batch_idx[2 * batch + 0] = dt_elem;
     blk.batch_idx[2 * batch + 1] = bad;
 }

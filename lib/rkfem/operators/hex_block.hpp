@@ -95,7 +95,7 @@ struct ForcePassResult
     real_t d_internal = 0.0;  ///< stress work this step [J]
     real_t d_hourglass = 0.0; ///< hourglass work this step [J]
     real_t d_bulk_viscosity = 0.0;
-    real_t dt_stable = 1e300; ///< before the scale factor [s]
+    real_t dt_stable = kNoLimit; ///< before the scale factor [s]
     index_t dt_element = -1;  ///< element that controls dt
     index_t bad_element = -1; ///< first element with non-positive volume (or NaN), -1 if none
 };

@@ -7,9 +7,9 @@
 /// coefficients only. Outside them the critical alpha moves, and NSNI's falls steeply with the
 /// support: on a regular free block with the box at a/h 1.41 it is 0.86, at 1.35 0.68, at 1.25
 /// 0.38 (1.04 at the default 1.51), so such a part stepped at alpha 1 went unstable (P3 as rkpm at
-/// a/h 1.35: det F < 0 at step 40). There the set-up measures alpha_crit (the reference's
-/// procedure, ../shared/reference/rkpm-methods.md section 7.2, with Lanczos for its power
-/// iteration): the largest eigenvalue of M^-1 K, whose
+/// a/h 1.35: det F < 0 at step 40). There the set-up measures alpha_crit from dt_crit = 2 / omega_max
+/// (Belytschko, Liu & Moran 2000, Nonlinear Finite Elements for Continua and Structures; Lanczos
+/// in place of a power iteration): omega_max^2 is the largest eigenvalue of M^-1 K, whose
 /// product K w is the block's own force pass answering velocities w from its stress-free
 /// reference state (every stabilization and material the pass has, elastic at that size).
 #include <string>

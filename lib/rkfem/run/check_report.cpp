@@ -176,10 +176,10 @@ void material(std::ostringstream& os, const PlasticPoints& p)
 namespace
 {
 /// The Gauss-point element with the smallest step (V / A_max) / c, the first of equals, from the
-/// mesh alone (dt 1e300 and block -1 when there is none).
+/// mesh alone (dt kNoLimit and block -1 when there is none).
 struct SmallestStep
 {
-    real_t dt = 1e300;
+    real_t dt = kNoLimit;
     index_t block = -1, element = -1;
 };
 SmallestStep smallest_element_step(const Model& model)

@@ -228,11 +228,9 @@ std::string checkpoint_path(const std::string& dir, int k)
 
 namespace
 {
-/// How far below a scheduled time (a frame, a history row, a checkpoint) a step's end may fall and
-/// still be at it: the round-off the summed steps carry, relative to the time itself (relative to
-/// time.end, a run whose end was 1e30 s, bounded by max_steps, wrote every step's row and no frame
-/// between the first and the last).
-constexpr real_t kScheduleSlack = 1e-12;
+// kScheduleSlack (core/types.hpp) is relative to the scheduled time itself, not to time.end: a run
+// whose end was 1e30 s, bounded by max_steps, wrote every step's row and no frame between the
+// first and the last.
 constexpr real_t kHistorySlack = 1e-15;
 } // namespace
 
@@ -329,7 +327,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
     Progress progress(opt.progress);
     real_t t = 0.0;
     std::int64_t step = 0;
-    real_t next_output = ts.output_interval > 0 ? 0.0 : 0.0;
+    real_t next_output = 0.0;
     real_t next_history = 0.0;
     real_t dt_last = 0.0;
     std::size_t element_steps = 0;
@@ -486,7 +484,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
         dt_stable = rep.dt_stable;
         index_t ne = model.n_work_items(); // elements, and the stress points of nodal parts
         std::vector<real_t> event_a;  // accelerations before an event
-        while (t < ts.end * (1 - 1e-12))
+        while (t < ts.end * (1 - kScheduleSlack))
         {
             if (ts.max_steps > 0 && step >= ts.max_steps)
                 break;
@@ -527,7 +525,7 @@ RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserve
             // SIGINT / SIGTERM: this step is the last; its state is written as the end's is
             const int stop_signal = interrupt_signal();
             const bool last =
-                t >= ts.end * (1 - 1e-12) || (ts.max_steps > 0 && step >= ts.max_steps) || stop_signal != 0;
+                t >= ts.end * (1 - kScheduleSlack) || (ts.max_steps > 0 && step >= ts.max_steps) || stop_signal != 0;
             const bool check_due =
                 !defer_motion || step % kBalanceEvery == 0 || last || t >= next_history - kHistorySlack * t ||
                 (writer && t >= next_output - kScheduleSlack * t) ||

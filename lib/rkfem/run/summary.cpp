@@ -253,7 +253,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
         for (std::size_t q = 0; q < 12; ++q)
         {
             const std::size_t col = first_probe_column + 12 * p + q;
-            double lo = 1e300, hi = -1e300;
+            double lo = kNoLimit, hi = -kNoLimit;
             for (std::size_t r = 0; r < nr; ++r)
             {
                 lo = std::min(lo, s.history[r * nc + col]);

@@ -15,7 +15,8 @@
 /// displacement increment (kernels see v = (u_stage - u_n) / (t_stage - t_n)), and the state is
 /// committed only after the step, from a fresh right-hand side at y(n+1).
 ///
-/// Around the three defects of Debian's 6.4.1 (../shared/reference/arkode-scaleout-io.md s. 3.2):
+/// Around the three defects of Debian's 6.4.1 (SUNDIALS 6.7.0 CHANGELOG: the ERKStep FSAL fix;
+/// LLNL/sundials PR #422: no optimisation in the default build; 6.4.1 src/arkode/arkode.c, arkEvolve):
 /// a registered post-process step function forces a fresh f(y(n+1)) (the FSAL bug), the state is
 /// rkfem's own N_Vector (state_vector.hpp: -O3 OpenMP loops, where Debian builds SUNDIALS at -O0;
 /// ARKODE's four per-step copies of the state share storage instead of copying it; the

@@ -1,7 +1,7 @@
 #pragma once
 /// @file explicit_operator.hpp
 /// What a time stepper sees of a model: the nodal state and the named phases of one explicit
-/// step (../shared/design/architecture.md, "One explicit step"). Steppers depend on this
+/// step (docs/architecture.md, "One explicit step"). Steppers depend on this
 /// interface alone; `Model` builds the discretization and implements it, and the run loop with
 /// its observers sits above both.
 ///

@@ -5,8 +5,9 @@
 ///
 /// Fixed-step ERKStep in SUNDIALS 6.4.1 copies the whole state four times a step (the
 /// interpolant's y_old, the stored right-hand side, y_n, the output vector) and takes a weighted
-/// norm of it for a check that is moot at a fixed step (../shared/reference/arkode-scaleout-io.md
-/// s. 3.3). On a 10^6-element model those passes cost more than half the element loop. Here
+/// norm of it for a check that is moot at a fixed step (SUNDIALS 6.4.1 source: arkEvolve in
+/// src/arkode/arkode.c, arkInterpUpdate_Hermite in src/arkode/arkode_interp.c). On a
+/// 10^6-element model those passes cost more than half the element loop. Here
 ///  - a copy (N_VScale with c = 1) shares the storage, copy on write: an operation that writes a
 ///    vector whose storage is shared gives it a fresh storage from the pool first; it writes
 ///    every value, so nothing is copied;

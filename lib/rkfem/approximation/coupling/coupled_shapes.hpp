@@ -1,7 +1,8 @@
 #pragma once
 /// @file coupled_shapes.hpp
 /// The approximation of a part that is FE in some elements and RK in others (seed Table 1,
-/// feature 3; ../shared/reference/rkpm-methods.md s. 4.1-4.3). Elements are of three kinds:
+/// feature 3; Huerta & Fernandez-Mendez 2000, IJNME 48; Belytschko, Organ & Krongauz 1995, Comput
+/// Mech 17). Elements are of three kinds:
 ///   RK         in an RK region: its 8 nodes are particles, u = sum_J Psi_J d_J;
 ///   FE         no particle node: u = sum_i N_i u_i (trilinear);
 ///   interface  an FE element with at least one particle node: the transition.
@@ -19,7 +20,7 @@
 ///     is the node's unknown (its coefficient), so the FE part is not a physical interpolant there.
 /// Particles of RK elements that share a node with an interface element get a support of at
 /// least kInterfaceSupport x their spacing, so that every point of an interface element is
-/// covered by particles out of one plane (s. 4.2: "give interface particles a larger support").
+/// covered by particles out of one plane (M(x) regular there, as the mixed interpolation requires).
 #include <vector>
 
 #include "rkfem/approximation/shape_evaluator.hpp"

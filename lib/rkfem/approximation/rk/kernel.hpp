@@ -2,8 +2,8 @@
 /// @file kernel.hpp
 /// Reproducing-kernel window functions phi(z), z = r / a, with phi(z) = 0 for z >= 1, and the
 /// kernel of a particle with box (tensor-product) or spherical support.
-/// Formulas: ../shared/reference/rkpm-methods.md section 1.3 (cubic B-spline phi(0) = 2/3,
-/// quintic B-spline phi(0) = 1, truncated Gaussian with beta = 0.4).
+/// Formulas: Liu, Jun & Zhang 1995, IJNMF 20; RKPM2D, Huang, Wei, Chen & Hillman 2020, Comp Part
+/// Mech 7 (cubic B-spline phi(0) = 2/3, quintic B-spline phi(0) = 1, truncated Gaussian with beta = 0.4).
 #include <cmath>
 
 #include "rkfem/core/types.hpp"

@@ -130,7 +130,7 @@ void RkShapeFunctions::evaluate_completing(const Vec3& x, const RkOthers& others
 void RkShapeFunctions::evaluate_impl(const Vec3& x, bool gradients, RkSample& out, const RkOthers* others) const
 {
     out.clear();
-    real_t s = 1e300;
+    real_t s = kNoLimit;
     const bool box = p_.support == SupportShape::Box;
     cells_.for_each_candidate(x,
                               [&](index_t j)
@@ -407,7 +407,7 @@ std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest)
 {
     static constexpr int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
                                          {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
-    std::vector<real_t> h(static_cast<std::size_t>(mesh.n_nodes()), longest ? 0.0 : 1e300);
+    std::vector<real_t> h(static_cast<std::size_t>(mesh.n_nodes()), longest ? 0.0 : kNoLimit);
     for (index_t e = 0; e < mesh.n_elements(); ++e)
         for (const auto& ed : edges)
         {

@@ -8,7 +8,8 @@
 /// with one scale s per evaluation point (the smallest support radius among the particles that
 /// cover it), so that M is O(1). Direct gradients: b_,i = -M^-1 M_,i b. The moment matrix is
 /// factored by LDL^T; a pivot ratio below 1e-12 (too few or coplanar neighbours) throws
-/// SingularMomentError naming the point. ../shared/reference/rkpm-methods.md sections 1.1-1.5.
+/// SingularMomentError naming the point. Liu, Jun & Zhang 1995, IJNMF 20; Chen, Pan, Wu & Liu 1996,
+/// CMAME 139.
 #include <vector>
 
 #include "rkfem/approximation/rk/kernel.hpp"

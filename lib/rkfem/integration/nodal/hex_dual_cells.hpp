@@ -1,6 +1,7 @@
 #pragma once
 /// @file hex_dual_cells.hpp
-/// Conforming nodal cells from a hex mesh (../shared/reference/rkpm-methods.md section 2.3.1):
+/// Conforming nodal cells from a hex mesh (the smoothing cells of SCNI, Chen, Wu, Yoon & You 2001,
+/// IJNME 50, built here from element sub-volumes):
 /// node I's cell is the union over its elements e of the sub-hex Omega_I^e, the image of the
 /// natural octant between node I and the element centre. Each sub-hex has 3 internal facets
 /// (natural planes xi_d = 0, shared with the sub-hex of the node across that edge) and 3 external

@@ -1,7 +1,8 @@
 #pragma once
 /// @file nodal_integration.hpp
-/// Builders of nodal integration operators on the conforming hex-dual cells
-/// (../shared/reference/rkpm-methods.md sections 2.2-2.5), for any ShapeEvaluator:
+/// Builders of nodal integration operators on the conforming hex-dual cells (hex_dual_cells.hpp;
+/// Beissel & Belytschko 1996, CMAME 139; Chen, Wu, Yoon & You 2001, IJNME 50; review: Chen,
+/// Hillman & Chi 2017, J Eng Mech 143), for any ShapeEvaluator:
 ///   DNI     one point per node, gradient grad Psi_I(x_L) (negative control: fails the patch test
 ///           on irregular clouds and has spurious zero-energy modes);
 ///   SCNI    one point per node, smoothed gradient b_I(L) = (1/V_L) int_{dOmega_L} Psi_I n dA;
