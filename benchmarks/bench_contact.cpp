@@ -33,7 +33,8 @@ void BM_ContactPass(benchmark::State& state)
 {
     const int saved = omp_get_max_threads();
     omp_set_num_threads(static_cast<int>(state.range(1)));
-    Model m = Model::build(parse_deck(plates_deck(static_cast<int>(state.range(0)), state.range(2) != 0), "bench.yaml"));
+    Model m =
+        Model::build(parse_deck(plates_deck(static_cast<int>(state.range(0)), state.range(2) != 0), "bench.yaml"));
     m.compute_forces(0.0, 0.0, 0); // the elements' critical step, the first search
     index_t surface_nodes = 0;
     for (const char* p : {"p0", "p1"})

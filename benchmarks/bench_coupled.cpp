@@ -20,8 +20,10 @@ std::string column_deck(int n_side, int n_len, int kind)
 {
     const std::string form = kind == 1 ? "rkpm" : kind == 3 ? "fem-1pt" : "fem-nodal";
     std::string d = "time: {end: 1 s}\nparts:\n  c:\n    generator: {type: box, size: [" + std::to_string(n_side) +
-                    " mm, " + std::to_string(n_side) + " mm, " + std::to_string(n_len) + " mm], element_size: 1 mm}\n"
-                    "    material: {model: elastic, rho: 7850, E: 200e9, nu: 0.3}\n    formulation: " + form + "\n";
+                    " mm, " + std::to_string(n_side) + " mm, " + std::to_string(n_len) +
+                    " mm], element_size: 1 mm}\n"
+                    "    material: {model: elastic, rho: 7850, E: 200e9, nu: 0.3}\n    formulation: " +
+                    form + "\n";
     if (kind == 2)
         d += "    regions:\n      - {select: {type: box, min: [-1 mm, -1 mm, " + std::to_string(n_len / 2) +
              " mm], max: [1 m, 1 m, 1 m]}}\n";

@@ -1,10 +1,9 @@
-// Set-up (BM_SeedDeckSetup) and whole steps of the seed's own decks (studies/decks): the P3 cantilever (1 in hexes / 1,400
-// particles, J2 steel) and the P1 cylinder (K&C concrete, 0.5 in), each as fem-1pt and rkpm (its
-// defaults: SCNI + NSNI, rk.drop_tolerance 1e-5), one arkode-cd step per iteration with every
-// per-step pass the driver runs (no output). Counters: ns per node-step (the comparison:
-// both formulations have the same nodes), over the first 600 steps, ns per work item (elements or particles) and the
-// resident bytes the model added per work item (the process's RSS before and after Model::build,
-// so set-up scratch that was freed does not count).
+// Set-up (BM_SeedDeckSetup) and whole steps of the seed's own decks (studies/decks): the P3 cantilever (1 in hexes /
+// 1,400 particles, J2 steel) and the P1 cylinder (K&C concrete, 0.5 in), each as fem-1pt and rkpm (its defaults: SCNI +
+// NSNI, rk.drop_tolerance 1e-5), one arkode-cd step per iteration with every per-step pass the driver runs (no output).
+// Counters: ns per node-step (the comparison: both formulations have the same nodes), over the first 600 steps,
+// ns per work item (elements or particles) and the resident bytes the model added per work item (the process's RSS
+// before and after Model::build, so set-up scratch that was freed does not count).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -33,7 +32,10 @@ double resident_bytes()
     return static_cast<double>(resident) * static_cast<double>(sysconf(_SC_PAGESIZE));
 }
 
-const char* deck_path(int deck) { return deck == 0 ? "p3_cantilever.yaml" : "p1_uuc_cylinder.yaml"; }
+const char* deck_path(int deck)
+{
+    return deck == 0 ? "p3_cantilever.yaml" : "p1_uuc_cylinder.yaml";
+}
 
 void BM_SeedDeckStep(benchmark::State& state)
 {
@@ -63,8 +65,8 @@ void BM_SeedDeckStep(benchmark::State& state)
     state.counters["work_items"] = items;
     state.counters["ns_per_node_step"] =
         benchmark::Counter(nn * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-    state.counters["ns_per_item_step"] =
-        benchmark::Counter(items * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    state.counters["ns_per_item_step"] = benchmark::Counter(items * state.iterations() * 1e-9,
+                                                            benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
     if (rk && !m.nodal_blocks.empty())
     {
         // per particle: SCNI entries, NSNI entries per direction, and the batches of 8 whose
@@ -105,9 +107,10 @@ void BM_CloudForcePass(benchmark::State& state)
 {
     const int saved = omp_get_max_threads();
     omp_set_num_threads(static_cast<int>(state.range(0)));
-    Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_cloud.yaml",
-                                     {"parts.column.generator.size=[4 mm, 4 mm, " + std::to_string(state.range(1)) + " mm]",
-                                      "parts.column.rk.normalized_support=" + std::to_string(state.range(2) / 100.0)}));
+    Model m =
+        Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_cloud.yaml",
+                               {"parts.column.generator.size=[4 mm, 4 mm, " + std::to_string(state.range(1)) + " mm]",
+                                "parts.column.rk.normalized_support=" + std::to_string(state.range(2) / 100.0)}));
     NodalBlock& blk = m.nodal_blocks.at(0);
     NodeSet& nodes = m.nodes;
     for (std::size_t i = 0; i < nodes.x0.size(); ++i)
@@ -139,11 +142,12 @@ void BM_SeedDeckSetup(benchmark::State& state)
     omp_set_num_threads(static_cast<int>(state.range(1)));
     const int deck = static_cast<int>(state.range(0));
     const std::string dir = std::string(RKFEM_SOURCE_DIR) + "/studies/decks/";
-    const Deck d = deck == 2 ? read_deck(dir + "column_wave_cloud.yaml")
-                             : read_deck(dir + "p1_uuc_cylinder.yaml",
-                                         {"parts.cylinder.formulation=rkpm",
-                                          std::string("parts.cylinder.generator.element_size=") +
-                                              (deck == 0 ? "0.5in" : "0.25in")});
+    const Deck d =
+        deck == 2
+            ? read_deck(dir + "column_wave_cloud.yaml")
+            : read_deck(dir + "p1_uuc_cylinder.yaml",
+                        {"parts.cylinder.formulation=rkpm",
+                         std::string("parts.cylinder.generator.element_size=") + (deck == 0 ? "0.5in" : "0.25in")});
     double particles = 0.0;
     for (auto _ : state)
     {
@@ -152,8 +156,8 @@ void BM_SeedDeckSetup(benchmark::State& state)
         benchmark::DoNotOptimize(m.nodes.x0.data());
     }
     state.counters["particles"] = particles;
-    state.counters["s_per_1e5_particles"] =
-        benchmark::Counter(particles * 1e-5, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.counters["s_per_1e5_particles"] = benchmark::Counter(
+        particles * 1e-5, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
     omp_set_num_threads(saved);
 }
 } // namespace

@@ -5,15 +5,15 @@
 // 2 stiffness, 3 fully integrated.
 #include <benchmark/benchmark.h>
 
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
 #include <omp.h>
 
 #include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/model/model.hpp"
-#include "rkfem/time/central_difference.hpp"
 #include "rkfem/operators/hex_block.hpp"
+#include "rkfem/time/central_difference.hpp"
 
 using namespace rkfem;
 
@@ -37,7 +37,7 @@ Setup make_setup(index_t n_elements, int kind)
         s.nodes.v[i] = 1e-3 * std::sin(1e3 * mesh.x[i] + i % 3); // smooth, non-trivial velocity
     }
     s.blk.formulation = kind == 3 ? Formulation::Fem2x2x2 : Formulation::Fem1pt;
-    s.blk.hourglass = {kind == 1 ? HourglassType::Viscous
+    s.blk.hourglass = {kind == 1   ? HourglassType::Viscous
                        : kind == 2 ? HourglassType::Stiffness
                                    : HourglassType::None,
                        0.1};
@@ -78,11 +78,12 @@ void BM_NodalUpdate(benchmark::State& state)
     const int saved = omp_get_max_threads();
     omp_set_num_threads(static_cast<int>(state.range(1)));
     const int n = std::max(1, static_cast<int>(std::lround(std::cbrt(static_cast<double>(state.range(0))))));
-    const std::string deck = "time: {end: 1 s}\nparts:\n  b:\n    generator: {type: box, size: [1 m, 1 m, 1 m], divisions: [" +
-                             std::to_string(n) + ", " + std::to_string(n) + ", " + std::to_string(n) +
-                             "]}\n    material: {model: elastic, rho: 7850, E: 200e9, nu: 0.3}\n"
-                             "node_sets:\n  bottom: {select: {type: named, name: bottom}}\n"
-                             "boundary_conditions:\n  - {node_set: bottom, fixed: all}\n";
+    const std::string deck =
+        "time: {end: 1 s}\nparts:\n  b:\n    generator: {type: box, size: [1 m, 1 m, 1 m], divisions: [" +
+        std::to_string(n) + ", " + std::to_string(n) + ", " + std::to_string(n) +
+        "]}\n    material: {model: elastic, rho: 7850, E: 200e9, nu: 0.3}\n"
+        "node_sets:\n  bottom: {select: {type: named, name: bottom}}\n"
+        "boundary_conditions:\n  - {node_set: bottom, fixed: all}\n";
     Model m = Model::build(parse_deck(deck, "bench.yaml"));
     const real_t dt = 1e-8;
     for (auto _ : state)

@@ -36,7 +36,8 @@ void BM_J2(benchmark::State& state)
     const ElasticParams el = ElasticParams::from_E_nu(7850, 200e9, 0.3);
     J2Params p;
     p.elastic = el;
-    p.curve = {{0.0, 792e6}, {0.01, 946e6}, {0.05, 1026e6}, {0.10, 1072e6}, {0.20, 1128e6}, {0.50, 1218e6}, {1.0, 1302e6}};
+    p.curve = {{0.0, 792e6},   {0.01, 946e6},  {0.05, 1026e6}, {0.10, 1072e6},
+               {0.20, 1128e6}, {0.50, 1218e6}, {1.0, 1302e6}};
     const int mode = static_cast<int>(state.range(0));
     std::vector<real_t> s(6 * n, 0.0), ep(n, 0.0), failed(n, mode == 2 ? 1.0 : 0.0);
     const real_t d[6] = {1.0, -0.5, -0.5, 0.2, 0, 0.1}, w[3] = {0.1, 0, -0.1};

@@ -12,8 +12,8 @@
 // skin / 2?" test that decides whether to rebuild, ns per particle.
 #include <benchmark/benchmark.h>
 
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
 #include <omp.h>
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
@@ -97,7 +97,8 @@ void BM_NodalInternalForce(benchmark::State& state)
     state.counters["ns_per_particle_step"] =
         benchmark::Counter(static_cast<double>(blk.n_points()) * 1e-9,
                            benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
-    state.counters["entries"] = static_cast<double>(blk.points.offsets.back()) / blk.n_points(); // held in the table or the operator
+    state.counters["entries"] =
+        static_cast<double>(blk.points.offsets.back()) / blk.n_points(); // held in the table or the operator
     state.counters["particles"] = static_cast<double>(blk.n_points());
 }
 } // namespace
@@ -121,9 +122,9 @@ void BM_NeighbourListBuild(benchmark::State& state)
         benchmark::DoNotOptimize(nl.ids().data());
         state.counters["per_particle"] = static_cast<double>(nl.offsets().back()) / mesh.n_nodes();
     }
-    state.counters["ns_per_particle"] = benchmark::Counter(static_cast<double>(mesh.n_nodes()) * 1e-9,
-                                                           benchmark::Counter::kIsIterationInvariantRate |
-                                                               benchmark::Counter::kInvert);
+    state.counters["ns_per_particle"] =
+        benchmark::Counter(static_cast<double>(mesh.n_nodes()) * 1e-9,
+                           benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 void BM_NeighbourListCheck(benchmark::State& state)
@@ -136,9 +137,9 @@ void BM_NeighbourListCheck(benchmark::State& state)
         c += 1e-6; // moved, but well within the skin: no rebuild
     for (auto _ : state)
         benchmark::DoNotOptimize(nl.update(x));
-    state.counters["ns_per_particle"] = benchmark::Counter(static_cast<double>(mesh.n_nodes()) * 1e-9,
-                                                           benchmark::Counter::kIsIterationInvariantRate |
-                                                               benchmark::Counter::kInvert);
+    state.counters["ns_per_particle"] =
+        benchmark::Counter(static_cast<double>(mesh.n_nodes()) * 1e-9,
+                           benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 } // namespace
 

@@ -66,5 +66,7 @@ void BM_Step(benchmark::State& state)
 
 BENCHMARK(BM_Step)
     ->ArgNames({"elements", "stepper", "threads"})
-    ->ArgsProduct({{1000, 3000, 10000, 100000, 1000000}, {0, 1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->ArgsProduct({{1000, 3000, 10000, 100000, 1000000}, {0, 1, 2}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_MAIN();

@@ -38,7 +38,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const std::string text(reinterpret_cast<const char*>(data), size);
     std::vector<std::string> overrides;
     if (text.rfind("#set ", 0) == 0)
-        overrides.push_back(text.substr(5, text.find('\n') == std::string::npos ? std::string::npos : text.find('\n') - 5));
+        overrides.push_back(
+            text.substr(5, text.find('\n') == std::string::npos ? std::string::npos : text.find('\n') - 5));
     std::string echo;
     try
     {

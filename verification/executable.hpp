@@ -28,5 +28,8 @@ inline Result run_shell(const std::string& cmd)
 }
 
 /// Runs the rkfem executable with these arguments, stdout and stderr together.
-inline Result run(const std::string& args) { return run_shell(std::string(RKFEM_EXE) + " " + args + " 2>&1"); }
+inline Result run(const std::string& args)
+{
+    return run_shell(std::string(RKFEM_EXE) + " " + args + " 2>&1");
+}
 } // namespace rkfem::test

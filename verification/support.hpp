@@ -120,8 +120,8 @@ inline MaterialSpec j2_material(real_t rho, real_t E, real_t nu, real_t sigy, re
 }
 
 /// A single block (part 0) over all nodes of `mesh`.
-inline HexBlock make_block(const HexMesh& mesh, NodeSet& nodes, Formulation f, HourglassSpec hg,
-                           ElasticParams mat, BulkViscositySpec bv = {0.0, 0.0})
+inline HexBlock make_block(const HexMesh& mesh, NodeSet& nodes, Formulation f, HourglassSpec hg, ElasticParams mat,
+                           BulkViscositySpec bv = {0.0, 0.0})
 {
     nodes.resize(mesh.n_nodes());
     for (std::size_t i = 0; i < mesh.x.size(); ++i)

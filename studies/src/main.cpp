@@ -9,22 +9,22 @@
 //   rkfem study STUDY --out DIR [--quiet]            cases of a deck -> DIR/table.{csv,md}, study.h5, cases/
 // Exit codes: 0 success, 2 bad input (one line naming deck, line and key), 3 run went unstable
 // (output so far kept), 4 a study with cases that did not complete (table written), 1 other failure.
-#include <chrono>
-#include <cstdio>
 #include <cerrno>
-#include <cstring>
-#include <filesystem>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fcntl.h>
+#include <filesystem>
+#include <hdf5.h>
 #include <initializer_list>
 #include <iostream>
-#include <sstream>
 #include <new>
+#include <sstream>
 #include <string>
-#include <vector>
-#include <fcntl.h>
-#include <hdf5.h>
 #include <sys/file.h>
 #include <unistd.h>
+#include <vector>
 
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/analysis/material_point.hpp"
@@ -33,13 +33,13 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/file_output.hpp"
 #include "rkfem/core/interrupt.hpp"
+#include "rkfem/core/memory_limit.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/core/setup_progress.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/units.hpp"
 #include "rkfem/io/checkpoint.hpp"
 #include "rkfem/io/results_writer.hpp"
-#include "rkfem/core/parallel.hpp"
-#include "rkfem/core/memory_limit.hpp"
-#include "rkfem/core/setup_progress.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/run/check_report.hpp"
 #include "rkfem/run/simulation.hpp"
@@ -106,7 +106,9 @@ int help(const std::string& command)
     static const Entry entries[] = {
         {"check", "rkfem check DECK [--set key.path=value ...]",
          "Reads and validates DECK, builds the model, prints the resolved deck in SI units and the model's size."},
-        {"run", "rkfem run DECK --out DIR [--set key.path=value ...] [--quiet] [--checkpoint-interval T [--checkpoint-keep N]]",
+        {"run",
+         "rkfem run DECK --out DIR [--set key.path=value ...] [--quiet] [--checkpoint-interval T [--checkpoint-keep "
+         "N]]",
          "Runs DECK to time.end: DIR/results.h5 + results.xdmf (ParaView), history.csv, summary.json.\n"
          "--checkpoint-interval T (a time with its unit, e.g. '10 us') writes DIR/checkpoint.h5 every T of\n"
          "simulated time and at the end; --checkpoint-keep N keeps\n"
@@ -139,7 +141,10 @@ int help(const std::string& command)
     return 0;
 }
 
-bool command_takes_only(const char* command) { return std::string(command) == "study"; }
+bool command_takes_only(const char* command)
+{
+    return std::string(command) == "study";
+}
 
 /// One run owns its output directory: an advisory lock on DIR/.rkfem.lock (flock, released by
 /// the system when the process ends, however it ends) held from before the first output to the
@@ -211,7 +216,7 @@ int main(int argc, char** argv)
     std::vector<std::string> overrides;
     std::string out_dir;
     bool quiet = false;
-    std::vector<std::string> only; // study: case names
+    std::vector<std::string> only;                // study: case names
     std::string checkpoint_interval, until, from; // times with units, as typed; a checkpoint file
     int checkpoint_keep = 1;
     const bool runs = command == "run" || command == "restart";
@@ -227,7 +232,8 @@ int main(int argc, char** argv)
             const long k = std::strtol(n.c_str(), &end, 10);
             if (n.empty() || *end != '\0' || k < 1 || k > 1000)
             {
-                std::fprintf(stderr, "rkfem: --checkpoint-keep %s: expected a whole number from 1 to 1000\n", n.c_str());
+                std::fprintf(stderr, "rkfem: --checkpoint-keep %s: expected a whole number from 1 to 1000\n",
+                             n.c_str());
                 return 2;
             }
             checkpoint_keep = static_cast<int>(k);
@@ -288,7 +294,9 @@ int main(int argc, char** argv)
     // options a subcommand does not take are refused, not ignored
     if (!overrides.empty() && (command == "material-point" || command == "convergence" || command == "study"))
     {
-        std::fprintf(stderr, "rkfem: %s takes no --set (edit the file; --set applies to decks of check and run, and a study's cases carry their own)\n",
+        std::fprintf(stderr,
+                     "rkfem: %s takes no --set (edit the file; --set applies to decks of check and run, and a study's "
+                     "cases carry their own)\n",
                      command.c_str());
         return 2;
     }
@@ -311,8 +319,9 @@ int main(int argc, char** argv)
                 const auto h = rkfem::run_material_point(d);
                 rkfem::write_material_point(h, out_dir);
                 if (!quiet)
-                    std::printf("rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
-                                h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
+                    std::printf(
+                        "rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
+                        h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
             });
     }
     if (command == "study")
@@ -338,10 +347,11 @@ int main(int argc, char** argv)
                 const auto cases = std::filesystem::status(out_dir + "/cases", cases_ec);
                 if (!mk && std::filesystem::exists(cases) && !std::filesystem::is_directory(cases))
                 {
-                    std::fprintf(stderr,
-                                 "rkfem: study --out %s: %s/cases exists and is not a directory; expected the folder of "
-                                 "the cases' outputs (move what is in the way)\n",
-                                 out_dir.c_str(), out_dir.c_str());
+                    std::fprintf(
+                        stderr,
+                        "rkfem: study --out %s: %s/cases exists and is not a directory; expected the folder of "
+                        "the cases' outputs (move what is in the way)\n",
+                        out_dir.c_str(), out_dir.c_str());
                     taken = true;
                     return;
                 }
@@ -361,8 +371,9 @@ int main(int argc, char** argv)
             return 2;
         if (rc == 0 && rkfem::interrupt_signal() != 0)
         {
-            std::fprintf(stderr, "rkfem: study interrupted by %s: the case running then wrote its last state, later "
-                                 "cases did not run; the table is written (%s/table.md)\n",
+            std::fprintf(stderr,
+                         "rkfem: study interrupted by %s: the case running then wrote its last state, later "
+                         "cases did not run; the table is written (%s/table.md)\n",
                          rkfem::interrupt_signal_name(rkfem::interrupt_signal()), out_dir.c_str());
             return 5;
         }
@@ -432,10 +443,12 @@ int main(int argc, char** argv)
         const std::string deck_name = command == "restart" ? checkpoint.text("run.deck_path") : deck_path;
         // a restart reads the deck's data files from the deck's folder as the run found it
         // (absolute: the restart may start in another working folder)
-        const std::string deck_dir = command == "restart" ? (checkpoint.has("run.deck_dir") ? checkpoint.text("run.deck_dir") : "")
-                                                          : std::filesystem::absolute(deck_path).parent_path().string();
+        const std::string deck_dir = command == "restart"
+                                         ? (checkpoint.has("run.deck_dir") ? checkpoint.text("run.deck_dir") : "")
+                                         : std::filesystem::absolute(deck_path).parent_path().string();
         const std::string parse_name =
-            deck_dir.empty() ? deck_name : (std::filesystem::path(deck_dir) / std::filesystem::path(deck_name).filename()).string();
+            deck_dir.empty() ? deck_name
+                             : (std::filesystem::path(deck_dir) / std::filesystem::path(deck_name).filename()).string();
         const rkfem::Deck deck = command == "restart" ? rkfem::parse_deck(deck_text, parse_name, overrides)
                                                       : rkfem::read_deck(deck_path, overrides);
         if (command == "restart" && checkpoint.has("run.data_files"))
@@ -473,8 +486,9 @@ int main(int argc, char** argv)
             const double t = checkpoint.value<double>("run.t");
             if (!(deck.time.end > t))
             {
-                std::fprintf(stderr, "rkfem: restart %s: the checkpoint is at t = %.9g s, and the run ends at %.9g s; "
-                                     "expected --until past the checkpoint\n",
+                std::fprintf(stderr,
+                             "rkfem: restart %s: the checkpoint is at t = %.9g s, and the run ends at %.9g s; "
+                             "expected --until past the checkpoint\n",
                              out_dir.c_str(), t, deck.time.end);
                 return 2;
             }
@@ -484,8 +498,8 @@ int main(int argc, char** argv)
         {
             std::cout << rkfem::to_yaml(deck);
             std::cout << rkfem::check_report(model);
-            std::cout << "# " << model.nodes.size() << " nodes, " << model.n_elements()
-                      << " elements, " << model.parts.size() << " part(s)\n";
+            std::cout << "# " << model.nodes.size() << " nodes, " << model.n_elements() << " elements, "
+                      << model.parts.size() << " part(s)\n";
             return 0;
         }
         // the output directory must exist (or be made) and take a file, before the run starts
@@ -493,7 +507,8 @@ int main(int argc, char** argv)
         std::filesystem::create_directories(out_dir, ec);
         if (ec)
         {
-            std::fprintf(stderr, "rkfem: --out %s: cannot create the output directory (%s); expected a directory path\n",
+            std::fprintf(stderr,
+                         "rkfem: --out %s: cannot create the output directory (%s); expected a directory path\n",
                          out_dir.c_str(), ec.message().c_str());
             return 2;
         }
@@ -528,9 +543,8 @@ int main(int argc, char** argv)
                 std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
         }
         if (!quiet)
-            std::fprintf(stderr, "rkfem: %s: %d nodes, %d elements, %d thread(s)\n",
-                         deck_path.c_str(), model.nodes.size(), model.n_elements(),
-                         rkfem::max_threads());
+            std::fprintf(stderr, "rkfem: %s: %d nodes, %d elements, %d thread(s)\n", deck_path.c_str(),
+                         model.nodes.size(), model.n_elements(), rkfem::max_threads());
         rkfem::RunOptions opt;
         opt.out_dir = out_dir;
         opt.progress = !quiet;
@@ -541,8 +555,9 @@ int main(int argc, char** argv)
         opt.deck_text = deck_text;
         opt.deck_dir = deck_dir;
         if (checkpoint_seconds > 0)
-            opt.data_files = command == "restart" && checkpoint.has("run.data_files") ? checkpoint.text("run.data_files")
-                                                                                       : rkfem::data_file_hashes(deck);
+            opt.data_files = command == "restart" && checkpoint.has("run.data_files")
+                                 ? checkpoint.text("run.data_files")
+                                 : rkfem::data_file_hashes(deck);
         if (command == "restart")
         {
             opt.resume = &checkpoint;
@@ -559,17 +574,16 @@ int main(int argc, char** argv)
         }
         if (s.status != "completed")
         {
-            std::fprintf(stderr, "rkfem: run stopped: %s (output so far kept in %s)\n",
-                         s.message.c_str(), out_dir.c_str());
+            std::fprintf(stderr, "rkfem: run stopped: %s (output so far kept in %s)\n", s.message.c_str(),
+                         out_dir.c_str());
             return 3;
         }
         if (!quiet)
             std::fprintf(stderr,
                          "rkfem: done: %lld steps to t = %.6g s in %.2f s (%.1f ns per "
                          "element-cycle), energy balance error %.2e, hourglass ratio %.3g\n",
-                         static_cast<long long>(s.steps), s.end_time, s.wall_seconds,
-                         s.ns_per_element_cycle, s.energy.balance_error(),
-                         s.energy.hourglass_ratio());
+                         static_cast<long long>(s.steps), s.end_time, s.wall_seconds, s.ns_per_element_cycle,
+                         s.energy.balance_error(), s.energy.hourglass_ratio());
         return 0;
     }
     catch (const rkfem::DeckError& e)

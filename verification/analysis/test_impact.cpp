@@ -69,7 +69,8 @@ TEST(Impact, CraterDepthsDamagedVolumeAndProjectileOfAKnownCrater)
     {
         Vec3 c = Vec3::Zero();
         for (int j = 0; j < 8; ++j)
-            c += 0.125 * Vec3(m.nodes.x0[3 * m.blocks[0].conn[8 * e + j]], m.nodes.x0[3 * m.blocks[0].conn[8 * e + j] + 1],
+            c += 0.125 * Vec3(m.nodes.x0[3 * m.blocks[0].conn[8 * e + j]],
+                              m.nodes.x0[3 * m.blocks[0].conn[8 * e + j] + 1],
                               m.nodes.x0[3 * m.blocks[0].conn[8 * e + j] + 2]);
         if (c[2] > 1e-3 && c[2] < 2e-3 && c[0] > 1e-3 && c[0] < 3e-3 && c[1] > 1e-3 && c[1] < 3e-3)
             keep2[static_cast<std::size_t>(e)] = 0;

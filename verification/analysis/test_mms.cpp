@@ -43,7 +43,10 @@ void check(const std::string& sweep_file, const std::string& dir)
 }
 } // namespace
 
-TEST(ManufacturedSolution, SmokeSweepRates) { check("mms_smoke.yaml", out_dir("convergence_smoke")); }
+TEST(ManufacturedSolution, SmokeSweepRates)
+{
+    check("mms_smoke.yaml", out_dir("convergence_smoke"));
+}
 
 namespace
 {

@@ -27,10 +27,14 @@ struct Rates
 Rates finest_rates(const std::vector<MmsResult>& r)
 {
     const std::size_t k = r.size() - 1;
-    return {observed_rate(r[k - 1].l2, r[k].l2, r[k - 1].h, r[k].h), observed_rate(r[k - 1].h1, r[k].h1, r[k - 1].h, r[k].h)};
+    return {observed_rate(r[k - 1].l2, r[k].l2, r[k - 1].h, r[k].h),
+            observed_rate(r[k - 1].h1, r[k].h1, r[k - 1].h, r[k].h)};
 }
 
-bool plain_scni(const MmsCase& c) { return c.scheme == "scni" && c.stabilization == 0; }
+bool plain_scni(const MmsCase& c)
+{
+    return c.scheme == "scni" && c.stabilization == 0;
+}
 
 std::vector<std::vector<MmsResult>> run(const char* file, const char* out, ConvergenceSweep& s)
 {

@@ -1,8 +1,8 @@
 // Hex8 basis on distorted elements: partition of unity, linear completeness and gradient
 // consistency to round-off; the Flanagan-Belytschko volume gradient equals the exact integral of
 // grad N over the element (2x2x2 Gauss is exact for it).
-#include <gtest/gtest.h>
 #include <cmath>
+#include <gtest/gtest.h>
 #include <limits>
 #include <random>
 
@@ -121,7 +121,6 @@ TEST(Hex8VolumeGradient, EqualsExactIntegralOfShapeGradients)
         }
     }
 }
-
 
 namespace
 {

@@ -5,15 +5,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <iterator>
 #include <cstdio>
+#include <iterator>
 #include <map>
 #include <random>
 
+#include "../support.hpp"
 #include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/discretization/generators.hpp"
-#include "../support.hpp"
 
 using namespace rkfem;
 
@@ -252,7 +252,8 @@ TEST(RkShape, HessiansReproduceWhatTheBasisReproduces)
                 };
                 for (std::size_t k = 0; k < nodes.size(); ++k)
                 {
-                    const real_t fd = (value(sp, nodes[k]) - 2.0 * value(s0, nodes[k]) + value(sm, nodes[k])) / (step * step);
+                    const real_t fd =
+                        (value(sp, nodes[k]) - 2.0 * value(s0, nodes[k]) + value(sm, nodes[k])) / (step * step);
                     second = std::max(second, std::abs(fd - H[k](d, d)));
                 }
             }
@@ -318,7 +319,8 @@ TEST(RkShape, DroppedHessiansKeepTheirIdentities)
                 sx[a] += Hk[k] * (cl.rk.position(kept[k])[a] - x[a]);
             EXPECT_EQ((Hk[k] - Hk[k].transpose()).cwiseAbs().maxCoeff(), 0.0);
             const auto it = std::find(nodes.begin(), nodes.end(), kept[k]);
-            change = std::max(change, (Hk[k] - H[static_cast<std::size_t>(it - nodes.begin())]).cwiseAbs().maxCoeff() / scale);
+            change = std::max(change,
+                              (Hk[k] - H[static_cast<std::size_t>(it - nodes.begin())]).cwiseAbs().maxCoeff() / scale);
         }
         identities = std::max(identities, sum.cwiseAbs().maxCoeff() / scale);
         for (int a = 0; a < 3; ++a)
@@ -424,10 +426,10 @@ TEST(RkShape, RegionValuesAreThePointwiseValuesToRoundOff)
 TEST(RkShape, ParticlesNearABoxAreThoseOfItsPlainTwin)
 {
     const real_t h = 1.0 / 64;
-    const RkShapeFunctions jittered =
-        rk_on_mesh(rkfem::test::distorted_box(7, h, 0.3), RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 1.51});
-    const RkShapeFunctions lattice =
-        rk_on_mesh(generate_box(Vec3::Zero(), Vec3::Constant(8 * h), {8, 8, 8}), RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 1.5});
+    const RkShapeFunctions jittered = rk_on_mesh(rkfem::test::distorted_box(7, h, 0.3),
+                                                 RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 1.51});
+    const RkShapeFunctions lattice = rk_on_mesh(generate_box(Vec3::Zero(), Vec3::Constant(8 * h), {8, 8, 8}),
+                                                RkParams{1, KernelType::CubicBSpline, SupportShape::Box, 1.5});
     std::mt19937 gen(11);
     std::uniform_real_distribution<real_t> u(-0.2, 1.2);
     std::uniform_int_distribution<int> cell(-2, 10);
@@ -606,9 +608,9 @@ TEST(RkShape, RegionGradientsAndHessiansAreThePointwiseOnesToRoundOff)
                 EXPECT_EQ(H[k], H[k].transpose());
             }
         }
-        std::printf("order %d kernel %d support %d: gradients differ by %.1e, second derivatives by %.1e of the largest\n",
-                    p.order, static_cast<int>(p.kernel), static_cast<int>(p.support), grad_err / grad_big,
-                    hess_err / hess_big);
+        std::printf(
+            "order %d kernel %d support %d: gradients differ by %.1e, second derivatives by %.1e of the largest\n",
+            p.order, static_cast<int>(p.kernel), static_cast<int>(p.support), grad_err / grad_big, hess_err / hess_big);
         EXPECT_LT(grad_err, 1e-13 * grad_big);
         EXPECT_LT(hess_err, 1e-11 * hess_big); // round-off 1e-16 over the step 1e-3 a: measured up to 7e-13
     }

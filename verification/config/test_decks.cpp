@@ -8,9 +8,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <map>
 #include <gtest/gtest.h>
 #include <hdf5.h>
+#include <map>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -86,24 +86,24 @@ TEST(Decks, GoodDeckRuns)
 
 TEST(Decks, UnknownKeySuggestsTheClosest)
 {
-    expect_rejected("unknown_key.yaml", replace(good, "material:", "materail:"),
-                    ":7: parts.col.materail", "did you mean 'material'");
+    expect_rejected("unknown_key.yaml", replace(good, "material:", "materail:"), ":7: parts.col.materail",
+                    "did you mean 'material'");
 }
 
 TEST(Decks, RepeatedKeyIsRejected)
 {
     // YAML leaves repeated keys to the application; yaml-cpp keeps both and reads the first, so
     // the second would be dropped without a word
-    expect_rejected("repeated_key.yaml", replace(good, "  end: 1 us\n", "  end: 1 us\n  end: 2 us\n"),
-                    ":4: time.end", "key 'end' given twice; each key once (first given on line 3)");
+    expect_rejected("repeated_key.yaml", replace(good, "  end: 1 us\n", "  end: 1 us\n  end: 2 us\n"), ":4: time.end",
+                    "key 'end' given twice; each key once (first given on line 3)");
     expect_rejected("repeated_flow_key.yaml", replace(good, "E: 200 GPa", "E: 200 GPa, E: 210 GPa"),
                     ":7: parts.col.material.E", "given twice");
 }
 
 TEST(Decks, MissingKey)
 {
-    expect_rejected("missing_key.yaml", replace(good, "  end: 1 us\n", "  dt_scale: 0.9\n"),
-                    ":3: time.end", "missing required key");
+    expect_rejected("missing_key.yaml", replace(good, "  end: 1 us\n", "  dt_scale: 0.9\n"), ":3: time.end",
+                    "missing required key");
 }
 
 TEST(Decks, WrongType)
@@ -114,8 +114,8 @@ TEST(Decks, WrongType)
 
 TEST(Decks, UnknownUnit)
 {
-    expect_rejected("unknown_unit.yaml", replace(good, "E: 200 GPa", "E: 200 GPascal"),
-                    ":7: parts.col.material.E", "unknown unit 'GPascal'");
+    expect_rejected("unknown_unit.yaml", replace(good, "E: 200 GPa", "E: 200 GPascal"), ":7: parts.col.material.E",
+                    "unknown unit 'GPascal'");
 }
 
 TEST(Decks, MismatchedUnit)
@@ -132,8 +132,8 @@ TEST(Decks, PoissonRatioOutOfRange)
 
 TEST(Decks, NonPositiveDensity)
 {
-    expect_rejected("rho_range.yaml", replace(good, "rho: 7850 kg/m^3", "rho: -1 kg/m^3"),
-                    ":7: parts.col.material.rho", "expected rho > 0");
+    expect_rejected("rho_range.yaml", replace(good, "rho: 7850 kg/m^3", "rho: -1 kg/m^3"), ":7: parts.col.material.rho",
+                    "expected rho > 0");
 }
 
 TEST(Decks, CapModelStrengthOutsideTheFitsIsRejected)
@@ -186,8 +186,7 @@ TEST(Decks, KccRateLawsRoundTripAndTheirMistakesNameTheKey)
     auto with = [&](const std::string& rate)
     { return replace(good, kcc, "{model: kcc, rho: 2400 kg/m^3, fc: 35 MPa, rate_effects: " + rate + "}"); };
     // true is the capped built-in law; a curve (LCRATE's sign: negative = tension) prints as read
-    for (const auto& [name, rate, echoed, dif] :
-         std::array<std::array<std::string, 4>, 3>{
+    for (const auto& [name, rate, echoed, dif] : std::array<std::array<std::string, 4>, 3>{
              {{"rate_true.yaml", "true", "rate_effects: {law: ceb-fip, compression_cap: 2.5, tension_cap: 6}",
                "DIF at 1, 10^2, 10^4 1/s: compression 1.3401 2.20268 2.5; tension 1.61026 6 6"},
               {"rate_law.yaml", "{law: ceb-fip, compression_cap: none, tension_cap: 4}",
@@ -208,10 +207,10 @@ TEST(Decks, KccRateLawsRoundTripAndTheirMistakesNameTheKey)
     }
     // omega 0 (no dilatancy) is a valid K&C input; past 1 it is not
     EXPECT_EQ(run("check " + write_deck("omega0.yaml", with("false, omega: 0"))).code, 0);
-    expect_rejected("omega2.yaml", with("false, omega: 1.5"), ":7: parts.col.material.omega", "expected 0 <= omega <= 1");
-    expect_rejected("fc_huge.yaml",
-                    replace(good, kcc, "{model: kcc, rho: 2400 kg/m^3, fc: 1e6 MPa}"), ":7: parts.col.material.fc",
-                    "expected 1 MPa <= fc <= 500 MPa");
+    expect_rejected("omega2.yaml", with("false, omega: 1.5"), ":7: parts.col.material.omega",
+                    "expected 0 <= omega <= 1");
+    expect_rejected("fc_huge.yaml", replace(good, kcc, "{model: kcc, rho: 2400 kg/m^3, fc: 1e6 MPa}"),
+                    ":7: parts.col.material.fc", "expected 1 MPa <= fc <= 500 MPa");
     expect_rejected("rate_cap.yaml", with("{law: ceb-fip, compression_cap: 0.5}"),
                     ":7: parts.col.material.rate_effects.compression_cap", "expected a largest DIF >= 1, or none");
     expect_rejected("rate_both.yaml", with("{law: ceb-fip, curve: [[0, 1], [1, 2]]}"),
@@ -229,10 +228,10 @@ TEST(Decks, KccRateLawsRoundTripAndTheirMistakesNameTheKey)
 
 TEST(Decks, CapModelOverridesResolveToSI)
 {
-    const Result r = run("check " + write_deck("cscm_over.yaml",
-                                               replace(good, "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}",
-                                                       "{model: cscm, rho: 2400 kg/m^3, fc: 30 MPa, X0: 95 MPa, "
-                                                       "D1: 2.5e-4 1/MPa, D2: 3.5e-7 1/MPa^2}")));
+    const Result r = run(
+        "check " + write_deck("cscm_over.yaml", replace(good, "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}",
+                                                        "{model: cscm, rho: 2400 kg/m^3, fc: 30 MPa, X0: 95 MPa, "
+                                                        "D1: 2.5e-4 1/MPa, D2: 3.5e-7 1/MPa^2}")));
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("X0: 95000000"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("D1: 2.5e-10"), std::string::npos) << r.output;
@@ -260,8 +259,10 @@ TEST(Decks, KeysOfAnotherFormulationAreCheckedThenIgnoredWithAWarning)
     const std::string f = write_deck("nodal_on_fem.yaml", with);
     const Result c = run("check " + f);
     ASSERT_EQ(c.code, 0) << c.output;
-    EXPECT_NE(c.output.find("# warning: parts.col.nodal_integration (" + f + ":8): formulation fem-1pt does not use it; ignored"),
-              std::string::npos) << c.output;
+    EXPECT_NE(c.output.find("# warning: parts.col.nodal_integration (" + f +
+                            ":8): formulation fem-1pt does not use it; ignored"),
+              std::string::npos)
+        << c.output;
     EXPECT_NE(c.output.find("# warning: parts.col.rk (" + f + ":9)"), std::string::npos) << c.output;
     // the resolved deck is the one without those keys, plus the notes
     const Result plain = run("check " + write_deck("plain.yaml", good));
@@ -305,8 +306,9 @@ TEST(Decks, RkFunctionsTheDropToleranceLeavesShortAreNamedAtTheSupport)
     expect_rejected("rk_drop.yaml", deck, ":9: parts.col.rk.normalized_support",
                     "RK drop tolerance: the functions left at x = (");
     // keeping every function (drop_tolerance: 0) builds the same support
-    const Result r = run("check " + write_deck("rk_drop_zero.yaml", replace(deck, "normalized_support: 1.01}",
-                                                                             "normalized_support: 1.01, drop_tolerance: 0}")));
+    const Result r =
+        run("check " + write_deck("rk_drop_zero.yaml", replace(deck, "normalized_support: 1.01}",
+                                                               "normalized_support: 1.01, drop_tolerance: 0}")));
     EXPECT_EQ(r.code, 0) << r.output;
 }
 
@@ -318,13 +320,17 @@ TEST(Decks, HourglassPlasticScalingIsForTheStiffnessForms)
     expect_rejected("hg_scaling.yaml", with, ":8: parts.col.hourglass.plastic_scaling",
                     "applies to the stiffness forms only");
     // the resolved deck says what applies: on for assumed-strain, off for stiffness by default
-    const Result a = run("check " + write_deck("hg_scaling_as.yaml", replace(with, "type: viscous, plastic_scaling: true",
-                                                                              "type: assumed-strain")));
-    EXPECT_NE(a.output.find("hourglass: {type: assumed-strain, coefficient: 0.1, plastic_scaling: true}"), std::string::npos)
+    const Result a =
+        run("check " + write_deck("hg_scaling_as.yaml",
+                                  replace(with, "type: viscous, plastic_scaling: true", "type: assumed-strain")));
+    EXPECT_NE(a.output.find("hourglass: {type: assumed-strain, coefficient: 0.1, plastic_scaling: true}"),
+              std::string::npos)
         << a.output;
-    const Result st = run("check " + write_deck("hg_scaling_st.yaml", replace(with, "type: viscous, plastic_scaling: true",
-                                                                               "type: stiffness")));
-    EXPECT_NE(st.output.find("hourglass: {type: stiffness, coefficient: 0.1, plastic_scaling: false}"), std::string::npos)
+    const Result st =
+        run("check " +
+            write_deck("hg_scaling_st.yaml", replace(with, "type: viscous, plastic_scaling: true", "type: stiffness")));
+    EXPECT_NE(st.output.find("hourglass: {type: stiffness, coefficient: 0.1, plastic_scaling: false}"),
+              std::string::npos)
         << st.output;
 }
 
@@ -346,14 +352,12 @@ TEST(Decks, BadOverrideIsLocatedAtTheSetArgument)
 {
     const Result r = run("check " + write_deck("override.yaml", good) + " --set parts.col.material.nu=0.7");
     EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.output.find("--set parts.col.material.nu=0.7: parts.col.material.nu"), std::string::npos)
-        << r.output;
+    EXPECT_NE(r.output.find("--set parts.col.material.nu=0.7: parts.col.material.nu"), std::string::npos) << r.output;
 }
 
 TEST(Decks, OverrideChangesTheResolvedDeck)
 {
-    const Result r = run("check " + write_deck("override2.yaml", good) +
-                         " --set \"parts.col.material.E=30 Msi\"");
+    const Result r = run("check " + write_deck("override2.yaml", good) + " --set \"parts.col.material.E=30 Msi\"");
     EXPECT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("E: 2.068427188e+11"), std::string::npos) << r.output; // 30e6 psi in Pa
 }
@@ -408,11 +412,10 @@ TEST(Decks, UnstableRunExitsThreeAndKeepsOutput)
 {
     const fs::path out = fs::temp_directory_path() / "rkfem_out_unstable";
     fs::remove_all(out);
-    const std::string deck = write_deck(
-        "unstable.yaml",
-        replace(good, "boundary_conditions:\n  - {node_set: end, velocity: {z: 10 m/s}}\n",
-                "face_sets:\n  top: {select: {type: named, name: top}}\n"
-                "loads:\n  - {type: pressure, face_set: top, pressure: 1e16 Pa}\n"));
+    const std::string deck =
+        write_deck("unstable.yaml", replace(good, "boundary_conditions:\n  - {node_set: end, velocity: {z: 10 m/s}}\n",
+                                            "face_sets:\n  top: {select: {type: named, name: top}}\n"
+                                            "loads:\n  - {type: pressure, face_set: top, pressure: 1e16 Pa}\n"));
     const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
     EXPECT_EQ(r.code, 3) << r.output;
     EXPECT_NE(r.output.find("run stopped"), std::string::npos) << r.output;
@@ -483,10 +486,9 @@ std::vector<double> frame_field(const fs::path& dir, int frame, const std::strin
 // summary's steps and end_time are the last good step's.
 TEST(Decks, UnstableRunWritesTheLastGoodStateThenTheFailedOne)
 {
-    const std::string deck = write_deck(
-        "unstable_crush.yaml",
-        replace(replace(good, "velocity: {z: 10 m/s}", "velocity: {z: 30000 m/s}"), "  end: 1 us\n",
-                "  end: 2 us\n  output_interval: 10 us\n"));
+    const std::string deck =
+        write_deck("unstable_crush.yaml", replace(replace(good, "velocity: {z: 10 m/s}", "velocity: {z: 30000 m/s}"),
+                                                  "  end: 1 us\n", "  end: 2 us\n  output_interval: 10 us\n"));
     for (const char* stepper : {"central-difference", "arkode-cd", "arkode-erk"})
     {
         const fs::path o = fs::temp_directory_path() / (std::string("rkfem_out_crush_") + stepper);
@@ -518,7 +520,8 @@ TEST(Decks, UnstableRunWritesTheLastGoodStateThenTheFailedOne)
         ASSERT_EQ(rm.code, 0) << rm.output;
         for (const char* field : {"coordinates", "displacement", "velocity", "stress", "volume"})
             EXPECT_EQ(frame_field(o, 1, field), frame_field(m, -1, field)) << stepper << ": " << field;
-        const std::vector<double> good_volume = frame_field(o, 1, "volume"), failed_volume = frame_field(o, 2, "volume");
+        const std::vector<double> good_volume = frame_field(o, 1, "volume"),
+                                  failed_volume = frame_field(o, 2, "volume");
         std::printf("%s: last good frame at %.4e s (smallest element volume %.3e m^3), failed frame at %.4e s "
                     "(%.3e m^3)\n",
                     stepper, times[1], *std::min_element(good_volume.begin(), good_volume.end()), times[2],
@@ -590,7 +593,8 @@ std::string cloud_deck(const std::string& generator_extra, const std::string& pa
 TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
 {
     // a good cloud deck runs, with points on the box's faces selected by the plane
-    const std::string ok = write_deck("cloud_ok.yaml", cloud_deck(", spacing: 0.5 mm, jitter: 0.2", "    formulation: rkpm\n"));
+    const std::string ok =
+        write_deck("cloud_ok.yaml", cloud_deck(", spacing: 0.5 mm, jitter: 0.2", "    formulation: rkpm\n"));
     const fs::path out = fs::temp_directory_path() / "rkfem_out_cloud_ok";
     fs::remove_all(out);
     const Result r = run("run " + ok + " --out " + out.string() + " --quiet");
@@ -610,19 +614,21 @@ TEST(Decks, CloudPartsRunAndTheirMistakesNameTheKey)
 
     expect_rejected("cloud_fem.yaml", cloud_deck(", spacing: 1 mm", ""), ":6: parts.col.formulation",
                     "expected formulation: rkpm");
-    expect_rejected("cloud_sd.yaml",
-                    cloud_deck(", spacing: 1 mm",
-                               "    formulation: rkpm\n    nodal_integration: {scheme: sd-scni, stabilization: mscni}\n"),
-                    ":9: parts.col.nodal_integration.stabilization", "mscni stabilizes scheme scni only");
+    expect_rejected(
+        "cloud_sd.yaml",
+        cloud_deck(", spacing: 1 mm",
+                   "    formulation: rkpm\n    nodal_integration: {scheme: sd-scni, stabilization: mscni}\n"),
+        ":9: parts.col.nodal_integration.stabilization", "mscni stabilizes scheme scni only");
     // one SCNI point per Voronoi face runs; a name it does not know is named with the choices
     const std::string per_face = write_deck(
-        "cloud_per_face.yaml",
-        cloud_deck(", spacing: 0.5 mm, jitter: 0.2", "    formulation: rkpm\n    nodal_integration: {facet_points: faces}\n"));
+        "cloud_per_face.yaml", cloud_deck(", spacing: 0.5 mm, jitter: 0.2",
+                                          "    formulation: rkpm\n    nodal_integration: {facet_points: faces}\n"));
     const Result pf = run("run " + per_face + " --out " + (out.string() + "_faces") + " --quiet");
     EXPECT_EQ(pf.code, 0) << pf.output;
-    expect_rejected("cloud_centroid.yaml",
-                    cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n    nodal_integration: {facet_points: centroid}\n"),
-                    ":9: parts.col.nodal_integration.facet_points", "expected one of triangles | faces");
+    expect_rejected(
+        "cloud_centroid.yaml",
+        cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n    nodal_integration: {facet_points: centroid}\n"),
+        ":9: parts.col.nodal_integration.facet_points", "expected one of triangles | faces");
     expect_rejected("cloud_jitter.yaml", cloud_deck(", spacing: 1 mm, jitter: 0.6", "    formulation: rkpm\n"),
                     ":6: parts.col.generator.jitter", "is outside [0, 0.45]");
     expect_rejected("cloud_both.yaml", cloud_deck(", spacing: 1 mm, points: p.csv", "    formulation: rkpm\n"),
@@ -659,10 +665,11 @@ TEST(Decks, CylinderCloudPartsRunAndTheirMistakesNameTheKey)
     const Result r = run("run " + ok + " --out " + out.string() + " --quiet");
     EXPECT_EQ(r.code, 0) << r.output;
     EXPECT_TRUE(fs::exists(out / "results.xdmf"));
-    expect_rejected("cyl_size.yaml", with_rkpm(cyl(", size: [1 mm, 1 mm, 1 mm], radius: 1 mm, height: 6 mm, spacing: 0.5 mm")),
+    expect_rejected("cyl_size.yaml",
+                    with_rkpm(cyl(", size: [1 mm, 1 mm, 1 mm], radius: 1 mm, height: 6 mm, spacing: 0.5 mm")),
                     ":6: parts.col.generator.size", "is not used by a cylinder body");
-    expect_rejected("cyl_radius.yaml", with_rkpm(cyl(", height: 6 mm, spacing: 0.5 mm")), ":6: parts.col.generator.radius",
-                    "missing");
+    expect_rejected("cyl_radius.yaml", with_rkpm(cyl(", height: 6 mm, spacing: 0.5 mm")),
+                    ":6: parts.col.generator.radius", "missing");
     expect_rejected("box_radius.yaml",
                     with_rkpm(replace(good, "{type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
                                       "{type: cloud, size: [1 mm, 1 mm, 10 mm], radius: 1 mm, spacing: 0.5 mm}")),
@@ -676,7 +683,8 @@ TEST(Decks, CylinderCloudPartsRunAndTheirMistakesNameTheKey)
                         "face_sets:\n  end: {part: col, select: {type: named, name: xmin}}\n",
                     ":14: face_sets.end.select.name", "expected one of top, bottom, side (a cylinder body)");
     write_deck("cyl_outside.csv", "# x, y, z in mm\n0, 0, 1\n0.9, 0.5, 2\n");
-    expect_rejected("cyl_outside.yaml", with_rkpm(cyl(", radius: 1 mm, height: 6 mm, points: cyl_outside.csv, points_unit: mm")),
+    expect_rejected("cyl_outside.yaml",
+                    with_rkpm(cyl(", radius: 1 mm, height: 6 mm, points: cyl_outside.csv, points_unit: mm")),
                     ":6: parts.col.generator.points", "cyl_outside.csv:3 lies outside the cylinder body");
 }
 
@@ -698,7 +706,8 @@ TEST(Decks, CoupledPartsRunAndTheirMistakesNameTheKey)
     // ... and ends with szx (before the summary gained the contact column, a probe's first
     // column was read one too early)
     const std::regex last_column("\"szx\": \\{[^}]*\\}\\}");
-    EXPECT_EQ(std::distance(std::sregex_iterator(summary.begin(), summary.end(), last_column), std::sregex_iterator()), 2)
+    EXPECT_EQ(std::distance(std::sregex_iterator(summary.begin(), summary.end(), last_column), std::sregex_iterator()),
+              2)
         << summary;
 
     const std::string part = "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n";
@@ -722,16 +731,19 @@ TEST(Decks, CoupledPartsRunAndTheirMistakesNameTheKey)
 TEST(Decks, ErosionAndConversionMistakesNameTheKey)
 {
     const std::string part = "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n";
-    const std::string j2 = "    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 500 MPa, etan: 1 GPa}\n";
-    expect_rejected("erosion_elastic.yaml", replace(good, part, part + "    erosion: {effective_plastic_strain: 0.1}\n"),
+    const std::string j2 =
+        "    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 500 MPa, etan: 1 GPa}\n";
+    expect_rejected("erosion_elastic.yaml",
+                    replace(good, part, part + "    erosion: {effective_plastic_strain: 0.1}\n"),
                     ":8: parts.col.erosion", "expected material model j2, kcc or cscm");
-    expect_rejected("erosion_nodal.yaml",
-                    replace(good, part, j2 + "    formulation: fem-nodal\n    erosion: {effective_plastic_strain: 0.1}\n"),
-                    ":9: parts.col.erosion", "expected formulation fem-1pt or fem-2x2x2");
+    expect_rejected(
+        "erosion_nodal.yaml",
+        replace(good, part, j2 + "    formulation: fem-nodal\n    erosion: {effective_plastic_strain: 0.1}\n"),
+        ":9: parts.col.erosion", "expected formulation fem-1pt or fem-2x2x2");
     expect_rejected("erosion_damage.yaml", replace(good, part, j2 + "    erosion: {damage: 1.5}\n"),
                     ":8: parts.col.erosion.damage", "is outside [0, 1]");
-    expect_rejected("erosion_none.yaml", replace(good, part, j2 + "    erosion: {damage: 0}\n"), ":8: parts.col.erosion",
-                    "has no criterion");
+    expect_rejected("erosion_none.yaml", replace(good, part, j2 + "    erosion: {damage: 0}\n"),
+                    ":8: parts.col.erosion", "has no criterion");
     // conversion: the same criteria, on nodal-integrated FE only
     expect_rejected("conversion_1pt.yaml", replace(good, part, j2 + "    conversion: {damage: 0.5}\n"),
                     ":8: parts.col.conversion", "expected formulation: fem-nodal on a part with conversion");
@@ -744,9 +756,10 @@ TEST(Decks, ErosionAndConversionMistakesNameTheKey)
     expect_rejected("conversion_negative.yaml",
                     replace(good, part, j2 + "    formulation: fem-nodal\n    conversion: {principal_strain: -0.1}\n"),
                     ":9: parts.col.conversion.principal_strain", "expected a value > 0");
-    expect_rejected("conversion_interval.yaml",
-                    replace(good, part, j2 + "    formulation: fem-nodal\n    conversion: {damage: 0.5, interval: -1 us}\n"),
-                    ":9: parts.col.conversion.interval", "expected a time >= 0");
+    expect_rejected(
+        "conversion_interval.yaml",
+        replace(good, part, j2 + "    formulation: fem-nodal\n    conversion: {damage: 0.5, interval: -1 us}\n"),
+        ":9: parts.col.conversion.interval", "expected a time >= 0");
     expect_rejected("erosion_interval.yaml", replace(good, part, j2 + "    erosion: {damage: 0.5, interval: 1 us}\n"),
                     ":8: parts.col.erosion.interval", "unknown key");
 }
@@ -755,9 +768,9 @@ TEST(Decks, TinyOutputIntervalsWriteEveryStepAndEnd)
 {
     // an output or history interval far below the step (or below the resolution of t) writes
     // at every step; the loop that advanced the next output time used to spin forever
-    const std::string deck = write_deck("tiny_intervals.yaml",
-                                        replace(good, "  end: 1 us\n",
-                                                "  end: 0.3 us\n  history_interval: 1e-20 s\n  output_interval: 1e-20 s\n"));
+    const std::string deck = write_deck(
+        "tiny_intervals.yaml",
+        replace(good, "  end: 1 us\n", "  end: 0.3 us\n  history_interval: 1e-20 s\n  output_interval: 1e-20 s\n"));
     const fs::path out = fs::temp_directory_path() / "rkfem_out_tiny_intervals";
     fs::remove_all(out);
     const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
@@ -783,9 +796,9 @@ TEST(Decks, AHugeEndTimeBoundedByMaxStepsKeepsTheIntervals)
     {
         const fs::path out = fs::temp_directory_path() / ("rkfem_out_end_" + end);
         fs::remove_all(out);
-        const Result r = run("run " + write_deck("huge_end.yaml", good) + " --out " + out.string() +
-                             " --quiet --set time.end=" + end +
-                             " --set time.max_steps=45 --set time.output_interval=0.2us --set time.history_interval=0.2us");
+        const Result r = run(
+            "run " + write_deck("huge_end.yaml", good) + " --out " + out.string() + " --quiet --set time.end=" + end +
+            " --set time.max_steps=45 --set time.output_interval=0.2us --set time.history_interval=0.2us");
         EXPECT_EQ(r.code, 0) << r.output;
         std::ifstream in(out / "history.csv");
         const std::string h((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -810,7 +823,8 @@ TEST(Decks, AHugeEndTimeBoundedByMaxStepsKeepsTheIntervals)
 // a picosecond)
 TEST(Decks, ACollapsingTimeStepStopsTheRun)
 {
-    const std::string deck = write_deck("collapse.yaml", replace(good, "  end: 1 us\n", "  end: 5 us\n  energy_error_limit: 100\n"));
+    const std::string deck =
+        write_deck("collapse.yaml", replace(good, "  end: 1 us\n", "  end: 5 us\n  energy_error_limit: 100\n"));
     const fs::path out = fs::temp_directory_path() / "rkfem_out_collapse";
     fs::remove_all(out);
     const Result r = run("run " + deck + " --out " + out.string() + " --quiet");
@@ -828,9 +842,11 @@ TEST(Decks, GruneisenConstantsOutsideTheirRangeAreRefused)
     const std::string mat = "{model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}";
     auto with = [&](const std::string& eos)
     {
-        return replace(good, mat,
-                       "{model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 300 MPa, etan: 1 GPa, eos: {type: gruneisen, "
-                       "c0: 4569 m/s, " + eos + "}}");
+        return replace(
+            good, mat,
+            "{model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 300 MPa, etan: 1 GPa, eos: {type: gruneisen, "
+            "c0: 4569 m/s, " +
+                eos + "}}");
     };
     expect_rejected("eos_s.yaml", with("s: -5, gamma0: 2"), ":7: parts.col.material.eos.s", "expected 0 <= s <= 10");
     expect_rejected("eos_g.yaml", with("s: 1.5, gamma0: -20"), ":7: parts.col.material.eos.gamma0",
@@ -854,16 +870,19 @@ TEST(Decks, ContactsAreCheckedWithTheirLines)
 {
     // each contact entry names its surfaces (parts or face sets) and its own keys; a mistake is
     // one line naming the entry
-    const std::string wall = good + "contacts:\n  - {type: rigid-wall, surfaces: [col], point: [0, 0, 0], normal: [0, 0, 1]}\n";
+    const std::string wall =
+        good + "contacts:\n  - {type: rigid-wall, surfaces: [col], point: [0, 0, 0], normal: [0, 0, 1]}\n";
     expect_rejected("contact_unknown_surface.yaml", replace(wall, "surfaces: [col]", "surfaces: [colum]"),
                     ":13: contacts.0.surfaces.0", "unknown surface 'colum'");
     expect_rejected("contact_zero_normal.yaml", replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 0]}\n"),
                     ":13: contacts.0.normal", "is the zero vector");
     expect_rejected("contact_bad_type.yaml", replace(wall, "rigid-wall", "rigid_wall"), ":13: contacts.0.type",
                     "'rigid_wall' is not a valid choice");
-    expect_rejected("contact_wall_key.yaml", replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 1], thickness: 1 mm}\n"),
+    expect_rejected("contact_wall_key.yaml",
+                    replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 1], thickness: 1 mm}\n"),
                     ":13: contacts.0.thickness", "unknown key 'thickness'");
-    expect_rejected("contact_penalty.yaml", replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 1], penalty_scale: 2}\n"),
+    expect_rejected("contact_penalty.yaml",
+                    replace(wall, "normal: [0, 0, 1]}\n", "normal: [0, 0, 1], penalty_scale: 2}\n"),
                     ":13: contacts.0.penalty_scale", "is outside (0, 0.80]");
     const std::string pair = good + "contacts:\n  - {type: surface-to-surface, surfaces: [col]}\n";
     expect_rejected("contact_one_surface.yaml", pair, ":13: contacts.0.surfaces", "does not name two surfaces");
@@ -927,17 +946,20 @@ contacts:
         expect_rejected("overlap_deep_single.yaml", replace(deep, "type: surface-to-surface", "type: single-surface"),
                         ":11: contacts.0", "1 node(s) of part 'b' start inside part 'a'");
         // a larger max_penetration reaches the node: held, not refused
-        const Result held = run("check " + write_deck("overlap_held.yaml", replace(deep, "surfaces: [a, b]}",
-                                                                                   "surfaces: [a, b], max_penetration: 1}")));
+        const Result held =
+            run("check " + write_deck("overlap_held.yaml",
+                                      replace(deep, "surfaces: [a, b]}", "surfaces: [a, b], max_penetration: 1}")));
         EXPECT_EQ(held.code, 0) << held.output;
     }
     // a single-surface contact over clouds alone has no surface
     expect_rejected("contact_clouds.yaml",
-                    cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n") + "contacts:\n  - {type: single-surface}\n",
+                    cloud_deck(", spacing: 1 mm", "    formulation: rkpm\n") +
+                        "contacts:\n  - {type: single-surface}\n",
                     ":14: contacts.0.surfaces", "has no surface: every part it names is a particle cloud");
     // mortar contact holds no offsets: it says the nodes are pushed out
     {
-        const std::string mortar = good + "contacts:\n  - {type: surface-to-surface, surfaces: [col, col], formulation: mortar}\n";
+        const std::string mortar =
+            good + "contacts:\n  - {type: surface-to-surface, surfaces: [col, col], formulation: mortar}\n";
         const Result r = run("check " + write_deck("contact_mortar.yaml", mortar));
         EXPECT_EQ(r.code, 0) << r.output;
         expect_rejected("contact_mortar_single.yaml",
@@ -958,7 +980,8 @@ TEST(Decks, HelpPrintsUsageAndExitsZero)
 {
     const Result all = run("--help");
     EXPECT_EQ(all.code, 0) << all.output;
-    for (const char* c : {"rkfem check DECK", "rkfem run DECK --out DIR", "rkfem convergence SWEEP", "rkfem material-point"})
+    for (const char* c :
+         {"rkfem check DECK", "rkfem run DECK --out DIR", "rkfem convergence SWEEP", "rkfem material-point"})
         EXPECT_NE(all.output.find(c), std::string::npos) << all.output;
     const Result one = run("run --help");
     EXPECT_EQ(one.code, 0) << one.output;
@@ -1013,8 +1036,8 @@ TEST(Decks, MeshesThatCannotFitAreRefusedBeforeAllocation)
     expect_rejected("huge_mesh.yaml", big, ":6: parts.col.generator", "GB");
     // under a process limit the machine's memory is not what counts: 1e7 hexes (about 15 GB)
     // under `ulimit -v` of 2 GB ended in "internal error: std::bad_alloc"
-    const std::string ten_million = write_deck(
-        "ulimit_mesh.yaml", replace(good, "element_size: 1 mm", "divisions: [215, 215, 215]"));
+    const std::string ten_million =
+        write_deck("ulimit_mesh.yaml", replace(good, "element_size: 1 mm", "divisions: [215, 215, 215]"));
     const Result r = run_shell("ulimit -v 2000000 && " + std::string(RKFEM_EXE) + " check " + ten_million + " 2>&1");
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("ulimit_mesh.yaml:6: parts.col.generator: needs about"), std::string::npos) << r.output;
@@ -1028,7 +1051,8 @@ TEST(Decks, OptionsASubcommandDoesNotTakeAreRefused)
     Result r = run("material-point " + mp + " --out /tmp/rkfem_never --set material.E=1");
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("material-point takes no --set"), std::string::npos) << r.output;
-    r = run("convergence " + std::string(RKFEM_SOURCE_DIR) + "/studies/sweeps/mms_smoke.yaml --out /tmp/rkfem_never --set a=1");
+    r = run("convergence " + std::string(RKFEM_SOURCE_DIR) +
+            "/studies/sweeps/mms_smoke.yaml --out /tmp/rkfem_never --set a=1");
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("convergence takes no --set"), std::string::npos) << r.output;
     r = run("check " + write_deck("good_check.yaml", good) + " --out /tmp/rkfem_never");
@@ -1039,11 +1063,11 @@ TEST(Decks, OptionsASubcommandDoesNotTakeAreRefused)
 
 TEST(Decks, TubeKeysAreChecked)
 {
-    const std::string tube = replace(good, "generator: {type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
-                                     "generator: {type: cylinder, radius: 5 mm, inner_radius: 5 mm, height: 10 mm, element_size: 1 mm}");
+    const std::string tube =
+        replace(good, "generator: {type: box, size: [1 mm, 1 mm, 10 mm], element_size: 1 mm}",
+                "generator: {type: cylinder, radius: 5 mm, inner_radius: 5 mm, height: 10 mm, element_size: 1 mm}");
     expect_rejected("tube_r.yaml", tube, ":6: parts.col.generator.inner_radius", "expected 0 < inner_radius < radius");
-    expect_rejected("tube_core.yaml",
-                    replace(tube, "inner_radius: 5 mm", "inner_radius: 4 mm, core: ogrid"),
+    expect_rejected("tube_core.yaml", replace(tube, "inner_radius: 5 mm", "inner_radius: 4 mm, core: ogrid"),
                     ":6: parts.col.generator.core", "a tube has no core");
 }
 
@@ -1110,8 +1134,8 @@ TEST(Decks, HistoryCarriesEachLoadsValue)
 {
     // a pressure ramp on the tube of the P2 deck: the column load_outer is the curve at each row
     const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "load_column";
-    const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/p2_implosion.yaml --out " + out.string() +
-                         " --quiet --set parts.tube.generator.element_size=0.8in --set time.end=0.2ms");
+    const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/p2_implosion.yaml --out " +
+                         out.string() + " --quiet --set parts.tube.generator.element_size=0.8in --set time.end=0.2ms");
     ASSERT_EQ(r.code, 0) << r.output;
     const History h = read_history(out / "history.csv");
     const std::size_t k = h.column("load_outer");
@@ -1157,7 +1181,8 @@ TEST(Decks, CheckEchoesGeneratedParametersAndWhatSetsTheStep)
     // units, and the stable step of a cube, h / c_L with c_L from the printed K1 and G
     const Result r = run("check " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/concrete_bar_kcc.yaml");
     ASSERT_EQ(r.code, 0) << r.output;
-    EXPECT_NE(r.output.find("#  part bar:\n#   K&C concrete Release III (MAT_072R3), generated from f'c:"), std::string::npos)
+    EXPECT_NE(r.output.find("#  part bar:\n#   K&C concrete Release III (MAT_072R3), generated from f'c:"),
+              std::string::npos)
         << r.output;
     for (const char* key : {"fc = 4.56e+07 Pa", "a2 = ", "1/Pa", "b1 = ", "EOS_8 pressure [Pa]:", "eta(lambda):"})
         EXPECT_NE(r.output.find(key), std::string::npos) << key;
@@ -1177,18 +1202,22 @@ TEST(Decks, CheckEchoesGeneratedParametersAndWhatSetsTheStep)
     EXPECT_NE(r.output.find(", set by part 'bar' element "), std::string::npos) << r.output;
     // an elastic deck has nothing generated
     const Result e = run("check " + write_deck("plain_check.yaml", good));
-    EXPECT_NE(e.output.find("#   none (every material's parameters are the deck's own)"), std::string::npos) << e.output;
+    EXPECT_NE(e.output.find("#   none (every material's parameters are the deck's own)"), std::string::npos)
+        << e.output;
 }
 
 TEST(Decks, SectionKeysAreChecked)
 {
     expect_rejected("section_normal.yaml", good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 0]}\n",
                     ":13: sections.s.normal", "expected the plane's normal");
-    expect_rejected("section_part.yaml", good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 1], part: nope}\n",
+    expect_rejected("section_part.yaml",
+                    good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 1], part: nope}\n",
                     ":13: sections.s.part", "expected the name of a part");
-    expect_rejected("section_twice.yaml",
-                    good + "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 1]}\n  s: {point: [0, 0, 6 mm], normal: [0, 0, 1]}\n",
-                    ":14: sections.s", "each key once");
+    expect_rejected(
+        "section_twice.yaml",
+        good +
+            "sections:\n  s: {point: [0, 0, 5 mm], normal: [0, 0, 1]}\n  s: {point: [0, 0, 6 mm], normal: [0, 0, 1]}\n",
+        ":14: sections.s", "each key once");
 }
 
 TEST(Decks, UnitMismatchSaysWhatIsExpected)
@@ -1198,7 +1227,8 @@ TEST(Decks, UnitMismatchSaysWhatIsExpected)
     // and through --set
     const Result r = run("check " + write_deck("unit_set.yaml", good) + " --set 'parts.col.material.rho=3 m/s'");
     EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.output.find("--set parts.col.material.rho=3 m/s: parts.col.material.rho: "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("--set parts.col.material.rho=3 m/s: parts.col.material.rho: "), std::string::npos)
+        << r.output;
     EXPECT_NE(r.output.find("; expected a density"), std::string::npos) << r.output;
 }
 
@@ -1211,7 +1241,8 @@ TEST(Decks, AnOutputPathThatCannotBeADirectoryIsRefusedBeforeTheRun)
     {
         const Result r = run("run " + write_deck("out_file.yaml", good) + " --out " + out);
         EXPECT_EQ(r.code, 2) << r.output;
-        EXPECT_NE(r.output.find("rkfem: --out " + out + ": cannot create the output directory"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find("rkfem: --out " + out + ": cannot create the output directory"), std::string::npos)
+            << r.output;
         EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     }
 }
@@ -1220,8 +1251,8 @@ TEST(Decks, TheLastProgressLineShowsTheRunsEnergyRatio)
 {
     // the final line used to print a constant 1.0000; it is the ledger's ratio, as summary.json's
     const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "progress_ratio";
-    const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave.yaml --out " + out.string() +
-                         " --set 'parts.column.generator.size=[2 mm, 2 mm, 200 mm]'");
+    const Result r = run("run " + std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave.yaml --out " +
+                         out.string() + " --set 'parts.column.generator.size=[2 mm, 2 mm, 200 mm]'");
     ASSERT_EQ(r.code, 0) << r.output;
     const auto at = r.output.rfind("energy ratio ");
     ASSERT_NE(at, std::string::npos) << r.output;
@@ -1244,13 +1275,19 @@ TEST(Decks, TheLastProgressLineShowsTheRunsEnergyRatio)
 TEST(Decks, MaterialPointPathsThatLeaveFiniteNumbersAreRefused)
 {
     // NaN / inf rows used to be written with exit 0, and steps past 2^31 wrapped around
-    const std::string head = "title: t\nmaterial: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 300 MPa, etan: 1 GPa}\n";
+    const std::string head =
+        "title: t\nmaterial: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 300 MPa, etan: 1 GPa}\n";
     const std::pair<std::string, std::string> bad[] = {
-        {"path: {type: uniaxial-stress, strain: 1e300, rate: 1 1/s, steps: 10}\n", ":3: path: the point's state is not finite at step 1"},
-        {"path: {type: uniaxial-stress, strain: 0.01, rate: 4.9e-324 1/s, steps: 10}\n", ":3: path: the point's state is not finite"},
-        {"path: {type: rotation, strain: 0.01, rate: 1 1/s, steps: 10, angle: 1e300}\n", "check path.strain, path.rate, path.angle"},
-        {"path: {type: uniaxial-stress, strain: 0.01, rate: 1 1/s, steps: 4294967297}\n", ":3: path.steps: is above 10^8"},
-        {"path: {type: uniaxial-stress, strain: 0.01, rate: 1 1/s, steps: 2147483648}\n", ":3: path.steps: is above 10^8"},
+        {"path: {type: uniaxial-stress, strain: 1e300, rate: 1 1/s, steps: 10}\n",
+         ":3: path: the point's state is not finite at step 1"},
+        {"path: {type: uniaxial-stress, strain: 0.01, rate: 4.9e-324 1/s, steps: 10}\n",
+         ":3: path: the point's state is not finite"},
+        {"path: {type: rotation, strain: 0.01, rate: 1 1/s, steps: 10, angle: 1e300}\n",
+         "check path.strain, path.rate, path.angle"},
+        {"path: {type: uniaxial-stress, strain: 0.01, rate: 1 1/s, steps: 4294967297}\n",
+         ":3: path.steps: is above 10^8"},
+        {"path: {type: uniaxial-stress, strain: 0.01, rate: 1 1/s, steps: 2147483648}\n",
+         ":3: path.steps: is above 10^8"},
     };
     const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "mp_bad_out";
     for (const auto& [path, expect] : bad)
@@ -1269,7 +1306,8 @@ TEST(Decks, AnEndTimeBeyondTenBillionStepsIsRefused)
     const fs::path out = fs::temp_directory_path() / "rkfem_test_decks" / "endless";
     fs::remove_all(out);
     const std::string f = write_deck("endless.yaml", replace(good, "end: 1 us", "end: 1e30 s"));
-    const Result r = run_shell(std::string("timeout 60 ") + RKFEM_EXE + " run " + f + " --out " + out.string() + " 2>&1");
+    const Result r =
+        run_shell(std::string("timeout 60 ") + RKFEM_EXE + " run " + f + " --out " + out.string() + " 2>&1");
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("time.end: 1e+30 s would take about"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("; expected an end time within 10^10 steps"), std::string::npos) << r.output;
@@ -1283,7 +1321,8 @@ TEST(Decks, OverridesThatDoNotFitTheDeckGetALine)
     // each used to end in exit 1 "internal error" (stoul, yaml-cpp) or blame the deck for the --set
     const std::string f = write_deck("override_fit.yaml", good);
     const std::pair<std::string, std::string> cases[] = {
-        {"boundary_conditions.foo=1", "--set boundary_conditions.foo=1: boundary_conditions.foo: 'foo' indexes a list; expected an index 0..0"},
+        {"boundary_conditions.foo=1",
+         "--set boundary_conditions.foo=1: boundary_conditions.foo: 'foo' indexes a list; expected an index 0..0"},
         {"boundary_conditions.0.x.y=1", "--set boundary_conditions.0.x.y=1: "},
         {"title.x=1", "'title' is a value, not a section; expected a path through mappings and lists"},
         {"time.end=", "--set time.end=: time.end: has no value after '='; expected a value"},
@@ -1309,9 +1348,11 @@ TEST(Decks, ConvergenceSweepsThatCannotGiveARateAreRefused)
 {
     // each used to run (rates -nan) or fail with exit 1 after writing convergence.csv
     const std::pair<std::string, std::string> bad[] = {
-        {"resolutions: [2, 2]\ncases: [{formulation: rkpm}]\n", ":1: resolutions.1: 2 does not refine 2; expected increasing"},
+        {"resolutions: [2, 2]\ncases: [{formulation: rkpm}]\n",
+         ":1: resolutions.1: 2 does not refine 2; expected increasing"},
         {"resolutions: [4, 2]\ncases: [{formulation: rkpm}]\n", ":1: resolutions.1: 2 does not refine 4"},
-        {"resolutions: [2, 4]\ncases: [{formulation: rkpm, stabilization: -1}]\n", ":2: cases.0.stabilization: is negative"},
+        {"resolutions: [2, 4]\ncases: [{formulation: rkpm, stabilization: -1}]\n",
+         ":2: cases.0.stabilization: is negative"},
         {"resolutions: [2, 3]\ncases: [{formulation: fem-nodal, scheme: dni}]\n",
          ":2: cases.0.scheme: direct nodal integration of trilinear FE functions is undefined"},
         {"resolutions: [2, 3]\ncases: [{formulation: rkpm, normalized_support: 0.5}]\n",
@@ -1341,7 +1382,9 @@ TEST(Decks, MessagesArePrintableAndShort)
     EXPECT_EQ(c.output.find('\x01'), std::string::npos);
     // one "; expected": parse_quantity's own expectation is not repeated
     EXPECT_EQ(c.output.find("; expected"), c.output.rfind("; expected")) << c.output;
-    const Result big = run("check " + write_deck("big_value.yaml", replace(good, "end: 1 us", "end: \"" + std::string(5000000, 'x') + "\"")));
+    const Result big =
+        run("check " +
+            write_deck("big_value.yaml", replace(good, "end: 1 us", "end: \"" + std::string(5000000, 'x') + "\"")));
     EXPECT_EQ(big.code, 2);
     EXPECT_LT(big.output.size(), 600u) << big.output.substr(0, 600);
     EXPECT_NE(big.output.find("characters cut"), std::string::npos);
@@ -1391,13 +1434,12 @@ TEST(Decks, OutputPrecisionAndCompression)
 {
     std::map<std::string, fs::path> outs;
     for (const auto& [name, sets] : std::vector<std::pair<std::string, std::string>>{
-             {"double", "--set output.precision=double"},
-             {"single", ""},
-             {"gzip", "--set output.compression=4"}})
+             {"double", "--set output.precision=double"}, {"single", ""}, {"gzip", "--set output.compression=4"}})
     {
         outs[name] = fs::temp_directory_path() / ("rkfem_out_storage_" + name);
         fs::remove_all(outs[name]);
-        const Result r = run("run " + write_deck("storage.yaml", good) + " --out " + outs[name].string() + " --quiet " + sets);
+        const Result r =
+            run("run " + write_deck("storage.yaml", good) + " --out " + outs[name].string() + " --quiet " + sets);
         ASSERT_EQ(r.code, 0) << r.output;
     }
     const StoredField d = last_step_field(outs["double"], "velocity"), s = last_step_field(outs["single"], "velocity"),
@@ -1417,12 +1459,14 @@ TEST(Decks, OutputPrecisionAndCompression)
     }
     EXPECT_GT(vmax, 0.0); // the driven end moves: the comparison is not of zeros
     EXPECT_EQ(last_step_field(outs["single"], "coordinates").bytes, 8u);
-    EXPECT_EQ(last_step_field(outs["gzip"], "coordinates").values, last_step_field(outs["double"], "coordinates").values);
+    EXPECT_EQ(last_step_field(outs["gzip"], "coordinates").values,
+              last_step_field(outs["double"], "coordinates").values);
     std::ifstream x(outs["single"] / "results.xdmf");
     const std::string xdmf((std::istreambuf_iterator<char>(x)), std::istreambuf_iterator<char>());
     EXPECT_NE(xdmf.find("Precision=\"4\" Format=\"HDF\">results.h5:/steps/000000/velocity"), std::string::npos) << xdmf;
     EXPECT_NE(xdmf.find("Precision=\"8\" Format=\"HDF\">results.h5:/steps/000000/coordinates"), std::string::npos);
-    expect_rejected("storage_level.yaml", good + "output: {compression: 12}\n", ":" + std::to_string(std::count(good.begin(), good.end(), '\n') + 1) + ": output.compression",
+    expect_rejected("storage_level.yaml", good + "output: {compression: 12}\n",
+                    ":" + std::to_string(std::count(good.begin(), good.end(), '\n') + 1) + ": output.compression",
                     "expected a gzip level from 0 (none) to 9 (smallest)");
 }
 
@@ -1430,7 +1474,8 @@ TEST(Decks, OutputPrecisionAndCompression)
 // bad file").
 TEST(Decks, DeepNestingIsNamed)
 {
-    const std::string deep = "title: x\ntime: {end: 1 us}\nparts: " + std::string(2100, '[') + std::string(2100, ']') + "\n";
+    const std::string deep =
+        "title: x\ntime: {end: 1 us}\nparts: " + std::string(2100, '[') + std::string(2100, ']') + "\n";
     expect_rejected("deep_nesting.yaml", deep, ":3: deck", "nested deeper than the YAML reader allows");
 }
 
@@ -1478,14 +1523,16 @@ TEST(Decks, KeywordMeshesResolveAgainstTheDeckAndTheResolvedDeckReadsBack)
     // an element that inverts is named by the file's EID (its cell in results.h5 beside it)
     const fs::path out = fs::temp_directory_path() / "rkfem_out_keyword_unstable";
     fs::remove_all(out);
-    const Result u = run("run " +
-                         write_deck("keyword_unstable.yaml",
-                                    replace(deck, "boundary_conditions:\n  - {node_set: end, velocity: {z: 10 m/s}}\n",
-                                            "face_sets:\n  top: {part: col, select: {type: plane, point: [0, 0, 10 mm], "
-                                            "normal: [0, 0, 1]}}\nloads:\n  - {type: pressure, face_set: top, pressure: 1e16 Pa}\n")) +
-                         " --out " + out.string() + " --quiet");
+    const Result u = run(
+        "run " +
+        write_deck("keyword_unstable.yaml",
+                   replace(deck, "boundary_conditions:\n  - {node_set: end, velocity: {z: 10 m/s}}\n",
+                           "face_sets:\n  top: {part: col, select: {type: plane, point: [0, 0, 10 mm], "
+                           "normal: [0, 0, 1]}}\nloads:\n  - {type: pressure, face_set: top, pressure: 1e16 Pa}\n")) +
+        " --out " + out.string() + " --quiet");
     EXPECT_EQ(u.code, 3) << u.output;
-    EXPECT_NE(u.output.find("element 1010 (the mesh file's EID; part 'col', cell 9 in results.h5) has non-positive volume"),
-              std::string::npos)
+    EXPECT_NE(
+        u.output.find("element 1010 (the mesh file's EID; part 'col', cell 9 in results.h5) has non-positive volume"),
+        std::string::npos)
         << u.output;
 }

@@ -273,7 +273,7 @@ TEST(RigidWall, ElasticBarReboundsWithItsSpeedAfterTwoTransitTimes)
     EXPECT_NEAR(duration / (2 * L / c), 1.0, 0.02);
     EXPECT_NEAR(v_after / v0, 1.0, 0.01);
     EXPECT_LT(r.worst_balance, 0.01);
-    EXPECT_GT(r.largest_contact_energy, 1e-4 * r.initial_kinetic); // the springs held energy...
+    EXPECT_GT(r.largest_contact_energy, 1e-4 * r.initial_kinetic);         // the springs held energy...
     EXPECT_LT(std::abs(r.final_contact_energy), 1e-3 * r.initial_kinetic); // ...and gave it back
 }
 
@@ -285,10 +285,11 @@ TEST(SurfaceToSurface, IdenticalBarsExchangeVelocitiesAndConserveMomentum)
         const std::string st(stiffness);
         // mortar: each pass carries half the penalty per unit area, node-to-segment's passes the whole
         const ImpactRun r = impact(
-            bars_deck, st == "segment" ? std::vector<std::string>{"contacts.0.stiffness=segment", "contacts.0.penalty_scale=0.5"}
-                       : st == "soft"  ? std::vector<std::string>{"contacts.0.penalty_scale=0.01", "contacts.0.soft_scale=0.5"}
-                                       : std::vector<std::string>{"contacts.0.formulation=mortar", "contacts.0.stiffness=segment",
-                                                                  "contacts.0.penalty_scale=1"});
+            bars_deck,
+            st == "segment" ? std::vector<std::string>{"contacts.0.stiffness=segment", "contacts.0.penalty_scale=0.5"}
+            : st == "soft"  ? std::vector<std::string>{"contacts.0.penalty_scale=0.01", "contacts.0.soft_scale=0.5"}
+                            : std::vector<std::string>{"contacts.0.formulation=mortar", "contacts.0.stiffness=segment",
+                                                       "contacts.0.penalty_scale=1"});
         ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
         const real_t duration = r.t_last - r.t_first;
         const real_t va = r.momentum[0][2] / r.mass[0], vb = r.momentum[1][2] / r.mass[1];
@@ -317,7 +318,8 @@ TEST(SurfaceToSurface, IdenticalBarsExchangeVelocitiesAndConserveMomentum)
         EXPECT_NEAR(value("part_a_momentum_z") + value("part_b_momentum_z"), p0, 1e-10 * p0);
         EXPECT_NEAR(value("part_a_kinetic") + value("part_b_kinetic"), value("kinetic"), 1e-12 * r.initial_kinetic);
         EXPECT_NEAR(value("part_a_internal") + value("part_b_internal"), value("internal"), 1e-12 * r.initial_kinetic);
-        EXPECT_NEAR(value("part_a_hourglass") + value("part_b_hourglass"), value("hourglass"), 1e-12 * r.initial_kinetic);
+        EXPECT_NEAR(value("part_a_hourglass") + value("part_b_hourglass"), value("hourglass"),
+                    1e-12 * r.initial_kinetic);
         // after the exchange the moving bar carries the energy: kinetic + internal about the initial kinetic
         EXPECT_NEAR((value("part_b_kinetic") + value("part_b_internal")) / r.initial_kinetic, 1.0, 0.02);
         EXPECT_LT(value("part_a_kinetic"), 1e-3 * r.initial_kinetic);
@@ -399,8 +401,10 @@ TEST(SurfaceToSurface, PatchTestExactWithMortarOrMatchingMeshesNodeToSegmentWith
         {"non-matching 4x4 / 3x3, penalty 0.1", {}, 0.08},
         {"non-matching 4x4 / 3x3, penalty 1", {"contacts.0.penalty_scale=1"}, 0.04},
         {"non-matching 4x4 / 3x3, mortar", {"contacts.0.formulation=mortar"}, 5e-6},
-        {"non-matching 5x7 / 3x4, mortar", {"contacts.0.formulation=mortar", "parts.lower.generator.divisions=[5, 7, 3]",
-                                             "parts.upper.generator.divisions=[3, 4, 2]"}, 5e-6},
+        {"non-matching 5x7 / 3x4, mortar",
+         {"contacts.0.formulation=mortar", "parts.lower.generator.divisions=[5, 7, 3]",
+          "parts.upper.generator.divisions=[3, 4, 2]"},
+         5e-6},
     };
     for (const Case& c : cases)
     {
@@ -436,8 +440,8 @@ TEST(SingleSurface, BarsExchangeVelocitiesAndAFreeBarNeverTouchesItself)
     // one surface over both bars: each bar's nodes meet the other's segments (and its own, which
     // never face them closely enough): the same exchange as surface-to-surface
     const real_t v0 = 10.0;
-    const ImpactRun r = impact(bars_deck, {"contacts.0.type=single-surface", "contacts.0.penalty_scale=0.5",
-                                           "contacts.0.stiffness=segment"});
+    const ImpactRun r = impact(
+        bars_deck, {"contacts.0.type=single-surface", "contacts.0.penalty_scale=0.5", "contacts.0.stiffness=segment"});
     ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
     const real_t va = r.momentum[0][2] / r.mass[0], vb = r.momentum[1][2] / r.mass[1];
     std::printf("single surface over both bars: after: a %.4f m/s, b %.4f m/s, momentum drift %.1e of p0\n", va, vb,
@@ -471,8 +475,8 @@ contacts:
     index_t touched = 0;
     RunOptions opt;
     opt.progress = false;
-    const RunSummary s =
-        run_simulation(m, opt, [&](const Model& mm, real_t, real_t, std::int64_t) { touched += mm.contacts[0]->active_nodes(); });
+    const RunSummary s = run_simulation(
+        m, opt, [&](const Model& mm, real_t, real_t, std::int64_t) { touched += mm.contacts[0]->active_nodes(); });
     ASSERT_EQ(s.status, "completed") << s.message;
     EXPECT_EQ(touched, 0);
     EXPECT_GT(s.steps, 100);
@@ -551,9 +555,9 @@ TEST(Projectile, FlatNosedFspIsStoppedByTheConcretePanelNotPassedThrough)
     // back: it loses momentum to the panel, the panel's struck face moves with it, no FSP node
     // ends up more than max_penetration inside the panel's remaining surface, and the ledger
     // (with the contact springs and the eroded elements) closes within 2%.
-    const Deck deck = read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/fsp_impact.yaml",
-                                {"parts.panel.generator.element_size=10 mm", "parts.fsp.generator.element_size=2.5 mm",
-                                 "time.end=40 us"});
+    const Deck deck = read_deck(
+        std::string(RKFEM_SOURCE_DIR) + "/studies/decks/fsp_impact.yaml",
+        {"parts.panel.generator.element_size=10 mm", "parts.fsp.generator.element_size=2.5 mm", "time.end=40 us"});
     Model m = Model::build(deck);
     real_t p0 = 0.0, mass = 0.0;
     for (index_t i = 0; i < m.nodes.size(); ++i)
@@ -581,9 +585,9 @@ TEST(Projectile, FlatNosedFspIsStoppedByTheConcretePanelNotPassedThrough)
                 "%d panel elements eroded, largest balance error %.2e, %lld steps\n",
                 1e3 * mass, p / mass, p0 / mass, 1e3 * nose, 1e3 * face, static_cast<int>(m.eroded_elements()),
                 worst_balance, static_cast<long long>(s.steps));
-    EXPECT_GT(p / p0, 0.0);                   // still moving down...
-    EXPECT_LT(p / p0, 0.9);                   // ...having given the panel more than 10% of its momentum
-    EXPECT_LT(face, -1e-3);                   // the struck face moved with the nose
+    EXPECT_GT(p / p0, 0.0); // still moving down...
+    EXPECT_LT(p / p0, 0.9); // ...having given the panel more than 10% of its momentum
+    EXPECT_LT(face, -1e-3); // the struck face moved with the nose
     EXPECT_LT(worst_balance, 0.02);
 }
 
@@ -693,15 +697,17 @@ TEST(SingleSurface, FoldedPlatePressedOntoItselfNeverPassesTheContactThickness)
     for (int k = 0; k + 1 < ns; ++k)
         for (int a = 0; a < nr; ++a)
             for (int b = 0; b < ny; ++b)
-                conn.insert(conn.end(), {id(k, a, b), id(k + 1, a, b), id(k + 1, a + 1, b), id(k, a + 1, b),
-                                         id(k, a, b + 1), id(k + 1, a, b + 1), id(k + 1, a + 1, b + 1), id(k, a + 1, b + 1)});
+                conn.insert(conn.end(),
+                            {id(k, a, b), id(k + 1, a, b), id(k + 1, a + 1, b), id(k, a + 1, b), id(k, a, b + 1),
+                             id(k + 1, a, b + 1), id(k + 1, a + 1, b + 1), id(k, a + 1, b + 1)});
     const std::string mesh = test::write_keyword_mesh("rkfem_folded_plate.k", x, conn);
     const std::string deck = R"(
 title: folded plate pressed onto itself
 time: {end: 150 us, stepper: central-difference}
 parts:
   plate:
-    generator: {type: keyword, file: )" + mesh + R"(}
+    generator: {type: keyword, file: )" +
+                             mesh + R"(}
     material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
     formulation: fem-1pt
     hourglass: {type: stiffness, coefficient: 0.05}
@@ -731,7 +737,8 @@ contacts:
     };
     auto run = [&](bool contact)
     {
-        Model m = test::model_from(deck, contact ? std::vector<std::string>{} : std::vector<std::string>{"contacts=[]"});
+        Model m =
+            test::model_from(deck, contact ? std::vector<std::string>{} : std::vector<std::string>{"contacts=[]"});
         Result r;
         RunOptions opt;
         opt.progress = false;
@@ -741,7 +748,8 @@ contacts:
                                        if (tt > 10e-6) // past the start, when the ledger's scale is tiny
                                            r.worst_balance = std::max(r.worst_balance, mm.energy.balance_error());
                                        for (const auto& [up, low] : pairs)
-                                           r.min_gap = std::min(r.min_gap, mm.nodes.x[3 * up + 2] - mm.nodes.x[3 * low + 2]);
+                                           r.min_gap =
+                                               std::min(r.min_gap, mm.nodes.x[3 * up + 2] - mm.nodes.x[3 * low + 2]);
                                        if (!mm.contacts.empty())
                                            r.most_active = std::max(r.most_active, mm.contacts[0]->active_nodes());
                                    });
@@ -752,11 +760,10 @@ contacts:
     std::printf("folded plate: least gap between the arms' facing nodes %.4f mm with single-surface contact "
                 "(thickness 0.05 mm), %.3f mm without; up to %lld nodes in contact; largest balance error after "
                 "10 us %.2e\n",
-                1e3 * held.min_gap, 1e3 * free.min_gap, static_cast<long long>(held.most_active),
-                held.worst_balance);
-    EXPECT_LT(free.min_gap, -t); // without contact the arm passes through
-    EXPECT_GT(held.min_gap, 0.0); // with it, never through the thickness
-    EXPECT_LT(held.min_gap, 0.05e-3); // ...and the arms did close into it
+                1e3 * held.min_gap, 1e3 * free.min_gap, static_cast<long long>(held.most_active), held.worst_balance);
+    EXPECT_LT(free.min_gap, -t);               // without contact the arm passes through
+    EXPECT_GT(held.min_gap, 0.0);              // with it, never through the thickness
+    EXPECT_LT(held.min_gap, 0.05e-3);          // ...and the arms did close into it
     EXPECT_GT(held.most_active, 2 * (ny + 1)); // along more than a line
     EXPECT_LT(held.worst_balance, 0.01);
 }

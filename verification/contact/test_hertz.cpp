@@ -96,7 +96,8 @@ std::string write_mesh(const std::vector<real_t>& s)
     std::vector<real_t> x;
     std::vector<index_t> conn;
     std::vector<int> pid;
-    auto node = [&](int body, int i, int j, int l) { return static_cast<index_t>(body * (n + 1) * (n + 1) * (n + 1) + (l * (n + 1) + j) * (n + 1) + i); };
+    auto node = [&](int body, int i, int j, int l)
+    { return static_cast<index_t>(body * (n + 1) * (n + 1) * (n + 1) + (l * (n + 1) + j) * (n + 1) + i); };
     for (int body = 0; body < 2; ++body)
         for (int l = 0; l <= n; ++l)
             for (int j = 0; j <= n; ++j)
@@ -116,9 +117,10 @@ std::string write_mesh(const std::vector<real_t>& s)
             for (int j = 0; j < n; ++j)
                 for (int i = 0; i < n; ++i)
                 {
-                    conn.insert(conn.end(), {node(body, i, j, l), node(body, i + 1, j, l), node(body, i + 1, j + 1, l),
-                                             node(body, i, j + 1, l), node(body, i, j, l + 1), node(body, i + 1, j, l + 1),
-                                             node(body, i + 1, j + 1, l + 1), node(body, i, j + 1, l + 1)});
+                    conn.insert(conn.end(),
+                                {node(body, i, j, l), node(body, i + 1, j, l), node(body, i + 1, j + 1, l),
+                                 node(body, i, j + 1, l), node(body, i, j, l + 1), node(body, i + 1, j, l + 1),
+                                 node(body, i + 1, j + 1, l + 1), node(body, i, j + 1, l + 1)});
                     pid.push_back(body + 1);
                 }
     return test::write_keyword_mesh("rkfem_hertz.k", x, conn, pid);
@@ -145,25 +147,30 @@ title: Hertz, sphere on half-space
 time: {end: 40 us, stepper: central-difference, energy_error_limit: 1}
 parts:
   block:
-    generator: {type: keyword, file: )" + mesh + R"(, pid: 1}
+    generator: {type: keyword, file: )" +
+                             mesh + R"(, pid: 1}
     material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
     formulation: fem-1pt
     hourglass: {type: stiffness, coefficient: 0.05}
   cap:
-    generator: {type: keyword, file: )" + mesh + R"(, pid: 2}
+    generator: {type: keyword, file: )" +
+                             mesh + R"(, pid: 2}
     material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
     formulation: fem-1pt
     hourglass: {type: stiffness, coefficient: 0.05}
 node_sets:
   x0: {select: {type: plane, point: [0, 0, 0], normal: [1, 0, 0]}}
   y0: {select: {type: plane, point: [0, 0, 0], normal: [0, 1, 0]}}
-  base: {part: block, select: {type: plane, point: [0, 0, )" + num(-H) + R"(], normal: [0, 0, 1]}}
-  top: {part: cap, select: {type: plane, point: [0, 0, )" + num(H) + R"(], normal: [0, 0, 1]}}
+  base: {part: block, select: {type: plane, point: [0, 0, )" +
+                             num(-H) + R"(], normal: [0, 0, 1]}}
+  top: {part: cap, select: {type: plane, point: [0, 0, )" +
+                             num(H) + R"(], normal: [0, 0, 1]}}
 boundary_conditions:
   - {node_set: x0, fixed: [x]}
   - {node_set: y0, fixed: [y]}
   - {node_set: base, fixed: [z]}
-  - {node_set: top, displacement: {z: {curve: )" + ramp.str() + R"(}}}
+  - {node_set: top, displacement: {z: {curve: )" +
+                             ramp.str() + R"(}}}
 contacts:
   - {type: surface-to-surface, surfaces: [cap, block], formulation: mortar, stiffness: segment, penalty_scale: 10}
 )";
@@ -199,17 +206,17 @@ contacts:
     std::vector<Sample> samples;
     RunOptions opt;
     opt.progress = false;
-    const RunSummary sum = run_simulation(m, opt,
-                                          [&](const Model& mm, real_t t, real_t, std::int64_t)
-                                          {
-                                              Sample a;
-                                              a.t = t;
-                                              a.F = 4.0 * mm.contacts[0]->resultant()[2]; // the whole sphere
-                                              for (int k = 0; k < 2; ++k)
-                                                  a.delta[k] = -mm.nodes.u[3 * cap_node[k] + 2] +
-                                                               mm.nodes.u[3 * block_node[k] + 2];
-                                              samples.push_back(a);
-                                          });
+    const RunSummary sum =
+        run_simulation(m, opt,
+                       [&](const Model& mm, real_t t, real_t, std::int64_t)
+                       {
+                           Sample a;
+                           a.t = t;
+                           a.F = 4.0 * mm.contacts[0]->resultant()[2]; // the whole sphere
+                           for (int k = 0; k < 2; ++k)
+                               a.delta[k] = -mm.nodes.u[3 * cap_node[k] + 2] + mm.nodes.u[3 * block_node[k] + 2];
+                           samples.push_back(a);
+                       });
     ASSERT_EQ(sum.status, "completed") << sum.message;
     std::printf("Hertz: %lld steps, %.1f s\n", static_cast<long long>(sum.steps), sum.stepping_seconds);
     // at 50 %, 75 % and 100 % of the ramp: the force Hertz gives for the measured approach,

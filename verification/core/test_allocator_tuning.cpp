@@ -93,8 +93,8 @@ TEST(AllocatorTuning, TheLauncherStartsTheDriverTunedOrSaysWhyNot)
     if (allocator_tunable())
     {
         std::filesystem::copy_file(RKFEM_PROBE, dir / "rkfem-core");
-        const test::Result r =
-            test::run_shell("env -u GLIBC_TUNABLES -u RKFEM_ALLOCATOR -u RKFEM_ALLOCATOR_TUNED " + (dir / "rkfem").string());
+        const test::Result r = test::run_shell("env -u GLIBC_TUNABLES -u RKFEM_ALLOCATOR -u RKFEM_ALLOCATOR_TUNED " +
+                                               (dir / "rkfem").string());
         EXPECT_EQ(r.code, 0) << r.output;
         // tuned on arrival, by the launcher: the driver does not execute itself again
         EXPECT_NE(r.output.find("tunables=" + kOurs + " marker=1 "), std::string::npos) << r.output;
@@ -104,9 +104,10 @@ TEST(AllocatorTuning, TheLauncherStartsTheDriverTunedOrSaysWhyNot)
             EXPECT_NE(r.output.find("heap_huge_advised=1"), std::string::npos) << r.output;
         }
         // the opt-out reaches the driver untuned
-        const std::string plain = test::run_shell("env -u GLIBC_TUNABLES -u RKFEM_ALLOCATOR_TUNED RKFEM_ALLOCATOR=default " +
-                                                  (dir / "rkfem").string())
-                                      .output;
+        const std::string plain =
+            test::run_shell("env -u GLIBC_TUNABLES -u RKFEM_ALLOCATOR_TUNED RKFEM_ALLOCATOR=default " +
+                            (dir / "rkfem").string())
+                .output;
         EXPECT_NE(plain.find("tunables=- marker=0 heap_huge_advised=0"), std::string::npos) << plain;
         EXPECT_NE(plain.find("starts=1"), std::string::npos) << plain;
     }
@@ -122,12 +123,13 @@ TEST(AllocatorTuning, ARunIsTheSameBitsTunedOrNot)
                              "--set 'parts.column.generator.size=[3 mm, 3 mm, 20 mm]' --out ";
     for (const std::string env : {"RKFEM_ALLOCATOR=default", ""})
     {
-        const test::Result r = test::run_shell("env -u GLIBC_TUNABLES -u RKFEM_ALLOCATOR -u RKFEM_ALLOCATOR_TUNED " +
-                                               env + " " RKFEM_EXE + args +
-                                               (dir / (env.empty() ? "tuned" : "plain")).string() + " 2>&1");
+        const test::Result r =
+            test::run_shell("env -u GLIBC_TUNABLES -u RKFEM_ALLOCATOR -u RKFEM_ALLOCATOR_TUNED " + env + " " RKFEM_EXE +
+                            args + (dir / (env.empty() ? "tuned" : "plain")).string() + " 2>&1");
         ASSERT_EQ(r.code, 0) << r.output;
     }
-    const std::string plain = read_file(dir / "plain" / "history.csv"), tuned = read_file(dir / "tuned" / "history.csv");
+    const std::string plain = read_file(dir / "plain" / "history.csv"),
+                      tuned = read_file(dir / "tuned" / "history.csv");
     EXPECT_GT(plain.size(), 100u);
     EXPECT_EQ(plain, tuned);
     std::filesystem::remove_all(dir);

@@ -38,7 +38,7 @@ TEST(SetupProgress, PhasesReportTheirNamesAndEveryItem)
     const std::vector<Line> lines = build_with_progress(0.0, "nsni");
     for (const Line& l : lines)
         std::printf("%s%s\n", l.text.c_str(), l.last ? "  (last)" : "");
-    const std::string n = std::to_string(7 * 7 * 7); // nodes of a 6 x 6 x 6 box: one NSNI triplet each
+    const std::string n = std::to_string(7 * 7 * 7);  // nodes of a 6 x 6 x 6 box: one NSNI triplet each
     const std::string ne = std::to_string(6 * 6 * 6); // its elements: RK SCNI is built by elements
     int last_gradients = 0, last_stab = 0;
     for (const Line& l : lines)

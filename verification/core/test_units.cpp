@@ -29,9 +29,9 @@ TEST(Units, ConvertsTheSeedPaperQuantitiesToSI)
 TEST(Units, RejectsUnknownAndMismatchedUnits)
 {
     EXPECT_THROW(parse_quantity("5 furlongs", dim::length), Error);
-    EXPECT_THROW(parse_quantity("5 psi", dim::length), Error);   // pressure where length expected
-    EXPECT_THROW(parse_quantity("abc", dim::length), Error);     // not a number
-    EXPECT_THROW(parse_quantity("5 m/", dim::velocity), Error);  // incomplete
+    EXPECT_THROW(parse_quantity("5 psi", dim::length), Error);  // pressure where length expected
+    EXPECT_THROW(parse_quantity("abc", dim::length), Error);    // not a number
+    EXPECT_THROW(parse_quantity("5 m/", dim::velocity), Error); // incomplete
     try
     {
         parse_quantity("5 psi", dim::length);

@@ -163,7 +163,8 @@ TEST(Generators, TubeHasThePolygonalAnnulusVolumeAndNamedFaces)
         {
             // outward: away from the axis on the outer surface, towards it in the bore
             const Vec3 n = quad_normal(m.x, m.faces[f]);
-            const Vec3 c = 0.25 * (m.node(m.faces[f][0]) + m.node(m.faces[f][1]) + m.node(m.faces[f][2]) + m.node(m.faces[f][3]));
+            const Vec3 c =
+                0.25 * (m.node(m.faces[f][0]) + m.node(m.faces[f][1]) + m.node(m.faces[f][2]) + m.node(m.faces[f][3]));
             EXPECT_GT((std::string(name) == "side" ? 1 : -1) * (n[0] * c[0] + n[1] * c[1]), 0.0);
             for (index_t k : m.faces[f])
                 EXPECT_NEAR(std::hypot(m.x[3 * k], m.x[3 * k + 1]), std::string(name) == "side" ? R : Ri, 1e-12);
@@ -186,7 +187,8 @@ TEST(Generators, ThinTubeFacesAreNamedByTheirNormal)
     for (const char* name : {"side", "inner"})
         for (index_t f : m.named_faces.at(name))
             for (index_t k : m.faces[f])
-                EXPECT_NEAR(std::hypot(m.x[3 * k] - 0.1, m.x[3 * k + 1] + 0.2), std::string(name) == "side" ? R : Ri, 1e-12)
+                EXPECT_NEAR(std::hypot(m.x[3 * k] - 0.1, m.x[3 * k + 1] + 0.2), std::string(name) == "side" ? R : Ri,
+                            1e-12)
                     << name;
 }
 
@@ -355,7 +357,8 @@ TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)
     };
     EXPECT_EQ(keyword_error("k_good.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,8\n"), "");
     expect(keyword_error("k_number.k", "*NODE\n1,0,zero,0\n"), "k_number.k:2", "coordinate 'zero' is not a number");
-    expect(keyword_error("k_twice.k", nodes + "3,5,5,5\n"), "k_twice.k:10", "node 3 is defined again (first on line 4)");
+    expect(keyword_error("k_twice.k", nodes + "3,5,5,5\n"), "k_twice.k:10",
+           "node 3 is defined again (first on line 4)");
     expect(keyword_error("k_missing.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,18\n"), "k_missing.k:11",
            "names node 18, which no *NODE card defines");
     expect(keyword_error("k_prism.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,3,5,6,7,7\n"), "k_prism.k:11",

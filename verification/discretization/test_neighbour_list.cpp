@@ -37,7 +37,8 @@ int missing_pairs(const NeighbourList& nl, const std::vector<real_t>& x, real_t 
             real_t s = 0.0;
             for (int d = 0; d < 3; ++d)
                 s += (x[3 * i + d] - x[3 * j + d]) * (x[3 * i + d] - x[3 * j + d]);
-            if (s < r * r && !std::binary_search(nl.ids().begin() + nl.offsets()[i], nl.ids().begin() + nl.offsets()[i + 1], j))
+            if (s < r * r &&
+                !std::binary_search(nl.ids().begin() + nl.offsets()[i], nl.ids().begin() + nl.offsets()[i + 1], j))
                 ++missing;
         }
     return missing;
@@ -71,7 +72,8 @@ TEST(NeighbourList, CompleteUntilHalfTheSkinIsUsed)
     }
     EXPECT_EQ(nl.rebuilds(), 1);
     std::printf("1000 points, radius %.1f, skin %.1f: %d list entries (%.1f per point), no rebuild in 5 moves "
-                "of 0.199 skin\n", r, skin, entries, entries / 1000.0);
+                "of 0.199 skin\n",
+                r, skin, entries, entries / 1000.0);
     // one point moves by more than skin / 2: the next update rebuilds, and the list is complete
     x[3 * 555] += 0.6 * skin;
     EXPECT_TRUE(nl.update(x));

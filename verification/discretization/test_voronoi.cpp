@@ -24,9 +24,9 @@
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
-#include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 #include "rkfem/operators/linear_static.hpp"
+#include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
 
 using namespace rkfem;
@@ -208,7 +208,8 @@ TEST(VoronoiCells, CylinderBodyCellsTileTheTangentPrism)
             {
                 const real_t a = u(gen), b = u(gen);
                 if (a * a + b * b <= 1.0)
-                    s.x.insert(s.x.end(), {g.origin[0] + g.radius * a, g.origin[1] + g.radius * b, g.origin[2] + g.height * w(gen)});
+                    s.x.insert(s.x.end(), {g.origin[0] + g.radius * a, g.origin[1] + g.radius * b,
+                                           g.origin[2] + g.height * w(gen)});
             }
         }
         const index_t n = static_cast<index_t>(s.x.size() / 3);
@@ -361,7 +362,8 @@ real_t voronoi_patch_error(const VoronoiSetup& s, const IntegrationOperator& op,
                 for (int d = 0; d < 3; ++d)
                     f[3 * smp.nodes[k] + d] += smp.psi[k] * t[d];
         }
-    auto exact = [&](index_t i) { return Vec3(ge * Vec3(s.x[3 * i], s.x[3 * i + 1], s.x[3 * i + 2]) + Vec3(0.1, -0.05, 0.2)); };
+    auto exact = [&](index_t i)
+    { return Vec3(ge * Vec3(s.x[3 * i], s.x[3 * i + 1], s.x[3 * i + 2]) + Vec3(0.1, -0.05, 0.2)); };
     std::vector<index_t> dofs;
     std::vector<real_t> vals;
     for (index_t i = 0; i < n; ++i)
@@ -438,7 +440,8 @@ TEST(VoronoiCells, SubCellsTileTheCellsAndReproduceLinearGradients)
         return e;
     };
     const real_t sd_err = linear_error(sd, Mat3::Identity()), st_err = linear_error(st, Mat3::Zero());
-    std::printf("%zu sub-cells: volumes tile the cells to %.2e; linear gradient error %.2e (sub-cells), %.2e (MSCNI), relative to the terms\n",
+    std::printf("%zu sub-cells: volumes tile the cells to %.2e; linear gradient error %.2e (sub-cells), %.2e (MSCNI), "
+                "relative to the terms\n",
                 s.cells.sub_cells.size(), tile, sd_err, st_err);
     EXPECT_LT(tile, 1e-12);
     EXPECT_LT(sd_err, 1e-12); // round-off of ~100 boundary terms per sub-cell
@@ -531,9 +534,9 @@ TEST(VoronoiCells, ScniOfRkFunctionsByRegionsIsThePointwiseBuildToRoundOff)
     for (const real_t tau : {0.0, 1e-5})
     {
         const IntegrationOperator plain = build_scni_cells(s.cells, s.x, RkShapes(s.rk, tau));
-        for (const auto& [cells, block, what] : {std::tuple{&s.cells, 2048, "blocks of 2048"},
-                                                 std::tuple{&s.cells, 7, "blocks of 7"},
-                                                 std::tuple{static_cast<const VoronoiCells*>(&hidden), 2048, "faces hidden from their first cell"}})
+        for (const auto& [cells, block, what] :
+             {std::tuple{&s.cells, 2048, "blocks of 2048"}, std::tuple{&s.cells, 7, "blocks of 7"},
+              std::tuple{static_cast<const VoronoiCells*>(&hidden), 2048, "faces hidden from their first cell"}})
         {
             const IntegrationOperator fast = build_scni_cells_rk(*cells, s.x, s.rk, tau, block);
             EXPECT_EQ(fast.weight, plain.weight);
@@ -662,7 +665,8 @@ TEST(VoronoiCells, CutCellsAreTheExactConstructionsBits)
             ds = std::max(ds, std::abs(cut.spacing[i] - exact.spacing[i]) / h);
         }
         for (std::size_t k = 0; k < exact.sub_cells.size(); ++k)
-            dsub = std::max(dsub, std::abs(cut.sub_cells[k].volume - exact.sub_cells[k].volume) / exact.volume[exact.sub_cells[k].cell]);
+            dsub = std::max(dsub, std::abs(cut.sub_cells[k].volume - exact.sub_cells[k].volume) /
+                                      exact.volume[exact.sub_cells[k].cell]);
         std::printf("%s: %d cells, %zu facet points; cut against exact: points %.1e h, n dA %.1e h^2, volumes %.1e, "
                     "spacings %.1e h, sub-cell volumes %.1e; rebuilt with all planes %d / %d\n",
                     c.name, exact.size(), exact.points.size(), dx, dn, dv, ds, dsub, cut.rebuilt_with_all_planes,

@@ -4,15 +4,18 @@
 #include <algorithm>
 #include <memory>
 
+#include "../support.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 #include "rkfem/operators/linear_static.hpp"
-#include "../support.hpp"
 
 namespace rkfem::test
 {
 /// RK functions with the default parameters over a mesh's nodes.
-inline RkShapeFunctions rk_on_mesh(const HexMesh& mesh) { return rkfem::rk_on_mesh(mesh, RkParams{}); }
+inline RkShapeFunctions rk_on_mesh(const HexMesh& mesh)
+{
+    return rkfem::rk_on_mesh(mesh, RkParams{});
+}
 
 enum class Scheme
 {
@@ -30,14 +33,22 @@ inline const char* scheme_name(Scheme s)
 {
     switch (s)
     {
-    case Scheme::RkDni: return "rkpm_dni";
-    case Scheme::RkScni: return "rkpm_scni";
-    case Scheme::RkSdScni: return "rkpm_sd_scni";
-    case Scheme::RkMscni: return "rkpm_mscni";
-    case Scheme::RkNsni: return "rkpm_nsni";
-    case Scheme::FemScni: return "fem_nodal_scni";
-    case Scheme::FemSdScni: return "fem_nodal_sd_scni";
-    case Scheme::FemMscni: return "fem_nodal_mscni";
+    case Scheme::RkDni:
+        return "rkpm_dni";
+    case Scheme::RkScni:
+        return "rkpm_scni";
+    case Scheme::RkSdScni:
+        return "rkpm_sd_scni";
+    case Scheme::RkMscni:
+        return "rkpm_mscni";
+    case Scheme::RkNsni:
+        return "rkpm_nsni";
+    case Scheme::FemScni:
+        return "fem_nodal_scni";
+    case Scheme::FemSdScni:
+        return "fem_nodal_sd_scni";
+    case Scheme::FemMscni:
+        return "fem_nodal_mscni";
     }
     return "?";
 }
@@ -75,9 +86,15 @@ inline Operators build(Scheme s, const HexMesh& mesh, const RkShapeFunctions& rk
     Operators ops;
     switch (s)
     {
-    case Scheme::RkDni: ops.points = build_dni(mesh, rks); break;
-    case Scheme::RkScni: ops.points = build_scni(mesh, rks); break;
-    case Scheme::RkSdScni: ops.points = build_sd_scni(mesh, rks); break;
+    case Scheme::RkDni:
+        ops.points = build_dni(mesh, rks);
+        break;
+    case Scheme::RkScni:
+        ops.points = build_scni(mesh, rks);
+        break;
+    case Scheme::RkSdScni:
+        ops.points = build_sd_scni(mesh, rks);
+        break;
     case Scheme::RkMscni:
         ops.points = build_scni(mesh, rks);
         ops.stabilization = build_mscni_stabilization(ops.points, build_sd_scni(mesh, rks));
@@ -86,8 +103,12 @@ inline Operators build(Scheme s, const HexMesh& mesh, const RkShapeFunctions& rk
         ops.points = build_scni(mesh, rks);
         ops.stabilization = build_nsni_stabilization(ops.points, rk, nodal_second_moments(mesh));
         break;
-    case Scheme::FemScni: ops.points = build_scni(mesh, fes); break;
-    case Scheme::FemSdScni: ops.points = build_sd_scni(mesh, fes); break;
+    case Scheme::FemScni:
+        ops.points = build_scni(mesh, fes);
+        break;
+    case Scheme::FemSdScni:
+        ops.points = build_sd_scni(mesh, fes);
+        break;
     case Scheme::FemMscni:
         ops.points = build_scni(mesh, fes);
         ops.stabilization = build_mscni_stabilization(ops.points, build_sd_scni(mesh, fes));

@@ -33,7 +33,10 @@ std::vector<char> rk_below(const HexMesh& mesh, real_t cut)
     return rk;
 }
 
-const char* name(Transition t) { return t == Transition::Mixed ? "mixed" : "ramp"; }
+const char* name(Transition t)
+{
+    return t == Transition::Mixed ? "mixed" : "ramp";
+}
 
 PatchResult coupled_patch(Transition t, int n, bool mscni, real_t jitter = 0.3)
 {

@@ -20,7 +20,7 @@ namespace
 {
 struct PatchResult
 {
-    real_t stress_spread = 0;    ///< max |sigma_p - sigma_ref| / |sigma_ref|
+    real_t stress_spread = 0;     ///< max |sigma_p - sigma_ref| / |sigma_ref|
     real_t interior_residual = 0; ///< max |f_I| over interior nodes / force scale
 };
 
@@ -111,9 +111,8 @@ TEST(HexPatch, OnePointPassesWhereTheStressIsStreamed)
     ASSERT_FALSE(blk.scatter.empty()) << "streaming needs the chunked scatter (it fences each chunk)";
     // without AVX-512 both paths store plainly: the patch and the comparison still run (and the
     // comparison is then between two plain passes)
-    std::printf("stress stores: %s\n", stream_pays(static_cast<index_t>(6 * blk.stress_stride))
-                                           ? "streamed"
-                                           : "plain (no AVX-512 here)");
+    std::printf("stress stores: %s\n",
+                stream_pays(static_cast<index_t>(6 * blk.stress_stride)) ? "streamed" : "plain (no AVX-512 here)");
     const PatchResult r = run_patch(Formulation::Fem1pt, HourglassType::Viscous, 56);
     EXPECT_LT(r.stress_spread, 1e-10);
     EXPECT_LT(r.interior_residual, 1e-10);
@@ -244,7 +243,8 @@ TEST(HexAssembly, ConsecutiveNodeRowsGiveTheBitsOfGatheredOnes)
         for (index_t n = 0; n < nn; ++n)
             for (int d = 0; d < 3; ++d)
             {
-                const std::size_t j = 3 * static_cast<std::size_t>(n) + d, k = 3 * static_cast<std::size_t>(swap_id(n)) + d;
+                const std::size_t j = 3 * static_cast<std::size_t>(n) + d,
+                                  k = 3 * static_cast<std::size_t>(swap_id(n)) + d;
                 n1.x[j] = n2.x[k] = n1.x0[j] + 1e-6 * r(gen);
                 n1.v[j] = n2.v[k] = 10.0 * r(gen);
             }

@@ -103,7 +103,8 @@ TEST(Hourglass, PureModeProducesNoStrainWithoutControl)
             assemble_block_forces(e.blk, e.nodes);
             for (int k = 0; k < 6; ++k)
                 // round-off of E * (amp / h) * dt = 2e6 Pa
-                EXPECT_NEAR(e.blk.stress_trial[k * e.blk.stress_stride], 0.0, 1e-14 * 200e9 * (1.0 / h) * 1e-6) << "mode " << mode << " dir " << dir;
+                EXPECT_NEAR(e.blk.stress_trial[k * e.blk.stress_stride], 0.0, 1e-14 * 200e9 * (1.0 / h) * 1e-6)
+                    << "mode " << mode << " dir " << dir;
             for (real_t f : e.nodes.f_int)
                 EXPECT_NEAR(f, 0.0, 1e-6); // stress E*D*dt ~ 1e5 Pa would give ~1e3 N
         }
@@ -122,8 +123,7 @@ TEST(Hourglass, ViscousFormResistsWithTheExactForce)
     for (int I = 0; I < 8; ++I)
     {
         const index_t n = e.blk.conn[I];
-        EXPECT_NEAR(e.nodes.f_int[3 * n + 2], ah * hex8_hourglass_base[1][I] * 8 * amp,
-                    1e-12 * ah * 8 * amp);
+        EXPECT_NEAR(e.nodes.f_int[3 * n + 2], ah * hex8_hourglass_base[1][I] * 8 * amp, 1e-12 * ah * 8 * amp);
         EXPECT_NEAR(e.nodes.f_int[3 * n + 0], 0.0, 1e-12 * ah * 8 * amp);
         power += e.nodes.f_int[3 * n + 2] * e.nodes.v[3 * n + 2];
     }
@@ -219,7 +219,8 @@ struct TurnedBox
 
 Eigen::Matrix3d some_rotation()
 {
-    return (Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()) * Eigen::AngleAxisd(-0.4, Vec3::UnitX())).toRotationMatrix();
+    return (Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()) * Eigen::AngleAxisd(-0.4, Vec3::UnitX()))
+        .toRotationMatrix();
 }
 } // namespace
 
@@ -296,7 +297,8 @@ namespace
 /// along z, width w) under an end couple M, clamped at x = 0: the linear stiffness from one force
 /// pass per degree of freedom (a unit velocity over dt = 1 from rest, geometry fixed), solved by
 /// CHOLMOD (operators/linear_static.hpp). Returns the mean |u_z| of the tip nodes.
-real_t cantilever_tip(int n, real_t l, real_t t, real_t w, HourglassSpec hg, Formulation f, real_t E, real_t nu, real_t M)
+real_t cantilever_tip(int n, real_t l, real_t t, real_t w, HourglassSpec hg, Formulation f, real_t E, real_t nu,
+                      real_t M)
 {
     const HexMesh mesh = generate_box(Vec3::Zero(), Vec3(l, w, t), {n, 1, 1});
     NodeSet nodes;
@@ -358,10 +360,12 @@ TEST(Hourglass, AssumedStrainBendsOneElementThroughTheThicknessExactly)
     const real_t I = w * t * t * t / 12, exact = M * l * l / (2 * E * I);
     for (int n : {1, 2, 5})
     {
-        const real_t asqbi = cantilever_tip(n, l, t, w, {HourglassType::AssumedStrain, 1.0}, Formulation::Fem1pt, E, 0.0, M);
+        const real_t asqbi =
+            cantilever_tip(n, l, t, w, {HourglassType::AssumedStrain, 1.0}, Formulation::Fem1pt, E, 0.0, M);
         const real_t fb = cantilever_tip(n, l, t, w, {HourglassType::Stiffness, 0.1}, Formulation::Fem1pt, E, 0.0, M);
         const real_t full = cantilever_tip(n, l, t, w, {HourglassType::None, 0.0}, Formulation::Fem2x2x2, E, 0.0, M);
-        const real_t nu3 = cantilever_tip(n, l, t, w, {HourglassType::AssumedStrain, 1.0}, Formulation::Fem1pt, E, 0.3, M);
+        const real_t nu3 =
+            cantilever_tip(n, l, t, w, {HourglassType::AssumedStrain, 1.0}, Formulation::Fem1pt, E, 0.3, M);
         std::printf("cantilever, end couple, %d element(s): tip / beam theory: assumed strain %.12f (nu 0.3: %.4f), "
                     "FB stiffness QM 0.1 %.3f, 2x2x2 %.4f\n",
                     n, asqbi / exact, nu3 / exact, fb / exact, full / exact);
@@ -427,8 +431,8 @@ TEST(Hourglass, StiffnessFormsStoreNothingWhereThePointFlowsPerfectlyPlastically
             const MaterialSpec ms = test::j2_material(7850, 200e9, 0.3, 300e6, 0.0);
             HourglassSpec hg{t, 0.1};
             hg.plastic_scaling = scaled;
-            HexBlock blk = test::make_block(mesh, nodes, Formulation::Fem1pt, hg,
-                                            ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu));
+            HexBlock blk =
+                test::make_block(mesh, nodes, Formulation::Fem1pt, hg, ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu));
             blk.plastic.configure(ms);
             blk.initialize(nodes);
             blk.plastic.set_lengths(std::vector<real_t>(1, 0.01));

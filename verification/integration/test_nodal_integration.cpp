@@ -219,10 +219,12 @@ TEST(NodalIntegration, ScniGradientsAgreeWithBruteForceQuadrature)
         for (const auto& [n, g] : volu)
             worst_div = std::max(worst_div, (g - surf.try_emplace(n, Vec3::Zero()).first->second).norm() / V / gmax);
         for (index_t k = scni.offsets[L]; k < scni.offsets[L + 1]; ++k)
-            worst_2x2 = std::max(worst_2x2, (scni.gradient(k) - surf.try_emplace(scni.nodes[k], Vec3::Zero()).first->second / V).norm() / gmax);
+            worst_2x2 = std::max(
+                worst_2x2,
+                (scni.gradient(k) - surf.try_emplace(scni.nodes[k], Vec3::Zero()).first->second / V).norm() / gmax);
     }
-    std::printf("divergence theorem (10x10 facets vs 10^3 volume): %.2e; 2x2 SCNI vs 10x10: %.2e of max |b|\n", worst_div,
-                worst_2x2);
+    std::printf("divergence theorem (10x10 facets vs 10^3 volume): %.2e; 2x2 SCNI vs 10x10: %.2e of max |b|\n",
+                worst_div, worst_2x2);
     EXPECT_LT(worst_div, 1e-4);
     EXPECT_LT(worst_2x2, 1e-2); // quadrature error of the 2x2 rule on RK functions (3.4e-3 here)
 }
@@ -290,7 +292,8 @@ TEST(NodalIntegration, OnePassScniAndSubCellsAreTheSeparateBuildsBitForBit)
     const RkShapeFunctions rk = rk_on_mesh(mesh, RkParams{});
     const RkShapes rks(rk);
     const FemShapes fes(mesh);
-    for (const ShapeEvaluator* shapes : {static_cast<const ShapeEvaluator*>(&rks), static_cast<const ShapeEvaluator*>(&fes)})
+    for (const ShapeEvaluator* shapes :
+         {static_cast<const ShapeEvaluator*>(&rks), static_cast<const ShapeEvaluator*>(&fes)})
     {
         IntegrationOperator scni, sd;
         build_scni_sd(mesh, *shapes, scni, &sd);
@@ -541,7 +544,8 @@ TEST(NodalIntegration, SharingOverTranslatesIsThePlainBuildToRoundOff)
         std::printf("tau %.0e: linear gradient error %.2e (plain %.2e)\n", tau, lin,
                     linear_gradient_error(mesh, plain, inch));
         EXPECT_LT(lin, 1e-12);
-        const IntegrationOperator nsni = build_nsni_stabilization(shared, rk, nodal_second_moments(mesh), tau, particles);
+        const IntegrationOperator nsni =
+            build_nsni_stabilization(shared, rk, nodal_second_moments(mesh), tau, particles);
         const IntegrationOperator nsni_plain =
             build_nsni_stabilization(plain, rk, nodal_second_moments(mesh), tau, particle_translates(rk, false));
         const real_t d = gradient_difference(shared, plain), d_sd = gradient_difference(sd, plain_sd),

@@ -48,7 +48,7 @@ class LinearPatch : public ::testing::TestWithParam<Scheme>
 
 struct Spectrum
 {
-    int zero_modes = 0;       ///< eigenvalues below 1e-8 of the largest
+    int zero_modes = 0;        ///< eigenvalues below 1e-8 of the largest
     real_t lowest_ratio = 0.0; ///< 7th eigenvalue (first deformation mode) / largest
 };
 
@@ -79,8 +79,8 @@ TEST_P(LinearPatch, PassesToRoundOffOnJitteredNodes)
 }
 
 INSTANTIATE_TEST_SUITE_P(ConformingSchemes, LinearPatch,
-                         ::testing::Values(Scheme::RkScni, Scheme::RkSdScni, Scheme::RkMscni, Scheme::RkNsni, Scheme::FemScni,
-                                           Scheme::FemSdScni, Scheme::FemMscni),
+                         ::testing::Values(Scheme::RkScni, Scheme::RkSdScni, Scheme::RkMscni, Scheme::RkNsni,
+                                           Scheme::FemScni, Scheme::FemSdScni, Scheme::FemMscni),
                          [](const auto& info) { return std::string(scheme_name(info.param)); });
 
 TEST(LinearPatch, DirectNodalIntegrationFails)
@@ -96,8 +96,8 @@ TEST(SpuriousModes, StableSchemesHaveOnlyTheSixRigidBodyModes)
     for (Scheme s : {Scheme::RkMscni, Scheme::RkNsni, Scheme::RkSdScni, Scheme::FemMscni, Scheme::FemSdScni})
     {
         const Spectrum sp = spectrum(s, 0.2);
-        std::printf("%-18s zero-energy modes: %d, first deformation mode / max: %.2e\n", scheme_name(s),
-                    sp.zero_modes, sp.lowest_ratio);
+        std::printf("%-18s zero-energy modes: %d, first deformation mode / max: %.2e\n", scheme_name(s), sp.zero_modes,
+                    sp.lowest_ratio);
         EXPECT_EQ(sp.zero_modes, 6) << scheme_name(s);
     }
 }

@@ -163,8 +163,9 @@ TEST(StencilTable, LatticeSharesOneStencilPerBoundaryClass)
         real_t support;
         index_t classes;
     };
-    for (const Case& c : {Case{"rkpm a/h 1.25", Formulation::Rkpm, 1.25, 27}, Case{"rkpm a/h 1.51", Formulation::Rkpm, 1.51, 125},
-                          Case{"fem-nodal", Formulation::FemNodal, 0.0, 27}})
+    for (const Case& c :
+         {Case{"rkpm a/h 1.25", Formulation::Rkpm, 1.25, 27}, Case{"rkpm a/h 1.51", Formulation::Rkpm, 1.51, 125},
+          Case{"fem-nodal", Formulation::FemNodal, 0.0, 27}})
     {
         const IntegrationOperator own = scni_on(mesh, c.f, c.support);
         IntegrationOperator op = own;
@@ -236,20 +237,19 @@ TEST(StencilTable, ThinBeamSharesOneStencilPerBoundaryClass)
 
 // The order a uniform batch adds a stencil's entries in (uniform_add_order), on the P3 beam's
 // tables, for the stencils its uniform batches read (uniform_batch_stencils; the others keep
-// last to first) and for every stencil: a permutation of each stencil's entries in which two entries whose windows of 8 nodes
-// overlap keep their last-to-first order (so every node takes its lanes' terms in lane order,
-// the bits of last to first; ForcePassReadsTheTableAsTheOperator holds the pass to the plain
-// one), and in which an entry overlaps the one added just before it only where no other was
-// ready: far less often than last to first, where the row neighbours o - 1, o, o + 1 follow
-// each other (32 times for 1,352 in the SCNI stencils, 16 for 196 in the triplets).
+// last to first) and for every stencil: a permutation of each stencil's entries in which two entries whose windows of 8
+// nodes overlap keep their last-to-first order (so every node takes its lanes' terms in lane order, the bits of last to
+// first; ForcePassReadsTheTableAsTheOperator holds the pass to the plain one), and in which an entry overlaps the one
+// added just before it only where no other was ready: far less often than last to first, where the row neighbours o -
+// 1, o, o + 1 follow each other (32 times for 1,352 in the SCNI stencils, 16 for 196 in the triplets).
 TEST(StencilTable, UniformAddOrderKeepsTheLaneOrderAndSeparatesNeighbours)
 {
     const real_t h = 0.0254;
     const HexMesh mesh = generate_box(Vec3::Zero(), Vec3(55 * h, 4 * h, 4 * h), {55, 4, 4});
     const NodalBlock blk = build_nodal_block(elastic_rk_part("nsni"), mesh, 0);
     auto check = [](const std::vector<index_t>& offsets, const std::vector<index_t>& node_offset,
-                    const std::vector<index_t>& cls, const std::vector<index_t>& base,
-                    const AddOrder& block_order, const char* what)
+                    const std::vector<index_t>& cls, const std::vector<index_t>& base, const AddOrder& block_order,
+                    const char* what)
     {
         // the block orders the stencils its uniform batches read (and holds no order for the
         // others: last to first)
@@ -267,7 +267,8 @@ TEST(StencilTable, UniformAddOrderKeepsTheLaneOrderAndSeparatesNeighbours)
             if (wanted[s])
             {
                 held += static_cast<std::size_t>(offsets[s + 1] - offsets[s]);
-                ASSERT_TRUE(std::equal(all.of(s), all.of(s) + (offsets[s + 1] - offsets[s]), block_order.of(s))) << what;
+                ASSERT_TRUE(std::equal(all.of(s), all.of(s) + (offsets[s + 1] - offsets[s]), block_order.of(s)))
+                    << what;
             }
         }
         EXPECT_EQ(block_order.order.size(), held) << what;
@@ -287,7 +288,8 @@ TEST(StencilTable, UniformAddOrderKeepsTheLaneOrderAndSeparatesNeighbours)
                 for (index_t j = i + 1; j < n; ++j)
                     if (std::abs(o[i] - o[j]) < 8)
                     {
-                        ASSERT_LT(at[j], at[i]) << what << ": overlapping entries " << i << ", " << j << " out of order";
+                        ASSERT_LT(at[j], at[i])
+                            << what << ": overlapping entries " << i << ", " << j << " out of order";
                     }
             for (index_t e = 0; e + 1 < n; ++e)
             {
@@ -499,7 +501,8 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
         // batches of 8 points with one stencil and consecutive bases (the whole-vector path)
         // and batches without (the lane-by-lane path) must both occur
         const index_t batches = blk.n_points() / 8;
-        const index_t uniform = uniform_batches(blk.n_points(), blk.point_stencils.point_stencil, blk.point_stencils.point_base);
+        const index_t uniform =
+            uniform_batches(blk.n_points(), blk.point_stencils.point_stencil, blk.point_stencils.point_base);
         std::printf("%s: %d of %d full batches are uniform\n", stab, uniform, batches);
         ASSERT_GT(uniform, 0);
         ASSERT_LT(uniform, batches);
@@ -519,7 +522,8 @@ TEST(SharedStencils, ForcePassReadsTheTableAsTheOperator)
             EXPECT_LT(blk.stab_triplets.n_triplets(), blk.n_points() / 4);
             // the triplets' whole-vector path (one triplet stencil, consecutive bases) and the
             // lane-by-lane one must both occur too
-            const index_t uniform_triplets = uniform_batches(blk.n_points(), blk.stab_triplets.point_triplet, blk.stab_triplets.point_base);
+            const index_t uniform_triplets =
+                uniform_batches(blk.n_points(), blk.stab_triplets.point_triplet, blk.stab_triplets.point_base);
             std::printf("nsni: %d of %d full batches have uniform triplets\n", uniform_triplets, batches);
             ASSERT_GT(uniform_triplets, 0);
             ASSERT_LT(uniform_triplets, batches);

@@ -58,8 +58,8 @@ TEST(Cscm, GeneratedParametersAt30MPa)
 {
     // Murray's fits (materials.md section 3.2) evaluated by hand at f'c = 30 MPa
     const CscmModel& m = model30();
-    EXPECT_NEAR(m.alpha / MPa, -0.003 * 900 + 0.3169747 * 30 + 7.7047, 1e-12);     // 14.513941
-    EXPECT_NEAR(m.theta, 1.3216e-5 * 900 + 2.3548e-3 * 30 + 0.2140058, 1e-14);      // 0.2965442
+    EXPECT_NEAR(m.alpha / MPa, -0.003 * 900 + 0.3169747 * 30 + 7.7047, 1e-12); // 14.513941
+    EXPECT_NEAR(m.theta, 1.3216e-5 * 900 + 2.3548e-3 * 30 + 0.2140058, 1e-14); // 0.2965442
     EXPECT_NEAR(m.lambda / MPa, 10.5, 1e-12);
     EXPECT_NEAR(m.beta * MPa, 1.929e-2, 1e-15);
     EXPECT_NEAR(m.X0 / MPa, 8.769178e-3 * 900 - 7.3302306e-2 * 30 + 84.85, 1e-11); // 90.54319
@@ -163,8 +163,8 @@ TEST(Cscm, ReturnSatisfiesTheYieldCondition)
         real_t dv[6];
         for (int c = 0; c < 6; ++c)
             dv[c] = st.svp[c] + (c < 3 ? P / 3.0 : 0.0);
-        const real_t J2 = 0.5 * (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]) + dv[3] * dv[3] + dv[4] * dv[4] +
-                          dv[5] * dv[5];
+        const real_t J2 =
+            0.5 * (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]) + dv[3] * dv[3] + dv[4] * dv[4] + dv[5] * dv[5];
         real_t bh = pi / 6;
         if (J2 > 0)
         {
@@ -192,8 +192,9 @@ TEST(Cscm, SofteningDissipatesTheFractureEnergyOverTheCrackBand)
         // compression: G_fc, with the cap's slight hardening after the peak
         const auto uc = run_material_point(cscm_deck("uniaxial-stress", -0.12, 20000, h));
         const real_t gc = post_peak_work(uc) * h; // (-sigma)(-d eps)
-        std::printf("h %.0f mm: tension %.2f J/m^2 (G_ft %.2f, %+.3f %%), compression %.1f J/m^2 (G_fc %.1f, %+.2f %%)\n",
-                    h * 1e3, gt, m.Gft, 100 * (gt / m.Gft - 1), gc, m.Gfc, 100 * (gc / m.Gfc - 1));
+        std::printf(
+            "h %.0f mm: tension %.2f J/m^2 (G_ft %.2f, %+.3f %%), compression %.1f J/m^2 (G_fc %.1f, %+.2f %%)\n",
+            h * 1e3, gt, m.Gft, 100 * (gt / m.Gft - 1), gc, m.Gfc, 100 * (gc / m.Gfc - 1));
         // the closed forms assume a perfectly plastic post-peak: exact in tension (the state stays
         // on the shear surface), within the cap's small hardening in compression
         EXPECT_NEAR(gt / m.Gft, 1.0, 1e-3) << h;
@@ -248,8 +249,8 @@ TEST(Cscm, RigidRotationKeepsInvariants)
     {
         const real_t* s = r.stress;
         const real_t I1 = s[0] + s[1] + s[2];
-        const real_t J2 = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2] - I1 * I1 / 3.0) / 2.0 + s[3] * s[3] + s[4] * s[4] +
-                          s[5] * s[5];
+        const real_t J2 =
+            (s[0] * s[0] + s[1] * s[1] + s[2] * s[2] - I1 * I1 / 3.0) / 2.0 + s[3] * s[3] + s[4] * s[4] + s[5] * s[5];
         return std::pair{I1, J2};
     };
     const auto [i1a, j2a] = inv(a);

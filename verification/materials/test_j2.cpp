@@ -139,7 +139,8 @@ TEST(J2Plasticity, YieldConditionHoldsAfterTheReturnOnRandomPaths)
 {
     J2Params p;
     p.elastic = el;
-    p.curve = {{0.0, 792e6}, {0.01, 946e6}, {0.05, 1026e6}, {0.10, 1072e6}, {0.20, 1128e6}, {0.50, 1218e6}, {1.0, 1302e6}};
+    p.curve = {{0.0, 792e6},   {0.01, 946e6},  {0.05, 1026e6}, {0.10, 1072e6},
+               {0.20, 1128e6}, {0.50, 1218e6}, {1.0, 1302e6}};
     std::mt19937 gen(5);
     std::uniform_real_distribution<real_t> u(-1.0, 1.0);
     real_t s[6] = {}, ep = 0, failed = 0, worst = 0.0;
@@ -175,7 +176,8 @@ TEST(J2Plasticity, CowperSymondsScalesTheYieldStress)
     for (int k = 0; k < 100; ++k) // 1 % strain
         rate_eff = j2_uniaxial(p, rate, dt, s, ep, failed, lat);
     const real_t beta = 1.0 + std::pow(rate_eff / 40.4, 0.2);
-    std::printf("Cowper-Symonds: sigma / sigy = %.6f, beta(sqrt(d:d) = %.2f /s) = %.6f\n", s[0] / 250e6, rate_eff, beta);
+    std::printf("Cowper-Symonds: sigma / sigy = %.6f, beta(sqrt(d:d) = %.2f /s) = %.6f\n", s[0] / 250e6, rate_eff,
+                beta);
     EXPECT_NEAR(s[0], beta * 250e6, 1e-6 * 250e6);
 }
 

@@ -119,13 +119,15 @@ TEST(KccConcrete, RigidRotationKeepsInvariants)
     const real_t still[6] = {0, 0, 0, 0, 0, 0};
     kcc_update(m, still, w0, 1e-3, s, st);
     const real_t tr0 = s[0] + s[1] + s[2];
-    const real_t vm0 = std::sqrt(0.5 * ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) +
-                                        (s[2] - s[0]) * (s[2] - s[0])) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
+    const real_t vm0 = std::sqrt(
+        0.5 * ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) + (s[2] - s[0]) * (s[2] - s[0])) +
+        3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
     const real_t dz[6] = {0, 0, 0, 0, 0, 0}, w[3] = {-1.0, 0.3, 0.2};
     for (int k = 0; k < 1000; ++k)
         kcc_update(m, dz, w, 1e-3, s, st);
-    const real_t vm1 = std::sqrt(0.5 * ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) +
-                                        (s[2] - s[0]) * (s[2] - s[0])) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
+    const real_t vm1 = std::sqrt(
+        0.5 * ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) + (s[2] - s[0]) * (s[2] - s[0])) +
+        3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
     EXPECT_NEAR((s[0] + s[1] + s[2]) / tr0, 1.0, 1e-10);
     EXPECT_NEAR(vm1 / vm0, 1.0, 1e-10);
 }
@@ -171,8 +173,9 @@ TEST(KccConcrete, TensionTestHoldsTheLateralStressAtZero)
             if (rate)
                 m.rate = RateLaw::standard(m.surfaces.fc);
             const KccTensionTest t = kcc_tension_test(m, scale);
-            std::printf("rate effects %d, scale %5.2f: work %.5e J/m^3 over %d steps, %.2f updates per step, %d jumps\n",
-                        rate, scale, t.work, t.steps, static_cast<double>(t.updates) / t.steps, t.jumps);
+            std::printf(
+                "rate effects %d, scale %5.2f: work %.5e J/m^3 over %d steps, %.2f updates per step, %d jumps\n", rate,
+                scale, t.work, t.steps, static_cast<double>(t.updates) / t.steps, t.jumps);
             EXPECT_EQ(t.unheld, 0) << "lateral stress left: " << t.worst_lateral << " f_t";
             if (scale <= 3.0)
             {
@@ -240,7 +243,8 @@ TEST(KccConcrete, VolumetricDamageB3InHydrostaticTension)
         lambda_end = lam;
     }
     std::printf("%d steps on the cutoff; lambda %.3e at eps_v 3e-3; |d lambda / d eps_v - b3| <= %.2e; "
-                "|p + f_t eta| <= %.2e f_t\n", on_cutoff, lambda_end, worst_slope, worst_p);
+                "|p + f_t eta| <= %.2e f_t\n",
+                on_cutoff, lambda_end, worst_slope, worst_p);
     EXPECT_GT(on_cutoff, 100);
     EXPECT_GT(lambda_end, k.lambda_z); // softened to zero tensile strength
     EXPECT_LT(worst_slope, 1e-9);

@@ -125,8 +125,9 @@ TEST(RateLaw, BuiltInLawsWithTheirCaps)
     const real_t r_c = 30e-6 * std::pow(2.5 / gs, 3.0);
     const real_t d = 1.0 / (1.0 + 8.0 * 3.5), b = std::pow(10.0, 6.0 * d - 2.0);
     const real_t r_t = 1e-6 * std::pow(6.0 / b, 3.0);
-    std::printf("35 MPa: compression cap reached at %.1f 1/s, tension cap at %.1f 1/s; uncapped at 1e4 1/s: %.2f, %.2f\n",
-                r_c, r_t, dif_compression_ceb(1e4, fc), dif_tension_malvar_ross(1e4, fc));
+    std::printf(
+        "35 MPa: compression cap reached at %.1f 1/s, tension cap at %.1f 1/s; uncapped at 1e4 1/s: %.2f, %.2f\n", r_c,
+        r_t, dif_compression_ceb(1e4, fc), dif_tension_malvar_ross(1e4, fc));
     EXPECT_NEAR(law.dif(0.999 * r_c, false), 2.5, 2.5e-3);
     EXPECT_NEAR(law.dif(0.999 * r_t, true), 6.0, 6e-3);
     EXPECT_LT(law.dif(0.99 * r_c, false), 2.5);

@@ -5,9 +5,9 @@
 
 #include <cstdio>
 
+#include "../support.hpp"
 #include "rkfem/operators/hex_block.hpp"
 #include "rkfem/operators/nodal_block.hpp"
-#include "../support.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 

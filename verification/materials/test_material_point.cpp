@@ -90,8 +90,9 @@ TEST(MaterialPoint, PathsAgainstAnalyticAnswers)
         auto invariants = [](const real_t* s)
         {
             const real_t I1 = s[0] + s[1] + s[2];
-            const real_t J2 = ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) +
-                               (s[2] - s[0]) * (s[2] - s[0])) / 6.0 + s[3] * s[3] + s[4] * s[4] + s[5] * s[5];
+            const real_t J2 =
+                ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) + (s[2] - s[0]) * (s[2] - s[0])) / 6.0 +
+                s[3] * s[3] + s[4] * s[4] + s[5] * s[5];
             return std::pair{I1, J2};
         };
         const auto [i1a, j2a] = invariants(before.stress);

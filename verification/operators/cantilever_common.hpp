@@ -25,12 +25,11 @@ inline real_t timoshenko_tip_deflection(real_t P, real_t E, real_t nu, real_t L,
     return P * L * L * L / (3 * E * I) + P * L / (kappa * G * b * h);
 }
 
-inline std::string cantilever_deck(const std::string& formulation, int nx, int ny, int nz,
-                                   real_t h_mm, const std::string& time_block, const std::string& loads)
+inline std::string cantilever_deck(const std::string& formulation, int nx, int ny, int nz, real_t h_mm,
+                                   const std::string& time_block, const std::string& loads)
 {
-    return "title: cantilever\n" + time_block +
-           "parts:\n  beam:\n    generator: {type: box, size: [1000 mm, " + std::to_string(h_mm) +
-           " mm, " + std::to_string(h_mm) + " mm], divisions: [" + std::to_string(nx) + ", " +
+    return "title: cantilever\n" + time_block + "parts:\n  beam:\n    generator: {type: box, size: [1000 mm, " +
+           std::to_string(h_mm) + " mm, " + std::to_string(h_mm) + " mm], divisions: [" + std::to_string(nx) + ", " +
            std::to_string(ny) + ", " + std::to_string(nz) +
            "]}\n    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n" + formulation +
            "    bulk_viscosity: {linear: 0, quadratic: 0}\n"
@@ -43,9 +42,9 @@ inline std::string cantilever_deck(const std::string& formulation, int nx, int n
 /// Static tip deflection by dynamic relaxation (mass damping near critical for mode 1).
 inline real_t relaxed_tip_deflection(const std::string& formulation, int nx, int ny, int nz)
 {
-    const std::string deck = cantilever_deck(
-        formulation, nx, ny, nz, 100.0, "time: {end: 30 ms, mass_damping: 1000}\n",
-        "loads:\n  - {type: nodal_force, node_set: tip, force: {z: -10 kN}, total: true}\n");
+    const std::string deck =
+        cantilever_deck(formulation, nx, ny, nz, 100.0, "time: {end: 30 ms, mass_damping: 1000}\n",
+                        "loads:\n  - {type: nodal_force, node_set: tip, force: {z: -10 kN}, total: true}\n");
     Model m = model_from(deck);
     RunOptions opt;
     opt.progress = false;
@@ -69,8 +68,8 @@ inline Vibration free_vibration(const std::string& formulation, int nx, int n)
 {
     const real_t L = 1.0, h = 0.05;
     const real_t T = euler_bernoulli_period(200e9, 7850, L, h);
-    const std::string deck = cantilever_deck(
-        formulation, nx, n, n, 50.0, "time: {end: " + std::to_string(10.5 * T) + "}\n", "");
+    const std::string deck =
+        cantilever_deck(formulation, nx, n, n, 50.0, "time: {end: " + std::to_string(10.5 * T) + "}\n", "");
     Model m = model_from(deck);
     const real_t bl = 1.875104068711961;
     const real_t sig = (std::cosh(bl) + std::cos(bl)) / (std::sinh(bl) + std::sin(bl));

@@ -10,8 +10,7 @@ TEST(CantileverLong, StaticTipDeflectionFullyIntegrated)
 {
     const real_t exact = test::timoshenko_tip_deflection(1e4, 200e9, 0.3, 1.0, 0.1, 0.1);
     const real_t d = test::relaxed_tip_deflection("    formulation: fem-2x2x2\n", 80, 8, 8);
-    std::printf("2x2x2, 80x8x8: tip %.4f mm vs %.4f mm (%+.2f%%)\n", d * 1e3, exact * 1e3,
-                100 * (d / exact - 1));
+    std::printf("2x2x2, 80x8x8: tip %.4f mm vs %.4f mm (%+.2f%%)\n", d * 1e3, exact * 1e3, 100 * (d / exact - 1));
     EXPECT_NEAR(d, exact, 0.03 * exact);
 }
 
@@ -20,8 +19,8 @@ TEST(CantileverLong, StaticTipDeflectionOnePointStiffnessFineMesh)
     const real_t exact = test::timoshenko_tip_deflection(1e4, 200e9, 0.3, 1.0, 0.1, 0.1);
     const real_t d = test::relaxed_tip_deflection(
         "    formulation: fem-1pt\n    hourglass: {type: stiffness, coefficient: 0.05}\n", 80, 8, 8);
-    std::printf("1-pt stiffness QM 0.05, 80x8x8: tip %.4f mm vs %.4f mm (%+.2f%%)\n", d * 1e3,
-                exact * 1e3, 100 * (d / exact - 1));
+    std::printf("1-pt stiffness QM 0.05, 80x8x8: tip %.4f mm vs %.4f mm (%+.2f%%)\n", d * 1e3, exact * 1e3,
+                100 * (d / exact - 1));
     EXPECT_NEAR(d, exact, 0.03 * exact);
 }
 

@@ -335,7 +335,7 @@ TEST(ConversionInterval, ChecksAtTheIntervalConvertInFewerEventsWithTheSameResul
     auto run = [&](const char* interval)
     {
         Model m = Model::build(read_deck(deck, {"parts.bar.generator.element_size=5mm", "time.end=30us",
-                                                 std::string("parts.bar.conversion.interval=") + interval}));
+                                                std::string("parts.bar.conversion.interval=") + interval}));
         int events = 0;
         RunOptions opt;
         opt.progress = false;

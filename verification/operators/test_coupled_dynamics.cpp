@@ -182,8 +182,8 @@ parts:
             for (index_t i = 0; i < m.nodes.size(); ++i)
             {
                 const Vec3 x(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]);
-                const bool interior = !m.carries_coefficients(i) && x[0] > 1e-7 && x[0] < 4e-3 - 1e-7 && x[1] > 1e-7 && x[1] < 4e-3 - 1e-7 &&
-                                      x[2] > 1e-7 && x[2] < 6e-3 - 1e-7;
+                const bool interior = !m.carries_coefficients(i) && x[0] > 1e-7 && x[0] < 4e-3 - 1e-7 && x[1] > 1e-7 &&
+                                      x[1] < 4e-3 - 1e-7 && x[2] > 1e-7 && x[2] < 6e-3 - 1e-7;
                 for (int d = 0; d < 3; ++d)
                 {
                     scale = std::max(scale, std::abs(m.nodes.f_int[3 * i + d]));

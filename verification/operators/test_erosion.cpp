@@ -65,8 +65,8 @@ ErosionRun run(const std::vector<std::string>& overrides, const std::string& out
                                {
                                    Vec3 p = Vec3::Zero();
                                    for (index_t i = 0; i < mm.nodes.size(); ++i)
-                                       p += mm.nodes.mass[i] * Vec3(mm.nodes.v[3 * i], mm.nodes.v[3 * i + 1],
-                                                                    mm.nodes.v[3 * i + 2]);
+                                       p += mm.nodes.mass[i] *
+                                            Vec3(mm.nodes.v[3 * i], mm.nodes.v[3 * i + 1], mm.nodes.v[3 * i + 2]);
                                    r.momentum_drift = std::max(r.momentum_drift, p.norm() / scale);
                                    if (step > 50)
                                        r.worst_balance = std::max(r.worst_balance, mm.energy.balance_error());
@@ -85,16 +85,17 @@ TEST(Erosion, EventsKeepMassMomentumAndTheLedger)
     const ErosionRun ero = run({});
     std::printf("without erosion: balance error after step 50 at most %.2e, momentum drift %.1e\n", none.worst_balance,
                 none.momentum_drift);
-    std::printf("with erosion: %ld of 80 elements eroded, eroded energy %.3e J of %.3e J initial kinetic, balance error at "
-                "most %.2e, momentum drift %.1e, mass %.6e of %.6e kg\n",
-                static_cast<long>(ero.eroded), ero.summary.energy.eroded, ero.summary.energy.kinetic0, ero.worst_balance,
-                ero.momentum_drift, ero.mass, ero.mass0);
+    std::printf(
+        "with erosion: %ld of 80 elements eroded, eroded energy %.3e J of %.3e J initial kinetic, balance error at "
+        "most %.2e, momentum drift %.1e, mass %.6e of %.6e kg\n",
+        static_cast<long>(ero.eroded), ero.summary.energy.eroded, ero.summary.energy.kinetic0, ero.worst_balance,
+        ero.momentum_drift, ero.mass, ero.mass0);
     ASSERT_EQ(ero.summary.status, "completed") << ero.summary.message;
     EXPECT_GT(ero.eroded, 0);
     EXPECT_LT(ero.eroded, 80);
     EXPECT_EQ(none.eroded, 0);
-    EXPECT_EQ(ero.mass, ero.mass0);           // nodes keep their mass
-    EXPECT_LT(ero.momentum_drift, 1e-12);     // the halves' momenta cancel throughout
+    EXPECT_EQ(ero.mass, ero.mass0);       // nodes keep their mass
+    EXPECT_LT(ero.momentum_drift, 1e-12); // the halves' momenta cancel throughout
     // the ledger continues through the events: the bound of the run without erosion (without
     // booking the eroded energy it was 2.5e-2 here, against 5.7e-3)
     EXPECT_LT(ero.worst_balance, std::max(1.5 * none.worst_balance, 1e-3));
@@ -122,17 +123,17 @@ TEST(Erosion, J2FailureDeletesAnElementOnceAllItsPointsHaveFailed)
         RunOptions opt;
         opt.progress = false;
         real_t worst_balance = 0.0, drift = 0.0;
-        const RunSummary s = run_simulation(m, opt,
-                                            [&](const Model& mm, real_t, real_t, std::int64_t step)
-                                            {
-                                                Vec3 p = Vec3::Zero();
-                                                for (index_t i = 0; i < mm.nodes.size(); ++i)
-                                                    p += mm.nodes.mass[i] * Vec3(mm.nodes.v[3 * i], mm.nodes.v[3 * i + 1],
-                                                                                 mm.nodes.v[3 * i + 2]);
-                                                drift = std::max(drift, p.norm() / (mass0 * 150.0));
-                                                if (step > 50)
-                                                    worst_balance = std::max(worst_balance, mm.energy.balance_error());
-                                            });
+        const RunSummary s = run_simulation(
+            m, opt,
+            [&](const Model& mm, real_t, real_t, std::int64_t step)
+            {
+                Vec3 p = Vec3::Zero();
+                for (index_t i = 0; i < mm.nodes.size(); ++i)
+                    p += mm.nodes.mass[i] * Vec3(mm.nodes.v[3 * i], mm.nodes.v[3 * i + 1], mm.nodes.v[3 * i + 2]);
+                drift = std::max(drift, p.norm() / (mass0 * 150.0));
+                if (step > 50)
+                    worst_balance = std::max(worst_balance, mm.energy.balance_error());
+            });
         ASSERT_EQ(s.status, "completed") << s.message;
         std::printf("%s: %ld of 80 elements deleted on failure, balance error after step 50 at most %.2e, momentum "
                     "drift %.1e\n",
@@ -233,9 +234,10 @@ TEST(PointState, MovesBetweenBlockKinds)
         diff = std::max(diff, std::abs(nodal.plastic.eps_p[q] - hex.plastic.eps_p[e]) +
                                   std::abs(nodal.plastic.eps_p_trial[q] - hex.plastic.eps_p[e]));
         for (int k = 0; k < 6; ++k)
-            diff = std::max(diff, std::abs(nodal.stress[k * nodal.stress_stride + q] - hex.stress[k * hex.stress_stride + e]) +
-                                      std::abs(nodal.stress_trial[k * nodal.stress_stride + q] -
-                                               hex.stress[k * hex.stress_stride + e]));
+            diff = std::max(
+                diff,
+                std::abs(nodal.stress[k * nodal.stress_stride + q] - hex.stress[k * hex.stress_stride + e]) +
+                    std::abs(nodal.stress_trial[k * nodal.stress_stride + q] - hex.stress[k * hex.stress_stride + e]));
     }
     EXPECT_EQ(diff, 0.0);
     EXPECT_GT(nodal.plastic.eps_p[0], 0.0);
@@ -273,8 +275,8 @@ parts:
     };
     // uniaxial stretch 1.03: ln 1.03 = 0.02956, V / V0 - 1 = 0.03
     const auto [n0, g] = eroded_after("principal_strain=0.0295", 1.03, 1.0);
-    std::printf("stretch 1.03: principal strain %.6f, volumetric strain %.6f, element step %.4e s\n", g.principal_strain,
-                g.volumetric_strain, g.time_step);
+    std::printf("stretch 1.03: principal strain %.6f, volumetric strain %.6f, element step %.4e s\n",
+                g.principal_strain, g.volumetric_strain, g.time_step);
     EXPECT_NEAR(g.principal_strain, std::log(1.03), 1e-14);
     EXPECT_NEAR(g.volumetric_strain, 0.03, 1e-14);
     EXPECT_EQ(n0, 4);
@@ -341,7 +343,8 @@ TEST(Erosion, MotionComputedWhenReadGivesTheBitsOfEveryStep)
         RunOptions opt;
         opt.progress = false;
         StepObserver none;
-        const RunSummary s = run_simulation(m, opt, observe ? StepObserver([](const Model&, real_t, real_t, std::int64_t) {}) : none);
+        const RunSummary s =
+            run_simulation(m, opt, observe ? StepObserver([](const Model&, real_t, real_t, std::int64_t) {}) : none);
         EXPECT_EQ(s.status, "completed") << s.message;
         EXPECT_GT(m.eroded_elements(), 0);
         return s;

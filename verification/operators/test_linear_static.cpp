@@ -231,9 +231,11 @@ TEST(StaticPcg, ReachesTheSaddlePointSolutionUnderCollocationConstraints)
     const Eigen::VectorXd Cu = C * Eigen::Map<const Eigen::VectorXd>(pcg.u.data(), 3 * n);
     std::printf("%d constraints: |u_pcg - u_umfpack| / |u| = %.1e after %d iterations, max |C u| / max |u| = %.1e\n",
                 rows, diff, pcg.iterations,
-                Cu.cwiseAbs().maxCoeff() / Eigen::Map<const Eigen::VectorXd>(pcg.u.data(), 3 * n).cwiseAbs().maxCoeff());
+                Cu.cwiseAbs().maxCoeff() /
+                    Eigen::Map<const Eigen::VectorXd>(pcg.u.data(), 3 * n).cwiseAbs().maxCoeff());
     EXPECT_LT(diff, 1e-10);
-    EXPECT_LT(Cu.cwiseAbs().maxCoeff(), 1e-13 * Eigen::Map<const Eigen::VectorXd>(pcg.u.data(), 3 * n).cwiseAbs().maxCoeff());
+    EXPECT_LT(Cu.cwiseAbs().maxCoeff(),
+              1e-13 * Eigen::Map<const Eigen::VectorXd>(pcg.u.data(), 3 * n).cwiseAbs().maxCoeff());
 }
 
 TEST(StaticPcg, SaysWhenItDoesNotConverge)

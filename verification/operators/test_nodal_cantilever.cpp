@@ -152,7 +152,8 @@ TEST(NodalCantilever, TipDeflectionWithinOnePercentOfTimoshenko)
     for (const Row& r : {Row{"rkpm scni", Beam::Rk, 0.0, 64}, Row{"rkpm scni+mscni", Beam::Rk, 1.0, 32},
                          Row{"fem-nodal scni+mscni", Beam::Fe, 1.0, 32}})
     {
-        const real_t coarse = tip_deflection(r.f, r.nx / 2, r.nx / 8, r.stab), fine = tip_deflection(r.f, r.nx, r.nx / 4, r.stab);
+        const real_t coarse = tip_deflection(r.f, r.nx / 2, r.nx / 8, r.stab),
+                     fine = tip_deflection(r.f, r.nx, r.nx / 4, r.stab);
         std::printf("%-22s tip u_y: %dx%d nodes %.5e (%+.2f%%), %dx%d nodes %.5e (%+.2f%%); exact %.5e\n", r.name,
                     r.nx / 2 + 1, r.nx / 8 + 1, coarse, 100 * (coarse / exact - 1), r.nx + 1, r.nx / 4 + 1, fine,
                     100 * (fine / exact - 1), exact);

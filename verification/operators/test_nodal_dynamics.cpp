@@ -9,18 +9,17 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cstdio>
 #include <memory>
-#include <algorithm>
 #include <omp.h>
 #include <random>
 
-#include "rkfem/integration/nodal/nodal_integration.hpp"
-#include "rkfem/operators/linear_static.hpp"
-#include "rkfem/core/stream_stores.hpp"
-#include "rkfem/operators/nodal_block.hpp"
 #include "../support.hpp"
 #include "rkfem/core/stream_stores.hpp"
+#include "rkfem/integration/nodal/nodal_integration.hpp"
+#include "rkfem/operators/linear_static.hpp"
+#include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 #include "rkfem/operators/nodal_step_estimate.hpp"
@@ -77,7 +76,8 @@ real_t critical_dt_factor(const Fixture& fx)
 {
     SparseMatrix K = assemble_stiffness(fx.blk.points, fx.blk.material, fx.mesh.n_nodes());
     if (fx.blk.n_stab() > 0)
-        K += assemble_stiffness(fx.blk.stabilization, fx.blk.material, fx.mesh.n_nodes(), fx.blk.stabilization_coefficient);
+        K += assemble_stiffness(fx.blk.stabilization, fx.blk.material, fx.mesh.n_nodes(),
+                                fx.blk.stabilization_coefficient);
     Eigen::MatrixXd A(K);
     const index_t n = fx.mesh.n_nodes();
     for (index_t i = 0; i < 3 * n; ++i)
@@ -91,7 +91,10 @@ real_t critical_dt_factor(const Fixture& fx)
     return 2.0 / omega * fx.blk.material.wave_speed() / lmin;
 }
 
-real_t critical_dt_factor(const PartSpec& ps, real_t jitter) { return critical_dt_factor(Fixture(ps, 5, 0.01, jitter)); }
+real_t critical_dt_factor(const PartSpec& ps, real_t jitter)
+{
+    return critical_dt_factor(Fixture(ps, 5, 0.01, jitter));
+}
 } // namespace
 
 TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValue)
@@ -122,7 +125,10 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValue)
 TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValueOnClouds)
 {
     const PartSpec ps = part(Formulation::Rkpm, "scni", "none");
-    for (const auto& [scheme, stab] : {std::pair<const char*, const char*>{"scni", "none"}, {"scni", "mscni"}, {"scni", "nsni"}, {"sd-scni", "none"}})
+    for (const auto& [scheme, stab] : {std::pair<const char*, const char*>{"scni", "none"},
+                                       {"scni", "mscni"},
+                                       {"scni", "nsni"},
+                                       {"sd-scni", "none"}})
         for (const real_t jitter : {0.0, 0.25, 0.45})
             for (const int seed : {1, 2})
             {
@@ -187,8 +193,7 @@ TEST(NodalTimeStep, LanczosFindsTheCriticalFactor)
         Fixture fx = r.cloud ? cloud_fixture(r.ps, r.jitter, 1) : Fixture(r.ps, 5, 0.01, r.jitter);
         const real_t dense = critical_dt_factor(fx);
         const HighestFrequency hf = nodal_highest_frequency(fx.blk, fx.nodes.mass);
-        std::printf("%-36s alpha_crit dense %.4f, Lanczos %.4f (%d passes)\n", r.name, dense, hf.alpha_crit,
-                    hf.passes);
+        std::printf("%-36s alpha_crit dense %.4f, Lanczos %.4f (%d passes)\n", r.name, dense, hf.alpha_crit, hf.passes);
         EXPECT_GE(hf.alpha_crit, dense * (1.0 - 1e-9)) << r.name;
         EXPECT_LT(hf.alpha_crit, 1.002 * dense) << r.name;
     }
@@ -227,7 +232,8 @@ parts:
         EXPECT_NE(m.setup_notes[0].find("parts.b.nodal_integration.dt_factor"), std::string::npos) << m.setup_notes[0];
     }
     {
-        Model m = test::model_from(deck, {"parts.b.rk.normalized_support=1.35", "parts.b.nodal_integration.dt_factor=1.2"});
+        Model m =
+            test::model_from(deck, {"parts.b.rk.normalized_support=1.35", "parts.b.nodal_integration.dt_factor=1.2"});
         EXPECT_EQ(m.nodal_blocks.at(0).dt_factor, 1.2);
         ASSERT_EQ(m.setup_notes.size(), 1u);
         EXPECT_NE(m.setup_notes[0].find("above the part's critical factor"), std::string::npos) << m.setup_notes[0];
@@ -462,7 +468,8 @@ TEST(NodalMomentum, FreeBlockConservesLinearMomentum)
             for (index_t i = 0; i < fx.mesh.n_nodes(); ++i)
             {
                 const Vec3 v(fx.nodes.v[3 * i], fx.nodes.v[3 * i + 1], fx.nodes.v[3 * i + 2]);
-                l += fx.nodes.mass[i] * (Vec3(fx.nodes.x[3 * i], fx.nodes.x[3 * i + 1], fx.nodes.x[3 * i + 2]) - dt * v).cross(v);
+                l += fx.nodes.mass[i] *
+                     (Vec3(fx.nodes.x[3 * i], fx.nodes.x[3 * i + 1], fx.nodes.x[3 * i + 2]) - dt * v).cross(v);
             }
             return l;
         };

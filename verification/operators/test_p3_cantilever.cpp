@@ -76,7 +76,8 @@ TEST(P3Cantilever, TimoshenkoReferenceMatchesClosedForms)
     const real_t exact = q / (6 * b.E * I) * (F(L) - F(x0)) + q * (L * L - x0 * x0) / (2 * kappa * G * A);
     EXPECT_NEAR(r.static_tip, exact, 1e-4 * exact);
     // first period: a little above Euler-Bernoulli's 2 pi / (1.8751^2 sqrt(EI / (rho A L^4))) (shear, rotary inertia)
-    const real_t t_eb = 2 * M_PI / (1.875104068711961 * 1.875104068711961 * std::sqrt(b.E * I / (b.rho * A * std::pow(L, 4))));
+    const real_t t_eb =
+        2 * M_PI / (1.875104068711961 * 1.875104068711961 * std::sqrt(b.E * I / (b.rho * A * std::pow(L, 4))));
     EXPECT_GT(r.first_period, t_eb);
     EXPECT_LT(r.first_period, 1.01 * t_eb);
     // a step load overshoots the static deflection by a factor of nearly 2

@@ -79,7 +79,8 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly)
                 for (int i = 0; i < 3; ++i)
                 {
                     q_scale = std::max(q_scale, std::abs(r.hg_force[a][i]));
-                    c.hourglass = std::max(c.hourglass, std::abs(blk.hg_force_trial[(3 * a + i) * ne + e] - r.hg_force[a][i]));
+                    c.hourglass =
+                        std::max(c.hourglass, std::abs(blk.hg_force_trial[(3 * a + i) * ne + e] - r.hg_force[a][i]));
                 }
         d_int += r.d_internal;
         d_hg += r.d_hourglass;
@@ -96,7 +97,8 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly)
     }
     c.force /= f_scale;
     const real_t e_scale = std::abs(d_int) + std::abs(d_hg) + std::abs(d_bv);
-    c.energy = (std::abs(fast.d_internal - d_int) + std::abs(fast.d_hourglass - d_hg) + std::abs(fast.d_bulk_viscosity - d_bv)) /
+    c.energy = (std::abs(fast.d_internal - d_int) + std::abs(fast.d_hourglass - d_hg) +
+                std::abs(fast.d_bulk_viscosity - d_bv)) /
                e_scale;
     c.dt = std::abs(fast.dt_stable - dt_min) / dt_min;
     EXPECT_GT(std::abs(d_bv), 0.0); // some elements compress: bulk viscosity acts
@@ -111,11 +113,16 @@ const char* name(HourglassType t)
 {
     switch (t)
     {
-    case HourglassType::None: return "none";
-    case HourglassType::Viscous: return "viscous";
-    case HourglassType::Stiffness: return "stiffness";
-    case HourglassType::ViscousPlain: return "viscous-plain";
-    case HourglassType::AssumedStrain: return "assumed-strain";
+    case HourglassType::None:
+        return "none";
+    case HourglassType::Viscous:
+        return "viscous";
+    case HourglassType::Stiffness:
+        return "stiffness";
+    case HourglassType::ViscousPlain:
+        return "viscous-plain";
+    case HourglassType::AssumedStrain:
+        return "assumed-strain";
     }
     return "?";
 }
@@ -163,8 +170,8 @@ struct NodalCompared
 
 /// An rkpm block (SCNI + MSCNI) on a jittered (own stencils) or regular (shared stencils,
 /// whole-vector batches along rows) mesh, a random committed state and motion.
-NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, real_t bulk_linear, real_t bulk_quadratic,
-                            const std::string& stab = "mscni")
+NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, real_t bulk_linear,
+                            real_t bulk_quadratic, const std::string& stab = "mscni")
 {
     PartSpec ps = test::steel_nodal_part(form, "scni", stab);
     ps.nodal.stabilization_coefficient = stab == "nsni" ? 0.25 : 1.0;
@@ -231,15 +238,17 @@ TEST(NodalReference, FastPassEqualsThePlainOneToRoundOff)
         Formulation form;
         const char* stab;
     };
-    for (const Case& k : {Case{Formulation::Rkpm, "mscni"}, Case{Formulation::Rkpm, "nsni"}, Case{Formulation::FemNodal, "mscni"}})
+    for (const Case& k :
+         {Case{Formulation::Rkpm, "mscni"}, Case{Formulation::Rkpm, "nsni"}, Case{Formulation::FemNodal, "mscni"}})
         for (real_t jitter : {0.3, 0.0})
             for (Assembly a : {Assembly::Scatter, Assembly::Gather})
             {
                 const NodalCompared c = compare_nodal(k.form, jitter, a, 0.06, 1.5, k.stab);
                 std::printf("%s + %s, %s, %s: max relative difference force %.1e, stress %.1e, sub-cell stress %.1e, "
                             "energies %.1e, stable step %.1e\n",
-                            k.form == Formulation::Rkpm ? "rkpm     " : "fem-nodal", k.stab, jitter > 0 ? "jittered" : "regular ",
-                            a == Assembly::Scatter ? "scatter" : "gather ", c.force, c.stress, c.stab_stress, c.energy, c.dt);
+                            k.form == Formulation::Rkpm ? "rkpm     " : "fem-nodal", k.stab,
+                            jitter > 0 ? "jittered" : "regular ", a == Assembly::Scatter ? "scatter" : "gather ",
+                            c.force, c.stress, c.stab_stress, c.energy, c.dt);
                 EXPECT_LT(c.force, 1e-12);
                 EXPECT_LT(c.stress, 1e-12);
                 // round-off of sums over 50-200 entries (at most 4e-16 seen): NSNI's sub-points

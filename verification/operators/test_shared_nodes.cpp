@@ -27,7 +27,7 @@ struct SharedBox
 {
     HexMesh full;
     NodeSet nodes;
-    HexBlock lower;  ///< fem-1pt, nodes [0, interface layer end)
+    HexBlock lower;   ///< fem-1pt, nodes [0, interface layer end)
     NodalBlock upper; ///< fem-nodal, nodes [interface layer begin, end)
     real_t h = 0.01;
     int n = 0;
@@ -129,7 +129,8 @@ TEST(SharedNodes, TwoBlocksOnOneInterfacePassTheLinearPatchTest)
     for (index_t p = 0; p < s.upper.n_points(); ++p)
         for (int k = 0; k < 6; ++k)
             spread = std::max(spread, std::abs(s.upper.stress[k * s.upper.stress_stride + p] -
-                                               s.lower.stress[k * s.lower.stress_stride]) / sref);
+                                               s.lower.stress[k * s.lower.stress_stride]) /
+                                          sref);
     std::printf("1-pt | fem-nodal on a %d^3 distorted box: interior residual %.2e, interface %.2e, stress "
                 "spread between the blocks %.2e\n",
                 n, r.interior, r.interface, spread);
@@ -201,7 +202,8 @@ TEST(SharedNodes, ColumnNumberedBoxDoublesItsScatterChunks)
         std::size_t sum = 0;
         for (index_t e0 = 0; e0 < ne; e0 += size)
         {
-            const auto [lo, hi] = std::minmax_element(b.conn.begin() + 8 * e0, b.conn.begin() + 8 * std::min(ne, e0 + size));
+            const auto [lo, hi] =
+                std::minmax_element(b.conn.begin() + 8 * e0, b.conn.begin() + 8 * std::min(ne, e0 + size));
             sum += static_cast<std::size_t>(*hi + 1 - *lo);
         }
         return static_cast<real_t>(sum) / static_cast<real_t>(nodes.size());
@@ -254,7 +256,8 @@ TEST(SharedNodes, AnRkPartAfterAnotherPartHasTheSameForces)
         }
     std::fill(alone.nodes.f_int.begin(), alone.nodes.f_int.end(), 0.0);
     std::fill(after.nodes.f_int.begin(), after.nodes.f_int.end(), 0.0);
-    const ForcePassResult ra = nodal_internal_force(a, alone.nodes, 1e-8), rb = nodal_internal_force(b, after.nodes, 1e-8);
+    const ForcePassResult ra = nodal_internal_force(a, alone.nodes, 1e-8),
+                          rb = nodal_internal_force(b, after.nodes, 1e-8);
     assemble_nodal_forces(a, alone.nodes);
     assemble_nodal_forces(b, after.nodes);
     real_t scale = 0.0;

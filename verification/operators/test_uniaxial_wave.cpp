@@ -5,8 +5,8 @@
 
 #include "../support.hpp"
 #include "rkfem/core/state_archive.hpp"
-#include "rkfem/run/simulation.hpp"
 #include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/run/simulation.hpp"
 
 using namespace rkfem;
 
@@ -63,9 +63,8 @@ void check_wave(const std::vector<std::string>& overrides)
             break;
         }
     }
-    std::printf("front %.3f mm vs c t = %.3f mm; balance error after startup %.3e; plateau error %.3e\n",
-                front * 1e3, c * t * 1e3, worst_balance_after_startup,
-                m.element_stress(0, 60)[ZZ] / plateau - 1);
+    std::printf("front %.3f mm vs c t = %.3f mm; balance error after startup %.3e; plateau error %.3e\n", front * 1e3,
+                c * t * 1e3, worst_balance_after_startup, m.element_stress(0, 60)[ZZ] / plateau - 1);
     EXPECT_NEAR(front, c * t, 1.5 * h);
     EXPECT_LT(worst_balance_after_startup, 0.005);
     // reactions (SPCFORC): the driven end carries rho c v A = 459.7 N into the column; the rollers'
@@ -85,13 +84,14 @@ void check_wave(const std::vector<std::string>& overrides)
     // the history carries them as columns reaction_end_{x,y,z}
     const auto col = std::find(s.history_columns.begin(), s.history_columns.end(), "reaction_end_z");
     ASSERT_NE(col, s.history_columns.end());
-    EXPECT_EQ(s.history[s.history.size() - s.history_columns.size() +
-                                                              (col - s.history_columns.begin())],
-              end[2]);
+    EXPECT_EQ(s.history[s.history.size() - s.history_columns.size() + (col - s.history_columns.begin())], end[2]);
 }
 } // namespace
 
-TEST(UniaxialWave, OnePointViscousHourglassMatchesTheory) { check_wave({}); }
+TEST(UniaxialWave, OnePointViscousHourglassMatchesTheory)
+{
+    check_wave({});
+}
 
 // The rollers hold mesh nodes at rest: their reactions are not stored each step but read from
 // the forces when asked for (Model::plan_conditions). They are the plain sum over the set's dofs
@@ -106,7 +106,8 @@ TEST(UniaxialWave, RollerReactionsAreTheForcesAtTheirDofsAlsoAfterACheckpoint)
     for (const DofCondition& c : m.conditions)
         if (c.source == 0)
         {
-            plain[c.dof % 3] += m.nodes.f_int[c.dof] - m.nodes.f_ext[c.dof] - m.contact.force(static_cast<std::size_t>(c.dof));
+            plain[c.dof % 3] +=
+                m.nodes.f_int[c.dof] - m.nodes.f_ext[c.dof] - m.contact.force(static_cast<std::size_t>(c.dof));
             magnitude += std::abs(m.nodes.f_int[c.dof]);
         }
     EXPECT_GT(magnitude, 100.0); // the lateral stress behind the front pushes on the rollers [N]
@@ -199,18 +200,20 @@ loads:
     real_t fz = 0.0;
     for (index_t n = 0; n < m.nodes.size(); ++n)
         fz += m.nodes.f_ext[3 * n + 2];
-    const real_t area = 1e-6; // 1 mm^2, laterally fixed
+    const real_t area = 1e-6;                    // 1 mm^2, laterally fixed
     EXPECT_NEAR(fz, -p * area, 1e-6 * p * area); // 14503.77 psi is 100 MPa to 2.6e-7
 }
 } // namespace
 
-TEST(UniaxialWave, PressureStepOnAFaceSetGivesMinusPBehindTheFront) { check_pressure_wave({}); }
+TEST(UniaxialWave, PressureStepOnAFaceSetGivesMinusPBehindTheFront)
+{
+    check_pressure_wave({});
+}
 
 TEST(UniaxialWave, PressureStepOnRkParticles)
 {
     check_pressure_wave({"parts.column.formulation=rkpm"});
 }
-
 
 TEST(UniaxialWave, RunawayLoadStopsWithWhereAndWhen)
 {
@@ -235,8 +238,7 @@ loads:
     EXPECT_EQ(s.status, "unstable");
     EXPECT_NE(s.message.find("step"), std::string::npos) << s.message;
     EXPECT_NE(s.message.find("t = "), std::string::npos) << s.message;
-    EXPECT_TRUE(s.message.find("element") != std::string::npos ||
-                s.message.find("node") != std::string::npos ||
+    EXPECT_TRUE(s.message.find("element") != std::string::npos || s.message.find("node") != std::string::npos ||
                 s.message.find("energy") != std::string::npos)
         << s.message;
     std::printf("unstable run message: %s\n", s.message.c_str());
@@ -342,8 +344,8 @@ boundary_conditions:
         }
     const real_t mean = bin_means(m, 15e-3, 80e-3, 1, ZZ)[0], lateral = bin_means(m, 15e-3, 80e-3, 1, XX)[0];
     const real_t ratio = nb.material.lambda / nb.material.plane_wave_modulus();
-    std::printf("cloud: %d particles, plateau %.2f MPa (theory %.2f, error %.2e), lateral error %.2e\n",
-                m.nodes.size(), mean / 1e6, plateau / 1e6, mean / plateau - 1, lateral / (ratio * plateau) - 1);
+    std::printf("cloud: %d particles, plateau %.2f MPa (theory %.2f, error %.2e), lateral error %.2e\n", m.nodes.size(),
+                mean / 1e6, plateau / 1e6, mean / plateau - 1, lateral / (ratio * plateau) - 1);
     EXPECT_NEAR(mean, plateau, 0.01 * std::abs(plateau));
     EXPECT_NEAR(lateral, ratio * plateau, 0.01 * std::abs(ratio * plateau));
     const std::vector<real_t> slab = bin_means(m, 15e-3, 10e-3, 8, ZZ);
@@ -363,12 +365,21 @@ boundary_conditions:
 }
 } // namespace
 
-TEST(UniaxialWave, RkParticlesOnAVoronoiCloudMatchTheory) { check_cloud_wave("none"); }
+TEST(UniaxialWave, RkParticlesOnAVoronoiCloudMatchTheory)
+{
+    check_cloud_wave("none");
+}
 
-TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithMscniMatchTheory) { check_cloud_wave("mscni"); }
+TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithMscniMatchTheory)
+{
+    check_cloud_wave("mscni");
+}
 
 // SD-SCNI on the cloud: every pyramid sub-cell of a Voronoi cell is a stress point
-TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithSdScniMatchTheory) { check_cloud_wave("none", "sd-scni"); }
+TEST(UniaxialWave, RkParticlesOnAVoronoiCloudWithSdScniMatchTheory)
+{
+    check_cloud_wave("none", "sd-scni");
+}
 
 namespace
 {
@@ -479,8 +490,10 @@ loads:
     };
     const Mat3 R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 0.5).normalized()).toRotationMatrix();
     const Mat3 S = Vec3(1.3, 1.3, 0.8).asDiagonal();
-    for (const auto& [name, A] : {std::pair<const char*, Mat3>{"undeformed", Mat3::Identity()}, {"rotated", R},
-                                  {"stretched", S}, {"stretched and rotated", R * S}})
+    for (const auto& [name, A] : {std::pair<const char*, Mat3>{"undeformed", Mat3::Identity()},
+                                  {"rotated", R},
+                                  {"stretched", S},
+                                  {"stretched and rotated", R * S}})
     {
         const Vec3 expect = -p * area * A.determinant() * (A.inverse().transpose() * Vec3::UnitZ());
         const Vec3 f = resultant(A);

@@ -40,7 +40,8 @@ std::string summary_without_clocks(const fs::path& dir)
     std::string out;
     for (std::string line; std::getline(in, line);)
         if (line.find("seconds") == std::string::npos && line.find("ns_per_element_cycle") == std::string::npos &&
-            line.find("\"thread_switches\"") == std::string::npos && line.find("\"steps_on_one_thread\"") == std::string::npos)
+            line.find("\"thread_switches\"") == std::string::npos &&
+            line.find("\"steps_on_one_thread\"") == std::string::npos)
             out += line + "\n";
     return out;
 }
@@ -96,7 +97,10 @@ Frames read_frames(const fs::path& dir)
     return f;
 }
 
-std::string deck_path(const char* name) { return (fs::path(RKFEM_SOURCE_DIR) / "studies/decks" / name).string(); }
+std::string deck_path(const char* name)
+{
+    return (fs::path(RKFEM_SOURCE_DIR) / "studies/decks" / name).string();
+}
 
 /// Runs DECK uninterrupted with checkpoints every `interval` (all kept), then restarts a copy of
 /// its directory from each checkpoint but the last (the end of the run) and compares.
@@ -180,9 +184,9 @@ TEST(Checkpoint, ErodingContactImpactRestartsWithTheSameBits)
                               "--set time.end=45us --set time.stepper=arkode-cd", "20 us");
     expect_restarts_reproduce("impact_central-difference", deck_path("fsp_impact.yaml"),
                               "--set time.end=25us --set time.stepper=central-difference", "10 us");
-    expect_restarts_reproduce("impact_mortar", deck_path("fsp_impact.yaml"),
-                              "--set time.end=25us --set time.stepper=central-difference --set contacts.0.formulation=mortar",
-                              "10 us");
+    expect_restarts_reproduce(
+        "impact_mortar", deck_path("fsp_impact.yaml"),
+        "--set time.end=25us --set time.stepper=central-difference --set contacts.0.formulation=mortar", "10 us");
 }
 
 TEST(Checkpoint, RestartContinuesPastTheEndWithUntil)
@@ -296,8 +300,9 @@ TEST(Checkpoint, ASignalStopsTheRunAtAStepAndItsStateRestarts)
                     ++common;
                     differ += again.data[f] != whole.data[g];
                 }
-        std::printf("SIG%s: stopped at t = %.6g s; restarted: %zu frames, %zu at the uninterrupted run's times, %zu differ\n",
-                    sig, cut.times.back(), again.times.size(), common, differ);
+        std::printf(
+            "SIG%s: stopped at t = %.6g s; restarted: %zu frames, %zu at the uninterrupted run's times, %zu differ\n",
+            sig, cut.times.back(), again.times.size(), common, differ);
         EXPECT_EQ(common, whole.times.size());
         EXPECT_EQ(differ, 0u);
         EXPECT_LE(again.times.size(), whole.times.size() + 1);
@@ -318,7 +323,8 @@ TEST(Checkpoint, ASecondRunOnTheSameDirectoryIsRefusedBeforeItWrites)
         std::string(RKFEM_EXE) + " run " + deck + " --out " + d.string() + sets + " --checkpoint-interval 0.1ms > " +
         d.string() + ".a.log 2>&1 & p=$!; for i in $(seq 200); do [ -s " + (d / "checkpoint.h5").string() +
         " ] && break; sleep 0.05; done; " + RKFEM_EXE + " run " + deck + " --out " + d.string() + sets +
-        " 2>&1; echo second=$?; " + RKFEM_EXE + " restart " + d.string() + " 2>&1; echo restart=$?; wait $p; echo first=$?");
+        " 2>&1; echo second=$?; " + RKFEM_EXE + " restart " + d.string() +
+        " 2>&1; echo restart=$?; wait $p; echo first=$?");
     std::printf("%s", r.output.c_str());
     EXPECT_NE(r.output.find("second=2"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("another rkfem (pid "), std::string::npos) << r.output;
@@ -336,10 +342,11 @@ TEST(Checkpoint, ARestartRefusesTheCheckpointOfAnotherRun)
 {
     const fs::path d = fs::temp_directory_path() / "rkfem_stale_checkpoint";
     fs::remove_all(d);
-    ASSERT_EQ(run("run " + deck_path("column_wave.yaml") + " --out " + d.string() +
-                  " --quiet --set parts.column.generator.element_size=2mm --set time.end=40us --checkpoint-interval 20us")
-                  .code,
-              0);
+    ASSERT_EQ(
+        run("run " + deck_path("column_wave.yaml") + " --out " + d.string() +
+            " --quiet --set parts.column.generator.element_size=2mm --set time.end=40us --checkpoint-interval 20us")
+            .code,
+        0);
     ASSERT_TRUE(fs::exists(d / "checkpoint.h5"));
     ASSERT_EQ(run("run " + deck_path("concrete_bar_kcc.yaml") + " --out " + d.string() + " --quiet").code, 0);
     const std::string results = slurp(d / "results.h5"), history = slurp(d / "history.csv");
@@ -359,11 +366,12 @@ TEST(Checkpoint, ARestartFindsTheNewestWholeCheckpointOfAnInterruptedRotation)
 {
     const fs::path d = fs::temp_directory_path() / "rkfem_rotation";
     fs::remove_all(d);
-    ASSERT_EQ(run("run " + deck_path("column_wave.yaml") + " --out " + d.string() +
-                  " --quiet --set parts.column.generator.element_size=2mm --set time.end=40us --checkpoint-interval 10us "
-                  "--checkpoint-keep 3")
-                  .code,
-              0);
+    ASSERT_EQ(
+        run("run " + deck_path("column_wave.yaml") + " --out " + d.string() +
+            " --quiet --set parts.column.generator.element_size=2mm --set time.end=40us --checkpoint-interval 10us "
+            "--checkpoint-keep 3")
+            .code,
+        0);
     fs::rename(d / "checkpoint.h5", d / "checkpoint.new.h5"); // the state a kill between the renames leaves
     const Result a = run("restart " + d.string() + " --until 50us --quiet");
     EXPECT_EQ(a.code, 0) << a.output;
@@ -389,7 +397,8 @@ TEST(Checkpoint, AnOutputThatCannotBeWrittenIsRefusedBeforeTheRun)
         const Result r = run("run " + deck + " --out " + d.string() +
                              " --quiet --set parts.column.generator.element_size=2mm --set time.end=4us");
         EXPECT_EQ(r.code, 2) << name << ": " << r.output;
-        EXPECT_NE(r.output.find((d / name).string() + " exists and is not a regular file"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find((d / name).string() + " exists and is not a regular file"), std::string::npos)
+            << r.output;
         EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
         EXPECT_EQ(std::string(name) == "results.h5", fs::exists(d / "results.h5")) << name;
         EXPECT_FALSE(fs::exists(d / "history.csv") && std::string(name) != "history.csv") << name;
@@ -397,8 +406,8 @@ TEST(Checkpoint, AnOutputThatCannotBeWrittenIsRefusedBeforeTheRun)
     const fs::path s = fs::temp_directory_path() / "rkfem_unwritable_study";
     fs::remove_all(s);
     fs::create_directories(s / "table.csv");
-    const Result r = run("study " + (fs::path(RKFEM_SOURCE_DIR) / "studies/tables/table3_p6.yaml").string() + " --out " +
-                         s.string() + " --only 1.5 --quiet");
+    const Result r = run("study " + (fs::path(RKFEM_SOURCE_DIR) / "studies/tables/table3_p6.yaml").string() +
+                         " --out " + s.string() + " --only 1.5 --quiet");
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("table.csv exists and is not a regular file"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(s / "cases")) << "a case ran";
@@ -421,8 +430,9 @@ TEST(Checkpoint, AFullDiskStopsTheRunWithOneLineAndKeepsTheFramesBefore)
         ~Unmount() { rkfem::test::run_shell("umount " + p.string()); }
     } unmount{mnt};
     const std::string deck = deck_path("column_wave.yaml");
-    const Result r = run("run " + deck + " --out " + (mnt / "a").string() +
-                         " --quiet --set parts.column.generator.element_size=4mm --set time.end=80us --set time.output_interval=2us");
+    const Result r = run(
+        "run " + deck + " --out " + (mnt / "a").string() +
+        " --quiet --set parts.column.generator.element_size=4mm --set time.end=80us --set time.output_interval=2us");
     std::printf("%s", r.output.c_str());
     EXPECT_EQ(r.code, 1) << r.output;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
@@ -437,8 +447,9 @@ TEST(Checkpoint, AFullDiskStopsTheRunWithOneLineAndKeepsTheFramesBefore)
     EXPECT_LE(grids, f.times.size()); // every indexed frame is there
     EXPECT_NE(r.output.find("results.xdmf indexes the " + std::to_string(grids) + " frame(s)"), std::string::npos);
     fs::remove_all(mnt / "a");
-    const Result c = run("run " + deck + " --out " + (mnt / "b").string() +
-                         " --quiet --set parts.column.generator.element_size=4mm --set time.end=40us --checkpoint-interval 2us");
+    const Result c =
+        run("run " + deck + " --out " + (mnt / "b").string() +
+            " --quiet --set parts.column.generator.element_size=4mm --set time.end=40us --checkpoint-interval 2us");
     std::printf("%s", c.output.c_str());
     EXPECT_EQ(c.code, 1) << c.output;
     EXPECT_EQ(std::count(c.output.begin(), c.output.end(), '\n'), 1) << c.output;
@@ -452,11 +463,12 @@ TEST(Checkpoint, AChangedByteInACheckpointIsRefused)
 {
     const fs::path u = fs::temp_directory_path() / "rkfem_ckpt_flip";
     fs::remove_all(u);
-    ASSERT_EQ(run("run " + deck_path("column_wave.yaml") + " --out " + u.string() +
-                  " --quiet --set parts.column.generator.element_size=4mm --set time.end=20us --checkpoint-interval 10us "
-                  "--checkpoint-keep 3")
-                  .code,
-              0);
+    ASSERT_EQ(
+        run("run " + deck_path("column_wave.yaml") + " --out " + u.string() +
+            " --quiet --set parts.column.generator.element_size=4mm --set time.end=20us --checkpoint-interval 10us "
+            "--checkpoint-keep 3")
+            .code,
+        0);
     for (const char* entry : {"run.step", "run.history", "block.0.stress"})
     {
         const fs::path d = fs::temp_directory_path() / "rkfem_ckpt_flip_copy";

@@ -51,16 +51,24 @@ cases:
 )";
     if (with_failing_case)
         s += "  - {name: bad, set: {parts.column.material.nu: 0.7}}\n";
-    s += "  - name: a\n    set: {parts.column.generator.size: \"[2 mm, 2 mm, 200 mm]\", parts.column.generator.element_size: " +
+    s += "  - name: a\n    set: {parts.column.generator.size: \"[2 mm, 2 mm, 200 mm]\", "
+         "parts.column.generator.element_size: " +
          h1 + "}\n    published: {plateau: {value: -459.7 MPa, source: \"rho c v\"}}\n";
-    s += "  - name: b\n    set: [\"parts.column.generator.size=[2 mm, 2 mm, 200 mm]\", \"parts.column.generator.element_size=" +
+    s += "  - name: b\n    set: [\"parts.column.generator.size=[2 mm, 2 mm, 200 mm]\", "
+         "\"parts.column.generator.element_size=" +
          h2 + "\"]\n    published: {plateau: {value: -459.7, source: \"rho c v\"}}\n";
     return s;
 }
 
-real_t x_or_nan(const std::string& s) { return s.empty() ? std::nan("") : std::stod(s); }
+real_t x_or_nan(const std::string& s)
+{
+    return s.empty() ? std::nan("") : std::stod(s);
+}
 
-YAML::Node summary_of(const fs::path& dir) { return YAML::LoadFile((dir / "summary.json").string()); }
+YAML::Node summary_of(const fs::path& dir)
+{
+    return YAML::LoadFile((dir / "summary.json").string());
+}
 
 /// table.csv's "ours" for case and metric.
 real_t table_value(const fs::path& out, const std::string& c, const std::string& m)
@@ -88,7 +96,8 @@ TEST(Study, CasesReproduceTheirOwnRunsRerunsSkipAndAChangedOverrideRerunsOne)
     ASSERT_EQ(r1.code, 0) << r1.output;
     // each case against `rkfem run` of the same deck and overrides: the same numbers, exactly
     const auto direct = run("run " + column_deck + " --out " + (d / "direct").string() +
-                            " --quiet --set 'parts.column.generator.size=[2 mm, 2 mm, 200 mm]' --set parts.column.generator.element_size=0.5mm");
+                            " --quiet --set 'parts.column.generator.size=[2 mm, 2 mm, 200 mm]' --set "
+                            "parts.column.generator.element_size=0.5mm");
     ASSERT_EQ(direct.code, 0) << direct.output;
     const YAML::Node a = summary_of(d / "direct"), b = summary_of(d / "out/cases/b");
     EXPECT_EQ(a["deck_hash"].as<std::string>(), b["deck_hash"].as<std::string>());
@@ -214,7 +223,8 @@ TEST(Study, ProbePeakAndItsTimeOnTheCantileverMatchTheTimoshenkoModalSolution)
     // elements through the depth; see test_p3_cantilever): the extractors min and time_of_min on
     // the tip probe against the beam's modal solution
     const fs::path d = scratch("cantilever");
-    const std::string study = write(d / "study.yaml", "deck: " + std::string(RKFEM_SOURCE_DIR) + R"(/studies/decks/cantilever.yaml
+    const std::string study =
+        write(d / "study.yaml", "deck: " + std::string(RKFEM_SOURCE_DIR) + R"(/studies/decks/cantilever.yaml
 metrics:
   peak: {kind: min, column: tip_uz, unit: mm}
   peak_time: {kind: time_of_min, column: tip_uz, unit: ms}
@@ -234,7 +244,8 @@ cases:
     const rkfem::StepResponse ref = rkfem::step_response(b, 10e3 / 0.005, 0.995, 0.008);
     const real_t peak = table_value(d / "out", "beam", "peak"), t_peak = table_value(d / "out", "beam", "peak_time");
     EXPECT_NEAR(-peak, 1e3 * ref.peak_tip, 0.03 * 1e3 * ref.peak_tip) << "Timoshenko " << 1e3 * ref.peak_tip << " mm";
-    EXPECT_NEAR(t_peak, 1e3 * ref.peak_time, 0.03 * 1e3 * ref.peak_time) << "Timoshenko " << 1e3 * ref.peak_time << " ms";
+    EXPECT_NEAR(t_peak, 1e3 * ref.peak_time, 0.03 * 1e3 * ref.peak_time)
+        << "Timoshenko " << 1e3 * ref.peak_time << " ms";
     // the root's reaction peaks above the 10 kN load (dynamic overshoot of the step)
     EXPECT_GT(table_value(d / "out", "beam", "reaction_peak"), 10.0);
 }
@@ -249,7 +260,8 @@ TEST(Study, TableRowsMetricsTransposesTableMd)
     ASSERT_EQ(r.code, 0) << r.output;
     std::ifstream md(d / "out/table.md");
     const std::string t((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
-    EXPECT_NE(t.find("| metric | a |\n|---|---:|\n| status | completed |\n| plateau [MPa] | -459."), std::string::npos) << t;
+    EXPECT_NE(t.find("| metric | a |\n|---|---:|\n| status | completed |\n| plateau [MPa] | -459."), std::string::npos)
+        << t;
     EXPECT_NE(t.find("(-459.7[1], "), std::string::npos) << t;
 }
 
@@ -285,8 +297,7 @@ TEST(Study, BadStudyFilesGetOneLocatedLine)
         {head + "cases:\n  - {name: a}\n  - {name: a}\n", ":6: cases.1: case name 'a' given twice"},
         {head + "cases:\n  - {name: a, published: {q: {value: 1, source: x}}}\n",
          ":5: cases.0.published.q: 'q' is not a metric of this study; expected one of p"},
-        {head + "cases:\n  - {name: a, published: {p: {value: 3 in, source: x}}}\n",
-         "cases.0.published.p.value: "},
+        {head + "cases:\n  - {name: a, published: {p: {value: 3 in, source: x}}}\n", "cases.0.published.p.value: "},
         {head + "cases:\n  - {name: a/b}\n", "cases.0.name: 'a/b' is not a case name"},
         {head + "cases:\n  - {name: a, set: [x]}\n", "cases.0.set.0: is not key.path=value"},
         {"deck: x.yaml\nmetrics:\n  p: {kind: maximum, column: c}\ncases: [{name: a}]\n",
@@ -303,7 +314,8 @@ TEST(Study, BadStudyFilesGetOneLocatedLine)
         {"deck: x.yaml\ntable_rows: both\nmetrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n",
          ":2: table_rows: 'both' is not a valid choice"},
         {"deck: x.yaml\nmetrics:\n  p: {kind: max, column: c}\n", "cases: missing required key"},
-        {"metrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n", "cases.0.deck: missing, and the study has no deck"},
+        {"metrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n",
+         "cases.0.deck: missing, and the study has no deck"},
         {"? [a, b]\n: 1\n", "study.yaml:1"},
         // decks that do not exist (every case ran and failed, exit 4)
         {"deck: x.yaml\nmetrics:\n  p: {kind: max, column: c}\ncases: [{name: a}]\n", ":1: deck: '"},
@@ -323,7 +335,8 @@ TEST(Study, BadStudyFilesGetOneLocatedLine)
     const std::string ok = write(d / "ok.yaml", column_study("1 mm", "1 mm", false));
     const auto only = run("study " + ok + " --out " + (d / "out").string() + " --only a,zz");
     EXPECT_EQ(only.code, 2) << only.output;
-    EXPECT_NE(only.output.find("--only zz: cases: 'zz' is not a case of " + ok + "; expected one of a, b"), std::string::npos)
+    EXPECT_NE(only.output.find("--only zz: cases: 'zz' is not a case of " + ok + "; expected one of a, b"),
+              std::string::npos)
         << only.output;
     EXPECT_FALSE(fs::exists(d / "out"));
     // a file where the cases' folder goes: refused before any case runs (was exit 1, "cannot create")

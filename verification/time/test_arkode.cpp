@@ -15,22 +15,21 @@
 #include <arkode/arkode_butcher.h>
 #include <cmath>
 #include <complex>
-#include <functional>
 #include <cstdio>
+#include <functional>
 
+#include "../support.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/central_difference.hpp"
 #include "rkfem/time/state_vector.hpp"
-#include "../support.hpp"
 
 using namespace rkfem;
 
 namespace
 {
 /// Runs `steps` steps with the given dt schedule and returns u.
-template <class Schedule>
-std::vector<real_t> run(Model& m, TimeStepper& st, int steps, Schedule&& dt_of)
+template <class Schedule> std::vector<real_t> run(Model& m, TimeStepper& st, int steps, Schedule&& dt_of)
 {
     StepReport r = st.initialize(m, 0.0);
     real_t t = 0.0;
@@ -193,24 +192,35 @@ TEST(ArkodeConvergence, EachMethodConvergesAtItsNominalOrder)
     // dt0 = 0.3 of the element transit time; 40 steps of dt0 = about 0.15 of the first period
     const real_t c = 5856.4, dt0 = 0.3 * 1e-3 / c;
     const int steps0 = 40;
-    const std::vector<real_t> ref =
-        vibrate(std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4")), dt0 / 256, steps0 * 256);
+    const std::vector<real_t> ref = vibrate(
+        std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4")), dt0 / 256, steps0 * 256);
     TimeSpec cdspec;
     const std::vector<Method> methods = {
         {"central-difference", 2, [] { return std::make_unique<CentralDifference>(); }},
-        {"arkode-cd", 2, [&] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::CentralDifference, cdspec); }},
-        {"arkode-erk RK4", 4, [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4")); }},
-        {"arkode-erk SSPRK3", 3, [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")); }},
+        {"arkode-cd", 2,
+         [&] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::CentralDifference, cdspec); }},
+        {"arkode-erk RK4", 4,
+         [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4")); }},
+        {"arkode-erk SSPRK3", 3,
+         [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")); }},
         {"arkode-erk BOGACKI_SHAMPINE_4_2_3", 3,
-         [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("ARKODE_BOGACKI_SHAMPINE_4_2_3")); }},
+         []
+         {
+             return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta,
+                                                    erk_spec("ARKODE_BOGACKI_SHAMPINE_4_2_3"));
+         }},
         {"arkode-erk ZONNEVELD_5_3_4", 4,
-         [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("ARKODE_ZONNEVELD_5_3_4")); }},
+         [] {
+             return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta,
+                                                    erk_spec("ARKODE_ZONNEVELD_5_3_4"));
+         }},
     };
     for (const Method& me : methods)
     {
         // fourth-order methods start at 3.3 dt0 (omega_max dt = 2, inside RK4's stability interval
         // 2.83) so that their finest error stays above the floor left by the reference solution
-        const real_t q = me.order == 4 ? observed_order(me, dt0 * 10.0 / 3.0, 12, ref) : observed_order(me, dt0, steps0, ref);
+        const real_t q =
+            me.order == 4 ? observed_order(me, dt0 * 10.0 / 3.0, 12, ref) : observed_order(me, dt0, steps0, ref);
         const real_t tol = me.order == 2 ? 0.1 : 0.15;
         EXPECT_NEAR(q, me.order, tol) << me.name;
     }
@@ -223,10 +233,11 @@ TEST(ArkodeConvergence, ClassicalRk4WithoutTheFsalWorkaroundLosesAnOrder)
     // fixed (6.7.0+) and the workaround can go.
     const real_t c = 5856.4, dt0 = 0.3 * 1e-3 / c;
     const int steps0 = 40;
-    const std::vector<real_t> ref =
-        vibrate(std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4")), dt0 / 256, steps0 * 256);
-    const Method bugged{"arkode-erk RK4 without workaround", 4,
-                        [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4"), true, false); }};
+    const std::vector<real_t> ref = vibrate(
+        std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4")), dt0 / 256, steps0 * 256);
+    const Method bugged{
+        "arkode-erk RK4 without workaround", 4,
+        [] { return std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("RK4"), true, false); }};
     const real_t q = observed_order(bugged, dt0, steps0, ref);
     // the reused last stage also carries the material trial state of the wrong point, so the loss
     // here is larger than the one order seen on a plain ODE
@@ -260,7 +271,7 @@ boundary_conditions:
 
 struct OscillatorRun
 {
-    real_t energy_ratio = 0.0; ///< E(N) / E(0), E = kinetic + internal
+    real_t energy_ratio = 0.0;  ///< E(N) / E(0), E = kinetic + internal
     real_t max_deviation = 0.0; ///< max |E / E0 - 1| over the run
 };
 
@@ -342,7 +353,8 @@ TEST(ArkodeEnergy, UndampedOscillatorOverAThousandPeriods)
         TimeSpec ts;
         ArkodeStepper ark(ArkodeStepper::Mode::CentralDifference, ts);
         const OscillatorRun ra = oscillate(ark, dt, steps);
-        std::printf("%-34s E_N/E_0 = %.6f, max |E/E0 - 1| = %.2e (bounded)\n", "arkode-cd", ra.energy_ratio, ra.max_deviation);
+        std::printf("%-34s E_N/E_0 = %.6f, max |E/E0 - 1| = %.2e (bounded)\n", "arkode-cd", ra.energy_ratio,
+                    ra.max_deviation);
         EXPECT_LT(ra.max_deviation, 0.1);
     }
     for (const char* table : {"RK4", "SSPRK3", "ARKODE_BOGACKI_SHAMPINE_4_2_3", "ARKODE_ZONNEVELD_5_3_4"})
@@ -395,9 +407,10 @@ boundary_conditions:
     const real_t dt0 = 0.05 * 1e-3 / 5856.4; // 0.05 of the element transit time
     const int steps0 = 400;                  // about 3.4 us
     const real_t ref = plastic_strain(std::make_unique<CentralDifference>(), dt0 / 16, steps0 * 16);
-    const real_t e1 = plastic_strain(std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")), dt0, steps0);
-    const real_t e2 =
-        plastic_strain(std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")), dt0 / 2, 2 * steps0);
+    const real_t e1 = plastic_strain(
+        std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")), dt0, steps0);
+    const real_t e2 = plastic_strain(
+        std::make_unique<ArkodeStepper>(ArkodeStepper::Mode::RungeKutta, erk_spec("SSPRK3")), dt0 / 2, 2 * steps0);
     std::printf("mean eps_p: reference (CD, dt/16) %.6e; SSPRK3 dt %.6e (rel. %.2e), dt/2 %.6e (rel. %.2e)\n", ref, e1,
                 std::abs(e1 / ref - 1), e2, std::abs(e2 / ref - 1));
     ASSERT_GT(ref, 1e-4); // the bar yielded
@@ -432,7 +445,8 @@ TEST(ArkodeCentralDifference, ReinitializingMidRunContinuesTheSameTrajectory)
         d2 += (m1.nodes.u[i] - m2.nodes.u[i]) * (m1.nodes.u[i] - m2.nodes.u[i]);
         s2 += m1.nodes.u[i] * m1.nodes.u[i];
     }
-    std::printf("re-initialized at step 300: ||u - u_uninterrupted|| / ||u|| = %.2e after 600 steps\n", std::sqrt(d2 / s2));
+    std::printf("re-initialized at step 300: ||u - u_uninterrupted|| / ||u|| = %.2e after 600 steps\n",
+                std::sqrt(d2 / s2));
     EXPECT_LT(std::sqrt(d2 / s2), 1e-13);
 }
 

@@ -8,11 +8,11 @@
 #include <cstdio>
 #include <random>
 
+#include "../support.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/central_difference.hpp"
-#include "../support.hpp"
 
 using namespace rkfem;
 
@@ -235,9 +235,9 @@ TEST(ContactChannel, ClosesTheLedgerThroughAnImpact)
         // on RK particles the wall sees the physical positions through the kinematic map, and
         // its forces reach the coefficients through the map's transpose
         const bool rk = std::string(st).find("rkpm") != std::string::npos;
-        Model m = test::model_from(falling_bar, rk ? std::vector<std::string>{"parts.bar.formulation=rkpm",
-                                                                                "parts.bar.hourglass=~"}
-                                                   : std::vector<std::string>{});
+        Model m = test::model_from(falling_bar,
+                                   rk ? std::vector<std::string>{"parts.bar.formulation=rkpm", "parts.bar.hourglass=~"}
+                                      : std::vector<std::string>{});
         const real_t k = 2e8; // N/m per node: stiffer than the bar's 4 nodes' share of E A / h
         m.contacts.push_back(std::make_unique<PenaltyWall>(0.0, k));
         const TimeSpec ts = m.deck().time;
@@ -264,7 +264,7 @@ TEST(ContactChannel, ClosesTheLedgerThroughAnImpact)
         EXPECT_GT(max_sliding, 1e-3 * e0); // the springs held energy during the contact
         EXPECT_LT(max_err, 1e-2);
         EXPECT_LT(std::abs(m.energy.contact), 1e-2 * e0); // given back after separation
-        EXPECT_LT(pz / (-mass * 10.0), -0.9);           // it bounced
+        EXPECT_LT(pz / (-mass * 10.0), -0.9);             // it bounced
     }
 }
 

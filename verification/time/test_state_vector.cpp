@@ -131,8 +131,7 @@ TEST(StateVector, OperationsEqualThePlainLoops)
     N_Vector terms[3] = {z, x, y};
     realtype c[3] = {1.0, 2.0, -1.0};
     ASSERT_EQ(N_VLinearCombination(3, c, terms, z), 0);
-    expect_z("linear combination",
-             [&](std::size_t i) { return 1.0 * Z0[i] + 2.0 * X[i] + -1.0 * Y[i]; });
+    expect_z("linear combination", [&](std::size_t i) { return 1.0 * Z0[i] + 2.0 * X[i] + -1.0 * Y[i]; });
     N_Vector zs[2] = {z, N_VClone(x)};
     N_Vector ys[2] = {y, x};
     realtype a[2] = {0.5, -2.0};
@@ -312,8 +311,7 @@ struct Misaligned
     }
 };
 
-void expect_close(const real_t* got, const std::function<real_t(index_t)>& want, index_t n,
-                  const char* what)
+void expect_close(const real_t* got, const std::function<real_t(index_t)>& want, index_t n, const char* what)
 {
     for (index_t i = 0; i < n; ++i)
         expect_close(got[i], want(i), i, what);
@@ -335,8 +333,7 @@ TEST(StateVector, StreamingStoresWriteEveryValueOfLargeArrays)
     expect_close(
         vf.p, [&](index_t i) { return fx(i) + 0.5 * h_prev * fy(i); }, n, "v(n)");
     expect_close(
-        du.p, [&](index_t i) { return fx(i) + 0.5 * h_prev * fy(i) + 0.5 * h * fy(i); }, n,
-        "v(n+1/2)");
+        du.p, [&](index_t i) { return fx(i) + 0.5 * h_prev * fy(i) + 0.5 * h * fy(i); }, n, "v(n+1/2)");
     EXPECT_EQ(vf.p[n], -7.0); // nothing written past the end
     EXPECT_EQ(du.p[-1], -7.0);
 
@@ -356,8 +353,7 @@ TEST(StateVector, StreamingStoresWriteEveryValueOfLargeArrays)
         expect_close(
             zh.u, [&](index_t i) { return fx(i) + h * du.p[i]; }, n, "u(n+1)");
         expect_close(
-            zh.v, [&](index_t i) { return fy(i) + h * ((du.p[i] - fy(i)) * (1.0 / h)); }, n,
-            "v(n+1/2)");
+            zh.v, [&](index_t i) { return fy(i) + h * ((du.p[i] - fy(i)) * (1.0 / h)); }, n, "v(n+1/2)");
         N_VDestroy(z);
         N_VDestroy(y);
         N_VDestroy(x);

@@ -64,7 +64,8 @@ ConvergenceSweep read_sweep_checked(const std::string& path)
     }
     catch (const YAML::Exception& e)
     {
-        throw DeckError({path + ":" + std::to_string(e.mark.line + 1), "(file)"}, e.msg, "expected a YAML sweep definition");
+        throw DeckError({path + ":" + std::to_string(e.mark.line + 1), "(file)"}, e.msg,
+                        "expected a YAML sweep definition");
     }
     if (!root.IsMap())
         throw DeckError({path, "(file)"}, root.IsNull() ? "is empty" : "is not a YAML mapping",
@@ -94,7 +95,8 @@ ConvergenceSweep read_sweep_checked(const std::string& path)
                             "expected elements per side, e.g. 8");
         }
         if (v < 2)
-            throw DeckError(at(path, res[i], "resolutions." + std::to_string(i)), "is below 2", "expected >= 2 elements per side");
+            throw DeckError(at(path, res[i], "resolutions." + std::to_string(i)), "is below 2",
+                            "expected >= 2 elements per side");
         if (!s.resolutions.empty() && v <= s.resolutions.back())
             throw DeckError(at(path, res[i], "resolutions." + std::to_string(i)),
                             std::to_string(v) + " does not refine " + std::to_string(s.resolutions.back()),
@@ -111,20 +113,24 @@ ConvergenceSweep read_sweep_checked(const std::string& path)
         for (auto it = c.begin(); it != c.end(); ++it)
         {
             const std::string k = it->first.as<std::string>();
-            static const std::vector<std::string> keys = {"formulation", "scheme", "stabilization", "normalized_support",
-                                                          "support", "kernel", "order", "solver", "boundary"};
+            static const std::vector<std::string> keys = {
+                "formulation", "scheme", "stabilization", "normalized_support", "support", "kernel",
+                "order",       "solver", "boundary"};
             if (std::find(keys.begin(), keys.end(), k) == keys.end())
                 throw DeckError(at(path, it->first, p + "." + k), "unknown key",
-                                "expected formulation, scheme, stabilization, normalized_support, support, kernel, order, solver, boundary");
+                                "expected formulation, scheme, stabilization, normalized_support, support, kernel, "
+                                "order, solver, boundary");
         }
         MmsCase mc;
-        mc.formulation = text(path, c, "formulation", p, {"rkpm", "fem-nodal"}, "rkpm") == "rkpm" ? Formulation::Rkpm
-                                                                                                : Formulation::FemNodal;
+        mc.formulation = text(path, c, "formulation", p, {"rkpm", "fem-nodal"}, "rkpm") == "rkpm"
+                             ? Formulation::Rkpm
+                             : Formulation::FemNodal;
         mc.scheme = text(path, c, "scheme", p, {"scni", "sd-scni", "dni"}, "scni");
         if (mc.formulation == Formulation::FemNodal && mc.scheme == "dni")
-            throw DeckError(at(path, c["scheme"], p + ".scheme"),
-                            "direct nodal integration of trilinear FE functions is undefined (their gradient jumps at nodes)",
-                            "expected scheme scni or sd-scni with formulation fem-nodal");
+            throw DeckError(
+                at(path, c["scheme"], p + ".scheme"),
+                "direct nodal integration of trilinear FE functions is undefined (their gradient jumps at nodes)",
+                "expected scheme scni or sd-scni with formulation fem-nodal");
         mc.stabilization = number(path, c, "stabilization", p, 0.0);
         if (!(mc.stabilization >= 0))
             throw DeckError(at(path, c["stabilization"], p + ".stabilization"), "is negative",
@@ -137,8 +143,10 @@ ConvergenceSweep read_sweep_checked(const std::string& path)
         if (std::abs(a - std::round(a)) < 1e-6)
             throw DeckError(at(path, c["normalized_support"], p + ".normalized_support"), "is an integer",
                             "expected a non-integer a/h such as 1.51");
-        mc.rk.support = text(path, c, "support", p, {"box", "sphere"}, "box") == "box" ? SupportShape::Box : SupportShape::Sphere;
-        const std::string k = text(path, c, "kernel", p, {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
+        mc.rk.support =
+            text(path, c, "support", p, {"box", "sphere"}, "box") == "box" ? SupportShape::Box : SupportShape::Sphere;
+        const std::string k =
+            text(path, c, "kernel", p, {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
         mc.rk.kernel = k == "quintic-bspline" ? KernelType::QuinticBSpline
                        : k == "gaussian"      ? KernelType::Gaussian
                                               : KernelType::CubicBSpline;
@@ -150,9 +158,10 @@ ConvergenceSweep read_sweep_checked(const std::string& path)
         mc.solver = solver == "direct" ? MmsSolver::Direct : solver == "pcg" ? MmsSolver::Pcg : MmsSolver::Auto;
         for (std::size_t j = 0; j < s.cases.size(); ++j)
             if (s.cases[j].table_name() == mc.table_name())
-                throw DeckError(at(path, c, p), "the same case as cases." + std::to_string(j) + " (line " +
-                                                    std::to_string(cases[j].Mark().line + 1) + "); both would write table " +
-                                                    mc.table_name(),
+                throw DeckError(at(path, c, p),
+                                "the same case as cases." + std::to_string(j) + " (line " +
+                                    std::to_string(cases[j].Mark().line + 1) + "); both would write table " +
+                                    mc.table_name(),
                                 "expected cases that differ in formulation, scheme, stabilization, normalized_support, "
                                 "support, kernel, order, boundary or solver");
         s.cases.push_back(mc);
@@ -180,7 +189,8 @@ std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const s
     std::filesystem::create_directories(out_dir);
     std::vector<std::vector<MmsResult>> all;
     std::ofstream csv(out_dir + "/convergence.csv");
-    csv << "case,formulation,scheme,stabilization,normalized_support,n,h,dofs,l2,h1,l2_rate,h1_rate,seconds,pcg_iterations\n";
+    csv << "case,formulation,scheme,stabilization,normalized_support,n,h,dofs,l2,h1,l2_rate,h1_rate,seconds,pcg_"
+           "iterations\n";
     const hid_t f = H5Fcreate((out_dir + "/convergence.h5").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     RKFEM_REQUIRE(f >= 0, "cannot create " << out_dir << "/convergence.h5");
     for (const MmsCase& base : s.cases)
@@ -202,8 +212,8 @@ std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const s
             }
             if (!quiet)
             {
-                std::printf("%-24s h = 1/%-3d dofs %8d  L2 %.4e  H1 %.4e  rates %6.3f %6.3f  (%.1f s", base.label().c_str(),
-                            n, r.dofs, r.l2, r.h1, l2r, h1r, r.seconds);
+                std::printf("%-24s h = 1/%-3d dofs %8d  L2 %.4e  H1 %.4e  rates %6.3f %6.3f  (%.1f s",
+                            base.label().c_str(), n, r.dofs, r.l2, r.h1, l2r, h1r, r.seconds);
                 if (r.iterations > 0)
                     std::printf(", %d PCG iterations", r.iterations);
                 std::printf(")\n");
@@ -213,7 +223,8 @@ std::vector<std::vector<MmsResult>> run_sweep(const ConvergenceSweep& s, const s
                 << base.scheme << ',' << base.stabilization << ',' << base.rk.normalized_support << ',' << n << ','
                 << r.h << ',' << r.dofs << ',' << r.l2 << ',' << r.h1 << ',' << l2r << ',' << h1r << ',' << r.seconds
                 << ',' << r.iterations << '\n';
-            const real_t vals[8] = {static_cast<real_t>(n), r.h, static_cast<real_t>(r.dofs), r.l2, r.h1, l2r, h1r, r.seconds};
+            const real_t vals[8] = {
+                static_cast<real_t>(n), r.h, static_cast<real_t>(r.dofs), r.l2, r.h1, l2r, h1r, r.seconds};
             for (int k = 0; k < 8; ++k)
                 col[k].push_back(vals[k]);
         }

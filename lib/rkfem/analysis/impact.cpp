@@ -19,7 +19,10 @@ index_t part_index(const Model& m, const std::string& name)
     return -1;
 }
 
-Vec3 reference(const Model& m, index_t i) { return {m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]}; }
+Vec3 reference(const Model& m, index_t i)
+{
+    return {m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]};
+}
 
 /// A face as the sorted ids of its 4 nodes.
 using FaceKey = std::array<index_t, 4>;
@@ -62,7 +65,8 @@ ImpactAnalysis::ImpactAnalysis(const Model& model, const ImpactSpec& spec) : spe
     }
     if (surface_node_ < 0)
         throw DeckError({spec.loc.where, spec.loc.path + ".point"},
-                        "no node of part '" + spec.target + "' lies on the plane through the point normal to the direction",
+                        "no node of part '" + spec.target +
+                            "' lies on the plane through the point normal to the direction",
                         "expected the point of impact on the target's original surface");
 }
 
@@ -115,8 +119,8 @@ real_t ImpactAnalysis::actual_depth(const Model& model) const
             for (int j = 0; j < 4; ++j)
             {
                 k[j] = cells[c][f[j]];
-                on_surface = on_surface &&
-                             std::abs((reference(model, k[j]) - spec_.point).dot(spec_.direction)) <= tolerance_;
+                on_surface =
+                    on_surface && std::abs((reference(model, k[j]) - spec_.point).dot(spec_.direction)) <= tolerance_;
             }
             std::sort(k.begin(), k.end());
             faces[k].push_back(static_cast<index_t>(c));
@@ -249,8 +253,9 @@ ImpactAnalysis::Crater ImpactAnalysis::crater(const Model& model) const
     {
         if (!touched[c])
             continue;
-        const real_t v = c < static_cast<std::size_t>(blk.n_elements()) ? blk.volume0[c]
-                                                                          : gone.volume0[c - static_cast<std::size_t>(blk.n_elements())];
+        const real_t v = c < static_cast<std::size_t>(blk.n_elements())
+                             ? blk.volume0[c]
+                             : gone.volume0[c - static_cast<std::size_t>(blk.n_elements())];
         int hits = 0;
         for (int i = 0; i < 4; ++i)
             for (int j = 0; j < 4; ++j)

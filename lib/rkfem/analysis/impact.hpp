@@ -29,17 +29,17 @@ namespace rkfem
 {
 struct ImpactMeasures
 {
-    real_t apparent_depth = 0.0;     ///< [m]
-    real_t actual_depth = 0.0;       ///< [m]
-    real_t crater_depth = 0.0;       ///< interpolated damage at the threshold [m]
-    real_t crater_diameter = 0.0;    ///< at the original surface [m]
-    real_t crater_volume = 0.0;      ///< [m^3]
-    real_t residual_velocity = 0.0;  ///< projectile, along d [m/s] (0 without a projectile)
-    real_t projectile_mass = 0.0;    ///< [kg]
-    real_t target_momentum = 0.0;    ///< along d [kg m/s]
+    real_t apparent_depth = 0.0;           ///< [m]
+    real_t actual_depth = 0.0;             ///< [m]
+    real_t crater_depth = 0.0;             ///< interpolated damage at the threshold [m]
+    real_t crater_diameter = 0.0;          ///< at the original surface [m]
+    real_t crater_volume = 0.0;            ///< [m^3]
+    real_t residual_velocity = 0.0;        ///< projectile, along d [m/s] (0 without a projectile)
+    real_t projectile_mass = 0.0;          ///< [kg]
+    real_t target_momentum = 0.0;          ///< along d [kg m/s]
     real_t damaged_volume_half = 0.0;      ///< damage > 0.5 [m^3]
     real_t damaged_volume_threshold = 0.0; ///< damage >= threshold [m^3]
-    real_t eroded_mass = 0.0;        ///< target and projectile [kg]
+    real_t eroded_mass = 0.0;              ///< target and projectile [kg]
 };
 
 class ImpactAnalysis

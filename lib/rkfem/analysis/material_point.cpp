@@ -185,7 +185,8 @@ void write_material_point(const std::vector<MaterialPointRecord>& h, const std::
     std::ofstream o(out_dir + "/stress_strain.csv");
     RKFEM_REQUIRE(o, "cannot write " << out_dir << "/stress_strain.csv");
     o.precision(12);
-    o << "time,eps_xx,eps_yy,eps_zz,eps_xy,eps_yz,eps_zx,sig_xx,sig_yy,sig_zz,sig_xy,sig_yz,sig_zx,plastic_strain,failed,work\n";
+    o << "time,eps_xx,eps_yy,eps_zz,eps_xy,eps_yz,eps_zx,sig_xx,sig_yy,sig_zz,sig_xy,sig_yz,sig_zx,plastic_strain,"
+         "failed,work\n";
     for (const auto& r : h)
     {
         o << r.time;

@@ -14,7 +14,7 @@ struct TimoshenkoBeam
 {
     real_t E = 0.0, nu = 0.0, rho = 0.0;
     real_t width = 0.0, depth = 0.0, length = 0.0; ///< rectangular section width x depth
-    real_t shear_factor = 0.0; ///< kappa; 0: Cowper's 10 (1 + nu) / (12 + 11 nu)
+    real_t shear_factor = 0.0;                     ///< kappa; 0: Cowper's 10 (1 + nu) / (12 + 11 nu)
     int elements = 200;
 };
 

@@ -2,9 +2,9 @@
 #include "rkfem/config/deck_section.hpp"
 #include "rkfem/config/erk_table_names.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <algorithm>
 #include <fstream>
 #include <map>
 #include <set>
@@ -42,8 +42,7 @@ std::string printable(const std::string& s)
     return out;
 }
 
-std::string format_error(const SourceLocation& loc, const std::string& problem,
-                         const std::string& expected)
+std::string format_error(const SourceLocation& loc, const std::string& problem, const std::string& expected)
 {
     std::string msg = printable(loc.where) + ": " + (loc.path.empty() ? std::string("deck") : printable(loc.path)) +
                       ": " + printable(problem);
@@ -53,8 +52,7 @@ std::string format_error(const SourceLocation& loc, const std::string& problem,
 }
 } // namespace
 
-DeckError::DeckError(const SourceLocation& loc, const std::string& problem,
-                     const std::string& expected)
+DeckError::DeckError(const SourceLocation& loc, const std::string& problem, const std::string& expected)
     : std::runtime_error(format_error(loc, problem, expected)), location(loc)
 {
 }
@@ -130,11 +128,10 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
 Deck build(const YAML::Node& root, Context& ctx)
 {
     if (!root.IsMap())
-        throw DeckError({ctx.name, ""}, "is not a YAML mapping",
-                        "expected top-level keys title, time, parts, ...");
+        throw DeckError({ctx.name, ""}, "is not a YAML mapping", "expected top-level keys title, time, parts, ...");
     Section top(ctx, root, "",
-                {"title", "time", "output", "parts", "node_sets", "face_sets", "boundary_conditions",
-                 "loads", "probes", "sections", "contacts", "impact"});
+                {"title", "time", "output", "parts", "node_sets", "face_sets", "boundary_conditions", "loads", "probes",
+                 "sections", "contacts", "impact"});
     Deck deck;
     deck.path = ctx.name;
     deck.title = top.text("title", "");
@@ -171,8 +168,8 @@ Deck build(const YAML::Node& root, Context& ctx)
         std::vector<std::string> names;
         for (const auto& p : deck.parts)
             names.push_back(p.name);
-        throw DeckError({s.loc.where, std::string(key) + "." + s.name + ".part"},
-                        "unknown part '" + s.part + "'", "expected one of " + join(names));
+        throw DeckError({s.loc.where, std::string(key) + "." + s.name + ".part"}, "unknown part '" + s.part + "'",
+                        "expected one of " + join(names));
     };
     for (const auto& s : deck.node_sets)
         check_part(s, "node_sets");
@@ -194,9 +191,7 @@ Deck build(const YAML::Node& root, Context& ctx)
     list("contacts", read_contact, deck.contacts);
 
     auto set_exists = [&](const std::vector<SetSpec>& sets, const std::string& name)
-    {
-        return std::any_of(sets.begin(), sets.end(), [&](const SetSpec& s) { return s.name == name; });
-    };
+    { return std::any_of(sets.begin(), sets.end(), [&](const SetSpec& s) { return s.name == name; }); };
     auto names_of = [&](const std::vector<SetSpec>& sets)
     {
         std::vector<std::string> v;
@@ -208,8 +203,7 @@ Deck build(const YAML::Node& root, Context& ctx)
     {
         const auto& b = deck.boundary_conditions[i];
         if (!set_exists(deck.node_sets, b.node_set))
-            throw DeckError({b.loc.where, b.loc.path + ".node_set"},
-                            "unknown node set '" + b.node_set + "'",
+            throw DeckError({b.loc.where, b.loc.path + ".node_set"}, "unknown node set '" + b.node_set + "'",
                             "expected one of " + names_of(deck.node_sets));
     }
     for (const auto& l : deck.loads)
@@ -238,8 +232,7 @@ Deck build(const YAML::Node& root, Context& ctx)
                 for (const auto& f : deck.face_sets)
                     names.push_back(f.name);
                 throw DeckError({c.loc.where, c.loc.path + ".surfaces." + std::to_string(k)},
-                                "unknown surface '" + name + "'",
-                                "expected a part or face-set name: " + join(names));
+                                "unknown surface '" + name + "'", "expected a part or face-set name: " + join(names));
             }
         }
     }
@@ -360,8 +353,9 @@ YAML::Node load_document(const std::string& text, const std::string& name)
         {
         }
         if (counter.documents > 1)
-            throw DeckError({counter.second.is_null() ? name : name + ":" + std::to_string(counter.second.line + 1), ""},
-                            "holds more than one YAML document", "expected one document (remove the second after ---)");
+            throw DeckError(
+                {counter.second.is_null() ? name : name + ":" + std::to_string(counter.second.line + 1), ""},
+                "holds more than one YAML document", "expected one document (remove the second after ---)");
         doc = YAML::Load(text);
     }
     catch (const YAML::DeepRecursion& e)
@@ -373,15 +367,14 @@ YAML::Node load_document(const std::string& text, const std::string& name)
     }
     catch (const YAML::Exception& e)
     {
-        throw DeckError({name + ":" + std::to_string(e.mark.line + 1), ""},
-                        "YAML syntax error: " + e.msg, "expected a valid YAML document");
+        throw DeckError({name + ":" + std::to_string(e.mark.line + 1), ""}, "YAML syntax error: " + e.msg,
+                        "expected a valid YAML document");
     }
     return doc;
 }
 } // namespace
 
-Deck parse_deck(const std::string& text, const std::string& name,
-                const std::vector<std::string>& overrides)
+Deck parse_deck(const std::string& text, const std::string& name, const std::vector<std::string>& overrides)
 {
     Context ctx{name, {}};
     YAML::Node root = load_document(text, name);
@@ -394,8 +387,8 @@ Deck parse_deck(const std::string& text, const std::string& name,
     catch (const YAML::Exception& e)
     {
         // a key that is not a plain name (`? [a, b]`), or a node of an unexpected kind
-        throw DeckError({e.mark.is_null() ? name : name + ":" + std::to_string(e.mark.line + 1), "(deck)"},
-                        e.msg, "expected mappings whose keys are plain names");
+        throw DeckError({e.mark.is_null() ? name : name + ":" + std::to_string(e.mark.line + 1), "(deck)"}, e.msg,
+                        "expected mappings whose keys are plain names");
     }
 }
 
@@ -415,8 +408,8 @@ MaterialPointDeck read_material_point_deck(const std::string& path)
     top.require("path", "a mapping with type, strain, rate, steps");
     Section p(ctx, top.node("path"), "path", {"type", "strain", "rate", "confinement", "angle", "length", "steps"});
     MaterialPathSpec& lp = d.load_path;
-    lp.type = p.choice("type", {"uniaxial-stress", "uniaxial-strain", "hydrostatic", "pure-shear", "triaxial", "rotation"},
-                       "");
+    lp.type = p.choice("type",
+                       {"uniaxial-stress", "uniaxial-strain", "hydrostatic", "pure-shear", "triaxial", "rotation"}, "");
     lp.strain = p.quantity("strain", dim::none);
     if (lp.strain == 0.0)
         p.fail("strain", "is zero", "expected a nonzero final strain (negative for compression)");
@@ -448,7 +441,8 @@ std::string read_deck_text(const std::string& path, const std::string& expected)
         throw DeckError({path, ""}, "is not a regular file", "expected " + expected);
     const auto size = std::filesystem::file_size(path, ec);
     if (!ec && size > (64u << 20))
-        throw DeckError({path, ""}, "is " + std::to_string(size >> 20) + " MB", "expected " + expected + " under 64 MB");
+        throw DeckError({path, ""}, "is " + std::to_string(size >> 20) + " MB",
+                        "expected " + expected + " under 64 MB");
     std::ifstream in(path);
     if (!in)
         throw DeckError({path, ""}, "cannot be opened", "expected " + expected);

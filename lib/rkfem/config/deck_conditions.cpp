@@ -8,8 +8,7 @@
 
 namespace rkfem::deck_detail
 {
-TimeFunction read_time_function(const Section& parent, const YAML::Node& n, const std::string& p,
-                                Dimension d)
+TimeFunction read_time_function(const Section& parent, const YAML::Node& n, const std::string& p, Dimension d)
 {
     if (n.IsScalar())
         return TimeFunction::constant(parent.quantity_of(n, p, d));
@@ -69,8 +68,8 @@ int component_index(const std::string& c)
     return -1;
 }
 
-void read_components(const Section& s, const std::string& key, Dimension d,
-                     std::array<bool, 3>& active, std::array<TimeFunction, 3>& value)
+void read_components(const Section& s, const std::string& key, Dimension d, std::array<bool, 3>& active,
+                     std::array<TimeFunction, 3>& value)
 {
     Section c(s.ctx(), s.node(key), s.path(key), {"x", "y", "z"});
     bool any = false;
@@ -194,8 +193,7 @@ BoundarySpec read_boundary(const Context& ctx, const YAML::Node& n, const std::s
         {
             const int i = component_index(c);
             if (i < 0)
-                s.fail("fixed", "'" + c + "' is not a component",
-                       "expected all or a list of x, y, z");
+                s.fail("fixed", "'" + c + "' is not a component", "expected all or a list of x, y, z");
             b.active[i] = true;
             b.value[i] = TimeFunction::constant(0.0);
         }
@@ -251,15 +249,14 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
         throw DeckError({ctx.name, "time"}, "missing required key",
                         "expected a mapping with at least end: (e.g. end: 26 us)");
     Section s(ctx, root["time"], "time",
-              {"end", "output_interval", "history_interval", "dt_scale", "dt_max", "max_steps",
-               "stepper", "erk_table", "energy_error_limit", "dt_min_fraction", "mass_damping"});
+              {"end", "output_interval", "history_interval", "dt_scale", "dt_max", "max_steps", "stepper", "erk_table",
+               "energy_error_limit", "dt_min_fraction", "mass_damping"});
     TimeSpec t;
     t.end = s.positive("end", dim::time);
     t.output_interval = s.quantity("output_interval", dim::time, 0.0);
     t.history_interval = s.quantity("history_interval", dim::time, 0.0);
     if (t.output_interval < 0 || t.history_interval < 0)
-        s.fail(t.output_interval < 0 ? "output_interval" : "history_interval", "is negative",
-               "expected a time >= 0");
+        s.fail(t.output_interval < 0 ? "output_interval" : "history_interval", "is negative", "expected a time >= 0");
     t.dt_scale = s.quantity("dt_scale", dim::none, 0.9);
     if (!(t.dt_scale > 0 && t.dt_scale <= 1.0))
         s.fail("dt_scale", "is out of range", "expected 0 < dt_scale <= 1");

@@ -13,7 +13,8 @@ namespace
 /// double-quoted, with backslash, quote and control characters escaped.
 std::string scalar(const std::string& s, bool quoted = false)
 {
-    bool plain = !quoted && !s.empty() && (std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_' || s[0] == '/');
+    bool plain =
+        !quoted && !s.empty() && (std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_' || s[0] == '/');
     for (const char c : s)
         plain = plain && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '-' || c == '/');
     static const char* const reserved[] = {"true", "false", "yes", "no", "on", "off", "null", "y", "n"};
@@ -62,8 +63,8 @@ std::string fn(const TimeFunction& f)
         os << f.value * f.scale;
         break;
     case TimeFunction::Kind::Triangular:
-        os << "{triangular: {peak: " << f.peak << ", duration: " << f.duration
-           << ", start: " << f.start << "}, scale: " << f.scale << "}";
+        os << "{triangular: {peak: " << f.peak << ", duration: " << f.duration << ", start: " << f.start
+           << "}, scale: " << f.scale << "}";
         break;
     case TimeFunction::Kind::Table:
         os << "{curve: [";
@@ -134,8 +135,7 @@ void sets(std::ostringstream& os, const char* key, const std::vector<SetSpec>& v
     }
 }
 
-void components(std::ostringstream& os, const std::array<bool, 3>& active,
-                const std::array<TimeFunction, 3>& f)
+void components(std::ostringstream& os, const std::array<bool, 3>& active, const std::array<TimeFunction, 3>& f)
 {
     os << "{";
     bool first = true;
@@ -157,8 +157,7 @@ std::string to_yaml(const Deck& d)
     os << "title: " << scalar(d.title, true) << "\n";
     os << "time: {end: " << d.time.end << ", output_interval: " << d.time.output_interval
        << ", history_interval: " << d.time.history_interval << ", dt_scale: " << d.time.dt_scale
-       << ", dt_max: " << d.time.dt_max << ", max_steps: " << d.time.max_steps
-       << ", stepper: "
+       << ", dt_max: " << d.time.dt_max << ", max_steps: " << d.time.max_steps << ", stepper: "
        << (d.time.stepper == StepperKind::ArkodeCd    ? "arkode-cd"
            : d.time.stepper == StepperKind::ArkodeErk ? "arkode-erk"
                                                       : "central-difference")
@@ -180,23 +179,21 @@ std::string to_yaml(const Deck& d)
         case GeneratorSpec::Type::Box:
             os << "type: box, origin: " << vec(g.origin) << ", size: " << vec(g.size);
             if (g.divisions[0] > 0)
-                os << ", divisions: [" << g.divisions[0] << ", " << g.divisions[1] << ", "
-                   << g.divisions[2] << "]";
+                os << ", divisions: [" << g.divisions[0] << ", " << g.divisions[1] << ", " << g.divisions[2] << "]";
             else
                 os << ", element_size: " << g.element_size;
             break;
         case GeneratorSpec::Type::Cylinder:
-            os << "type: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius
-               << ", height: " << g.height << ", element_size: " << g.element_size;
+            os << "type: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius << ", height: " << g.height
+               << ", element_size: " << g.element_size;
             if (g.inner_radius > 0)
                 os << ", inner_radius: " << g.inner_radius;
             else
                 os << ", core: " << g.core;
             break;
         case GeneratorSpec::Type::Projectile:
-            os << "type: projectile, origin: " << vec(g.origin) << ", radius: " << g.radius
-               << ", length: " << g.height << ", element_size: " << g.element_size
-               << ", direction: " << (g.direction < 0 ? "-z" : "+z");
+            os << "type: projectile, origin: " << vec(g.origin) << ", radius: " << g.radius << ", length: " << g.height
+               << ", element_size: " << g.element_size << ", direction: " << (g.direction < 0 ? "-z" : "+z");
             break;
         case GeneratorSpec::Type::Cloud:
             if (g.body == GeneratorSpec::Body::Box)
@@ -221,15 +218,16 @@ std::string to_yaml(const Deck& d)
             break;
         }
         os << "}\n";
-        os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho
-           << ", E: " << p.material.E << ", nu: " << p.material.nu;
+        os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho << ", E: " << p.material.E
+           << ", nu: " << p.material.nu;
         if (p.material.model == "j2")
         {
             if (!p.material.curve.empty())
             {
                 os << ", curve: [";
                 for (std::size_t i = 0; i < p.material.curve.size(); ++i)
-                    os << (i ? ", " : "") << "[" << p.material.curve[i].first << ", " << p.material.curve[i].second << "]";
+                    os << (i ? ", " : "") << "[" << p.material.curve[i].first << ", " << p.material.curve[i].second
+                       << "]";
                 os << "]";
             }
             else
@@ -280,7 +278,8 @@ std::string to_yaml(const Deck& d)
             {
                 os << ", eta: [";
                 for (std::size_t i = 0; i < p.material.kcc_eta.size(); ++i)
-                    os << (i ? ", " : "") << "[" << p.material.kcc_eta[i].first << ", " << p.material.kcc_eta[i].second << "]";
+                    os << (i ? ", " : "") << "[" << p.material.kcc_eta[i].first << ", " << p.material.kcc_eta[i].second
+                       << "]";
                 os << "]";
             }
             if (!p.material.kcc_eos_strain.empty())
@@ -394,8 +393,7 @@ std::string to_yaml(const Deck& d)
                 os << ", total: " << (l.total ? "true" : "false") << "}\n";
             }
             else
-                os << "  - {type: pressure, face_set: " << scalar(l.set) << ", pressure: " << fn(l.pressure)
-                   << "}\n";
+                os << "  - {type: pressure, face_set: " << scalar(l.set) << ", pressure: " << fn(l.pressure) << "}\n";
         }
     }
     if (!d.contacts.empty())

@@ -11,8 +11,7 @@ std::size_t edit_distance(std::string_view a, std::string_view b)
     {
         cur[0] = i;
         for (std::size_t j = 1; j <= b.size(); ++j)
-            cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1,
-                               prev[j - 1] + (a[i - 1] == b[j - 1] ? 0u : 1u)});
+            cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0u : 1u)});
         std::swap(prev, cur);
     }
     return prev[b.size()];

@@ -6,8 +6,8 @@
 /// materials; deck_conditions.cpp: selectors and sets, conditions, loads, time; deck.cpp: the
 /// whole deck, overrides).
 #include <algorithm>
-#include <cmath>
 #include <array>
+#include <cmath>
 #include <map>
 #include <string>
 #include <string_view>
@@ -58,9 +58,9 @@ inline void reject_repeated_keys(const Context& ctx, const YAML::Node& map, cons
         {
             const YAML::Mark first = it->second.Mark();
             throw DeckError(locate(ctx, kv.first, child_path(path, key)), "key '" + key + "' given twice",
-                            "each key once" + (first.is_null() ? std::string()
-                                                               : " (first given on line " +
-                                                                     std::to_string(first.line + 1) + ")"));
+                            "each key once" + (first.is_null()
+                                                   ? std::string()
+                                                   : " (first given on line " + std::to_string(first.line + 1) + ")"));
         }
     }
 }
@@ -70,13 +70,11 @@ inline void reject_repeated_keys(const Context& ctx, const YAML::Node& map, cons
 class Section
 {
   public:
-    Section(const Context& ctx, const YAML::Node& node, std::string path,
-            std::vector<std::string> allowed)
+    Section(const Context& ctx, const YAML::Node& node, std::string path, std::vector<std::string> allowed)
         : ctx_(ctx), node_(node), path_(std::move(path)), allowed_(std::move(allowed))
     {
         if (!node_.IsMap())
-            throw DeckError(locate(ctx_, node_, path_),
-                            node_.IsNull() ? "is empty" : "is not a mapping",
+            throw DeckError(locate(ctx_, node_, path_), node_.IsNull() ? "is empty" : "is not a mapping",
                             "expected keys: " + join(allowed_));
         reject_repeated_keys(ctx_, node_, path_);
         for (const auto& kv : node_)
@@ -98,8 +96,7 @@ class Section
             const std::string cp = child_path(path_, key);
             const bool close = best_d <= std::max<std::size_t>(2, key.size() / 3);
             throw DeckError(locate(ctx_, kv.first, cp), "unknown key '" + key + "'",
-                            close ? "did you mean '" + best + "'? (valid keys: " + join(allowed_) +
-                                        ")"
+                            close ? "did you mean '" + best + "'? (valid keys: " + join(allowed_) + ")"
                                   : "valid keys: " + join(allowed_));
         }
     }
@@ -116,8 +113,7 @@ class Section
     }
     const Context& ctx() const { return ctx_; }
 
-    [[noreturn]] void fail(const std::string& key, const std::string& problem,
-                           const std::string& expected) const
+    [[noreturn]] void fail(const std::string& key, const std::string& problem, const std::string& expected) const
     {
         throw DeckError(loc(key), problem, expected);
     }
@@ -125,8 +121,7 @@ class Section
     void require(const std::string& key, const std::string& expected) const
     {
         if (!has(key))
-            throw DeckError(SourceLocation{loc().where, path(key)}, "missing required key",
-                            "expected " + expected);
+            throw DeckError(SourceLocation{loc().where, path(key)}, "missing required key", "expected " + expected);
     }
 
     std::string scalar_text(const std::string& key, const std::string& expected) const
@@ -176,8 +171,7 @@ class Section
     {
         const real_t v = quantity(key, d);
         if (!(v > 0.0))
-            fail(key, "must be positive (got " + scalar_text(key, "") + ")",
-                 "expected " + describe(d) + " > 0");
+            fail(key, "must be positive (got " + scalar_text(key, "") + ")", "expected " + describe(d) + " > 0");
         return v;
     }
 

@@ -7,7 +7,10 @@ namespace rkfem
 {
 namespace
 {
-Vec3 point(const std::vector<real_t>& x, index_t i) { return {x[3 * i], x[3 * i + 1], x[3 * i + 2]}; }
+Vec3 point(const std::vector<real_t>& x, index_t i)
+{
+    return {x[3 * i], x[3 * i + 1], x[3 * i + 2]};
+}
 
 /// Volume of a hex by the divergence theorem over its six faces, each taken planar through its
 /// centroid with its averaged area vector: exact for hexes with planar faces.

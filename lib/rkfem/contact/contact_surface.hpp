@@ -32,11 +32,11 @@ struct ContactSurface
 /// The closest point of a bilinear quadrilateral segment to a point.
 struct SegmentPoint
 {
-    real_t xi = 0.0, eta = 0.0; ///< in [-1, 1]^2 (clamped)
+    real_t xi = 0.0, eta = 0.0;         ///< in [-1, 1]^2 (clamped)
     real_t N[4] = {0.0, 0.0, 0.0, 0.0}; ///< shape functions there
-    Vec3 x = Vec3::Zero();      ///< the point on the segment
-    Vec3 normal = Vec3::Zero(); ///< unit outward normal there
-    bool inside = false;        ///< the unclamped projection lies in the segment (with a tolerance)
+    Vec3 x = Vec3::Zero();              ///< the point on the segment
+    Vec3 normal = Vec3::Zero();         ///< unit outward normal there
+    bool inside = false;                ///< the unclamped projection lies in the segment (with a tolerance)
 };
 
 /// Projects p on the segment with corners c (Newton on the squared distance, clamped to the

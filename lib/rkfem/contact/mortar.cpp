@@ -17,7 +17,10 @@ struct P2
 };
 
 /// Twice the signed area of triangle (a, b, c): positive counter-clockwise.
-real_t cross2(const P2& a, const P2& b, const P2& c) { return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x); }
+real_t cross2(const P2& a, const P2& b, const P2& c)
+{
+    return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+}
 
 /// The part of polygon `in` (n vertices) left of the directed line a -> b (Sutherland-Hodgman,
 /// one edge); returns the number of vertices written to out (at most n + 1 for a convex polygon,
@@ -322,132 +325,134 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
     const ContactSurface& master = surfaces_[im];
     const ContactSurface& slave = surfaces_[is];
     const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < kNoLimit;
-    parallel_for("rkfem::contact_mortar", slave.n_segments(),
-                 [&](index_t s)
-                 {
-                     const std::size_t s4 = 4 * static_cast<std::size_t>(s);
-                     Vec3* fs = &pass.f_slave[s4];
-                     for (int a = 0; a < 4; ++a)
-                         fs[a] = Vec3::Zero();
-                     real_t* ks = &pass.k_slave[s4];
-                     for (int a = 0; a < 4; ++a)
-                         ks[a] = 0.0;
-                     const Quad& qs = slave.segments[s];
-                     const Vec3 xs[4] = {nodes.x(qs[0]), nodes.x(qs[1]), nodes.x(qs[2]), nodes.x(qs[3])};
-                     real_t mu_s[4];
-                     for (int a = 0; a < 4; ++a)
-                         mu_s[a] = nodes.mass(qs[a]) / node_area_[is][static_cast<std::size_t>(corner_slot_[is][s4 + a])];
-                     const Vec3 lo_s = xs[0].cwiseMin(xs[1]).cwiseMin(xs[2].cwiseMin(xs[3]));
-                     const Vec3 hi_s = xs[0].cwiseMax(xs[1]).cwiseMax(xs[2].cwiseMax(xs[3]));
-                     Vec3 vs[4];
-                     bool have_vs = false;
-                     OverlapPoint pts[max_overlap_points];
-                     SlaveFrame frame;
-                     if (!frame.set(xs))
-                     {
-                         for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
-                             for (int b = 0; b < 4; ++b)
-                             {
-                                 pass.f_master[4 * static_cast<std::size_t>(c) + b] = Vec3::Zero();
-                                 pass.k_master[4 * static_cast<std::size_t>(c) + b] = 0.0;
-                             }
-                         return; // a collapsed slave segment takes no load
-                     }
-                     const Vec3& n = frame.n;
-                     // the slave corners' greatest height over its centre plane (the gap bound below)
-                     real_t s_hi = -kNoLimit;
-                     for (int a = 0; a < 4; ++a)
-                         s_hi = std::max(s_hi, (xs[a] - frame.c).dot(n));
-                     for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
-                     {
-                         Vec3* fm = &pass.f_master[4 * static_cast<std::size_t>(c)];
-                         real_t* km = &pass.k_master[4 * static_cast<std::size_t>(c)];
-                         for (int b = 0; b < 4; ++b)
-                         {
-                             fm[b] = Vec3::Zero();
-                             km[b] = 0.0;
-                         }
-                         const index_t m = pass.candidates[c];
-                         const Quad& qm = master.segments[m];
-                         const Vec3 xm[4] = {nodes.x(qm[0]), nodes.x(qm[1]), nodes.x(qm[2]), nodes.x(qm[3])};
-                         const real_t limit = p_.max_penetration * std::min(slave.depth[s], master.depth[m]) + p_.thickness;
-                         const Vec3 lo_m = xm[0].cwiseMin(xm[1]).cwiseMin(xm[2].cwiseMin(xm[3]));
-                         const Vec3 hi_m = xm[0].cwiseMax(xm[1]).cwiseMax(xm[2].cwiseMax(xm[3]));
-                         if ((lo_s.array() > hi_m.array() + limit).any() || (hi_s.array() < lo_m.array() - limit).any())
-                             continue;
-                         if (!((xm[2] - xm[0]).cross(xm[3] - xm[1]).dot(n) < 0.0))
-                             continue; // not facing
-                         // the gap anywhere between them is at least the master corners' least
-                         // height over the slave's centre plane less the slave corners' greatest
-                         real_t m_lo = kNoLimit;
-                         for (int a = 0; a < 4; ++a)
-                             m_lo = std::min(m_lo, (xm[a] - frame.c).dot(n));
-                         if (m_lo - s_hi >= p_.thickness)
-                             continue; // apart everywhere
-                         const int np = overlap_points(frame, xm, pts);
-                         if (np == 0)
-                             continue;
-                         real_t mu_m[4];
-                         for (int b = 0; b < 4; ++b)
-                             mu_m[b] = nodes.mass(qm[b]) /
-                                       node_area_[im][static_cast<std::size_t>(corner_slot_[im][4 * static_cast<std::size_t>(m) + b])];
-                         Vec3 vm[4];
-                         bool have_vm = false;
-                         const real_t k_segment = 0.5 * p_.penalty_scale * master.bulk_modulus[m] / master.depth[m];
-                         // the corners' heights along n: the gap at a point is their interpolation
-                         real_t hs[4], hm[4];
-                         for (int a = 0; a < 4; ++a)
-                         {
-                             hs[a] = xs[a].dot(n);
-                             hm[a] = xm[a].dot(n);
-                         }
-                         for (int ip = 0; ip < np; ++ip)
-                         {
-                             const OverlapPoint& o = pts[ip];
-                             real_t gap = 0.0;
-                             for (int a = 0; a < 4; ++a)
-                                 gap += o.Nm[a] * hm[a] - o.Ns[a] * hs[a];
-                             const real_t pen = p_.thickness - gap;
-                             if (!(pen > 0.0) || pen > limit)
-                                 continue;
-                             real_t ms = 0.0, mm = 0.0;
-                             for (int a = 0; a < 4; ++a)
-                             {
-                                 ms += o.Ns[a] * mu_s[a];
-                                 mm += o.Nm[a] * mu_m[a];
-                             }
-                             const real_t mu_star = ms * mm / (ms + mm);
-                             real_t k_a = k_segment;
-                             if (soft)
-                                 k_a = std::max(k_a, 0.5 * p_.soft_scale * mu_star / (s_.dt0 * s_.dt0));
+    parallel_for(
+        "rkfem::contact_mortar", slave.n_segments(),
+        [&](index_t s)
+        {
+            const std::size_t s4 = 4 * static_cast<std::size_t>(s);
+            Vec3* fs = &pass.f_slave[s4];
+            for (int a = 0; a < 4; ++a)
+                fs[a] = Vec3::Zero();
+            real_t* ks = &pass.k_slave[s4];
+            for (int a = 0; a < 4; ++a)
+                ks[a] = 0.0;
+            const Quad& qs = slave.segments[s];
+            const Vec3 xs[4] = {nodes.x(qs[0]), nodes.x(qs[1]), nodes.x(qs[2]), nodes.x(qs[3])};
+            real_t mu_s[4];
+            for (int a = 0; a < 4; ++a)
+                mu_s[a] = nodes.mass(qs[a]) / node_area_[is][static_cast<std::size_t>(corner_slot_[is][s4 + a])];
+            const Vec3 lo_s = xs[0].cwiseMin(xs[1]).cwiseMin(xs[2].cwiseMin(xs[3]));
+            const Vec3 hi_s = xs[0].cwiseMax(xs[1]).cwiseMax(xs[2].cwiseMax(xs[3]));
+            Vec3 vs[4];
+            bool have_vs = false;
+            OverlapPoint pts[max_overlap_points];
+            SlaveFrame frame;
+            if (!frame.set(xs))
+            {
+                for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
+                    for (int b = 0; b < 4; ++b)
+                    {
+                        pass.f_master[4 * static_cast<std::size_t>(c) + b] = Vec3::Zero();
+                        pass.k_master[4 * static_cast<std::size_t>(c) + b] = 0.0;
+                    }
+                return; // a collapsed slave segment takes no load
+            }
+            const Vec3& n = frame.n;
+            // the slave corners' greatest height over its centre plane (the gap bound below)
+            real_t s_hi = -kNoLimit;
+            for (int a = 0; a < 4; ++a)
+                s_hi = std::max(s_hi, (xs[a] - frame.c).dot(n));
+            for (index_t c = pass.offsets[s]; c < pass.offsets[s + 1]; ++c)
+            {
+                Vec3* fm = &pass.f_master[4 * static_cast<std::size_t>(c)];
+                real_t* km = &pass.k_master[4 * static_cast<std::size_t>(c)];
+                for (int b = 0; b < 4; ++b)
+                {
+                    fm[b] = Vec3::Zero();
+                    km[b] = 0.0;
+                }
+                const index_t m = pass.candidates[c];
+                const Quad& qm = master.segments[m];
+                const Vec3 xm[4] = {nodes.x(qm[0]), nodes.x(qm[1]), nodes.x(qm[2]), nodes.x(qm[3])};
+                const real_t limit = p_.max_penetration * std::min(slave.depth[s], master.depth[m]) + p_.thickness;
+                const Vec3 lo_m = xm[0].cwiseMin(xm[1]).cwiseMin(xm[2].cwiseMin(xm[3]));
+                const Vec3 hi_m = xm[0].cwiseMax(xm[1]).cwiseMax(xm[2].cwiseMax(xm[3]));
+                if ((lo_s.array() > hi_m.array() + limit).any() || (hi_s.array() < lo_m.array() - limit).any())
+                    continue;
+                if (!((xm[2] - xm[0]).cross(xm[3] - xm[1]).dot(n) < 0.0))
+                    continue; // not facing
+                // the gap anywhere between them is at least the master corners' least
+                // height over the slave's centre plane less the slave corners' greatest
+                real_t m_lo = kNoLimit;
+                for (int a = 0; a < 4; ++a)
+                    m_lo = std::min(m_lo, (xm[a] - frame.c).dot(n));
+                if (m_lo - s_hi >= p_.thickness)
+                    continue; // apart everywhere
+                const int np = overlap_points(frame, xm, pts);
+                if (np == 0)
+                    continue;
+                real_t mu_m[4];
+                for (int b = 0; b < 4; ++b)
+                    mu_m[b] =
+                        nodes.mass(qm[b]) /
+                        node_area_[im][static_cast<std::size_t>(corner_slot_[im][4 * static_cast<std::size_t>(m) + b])];
+                Vec3 vm[4];
+                bool have_vm = false;
+                const real_t k_segment = 0.5 * p_.penalty_scale * master.bulk_modulus[m] / master.depth[m];
+                // the corners' heights along n: the gap at a point is their interpolation
+                real_t hs[4], hm[4];
+                for (int a = 0; a < 4; ++a)
+                {
+                    hs[a] = xs[a].dot(n);
+                    hm[a] = xm[a].dot(n);
+                }
+                for (int ip = 0; ip < np; ++ip)
+                {
+                    const OverlapPoint& o = pts[ip];
+                    real_t gap = 0.0;
+                    for (int a = 0; a < 4; ++a)
+                        gap += o.Nm[a] * hm[a] - o.Ns[a] * hs[a];
+                    const real_t pen = p_.thickness - gap;
+                    if (!(pen > 0.0) || pen > limit)
+                        continue;
+                    real_t ms = 0.0, mm = 0.0;
+                    for (int a = 0; a < 4; ++a)
+                    {
+                        ms += o.Ns[a] * mu_s[a];
+                        mm += o.Nm[a] * mu_m[a];
+                    }
+                    const real_t mu_star = ms * mm / (ms + mm);
+                    real_t k_a = k_segment;
+                    if (soft)
+                        k_a = std::max(k_a, 0.5 * p_.soft_scale * mu_star / (s_.dt0 * s_.dt0));
 
-                             const real_t pressure = k_a * pen;
-                             Vec3 f = (-o.w * pressure) * n; // on the slave
-                             if (p_.friction.active() && s_.dt0 > 0.0)
-                             {
-                                 if (!have_vs)
-                                     for (int a = 0; a < 4; ++a)
-                                         vs[a] = nodes.v(qs[a]);
-                                 if (!have_vm)
-                                     for (int b = 0; b < 4; ++b)
-                                         vm[b] = nodes.v(qm[b]);
-                                 have_vs = have_vm = true;
-                                 Vec3 v_rel = Vec3::Zero();
-                                 for (int a = 0; a < 4; ++a)
-                                     v_rel += o.Ns[a] * vs[a] - o.Nm[a] * vm[a];
-                                 const Vec3 v_t = v_rel - v_rel.dot(n) * n;
-                                 f += o.w * p_.friction.force(v_t, pressure, 0.5 * mu_star, s_.dt0);
-                             }
-                             for (int a = 0; a < 4; ++a)
-                             {
-                                 fs[a] += o.Ns[a] * f;
-                                 fm[a] -= o.Nm[a] * f;
-                                 ks[a] += o.Ns[a] * o.w * k_a;
-                                 km[a] += o.Nm[a] * o.w * k_a;
-                             }
-                         }
-                     }
-                 });
+                    const real_t pressure = k_a * pen;
+                    Vec3 f = (-o.w * pressure) * n; // on the slave
+                    if (p_.friction.active() && s_.dt0 > 0.0)
+                    {
+                        if (!have_vs)
+                            for (int a = 0; a < 4; ++a)
+                                vs[a] = nodes.v(qs[a]);
+                        if (!have_vm)
+                            for (int b = 0; b < 4; ++b)
+                                vm[b] = nodes.v(qm[b]);
+                        have_vs = have_vm = true;
+                        Vec3 v_rel = Vec3::Zero();
+                        for (int a = 0; a < 4; ++a)
+                            v_rel += o.Ns[a] * vs[a] - o.Nm[a] * vm[a];
+                        const Vec3 v_t = v_rel - v_rel.dot(n) * n;
+                        f += o.w * p_.friction.force(v_t, pressure, 0.5 * mu_star, s_.dt0);
+                    }
+                    for (int a = 0; a < 4; ++a)
+                    {
+                        fs[a] += o.Ns[a] * f;
+                        fm[a] -= o.Nm[a] * f;
+                        ks[a] += o.Ns[a] * o.w * k_a;
+                        km[a] += o.Nm[a] * o.w * k_a;
+                    }
+                }
+            }
+        });
 }
 
 void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel)

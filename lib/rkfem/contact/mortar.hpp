@@ -102,8 +102,8 @@ class MortarContact final : public SurfaceContact
     ContactParameters p_;
     std::vector<Pass> passes_;
     std::vector<index_t> all_nodes_;
-    std::vector<char> touched_;   ///< per model node: scratch for counting active nodes
-    std::vector<real_t> node_k_;  ///< per model node: scratch, contact stiffness this evaluation
+    std::vector<char> touched_;  ///< per model node: scratch for counting active nodes
+    std::vector<real_t> node_k_; ///< per model node: scratch, contact stiffness this evaluation
     real_t margin_ = 0.0, reach_ = 0.0;
     std::vector<real_t> lo_, hi_; ///< scratch: segment boxes
 };

@@ -216,8 +216,9 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                          if (ip < before_.size())
                          {
                              const auto& was = before_[ip];
-                             const auto it = std::lower_bound(was.begin(), was.end(), Before{i, 0.0, 0.0},
-                                                              [](const Before& x, const Before& y) { return x.node < y.node; });
+                             const auto it =
+                                 std::lower_bound(was.begin(), was.end(), Before{i, 0.0, 0.0},
+                                                  [](const Before& x, const Before& y) { return x.node < y.node; });
                              if (it != was.end() && it->node == i)
                              {
                                  last = it->penetration;
@@ -256,8 +257,7 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                      real_t area = 0.0;
                      for (index_t j = node_segment_offsets_[ss][k]; j < node_segment_offsets_[ss][k + 1]; ++j)
                          area += 0.25 * std::max(0.0, -segment_area_[ss][node_segments_[ss][j]].dot(at.normal));
-                     real_t k_pen =
-                         p_.penalty_scale * master.bulk_modulus[h.segment] * area / master.depth[h.segment];
+                     real_t k_pen = p_.penalty_scale * master.bulk_modulus[h.segment] * area / master.depth[h.segment];
                      if (soft)
                          k_pen = std::max(k_pen, p_.soft_scale * m_star / (s_.dt0 * s_.dt0));
                      const real_t fn = k_pen * best;

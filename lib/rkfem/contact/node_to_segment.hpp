@@ -45,11 +45,11 @@ namespace rkfem
 {
 struct ContactParameters
 {
-    bool soft = true;               ///< stiffness max(segment, soft); false: segment only
-    real_t penalty_scale = 0.1;     ///< SLSFAC
-    real_t soft_scale = 0.1;        ///< SOFSCL
-    real_t thickness = 0.0;         ///< contact starts at this gap [m]
-    real_t max_penetration = 0.5;   ///< of the element depth behind a segment; deeper is released
+    bool soft = true;             ///< stiffness max(segment, soft); false: segment only
+    real_t penalty_scale = 0.1;   ///< SLSFAC
+    real_t soft_scale = 0.1;      ///< SOFSCL
+    real_t thickness = 0.0;       ///< contact starts at this gap [m]
+    real_t max_penetration = 0.5; ///< of the element depth behind a segment; deeper is released
     Friction friction;
 };
 
@@ -95,7 +95,7 @@ class NodeToSegmentContact final : public SurfaceContact
     std::vector<index_t> all_nodes_; ///< the surfaces' nodes, ascending
     real_t margin_ = 0.0;            ///< motion allowed between searches (both sides together)
     real_t reach_ = 0.0;             ///< inflation of segment boxes: margin + deepest release depth + thickness
-    bool fresh_ = true; ///< the next evaluation is the first on these surfaces
+    bool fresh_ = true;              ///< the next evaluation is the first on these surfaces
     /// per pass: the slave nodes in contact at the last evaluation before new surfaces, with their
     /// penetration (sorted by node)
     struct Before

@@ -15,7 +15,7 @@ struct SurfaceContactState
 {
     std::vector<real_t> x_search; ///< the surface nodes' positions at the last search (3 each)
     real_t dt0 = 0.0;             ///< the first critical step the contact saw
-    real_t dt_bound = kNoLimit;      ///< the contact's bound on the step (kNoLimit: none)
+    real_t dt_bound = kNoLimit;   ///< the contact's bound on the step (kNoLimit: none)
     Vec3 resultant = Vec3::Zero();
     index_t active = 0, searches = 0, initial_penetrations = 0;
     bool searched = false, started = false;

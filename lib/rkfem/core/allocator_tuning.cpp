@@ -26,7 +26,10 @@ namespace rkfem
 #if defined(RKFEM_TUNABLE_ALLOCATOR)
 namespace
 {
-bool contains(const char* text, const char* what) { return text != nullptr && std::strstr(text, what) != nullptr; }
+bool contains(const char* text, const char* what)
+{
+    return text != nullptr && std::strstr(text, what) != nullptr;
+}
 } // namespace
 #endif
 

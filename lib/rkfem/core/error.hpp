@@ -2,8 +2,8 @@
 /// @file error.hpp
 /// Two tiers of checks: RKFEM_REQUIRE (always on; user-facing; throws rkfem::Error with the
 /// message streamed from the offending values) and RKFEM_ASSERT (debug-only internal invariant).
-#include <sstream>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -27,31 +27,31 @@ class InstabilityError : public Error
 };
 } // namespace rkfem
 
-#define RKFEM_REQUIRE(cond, msg)                                                                   \
-    do                                                                                             \
-    {                                                                                              \
-        if (!(cond))                                                                               \
-        {                                                                                          \
-            std::ostringstream rkfem_oss_;                                                         \
-            rkfem_oss_ << msg;                                                                     \
-            throw ::rkfem::Error(rkfem_oss_.str());                                                \
-        }                                                                                          \
+#define RKFEM_REQUIRE(cond, msg)                                                                                       \
+    do                                                                                                                 \
+    {                                                                                                                  \
+        if (!(cond))                                                                                                   \
+        {                                                                                                              \
+            std::ostringstream rkfem_oss_;                                                                             \
+            rkfem_oss_ << msg;                                                                                         \
+            throw ::rkfem::Error(rkfem_oss_.str());                                                                    \
+        }                                                                                                              \
     } while (false)
 
 #ifndef NDEBUG
-#define RKFEM_ASSERT(cond, msg)                                                                    \
-    do                                                                                             \
-    {                                                                                              \
-        if (!(cond))                                                                               \
-        {                                                                                          \
-            std::ostringstream rkfem_oss_;                                                         \
-            rkfem_oss_ << __FILE__ << ":" << __LINE__ << ": assertion '" #cond "' failed: " << msg; \
-            throw ::rkfem::Error(rkfem_oss_.str());                                                \
-        }                                                                                          \
+#define RKFEM_ASSERT(cond, msg)                                                                                        \
+    do                                                                                                                 \
+    {                                                                                                                  \
+        if (!(cond))                                                                                                   \
+        {                                                                                                              \
+            std::ostringstream rkfem_oss_;                                                                             \
+            rkfem_oss_ << __FILE__ << ":" << __LINE__ << ": assertion '" #cond "' failed: " << msg;                    \
+            throw ::rkfem::Error(rkfem_oss_.str());                                                                    \
+        }                                                                                                              \
     } while (false)
 #else
-#define RKFEM_ASSERT(cond, msg)                                                                    \
-    do                                                                                             \
-    {                                                                                              \
+#define RKFEM_ASSERT(cond, msg)                                                                                        \
+    do                                                                                                                 \
+    {                                                                                                                  \
     } while (false)
 #endif

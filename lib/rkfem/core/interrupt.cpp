@@ -23,7 +23,10 @@ void install_interrupt_handlers()
     std::signal(SIGTERM, on_signal);
 }
 
-int interrupt_signal() { return requested.load(std::memory_order_relaxed); }
+int interrupt_signal()
+{
+    return requested.load(std::memory_order_relaxed);
+}
 
 const char* interrupt_signal_name(int sig)
 {

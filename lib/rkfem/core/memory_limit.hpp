@@ -10,8 +10,8 @@ namespace rkfem
 {
 struct MemoryLimit
 {
-    double bytes = 0.0;      ///< usable; infinity when nothing could be read
-    const char* what = "";   ///< which bound it is ("physical memory", "ulimit -v", ...)
+    double bytes = 0.0;    ///< usable; infinity when nothing could be read
+    const char* what = ""; ///< which bound it is ("physical memory", "ulimit -v", ...)
 };
 MemoryLimit usable_memory();
 } // namespace rkfem

@@ -3,12 +3,12 @@
 /// One loop shim over OpenMP. Kernels never spell pragmas; every loop carries a label so that
 /// timers and profilers can name it.
 #include <algorithm>
-#include <limits>
 #include <array>
 #include <exception>
+#include <limits>
 #include <memory>
-#include <vector>
 #include <omp.h>
+#include <vector>
 
 #include "rkfem/core/types.hpp"
 
@@ -124,7 +124,13 @@ template <class F> inline real_t parallel_reduce_sum(const char* label, index_t 
     return parallel_reduce_sums<1>(label, n, [&](index_t i, std::array<real_t, 1>& out) { out[0] += f(i); })[0];
 }
 
-inline int max_threads() { return omp_get_max_threads(); }
+inline int max_threads()
+{
+    return omp_get_max_threads();
+}
 /// The team size of the parallel loops that follow (results do not depend on it).
-inline void set_threads(int n) { omp_set_num_threads(n); }
+inline void set_threads(int n)
+{
+    omp_set_num_threads(n);
+}
 } // namespace rkfem

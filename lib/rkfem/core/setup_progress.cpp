@@ -31,7 +31,10 @@ State& state()
     return s;
 }
 
-double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+double seconds(Clock::time_point a, Clock::time_point b)
+{
+    return std::chrono::duration<double>(b - a).count();
+}
 
 void report(State& s, Clock::time_point now, bool last)
 {

@@ -29,7 +29,8 @@ class StateArchive
     {
         const auto it = entries_.find(name);
         if (it == entries_.end())
-            throw Error("checkpoint has no entry '" + name + "' (written by another version of rkfem, or for another deck)");
+            throw Error("checkpoint has no entry '" + name +
+                        "' (written by another version of rkfem, or for another deck)");
         return it->second;
     }
     bool has(const std::string& name) const { return entries_.count(name) != 0; }
@@ -65,8 +66,8 @@ class StateArchive
         const std::size_t n = c.size();
         get(name, c);
         if (c.size() != n)
-            throw Error("checkpoint entry '" + name + "' holds " + std::to_string(c.size()) + " values where the model has " +
-                        std::to_string(n) + " (a checkpoint of another deck)");
+            throw Error("checkpoint entry '" + name + "' holds " + std::to_string(c.size()) +
+                        " values where the model has " + std::to_string(n) + " (a checkpoint of another deck)");
     }
     template <class T> void put_value(const std::string& name, const T& v)
     {
@@ -100,8 +101,8 @@ class StateArchive
         using T = std::remove_cv_t<std::remove_reference_t<decltype(*c.data())>>;
         const std::vector<unsigned char>& b = bytes(name);
         if (b.size() % sizeof(T) != 0)
-            throw Error("checkpoint entry '" + name + "' has " + std::to_string(b.size()) + " bytes, not a whole number of " +
-                        std::to_string(sizeof(T)) + "-byte values");
+            throw Error("checkpoint entry '" + name + "' has " + std::to_string(b.size()) +
+                        " bytes, not a whole number of " + std::to_string(sizeof(T)) + "-byte values");
         c.resize(b.size() / sizeof(T));
         if (!b.empty())
             std::memcpy(static_cast<void*>(c.data()), b.data(), b.size());

@@ -8,7 +8,7 @@
 
 namespace rkfem
 {
-using real_t = double;       ///< every floating-point quantity (SI units inside the library)
+using real_t = double;        ///< every floating-point quantity (SI units inside the library)
 using index_t = std::int32_t; ///< node, element and point indices
 
 /// "No bound": a step nothing limits, the start of a search for a minimum, the corners of an empty

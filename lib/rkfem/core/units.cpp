@@ -94,7 +94,10 @@ const UnitEntry* find_symbol(std::string_view s)
     return nullptr;
 }
 
-Dimension scaled(Dimension d, int p) { return {d.mass * p, d.length * p, d.time * p}; }
+Dimension scaled(Dimension d, int p)
+{
+    return {d.mass * p, d.length * p, d.time * p};
+}
 Dimension added(Dimension a, Dimension b)
 {
     return {a.mass + b.mass, a.length + b.length, a.time + b.time};
@@ -209,8 +212,7 @@ std::optional<Unit> parse_unit(std::string_view text, std::string* error)
         if (j == i)
         {
             if (error)
-                *error = "unexpected character '" + std::string(1, c) + "' in unit '" +
-                         std::string(text) + "'";
+                *error = "unexpected character '" + std::string(1, c) + "' in unit '" + std::string(text) + "'";
             return std::nullopt;
         }
         const std::string_view symbol = text.substr(i, j - i);
@@ -287,8 +289,7 @@ Quantity parse_quantity(std::string_view text, Dimension expected)
                     (known.empty() ? std::string() : " with a unit such as " + known));
     }
     if (!(unit->dimension == expected))
-        throw Error("unit '" + std::string(rest) + "' is " + describe(unit->dimension) +
-                    ", not " + describe(expected));
+        throw Error("unit '" + std::string(rest) + "' is " + describe(unit->dimension) + ", not " + describe(expected));
     q.value_si = number * unit->scale;
     q.has_unit = true;
     return q;

@@ -26,8 +26,8 @@ CellList::CellList(const std::vector<real_t>& x, real_t cell_size) : h_(cell_siz
     for (int d = 0; d < 3; ++d)
     {
         const real_t span = (hi[d] - lo_[d]) / h_;
-        RKFEM_REQUIRE(span < 1e6, "cell list: " << span << " bins along axis " << d
-                                                 << "; the cell size " << h_ << " m is too small for the cloud");
+        RKFEM_REQUIRE(span < 1e6, "cell list: " << span << " bins along axis " << d << "; the cell size " << h_
+                                                << " m is too small for the cloud");
         dims_[d] = std::max(1, static_cast<int>(std::floor(span)) + 1);
         n_bins *= static_cast<std::size_t>(dims_[d]);
     }

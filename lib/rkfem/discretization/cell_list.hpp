@@ -84,8 +84,7 @@ class CellList
         if (t < 0)
             return -1 - static_cast<int>(std::min<real_t>(-t, 1.0)); // -1 or -2: outside
         const real_t m = static_cast<real_t>(dims_[d]);
-        return t >= m ? dims_[d] + static_cast<int>(std::min<real_t>(t - m, 1.0))
-                      : static_cast<int>(t);
+        return t >= m ? dims_[d] + static_cast<int>(std::min<real_t>(t - m, 1.0)) : static_cast<int>(t);
     }
     /// The bin a point at v would be binned in (clamped into the grid, as the points are).
     int clamped_bin(real_t v, int d) const

@@ -35,7 +35,10 @@ void name_faces_by_normal(HexMesh& m, const std::vector<std::pair<std::string, V
     }
 }
 
-int divisions_for(real_t length, real_t h) { return std::max(1, static_cast<int>(std::lround(length / h))); }
+int divisions_for(real_t length, real_t h)
+{
+    return std::max(1, static_cast<int>(std::lround(length / h)));
+}
 
 /// Quadrilateral mesh of a disk of radius R: a core block (straight or bulged edges) and four
 /// blocks between the core and the circle. Returns points (n x 2) and CCW quads.
@@ -70,8 +73,8 @@ void disk_mesh(real_t R, real_t h, bool ogrid, std::vector<real_t>& pts, std::ve
         for (int j = 0; j < nj; ++j)
             for (int i = 0; i < ni; ++i)
             {
-                index_t q[4] = {base + j * (ni + 1) + i, base + j * (ni + 1) + i + 1,
-                                base + (j + 1) * (ni + 1) + i + 1, base + (j + 1) * (ni + 1) + i};
+                index_t q[4] = {base + j * (ni + 1) + i, base + j * (ni + 1) + i + 1, base + (j + 1) * (ni + 1) + i + 1,
+                                base + (j + 1) * (ni + 1) + i};
                 // orientation fixed later
                 quads.insert(quads.end(), q, q + 4);
             }
@@ -84,13 +87,12 @@ void disk_mesh(real_t R, real_t h, bool ogrid, std::vector<real_t>& pts, std::ve
                   const auto w = edge(2, 1.0 - v); // x = -a side, param reversed
                   const auto n = edge(1, 1.0 - u); // y = +a side
                   const auto s = edge(3, u);       // y = -a side
-                  const auto c00 = edge(3, 0.0), c10 = edge(3, 1.0), c11 = edge(1, 0.0),
-                             c01 = edge(1, 1.0);
+                  const auto c00 = edge(3, 0.0), c10 = edge(3, 1.0), c11 = edge(1, 0.0), c01 = edge(1, 1.0);
                   std::array<real_t, 2> p;
                   for (int d = 0; d < 2; ++d)
-                      p[d] = (1 - u) * w[d] + u * e[d] + (1 - v) * s[d] + v * n[d] -
-                             ((1 - u) * (1 - v) * c00[d] + u * (1 - v) * c10[d] +
-                              u * v * c11[d] + (1 - u) * v * c01[d]);
+                      p[d] =
+                          (1 - u) * w[d] + u * e[d] + (1 - v) * s[d] + v * n[d] -
+                          ((1 - u) * (1 - v) * c00[d] + u * (1 - v) * c10[d] + u * v * c11[d] + (1 - u) * v * c01[d]);
                   return p;
               });
     for (int side = 0; side < 4; ++side)
@@ -137,17 +139,19 @@ HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int,
         for (index_t j = 0; j < n[1]; ++j)
             for (index_t i = 0; i < n[0]; ++i)
             {
-                const index_t e[8] = {id(i, j, k),         id(i + 1, j, k),
-                                      id(i + 1, j + 1, k), id(i, j + 1, k),
-                                      id(i, j, k + 1),     id(i + 1, j, k + 1),
-                                      id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
+                const index_t e[8] = {
+                    id(i, j, k),     id(i + 1, j, k),     id(i + 1, j + 1, k),     id(i, j + 1, k),
+                    id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
                 m.conn.insert(m.conn.end(), e, e + 8);
             }
     m.faces = extract_boundary_faces(m.conn);
     name_faces_by_normal(m,
-                         {{"xmin", -Vec3::UnitX()}, {"xmax", Vec3::UnitX()},
-                          {"ymin", -Vec3::UnitY()}, {"ymax", Vec3::UnitY()},
-                          {"zmin", -Vec3::UnitZ()}, {"zmax", Vec3::UnitZ()}},
+                         {{"xmin", -Vec3::UnitX()},
+                          {"xmax", Vec3::UnitX()},
+                          {"ymin", -Vec3::UnitY()},
+                          {"ymax", Vec3::UnitY()},
+                          {"zmin", -Vec3::UnitZ()},
+                          {"zmax", Vec3::UnitZ()}},
                          "");
     m.named_faces["top"] = m.named_faces["zmax"];
     m.named_faces["bottom"] = m.named_faces["zmin"];
@@ -176,7 +180,8 @@ void sweep_order(real_t R, std::vector<real_t>& pts, std::vector<index_t>& quads
     {
         std::vector<index_t> order(key.size());
         std::iota(order.begin(), order.end(), index_t{0});
-        std::stable_sort(order.begin(), order.end(), [&](index_t a, index_t b)
+        std::stable_sort(order.begin(), order.end(),
+                         [&](index_t a, index_t b)
                          { return key[static_cast<std::size_t>(a)] < key[static_cast<std::size_t>(b)]; });
         return order;
     };
@@ -244,8 +249,7 @@ HexMesh cylinder_mesh(const Vec3& origin, real_t radius, real_t height, real_t h
     m.x.reserve(static_cast<std::size_t>(np) * (nz + 1) * 3);
     for (index_t i = 0; i < np; ++i)
         for (int k = 0; k <= nz; ++k)
-            m.x.insert(m.x.end(), {origin[0] + pts[2 * i], origin[1] + pts[2 * i + 1],
-                                   origin[2] + height * k / nz});
+            m.x.insert(m.x.end(), {origin[0] + pts[2 * i], origin[1] + pts[2 * i + 1], origin[2] + height * k / nz});
     const std::size_t nq = quads.size() / 4;
     for (std::size_t q = 0; q < nq; ++q)
         for (int k = 0; k < nz; ++k)
@@ -283,16 +287,17 @@ HexMesh generate_tube(const Vec3& origin, real_t R, real_t Ri, real_t height, re
             for (int i = 0; i <= nr; ++i)
             {
                 const real_t r = Ri + (R - Ri) * i / nr, a = 2 * M_PI * j / nt;
-                m.x.insert(m.x.end(), {origin[0] + r * std::cos(a), origin[1] + r * std::sin(a), origin[2] + height * k / nz});
+                m.x.insert(m.x.end(),
+                           {origin[0] + r * std::cos(a), origin[1] + r * std::sin(a), origin[2] + height * k / nz});
             }
     for (int k = 0; k < nz; ++k)
         for (int j = 0; j < nt; ++j)
             for (int i = 0; i < nr; ++i)
             {
                 // counter-clockwise in (r, theta) seen from +z: positive volume
-                const index_t e[8] = {id(i, j, k),         id(i + 1, j, k),     id(i + 1, j + 1, k),
-                                      id(i, j + 1, k),     id(i, j, k + 1),     id(i + 1, j, k + 1),
-                                      id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
+                const index_t e[8] = {
+                    id(i, j, k),     id(i + 1, j, k),     id(i + 1, j + 1, k),     id(i, j + 1, k),
+                    id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
                 m.conn.insert(m.conn.end(), e, e + 8);
             }
     m.faces = extract_boundary_faces(m.conn);

@@ -15,14 +15,12 @@ HexMesh generate_box(const Vec3& origin, const Vec3& size, const std::array<int,
 /// Numbering: the disk's nodes in a sweep (ascending x, then y), each node's column of heights
 /// consecutive (node (i, k) = (nz + 1) i + k, height fastest); elements the same way, the disk's
 /// quads by their nodes' numbers.
-HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t element_size,
-                          bool ogrid_core);
+HexMesh generate_cylinder(const Vec3& origin, real_t radius, real_t height, real_t element_size, bool ogrid_core);
 
 /// Tube along +z from `origin` (centre of the bottom face), radii inner < outer: a structured
 /// (r, theta, z) mesh of about element_size (theta divisions a multiple of 4, at least 8).
 /// Named faces: top, bottom, side (the outer surface), inner (the bore).
-HexMesh generate_tube(const Vec3& origin, real_t outer_radius, real_t inner_radius, real_t height,
-                      real_t element_size);
+HexMesh generate_tube(const Vec3& origin, real_t outer_radius, real_t inner_radius, real_t height, real_t element_size);
 
 /// The particles of a cloud part (`type: cloud`) as a mesh without elements. Box body (origin,
 /// size): a lattice of about `element_size` spacing, each coordinate jittered by a uniform

@@ -9,8 +9,8 @@ namespace rkfem
 namespace
 {
 /// Per local node: its neighbours along xi, eta, zeta and the sign of xi * eta * zeta there
-constexpr int kCornerEdges[8][4] = {{1, 3, 4, -1}, {0, 2, 5, 1}, {3, 1, 6, -1}, {2, 0, 7, 1},
-                                    {5, 7, 0, 1},  {4, 6, 1, -1}, {7, 5, 2, 1}, {6, 4, 3, -1}};
+constexpr int kCornerEdges[8][4] = {{1, 3, 4, -1}, {0, 2, 5, 1},  {3, 1, 6, -1}, {2, 0, 7, 1},
+                                    {5, 7, 0, 1},  {4, 6, 1, -1}, {7, 5, 2, 1},  {6, 4, 3, -1}};
 } // namespace
 
 HexCorner worst_corner(const HexMesh& m)
@@ -24,7 +24,8 @@ HexCorner worst_corner(const HexMesh& m)
             real_t length = 1.0;
             for (int k = 0; k < 3; ++k)
             {
-                edge[k] = m.node(m.conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(kCornerEdges[a][k])]) - xa;
+                edge[k] =
+                    m.node(m.conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(kCornerEdges[a][k])]) - xa;
                 length *= edge[k].norm();
             }
             // d x / d xi along an edge from a corner at xi = s runs against s: the product of

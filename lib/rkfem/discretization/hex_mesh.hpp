@@ -18,9 +18,9 @@ using Quad = std::array<index_t, 4>; ///< boundary face, outward normal by the r
 
 struct HexMesh
 {
-    std::vector<real_t> x;       ///< n_nodes x 3, node-major (x0 y0 z0 x1 y1 z1 ...)
-    std::vector<index_t> conn;   ///< n_elements x 8
-    std::vector<Quad> faces;     ///< boundary faces (each appears in exactly one element)
+    std::vector<real_t> x;                                   ///< n_nodes x 3, node-major (x0 y0 z0 x1 y1 z1 ...)
+    std::vector<index_t> conn;                               ///< n_elements x 8
+    std::vector<Quad> faces;                                 ///< boundary faces (each appears in exactly one element)
     std::map<std::string, std::vector<index_t>> named_faces; ///< name -> indices into `faces`
     /// Node groups of a cloud (no elements, no faces): xmin..zmax, top, bottom, side
     std::map<std::string, std::vector<index_t>> named_nodes;
@@ -32,7 +32,10 @@ struct HexMesh
     index_t n_elements() const { return static_cast<index_t>(conn.size() / 8); }
     Vec3 node(index_t i) const { return {x[3 * i], x[3 * i + 1], x[3 * i + 2]}; }
     /// How messages name element e and node i: the file's id, or the 0-based index (results.h5's order)
-    long long element_label(index_t e) const { return element_ids.empty() ? e : element_ids[static_cast<std::size_t>(e)]; }
+    long long element_label(index_t e) const
+    {
+        return element_ids.empty() ? e : element_ids[static_cast<std::size_t>(e)];
+    }
     long long node_label(index_t i) const { return node_ids.empty() ? i : node_ids[static_cast<std::size_t>(i)]; }
 };
 

@@ -100,7 +100,7 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
     std::ifstream in(g.mesh_file);
     if (!in)
         rd.fail("cannot be opened", "expected an LS-DYNA keyword file with *NODE and *ELEMENT_SOLID");
-    std::vector<real_t> x;                          // file order
+    std::vector<real_t> x; // file order
     std::vector<long long> node_ids;
     std::unordered_map<long long, index_t> node_of; // NID -> index into x / 3
     std::unordered_map<long long, int> node_line;
@@ -158,8 +158,9 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
             node_line[nid] = rd.line;
             node_ids.push_back(nid);
             for (int d = 0; d < 3; ++d)
-                x.push_back(g.mesh_unit *
-                            (static_cast<std::size_t>(d + 1) < f.size() ? rd.number(f[static_cast<std::size_t>(d + 1)], "coordinate") : 0.0));
+                x.push_back(g.mesh_unit * (static_cast<std::size_t>(d + 1) < f.size()
+                                               ? rd.number(f[static_cast<std::size_t>(d + 1)], "coordinate")
+                                               : 0.0));
         }
         else if (block == Block::Solid)
         {
@@ -175,8 +176,8 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
                                 std::to_string(it->second) + ")",
                             "expected each EID once in *ELEMENT_SOLID");
                 const long long pid = f.size() > 1 ? rd.integer(f[1], "PID") : 0;
-                const bool take = g.mesh_pids.empty() ||
-                                  std::find(g.mesh_pids.begin(), g.mesh_pids.end(), pid) != g.mesh_pids.end();
+                const bool take =
+                    g.mesh_pids.empty() || std::find(g.mesh_pids.begin(), g.mesh_pids.end(), pid) != g.mesh_pids.end();
                 std::size_t nonblank = 0;
                 for (std::size_t k = 2; k < f.size(); ++k)
                     nonblank += !f[k].empty();

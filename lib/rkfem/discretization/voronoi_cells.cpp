@@ -4,17 +4,17 @@
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Exact_rational.h>
 #include <CGAL/Polyhedron_3.h>
 #include <CGAL/QP_functions.h>
 #include <CGAL/QP_models.h>
-#include <CGAL/Exact_rational.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <algorithm>
 #include <array>
-#include <exception>
-#include <unordered_map>
 #include <cmath>
+#include <exception>
 #include <numeric>
+#include <unordered_map>
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/setup_progress.hpp"
@@ -33,7 +33,10 @@ using Delaunay = CGAL::Delaunay_triangulation_3<K, Tds>;
 using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 using Polyhedron = CGAL::Polyhedron_3<EK>;
 
-Vec3 vec(const EK::Point_3& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())}; }
+Vec3 vec(const EK::Point_3& p)
+{
+    return {CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())};
+}
 
 /// The half-space n . x + d <= 0 (n not normalized: a bisector's is the offset to the neighbour).
 struct Plane
@@ -160,15 +163,15 @@ Vec3 deepest_point(const std::vector<Plane>& bisectors, const std::vector<HalfSp
         add(h.normal, h.offset - h.normal.dot(xi));
     lp.set_c(3, -1.0); // maximize r
     const auto solution = CGAL::solve_linear_program(lp, CGAL::Exact_rational());
-    RKFEM_REQUIRE(solution.is_optimal(), "Voronoi cells: the cell of point " << i << " (" << xi.transpose()
-                                                                           << ") has no interior");
+    RKFEM_REQUIRE(solution.is_optimal(),
+                  "Voronoi cells: the cell of point " << i << " (" << xi.transpose() << ") has no interior");
     real_t v[4];
     int k = 0;
     for (auto it = solution.variable_values_begin(); it != solution.variable_values_end() && k < 4; ++it)
         v[k++] = CGAL::to_double(*it);
     const Vec3 p(v[0], v[1], v[2]);
     RKFEM_REQUIRE(v[3] > 0.0, "Voronoi cells: the cell of point " << i << " (" << xi.transpose()
-                                                                                   << ") is flat: no room inside the body");
+                                                                  << ") is flat: no room inside the body");
     return xi + p;
 }
 } // namespace
@@ -218,8 +221,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
     {
         const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
         for (const HalfSpace& h : body)
-            RKFEM_REQUIRE(h.normal.dot(p) <= h.offset + tol, "Voronoi cells: point " << i << " (" << p.transpose()
-                                                                                    << ") is not inside the body");
+            RKFEM_REQUIRE(h.normal.dot(p) <= h.offset + tol,
+                          "Voronoi cells: point " << i << " (" << p.transpose() << ") is not inside the body");
         pts.emplace_back(K::Point_3(p[0], p[1], p[2]), i);
     }
     const Delaunay dt(pts.begin(), pts.end());
@@ -379,7 +382,8 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         exact.clear();
                         for (const Plane& q : planes)
                             exact.emplace_back(q.n[0], q.n[1], q.n[2], q.d);
-                        CGAL::halfspace_intersection_3(exact.begin(), exact.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
+                        CGAL::halfspace_intersection_3(exact.begin(), exact.end(), P,
+                                                       EK::Point_3(xin[0], xin[1], xin[2]));
                     };
                     Polyhedron P;
                     add_body_planes(false);
@@ -422,8 +426,9 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                         cell.reset_box(box_lo, box_hi);
                         cut_order.resize(planes.size());
                         std::iota(cut_order.begin(), cut_order.end(), 0);
-                        std::stable_sort(cut_order.begin(), cut_order.begin() + static_cast<std::ptrdiff_t>(n_bisectors),
-                                         [&](int a, int b) { return planes[a].n.squaredNorm() < planes[b].n.squaredNorm(); });
+                        std::stable_sort(
+                            cut_order.begin(), cut_order.begin() + static_cast<std::ptrdiff_t>(n_bisectors),
+                            [&](int a, int b) { return planes[a].n.squaredNorm() < planes[b].n.squaredNorm(); });
                         try
                         {
                             for (const int q : cut_order)
@@ -468,9 +473,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
                     std::rotate(poly.begin(), std::min_element(poly.begin(), poly.end(), before), poly.end());
                 std::sort(polygons.begin(), polygons.end(),
                           [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b)
-                          {
-                              return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), before);
-                          });
+                          { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), before); });
                 // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
                 std::vector<Vec3> sorted_corners = corners;
                 std::sort(sorted_corners.begin(), sorted_corners.end(), before);

@@ -94,8 +94,8 @@ bool StencilSharer::add(const index_t* nodes, const real_t* g, index_t n)
 StencilTable StencilSharer::take()
 {
     RKFEM_REQUIRE(next_ == static_cast<index_t>(t_.point_stencil.size()) && stored_ <= budget_,
-                  "StencilSharer: " << next_ << " of " << t_.point_stencil.size() << " points offered, "
-                                    << stored_ << " entries stored for a budget of " << budget_);
+                  "StencilSharer: " << next_ << " of " << t_.point_stencil.size() << " points offered, " << stored_
+                                    << " entries stored for a budget of " << budget_);
     // the table lives as long as its block: the budget's spare room is returned
     t_.node_offset.shrink_to_fit();
     t_.grad.shrink_to_fit();
@@ -138,7 +138,7 @@ TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable&
     // triangle (the values the force pass reads); more asymmetry than that: no table.
     auto symmetric = [](const real_t* g0, const real_t* g1, const real_t* g2, real_t tol)
     { return std::abs(g0[1] - g1[0]) <= tol && std::abs(g0[2] - g2[0]) <= tol && std::abs(g1[2] - g2[1]) <= tol; };
-    auto add_triplet = [&](const StencilView (&v)[3], real_t relative) -> bool
+    auto add_triplet = [&](const StencilView(&v)[3], real_t relative) -> bool
     {
         real_t scale = 0.0;
         for (int i = 0; i < 3; ++i)
@@ -164,7 +164,8 @@ TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable&
         t.hess.reserve(2 * static_cast<std::size_t>(stab.n_entries()));
         for (index_t p = 0; p < np; ++p)
         {
-            const StencilView v[3] = {stencil_view(stab, 3 * p), stencil_view(stab, 3 * p + 1), stencil_view(stab, 3 * p + 2)};
+            const StencilView v[3] = {stencil_view(stab, 3 * p), stencil_view(stab, 3 * p + 1),
+                                      stencil_view(stab, 3 * p + 2)};
             if (!add_triplet(v, 0.0))
                 return TripletTable{};
             t.point_triplet[static_cast<std::size_t>(p)] = p;
@@ -179,7 +180,8 @@ TripletTable build_triplets(const IntegrationOperator& stab, const StencilTable&
     for (index_t p = 0; p < np; ++p)
     {
         const std::size_t s0 = 3 * static_cast<std::size_t>(p);
-        const std::array<index_t, 3> key = {shared.point_stencil[s0], shared.point_stencil[s0 + 1], shared.point_stencil[s0 + 2]};
+        const std::array<index_t, 3> key = {shared.point_stencil[s0], shared.point_stencil[s0 + 1],
+                                            shared.point_stencil[s0 + 2]};
         const std::uint64_t h =
             (static_cast<std::uint64_t>(key[0]) * 1000003u + static_cast<std::uint64_t>(key[1])) * 1000003u +
             static_cast<std::uint64_t>(key[2]);
@@ -212,8 +214,8 @@ TripletTable share_triplets(TripletTable t, const StencilSharing& opts)
     // in place: the kept stencils move down over the merged ones (a kept stencil's new place is
     // never past its old one, and each is compared before it moves)
     const index_t nt = t.n_triplets();
-    std::vector<index_t> kept(static_cast<std::size_t>(nt)); // per stencil: the stencil it becomes
-    std::vector<index_t> offsets{0};                         // of the kept stencils
+    std::vector<index_t> kept(static_cast<std::size_t>(nt));            // per stencil: the stencil it becomes
+    std::vector<index_t> offsets{0};                                    // of the kept stencils
     std::unordered_map<std::uint64_t, std::vector<index_t>> by_offsets; // hash -> kept stencils
     std::vector<real_t> scale;                                          // per kept stencil: its largest value
     for (index_t c = 0; c < nt; ++c)
@@ -265,13 +267,15 @@ void expand_triplets(IntegrationOperator& stab, const TripletTable& table)
         const int i = static_cast<int>(s % 3);
         const index_t k0 = stab.offsets[static_cast<std::size_t>(s)];
         RKFEM_REQUIRE(stab.offsets[static_cast<std::size_t>(s) + 1] - k0 == v.size,
-                      "expand_triplets: sub-point " << s << " has " << stab.offsets[static_cast<std::size_t>(s) + 1] - k0
+                      "expand_triplets: sub-point " << s << " has "
+                                                    << stab.offsets[static_cast<std::size_t>(s) + 1] - k0
                                                     << " entries, its triplet " << v.size);
         for (index_t k = 0; k < v.size; ++k)
         {
             stab.nodes[static_cast<std::size_t>(k0 + k)] = v.base + v.offset[k];
             for (int d = 0; d < 3; ++d)
-                stab.grad[3 * static_cast<std::size_t>(k0 + k) + d] = v.hess[6 * static_cast<std::size_t>(k) + row[i][d]];
+                stab.grad[3 * static_cast<std::size_t>(k0 + k) + d] =
+                    v.hess[6 * static_cast<std::size_t>(k) + row[i][d]];
         }
     }
 }
@@ -286,7 +290,8 @@ std::vector<char> uniform_batches(const std::vector<index_t>& point_class, const
         const std::size_t p0 = w * b;
         bool same = true;
         for (std::size_t l = 1; l < w && same; ++l)
-            same = point_class[p0 + l] == point_class[p0] && point_base[p0 + l] == point_base[p0] + static_cast<index_t>(l);
+            same = point_class[p0 + l] == point_class[p0] &&
+                   point_base[p0 + l] == point_base[p0] + static_cast<index_t>(l);
         uniform[b] = same;
     }
     return uniform;

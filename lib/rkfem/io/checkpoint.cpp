@@ -64,7 +64,8 @@ void write_checkpoint(const std::string& path, const StateArchive& archive)
                 const hid_t set = H5Dcreate2(g, name.c_str(), H5T_NATIVE_UCHAR, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
                 if (dcpl != H5P_DEFAULT)
                     H5Pclose(dcpl);
-                ok = set >= 0 && (n == 0 || H5Dwrite(set, H5T_NATIVE_UCHAR, H5S_ALL, H5S_ALL, H5P_DEFAULT, bytes.data()) >= 0);
+                ok = set >= 0 &&
+                     (n == 0 || H5Dwrite(set, H5T_NATIVE_UCHAR, H5S_ALL, H5S_ALL, H5P_DEFAULT, bytes.data()) >= 0);
                 if (set >= 0)
                     H5Dclose(set);
                 H5Sclose(space);
@@ -137,8 +138,8 @@ StateArchive read_checkpoint(const std::string& path)
                 if (g >= 0)
                     H5Gclose(g);
                 H5Fclose(f);
-                throw Error("checkpoint " + path + " has format " + std::to_string(format) + "; this rkfem reads format " +
-                            std::to_string(kCheckpointFormat));
+                throw Error("checkpoint " + path + " has format " + std::to_string(format) +
+                            "; this rkfem reads format " + std::to_string(kCheckpointFormat));
             }
             hsize_t n = 0;
             H5Gget_num_objs(g, &n);
@@ -170,7 +171,8 @@ StateArchive read_checkpoint(const std::string& path)
             H5Gclose(g);
             H5Fclose(f);
             if (!ok)
-                throw Error("checkpoint " + path + " is damaged (an entry cannot be read, or its checksum does not match)");
+                throw Error("checkpoint " + path +
+                            " is damaged (an entry cannot be read, or its checksum does not match)");
             return archive;
         });
 }

@@ -169,7 +169,8 @@ ResultsWriter::~ResultsWriter()
         H5Fclose(static_cast<hid_t>(file_));
 }
 
-void ResultsWriter::write_field(long long group, const char* name, const real_t* data, long long rows, long long cols) const
+void ResultsWriter::write_field(long long group, const char* name, const real_t* data, long long rows,
+                                long long cols) const
 {
     write_dataset_as(static_cast<hid_t>(group), name, data, static_cast<hsize_t>(rows), static_cast<hsize_t>(cols),
                      storage_.single ? H5T_IEEE_F32LE : H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, storage_.compression);
@@ -335,8 +336,7 @@ void ResultsWriter::write_frame(const Model& model, real_t time)
     write_xdmf();
 }
 
-void ResultsWriter::write_history(const std::vector<std::string>& columns,
-                                  const std::vector<real_t>& rows)
+void ResultsWriter::write_history(const std::vector<std::string>& columns, const std::vector<real_t>& rows)
 {
     const hid_t f = static_cast<hid_t>(file_);
     if (H5Lexists(f, "history", H5P_DEFAULT) > 0)
@@ -376,15 +376,14 @@ void ResultsWriter::write_xdmf()
             const std::string m = "results.h5:/" + mesh.group;
             const long long n_nodes = mesh.n_nodes, n_elements = mesh.n_elements, n_cells = mesh.n_cells,
                             topology_size = mesh.topology_size;
-            auto item = [&](const char* name, long long rows, int cols, const char* type = "Float",
-                            int prec = 8)
+            auto item = [&](const char* name, long long rows, int cols, const char* type = "Float", int prec = 8)
             {
                 std::ostringstream os;
                 os << "<DataItem Dimensions=\"" << rows;
                 if (cols > 1)
                     os << " " << cols;
-                os << "\" NumberType=\"" << type << "\" Precision=\"" << prec
-                   << "\" Format=\"HDF\">" << name << "</DataItem>";
+                os << "\" NumberType=\"" << type << "\" Precision=\"" << prec << "\" Format=\"HDF\">" << name
+                   << "</DataItem>";
                 return os.str();
             };
             x << " <Grid Name=\"step_" << i << "\" GridType=\"Uniform\">\n"
@@ -403,7 +402,8 @@ void ResultsWriter::write_xdmf()
                   << item((g + "/" + v).c_str(), n_nodes, 3, "Float", fp) << "</Attribute>\n";
             x << "  <Attribute Name=\"stress\" AttributeType=\"Tensor6\" Center=\"Cell\">"
               << item((g + "/stress").c_str(), n_cells, 6, "Float", fp) << "</Attribute>\n";
-            for (const char* v : {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage", "zone"})
+            for (const char* v :
+                 {"pressure", "effective_plastic_strain", "volume", "damage", "kcc_scaled_damage", "zone"})
                 x << "  <Attribute Name=\"" << v << "\" AttributeType=\"Scalar\" Center=\"Cell\">"
                   << item((g + "/" + v).c_str(), n_cells, 1, "Float", fp) << "</Attribute>\n";
             x << "  <Attribute Name=\"part\" AttributeType=\"Scalar\" Center=\"Cell\">"

@@ -15,8 +15,8 @@
 /// keeps everything written so far. When an event changes the topology (Model::
 /// topology_version), the next output first writes the new mesh as /mesh_NNNNNN (same layout);
 /// each step's attribute `mesh` names the group of its mesh, and each XDMF time step points at it.
-#include <string>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "rkfem/config/deck.hpp"
@@ -58,7 +58,7 @@ class ResultsWriter
   private:
     void write_xdmf();
     void write_frame(const Model& model, real_t time); ///< write_step's work
-    std::size_t indexed_ = 0; ///< frames results.xdmf indexes (its last whole write)
+    std::size_t indexed_ = 0;                          ///< frames results.xdmf indexes (its last whole write)
     /// H5Fflush, throwing rkfem::Error naming results.h5 when it fails (a full disk).
     void flush() const;
     /// A field dataset (rows x cols) at the deck's precision and compression.

@@ -179,8 +179,8 @@ real_t CscmModel::yield_cs(real_t P, real_t J2, real_t cb, real_t sb, real_t kap
 void CscmModel::finish()
 {
     E = 9.0 * bulk * shear / (3.0 * bulk + shear);
-    RKFEM_REQUIRE(alpha - lambda > 0.0, "cscm: alpha - lambda = " << alpha - lambda
-                                                                  << " Pa; the shear surface must be open at I1 = 0");
+    RKFEM_REQUIRE(alpha - lambda > 0.0,
+                  "cscm: alpha - lambda = " << alpha - lambda << " Pa; the shear surface must be open at I1 = 0");
     real_t lo = -fc;
     while (Ff(lo) > 0.0)
         lo *= 2.0;
@@ -188,7 +188,8 @@ void CscmModel::finish()
     kappa0 = p_apex; // so that kappa_of_X does not clamp while it solves for kappa0
     kappa0 = kappa_of_X(X0);
     const real_t txc = std::numbers::pi / 6.0;
-    fcu = bisect([&](real_t s) { return s / std::sqrt(3.0) - rubin(s, txc) * Ff(s) * std::sqrt(std::max(Fc(s, kappa0), 0.0)); },
+    fcu = bisect([&](real_t s)
+                 { return s / std::sqrt(3.0) - rubin(s, txc) * Ff(s) * std::sqrt(std::max(Fc(s, kappa0), 0.0)); },
                  0.0, X0);
     ftu = bisect([&](real_t s) { return s / std::sqrt(3.0) - rubin(-s, -txc) * std::max(Ff(-s), 0.0); }, 0.0, -p_apex);
     r0c = fcu / std::sqrt(2.0 * E);
@@ -228,8 +229,8 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
         dev[c] = sT[c] + PT / 3.0;
     for (int c = 3; c < 6; ++c)
         dev[c] = sT[c];
-    const real_t J2T = 0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]) + dev[3] * dev[3] +
-                       dev[4] * dev[4] + dev[5] * dev[5];
+    const real_t J2T = 0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]) + dev[3] * dev[3] + dev[4] * dev[4] +
+                       dev[5] * dev[5];
     real_t bh = std::numbers::pi / 6.0;
     if (J2T > 1e-24 * m.fc * m.fc)
     {
@@ -280,7 +281,8 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
             const real_t hP = 1e-6 * std::max(std::abs(P), m.fc);
             const real_t dRb = (m.rubin_cs(P + hP, cb, sb) - Rb) / hP;
             const real_t dFcap = P > L ? -2.0 * t / XL : 0.0;
-            const real_t fP = -(2.0 * Rb * dRb * F * F * Fcap + 2.0 * Rb * Rb * F * dF * Fcap + Rb * Rb * F * F * dFcap);
+            const real_t fP =
+                -(2.0 * Rb * dRb * F * F * Fcap + 2.0 * Rb * Rb * F * dF * Fcap + Rb * Rb * F * F * dFcap);
             real_t fk_kp = 0.0; // (d f / d kappa) (d kappa / d evp)
             if (P > L && (evp > 0.0 || fP > 0.0))
             {
@@ -388,8 +390,8 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
             real_t dv[6];
             for (int c = 0; c < 6; ++c)
                 dv[c] = st.svp[c] + (c < 3 ? Pv / 3.0 : 0.0);
-            const real_t J2v = 0.5 * (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]) + dv[3] * dv[3] + dv[4] * dv[4] +
-                               dv[5] * dv[5];
+            const real_t J2v =
+                0.5 * (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]) + dv[3] * dv[3] + dv[4] * dv[4] + dv[5] * dv[5];
             const real_t dmax = Pv > 0.0 ? std::min(1.0, std::pow(std::sqrt(3.0 * J2v) / Pv, 1.5)) : 1.0;
             st.dc = std::max(st.dc, dmax / m.B * ((1.0 + m.B) / (1.0 + m.B * std::exp(-A * (st.rc - st.r0c))) - 1.0));
         }

@@ -58,14 +58,14 @@ struct CscmModel
     // damage
     real_t B = 100.0, D = 0.1;
     real_t Gfc = 0, Gft = 0, Gfs = 0; ///< fracture energies [J/m^2]
-    real_t default_length = 0.1;     ///< crack-band length where none is set [m] [U]
+    real_t default_length = 0.1;      ///< crack-band length where none is set [m] [U]
     // rate effects
     bool rate_effects = false;
     real_t eta0c = 0, nc = 0.78, eta0t = 0, nt = 0.48, overc = 0, overt = 0, srate = 1.0;
     real_t pwrc = 5.0, pwrt = 1.0;
     // derived by finish()
-    real_t kappa0 = 0;      ///< X(kappa0) = X0
-    real_t p_apex = 0;      ///< Ff(p_apex) = 0 (tension, < 0)
+    real_t kappa0 = 0;       ///< X(kappa0) = X0
+    real_t p_apex = 0;       ///< Ff(p_apex) = 0 (tension, < 0)
     real_t fcu = 0, ftu = 0; ///< uniaxial compressive / tensile strengths on the initial surface
     real_t r0c = 0, r0t = 0; ///< uniaxial damage thresholds [sqrt(Pa)]
     Softening soft0;         ///< softening at default_length
@@ -111,17 +111,17 @@ real_t dilog(real_t x);
 /// History of one CSCM point.
 struct CscmState
 {
-    real_t svp[6] = {};  ///< undamaged (viscoplastic) stress
-    real_t eps[6] = {};  ///< total strain (tensor shear), rotated with the stress
-    real_t evp = 0.0;    ///< plastic volumetric compaction (compression positive)
+    real_t svp[6] = {};                                      ///< undamaged (viscoplastic) stress
+    real_t eps[6] = {};                                      ///< total strain (tensor shear), rotated with the stress
+    real_t evp = 0.0;                                        ///< plastic volumetric compaction (compression positive)
     real_t kappa = std::numeric_limits<real_t>::quiet_NaN(); ///< cap parameter (NaN: kappa0)
-    real_t rc = 0.0, rt = 0.0; ///< largest ductile / brittle energy norms so far
-    real_t r0c = std::numeric_limits<real_t>::quiet_NaN(); ///< ductile threshold (set at first yield)
-    real_t r0t = std::numeric_limits<real_t>::quiet_NaN(); ///< brittle threshold (set at first yield)
-    real_t dc = 0.0, db = 0.0; ///< ductile / brittle damage
-    real_t d = 0.0;            ///< damage applied to the stress
-    real_t eps_p = 0.0;        ///< effective plastic strain
-    real_t A = std::numeric_limits<real_t>::quiet_NaN(); ///< softening (NaN: default length)
+    real_t rc = 0.0, rt = 0.0;                               ///< largest ductile / brittle energy norms so far
+    real_t r0c = std::numeric_limits<real_t>::quiet_NaN();   ///< ductile threshold (set at first yield)
+    real_t r0t = std::numeric_limits<real_t>::quiet_NaN();   ///< brittle threshold (set at first yield)
+    real_t dc = 0.0, db = 0.0;                               ///< ductile / brittle damage
+    real_t d = 0.0;                                          ///< damage applied to the stress
+    real_t eps_p = 0.0;                                      ///< effective plastic strain
+    real_t A = std::numeric_limits<real_t>::quiet_NaN();     ///< softening (NaN: default length)
     real_t C = std::numeric_limits<real_t>::quiet_NaN();
 };
 

@@ -17,13 +17,13 @@ struct Eos
 {
     enum class Kind
     {
-        None,      ///< the material's own incremental bulk response
+        None, ///< the material's own incremental bulk response
         Linear,
         Gruneisen,
     };
     Kind kind = Kind::None;
     real_t rho0 = 0.0;
-    real_t bulk = 0.0;                              ///< linear: K [Pa]
+    real_t bulk = 0.0;                               ///< linear: K [Pa]
     real_t c0 = 0.0, s = 0.0, gamma0 = 0.0, a = 0.0; ///< gruneisen
 
     /// Pressure (compression positive) at volumetric strain ev = ln(V/V0) and energy e [J/m^3].

@@ -57,8 +57,8 @@ struct J2Params
 /// With an EOS, ev (ln V/V0, accumulated tr(D) dt) and e (internal energy per reference volume,
 /// accumulated from the stress power) are the point's volumetric history; the mean stress is
 /// -p(ev, e) instead of the incremental bulk response.
-inline real_t j2_update(const J2Params& p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6],
-                        real_t& eps_p, real_t& failed, real_t* ev = nullptr, real_t* e = nullptr)
+inline real_t j2_update(const J2Params& p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6], real_t& eps_p,
+                        real_t& failed, real_t* ev = nullptr, real_t* e = nullptr)
 {
     const bool with_eos = p.eos.kind != Eos::Kind::None && ev && e;
     real_t s_start[6];

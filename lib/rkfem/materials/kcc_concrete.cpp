@@ -18,7 +18,8 @@ KccModel KccModel::from_fc(real_t fc_pa, real_t rho, real_t nu, real_t E)
     m.bulk = E / (3.0 * (1.0 - 2.0 * nu));
     m.shear = 3.0 * m.bulk * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu));
     m.eos_strain = {0, -0.0015, -0.0043, -0.0101, -0.0305, -0.0513, -0.0726, -0.0943, -0.174, -0.208};
-    const real_t p_shape[10] = {0, 0.0015, 0.003270, 0.005250, 0.009975, 0.015045, 0.021345, 0.032655, 0.19065, 0.29160};
+    const real_t p_shape[10] = {0,        0.0015,   0.003270, 0.005250, 0.009975,
+                                0.015045, 0.021345, 0.032655, 0.19065,  0.29160};
     const real_t k_shape[10] = {1, 1, 1.014, 1.065, 1.267, 1.470, 1.672, 1.825, 4.106, 5.000};
     for (int i = 0; i < 10; ++i)
     {
@@ -213,7 +214,10 @@ real_t ceb_fracture_energy(real_t fc_pa)
     return 0.030e3 * std::pow(fcm / 10.0, 0.7); // N/mm -> J/m^2 (x 1e3)
 }
 
-real_t kcc_tension_work(const KccModel& m, real_t scale) { return kcc_tension_test(m, scale).work; }
+real_t kcc_tension_work(const KccModel& m, real_t scale)
+{
+    return kcc_tension_test(m, scale).work;
+}
 
 KccTensionTest kcc_tension_test(const KccModel& m, real_t scale)
 {
@@ -226,7 +230,7 @@ KccTensionTest kcc_tension_test(const KccModel& m, real_t scale)
     const real_t ft = m.surfaces.ft;
     const real_t E = 9.0 * m.bulk * m.shear / (3.0 * m.bulk + m.shear);
     const real_t nu = (3.0 * m.bulk - 2.0 * m.shear) / (2.0 * (3.0 * m.bulk + m.shear));
-    const real_t de = 0.02 * ft / E; // 50 steps to the peak
+    const real_t de = 0.02 * ft / E;                            // 50 steps to the peak
     const real_t elastic = 2.0 * (m.bulk + m.shear / 3.0) * de; // d(lateral stress) / d(lateral rate)
     real_t lat = -nu, work = 0.0, peak = 0.0;
     const real_t w[3] = {0, 0, 0};
@@ -380,9 +384,9 @@ std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real
     {
         const real_t len = lengths[static_cast<std::size_t>(i)];
         const real_t target = m.fracture_energy / len;
-        scales[static_cast<std::size_t>(i)] =
-            narrow[0] > target && narrow[1] < target ? scale_for_length(m, len, kNarrowLo, kNarrowHi, narrow[0], narrow[1])
-                                                     : kcc_tension_scale_for_length(m, len);
+        scales[static_cast<std::size_t>(i)] = narrow[0] > target && narrow[1] < target
+                                                  ? scale_for_length(m, len, kNarrowLo, kNarrowHi, narrow[0], narrow[1])
+                                                  : kcc_tension_scale_for_length(m, len);
     }
     for (std::size_t p = 0; p < h.size(); ++p)
     {

@@ -29,7 +29,7 @@ struct KccModel
     real_t rho = 2400.0;
     real_t bulk = 0.0;  ///< K_1, initial (elastic) bulk modulus [Pa]
     real_t shear = 0.0; ///< G from K_1 and nu [Pa]
-    RateLaw rate; ///< strain-rate enhancement (radial scaling of the surfaces by the DIF)
+    RateLaw rate;       ///< strain-rate enhancement (radial scaling of the surfaces by the DIF)
     /// Fracture energy G_f [J/m^2] for the crack-band scaling of the tensile damage (0: none).
     real_t fracture_energy = 0.0;
     std::array<real_t, 10> eos_strain{}; ///< volumetric strain ln(V/V0) (<= 0, decreasing)
@@ -46,11 +46,11 @@ struct KccModel
 /// History of one KCC point.
 struct KccState
 {
-    real_t lambda = 0.0;  ///< damage function
-    real_t ev = 0.0;      ///< total volumetric strain (sum of tr(D) dt)
-    real_t ev_min = 0.0;  ///< most compressive EOS strain reached
-    real_t ev_plastic = 0.0; ///< dilatant volumetric plastic strain (expansion positive)
-    real_t eps_p = 0.0;   ///< effective plastic strain
+    real_t lambda = 0.0;        ///< damage function
+    real_t ev = 0.0;            ///< total volumetric strain (sum of tr(D) dt)
+    real_t ev_min = 0.0;        ///< most compressive EOS strain reached
+    real_t ev_plastic = 0.0;    ///< dilatant volumetric plastic strain (expansion positive)
+    real_t eps_p = 0.0;         ///< effective plastic strain
     real_t tension_scale = 1.0; ///< crack-band factor on the tensile damage rate (1: none)
 };
 
@@ -70,9 +70,9 @@ real_t kcc_tension_work(const KccModel& m, real_t scale);
 /// effects (lateral stress up to 16 % of f_t left standing, the work off by 0.3-30 %).
 struct KccTensionTest
 {
-    real_t work = 0.0;        ///< [J/m^3]
-    int steps = 0;            ///< strain steps taken
-    long updates = 0;         ///< kcc_update calls
+    real_t work = 0.0; ///< [J/m^3]
+    int steps = 0;     ///< strain steps taken
+    long updates = 0;  ///< kcc_update calls
     /// steps on which no lateral rate holds the lateral stress at zero: it jumps across zero
     /// (the bracket closed to round-off: a brittle point's stress drops to the hydrostatic
     /// tension cutoff), the step taken at the jump

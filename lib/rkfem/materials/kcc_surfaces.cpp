@@ -19,7 +19,8 @@ real_t piecewise_linear(const std::pair<real_t, real_t>* pts, std::size_t n, rea
         return pts[0].second;
     for (std::size_t i = 1; i < n; ++i)
         if (x <= pts[i].first)
-            return pts[i - 1].second + (x - pts[i - 1].first) / (pts[i].first - pts[i - 1].first) * (pts[i].second - pts[i - 1].second);
+            return pts[i - 1].second +
+                   (x - pts[i - 1].first) / (pts[i].first - pts[i - 1].first) * (pts[i].second - pts[i - 1].second);
     return pts[n - 1].second;
 }
 } // namespace
@@ -39,9 +40,9 @@ KccParameters KccParameters::from_fc(real_t fc_pa)
     k.a2y = 0.25769 / fc_pa;
     k.a1f = 0.4417;
     k.a2f = 0.1184 / fc_pa;
-    k.eta_table = {{0, 0},          {8.0e-6, 0.85}, {2.4e-5, 0.97}, {4.0e-5, 0.99}, {5.6e-5, 1.00},
-                   {7.2e-5, 0.99},  {8.8e-5, 0.97}, {3.2e-4, 0.50}, {5.2e-4, 0.10}, {5.7e-4, 0},
-                   {1.0, 0},        {10.0, 0},      {1.0e10, 0}};
+    k.eta_table = {{0, 0},         {8.0e-6, 0.85}, {2.4e-5, 0.97}, {4.0e-5, 0.99}, {5.6e-5, 1.00},
+                   {7.2e-5, 0.99}, {8.8e-5, 0.97}, {3.2e-4, 0.50}, {5.2e-4, 0.10}, {5.7e-4, 0},
+                   {1.0, 0},       {10.0, 0},      {1.0e10, 0}};
     k.update_derived();
     return k;
 }
@@ -91,16 +92,16 @@ real_t KccParameters::yield_surface(real_t p) const
     return 1.35 * ft + 3.0 * p * (1.0 - 1.35 * ft / fyc); // [C script; U as LS-DYNA-exact]
 }
 
-real_t KccParameters::residual_surface(real_t p) const { return p <= 0.0 ? 0.0 : p / (a1f + a2f * p); }
+real_t KccParameters::residual_surface(real_t p) const
+{
+    return p <= 0.0 ? 0.0 : p / (a1f + a2f * p);
+}
 
 real_t KccParameters::psi(real_t p) const
 {
     const real_t pb = 2.0 * alpha_biaxial * fc / 3.0;
-    const std::array<std::pair<real_t, real_t>, 5> pts = {{{0.0, 0.5},
-                                                           {fc / 3.0, 0.5 + 1.5 * ft / fc},
-                                                           {pb, psi_biaxial},
-                                                           {3.0 * fc, 0.753},
-                                                           {8.45 * fc, 1.0}}};
+    const std::array<std::pair<real_t, real_t>, 5> pts = {
+        {{0.0, 0.5}, {fc / 3.0, 0.5 + 1.5 * ft / fc}, {pb, psi_biaxial}, {3.0 * fc, 0.753}, {8.45 * fc, 1.0}}};
     return piecewise_linear(pts.data(), pts.size(), p);
 }
 

@@ -20,17 +20,17 @@ namespace rkfem
 {
 struct KccParameters
 {
-    real_t fc = 0.0; ///< unconfined compressive strength f'c [Pa]
-    real_t ft = 0.0; ///< tensile strength f_t [Pa]
+    real_t fc = 0.0;                  ///< unconfined compressive strength f'c [Pa]
+    real_t ft = 0.0;                  ///< tensile strength f_t [Pa]
     real_t a0 = 0, a1 = 0, a2 = 0;    ///< maximum surface: a0 + p / (a1 + a2 p)
     real_t a0y = 0, a1y = 0, a2y = 0; ///< yield surface
     real_t a1f = 0, a2f = 0;          ///< residual surface: p / (a1f + a2f p)
     real_t b1 = 1.6, b2 = 1.35, b3 = 1.15, omega = 0.5;
     std::vector<std::pair<real_t, real_t>> eta_table; ///< (lambda, eta), 13 points
-    real_t lambda_m = 5.6e-5;  ///< first lambda where eta = 1
-    real_t lambda_z = 5.7e-4;  ///< first lambda after the peak where eta returns to 0
-    real_t alpha_biaxial = 1.15; ///< f_bc / f'c
-    real_t fyc = 0.0;        ///< uniaxial compressive yield strength (from the yield hyperbola)
+    real_t lambda_m = 5.6e-5;                         ///< first lambda where eta = 1
+    real_t lambda_z = 5.7e-4;                         ///< first lambda after the peak where eta returns to 0
+    real_t alpha_biaxial = 1.15;                      ///< f_bc / f'c
+    real_t fyc = 0.0;         ///< uniaxial compressive yield strength (from the yield hyperbola)
     real_t psi_biaxial = 0.0; ///< psi at p = 2 alpha f'c / 3
 
     /// The generic parameter set scaled from the 45.4 MPa reference concrete (Schwer & Malvar 2005):

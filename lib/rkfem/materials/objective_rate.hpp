@@ -12,8 +12,7 @@ namespace rkfem
 {
 /// The rotation on six scalars (the element kernels' lane loops vectorize over this form; the
 /// array form below calls it). T is real_t or a lane vector (simd::dvec) of simd::kLanes points.
-template <class T>
-inline void rotate_stress(T w0, T w1, T w2, real_t dt, T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
+template <class T> inline void rotate_stress(T w0, T w1, T w2, real_t dt, T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
 {
     using simd::mul_add;
     using simd::neg_mul_add;

@@ -33,9 +33,19 @@ inline CscmModel cscm_model(const MaterialSpec& m)
 {
     CscmModel c = CscmModel::from_fc(m.fc, m.rho, m.nu, m.E, m.fracture_energy > 0 ? m.fracture_energy : 0.0);
     c.rate_effects = m.rate_effects;
-    apply_overrides(m.overrides, {{"alpha", &c.alpha}, {"theta", &c.theta}, {"lambda", &c.lambda}, {"beta", &c.beta},
-                                  {"R", &c.R}, {"X0", &c.X0}, {"W", &c.W}, {"D1", &c.D1}, {"D2", &c.D2}, {"B", &c.B},
-                                  {"D", &c.D}, {"Gfc", &c.Gfc}, {"length", &c.default_length}});
+    apply_overrides(m.overrides, {{"alpha", &c.alpha},
+                                  {"theta", &c.theta},
+                                  {"lambda", &c.lambda},
+                                  {"beta", &c.beta},
+                                  {"R", &c.R},
+                                  {"X0", &c.X0},
+                                  {"W", &c.W},
+                                  {"D1", &c.D1},
+                                  {"D2", &c.D2},
+                                  {"B", &c.B},
+                                  {"D", &c.D},
+                                  {"Gfc", &c.Gfc},
+                                  {"length", &c.default_length}});
     c.finish();
     return c;
 }
@@ -73,9 +83,19 @@ struct PlasticPoints
             kcc.rate = m.rate_law;
             kcc.rate.fc = m.fc;
             KccParameters& k = kcc.surfaces;
-            apply_overrides(m.overrides, {{"a0", &k.a0}, {"a1", &k.a1}, {"a2", &k.a2}, {"a0y", &k.a0y}, {"a1y", &k.a1y},
-                                          {"a2y", &k.a2y}, {"a1f", &k.a1f}, {"a2f", &k.a2f}, {"b1", &k.b1}, {"b2", &k.b2},
-                                          {"b3", &k.b3}, {"omega", &k.omega}, {"ft", &k.ft}});
+            apply_overrides(m.overrides, {{"a0", &k.a0},
+                                          {"a1", &k.a1},
+                                          {"a2", &k.a2},
+                                          {"a0y", &k.a0y},
+                                          {"a1y", &k.a1y},
+                                          {"a2y", &k.a2y},
+                                          {"a1f", &k.a1f},
+                                          {"a2f", &k.a2f},
+                                          {"b1", &k.b1},
+                                          {"b2", &k.b2},
+                                          {"b3", &k.b3},
+                                          {"omega", &k.omega},
+                                          {"ft", &k.ft}});
             if (!m.kcc_eta.empty())
             {
                 k.eta_table = m.kcc_eta;
@@ -108,10 +128,7 @@ struct PlasticPoints
         return kind == Kind::None ? 0.0 : failed[p];
     }
     /// K&C scaled damage delta = 2 lambda / (lambda + lambda_m) (0..2), 0 for other models.
-    real_t kcc_delta(std::size_t p) const
-    {
-        return kind == Kind::Kcc ? kcc.surfaces.scaled_damage(failed[p]) : 0.0;
-    }
+    real_t kcc_delta(std::size_t p) const { return kind == Kind::Kcc ? kcc.surfaces.scaled_damage(failed[p]) : 0.0; }
     void resize(std::size_t n)
     {
         eps_p.assign(n, 0.0);

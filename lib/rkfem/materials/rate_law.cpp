@@ -11,7 +11,10 @@ namespace
 constexpr real_t MPa = 1e6;
 
 /// min(dif, cap), cap 0 meaning none
-real_t capped(real_t dif, real_t cap) { return cap > 0.0 ? std::min(dif, cap) : dif; }
+real_t capped(real_t dif, real_t cap)
+{
+    return cap > 0.0 ? std::min(dif, cap) : dif;
+}
 
 /// The form both built-in laws take: 1 up to the static rate rs, (r / rs)^e up to the
 /// transition rate, g (r / rs)^(1/3) above it.
@@ -49,7 +52,8 @@ real_t RateLaw::loading_rate(const real_t d[6], bool tension)
     if (r > 0.0)
     {
         // det of [[a, xy, zx], [xy, b, yz], [zx, yz, c]] / r^3
-        const real_t det = a * (b * c - d[4] * d[4]) - d[3] * (d[3] * c - d[4] * d[5]) + d[5] * (d[3] * d[4] - b * d[5]);
+        const real_t det =
+            a * (b * c - d[4] * d[4]) - d[3] * (d[3] * c - d[4] * d[5]) + d[5] * (d[3] * d[4] - b * d[5]);
         const real_t phi = std::acos(std::clamp(det / (2.0 * r * r * r), -1.0, 1.0)) / 3.0;
         hi = q + 2.0 * r * std::cos(phi);
         lo = q + 2.0 * r * std::cos(phi + 2.0943951023931954923);

@@ -44,14 +44,14 @@ struct RateLaw
 {
     enum class Kind
     {
-        Off,       ///< DIF 1
+        Off,           ///< DIF 1
         CebMalvarRoss, ///< CEB-FIP 1990 compression, Malvar & Ross 1998 tension, capped
-        Curve      ///< user curve (LCRATE): (signed rate, DIF), negative rate = tension
+        Curve          ///< user curve (LCRATE): (signed rate, DIF), negative rate = tension
     };
     Kind kind = Kind::Off;
-    real_t fc = 0.0;                 ///< f'c [Pa] of the built-in laws
-    real_t compression_cap = 0.0;    ///< largest compressive DIF (0: none)
-    real_t tension_cap = 0.0;        ///< largest tensile DIF (0: none)
+    real_t fc = 0.0;                              ///< f'c [Pa] of the built-in laws
+    real_t compression_cap = 0.0;                 ///< largest compressive DIF (0: none)
+    real_t tension_cap = 0.0;                     ///< largest tensile DIF (0: none)
     std::vector<std::pair<real_t, real_t>> curve; ///< strictly increasing rates [1/s], DIF > 0
 
     /// The default of `rate_effects: true`: the built-in laws with the caps below.

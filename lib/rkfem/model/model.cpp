@@ -93,7 +93,8 @@ real_t estimated_cells(const GeneratorSpec& g)
     case GeneratorSpec::Type::Cloud:
         if (!g.points_file.empty())
             return 0.0;
-        return (g.body == GeneratorSpec::Body::Box ? g.size[0] * g.size[1] * g.size[2] : M_PI * g.radius * g.radius * g.height) /
+        return (g.body == GeneratorSpec::Body::Box ? g.size[0] * g.size[1] * g.size[2]
+                                                   : M_PI * g.radius * g.radius * g.height) /
                (h * h * h);
     default:
         return std::max(1.0, M_PI * g.radius * g.radius * g.height / (h * h * h));
@@ -111,9 +112,9 @@ void check_size(const Deck& d)
     for (const PartSpec& p : d.parts)
     {
         const real_t cells = estimated_cells(p.generator);
-        const real_t per = is_nodal(p.formulation) || p.coupled() ? 45e3
+        const real_t per = is_nodal(p.formulation) || p.coupled()   ? 45e3
                            : p.formulation == Formulation::Fem2x2x2 ? 4e3
-                                                                     : 1.5e3;
+                                                                    : 1.5e3;
         cells_total += cells;
         total += cells * per;
         std::ostringstream what;
@@ -192,7 +193,9 @@ void check_mesh(const PartSpec& ps, const HexMesh& mesh, std::vector<std::string
     std::vector<index_t> order(static_cast<std::size_t>(n));
     for (index_t i = 0; i < n; ++i)
         order[static_cast<std::size_t>(i)] = i;
-    auto position = [&](index_t i) { return std::array<real_t, 3>{mesh.x[3 * i], mesh.x[3 * i + 1], mesh.x[3 * i + 2]}; };
+    auto position = [&](index_t i) {
+        return std::array<real_t, 3>{mesh.x[3 * i], mesh.x[3 * i + 1], mesh.x[3 * i + 2]};
+    };
     std::sort(order.begin(), order.end(), [&](index_t a, index_t b) { return position(a) < position(b); });
     index_t shared = 0, first_a = -1, first_b = -1;
     for (std::size_t k = 1; k < order.size(); ++k)
@@ -226,8 +229,8 @@ std::string PartInfo::element_name(index_t e) const
 std::string PartInfo::node_name(index_t i) const
 {
     if (!node_ids.empty())
-        return "node " + std::to_string(node_ids[static_cast<std::size_t>(i)]) + " (the mesh file's NID; part '" + name +
-               "', node " + std::to_string(node_begin + i) + " in results.h5)";
+        return "node " + std::to_string(node_ids[static_cast<std::size_t>(i)]) + " (the mesh file's NID; part '" +
+               name + "', node " + std::to_string(node_begin + i) + " in results.h5)";
     return "node " + std::to_string(i) + " of part '" + name + "' (0-based; node " + std::to_string(node_begin + i) +
            " in results.h5)";
 }
@@ -312,13 +315,13 @@ Model Model::build(const Deck& deck)
             if (!ps.coupled() && !nodal_step_calibrated(ps))
                 measure_step_factor(ps, nb, m);
             // RK regions of coupled parts and those a conversion makes are not measured
-            if ((ps.coupled() || ps.conversion.active()) && !nodal_step_calibrated(Formulation::Rkpm, ps.nodal, ps.rk) &&
-                ps.nodal.dt_factor == 0.0)
-                m.setup_notes.push_back(ps.loc.path +
-                                        ".nodal_integration.dt_factor: the default, which is calibrated for the default RK "
-                                        "functions and stabilization only; the step of a coupled part's or a conversion's "
-                                        "RK region is not measured (set dt_factor below the default if the run goes "
-                                        "unstable)");
+            if ((ps.coupled() || ps.conversion.active()) &&
+                !nodal_step_calibrated(Formulation::Rkpm, ps.nodal, ps.rk) && ps.nodal.dt_factor == 0.0)
+                m.setup_notes.push_back(
+                    ps.loc.path + ".nodal_integration.dt_factor: the default, which is calibrated for the default RK "
+                                  "functions and stabilization only; the step of a coupled part's or a conversion's "
+                                  "RK region is not measured (set dt_factor below the default if the run goes "
+                                  "unstable)");
             m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
             if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
             {
@@ -414,9 +417,8 @@ Model Model::build(const Deck& deck)
             }
             else
             {
-                const real_t tol = s.select.tolerance >= 0
-                                       ? s.select.tolerance
-                                       : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
+                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
+                                                           : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
                 for (index_t i = pi.node_begin; i < pi.node_end; ++i)
                     if (matches(s.select, Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]), tol))
                         ids.push_back(i);
@@ -442,10 +444,10 @@ Model Model::build(const Deck& deck)
             {
                 // the boundary facet points of the Voronoi cells: by the box face they lie on
                 // (named) or by the selector applied to the point
-                static const std::map<std::string, Vec3> normals = {
-                    {"xmin", -Vec3::UnitX()}, {"xmax", Vec3::UnitX()}, {"ymin", -Vec3::UnitY()},
-                    {"ymax", Vec3::UnitY()},  {"zmin", -Vec3::UnitZ()}, {"zmax", Vec3::UnitZ()},
-                    {"bottom", -Vec3::UnitZ()}, {"top", Vec3::UnitZ()}};
+                static const std::map<std::string, Vec3> normals = {{"xmin", -Vec3::UnitX()},   {"xmax", Vec3::UnitX()},
+                                                                    {"ymin", -Vec3::UnitY()},   {"ymax", Vec3::UnitY()},
+                                                                    {"zmin", -Vec3::UnitZ()},   {"zmax", Vec3::UnitZ()},
+                                                                    {"bottom", -Vec3::UnitZ()}, {"top", Vec3::UnitZ()}};
                 const bool named = s.select.type == SelectorSpec::Type::Named;
                 const bool cylinder = d.parts[ip].generator.body == GeneratorSpec::Body::Cylinder;
                 if (named && s.select.name != "side" &&
@@ -460,7 +462,7 @@ Model Model::build(const Deck& deck)
                 for (const CellFacetPoint& fp : m.nodal_blocks[m.part_nodal[ip]].boundary_facets)
                 {
                     const Vec3 n = fp.nda.normalized();
-                    const bool take = !named                     ? matches(s.select, fp.x, tol)
+                    const bool take = !named                    ? matches(s.select, fp.x, tol)
                                       : s.select.name == "side" ? std::abs(n[2]) < 1e-9
                                                                 : n.dot(normals.at(s.select.name)) > 1.0 - 1e-9;
                     if (take)
@@ -485,14 +487,15 @@ Model Model::build(const Deck& deck)
             }
             else
             {
-                const real_t tol = s.select.tolerance >= 0
-                                       ? s.select.tolerance
-                                       : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
+                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
+                                                           : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
                 for (const auto& f : pi.faces)
                 {
                     bool all = true;
                     for (index_t n : f)
-                        all = all && matches(s.select, Vec3(m.nodes.x0[3 * n], m.nodes.x0[3 * n + 1], m.nodes.x0[3 * n + 2]), tol);
+                        all =
+                            all && matches(s.select,
+                                           Vec3(m.nodes.x0[3 * n], m.nodes.x0[3 * n + 1], m.nodes.x0[3 * n + 2]), tol);
                     if (all)
                         faces.push_back(f);
                 }
@@ -540,7 +543,8 @@ Model Model::build(const Deck& deck)
         for (index_t ip : part_range(p.part))
             for (index_t i = m.parts[ip].node_begin; i < m.parts[ip].node_end; ++i)
             {
-                const real_t dd = (Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - p.point).squaredNorm();
+                const real_t dd =
+                    (Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - p.point).squaredNorm();
                 if (dd < best_d)
                 {
                     best_d = dd;
@@ -560,14 +564,17 @@ Model Model::build(const Deck& deck)
         for (index_t ip : part_range(sc.part))
         {
             known = true;
-            const real_t tol = sc.tolerance >= 0 ? sc.tolerance
-                                                 : default_tolerance(m.nodes, m.parts[ip].node_begin, m.parts[ip].node_end);
+            const real_t tol = sc.tolerance >= 0
+                                   ? sc.tolerance
+                                   : default_tolerance(m.nodes, m.parts[ip].node_begin, m.parts[ip].node_end);
             for (index_t i = m.parts[ip].node_begin; i < m.parts[ip].node_end; ++i)
-                if ((Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - sc.point).dot(sc.normal) >= -tol)
+                if ((Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - sc.point).dot(sc.normal) >=
+                    -tol)
                     side.push_back(i);
         }
         if (!known)
-            throw DeckError({sc.loc.where, sc.loc.path + ".part"}, "unknown part '" + sc.part + "'", "expected the name of a part");
+            throw DeckError({sc.loc.where, sc.loc.path + ".part"}, "unknown part '" + sc.part + "'",
+                            "expected the name of a part");
         m.section_nodes.push_back(std::move(side));
     }
     // the kinematic map: the RK rows of every nodal block, moved out of the block (it served
@@ -613,8 +620,8 @@ Model Model::build(const Deck& deck)
             for (int gp = 0; gp < 4; ++gp)
             {
                 const real_t r = gp % 2 ? g : -g, s = gp / 2 ? g : -g;
-                const Vec3 X = 0.25 * ((1 - r) * (1 - s) * xc[0] + (1 + r) * (1 - s) * xc[1] + (1 + r) * (1 + s) * xc[2] +
-                                       (1 - r) * (1 + s) * xc[3]);
+                const Vec3 X = 0.25 * ((1 - r) * (1 - s) * xc[0] + (1 + r) * (1 - s) * xc[1] +
+                                       (1 + r) * (1 + s) * xc[2] + (1 - r) * (1 + s) * xc[3]);
                 rk.evaluate(X, false, smp);
                 for (index_t k = 0; k < smp.size(); ++k)
                 {

@@ -12,11 +12,11 @@
 #include <string>
 #include <vector>
 
+#include "rkfem/approximation/rk/kinematic_map.hpp"
 #include "rkfem/config/deck.hpp"
+#include "rkfem/contact/contact_algorithm.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/discretization/node_set.hpp"
-#include "rkfem/approximation/rk/kinematic_map.hpp"
-#include "rkfem/contact/contact_algorithm.hpp"
 #include "rkfem/operators/contact_channel.hpp"
 #include "rkfem/operators/energy_ledger.hpp"
 #include "rkfem/operators/force_block.hpp"
@@ -35,7 +35,7 @@ struct PartInfo
     std::vector<Quad> faces;    ///< boundary faces (global node ids)
     std::map<std::string, std::vector<index_t>> named_faces;
     std::map<std::string, std::vector<index_t>> named_nodes; ///< cloud parts: generator node groups (global ids)
-    std::vector<long long> element_ids, node_ids; ///< the file's ids (keyword meshes), empty otherwise
+    std::vector<long long> element_ids, node_ids;            ///< the file's ids (keyword meshes), empty otherwise
     /// How messages name the part's element e and node i (local): the file's id, or "element 7"
     /// by the 0-based index, with the global one results.h5 uses
     std::string element_name(index_t e) const;
@@ -48,7 +48,7 @@ struct DofCondition
     index_t dof = 0;
     BoundarySpec::Kind kind = BoundarySpec::Kind::Fixed;
     const TimeFunction* value = nullptr; ///< velocity or displacement history
-    index_t source = 0; ///< the deck's boundary condition (index) that set it
+    index_t source = 0;                  ///< the deck's boundary condition (index) that set it
 };
 
 /// Prescribed physical velocities on the particles of one rkpm part, one component: the mixed
@@ -72,8 +72,8 @@ class Model final : public ExplicitOperator
 
     const Deck& deck() const { return deck_; }
     NodeSet nodes;
-    std::vector<HexBlock> blocks; ///< one per part, same order (mesh and output of every part;
-                                  ///< integrates only fem-1pt / fem-2x2x2 parts)
+    std::vector<HexBlock> blocks;         ///< one per part, same order (mesh and output of every part;
+                                          ///< integrates only fem-1pt / fem-2x2x2 parts)
     std::vector<NodalBlock> nodal_blocks; ///< fem-nodal and rkpm parts
     std::vector<index_t> part_nodal;      ///< per part: index into nodal_blocks, -1 for Gauss-point FE
     /// What the set-up decided that the user should read (the driver prints each as a warning,
@@ -99,7 +99,7 @@ class Model final : public ExplicitOperator
     };
     std::map<std::string, std::vector<CloudFacet>> cloud_face_sets;
     std::vector<DofCondition> conditions;
-    std::vector<index_t> probe_nodes; ///< one per deck probe
+    std::vector<index_t> probe_nodes;                ///< one per deck probe
     std::vector<std::vector<index_t>> section_nodes; ///< per deck section: the nodes on its positive side
     /// Force across a deck section (LS-DYNA's SECFORC): what the material on the negative side
     /// exerts on the nodes of the positive side, -sum of their internal forces (every element's
@@ -215,7 +215,10 @@ class Model final : public ExplicitOperator
     /// coupled parts' 1-point FE sides), the stress points of nodal parts (one per particle or
     /// node under SCNI): the count that ns per element-cycle divides by.
     index_t n_work_items() const;
-    real_t element_plastic_strain(index_t block, index_t e) const { return element_history(block, e, History::PlasticStrain); }
+    real_t element_plastic_strain(index_t block, index_t e) const
+    {
+        return element_history(block, e, History::PlasticStrain);
+    }
     /// Element stress (average over its points), Voigt.
     Sym6 element_stress(index_t block, index_t e) const;
 

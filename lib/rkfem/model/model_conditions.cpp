@@ -17,11 +17,11 @@ namespace rkfem
 {
 struct RkVelocityConstraint
 {
-    index_t block = 0;                  ///< nodal block
+    index_t block = 0; ///< nodal block
     int component = 0;
-    std::vector<index_t> condition;     ///< index into Model::conditions, per constrained node
-    std::vector<index_t> node;          ///< global node per constrained node
-    std::vector<index_t> slot;          ///< global node -> position in `node`, -1 if free (block range)
+    std::vector<index_t> condition; ///< index into Model::conditions, per constrained node
+    std::vector<index_t> node;      ///< global node per constrained node
+    std::vector<index_t> slot;      ///< global node -> position in `node`, -1 if free (block range)
     /// Every condition holds its particle fixed and no row reaches a free particle: the
     /// right-hand side is 0 at every step, and so is the solution (no factor is kept). A column
     /// with rollers on every particle (uniaxial strain) is one.
@@ -38,7 +38,10 @@ struct RkVelocityConstraint
     std::vector<real_t> free_w;
 };
 
-void Model::impose_velocity(real_t t, real_t dt, bool half_step) { impose_velocity(t, dt, half_step, nodes.v.data()); }
+void Model::impose_velocity(real_t t, real_t dt, bool half_step)
+{
+    impose_velocity(t, dt, half_step, nodes.v.data());
+}
 
 void Model::plan_conditions()
 {
@@ -191,8 +194,9 @@ void Model::build_rk_constraints()
                 rc->free_offsets.push_back(static_cast<index_t>(rc->free_dof.size()));
             }
             const bool reaches_free = !rc->free_dof.empty();
-            rc->at_rest = !reaches_free && std::all_of(rc->condition.begin(), rc->condition.end(),
-                                                       [&](index_t ci) { return conditions[ci].kind == BoundarySpec::Kind::Fixed; });
+            rc->at_rest = !reaches_free &&
+                          std::all_of(rc->condition.begin(), rc->condition.end(),
+                                      [&](index_t ci) { return conditions[ci].kind == BoundarySpec::Kind::Fixed; });
             if (rc->at_rest)
             {
                 rk_constraints_.push_back(std::move(rc));
@@ -205,10 +209,11 @@ void Model::build_rk_constraints()
             {
                 const auto& bc = deck_.boundary_conditions;
                 const std::string where = bc.empty() ? deck_.path : bc.front().loc.where;
-                throw DeckError({where, "boundary_conditions"},
-                                "the RK interpolation matrix of the " + std::to_string(m) + " particles constrained in component " +
-                                    std::to_string(k) + " of part '" + parts[nb.part].name + "' is singular",
-                                "expected constrained particle sets whose kernel functions are independent (e.g. whole faces)");
+                throw DeckError(
+                    {where, "boundary_conditions"},
+                    "the RK interpolation matrix of the " + std::to_string(m) + " particles constrained in component " +
+                        std::to_string(k) + " of part '" + parts[nb.part].name + "' is singular",
+                    "expected constrained particle sets whose kernel functions are independent (e.g. whole faces)");
             }
             rc->rhs.resize(m);
             rc->x.resize(m);

@@ -56,8 +56,7 @@ ContactSurface Model::contact_surface(const std::vector<std::string>& names, con
         }
     }
     if (s.n_segments() == 0)
-        throw DeckError({loc.where, loc.path + ".surfaces"},
-                        "has no surface: every part it names is a particle cloud",
+        throw DeckError({loc.where, loc.path + ".surfaces"}, "has no surface: every part it names is a particle cloud",
                         "expected meshed parts (box, cylinder, projectile, keyword); clouds take no contact yet");
     s.finish();
     return s;
@@ -110,7 +109,8 @@ void Model::check_initial_overlaps() const
                     out.push_back(ip);
             for (const std::string& name : names)
             {
-                const auto part = std::find_if(parts.begin(), parts.end(), [&](const PartInfo& p) { return p.name == name; });
+                const auto part =
+                    std::find_if(parts.begin(), parts.end(), [&](const PartInfo& p) { return p.name == name; });
                 if (part != parts.end())
                     out.push_back(static_cast<index_t>(part - parts.begin()));
                 else if (const auto fs = face_sets.find(name); fs != face_sets.end())
@@ -196,24 +196,26 @@ void Model::check_initial_overlaps() const
                     ev += f[j].c.dot(f[j].n) * f[j].area / 3.0;
                 }
                 const real_t tol = 1e-9 * std::cbrt(std::abs(ev));
-                bins.for_each_near_box(lo, hi, [&](index_t p)
-                {
-                    const Vec3 x(px[3 * p], px[3 * p + 1], px[3 * p + 2]);
-                    for (const FacePlane& fp : f)
-                        if (!((x - fp.c).dot(fp.n) <= tol))
-                            return; // outside the element (on its faces counts as inside)
-                    real_t depth = std::numeric_limits<real_t>::infinity(), over = depth;
-                    for (index_t b = first_face[e]; b < first_face[e + 1]; ++b)
-                    {
-                        const FacePlane& fp = planes[static_cast<std::size_t>(b)];
-                        const real_t d = -(x - fp.c).dot(fp.n);
-                        depth = std::min(depth, d);
-                        over = std::min(over, d - (c.max_penetration * ev / fp.area + c.thickness));
-                    }
-                    real_t& was = excess[static_cast<std::size_t>(p)];
-                    if (std::isnan(was) || over < was)
-                        was = over, depth_of[static_cast<std::size_t>(p)] = depth;
-                });
+                bins.for_each_near_box(lo, hi,
+                                       [&](index_t p)
+                                       {
+                                           const Vec3 x(px[3 * p], px[3 * p + 1], px[3 * p + 2]);
+                                           for (const FacePlane& fp : f)
+                                               if (!((x - fp.c).dot(fp.n) <= tol))
+                                                   return; // outside the element (on its faces counts as inside)
+                                           real_t depth = std::numeric_limits<real_t>::infinity(), over = depth;
+                                           for (index_t b = first_face[e]; b < first_face[e + 1]; ++b)
+                                           {
+                                               const FacePlane& fp = planes[static_cast<std::size_t>(b)];
+                                               const real_t d = -(x - fp.c).dot(fp.n);
+                                               depth = std::min(depth, d);
+                                               over =
+                                                   std::min(over, d - (c.max_penetration * ev / fp.area + c.thickness));
+                                           }
+                                           real_t& was = excess[static_cast<std::size_t>(p)];
+                                           if (std::isnan(was) || over < was)
+                                               was = over, depth_of[static_cast<std::size_t>(p)] = depth;
+                                       });
             }
             index_t deep = 0, first = -1;
             real_t first_depth = 0.0;

@@ -46,7 +46,8 @@ void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
                 return true;
             };
             RKFEM_REQUIRE(same_points(fresh.points, nb.points) && same_points(fresh.stabilization, nb.stabilization),
-                          "conversion in part '" << ps.name << "': the rebuilt block's points differ from the old ones");
+                          "conversion in part '" << ps.name
+                                                 << "': the rebuilt block's points differ from the old ones");
             fresh.part = nb.part;
             fresh.stress = std::move(nb.stress);
             fresh.stress_trial = std::move(nb.stress_trial);

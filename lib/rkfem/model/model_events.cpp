@@ -145,7 +145,10 @@ Model::ElementShape Model::element_shape(index_t block, index_t e) const
     return g;
 }
 
-real_t Model::element_time_step(index_t block, index_t e) const { return ShapeMeasures(*this, block, e).time_step(); }
+real_t Model::element_time_step(index_t block, index_t e) const
+{
+    return ShapeMeasures(*this, block, e).time_step();
+}
 
 bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
 {
@@ -264,7 +267,8 @@ void Model::plan_assembly()
         const index_t part = static_cast<index_t>(ib);
         if (part_nodal[ib] >= 0)
         {
-            force_blocks_.push_back({std::make_unique<NodalForceBlock>(nodal_blocks[part_nodal[ib]]), part, adds[ib] != 0});
+            force_blocks_.push_back(
+                {std::make_unique<NodalForceBlock>(nodal_blocks[part_nodal[ib]]), part, adds[ib] != 0});
             if (part_fe_side[ib] >= 0)
             {
                 FeSide& side = fe_sides[static_cast<std::size_t>(part_fe_side[ib])];

@@ -5,7 +5,10 @@
 
 namespace rkfem
 {
-bool Model::carries_coefficients(index_t node) const { return kinematics.carries_coefficients(node); }
+bool Model::carries_coefficients(index_t node) const
+{
+    return kinematics.carries_coefficients(node);
+}
 
 Vec3 Model::physical(const std::vector<real_t>& field, index_t node) const
 {
@@ -41,7 +44,8 @@ real_t Model::element_history(index_t b, index_t e, History h) const
     if (part_fe_side[b] >= 0 && fe_sides[part_fe_side[b]].local[e] >= 0)
     {
         const HexBlock& fb = fe_sides[part_fe_side[b]].block;
-        return fb.plastic.active() ? value(fb.plastic, static_cast<std::size_t>(fe_sides[part_fe_side[b]].local[e])) : 0.0;
+        return fb.plastic.active() ? value(fb.plastic, static_cast<std::size_t>(fe_sides[part_fe_side[b]].local[e]))
+                                   : 0.0;
     }
     if (part_nodal[b] >= 0)
     {

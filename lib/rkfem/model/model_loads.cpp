@@ -105,7 +105,8 @@ void Model::apply_external_forces(real_t t)
             // force -p n dA distributed with Psi_I(X_K)
             Vec3 xc[4];
             for (int c = 0; c < 4; ++c)
-                xc[c] = Vec3(nodes.x0[3 * q[c]], nodes.x0[3 * q[c] + 1], nodes.x0[3 * q[c] + 2]) + physical(nodes.u, q[c]);
+                xc[c] =
+                    Vec3(nodes.x0[3 * q[c]], nodes.x0[3 * q[c] + 1], nodes.x0[3 * q[c] + 2]) + physical(nodes.u, q[c]);
             const real_t g = 1.0 / std::sqrt(3.0);
             for (int gp = 0; gp < 4; ++gp)
             {

@@ -15,7 +15,8 @@ namespace
 void save_plastic(StateArchive& a, const std::string& prefix, const PlasticPoints& p)
 {
     int k = 0;
-    p.each_array([&](const auto& committed, const auto&) { a.put(prefix + "plastic." + std::to_string(k++), committed); });
+    p.each_array([&](const auto& committed, const auto&)
+                 { a.put(prefix + "plastic." + std::to_string(k++), committed); });
 }
 
 void load_plastic(const StateArchive& a, const std::string& prefix, PlasticPoints& p)
@@ -49,7 +50,8 @@ void load_hex_state(const StateArchive& a, const std::string& prefix, HexBlock& 
 
 /// The elements of `built` (as the deck builds them) that remain in `saved` (a block after
 /// erosion): removal keeps the order, so one pass matches them.
-std::vector<char> kept_elements(const std::vector<index_t>& built, const std::vector<index_t>& saved, const std::string& what)
+std::vector<char> kept_elements(const std::vector<index_t>& built, const std::vector<index_t>& saved,
+                                const std::string& what)
 {
     const std::size_t ne = built.size() / 8;
     std::vector<char> keep(ne, 0);
@@ -61,7 +63,8 @@ std::vector<char> kept_elements(const std::vector<index_t>& built, const std::ve
             ++s;
         }
     if (s != saved.size() / 8)
-        throw Error("checkpoint: " + what + "'s elements are not those of the deck's mesh (a checkpoint of another deck)");
+        throw Error("checkpoint: " + what +
+                    "'s elements are not those of the deck's mesh (a checkpoint of another deck)");
     return keep;
 }
 } // namespace

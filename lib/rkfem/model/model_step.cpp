@@ -239,18 +239,19 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
         {
             const index_t j = conditions[k].dof;
             bc_v_prev_[k] = nodes.v[j];
-            reaction_prev_[k] = nodes.f_int[j] - nodes.f_ext[j] - contact.force(static_cast<std::size_t>(j)) + reaction_inertia_[k];
+            reaction_prev_[k] =
+                nodes.f_int[j] - nodes.f_ext[j] - contact.force(static_cast<std::size_t>(j)) + reaction_inertia_[k];
         }
         return;
     }
     // external work, trapezoid in time, over the loaded dofs (f_ext is zero elsewhere)
-    energy.external_work += parallel_reduce_sum("rkfem::external_work", n_loaded,
-                                                [&](index_t q)
-                                                {
-                                                    const index_t j = loaded_dofs_[q];
-                                                    return 0.5 * (f_ext_prev_[q] + nodes.f_ext[j]) *
-                                                           (nodes.u[j] - u_prev[j]);
-                                                });
+    energy.external_work +=
+        parallel_reduce_sum("rkfem::external_work", n_loaded,
+                            [&](index_t q)
+                            {
+                                const index_t j = loaded_dofs_[q];
+                                return 0.5 * (f_ext_prev_[q] + nodes.f_ext[j]) * (nodes.u[j] - u_prev[j]);
+                            });
     // work of reactions at prescribed dofs: R = f_int - f_ext + m a_prescribed; still dofs
     // (plan_conditions) do none, and their reactions are read from the forces when asked for
     forces_current_ = true;
@@ -262,7 +263,8 @@ void Model::update_energies(const real_t* u_prev, real_t dt)
         const real_t ap = (nodes.v[j] - bc_v_prev_[k]) / dt;
         bc_v_prev_[k] = nodes.v[j];
         reaction_inertia_[k] = nodes.mass[j / 3] * ap;
-        const real_t r = nodes.f_int[j] - nodes.f_ext[j] - contact.force(static_cast<std::size_t>(j)) + reaction_inertia_[k];
+        const real_t r =
+            nodes.f_int[j] - nodes.f_ext[j] - contact.force(static_cast<std::size_t>(j)) + reaction_inertia_[k];
         energy.external_work += 0.5 * (reaction_prev_[k] + r) * du;
         reaction_prev_[k] = r;
     }

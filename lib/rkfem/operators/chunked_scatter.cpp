@@ -65,7 +65,8 @@ void ChunkedScatter::zero(index_t c)
         return;
     const Chunk& ch = chunks[static_cast<std::size_t>(c)];
     std::fill(buffer.begin() + static_cast<std::ptrdiff_t>(ch.buffer),
-              buffer.begin() + static_cast<std::ptrdiff_t>(ch.buffer + 4 * static_cast<std::size_t>(ch.hi - ch.lo)), 0.0);
+              buffer.begin() + static_cast<std::ptrdiff_t>(ch.buffer + 4 * static_cast<std::size_t>(ch.hi - ch.lo)),
+              0.0);
 }
 
 void ChunkedScatter::reduce(std::vector<real_t>& f, bool add)
@@ -127,7 +128,8 @@ void ChunkedScatter::reduce(std::vector<real_t>& f, bool add)
                          for (index_t c = 0; c < run.chunks; ++c)
                          {
                              const Chunk& ch = chunks[static_cast<std::size_t>(cover[c])];
-                             real_t* b = &buffer[ch.buffer + 4 * static_cast<std::size_t>(node_begin + run.first + i - ch.lo)];
+                             real_t* b =
+                                 &buffer[ch.buffer + 4 * static_cast<std::size_t>(node_begin + run.first + i - ch.lo)];
                              s[0] += b[0], s[1] += b[1], s[2] += b[2];
                              b[0] = b[1] = b[2] = b[3] = 0.0;
                          }

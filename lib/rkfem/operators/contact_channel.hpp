@@ -44,7 +44,8 @@ class ContactChannel
     void save_state(StateArchive& archive) const;
     void load_state(const StateArchive& archive);
 
-    std::vector<real_t> f; ///< 3 n, node-major, on the unknowns; zero on every node not in nodes(); empty before the first force
+    std::vector<real_t>
+        f; ///< 3 n, node-major, on the unknowns; zero on every node not in nodes(); empty before the first force
     /// f[j], and 0 before any force was added (f is empty until then)
     real_t force(std::size_t j) const { return f.empty() ? 0.0 : f[j]; }
 

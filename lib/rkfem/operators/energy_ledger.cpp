@@ -8,13 +8,13 @@ namespace rkfem
 {
 real_t Energies::balance_error() const
 {
-    const real_t lhs = kinetic + kinetic_correction + internal + hourglass + bulk_viscosity + contact + damping + eroded;
+    const real_t lhs =
+        kinetic + kinetic_correction + internal + hourglass + bulk_viscosity + contact + damping + eroded;
     const real_t err = std::abs(lhs - kinetic0 - internal0 - external_work);
-    const real_t scale = std::max({std::abs(kinetic) + std::abs(internal) + std::abs(hourglass) +
-                                       std::abs(bulk_viscosity) + std::abs(contact) + std::abs(damping) +
-                                       std::abs(eroded),
-                                   std::abs(external_work), std::abs(kinetic0 + internal0),
-                                   std::numeric_limits<real_t>::min()});
+    const real_t scale =
+        std::max({std::abs(kinetic) + std::abs(internal) + std::abs(hourglass) + std::abs(bulk_viscosity) +
+                      std::abs(contact) + std::abs(damping) + std::abs(eroded),
+                  std::abs(external_work), std::abs(kinetic0 + internal0), std::numeric_limits<real_t>::min()});
     return err / scale;
 }
 

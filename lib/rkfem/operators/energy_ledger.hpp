@@ -58,6 +58,6 @@ struct Energies
 struct ForceReport
 {
     real_t dt_stable = kNoLimit; ///< before the scale factor
-    index_t dt_element = -1;  ///< global element index controlling dt
+    index_t dt_element = -1;     ///< global element index controlling dt
 };
 } // namespace rkfem

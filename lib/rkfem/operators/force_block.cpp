@@ -57,7 +57,7 @@ index_t FeSideForceBlock::part_element(index_t block_element) const
     if (block_element < 0)
         return 0;
     return block_element < static_cast<index_t>(part_of_.size()) ? part_of_[static_cast<std::size_t>(block_element)]
-                                                                  : static_cast<index_t>(part_of_.size());
+                                                                 : static_cast<index_t>(part_of_.size());
 }
 
 PointFault FeSideForceBlock::fault(index_t bad, const NodeSet& nodes) const

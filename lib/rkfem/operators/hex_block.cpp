@@ -3,20 +3,20 @@
 #include "rkfem/core/error.hpp"
 
 #include <algorithm>
-#include <immintrin.h>
 #include <cmath>
+#include <immintrin.h>
 #include <type_traits>
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/fem/hex8_modes.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/huge_pages.hpp"
-#include "rkfem/operators/bulk_viscosity.hpp"
-#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/core/simd.hpp"
 #include "rkfem/core/stream_stores.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 
 // GCC 12's AVX-512 intrinsics (gathers, unpacks, 128-bit shuffles, extracts) start from an
 // undefined source written "__m512d __Y = __Y", which -Wmaybe-uninitialized / -Wuninitialized
@@ -30,7 +30,10 @@ namespace
 {
 constexpr int W = simd::kLanes; // lanes per batch (one vector register of doubles)
 
-index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
+index_t n_batches(index_t ne)
+{
+    return (ne + W - 1) / W;
+}
 
 /// One batch of W elements, one element per lane of a simd::dvec. FULL: all W lanes are elements
 /// (every batch but a partial last one), so loads and stores are whole lane vectors; a partial
@@ -41,7 +44,8 @@ index_t n_batches(index_t ne) { return (ne + W - 1) / W; }
 /// modes, the velocity gradient and the hourglass velocities come from the velocity modes, and
 /// the nodal forces (stress and hourglass) are one inverse butterfly of their modes.
 template <HourglassType HG, bool PLASTIC, bool FULL>
-RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt, real_t* buf, index_t lo)
+RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt, real_t* buf,
+                                        index_t lo)
 {
     using simd::dvec;
     using simd::mul_add;
@@ -93,7 +97,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 #endif
     // the modes Y_k (k = 1..7; the constant mode is not used) of a nodal field (x or v) over the
     // batch's elements: node I of the 8 elements by line loads or one 8-lane gather per component
-    auto field_modes = [&](const std::vector<real_t>& field, dvec (&Y)[8][3]) __attribute__((always_inline))
+    auto field_modes = [&](const std::vector<real_t>& field, dvec(&Y)[8][3]) __attribute__((always_inline))
     {
         dvec y[8][3];
 #if defined(__AVX512F__)
@@ -160,12 +164,8 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     real_t* s_out = blk.stress_trial.data();
 
     // stress update (strain rate d, old and new stress kept for the stress power)
-    const dvec dl[6] = {L[0][0],
-                        L[1][1],
-                        L[2][2],
-                        0.5 * (L[0][1] + L[1][0]),
-                        0.5 * (L[1][2] + L[2][1]),
-                        0.5 * (L[2][0] + L[0][2])};
+    const dvec dl[6] = {
+        L[0][0], L[1][1], L[2][2], 0.5 * (L[0][1] + L[1][0]), 0.5 * (L[1][2] + L[2][1]), 0.5 * (L[2][0] + L[0][2])};
     const dvec wl[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]), 0.5 * (L[2][0] - L[0][2])};
     dvec so[6], sn[6];
     for (int k = 0; k < 6; ++k)
@@ -272,8 +272,9 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             const int k = mode_xi_eta + kAssumedStrainMode[m];
             dvec qd[3];
             for (int i = 0; i < 3; ++i)
-                qd[i] = simd::neg_mul_add(L[i][2], A[k][2],
-                                          simd::neg_mul_add(L[i][1], A[k][1], simd::neg_mul_add(L[i][0], A[k][0], U[k][i])));
+                qd[i] = simd::neg_mul_add(
+                    L[i][2], A[k][2],
+                    simd::neg_mul_add(L[i][1], A[k][1], simd::neg_mul_add(L[i][0], A[k][0], U[k][i])));
             for (int i = 0; i < 3; ++i)
             {
                 q[m][i] = 0.125 * mul_add(e[i][2], qd[2], mul_add(e[i][1], qd[1], e[i][0] * qd[0]));
@@ -341,8 +342,8 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                 const int k = mode_xi_eta + a;
                 dvec qd = U[k][i];
                 if constexpr (HG != HourglassType::ViscousPlain) // the plain form takes gamma = Gamma
-                    qd = simd::neg_mul_add(L[i][2], A[k][2],
-                                           simd::neg_mul_add(L[i][1], A[k][1], simd::neg_mul_add(L[i][0], A[k][0], qd)));
+                    qd = simd::neg_mul_add(
+                        L[i][2], A[k][2], simd::neg_mul_add(L[i][1], A[k][1], simd::neg_mul_add(L[i][0], A[k][0], qd)));
                 if constexpr (HG == HourglassType::Stiffness)
                 {
                     const std::size_t slot = static_cast<std::size_t>(3 * a + i) * np;
@@ -364,7 +365,8 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         for (int j = 0; j < 3; ++j)
             for (int i = 0; i < 3; ++i)
                 T[i][j] = simd::neg_mul_add(
-                    inv_v, mul_add(A[7][j], Q[3][i], mul_add(A[6][j], Q[2][i], mul_add(A[5][j], Q[1][i], A[4][j] * Q[0][i]))),
+                    inv_v,
+                    mul_add(A[7][j], Q[3][i], mul_add(A[6][j], Q[2][i], mul_add(A[5][j], Q[1][i], A[4][j] * Q[0][i]))),
                     T[i][j]);
 
     // internal force f_iI = (sigma_ij - M_ji) b_jI + sum_a Gamma_aI Q_ai: in modes F_ki =
@@ -386,7 +388,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     }
     hex8_from_modes_no_mean(F, f);
     // the forces lane by lane, for the paths that add or write them element by element
-    auto force_lanes = [&](real_t (&fl)[8][3][W])
+    auto force_lanes = [&](real_t(&fl)[8][3][W])
     {
         for (int I = 0; I < 8; ++I)
             for (int d = 0; d < 3; ++d)
@@ -541,8 +543,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 
 /// Fully integrated hex: 8 Gauss points, stress per point, bulk viscosity from the mean tr D.
 template <bool PLASTIC>
-void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, real_t out[4],
-                         index_t& bad)
+void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, real_t out[4], index_t& bad)
 {
     const std::size_t ss = blk.stress_stride;
     real_t xe[8][3], ve[8][3];
@@ -572,10 +573,13 @@ void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t 
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j)
                     Lm[i][j] += ve[I][i] * dNdx[gp][I][j];
-        const real_t d[6] = {Lm[0][0], Lm[1][1], Lm[2][2], 0.5 * (Lm[0][1] + Lm[1][0]),
-                             0.5 * (Lm[1][2] + Lm[2][1]), 0.5 * (Lm[2][0] + Lm[0][2])};
-        const real_t w[3] = {0.5 * (Lm[0][1] - Lm[1][0]), 0.5 * (Lm[1][2] - Lm[2][1]),
-                             0.5 * (Lm[2][0] - Lm[0][2])};
+        const real_t d[6] = {Lm[0][0],
+                             Lm[1][1],
+                             Lm[2][2],
+                             0.5 * (Lm[0][1] + Lm[1][0]),
+                             0.5 * (Lm[1][2] + Lm[2][1]),
+                             0.5 * (Lm[2][0] + Lm[0][2])};
+        const real_t w[3] = {0.5 * (Lm[0][1] - Lm[1][0]), 0.5 * (Lm[1][2] - Lm[2][1]), 0.5 * (Lm[2][0] - Lm[0][2])};
         const std::size_t p = 8 * static_cast<std::size_t>(e) + gp;
         real_t s_old[6];
         for (int k = 0; k < 6; ++k)
@@ -684,7 +688,7 @@ void HexBlock::remove_elements(const std::vector<char>& keep, const NodeSet& nod
                      conn.begin() + 8 * static_cast<std::ptrdiff_t>(e + 1));
     conn = std::move(conn2);
     build_tables(nodes, scatter.empty() && formulation == Formulation::Fem1pt && ne > 0 ? Assembly::Gather
-                                                                                       : Assembly::Automatic);
+                                                                                        : Assembly::Automatic);
 }
 
 void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
@@ -746,8 +750,8 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
     std::vector<index_t> fill(node_elem_offsets.begin(), node_elem_offsets.end() - 1);
     for (index_t s = 0; s < 8 * ne; ++s)
         node_elem_slots[fill[conn[s] - node_begin]++] = s;
-    // batch-major gather indices: [64 b + 8 I + l] = 3 x (node I of element 8 b + l), full
-    // batches; only the AVX-512 kernel reads them (its vector gathers)
+        // batch-major gather indices: [64 b + 8 I + l] = 3 x (node I of element 8 b + l), full
+        // batches; only the AVX-512 kernel reads them (its vector gathers)
 #if defined(__AVX512F__)
     const index_t n_gather = mesh_only ? 0 : ne / W;
 #else
@@ -782,7 +786,8 @@ template <HourglassType HG> void run_1pt(HexBlock& blk, const NodeSet& nodes, in
     {
         if (!blk.scatter.empty())
             blk.scatter.run_chunks("rkfem::hex1pt", 0, static_cast<index_t>(blk.scatter.chunks.size()), W,
-                                   [&](index_t b, real_t* buf, index_t lo) { batch.template operator()<PLASTIC>(b, buf, lo); });
+                                   [&](index_t b, real_t* buf, index_t lo)
+                                   { batch.template operator()<PLASTIC>(b, buf, lo); });
         else
             parallel_for("rkfem::hex1pt", nb, [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
     };
@@ -841,12 +846,10 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
         else
             run(std::false_type{});
     }
-    r.d_internal = parallel_reduce_sum("rkfem::hex_energy", nb,
-                                       [&](index_t b) { return blk.batch_sums[4 * b]; });
-    r.d_hourglass = parallel_reduce_sum("rkfem::hex_energy", nb,
-                                        [&](index_t b) { return blk.batch_sums[4 * b + 1]; });
-    r.d_bulk_viscosity = parallel_reduce_sum("rkfem::hex_energy", nb,
-                                             [&](index_t b) { return blk.batch_sums[4 * b + 2]; });
+    r.d_internal = parallel_reduce_sum("rkfem::hex_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b]; });
+    r.d_hourglass = parallel_reduce_sum("rkfem::hex_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b + 1]; });
+    r.d_bulk_viscosity =
+        parallel_reduce_sum("rkfem::hex_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b + 2]; });
     for (index_t b = 0; b < nb; ++b)
     {
         if (blk.batch_sums[4 * b + 3] < r.dt_stable)

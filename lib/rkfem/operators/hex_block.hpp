@@ -62,8 +62,8 @@ struct HexBlock
 
     // per-step scratch
     std::vector<real_t> elem_force; ///< n_elements x 24 [N] (gather assembly only)
-    std::vector<real_t> batch_sums;  ///< n_batches x 4: d_int, d_hg, d_bv, dt_min
-    std::vector<index_t> batch_idx;  ///< n_batches x 2: dt element, bad element
+    std::vector<real_t> batch_sums; ///< n_batches x 4: d_int, d_hg, d_bv, dt_min
+    std::vector<index_t> batch_idx; ///< n_batches x 2: dt element, bad element
 
     index_t n_elements() const { return static_cast<index_t>(conn.size() / 8); }
     index_t points_per_element() const { return formulation == Formulation::Fem1pt ? 1 : 8; }
@@ -96,8 +96,8 @@ struct ForcePassResult
     real_t d_hourglass = 0.0; ///< hourglass work this step [J]
     real_t d_bulk_viscosity = 0.0;
     real_t dt_stable = kNoLimit; ///< before the scale factor [s]
-    index_t dt_element = -1;  ///< element that controls dt
-    index_t bad_element = -1; ///< first element with non-positive volume (or NaN), -1 if none
+    index_t dt_element = -1;     ///< element that controls dt
+    index_t bad_element = -1;    ///< first element with non-positive volume (or NaN), -1 if none
 };
 
 /// Internal force pass: velocity gradient from v at current x, material update into trial state,

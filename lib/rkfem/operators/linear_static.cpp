@@ -119,8 +119,10 @@ SparseMatrix assemble_stiffness(const IntegrationOperator& op, const ElasticPara
             {
                 const index_t J = op.nodes[b];
                 const Vec3 gJ = op.gradient(b);
-                const std::size_t slot = static_cast<std::size_t>(std::lower_bound(row_begin, row_end, J) - cols.begin());
-                const Mat3 k = w * (lam * gI * gJ.transpose() + mu * gI.dot(gJ) * Mat3::Identity() + mu * gJ * gI.transpose());
+                const std::size_t slot =
+                    static_cast<std::size_t>(std::lower_bound(row_begin, row_end, J) - cols.begin());
+                const Mat3 k =
+                    w * (lam * gI * gJ.transpose() + mu * gI.dot(gJ) * Mat3::Identity() + mu * gJ * gI.transpose());
                 for (int i = 0; i < 3; ++i)
                     for (int j = 0; j < 3; ++j)
                         val[9 * slot + 3 * i + j] += k(i, j);
@@ -156,8 +158,10 @@ std::vector<real_t> solve_static(const SparseMatrix& K, const std::vector<real_t
                                  const std::vector<real_t>& prescribed_values)
 {
     const index_t n = static_cast<index_t>(K.rows());
-    RKFEM_REQUIRE(static_cast<index_t>(f.size()) == n, "solve_static: force has " << f.size() << " entries, K has " << n << " rows");
-    RKFEM_REQUIRE(prescribed_dofs.size() == prescribed_values.size(), "solve_static: prescribed dofs and values differ in length");
+    RKFEM_REQUIRE(static_cast<index_t>(f.size()) == n,
+                  "solve_static: force has " << f.size() << " entries, K has " << n << " rows");
+    RKFEM_REQUIRE(prescribed_dofs.size() == prescribed_values.size(),
+                  "solve_static: prescribed dofs and values differ in length");
     std::vector<real_t> u(static_cast<std::size_t>(n), 0.0);
     std::vector<index_t> map;
     const index_t nf = free_dof_map(n, prescribed_dofs, map);
@@ -177,8 +181,10 @@ std::vector<real_t> solve_static(const SparseMatrix& K, const std::vector<real_t
     Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> chol;
     chol.compute(Kff);
     RKFEM_REQUIRE(chol.info() == Eigen::Success,
-                  "static solve: the stiffness with " << prescribed_dofs.size() << " prescribed dofs is not positive definite "
-                                                      "(a zero-energy mode is free, or the integration is rank deficient)");
+                  "static solve: the stiffness with "
+                      << prescribed_dofs.size()
+                      << " prescribed dofs is not positive definite "
+                         "(a zero-energy mode is free, or the integration is rank deficient)");
     const Eigen::VectorXd uf = chol.solve(rhs);
     for (index_t i = 0; i < n; ++i)
         if (map[i] >= 0)
@@ -213,8 +219,9 @@ std::vector<real_t> solve_static_constrained(const SparseMatrix& K, const std::v
         rhs[n + i] = g[i];
     Eigen::UmfPackLU<SparseMatrix> lu;
     lu.compute(A);
-    RKFEM_REQUIRE(lu.info() == Eigen::Success, "constrained static solve: the saddle-point matrix with " << m
-                                                   << " constraints is singular (free zero-energy mode or dependent constraints)");
+    RKFEM_REQUIRE(lu.info() == Eigen::Success,
+                  "constrained static solve: the saddle-point matrix with "
+                      << m << " constraints is singular (free zero-energy mode or dependent constraints)");
     const Eigen::VectorXd x = lu.solve(rhs);
     return std::vector<real_t>(x.data(), x.data() + n);
 }
@@ -226,7 +233,8 @@ MatrixFreeStiffness::MatrixFreeStiffness(std::vector<StiffnessTerm> terms, const
     {
         RKFEM_REQUIRE(t.op != nullptr, "matrix-free stiffness: a term has no operator");
         for (index_t I : t.op->nodes)
-            RKFEM_REQUIRE(I >= 0 && I < n_nodes, "matrix-free stiffness: an entry touches node " << I << " of " << n_nodes);
+            RKFEM_REQUIRE(I >= 0 && I < n_nodes,
+                          "matrix-free stiffness: an entry touches node " << I << " of " << n_nodes);
         Transposed tr;
         transpose_entries(*t.op, n_nodes, tr.offsets, tr.entry, tr.point);
         transposed_.push_back(std::move(tr));
@@ -312,7 +320,8 @@ PcgResult solve_static_pcg(const MatrixFreeStiffness& K, const std::vector<real_
         Ct = constraints->transpose();
         const SparseMatrix CCt = (*constraints * Ct).pruned();
         cct.compute(CCt);
-        RKFEM_REQUIRE(cct.info() == Eigen::Success, "static solve (PCG): the " << constraints->rows()
+        RKFEM_REQUIRE(cct.info() == Eigen::Success, "static solve (PCG): the "
+                                                        << constraints->rows()
                                                         << " constraints are linearly dependent (C C^T is singular)");
         // the preconditioner must be definite where K is, on C u = 0: add beta C^T C, which
         // removes the preconditioner's free motions as the constraints remove K's
@@ -332,8 +341,8 @@ PcgResult solve_static_pcg(const MatrixFreeStiffness& K, const std::vector<real_
     };
     Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> chol;
     chol.compute(lower_restricted_to(constrained ? M : preconditioner, map, nf));
-    RKFEM_REQUIRE(chol.info() == Eigen::Success, "static solve (PCG): the preconditioner with " << pinned_dofs.size()
-                                                     << " pinned dofs is not positive definite");
+    RKFEM_REQUIRE(chol.info() == Eigen::Success, "static solve (PCG): the preconditioner with "
+                                                     << pinned_dofs.size() << " pinned dofs is not positive definite");
     const auto dot = [n](const std::vector<real_t>& a, const std::vector<real_t>& b)
     { return parallel_reduce_sum("pcg_dot", n, [&](index_t i) { return a[i] * b[i]; }); };
     Eigen::VectorXd rf(nf), zf(nf);
@@ -350,7 +359,8 @@ PcgResult solve_static_pcg(const MatrixFreeStiffness& K, const std::vector<real_
     // CG on the admissible dofs (zero at the pinned ones, C u = 0): every vector is projected
     PcgResult res;
     res.u.assign(static_cast<std::size_t>(n), 0.0);
-    std::vector<real_t> r(f), z(static_cast<std::size_t>(n)), p(static_cast<std::size_t>(n)), q(static_cast<std::size_t>(n));
+    std::vector<real_t> r(f), z(static_cast<std::size_t>(n)), p(static_cast<std::size_t>(n)),
+        q(static_cast<std::size_t>(n));
     project(r);
     const real_t f_norm = std::sqrt(dot(r, r));
     if (f_norm == 0.0)
@@ -364,8 +374,8 @@ PcgResult solve_static_pcg(const MatrixFreeStiffness& K, const std::vector<real_
         project(q);
         const real_t pq = dot(p, q);
         RKFEM_REQUIRE(pq > 0.0, "static solve (PCG): p.Kp = " << pq << " at iteration " << it
-                                                                << "; K is not positive definite on the free dofs "
-                                                                   "(a zero-energy mode is free)");
+                                                              << "; K is not positive definite on the free dofs "
+                                                                 "(a zero-energy mode is free)");
         const real_t alpha = rz / pq;
         parallel_for("pcg_update", n,
                      [&](index_t i)

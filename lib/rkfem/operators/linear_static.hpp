@@ -48,13 +48,13 @@ struct StiffnessTerm
 /// apply() works in that scratch, so one object serves one caller at a time.
 class MatrixFreeStiffness
 {
-public:
+  public:
     MatrixFreeStiffness(std::vector<StiffnessTerm> terms, const ElasticParams& mat, index_t n_nodes);
     index_t n_dofs() const { return 3 * n_nodes_; }
     /// out = K u (3 n_nodes each).
     void apply(const real_t* u, real_t* out) const;
 
-private:
+  private:
     struct Transposed
     {
         std::vector<index_t> offsets; ///< n_nodes + 1

@@ -43,8 +43,9 @@ void expand_from(IntegrationOperator& op, const StencilTable& table)
     {
         const StencilView v = table.view(p);
         const index_t k0 = op.offsets[p];
-        RKFEM_REQUIRE(op.offsets[p + 1] - k0 == v.size, "expand_operators: point " << p << " has " << op.offsets[p + 1] - k0
-                                                                                  << " entries, its stencil " << v.size);
+        RKFEM_REQUIRE(op.offsets[p + 1] - k0 == v.size, "expand_operators: point "
+                                                            << p << " has " << op.offsets[p + 1] - k0
+                                                            << " entries, its stencil " << v.size);
         for (index_t j = 0; j < v.size; ++j)
         {
             op.nodes[k0 + j] = v.base + v.offset[j];
@@ -114,7 +115,8 @@ void NodalBlock::build_tables(Assembly assembly)
                 RKFEM_REQUIRE(stabilization.parent[3 * t + i] == t && stabilization.offsets[3 * t + i + 1] - ki == n &&
                                   std::equal(stabilization.nodes.begin() + k0, stabilization.nodes.begin() + k0 + n,
                                              stabilization.nodes.begin() + ki),
-                              "nodal block: NSNI sub-point " << 3 * t + i << " does not share the nodes of its point " << t);
+                              "nodal block: NSNI sub-point " << 3 * t + i << " does not share the nodes of its point "
+                                                             << t);
             }
         }
     }
@@ -171,47 +173,46 @@ void NodalBlock::build_tables(Assembly assembly)
             // per node)
             const index_t n = op->n_points();
             const index_t size = point_chunk * std::max<index_t>(1, np > 0 ? n / np : 1);
-            const std::size_t added = scatter.add_chunks(n, size,
-                                                         [&](index_t first, index_t last, index_t& lo, index_t& hi)
-                                                         {
-                                                             // NSNI's triplets run in their points' batches: their nodes too
-                                                             if (op == &points && stabilization_triplets && !stab_triplets.empty())
-                                                                 for (index_t t = first; t < last; ++t)
-                                                                 {
-                                                                     const TripletView v = stab_triplets.view(t);
-                                                                     for (index_t k = 0; k < v.size; ++k)
-                                                                     {
-                                                                         lo = std::min(lo, v.base + v.offset[k]);
-                                                                         hi = std::max(hi, v.base + v.offset[k] + 1);
-                                                                     }
-                                                                 }
-                                                             else if (op == &points && stabilization_triplets)
-                                                                 for (index_t k = stabilization.offsets[3 * first];
-                                                                      k < stabilization.offsets[3 * last]; ++k)
-                                                                 {
-                                                                     lo = std::min(lo, stabilization.nodes[k]);
-                                                                     hi = std::max(hi, stabilization.nodes[k] + 1);
-                                                                 }
-                                                             auto touch = [&](index_t node)
-                                                             {
-                                                                 RKFEM_REQUIRE(node >= node_begin && node < node_end,
-                                                                               "nodal block: entry touches node "
-                                                                                   << node << " outside the part's range ["
-                                                                                   << node_begin << ", " << node_end << ")");
-                                                                 lo = std::min(lo, node);
-                                                                 hi = std::max(hi, node + 1);
-                                                             };
-                                                             if (op == &points && points_held)
-                                                                 for (index_t p = first; p < last; ++p)
-                                                                 {
-                                                                     const StencilView v = point_view(p);
-                                                                     for (index_t k = 0; k < v.size; ++k)
-                                                                         touch(v.base + v.offset[k]);
-                                                                 }
-                                                             else
-                                                                 for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
-                                                                     touch(op->nodes[k]);
-                                                         });
+            const std::size_t added = scatter.add_chunks(
+                n, size,
+                [&](index_t first, index_t last, index_t& lo, index_t& hi)
+                {
+                    // NSNI's triplets run in their points' batches: their nodes too
+                    if (op == &points && stabilization_triplets && !stab_triplets.empty())
+                        for (index_t t = first; t < last; ++t)
+                        {
+                            const TripletView v = stab_triplets.view(t);
+                            for (index_t k = 0; k < v.size; ++k)
+                            {
+                                lo = std::min(lo, v.base + v.offset[k]);
+                                hi = std::max(hi, v.base + v.offset[k] + 1);
+                            }
+                        }
+                    else if (op == &points && stabilization_triplets)
+                        for (index_t k = stabilization.offsets[3 * first]; k < stabilization.offsets[3 * last]; ++k)
+                        {
+                            lo = std::min(lo, stabilization.nodes[k]);
+                            hi = std::max(hi, stabilization.nodes[k] + 1);
+                        }
+                    auto touch = [&](index_t node)
+                    {
+                        RKFEM_REQUIRE(node >= node_begin && node < node_end,
+                                      "nodal block: entry touches node " << node << " outside the part's range ["
+                                                                         << node_begin << ", " << node_end << ")");
+                        lo = std::min(lo, node);
+                        hi = std::max(hi, node + 1);
+                    };
+                    if (op == &points && points_held)
+                        for (index_t p = first; p < last; ++p)
+                        {
+                            const StencilView v = point_view(p);
+                            for (index_t k = 0; k < v.size; ++k)
+                                touch(v.base + v.offset[k]);
+                        }
+                    else
+                        for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
+                            touch(op->nodes[k]);
+                });
             if (op == &points)
                 n_point_chunks = static_cast<index_t>(scatter.chunks.size());
             // a point order without locality (an imported cloud in random order) makes every

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <exception>
+#include <map>
 #include <memory>
 #include <optional>
 
@@ -14,9 +14,9 @@
 #include "rkfem/approximation/shape_evaluator.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/setup_progress.hpp"
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
-#include "rkfem/core/setup_progress.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
 
 namespace rkfem
@@ -142,7 +142,8 @@ void add_interpolation(NodalBlock& nb, const RkShapeFunctions& rk, const RkTrans
                      index_t q = nb.interp_offsets[i];
                      for (index_t j = source_offsets[k]; j < source_offsets[k + 1]; ++j, ++q)
                      {
-                         nb.interp_nodes[q] = (own ? source_nodes[j] : particles.counterpart(i, source_nodes[j])) + offset;
+                         nb.interp_nodes[q] =
+                             (own ? source_nodes[j] : particles.counterpart(i, source_nodes[j])) + offset;
                          nb.interp_values[q] = source_values[j];
                      }
                  });
@@ -236,8 +237,9 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
                 // the rows straight into shared stencils where they pay (a part of one
                 // formulation keeps only the table: compact_operators below; MSCNI's
                 // stabilization is formed from the rows)
-                nb.points = build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr, ps.rk.share_translates,
-                                          nb.share_stencils && !mscni ? &nb.point_stencils : nullptr);
+                nb.points =
+                    build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr, ps.rk.share_translates,
+                                  nb.share_stencils && !mscni ? &nb.point_stencils : nullptr);
                 nb.points_in_table = !nb.point_stencils.empty();
             }
             else if (mscni)
@@ -369,8 +371,7 @@ SubMesh sub_mesh(const HexMesh& mesh, const std::vector<char>& keep)
 }
 } // namespace
 
-NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
-                               const std::vector<char>* rk_set)
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset, const std::vector<char>* rk_set)
 {
     const std::vector<char> rk_elements = rk_set ? *rk_set : rk_region_elements(ps, mesh);
     index_t n_rk = 0;
@@ -705,8 +706,8 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
                 reach[i] = std::max(reach[i], (cloud.node(i) - cloud.node(j)).norm());
         }
         if (area.empty())
-            throw DeckError({g.loc.where, ps.loc.path + ".generator"}, "particle " + std::to_string(i) + " has no neighbour",
-                            "expected at least 2 particles");
+            throw DeckError({g.loc.where, ps.loc.path + ".generator"},
+                            "particle " + std::to_string(i) + " has no neighbour", "expected at least 2 particles");
     }
     // one SCNI point per Voronoi face where the deck asks (after the reach, which reads the
     // triangles' areas per neighbour): the SCNI rows and the body's facets for loads alike
@@ -747,8 +748,8 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
             const setup_progress::Phase progress("part '" + ps.name + "': " + ps.nodal.stabilization + " stabilization",
                                                  nsni ? nb.points.n_points() : 0);
             if (nsni)
-                hold_nsni(nb, build_nsni_triplets(nb.points, *rk, cube_second_moments(cells.volume), ps.rk.drop_tolerance,
-                                                  particles));
+                hold_nsni(nb, build_nsni_triplets(nb.points, *rk, cube_second_moments(cells.volume),
+                                                  ps.rk.drop_tolerance, particles));
             else
                 nb.stabilization = build_mscni_stabilization(nb.points, build_sd_cells(cells, shapes));
             nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;

@@ -120,7 +120,8 @@ HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real
 bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& nodal, const RkSpec& rk)
 {
     const RkSpec defaults;
-    const bool coefficient = nodal.stabilization_coefficient == (nodal.stabilization == "nsni" ? kNsniCoefficient : 1.0);
+    const bool coefficient =
+        nodal.stabilization_coefficient == (nodal.stabilization == "nsni" ? kNsniCoefficient : 1.0);
     if (formulation == Formulation::FemNodal)
         return coefficient && nodal.scheme != "dni";
     return formulation == Formulation::Rkpm && coefficient && nodal.scheme != "dni" && rk.order == defaults.order &&

@@ -22,7 +22,7 @@ namespace rkfem
 {
 struct HighestFrequency
 {
-    real_t omega_max = 0.0; ///< [rad/s]: sqrt of the largest eigenvalue of M^-1 K found
+    real_t omega_max = 0.0;  ///< [rad/s]: sqrt of the largest eigenvalue of M^-1 K found
     real_t alpha_crit = 0.0; ///< 2 / omega_max x c / min_p l0_p: the alpha whose step is critical
     int passes = 0;          ///< force passes the iteration took
 };
@@ -40,7 +40,10 @@ HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real
 /// `formulation` with the default RK functions (order 1, cubic B-spline, box at a/h 1.51; rkpm)
 /// and the default stabilization coefficient. Elsewhere the set-up measures alpha_crit.
 bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& nodal, const RkSpec& rk);
-inline bool nodal_step_calibrated(const PartSpec& ps) { return nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk); }
+inline bool nodal_step_calibrated(const PartSpec& ps)
+{
+    return nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk);
+}
 
 /// The fraction of the measured alpha_crit a part without a calibrated default steps at (the
 /// quotient approaches omega_max from below; time.dt_scale applies on top, as for every part).

@@ -6,8 +6,9 @@ namespace rkfem
 {
 void copy_point_state(const PointState& src, std::size_t from, const PointState& dst, std::size_t to)
 {
-    RKFEM_REQUIRE(from < src.n_points && to < dst.n_points,
-                  "copy_point_state: point " << from << " of " << src.n_points << " to " << to << " of " << dst.n_points);
+    RKFEM_REQUIRE(from < src.n_points && to < dst.n_points, "copy_point_state: point " << from << " of " << src.n_points
+                                                                                       << " to " << to << " of "
+                                                                                       << dst.n_points);
     const bool src_h = src.history != nullptr && src.history->active();
     const bool dst_h = dst.history != nullptr && dst.history->active();
     RKFEM_REQUIRE(src_h == dst_h && (!src_h || src.history->kind == dst.history->kind),

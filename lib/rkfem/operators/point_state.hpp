@@ -23,11 +23,13 @@ struct PointState
 
 inline PointState point_state(HexBlock& b)
 {
-    return {b.stress.data(), b.stress_trial.data(), b.stress_stride, &b.plastic, static_cast<std::size_t>(b.n_points())};
+    return {b.stress.data(), b.stress_trial.data(), b.stress_stride, &b.plastic,
+            static_cast<std::size_t>(b.n_points())};
 }
 inline PointState point_state(NodalBlock& b)
 {
-    return {b.stress.data(), b.stress_trial.data(), b.stress_stride, &b.plastic, static_cast<std::size_t>(b.n_points())};
+    return {b.stress.data(), b.stress_trial.data(), b.stress_stride, &b.plastic,
+            static_cast<std::size_t>(b.n_points())};
 }
 
 /// Point `to` of dst takes the committed stress and history of point `from` of src (trial =

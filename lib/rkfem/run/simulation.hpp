@@ -14,8 +14,8 @@ namespace rkfem
 {
 struct RunOptions
 {
-    std::string out_dir;      ///< "" = no files (tests)
-    bool progress = true;     ///< progress line on stderr
+    std::string out_dir;  ///< "" = no files (tests)
+    bool progress = true; ///< progress line on stderr
     std::string deck_path;
     std::vector<std::string> overrides;
     /// Events between steps: called after each accepted step; returns true when it changed the
@@ -60,29 +60,30 @@ std::string newest_checkpoint(const std::string& dir);
 
 struct RunSummary
 {
-    std::string status = "completed"; ///< completed | unstable | interrupted (SIGINT / SIGTERM: the state at the step it arrived in written)
+    std::string status = "completed"; ///< completed | unstable | interrupted (SIGINT / SIGTERM: the state at the step
+                                      ///< it arrived in written)
     std::string message;
     std::string run_id;
     std::int64_t steps = 0;
     real_t end_time = 0.0;
-    real_t failed_time = -1.0;   ///< unstable runs: the time of the state written as the last frame (-1: none)
-    real_t wall_seconds = 0.0;   ///< run_simulation from start to end: stepper start, steps, output
-    real_t setup_seconds = 0.0;  ///< RunOptions::setup_seconds plus the stepper's first start
-    real_t output_seconds = 0.0; ///< history rows, field outputs, summary not included
+    real_t failed_time = -1.0;     ///< unstable runs: the time of the state written as the last frame (-1: none)
+    real_t wall_seconds = 0.0;     ///< run_simulation from start to end: stepper start, steps, output
+    real_t setup_seconds = 0.0;    ///< RunOptions::setup_seconds plus the stepper's first start
+    real_t output_seconds = 0.0;   ///< history rows, field outputs, summary not included
     real_t stepping_seconds = 0.0; ///< wall - output - the stepper's first start
     /// stepping_seconds per (work item x step): FE elements of element-integrated blocks and
     /// stress points (particles, nodes) of nodal blocks, as they were at each step
     real_t ns_per_element_cycle = 0.0;
-    real_t dt_first = 0.0; ///< the first step [s]
-    real_t dt_min = 0.0;   ///< the smallest step taken [s]
+    real_t dt_first = 0.0;           ///< the first step [s]
+    real_t dt_min = 0.0;             ///< the smallest step taken [s]
     real_t max_plastic_strain = 0.0; ///< largest element-average effective plastic strain at the end
     Energies energy;
     real_t max_balance_error = 0.0;
     int n_outputs = 0;
-    int thread_switches = 0;                ///< team-size changes the thread governor made
-    std::int64_t steps_on_one_thread = 0;   ///< steps run on one thread while more were allowed
-    bool has_impact = false; ///< the deck has an impact key
-    ImpactMeasures impact;   ///< at the end
+    int thread_switches = 0;              ///< team-size changes the thread governor made
+    std::int64_t steps_on_one_thread = 0; ///< steps run on one thread while more were allowed
+    bool has_impact = false;              ///< the deck has an impact key
+    ImpactMeasures impact;                ///< at the end
     std::vector<std::string> history_columns;
     std::vector<real_t> history; ///< rows x columns, row-major
 };

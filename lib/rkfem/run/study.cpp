@@ -34,9 +34,9 @@ using deck_detail::Section;
 namespace fs = std::filesystem;
 constexpr real_t nan = std::numeric_limits<real_t>::quiet_NaN();
 
-const std::vector<std::string> history_kinds = {"max",           "min",          "abs_max", "time_of_max",
-                                                "time_of_min",   "time_of_abs_max", "first", "final",
-                                                "at",            "event_load",   "mean"};
+const std::vector<std::string> history_kinds = {
+    "max",   "min",   "abs_max", "time_of_max", "time_of_min", "time_of_abs_max",
+    "first", "final", "at",      "event_load",  "mean"};
 
 /// A display unit: "" (SI), "%" or a unit expression; its SI scale and dimension.
 Unit display_unit(const Section& s, const std::string& key)
@@ -58,12 +58,14 @@ bool valid_name(const std::string& n)
     if (n.empty() || n.size() > 64 || n == "." || n == "..")
         return false;
     return std::all_of(n.begin(), n.end(),
-                       [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.'; });
+                       [](char c)
+                       { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.'; });
 }
 
 StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& p)
 {
-    const Section s(ctx, n, p, {"kind", "column", "response", "key", "time", "from", "to", "fraction", "scale", "unit"});
+    const Section s(ctx, n, p,
+                    {"kind", "column", "response", "key", "time", "from", "to", "fraction", "scale", "unit"});
     StudyMetric m;
     m.name = name;
     m.loc = s.loc();
@@ -102,7 +104,8 @@ StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML:
             m.response = s.text("response");
             m.fraction = s.has("fraction") ? s.quantity("fraction", dim::none) : 0.1;
             if (!(m.fraction > 0 && m.fraction < 1))
-                s.fail("fraction", "must lie between 0 and 1", "expected a fraction of the initial stiffness, e.g. 0.1");
+                s.fail("fraction", "must lie between 0 and 1",
+                       "expected a fraction of the initial stiffness, e.g. 0.1");
         }
         else if (s.has("response") || s.has("fraction"))
             s.fail(s.has("response") ? "response" : "fraction", "is used by kind event_load only",
@@ -123,7 +126,8 @@ StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML:
             std::string error;
             const auto u = parse_unit(rest, &error);
             if (!u)
-                s.fail("scale", "'" + rest + "' is not a unit: " + error, "expected a factor such as -1 or \"1.27 1/in^2\"");
+                s.fail("scale", "'" + rest + "' is not a unit: " + error,
+                       "expected a factor such as -1 or \"1.27 1/in^2\"");
             m.scale *= u->scale;
         }
     }
@@ -158,8 +162,8 @@ StudyCase read_case(const Context& ctx, const YAML::Node& n, const std::string& 
             {
                 const std::string key = kv.first.as<std::string>();
                 if (!kv.second.IsScalar())
-                    throw DeckError(deck_detail::locate(ctx, kv.second, s.path("set") + "." + key),
-                                    "is not a scalar", "expected one value per override (write lists as \"[1, 2]\")");
+                    throw DeckError(deck_detail::locate(ctx, kv.second, s.path("set") + "." + key), "is not a scalar",
+                                    "expected one value per override (write lists as \"[1, 2]\")");
                 c.overrides.push_back(key + "=" + kv.second.Scalar());
             }
         }
@@ -187,7 +191,8 @@ StudyCase read_case(const Context& ctx, const YAML::Node& n, const std::string& 
         {
             const std::string mname = kv.first.as<std::string>();
             const std::string mp = s.path("published") + "." + mname;
-            const auto m = std::find_if(metrics.begin(), metrics.end(), [&](const StudyMetric& x) { return x.name == mname; });
+            const auto m =
+                std::find_if(metrics.begin(), metrics.end(), [&](const StudyMetric& x) { return x.name == mname; });
             if (m == metrics.end())
             {
                 std::string names;
@@ -290,10 +295,9 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                 const real_t pub = it == st.cases[c].published.end() ? nan : it->second.value;
                 const real_t rel = std::isfinite(pub) && pub != 0 ? (ours - pub) / std::abs(pub) : nan;
                 csv << csv_field(results[c].name) << "," << csv_field(st.metrics[k].name) << ","
-                    << csv_field(st.metrics[k].unit) << "," << fmt(ours, 12) << "," << fmt(pub, 12) << "," << fmt(rel, 12)
-                    << ","
-                    << csv_field(it == st.cases[c].published.end() ? "" : it->second.source) << ","
-                    << results[c].status << "\n";
+                    << csv_field(st.metrics[k].unit) << "," << fmt(ours, 12) << "," << fmt(pub, 12) << ","
+                    << fmt(rel, 12) << "," << csv_field(it == st.cases[c].published.end() ? "" : it->second.source)
+                    << "," << results[c].status << "\n";
             }
         write_file_whole((out / "table.csv").string(), csv.str());
     }
@@ -313,7 +317,8 @@ void write_outputs(const Study& st, const std::vector<StudyCaseResult>& results,
                     const real_t pub = it->second.value;
                     char tag[24]; // "[n]" (GCC 12 warns falsely about "[" + std::to_string(n))
                     std::snprintf(tag, sizeof tag, "[%zu]", sources.size() + 1);
-                    sources.push_back(std::string(tag) + " " + results[c].name + " / " + st.metrics[k].name + ": " + it->second.source);
+                    sources.push_back(std::string(tag) + " " + results[c].name + " / " + st.metrics[k].name + ": " +
+                                      it->second.source);
                     cell += " (" + fmt(pub) + tag;
                     if (std::isfinite(ours) && pub != 0)
                     {
@@ -648,19 +653,21 @@ Study read_study(const std::string& path)
                    "expected named metrics, e.g. {tip_peak: {kind: abs_max, column: tip_uz}}");
         deck_detail::reject_repeated_keys(ctx, metrics, "metrics");
         for (const auto& kv : metrics)
-            st.metrics.push_back(read_metric(ctx, kv.first.as<std::string>(), kv.second,
-                                             "metrics." + kv.first.as<std::string>()));
+            st.metrics.push_back(
+                read_metric(ctx, kv.first.as<std::string>(), kv.second, "metrics." + kv.first.as<std::string>()));
         s.require("cases", "a list of cases, each {name, set, deck, published}");
         const YAML::Node cases = s.node("cases");
         if (!cases.IsSequence() || cases.size() == 0)
-            s.fail("cases", cases.IsSequence() ? "is empty" : "is not a list", "expected a list of cases, each {name, set, deck, published}");
+            s.fail("cases", cases.IsSequence() ? "is empty" : "is not a list",
+                   "expected a list of cases, each {name, set, deck, published}");
         for (std::size_t i = 0; i < cases.size(); ++i)
         {
             StudyCase c = read_case(ctx, cases[i], "cases." + std::to_string(i), base, st.metrics, dir);
             for (std::size_t j = 0; j < st.cases.size(); ++j)
                 if (st.cases[j].name == c.name)
                     throw DeckError(c.loc, "case name '" + c.name + "' given twice",
-                                    "each case once (first as cases." + std::to_string(j) + ", " + st.cases[j].loc.where + ")");
+                                    "each case once (first as cases." + std::to_string(j) + ", " +
+                                        st.cases[j].loc.where + ")");
             st.cases.push_back(std::move(c));
         }
         // the decks exist (checked last: the study's own keys first); a missing one ran every
@@ -699,7 +706,8 @@ Study select_cases(const Study& st, const std::vector<std::string>& names)
             std::string known;
             for (const auto& c : st.cases)
                 known += (known.empty() ? "" : ", ") + c.name;
-            throw DeckError({"--only " + w, "cases"}, "'" + w + "' is not a case of " + st.path, "expected one of " + known);
+            throw DeckError({"--only " + w, "cases"}, "'" + w + "' is not a case of " + st.path,
+                            "expected one of " + known);
         }
     for (const auto& c : st.cases)
         if (std::find(wanted.begin(), wanted.end(), c.name) != wanted.end())
@@ -729,7 +737,8 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
         {
             // SIGINT / SIGTERM: the case that was running wrote its last state; later ones do not run
             r.status = "interrupted";
-            r.message = std::string("not run: the study was interrupted by ") + interrupt_signal_name(interrupt_signal());
+            r.message =
+                std::string("not run: the study was interrupted by ") + interrupt_signal_name(interrupt_signal());
             results.push_back(std::move(r));
             continue;
         }
@@ -804,8 +813,8 @@ std::vector<StudyCaseResult> run_study(const Study& st, const std::string& out_d
         {
             const real_t elapsed = std::chrono::duration<real_t>(std::chrono::steady_clock::now() - wall0).count();
             std::fprintf(stderr, "study: [%zu/%zu] %s: %s in %.1f s%s%s (study %.0f s, ETA %.0f s)\n", c + 1, n,
-                         sc.name.c_str(), r.status.c_str(), took,
-                         r.message.empty() ? "" : ": ", one_line(r.message).c_str(), elapsed,
+                         sc.name.c_str(), r.status.c_str(), took, r.message.empty() ? "" : ": ",
+                         one_line(r.message).c_str(), elapsed,
                          elapsed / static_cast<real_t>(c + 1) * static_cast<real_t>(n - c - 1));
         }
         results.push_back(std::move(r));

@@ -41,15 +41,15 @@ struct StudyMetric
 {
     std::string name;
     std::string kind;
-    std::string column;   ///< history column (history kinds); event_load: the load column
-    std::string response; ///< event_load: the response (displacement) column
-    std::string key;      ///< summary: key path
-    real_t time = 0.0;    ///< at: [s]
+    std::string column;          ///< history column (history kinds); event_load: the load column
+    std::string response;        ///< event_load: the response (displacement) column
+    std::string key;             ///< summary: key path
+    real_t time = 0.0;           ///< at: [s]
     real_t from = 0.0, to = 0.0; ///< mean: the time window [s]
-    real_t fraction = 0.1; ///< event_load: tangent / initial stiffness that marks the event
-    real_t scale = 1.0;   ///< multiplies the SI value (e.g. -1 for a downward displacement)
-    std::string unit;     ///< display unit of table.csv/md ("" = SI; "%" = percent)
-    real_t unit_scale = 1.0; ///< SI value of one display unit
+    real_t fraction = 0.1;       ///< event_load: tangent / initial stiffness that marks the event
+    real_t scale = 1.0;          ///< multiplies the SI value (e.g. -1 for a downward displacement)
+    std::string unit;            ///< display unit of table.csv/md ("" = SI; "%" = percent)
+    real_t unit_scale = 1.0;     ///< SI value of one display unit
     SourceLocation loc;
 };
 

@@ -1,16 +1,16 @@
 #include "rkfem/time/arkode_stepper.hpp"
 
 #include <algorithm>
-#include <string>
 #include <arkode/arkode_erkstep.h>
 #include <cmath>
 #include <exception>
 #include <nvector/nvector_serial.h>
+#include <string>
 #include <vector>
 
 #include "rkfem/core/error.hpp"
-#include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/stream_stores.hpp"
 #include "rkfem/time/central_difference.hpp"
 #include "rkfem/time/explicit_operator.hpp"
@@ -20,10 +20,14 @@ namespace rkfem
 {
 namespace
 {
-inline real_t* data(N_Vector v) { return NV_DATA_S(v); }
+inline real_t* data(N_Vector v)
+{
+    return NV_DATA_S(v);
+}
 
 void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const real_t* __restrict a, real_t h_prev,
-                   real_t h, real_t* __restrict v_full, real_t* __restrict du, real_t* __restrict dv, [[maybe_unused]] bool stream)
+                   real_t h, real_t* __restrict v_full, real_t* __restrict du, real_t* __restrict dv,
+                   [[maybe_unused]] bool stream)
 {
     const real_t inv_h = 1.0 / h;
 #if defined(__AVX512F__)
@@ -33,8 +37,9 @@ void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const rea
         auto vf = [&](index_t j) { return v[j] + 0.5 * h_prev * a[j]; };
         auto vf8 = [&](index_t j) { return _mm512_fmadd_pd(c0, _mm512_loadu_pd(a + j), _mm512_loadu_pd(v + j)); };
         stream_range(j0, j1, v_full, vf, vf8);
-        stream_range(j0, j1, du, [&](index_t j) { return vf(j) + 0.5 * h * a[j]; },
-                     [&](index_t j) { return _mm512_fmadd_pd(c1, _mm512_loadu_pd(a + j), vf8(j)); });
+        stream_range(
+            j0, j1, du, [&](index_t j) { return vf(j) + 0.5 * h * a[j]; },
+            [&](index_t j) { return _mm512_fmadd_pd(c1, _mm512_loadu_pd(a + j), vf8(j)); });
         _mm_sfence();
         return;
     }
@@ -96,7 +101,10 @@ void* make_erk_table(const std::string& name, int* stages, int* order)
     return B;
 }
 
-void free_erk_table(void* table) { ARKodeButcherTable_Free(static_cast<ARKodeButcherTable>(table)); }
+void free_erk_table(void* table)
+{
+    ARKodeButcherTable_Free(static_cast<ARKodeButcherTable>(table));
+}
 
 struct ArkodeStepper::Impl
 {
@@ -284,8 +292,7 @@ struct ArkodeStepper::Impl
         const real_t dtm = t - t_n;
         std::copy(u, u + n3, nodes.u.begin());
         if (dtm > 0)
-            parallel_for("rkfem::arkode_erk::increment", n3,
-                         [&](index_t j) { nodes.v[j] = (u[j] - u_n[j]) / dtm; });
+            parallel_for("rkfem::arkode_erk::increment", n3, [&](index_t j) { nodes.v[j] = (u[j] - u_n[j]) / dtm; });
         else
             std::copy(v, v + n3, nodes.v.begin());
         m.update_coordinates();
@@ -526,5 +533,8 @@ bool ArkodeStepper::restore_last_good(ExplicitOperator& model)
     return true;
 }
 
-const StatePool* ArkodeStepper::state_pool() const { return impl_ ? impl_->pool.get() : nullptr; }
+const StatePool* ArkodeStepper::state_pool() const
+{
+    return impl_ ? impl_->pool.get() : nullptr;
+}
 } // namespace rkfem

@@ -5,8 +5,8 @@
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/parallel.hpp"
-#include "rkfem/time/explicit_operator.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
+#include "rkfem/time/explicit_operator.hpp"
 
 namespace rkfem
 {
@@ -64,7 +64,8 @@ void book_event_energy(ExplicitOperator& model, const std::vector<real_t>& a_old
                             [&](index_t i)
                             {
                                 const std::size_t j = 3 * static_cast<std::size_t>(i);
-                                return n.mass[i] * (n.a[j] * n.a[j] + n.a[j + 1] * n.a[j + 1] + n.a[j + 2] * n.a[j + 2]);
+                                return n.mass[i] *
+                                       (n.a[j] * n.a[j] + n.a[j + 1] * n.a[j + 1] + n.a[j + 2] * n.a[j + 2]);
                             });
 }
 
@@ -86,8 +87,10 @@ StepReport start_model(ExplicitOperator& model, real_t t)
     return r;
 }
 
-StepReport CentralDifference::initialize(ExplicitOperator& model, real_t t) { return start_model(model, t); }
-
+StepReport CentralDifference::initialize(ExplicitOperator& model, real_t t)
+{
+    return start_model(model, t);
+}
 
 StepReport CentralDifference::step(ExplicitOperator& model, real_t t, real_t dt, std::int64_t step_index)
 {

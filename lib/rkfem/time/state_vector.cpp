@@ -74,8 +74,7 @@ StateStorage* readable(Content& c)
         {
             real_t* p = h.data();
             const real_t value = c.value;
-            parallel_for("rkfem::nv::materialize", static_cast<index_t>(h.size()),
-                         [&](index_t i) { p[i] = value; });
+            parallel_for("rkfem::nv::materialize", static_cast<index_t>(h.size()), [&](index_t i) { p[i] = value; });
         }
         c.pool->count_pass();
     }
@@ -171,8 +170,7 @@ template <class F> real_t min1(N_Vector x, F f)
     for (int h = 0; h < 2; ++h)
     {
         const real_t* px = xs->half[h].data();
-        m = std::min(m,
-                     parallel_reduce_min("rkfem::nv::min", n, [&](index_t i) { return f(px[i]); }));
+        m = std::min(m, parallel_reduce_min("rkfem::nv::min", n, [&](index_t i) { return f(px[i]); }));
     }
     return m;
 }
@@ -235,10 +233,9 @@ realtype* op_array_pointer(N_Vector)
 }
 
 /// z = a x + b y over [i0, i1) where y's v half is recorded: y_v = (y_u - base_v) scale.
-void linear_sum_difference(index_t i0, index_t i1, real_t a, const real_t* __restrict xu,
-                           const real_t* __restrict xv, real_t b, const real_t* __restrict yu,
-                           const real_t* __restrict bv, real_t scale, real_t* __restrict zu,
-                           real_t* __restrict zv)
+void linear_sum_difference(index_t i0, index_t i1, real_t a, const real_t* __restrict xu, const real_t* __restrict xv,
+                           real_t b, const real_t* __restrict yu, const real_t* __restrict bv, real_t scale,
+                           real_t* __restrict zu, real_t* __restrict zv)
 {
     for (index_t i = i0; i < i1; ++i)
     {
@@ -279,39 +276,35 @@ void op_linear_sum(realtype a, N_Vector x, realtype b, N_Vector y, N_Vector z)
     const index_t n = pool.half_length();
     constexpr index_t block = 2048;
     [[maybe_unused]] const bool stream = stream_pays(n); // read on AVX-512 builds only
-    parallel_for(
-        "rkfem::nv::linear_sum_difference", (n + block - 1) / block,
-        [&](index_t blk)
-        {
-            const index_t i0 = blk * block, i1 = std::min(n, i0 + block);
+    parallel_for("rkfem::nv::linear_sum_difference", (n + block - 1) / block,
+                 [&](index_t blk)
+                 {
+                     const index_t i0 = blk * block, i1 = std::min(n, i0 + block);
 #if defined(__AVX512F__)
-            if (stream)
-            {
-                // one array at a time over the block (stream_stores.hpp)
-                const __m512d va = _mm512_set1_pd(a), vb = _mm512_set1_pd(b),
-                              vs = _mm512_set1_pd(scale);
-                stream_range(
-                    i0, i1, zu, [&](index_t i) { return a * xu[i] + b * yu[i]; },
-                    [&](index_t i)
-                    {
-                        return _mm512_fmadd_pd(va, _mm512_loadu_pd(xu + i),
-                                               _mm512_mul_pd(vb, _mm512_loadu_pd(yu + i)));
-                    });
-                stream_range(
-                    i0, i1, zv,
-                    [&](index_t i) { return a * xv[i] + b * ((yu[i] - bv[i]) * scale); },
-                    [&](index_t i)
-                    {
-                        const __m512d yv = _mm512_mul_pd(
-                            _mm512_sub_pd(_mm512_loadu_pd(yu + i), _mm512_loadu_pd(bv + i)), vs);
-                        return _mm512_fmadd_pd(va, _mm512_loadu_pd(xv + i), _mm512_mul_pd(vb, yv));
-                    });
-                _mm_sfence();
-                return;
-            }
+                     if (stream)
+                     {
+                         // one array at a time over the block (stream_stores.hpp)
+                         const __m512d va = _mm512_set1_pd(a), vb = _mm512_set1_pd(b), vs = _mm512_set1_pd(scale);
+                         stream_range(
+                             i0, i1, zu, [&](index_t i) { return a * xu[i] + b * yu[i]; },
+                             [&](index_t i) {
+                                 return _mm512_fmadd_pd(va, _mm512_loadu_pd(xu + i),
+                                                        _mm512_mul_pd(vb, _mm512_loadu_pd(yu + i)));
+                             });
+                         stream_range(
+                             i0, i1, zv, [&](index_t i) { return a * xv[i] + b * ((yu[i] - bv[i]) * scale); },
+                             [&](index_t i)
+                             {
+                                 const __m512d yv =
+                                     _mm512_mul_pd(_mm512_sub_pd(_mm512_loadu_pd(yu + i), _mm512_loadu_pd(bv + i)), vs);
+                                 return _mm512_fmadd_pd(va, _mm512_loadu_pd(xv + i), _mm512_mul_pd(vb, yv));
+                             });
+                         _mm_sfence();
+                         return;
+                     }
 #endif
-            linear_sum_difference(i0, i1, a, xu, xv, b, yu, bv, scale, zu, zv);
-        });
+                     linear_sum_difference(i0, i1, a, xu, xv, b, yu, bv, scale, zu, zv);
+                 });
     pool.count_pass(); // y read (x's and z's passes are counted by readable and writable)
     pool.count_difference(true);
     pool.release(base);
@@ -488,9 +481,8 @@ realtype op_min_quotient(N_Vector num, N_Vector denom)
         const real_t *pn = ns->half[h].data(), *pd = ds->half[h].data();
         m = std::min(m, parallel_reduce_min("rkfem::nv::min_quotient", n,
                                             [&](index_t i) {
-                                                return pd[i] == 0.0
-                                                           ? std::numeric_limits<real_t>::max()
-                                                           : pn[i] / pd[i];
+                                                return pd[i] == 0.0 ? std::numeric_limits<real_t>::max()
+                                                                    : pn[i] / pd[i];
                                             }));
     }
     return m;
@@ -510,8 +502,7 @@ int op_linear_combination(int nv, realtype* c, N_Vector* X, N_Vector z)
         return 0;
     }
     constexpr int max_terms = 32;
-    RKFEM_REQUIRE(nv <= max_terms,
-                  "N_VLinearCombination: " << nv << " terms, at most " << max_terms);
+    RKFEM_REQUIRE(nv <= max_terms, "N_VLinearCombination: " << nv << " terms, at most " << max_terms);
     const StateStorage* xs[max_terms];
     for (int k = 0; k < nv; ++k)
         xs[k] = readable(content(X[k]));
@@ -652,8 +643,7 @@ void StatePool::reclaim()
 void StatePool::lend(N_Vector y, std::vector<real_t>& u, std::vector<real_t>& v)
 {
     RKFEM_REQUIRE(static_cast<index_t>(u.size()) == n3_ && static_cast<index_t>(v.size()) == n3_,
-                  "StatePool::lend: arrays of " << u.size() << " and " << v.size()
-                                                << " values, expected " << n3_);
+                  "StatePool::lend: arrays of " << u.size() << " and " << v.size() << " values, expected " << n3_);
     reclaim();
     Content& c = content(y);
     StateStorage* s = readable(c);

@@ -102,12 +102,11 @@ class StatePool
     /// Counters for tests and benchmarks.
     struct Counters
     {
-        long storages = 0;      ///< storages allocated so far (the pool's size)
-        long passes = 0;        ///< loops over all values of a vector (reads of a vector, writes)
-        long shared_copies = 0; ///< copies done by sharing a storage
-        long fused_differences = 0; ///< linear sums that computed a recorded v half on the fly
-        long materialized_differences =
-            0; ///< recorded v halves written out because a loop read them
+        long storages = 0;                 ///< storages allocated so far (the pool's size)
+        long passes = 0;                   ///< loops over all values of a vector (reads of a vector, writes)
+        long shared_copies = 0;            ///< copies done by sharing a storage
+        long fused_differences = 0;        ///< linear sums that computed a recorded v half on the fly
+        long materialized_differences = 0; ///< recorded v halves written out because a loop read them
     };
     const Counters& counters() const { return counters_; }
 
@@ -120,10 +119,7 @@ class StatePool
     bool v_lent(const StateStorage* s) const { return is_lent(s) && lent_v_ != nullptr; }
     void count_pass(long n = 1) { counters_.passes += n; }
     void count_shared_copy() { ++counters_.shared_copies; }
-    void count_difference(bool fused)
-    {
-        ++(fused ? counters_.fused_differences : counters_.materialized_differences);
-    }
+    void count_difference(bool fused) { ++(fused ? counters_.fused_differences : counters_.materialized_differences); }
 
   private:
     explicit StatePool(index_t n3) : n3_(n3) {}

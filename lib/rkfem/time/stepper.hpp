@@ -45,11 +45,13 @@ class TimeStepper
     /// not covered throw Error.
     virtual void save_state(StateArchive& /*archive*/) const
     {
-        throw Error(std::string("checkpoints do not cover time.stepper ") + name() + " yet; expected central-difference");
+        throw Error(std::string("checkpoints do not cover time.stepper ") + name() +
+                    " yet; expected central-difference");
     }
     virtual void load_state(ExplicitOperator& /*model*/, real_t /*t*/, const StateArchive& /*archive*/)
     {
-        throw Error(std::string("checkpoints do not cover time.stepper ") + name() + " yet; expected central-difference");
+        throw Error(std::string("checkpoints do not cover time.stepper ") + name() +
+                    " yet; expected central-difference");
     }
 };
 

@@ -23,8 +23,7 @@ inline constexpr std::array<std::array<real_t, 3>, 8> hex8_nodes{{
 inline void hex8_shape(const real_t xi[3], real_t N[8])
 {
     for (int I = 0; I < 8; ++I)
-        N[I] = 0.125 * (1 + hex8_nodes[I][0] * xi[0]) * (1 + hex8_nodes[I][1] * xi[1]) *
-               (1 + hex8_nodes[I][2] * xi[2]);
+        N[I] = 0.125 * (1 + hex8_nodes[I][0] * xi[0]) * (1 + hex8_nodes[I][1] * xi[1]) * (1 + hex8_nodes[I][2] * xi[2]);
 }
 
 /// dN_I/dxi_a, stored dN[I][a].

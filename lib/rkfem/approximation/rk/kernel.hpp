@@ -57,10 +57,9 @@ inline void kernel_1d(KernelType type, real_t z, real_t& phi, real_t& dphi)
         else if (z <= 2.0 / 3.0)
         {
             const real_t z2 = z * z, z3 = z2 * z, z4 = z3 * z, z5 = z4 * z;
-            phi = 17.0 / 22.0 + 75.0 / 22.0 * z - 315.0 / 11.0 * z2 + 675.0 / 11.0 * z3 -
-                  1215.0 / 22.0 * z4 + 405.0 / 22.0 * z5;
-            dphi = 75.0 / 22.0 - 630.0 / 11.0 * z + 2025.0 / 11.0 * z2 - 2430.0 / 11.0 * z3 +
-                   2025.0 / 22.0 * z4;
+            phi = 17.0 / 22.0 + 75.0 / 22.0 * z - 315.0 / 11.0 * z2 + 675.0 / 11.0 * z3 - 1215.0 / 22.0 * z4 +
+                  405.0 / 22.0 * z5;
+            dphi = 75.0 / 22.0 - 630.0 / 11.0 * z + 2025.0 / 11.0 * z2 - 2430.0 / 11.0 * z3 + 2025.0 / 22.0 * z4;
         }
         else
         {
@@ -84,8 +83,7 @@ inline void kernel_1d(KernelType type, real_t z, real_t& phi, real_t& dphi)
 
 /// Kernel value and gradient with respect to x of a particle at xi with support radius a,
 /// evaluated at x (dx = x - xi). Returns false (phi = 0, grad = 0) outside the support.
-inline bool kernel_3d(KernelType type, SupportShape shape, const Vec3& dx, real_t a, real_t& phi,
-                      Vec3& grad)
+inline bool kernel_3d(KernelType type, SupportShape shape, const Vec3& dx, real_t a, real_t& phi, Vec3& grad)
 {
     const real_t inv_a = 1.0 / a;
     if (shape == SupportShape::Box)

@@ -67,8 +67,8 @@ class KinematicMap
 
   private:
     std::vector<char> coefficient_;
-    std::vector<index_t> row_;  ///< per node carrying coefficients: its stored row
-    std::vector<index_t> base_; ///< per node carrying coefficients: the column its row counts from
+    std::vector<index_t> row_;            ///< per node carrying coefficients: its stored row
+    std::vector<index_t> base_;           ///< per node carrying coefficients: the column its row counts from
     std::vector<index_t> row_offsets_{0}; ///< stored row r: entries [row_offsets_[r], row_offsets_[r + 1])
     std::vector<index_t> row_columns_;    ///< per entry: column - base
     std::vector<real_t> row_values_;

@@ -97,8 +97,8 @@ RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> ra
     : x_(std::move(x)), a_(std::move(radius)), p_(params)
 {
     RKFEM_REQUIRE(p_.order == 1 || p_.order == 2, "RK basis order must be 1 or 2, got " << p_.order);
-    RKFEM_REQUIRE(x_.size() == 3 * a_.size(), "RK shape functions: " << x_.size() / 3 << " positions but "
-                                                                      << a_.size() << " support radii");
+    RKFEM_REQUIRE(x_.size() == 3 * a_.size(),
+                  "RK shape functions: " << x_.size() / 3 << " positions but " << a_.size() << " support radii");
     a_max_ = 0.0;
     for (real_t a : a_)
     {
@@ -120,7 +120,10 @@ RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> ra
     }
 }
 
-void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const { evaluate_impl(x, gradients, out, nullptr); }
+void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const
+{
+    evaluate_impl(x, gradients, out, nullptr);
+}
 
 void RkShapeFunctions::evaluate_completing(const Vec3& x, const RkOthers& others, RkSample& out) const
 {
@@ -140,7 +143,8 @@ void RkShapeFunctions::evaluate_impl(const Vec3& x, bool gradients, RkSample& ou
                                   // comparison per axis, with a margin that leaves to kernel_3d
                                   // every point it could find inside (the same samples, bit for bit)
                                   const real_t reach = a_[j] * (1.0 + 1e-12);
-                                  if (box && (std::abs(dx[0]) > reach || std::abs(dx[1]) > reach || std::abs(dx[2]) > reach))
+                                  if (box &&
+                                      (std::abs(dx[0]) > reach || std::abs(dx[1]) > reach || std::abs(dx[2]) > reach))
                                       return;
                                   real_t phi = 0.0;
                                   Vec3 g;
@@ -230,14 +234,14 @@ void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::v
                                      {
                                          const __m512d r = _mm512_loadu_pd(br + q), x = _mm512_loadu_pd(bx + q),
                                                        y = _mm512_loadu_pd(by + q), z = _mm512_loadu_pd(bz + q);
-                                         const __mmask8 in =
-                                             _mm512_cmp_pd_mask(_mm512_add_pd(x, r), lo0, _CMP_NLT_UQ) &
-                                             _mm512_cmp_pd_mask(_mm512_sub_pd(x, r), hi0, _CMP_NGT_UQ) &
-                                             _mm512_cmp_pd_mask(_mm512_add_pd(y, r), lo1, _CMP_NLT_UQ) &
-                                             _mm512_cmp_pd_mask(_mm512_sub_pd(y, r), hi1, _CMP_NGT_UQ) &
-                                             _mm512_cmp_pd_mask(_mm512_add_pd(z, r), lo2, _CMP_NLT_UQ) &
-                                             _mm512_cmp_pd_mask(_mm512_sub_pd(z, r), hi2, _CMP_NGT_UQ);
-                                         const __m256i id = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + q));
+                                         const __mmask8 in = _mm512_cmp_pd_mask(_mm512_add_pd(x, r), lo0, _CMP_NLT_UQ) &
+                                                             _mm512_cmp_pd_mask(_mm512_sub_pd(x, r), hi0, _CMP_NGT_UQ) &
+                                                             _mm512_cmp_pd_mask(_mm512_add_pd(y, r), lo1, _CMP_NLT_UQ) &
+                                                             _mm512_cmp_pd_mask(_mm512_sub_pd(y, r), hi1, _CMP_NGT_UQ) &
+                                                             _mm512_cmp_pd_mask(_mm512_add_pd(z, r), lo2, _CMP_NLT_UQ) &
+                                                             _mm512_cmp_pd_mask(_mm512_sub_pd(z, r), hi2, _CMP_NGT_UQ);
+                                         const __m256i id =
+                                             _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + q));
                                          first = _mm256_mask_min_epi32(first, in, first, id);
                                          last = _mm256_mask_max_epi32(last, in, last, id);
                                          for (unsigned bits = in; bits != 0; bits &= bits - 1)
@@ -357,15 +361,16 @@ void prune_rk_values(const RkShapeFunctions& rk, const Vec3& x, real_t tau, std:
     std::vector<real_t> weight;
     std::vector<Eigen::Vector4d> H;
     Eigen::Matrix4d M;
-    if (!drop_small(rk, x, tau, nodes, psi, [](real_t v) { return std::abs(v); }, weight, H, M))
+    if (!drop_small(
+            rk, x, tau, nodes, psi, [](real_t v) { return std::abs(v); }, weight, H, M))
         return;
     // residual of the reproducing conditions, then the weighted correction
     Eigen::Vector4d r(1.0, 0.0, 0.0, 0.0);
     for (std::size_t k = 0; k < psi.size(); ++k)
         r -= psi[k] * H[k];
     const Eigen::Vector4d c = M.ldlt().solve(r);
-    RKFEM_REQUIRE(c.allFinite(), "RK drop tolerance: the functions left at (" << x.transpose()
-                                                                              << ") do not span a linear field");
+    RKFEM_REQUIRE(c.allFinite(),
+                  "RK drop tolerance: the functions left at (" << x.transpose() << ") do not span a linear field");
     for (std::size_t k = 0; k < psi.size(); ++k)
         psi[k] += weight[k] * H[k].dot(c);
 }
@@ -376,7 +381,8 @@ void prune_rk_hessians(const RkShapeFunctions& rk, const Vec3& x, real_t tau, st
     std::vector<real_t> weight;
     std::vector<Eigen::Vector4d> B;
     Eigen::Matrix4d M;
-    if (!drop_small(rk, x, tau, nodes, H, [](const Mat3& m) { return m.cwiseAbs().maxCoeff(); }, weight, B, M))
+    if (!drop_small(
+            rk, x, tau, nodes, H, [](const Mat3& m) { return m.cwiseAbs().maxCoeff(); }, weight, B, M))
         return;
     // residuals of sum H = 0 and sum H (x_k - x) = 0, per component, and the weighted correction
     Mat3 r[4] = {Mat3::Zero(), Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
@@ -384,8 +390,8 @@ void prune_rk_hessians(const RkShapeFunctions& rk, const Vec3& x, real_t tau, st
         for (int a = 0; a < 4; ++a)
             r[a] -= B[k][a] * H[k];
     const Eigen::Matrix4d Mi = M.inverse();
-    RKFEM_REQUIRE(Mi.allFinite(), "RK drop tolerance: the second derivatives left at (" << x.transpose()
-                                                                                        << ") do not span a linear field");
+    RKFEM_REQUIRE(Mi.allFinite(), "RK drop tolerance: the second derivatives left at ("
+                                      << x.transpose() << ") do not span a linear field");
     Mat3 c[4];
     for (int a = 0; a < 4; ++a)
         c[a] = Mi(a, 0) * r[0] + Mi(a, 1) * r[1] + Mi(a, 2) * r[2] + Mi(a, 3) * r[3];

@@ -73,7 +73,8 @@ real_t translate_tolerance(const RkShapeFunctions& rk);
 namespace rk_translates_detail
 {
 /// Appends item values: per region particle, its position relative to ref and its radius.
-void describe(const RkShapeFunctions& rk, const Vec3& ref, const std::vector<index_t>& ids, std::vector<real_t>& values);
+void describe(const RkShapeFunctions& rk, const Vec3& ref, const std::vector<index_t>& ids,
+              std::vector<real_t>& values);
 /// A hash of the values rounded to multiples of `quantum`.
 std::uint64_t hash(const std::vector<real_t>& values, real_t quantum);
 /// Joins the per-thread regions and picks each item's candidate source: the first item with
@@ -126,7 +127,8 @@ RkTranslates find_rk_translates(const RkShapeFunctions& rk, index_t n, Frame&& f
         parts.resize(static_cast<std::size_t>(omp_get_num_threads()));
         const std::size_t threads = parts.size(), thread = static_cast<std::size_t>(omp_get_thread_num());
         std::vector<index_t>& mine = parts[thread];
-        mine.reserve(2 * per_item * (thread == 0 ? static_cast<std::size_t>(n) : static_cast<std::size_t>(n) / threads + 1));
+        mine.reserve(2 * per_item *
+                     (thread == 0 ? static_cast<std::size_t>(n) : static_cast<std::size_t>(n) / threads + 1));
         std::vector<index_t> ids;
         std::vector<real_t> values;
         Vec3 lo, hi, ref;
@@ -160,7 +162,7 @@ RkTranslates find_rk_translates(const RkShapeFunctions& rk, index_t n, Frame&& f
     t.shift.assign(static_cast<std::size_t>(n), 0); // a source is its own translate
     if (!share)
         return t;
-    // each candidate compared value by value; a taker that does not match computes for itself
+        // each candidate compared value by value; a taker that does not match computes for itself
 #pragma omp parallel
     {
         std::vector<index_t> ids;

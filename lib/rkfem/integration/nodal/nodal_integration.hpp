@@ -18,10 +18,10 @@
 
 #include "rkfem/approximation/rk/rk_translates.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
-#include "rkfem/integration/integration_operator.hpp"
-#include "rkfem/integration/stencil_table.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
+#include "rkfem/integration/integration_operator.hpp"
 #include "rkfem/integration/nodal/hex_dual_cells.hpp"
+#include "rkfem/integration/stencil_table.hpp"
 
 namespace rkfem
 {
@@ -39,7 +39,8 @@ IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& sha
 /// point of every sub-hex (build_scni evaluates the facets of the nodal cells' boundaries again):
 /// the same entries, bit for bit, as build_scni and build_sd_scni, about two thirds of their
 /// evaluations. MSCNI (build_mscni_stabilization) needs both.
-void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, IntegrationOperator& scni, IntegrationOperator* sd);
+void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, IntegrationOperator& scni,
+                   IntegrationOperator* sd);
 /// SCNI of RK functions on a mesh's nodal cells: the operator of build_scni with
 /// RkShapes(rk, drop_tolerance), to round-off, built by elements. Each element gathers the
 /// particles near it once (RkRegionValues) and evaluates each of its facet points once, for

@@ -12,8 +12,8 @@
 /// where the element's sizes are J_1 = e_1 . r, J_2 = e_2 . s, J_3 = e_3 . t (4 L_i for a box of
 /// edges L_i). With q = qdot / 8 in that frame, the step's hourglass stress increment is
 ///   dS_ai = dt QM (G / 3) q_ai / J_i,   T_ai = J_i dS_ai,
-/// and the generalized forces grow (stored in the frame, so they turn with it) by, with H_11 = J_2 J_3 / J_1 (cyclic), H_12 = J_3, H_13 = J_2,
-/// H_23 = J_1, c1 = 2 / (1 - nu), c2 = 2 nu / (1 - nu), c3 = 2 (1 + nu) / 3 (subscripts: the
+/// and the generalized forces grow (stored in the frame, so they turn with it) by, with H_11 = J_2 J_3 / J_1 (cyclic),
+/// H_12 = J_3, H_13 = J_2, H_23 = J_1, c1 = 2 / (1 - nu), c2 = 2 nu / (1 - nu), c3 = 2 (1 + nu) / 3 (subscripts: the
 /// component x, y, z and the mode 1 = eta zeta, 2 = zeta xi, 3 = xi eta, 4 = xi eta zeta),
 ///   shear:   Q_x1 = (H_22 + H_33) T_x1 + H_12 T_y2 + H_13 T_z3   (and cyclic for Q_y2, Q_z3),
 ///   bending: Q_x2 = c1 H_11 T_x2 + c2 H_12 T_y1,  Q_x3 = c1 H_11 T_x3 + c2 H_13 T_z1,
@@ -44,7 +44,8 @@ namespace rkfem
 inline constexpr int kAssumedStrainMode[4] = {1, 2, 0, 3};
 
 /// The co-rotational frame e[i][d] and sizes J[i] of an element from its axes r, s, t.
-template <class T> RKFEM_LANE_INLINE void assumed_strain_frame(const T r[3], const T s[3], const T t[3], T e[3][3], T J[3])
+template <class T>
+RKFEM_LANE_INLINE void assumed_strain_frame(const T r[3], const T s[3], const T t[3], T e[3][3], T J[3])
 {
     auto normalize = [](T v[3])
     {
@@ -101,7 +102,8 @@ template <class T> RKFEM_LANE_INLINE void assumed_strain_frame(const T r[3], con
 /// history the hourglass stress grows by r times the elastic increment, so an element that flows
 /// does not store elastic energy its material cannot hold.
 template <class T>
-RKFEM_LANE_INLINE T assumed_strain_tangent_share(const T so[6], const T sn[6], const T d[6], const T w[3], real_t mu, real_t dt)
+RKFEM_LANE_INLINE T assumed_strain_tangent_share(const T so[6], const T sn[6], const T d[6], const T w[3], real_t mu,
+                                                 real_t dt)
 {
     // old stress as a tensor, and its turn W s - s W
     const T S[3][3] = {{so[0], so[3], so[5]}, {so[3], so[1], so[4]}, {so[5], so[4], so[2]}};

@@ -36,8 +36,8 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j)
                 L[i][j] += v[I][i] * b[I][j] / V;
-    const real_t dv[6] = {L[0][0], L[1][1], L[2][2], 0.5 * (L[0][1] + L[1][0]), 0.5 * (L[1][2] + L[2][1]),
-                          0.5 * (L[2][0] + L[0][2])};
+    const real_t dv[6] = {
+        L[0][0], L[1][1], L[2][2], 0.5 * (L[0][1] + L[1][0]), 0.5 * (L[1][2] + L[2][1]), 0.5 * (L[2][0] + L[0][2])};
     const real_t wv[3] = {0.5 * (L[0][1] - L[1][0]), 0.5 * (L[1][2] - L[2][1]), 0.5 * (L[2][0] - L[0][2])};
 
     // stress update
@@ -122,7 +122,8 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                 real_t Q_new[3];
                 for (int i = 0; i < 3; ++i)
                 {
-                    const real_t Q_old = blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
+                    const real_t Q_old =
+                        blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
                     Q_new[i] = Q_old + dQ[m][i];
                     out.hg_force[m][i] = Q_new[i];
                     out.d_hourglass += dt * (Q_old + 0.5 * dQ[m][i]) * q[m][i];

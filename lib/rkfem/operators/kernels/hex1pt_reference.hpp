@@ -26,8 +26,8 @@ namespace rkfem
 {
 struct Hex1ptElement
 {
-    real_t f[8][3] = {};       ///< nodal internal forces [N]
-    real_t stress[6] = {};     ///< trial stress, Voigt (xx yy zz xy yz zx) [Pa]
+    real_t f[8][3] = {};        ///< nodal internal forces [N]
+    real_t stress[6] = {};      ///< trial stress, Voigt (xx yy zz xy yz zx) [Pa]
     real_t hg_force[4][3] = {}; ///< hourglass generalized forces Q_a (stiffness form: trial; assumed
                                 ///< strain: the trial stored forces of modes m, frame components)
     real_t volume = 0.0;

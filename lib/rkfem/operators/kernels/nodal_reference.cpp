@@ -19,7 +19,8 @@ Mat3 stencil_sum(const StencilView& st, const std::vector<real_t>& field, bool i
     for (index_t j = 0; j < st.size; ++j)
     {
         const std::size_t n = 3 * static_cast<std::size_t>(st.base + st.offset[j]);
-        M += Vec3(field[n], field[n + 1], field[n + 2]) * Vec3(st.grad[3 * j], st.grad[3 * j + 1], st.grad[3 * j + 2]).transpose();
+        M += Vec3(field[n], field[n + 1], field[n + 2]) *
+             Vec3(st.grad[3 * j], st.grad[3 * j + 1], st.grad[3 * j + 2]).transpose();
     }
     return M;
 }
@@ -74,7 +75,8 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
     out.stress.resize(6 * static_cast<std::size_t>(np));
     for (index_t p = 0; p < np; ++p)
     {
-        const Mat3 F = stencil_sum(blk.point_view(p), nodes.u, true), Fd = stencil_sum(blk.point_view(p), nodes.v, false);
+        const Mat3 F = stencil_sum(blk.point_view(p), nodes.u, true),
+                   Fd = stencil_sum(blk.point_view(p), nodes.v, false);
         const real_t J = F.determinant();
         const Mat3 Fi = F.inverse();
         real_t d[6], w[3], s_old[6];

@@ -28,7 +28,7 @@ struct NodalPass
     std::vector<real_t> stress;      ///< 6 per stress point, Voigt [Pa]
     std::vector<real_t> stab_stress; ///< 6 per sub-cell
     real_t d_internal = 0.0, d_bulk_viscosity = 0.0, d_stabilization = 0.0; ///< [J] over dt
-    real_t dt_stable = kNoLimit;                                               ///< [s]
+    real_t dt_stable = kNoLimit;                                            ///< [s]
 };
 
 /// The pass over step dt from the committed state and the nodes' u and v. Reads only.
