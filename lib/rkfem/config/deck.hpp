@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "rkfem/config/time_function.hpp"
-#include "rkfem/materials/rate_law.hpp"
 #include "rkfem/core/types.hpp"
+#include "rkfem/materials/rate_law.hpp"
 
 namespace rkfem
 {
@@ -40,17 +40,17 @@ struct MaterialSpec
     real_t E = 0.0;   ///< Young's modulus [Pa]
     real_t nu = 0.0;  ///< Poisson's ratio [-]
     // j2
-    real_t sigy = 0.0; ///< initial yield stress [Pa]
-    real_t etan = 0.0; ///< tangent modulus of the total-strain curve [Pa] (bilinear)
+    real_t sigy = 0.0;                            ///< initial yield stress [Pa]
+    real_t etan = 0.0;                            ///< tangent modulus of the total-strain curve [Pa] (bilinear)
     std::vector<std::pair<real_t, real_t>> curve; ///< (eps_p, sigma_y [Pa]); overrides sigy/etan
-    real_t cs_c = 0.0, cs_p = 0.0; ///< Cowper-Symonds C [1/s], P
-    real_t fail = 0.0;             ///< failure plastic strain (0: none)
-    std::string eos_type;          ///< j2: "" (incremental bulk), linear, gruneisen
+    real_t cs_c = 0.0, cs_p = 0.0;                ///< Cowper-Symonds C [1/s], P
+    real_t fail = 0.0;                            ///< failure plastic strain (0: none)
+    std::string eos_type;                         ///< j2: "" (incremental bulk), linear, gruneisen
     real_t eos_c0 = 0.0, eos_s = 0.0, eos_gamma0 = 0.0, eos_a = 0.0; ///< gruneisen
     // kcc (K&C concrete) and cscm (cap model): parameters generated from f'c; E and nu optional
     real_t fc = 0.0;
-    bool rate_effects = false; ///< cscm; kcc: rate_law.active()
-    RateLaw rate_law;          ///< kcc: the DIF law (rate_effects: true | false | {law | curve, caps})
+    bool rate_effects = false;    ///< cscm; kcc: rate_law.active()
+    RateLaw rate_law;             ///< kcc: the DIF law (rate_effects: true | false | {law | curve, caps})
     real_t fracture_energy = 0.0; ///< G_f [J/m^2] for the crack-band scaling of b2; < 0: CEB-FIP (auto); 0: none
     /// kcc: the damage table (lambda, eta) and the EOS_8 table (10 strains <= 0, decreasing;
     /// pressures; unloading bulk moduli) in place of the generated ones (empty: generated)
@@ -70,14 +70,17 @@ enum class Formulation
     Rkpm,     ///< RK particles at the mesh nodes, nodal integration (total Lagrangian)
 };
 
-inline bool is_nodal(Formulation f) { return f == Formulation::FemNodal || f == Formulation::Rkpm; }
+inline bool is_nodal(Formulation f)
+{
+    return f == Formulation::FemNodal || f == Formulation::Rkpm;
+}
 
 enum class HourglassType
 {
-    None,         ///< no control (hourglass modes are free)
-    Viscous,      ///< Flanagan-Belytschko viscous, exact volume integration (LS-DYNA IHQ 3)
-    Stiffness,    ///< Flanagan-Belytschko stiffness, exact volume integration (LS-DYNA IHQ 5)
-    ViscousPlain, ///< viscous on the raw base vectors Gamma (LS-DYNA IHQ 1 analog): fails the patch test
+    None,          ///< no control (hourglass modes are free)
+    Viscous,       ///< Flanagan-Belytschko viscous, exact volume integration (LS-DYNA IHQ 3)
+    Stiffness,     ///< Flanagan-Belytschko stiffness, exact volume integration (LS-DYNA IHQ 5)
+    ViscousPlain,  ///< viscous on the raw base vectors Gamma (LS-DYNA IHQ 1 analog): fails the patch test
     AssumedStrain, ///< Belytschko-Bindeman assumed strain, co-rotational stiffness (LS-DYNA IHQ 6)
 };
 
@@ -97,8 +100,8 @@ struct HourglassSpec
 /// *MAT_ADD_EROSION analog); conversion turns them into RK particles (seed Table 1, feature 4).
 struct ElementCriteria
 {
-    real_t plastic_strain = 0.0; ///< effective plastic strain
-    real_t damage = 0.0;         ///< 0..1 damage index (K&C: delta - 1; CSCM d; J2: failed)
+    real_t plastic_strain = 0.0;    ///< effective plastic strain
+    real_t damage = 0.0;            ///< 0..1 damage index (K&C: delta - 1; CSCM d; J2: failed)
     real_t principal_strain = 0.0;  ///< largest principal logarithmic strain ln(lambda_max) (MXEPS)
     real_t volumetric_strain = 0.0; ///< V / V0 - 1, tension (VOLEPS)
     real_t time_step = 0.0;         ///< element step (V / A_max) / c below this [s] (DTMIN)
@@ -125,13 +128,14 @@ inline constexpr real_t kNsniCoefficient = 0.25;
 /// Nodal integration of `fem-nodal` and `rkpm` parts.
 struct NodalIntegrationSpec
 {
-    std::string scheme = "scni";        ///< dni | scni | sd-scni
-    std::string stabilization = "mscni"; ///< none | mscni | nsni (scheme scni only; nsni: rkpm only)
+    std::string scheme = "scni";            ///< dni | scni | sd-scni
+    std::string stabilization = "mscni";    ///< none | mscni | nsni (scheme scni only; nsni: rkpm only)
     real_t stabilization_coefficient = 1.0; ///< c_s (MSCNI: 1 = RKPM2D default; NSNI: kNsniCoefficient)
-    real_t dt_factor = 0.0; ///< alpha in dt = alpha J^(1/3) l0 / c (l0: shortest edge at the node); 0: calibrated default
+    real_t dt_factor =
+        0.0; ///< alpha in dt = alpha J^(1/3) l0 / c (l0: shortest edge at the node); 0: calibrated default
     /// Cloud parts: SCNI's points on the Voronoi faces, one per triangle of each face's fan
-    /// (`triangles`) or one per face at its centroid (`faces`: exact for linear fields too, about
-    /// half the set-up; merge_face_points)
+    /// (`triangles`) or one per face at its centroid (`faces`: exact for linear fields too, a
+    /// cheaper set-up; merge_face_points; measurements: docs/performance.md)
     std::string facet_points = "triangles";
 };
 
@@ -159,7 +163,7 @@ struct GeneratorSpec
         Box,
         Cylinder,
         Projectile,
-        Cloud, ///< particles not from a mesh: a jittered lattice or imported points in a box or cylinder body
+        Cloud,   ///< particles not from a mesh: a jittered lattice or imported points in a box or cylinder body
         Keyword, ///< *NODE and *ELEMENT_SOLID of an LS-DYNA keyword file (discretization/keyword_mesh.hpp)
     };
     Type type = Type::Box;
@@ -169,11 +173,11 @@ struct GeneratorSpec
     std::array<int, 3> divisions{0, 0, 0}; ///< 0: derived from element_size
     // cylinder (axis +z from `origin`, bottom face at origin.z) and projectile
     real_t radius = 0.0;
-    real_t height = 0.0; ///< cylinder height / projectile length
+    real_t height = 0.0;            ///< cylinder height / projectile length
     std::string core = "butterfly"; ///< cylinder core: butterfly | ogrid
     real_t inner_radius = 0.0;      ///< cylinder: > 0 makes it a tube (faces top, bottom, side, inner)
-    int direction = -1;  ///< projectile: nose points to -z (-1) or +z (+1); origin = nose centre
-    real_t element_size = 0.0; ///< cloud: lattice spacing
+    int direction = -1;             ///< projectile: nose points to -z (-1) or +z (+1); origin = nose centre
+    real_t element_size = 0.0;      ///< cloud: lattice spacing
     // cloud: the body is the box (origin, size) or the cylinder (origin = bottom centre, radius,
     // height; axis +z); particles are a lattice of about element_size spacing with interior
     // coordinates jittered by +-jitter spacing (seeded), or the points of a CSV file (x,y,z per
@@ -186,8 +190,8 @@ struct GeneratorSpec
     Body body = Body::Box;
     real_t jitter = 0.25;
     int seed = 1;
-    std::string points_file; ///< resolved against the deck's directory
-    real_t points_unit = 1.0; ///< metres per file unit
+    std::string points_file;            ///< resolved against the deck's directory
+    real_t points_unit = 1.0;           ///< metres per file unit
     std::string points_unit_name = "m"; ///< as the deck wrote it (the resolved deck echoes it)
     // keyword: the file (resolved against the deck's directory), metres per file length unit,
     // the PIDs of the solids taken (empty: all)
@@ -197,7 +201,6 @@ struct GeneratorSpec
     std::vector<long long> mesh_pids;
     SourceLocation loc;
 };
-
 
 /// Geometric predicate or generator name selecting nodes (or faces whose 4 nodes all match).
 struct SelectorSpec
@@ -324,14 +327,14 @@ struct ContactSpec
     /// Part or face-set names: surface-to-surface two (each a part's boundary or a face set),
     /// single-surface and rigid-wall any number (their union; empty: every part)
     std::vector<std::string> surfaces;
-    bool soft = true;               ///< stiffness: soft (max of segment and soft, SOFT = 1) | segment
-    bool mortar = false;            ///< formulation: node-to-segment | mortar (surface-to-surface)
-    real_t penalty_scale = 0.1;     ///< SLSFAC (segment stiffness K A / h); rigid wall: scale of m / dt0^2
-    real_t soft_scale = 0.1;        ///< SOFSCL (soft stiffness m* / dt^2)
-    real_t thickness = 0.0;         ///< [m]
-    real_t max_penetration = 0.5;   ///< of the element depth behind a segment
+    bool soft = true;             ///< stiffness: soft (max of segment and soft, SOFT = 1) | segment
+    bool mortar = false;          ///< formulation: node-to-segment | mortar (surface-to-surface)
+    real_t penalty_scale = 0.1;   ///< SLSFAC (segment stiffness K A / h); rigid wall: scale of m / dt0^2
+    real_t soft_scale = 0.1;      ///< SOFSCL (soft stiffness m* / dt^2)
+    real_t thickness = 0.0;       ///< [m]
+    real_t max_penetration = 0.5; ///< of the element depth behind a segment
     real_t mu_static = 0.0, mu_dynamic = 0.0;
-    real_t decay = 0.0;             ///< [s/m]
+    real_t decay = 0.0;                                                         ///< [s/m]
     Vec3 point = Vec3::Zero(), normal = Vec3::UnitZ(), velocity = Vec3::Zero(); ///< rigid wall
     SourceLocation loc;
 };
@@ -341,11 +344,11 @@ struct ContactSpec
 struct ImpactSpec
 {
     bool active = false;
-    std::string target;                   ///< the struck part
-    std::string projectile;               ///< optional
-    Vec3 point = Vec3::Zero();            ///< the point of impact on the target's original surface
-    Vec3 direction = -Vec3::UnitZ();      ///< the shot line, into the target (unit)
-    real_t damage = 0.95;                 ///< actual crater: material at or above this damage is gone
+    std::string target;              ///< the struck part
+    std::string projectile;          ///< optional
+    Vec3 point = Vec3::Zero();       ///< the point of impact on the target's original surface
+    Vec3 direction = -Vec3::UnitZ(); ///< the shot line, into the target (unit)
+    real_t damage = 0.95;            ///< actual crater: material at or above this damage is gone
     SourceLocation loc;
 };
 
@@ -358,15 +361,15 @@ enum class StepperKind
 
 struct TimeSpec
 {
-    real_t end = 0.0;             ///< termination time [s]
-    real_t output_interval = 0.0; ///< field output interval [s]; 0: start and end only
+    real_t end = 0.0;              ///< termination time [s]
+    real_t output_interval = 0.0;  ///< field output interval [s]; 0: start and end only
     real_t history_interval = 0.0; ///< history interval [s]; 0: every step
     real_t dt_scale = 0.9;
-    real_t dt_max = 0.0; ///< 0: unlimited
-    std::int64_t max_steps = 0; ///< 0: unlimited
-    StepperKind stepper = StepperKind::ArkodeCd; ///< the default: within a few % of the hand loop
+    real_t dt_max = 0.0;                                     ///< 0: unlimited
+    std::int64_t max_steps = 0;                              ///< 0: unlimited
+    StepperKind stepper = StepperKind::ArkodeCd;             ///< the default: within a few % of the hand loop
     std::string erk_table = "ARKODE_BOGACKI_SHAMPINE_4_2_3"; ///< arkode-erk: built-in name, RK4 or SSPRK3
-    real_t energy_error_limit = 0.05; ///< stop when the balance error exceeds this (fraction)
+    real_t energy_error_limit = 0.05;                        ///< stop when the balance error exceeds this (fraction)
     /// stop (as unstable) when the step falls below this fraction of the first step (0: no floor;
     /// LS-DYNA's DTMIN of *CONTROL_TERMINATION)
     real_t dt_min_fraction = 1e-5;
@@ -376,7 +379,7 @@ struct TimeSpec
 /// Field output storage (results.h5): `output: {precision, compression}`.
 struct OutputSpec
 {
-    bool single = true; ///< fields as 32-bit floats (coordinates stay 64-bit); false: all 64-bit
+    bool single = true;  ///< fields as 32-bit floats (coordinates stay 64-bit); false: all 64-bit
     int compression = 0; ///< gzip level 0-9 (with byte shuffle); 0: none
 };
 
@@ -401,7 +404,8 @@ struct Deck
 /// A material-point deck (rkfem material-point): one material driven along a strain path.
 struct MaterialPathSpec
 {
-    std::string type = "uniaxial-stress"; ///< uniaxial-stress | uniaxial-strain | hydrostatic | pure-shear | triaxial | rotation
+    std::string type =
+        "uniaxial-stress";    ///< uniaxial-stress | uniaxial-strain | hydrostatic | pure-shear | triaxial | rotation
     real_t strain = 0.0;      ///< final axial (volumetric, engineering shear) strain; < 0 compression
     real_t rate = 1.0;        ///< strain rate magnitude [1/s]
     real_t confinement = 0.0; ///< triaxial: lateral pressure [Pa]
@@ -431,8 +435,7 @@ MaterialPointDeck read_material_point_deck(const std::string& path);
 Deck read_deck(const std::string& path, const std::vector<std::string>& overrides = {});
 
 /// Same, from text (`name` is used in messages).
-Deck parse_deck(const std::string& text, const std::string& name,
-                const std::vector<std::string>& overrides = {});
+Deck parse_deck(const std::string& text, const std::string& name, const std::vector<std::string>& overrides = {});
 
 /// The resolved deck in SI, as YAML (what `rkfem check` prints).
 std::string to_yaml(const Deck& deck);

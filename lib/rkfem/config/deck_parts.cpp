@@ -88,11 +88,10 @@ GeneratorSpec read_generator(const Section& part)
     else if (type == "cylinder" || type == "projectile")
     {
         const bool cyl = type == "cylinder";
-        Section s(part.ctx(), gn, gp,
-                  cyl ? std::vector<std::string>{"type", "origin", "radius", "height",
-                                                 "element_size", "core", "inner_radius"}
-                      : std::vector<std::string>{"type", "origin", "radius", "length",
-                                                 "element_size", "direction"});
+        Section s(
+            part.ctx(), gn, gp,
+            cyl ? std::vector<std::string>{"type", "origin", "radius", "height", "element_size", "core", "inner_radius"}
+                : std::vector<std::string>{"type", "origin", "radius", "length", "element_size", "direction"});
         g.type = cyl ? GeneratorSpec::Type::Cylinder : GeneratorSpec::Type::Projectile;
         g.origin = s.vec3("origin", dim::length, Vec3::Zero());
         g.radius = s.positive("radius", dim::length);
@@ -121,7 +120,7 @@ GeneratorSpec read_generator(const Section& part)
                    "points_unit"});
         g.type = GeneratorSpec::Type::Cloud;
         g.body = s.choice("body", {"box", "cylinder"}, "box") == "box" ? GeneratorSpec::Body::Box
-                                                                        : GeneratorSpec::Body::Cylinder;
+                                                                       : GeneratorSpec::Body::Cylinder;
         if (g.body == GeneratorSpec::Body::Box)
         {
             for (const char* k : {"radius", "height"})
@@ -150,7 +149,8 @@ GeneratorSpec read_generator(const Section& part)
             g.element_size = s.positive("spacing", dim::length);
             g.jitter = s.quantity("jitter", dim::none, 0.25);
             if (!(g.jitter >= 0.0 && g.jitter <= 0.45))
-                s.fail("jitter", "is outside [0, 0.45]", "expected a fraction of the spacing that keeps the lattice order");
+                s.fail("jitter", "is outside [0, 0.45]",
+                       "expected a fraction of the spacing that keeps the lattice order");
             g.seed = static_cast<int>(s.integer("seed", 1));
         }
         g.loc = s.loc();
@@ -191,9 +191,8 @@ GeneratorSpec read_generator(const Section& part)
     }
     else
     {
-        const SourceLocation loc = gn.IsMap() && gn["type"].IsDefined()
-                                       ? locate(part.ctx(), gn["type"], gp + ".type")
-                                       : locate(part.ctx(), gn, gp + ".type");
+        const SourceLocation loc = gn.IsMap() && gn["type"].IsDefined() ? locate(part.ctx(), gn["type"], gp + ".type")
+                                                                        : locate(part.ctx(), gn, gp + ".type");
         throw DeckError(loc, type.empty() ? "missing generator type" : "unknown generator '" + type + "'",
                         "expected type: box | cylinder | projectile | cloud | keyword");
     }
@@ -279,18 +278,28 @@ MaterialSpec read_material(const Section& part)
     if (model == "kcc" || model == "cscm")
     {
         // cscm: every generated parameter can be overridden by name (SI after units)
-        static const std::vector<std::pair<std::string, Dimension>> cscm_keys = {
-            {"alpha", dim::pressure}, {"theta", dim::none},  {"lambda", dim::pressure},
-            {"beta", Dimension{-1, 1, 2}}, {"R", dim::none}, {"X0", dim::pressure},
-            {"W", dim::none},          {"D1", Dimension{-1, 1, 2}}, {"D2", Dimension{-2, 2, 4}},
-            {"B", dim::none},          {"D", dim::none},     {"Gfc", Dimension{1, 0, -2}},
-            {"length", dim::length}};
+        static const std::vector<std::pair<std::string, Dimension>> cscm_keys = {{"alpha", dim::pressure},
+                                                                                 {"theta", dim::none},
+                                                                                 {"lambda", dim::pressure},
+                                                                                 {"beta", Dimension{-1, 1, 2}},
+                                                                                 {"R", dim::none},
+                                                                                 {"X0", dim::pressure},
+                                                                                 {"W", dim::none},
+                                                                                 {"D1", Dimension{-1, 1, 2}},
+                                                                                 {"D2", Dimension{-2, 2, 4}},
+                                                                                 {"B", dim::none},
+                                                                                 {"D", dim::none},
+                                                                                 {"Gfc", Dimension{1, 0, -2}},
+                                                                                 {"length", dim::length}};
         // kcc: the generated Release III coefficients (materials.md 1.9), likewise
         static const std::vector<std::pair<std::string, Dimension>> kcc_keys = {
-            {"a0", dim::pressure}, {"a1", dim::none}, {"a2", Dimension{-1, 1, 2}},
-            {"a0y", dim::pressure}, {"a1y", dim::none}, {"a2y", Dimension{-1, 1, 2}},
-            {"a1f", dim::none}, {"a2f", Dimension{-1, 1, 2}}, {"b1", dim::none}, {"b2", dim::none},
-            {"b3", dim::none}, {"omega", dim::none}, {"ft", dim::pressure}};
+            {"a0", dim::pressure},       {"a1", dim::none},
+            {"a2", Dimension{-1, 1, 2}}, {"a0y", dim::pressure},
+            {"a1y", dim::none},          {"a2y", Dimension{-1, 1, 2}},
+            {"a1f", dim::none},          {"a2f", Dimension{-1, 1, 2}},
+            {"b1", dim::none},           {"b2", dim::none},
+            {"b3", dim::none},           {"omega", dim::none},
+            {"ft", dim::pressure}};
         const auto& override_keys = model == "cscm" ? cscm_keys : kcc_keys;
         std::vector<std::string> keys = {"model", "rho", "fc", "E", "nu", "rate_effects", "fracture_energy"};
         for (const auto& k : override_keys)
@@ -313,7 +322,8 @@ MaterialSpec read_material(const Section& part)
         const bool cscm = model == "cscm";
         m.nu = s.quantity("nu", dim::none, cscm ? 0.2 : 0.19);
         if (!(m.nu > -1.0 && m.nu < 0.5))
-            s.fail("nu", "is out of range", cscm ? "expected -1 < nu < 0.5 (default 0.2)" : "expected -1 < nu < 0.5 (default 0.19)");
+            s.fail("nu", "is out of range",
+                   cscm ? "expected -1 < nu < 0.5 (default 0.2)" : "expected -1 < nu < 0.5 (default 0.19)");
         // defaults: K&C E = 4700 sqrt(f'c [MPa]) MPa (ACI); CSCM E = 21.5 GPa (f'c / 10 MPa)^(1/3) (CEB-FIP)
         m.E = s.quantity("E", dim::pressure,
                          cscm ? 21.5e9 * std::cbrt(m.fc / 10e6) : 4700.0 * std::sqrt(m.fc / 1e6) * 1e6);
@@ -361,7 +371,8 @@ MaterialSpec read_material(const Section& part)
             list("pressure", dim::pressure, m.kcc_eos_pressure);
             list("unload_bulk", dim::pressure, m.kcc_eos_unload);
             for (std::size_t i = 0; i < 10; ++i)
-                if ((i == 0 && m.kcc_eos_strain[0] != 0.0) || (i > 0 && !(m.kcc_eos_strain[i] < m.kcc_eos_strain[i - 1])) ||
+                if ((i == 0 && m.kcc_eos_strain[0] != 0.0) ||
+                    (i > 0 && !(m.kcc_eos_strain[i] < m.kcc_eos_strain[i - 1])) ||
                     (i > 0 && !(m.kcc_eos_pressure[i] > m.kcc_eos_pressure[i - 1])) || !(m.kcc_eos_unload[i] > 0.0))
                     e.fail("strain", "is not an EOS_8 table",
                            "expected volumetric strains from 0 decreasing, pressures increasing, unloading moduli > 0");
@@ -412,8 +423,7 @@ MaterialSpec read_material(const Section& part)
             s.fail("E", "Young's modulus must be positive", "expected E > 0 (e.g. 200 GPa)");
         m.nu = s.quantity("nu", dim::none);
         if (!(m.nu > -1.0 && m.nu < 0.5))
-            s.fail("nu", "Poisson's ratio " + s.scalar_text("nu", "") + " is out of range",
-                   "expected -1 < nu < 0.5");
+            s.fail("nu", "Poisson's ratio " + s.scalar_text("nu", "") + " is out of range", "expected -1 < nu < 0.5");
         if (model == "j2")
         {
             if (s.has("curve"))
@@ -476,14 +486,17 @@ MaterialSpec read_material(const Section& part)
                     // the ranges of published Us-up fits (metals and polymers: s 0.5-3.5,
                     // gamma0 0.5-4, a 0-1): a negative slope or Gruneisen gamma has no meaning
                     if (!(m.eos_s >= 0.0 && m.eos_s <= 10.0))
-                        e.fail("s", "is out of range", "expected 0 <= s <= 10 (the slope of Us against up; 1-2 for metals)");
+                        e.fail("s", "is out of range",
+                               "expected 0 <= s <= 10 (the slope of Us against up; 1-2 for metals)");
                     if (!(m.eos_gamma0 >= 0.0 && m.eos_gamma0 <= 10.0))
-                        e.fail("gamma0", "is out of range", "expected 0 <= gamma0 <= 10 (Gruneisen gamma; 1.5-2.2 for metals)");
+                        e.fail("gamma0", "is out of range",
+                               "expected 0 <= gamma0 <= 10 (Gruneisen gamma; 1.5-2.2 for metals)");
                     if (!(m.eos_a >= 0.0 && m.eos_a <= 10.0))
                         e.fail("a", "is out of range", "expected 0 <= a <= 10 (the first-order volume correction)");
                 }
                 else
-                    throw DeckError(locate(s.ctx(), en.IsMap() && en["type"].IsDefined() ? en["type"] : en, s.path("eos") + ".type"),
+                    throw DeckError(locate(s.ctx(), en.IsMap() && en["type"].IsDefined() ? en["type"] : en,
+                                           s.path("eos") + ".type"),
                                     t.empty() ? "missing EOS type" : "unknown EOS type '" + t + "'",
                                     "expected type: linear | gruneisen");
             }
@@ -546,12 +559,11 @@ ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::s
 }
 } // namespace
 
-PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n,
-                   const std::string& path)
+PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& path)
 {
     Section s(ctx, n, path,
-              {"generator", "material", "formulation", "hourglass", "bulk_viscosity",
-               "nodal_integration", "rk", "initial_velocity", "regions", "transition", "erosion", "conversion"});
+              {"generator", "material", "formulation", "hourglass", "bulk_viscosity", "nodal_integration", "rk",
+               "initial_velocity", "regions", "transition", "erosion", "conversion"});
     PartSpec p;
     p.name = name;
     p.loc = s.loc();
@@ -566,14 +578,15 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     {
         // evolutionary coupling: state lives at the nodes on both sides, so conversion moves none
         if (p.formulation != Formulation::FemNodal)
-            s.fail("conversion", "turns elements of nodal-integrated FE into RK particles (the state stays at the nodes)",
+            s.fail("conversion",
+                   "turns elements of nodal-integrated FE into RK particles (the state stays at the nodes)",
                    "expected formulation: fem-nodal on a part with conversion");
         p.conversion = read_criteria(ctx, s, "conversion", p);
     }
-    // the default stabilization of scheme scni: NSNI for RK parts (about a third of MSCNI's cost
-    // per step, the same stable step and the same answers on the seed's P1 and P3; README,
-    // nodal_integration), on meshes and clouds; MSCNI where there are no RK second derivatives
-    // (fem-nodal, coupled parts)
+    // the default stabilization of scheme scni: NSNI for RK parts (cheaper per step than MSCNI,
+    // the same stable step and the same answers on the seed's P1 and P3; README,
+    // nodal_integration; measurements: docs/performance.md), on meshes and clouds; MSCNI where
+    // there are no RK second derivatives (fem-nodal, coupled parts)
     const std::string default_stab = p.formulation == Formulation::Rkpm && !s.has("regions") ? "nsni" : "mscni";
     p.nodal.stabilization = default_stab;
     p.nodal.stabilization_coefficient = default_stab == "nsni" ? kNsniCoefficient : 1.0;
@@ -591,9 +604,10 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                     "expected stabilization: none with scheme " + p.nodal.scheme);
         if (p.nodal.stabilization == "nsni" && (p.formulation != Formulation::Rkpm || s.has("regions")))
             ni.fail("stabilization", "nsni needs the second derivatives of RK shape functions",
-                    "expected stabilization: mscni or none on a " + f + (s.has("regions") ? " part with regions" : " part"));
-        p.nodal.stabilization_coefficient =
-            ni.quantity("stabilization_coefficient", dim::none, p.nodal.stabilization == "nsni" ? kNsniCoefficient : 1.0);
+                    "expected stabilization: mscni or none on a " + f +
+                        (s.has("regions") ? " part with regions" : " part"));
+        p.nodal.stabilization_coefficient = ni.quantity("stabilization_coefficient", dim::none,
+                                                        p.nodal.stabilization == "nsni" ? kNsniCoefficient : 1.0);
         if (!(p.nodal.stabilization_coefficient >= 0.0))
             ni.fail("stabilization_coefficient", "is negative", "expected c_s >= 0 (1 is the RKPM2D default)");
         p.nodal.dt_factor = ni.quantity("dt_factor", dim::none, 0.0);
@@ -602,13 +616,15 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.nodal.facet_points = ni.choice("facet_points", {"triangles", "faces"}, "triangles");
         if (p.nodal.facet_points == "faces" && p.generator.type != GeneratorSpec::Type::Cloud)
             ni.fail("facet_points", "faces chooses the points on a cloud's Voronoi faces, and this part is a mesh",
-                    "expected facet_points: triangles (or none) on a mesh part; its nodal cells' facets take 2 x 2 Gauss points");
+                    "expected facet_points: triangles (or none) on a mesh part; its nodal cells' facets take 2 x 2 "
+                    "Gauss points");
     }
     if (p.generator.type == GeneratorSpec::Type::Cloud)
     {
         // a cloud has no elements: RK particles integrated on their Voronoi cells
         if (p.formulation != Formulation::Rkpm)
-            s.fail("formulation", "'" + f + "' needs elements, and a cloud part has none", "expected formulation: rkpm");
+            s.fail("formulation", "'" + f + "' needs elements, and a cloud part has none",
+                   "expected formulation: rkpm");
     }
     if (s.has("regions"))
     {
@@ -621,7 +637,8 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.regions_loc = s.loc("regions");
         const YAML::Node rn = s.node("regions");
         if (!rn.IsSequence() || rn.size() == 0)
-            s.fail("regions", "is not a non-empty list", "expected regions: [{select: {type: box | cylinder | sphere, ...}}]");
+            s.fail("regions", "is not a non-empty list",
+                   "expected regions: [{select: {type: box | cylinder | sphere, ...}}]");
         for (std::size_t i = 0; i < rn.size(); ++i)
         {
             Section r(ctx, rn[i], s.path("regions") + "." + std::to_string(i), {"formulation", "select"});
@@ -647,7 +664,8 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     {
         if (p.formulation != Formulation::Rkpm && !p.coupled())
             ignore(p, s, "rk", f);
-        Section r(ctx, s.node("rk"), s.path("rk"), {"order", "kernel", "support", "normalized_support", "drop_tolerance", "share_translates"});
+        Section r(ctx, s.node("rk"), s.path("rk"),
+                  {"order", "kernel", "support", "normalized_support", "drop_tolerance", "share_translates"});
         p.rk.loc = r.loc();
         const std::string order = r.choice("order", {"1", "2"}, "1");
         p.rk.order = order == "1" ? 1 : 2;
@@ -656,13 +674,15 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.rk.normalized_support = r.quantity("normalized_support", dim::none, 1.51);
         p.rk.drop_tolerance = r.quantity("drop_tolerance", dim::none, p.rk.order == 1 ? 1e-5 : 0.0);
         if (!(p.rk.drop_tolerance >= 0.0 && p.rk.drop_tolerance <= 1e-2))
-            r.fail("drop_tolerance", "is outside [0, 0.01]", "expected a small fraction such as 1e-5 (0: keep every function)");
+            r.fail("drop_tolerance", "is outside [0, 0.01]",
+                   "expected a small fraction such as 1e-5 (0: keep every function)");
         p.rk.share_translates = r.choice("share_translates", {"true", "false"}, "true") == "true";
         if (p.rk.drop_tolerance > 0.0 && p.rk.order != 1)
             r.fail("drop_tolerance", "restores linear reproduction only", "expected drop_tolerance: 0 with order 2");
         const real_t c = p.rk.normalized_support;
         if (!(c >= 1.0 && c <= 4.0))
-            r.fail("normalized_support", "is outside [1, 4]", "expected a / h between 1 and 4 (box 1.5-1.8, sphere 1.6-2.0)");
+            r.fail("normalized_support", "is outside [1, 4]",
+                   "expected a / h between 1 and 4 (box 1.5-1.8, sphere 1.6-2.0)");
         if (std::abs(c - std::round(c)) < 1e-6)
             r.fail("normalized_support",
                    "is an integer, which puts neighbours exactly on the support boundary of uniform grids",
@@ -699,8 +719,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.bulk_viscosity.linear = b.quantity("linear", dim::none, 0.06);
         p.bulk_viscosity.quadratic = b.quantity("quadratic", dim::none, 1.5);
         if (p.bulk_viscosity.linear < 0 || p.bulk_viscosity.quadratic < 0)
-            b.fail(p.bulk_viscosity.linear < 0 ? "linear" : "quadratic", "is negative",
-                   "expected a coefficient >= 0");
+            b.fail(p.bulk_viscosity.linear < 0 ? "linear" : "quadratic", "is negative", "expected a coefficient >= 0");
     }
     p.initial_velocity = s.vec3("initial_velocity", dim::velocity, Vec3::Zero());
     if (s.has("erosion"))

@@ -3,8 +3,9 @@
 /// glibc's malloc set for rkfem's set-up, which builds hundreds of megabytes of short-lived rows
 /// (smoothed-gradient rows that grow element by element, NSNI's per-point Hessians, the
 /// operators packed from them). With glibc's defaults the heap grows and shrinks in small steps
-/// and every fresh 4 KiB page is a fault; on a virtual machine a fault costs microseconds, and
-/// page faults were a quarter of the P1 cylinder's set-up as rkpm (0.25 in, 38k particles).
+/// and every fresh 4 KiB page is a fault; on a virtual machine a fault is costly, and page
+/// faults were a large share of the P1 cylinder's set-up as rkpm
+/// (measurements: docs/performance.md).
 /// Two of glibc's own tunables (GLIBC_TUNABLES, glibc 2.35 on):
 ///   glibc.malloc.hugetlb=1        the heap and malloc's mappings advised for transparent huge
 ///                                 pages (Debian's kernel gives them only where asked for), so a

@@ -3,7 +3,7 @@
 /// Large per-step arrays (gradient stencils, point state, element forces) on transparent huge
 /// pages. A 4 KiB page holds the stencils of only about six particles, so a force pass over a
 /// few hundred thousand particles misses the TLB every few points; with 2 MiB pages the same
-/// pass is about 10% faster (bench_rkpm, 300k particles: 119 -> 106 ns per particle-step).
+/// pass is faster (measurements: docs/performance.md).
 /// Debian's kernel runs THP in "madvise" mode, so memory gets huge pages only where asked for.
 #include <cstddef>
 #include <cstdlib>

@@ -3,7 +3,8 @@
 /// RKFEM_WIDE_VECTORS marks a kernel whose lane loops are 8 doubles wide (batches of 8 elements
 /// or points): it asks GCC for 512-bit vectors where the CPU has AVX-512. GCC 12 prefers 256-bit
 /// vectors on AVX-512 CPUs, which halves these loops' width; other kernels keep that default
-/// (the 2x2x2 hex kernel is 47% slower with 512-bit vectors). Elsewhere it does nothing.
+/// (the 2x2x2 hex kernel is slower with 512-bit vectors; measurements: docs/performance.md).
+/// Elsewhere it does nothing.
 #if defined(__AVX512F__)
 #define RKFEM_WIDE_VECTORS __attribute__((target("prefer-vector-width=512")))
 #else
@@ -43,8 +44,8 @@ namespace rkfem::simd
 /// A lane vector of kLanes doubles for the batch kernels (one batch of kLanes elements, one
 /// register): 8 in an AVX-512 register where the CPU has one, else 4 in GCC's generic vector
 /// (an AVX register; lowered to what the CPU has). Eight lanes without AVX-512 took two
-/// registers each and spilled with 16 of them: the 1-point hex kernel ran 1.9-2.6x slower on
-/// an AVX2 machine (bench_internal_force). Arithmetic operators work on it directly; the
+/// registers each and spilled with 16 of them: the 1-point hex kernel ran far slower on an AVX2
+/// machine (measurements: docs/performance.md). Arithmetic operators work on it directly; the
 /// helpers below add the fused multiply-add, sqrt, min and max. The same helpers on real_t let
 /// templates run on scalars: there mul_add is the expression a * b + c, so scalar callers
 /// compile as they did when they wrote it out (GCC contracts it to an FMA where the CPU has
@@ -52,20 +53,44 @@ namespace rkfem::simd
 #if defined(__AVX512F__)
 using dvec = __m512d;
 inline constexpr int kLanes = 8;
-inline dvec broadcast(double a) { return _mm512_set1_pd(a); }
-inline dvec load(const double* p) { return _mm512_loadu_pd(p); }
-inline void store(double* p, dvec a) { _mm512_storeu_pd(p, a); }
+inline dvec broadcast(double a)
+{
+    return _mm512_set1_pd(a);
+}
+inline dvec load(const double* p)
+{
+    return _mm512_loadu_pd(p);
+}
+inline void store(double* p, dvec a)
+{
+    _mm512_storeu_pd(p, a);
+}
 /// a b + c, fused
-inline dvec mul_add(dvec a, dvec b, dvec c) { return _mm512_fmadd_pd(a, b, c); }
+inline dvec mul_add(dvec a, dvec b, dvec c)
+{
+    return _mm512_fmadd_pd(a, b, c);
+}
 /// c - a b, fused
-inline dvec neg_mul_add(dvec a, dvec b, dvec c) { return _mm512_fnmadd_pd(a, b, c); }
-inline dvec sqrt(dvec a) { return _mm512_sqrt_pd(a); }
+inline dvec neg_mul_add(dvec a, dvec b, dvec c)
+{
+    return _mm512_fnmadd_pd(a, b, c);
+}
+inline dvec sqrt(dvec a)
+{
+    return _mm512_sqrt_pd(a);
+}
 /// std::min's lane rule, (b < a) ? b : a (a NaN a is kept)
 // (a compare and a blend: GCC 12's _mm512_min_pd / _mm512_max_pd start from an undefined
 // source that -Wuninitialized reports wherever they are inlined)
-inline dvec min(dvec a, dvec b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(b, a, _CMP_LT_OQ), a, b); }
+inline dvec min(dvec a, dvec b)
+{
+    return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(b, a, _CMP_LT_OQ), a, b);
+}
 /// std::max's lane rule, (a < b) ? b : a (a NaN a is kept)
-inline dvec max(dvec a, dvec b) { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), a, b); }
+inline dvec max(dvec a, dvec b)
+{
+    return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), a, b);
+}
 /// v where x < 0, else 0
 inline dvec where_negative(dvec x, dvec v)
 {
@@ -74,47 +99,92 @@ inline dvec where_negative(dvec x, dvec v)
 #else
 typedef double dvec __attribute__((vector_size(32)));
 inline constexpr int kLanes = 4;
-inline dvec broadcast(double a) { return dvec{} + a; }
+inline dvec broadcast(double a)
+{
+    return dvec{} + a;
+}
 inline dvec load(const double* p)
 {
     dvec r;
     std::memcpy(&r, p, sizeof r);
     return r;
 }
-inline void store(double* p, dvec a) { std::memcpy(p, &a, sizeof a); }
-inline dvec mul_add(dvec a, dvec b, dvec c) { return a * b + c; }
-inline dvec neg_mul_add(dvec a, dvec b, dvec c) { return c - a * b; }
+inline void store(double* p, dvec a)
+{
+    std::memcpy(p, &a, sizeof a);
+}
+inline dvec mul_add(dvec a, dvec b, dvec c)
+{
+    return a * b + c;
+}
+inline dvec neg_mul_add(dvec a, dvec b, dvec c)
+{
+    return c - a * b;
+}
 inline dvec sqrt(dvec a)
 {
     for (int l = 0; l < kLanes; ++l)
         a[l] = std::sqrt(a[l]);
     return a;
 }
-inline dvec min(dvec a, dvec b) { return b < a ? b : a; }
-inline dvec max(dvec a, dvec b) { return a < b ? b : a; }
-inline dvec where_negative(dvec x, dvec v) { return x < 0.0 ? v : dvec{}; }
+inline dvec min(dvec a, dvec b)
+{
+    return b < a ? b : a;
+}
+inline dvec max(dvec a, dvec b)
+{
+    return a < b ? b : a;
+}
+inline dvec where_negative(dvec x, dvec v)
+{
+    return x < 0.0 ? v : dvec{};
+}
 #endif
-inline double mul_add(double a, double b, double c) { return a * b + c; }
-inline double neg_mul_add(double a, double b, double c) { return c - a * b; }
+inline double mul_add(double a, double b, double c)
+{
+    return a * b + c;
+}
+inline double neg_mul_add(double a, double b, double c)
+{
+    return c - a * b;
+}
 /// A scalar operand among lane vectors is broadcast.
-inline dvec lanes(double a) { return broadcast(a); }
-inline dvec lanes(dvec a) { return a; }
+inline dvec lanes(double a)
+{
+    return broadcast(a);
+}
+inline dvec lanes(dvec a)
+{
+    return a;
+}
 template <class A, class B, class C>
-    requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>))
-inline dvec mul_add(A a, B b, C c)
+requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>)) inline dvec
+    mul_add(A a, B b, C c)
 {
     return mul_add(lanes(a), lanes(b), lanes(c));
 }
 template <class A, class B, class C>
-    requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>))
-inline dvec neg_mul_add(A a, B b, C c)
+requires(!(std::is_same_v<A, double> && std::is_same_v<B, double> && std::is_same_v<C, double>)) inline dvec
+    neg_mul_add(A a, B b, C c)
 {
     return neg_mul_add(lanes(a), lanes(b), lanes(c));
 }
-inline double min(double a, double b) { return b < a ? b : a; }
-inline double max(double a, double b) { return a < b ? b : a; }
-inline double sqrt(double a) { return std::sqrt(a); }
-inline double where_negative(double x, double v) { return x < 0.0 ? v : 0.0; }
+inline double min(double a, double b)
+{
+    return b < a ? b : a;
+}
+inline double max(double a, double b)
+{
+    return a < b ? b : a;
+}
+inline double sqrt(double a)
+{
+    return std::sqrt(a);
+}
+inline double where_negative(double x, double v)
+{
+    return x < 0.0 ? v : 0.0;
+}
 /// a scalar as T: itself for real_t, broadcast for a lane vector
 template <class T> inline T lanes_like(double a)
 {
@@ -172,10 +242,12 @@ inline void store_triples(double* p, __m512d X, __m512d Y, __m512d Z)
 inline void interleave4(__m512d X, __m512d Y, __m512d Z, __m512d q[4])
 {
     const __m512d zero = _mm512_setzero_pd();
-    const __m512i lo2 = _mm512_setr_epi64(0, 8, 1, 9, 2, 10, 3, 11), hi2 = _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15);
+    const __m512i lo2 = _mm512_setr_epi64(0, 8, 1, 9, 2, 10, 3, 11),
+                  hi2 = _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15);
     const __m512d xy_a = _mm512_permutex2var_pd(X, lo2, Y), xy_b = _mm512_permutex2var_pd(X, hi2, Y);
     const __m512d z_a = _mm512_permutex2var_pd(Z, lo2, zero), z_b = _mm512_permutex2var_pd(Z, hi2, zero);
-    const __m512i first = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11), second = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
+    const __m512i first = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11),
+                  second = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
     q[0] = _mm512_permutex2var_pd(xy_a, first, z_a);
     q[1] = _mm512_permutex2var_pd(xy_a, second, z_a);
     q[2] = _mm512_permutex2var_pd(xy_b, first, z_b);

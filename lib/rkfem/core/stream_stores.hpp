@@ -5,8 +5,8 @@
 /// the cache line it writes (read for ownership); a streaming store does not, so a loop that
 /// reads three arrays and writes two moves five arrays through memory instead of seven. In
 /// cache they would only evict what the next loop reads, so they are used past kStreamBytes
-/// per array only (bench_steppers, 10^6 elements, 1 thread: arkode-cd 113-115 -> 107-108 ms
-/// per step with the kick streamed, about 1% less again with the update streamed too).
+/// per array only; past it both the kick and the update gained with them
+/// (measurements: docs/performance.md).
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
@@ -36,8 +36,7 @@ inline bool stream_pays(index_t n)
 /// How many values from p on come before a 64-byte boundary.
 inline index_t values_to_line(const real_t* p)
 {
-    return static_cast<index_t>(((64 - (reinterpret_cast<std::uintptr_t>(p) & 63)) & 63) /
-                                sizeof(real_t));
+    return static_cast<index_t>(((64 - (reinterpret_cast<std::uintptr_t>(p) & 63)) & 63) / sizeof(real_t));
 }
 
 #if defined(__AVX512F__)
@@ -60,7 +59,10 @@ inline void stream_range(index_t i0, index_t i1, real_t* out, Value&& value, Lan
 #endif
 /// The component stride of a structure-of-arrays field of n points that store_batch8 can write
 /// in whole lines: n rounded up to a multiple of 8.
-inline std::size_t batch8_stride(std::size_t n) { return (n + 7) / 8 * 8; }
+inline std::size_t batch8_stride(std::size_t n)
+{
+    return (n + 7) / 8 * 8;
+}
 
 /// Writes one batch of 8 points' K components, v[k][l], into a structure-of-arrays field out
 /// (component k of point i at out[k n + i]) from point i0 on. With may_stream (the caller fences:

@@ -32,18 +32,18 @@ std::vector<HalfSpace> cylinder_halfspaces(const Vec3& origin, real_t radius, re
 
 struct CellFacetPoint
 {
-    Vec3 x;               ///< quadrature point
-    Vec3 nda;             ///< outward normal times area of its triangle
-    index_t neighbour = -1; ///< particle on the other side, -1 on the body boundary
+    Vec3 x;                   ///< quadrature point
+    Vec3 nda;                 ///< outward normal times area of its triangle
+    index_t neighbour = -1;   ///< particle on the other side, -1 on the body boundary
     bool starts_face = false; ///< the first point of its face polygon (the cell's points run face by face)
 };
 
 struct VoronoiCells
 {
-    std::vector<real_t> volume;                ///< per particle
-    std::vector<index_t> offsets{0};           ///< per particle: facet points [offsets[i], offsets[i+1])
+    std::vector<real_t> volume;      ///< per particle
+    std::vector<index_t> offsets{0}; ///< per particle: facet points [offsets[i], offsets[i+1])
     std::vector<CellFacetPoint> points;
-    std::vector<real_t> spacing;               ///< per particle: largest distance to a facet neighbour
+    std::vector<real_t> spacing; ///< per particle: largest distance to a facet neighbour
     /// Sub-cells (for MSCNI): one pyramid per facet polygon of a cell, apex at the average of the
     /// cell's vertices, pyramids under 1e-3 of the cell's volume joined to the cell's largest; its
     /// boundary points are sub_points [begin, end) (the facets' triangles and one side triangle
@@ -72,9 +72,10 @@ struct VoronoiCells
 };
 
 /// How each cell's polyhedron is built from its planes. Clip: a box cut by each plane in doubles
-/// (discretization/convex_cell.hpp, about 20 us a cell); Exact: CGAL's dual construction in exact
-/// arithmetic (halfspace_intersection_3, about 0.9 ms a cell), the plain twin. Either way each
-/// vertex is then solved again from the planes through it, so the cells agree to round-off.
+/// (discretization/convex_cell.hpp); Exact: CGAL's dual construction in exact arithmetic
+/// (halfspace_intersection_3), the plain twin, far slower a cell
+/// (measurements: docs/performance.md). Either way each vertex is then solved again from the
+/// planes through it, so the cells agree to round-off.
 enum class VoronoiHull
 {
     Clip,

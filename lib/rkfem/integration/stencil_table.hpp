@@ -43,7 +43,7 @@ struct StencilView
 /// last two added where a choice allows. A load of a window that overlaps a store still pending
 /// only in part cannot take its values from the store and waits until the store reaches the
 /// cache: the neighbours along a row (offsets o - 1, o, o + 1) added back to back made P3's force
-/// pass wait on every entry (bench_decks, P3 rkpm, 1 thread: about 3 % of the step).
+/// pass wait on every entry (measurements: docs/performance.md).
 struct AddOrder
 {
     std::vector<index_t> start;       ///< per stencil: its order's first index in `order`, -1 for none
@@ -99,7 +99,8 @@ struct StencilTable
         const index_t s = point_stencil[static_cast<std::size_t>(p)];
         const index_t k0 = offsets[static_cast<std::size_t>(s)];
         return {node_offset.data() + k0, grad.data() + 3 * static_cast<std::size_t>(k0),
-                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)], add_order.of(s)};
+                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)],
+                add_order.of(s)};
     }
 };
 
@@ -165,7 +166,8 @@ struct TripletTable
         const index_t s = point_triplet[static_cast<std::size_t>(p)];
         const index_t k0 = offsets[static_cast<std::size_t>(s)];
         return {node_offset.data() + k0, hess.data() + 6 * static_cast<std::size_t>(k0),
-                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)], add_order.of(s)};
+                offsets[static_cast<std::size_t>(s) + 1] - k0, point_base[static_cast<std::size_t>(p)],
+                add_order.of(s)};
     }
 };
 

@@ -53,9 +53,9 @@ struct ChunkedScatter
     std::vector<char> buffer_zero;
 
     /// Items per chunk for n items: about n / 16 within [smallest, 32768], a multiple of
-    /// `multiple`. The smallest chunk suits the items' cost: 2048 for hex elements (tens of ns
-    /// each); stress points of RK parts cost about 1-2 us each and take smaller chunks, so that
-    /// a part of a few thousand particles still has work for every thread.
+    /// `multiple`. The smallest chunk suits the items' cost: 2048 for hex elements (cheap each);
+    /// stress points of RK parts cost far more each and take smaller chunks, so that a part of a
+    /// few thousand particles still has work for every thread (measurements: docs/performance.md).
     static index_t chunk_size(index_t n, index_t multiple, index_t smallest = 2048);
 
     /// The locality test on the buffer values chunks take (add_chunks) over a block of `nodes`

@@ -39,11 +39,11 @@ struct NodalBlock
 {
     index_t part = 0;
     ElasticParams material;
-    PlasticPoints plastic; ///< J2 / K&C history per stress point (inactive for elastic blocks)
+    PlasticPoints plastic;                  ///< J2 / K&C history per stress point (inactive for elastic blocks)
     real_t stabilization_coefficient = 0.0; ///< c_s (MSCNI), 0: none
-    BulkViscositySpec bulk_viscosity; ///< q = rho l (Q1 l trD^2 - Q2 c trD) for trD < 0, l = J^(1/3) l0
-    real_t dt_factor = 1.0; ///< alpha in dt = alpha J^(1/3) l0 / c
-    std::vector<real_t> length0; ///< per point: l0, the shortest mesh edge at the owner node [m]
+    BulkViscositySpec bulk_viscosity;       ///< q = rho l (Q1 l trD^2 - Q2 c trD) for trD < 0, l = J^(1/3) l0
+    real_t dt_factor = 1.0;                 ///< alpha in dt = alpha J^(1/3) l0 / c
+    std::vector<real_t> length0;            ///< per point: l0, the shortest mesh edge at the owner node [m]
     IntegrationOperator points;             ///< stress points (global node ids)
     IntegrationOperator stabilization;      ///< MSCNI sub-cells or NSNI sub-points (empty: none)
     /// NSNI: the stabilization's sub-points come in threes, 3 p + i with parent p and the same
@@ -80,7 +80,8 @@ struct NodalBlock
     /// Sub-point s's entries (not while they are held as triplets only: expand_operators() first)
     StencilView stab_view(index_t s) const
     {
-        RKFEM_REQUIRE(!stab_in_triplets, "nodal block: the stabilization's entries are held as triplets; expand_operators() first");
+        RKFEM_REQUIRE(!stab_in_triplets,
+                      "nodal block: the stabilization's entries are held as triplets; expand_operators() first");
         return stencil_view(stabilization, stab_stencils, s);
     }
     /// RK parts, as built: physical value at node I = sum over k in [interp_offsets[i],
@@ -108,7 +109,7 @@ struct NodalBlock
     /// V0 P g, in point order, into their buffers; it streams the gradients once per step.
     /// Gather: each node sums over a transposed copy of its entries (streams them twice).
     using Assembly = rkfem::Assembly;
-    ChunkedScatter scatter;      ///< stress-point chunks, then stabilization chunks (empty: gather)
+    ChunkedScatter scatter;     ///< stress-point chunks, then stabilization chunks (empty: gather)
     index_t n_point_chunks = 0; ///< how many of them are stress-point chunks
     bool scatter_assembly() const { return !scatter.empty(); }
 
@@ -129,7 +130,7 @@ struct NodalBlock
     /// same values (verification compares the two).
     bool stream_stress = true;
     std::vector<real_t> stab_stress, stab_stress_trial; ///< 6 x n_stab [Pa]
-    std::vector<real_t> jacobian;                     ///< n_points, det F
+    std::vector<real_t> jacobian;                       ///< n_points, det F
 
     /// The force pass asks for the next batch's stencils, lane by lane into the second-level
     /// cache, while it scatters this batch's forces (the gathers that read them first otherwise
@@ -140,18 +141,20 @@ struct NodalBlock
     /// than prefetch_bytes together, for each table over 1 MiB; in cache the prefetches only cost.
     bool prefetch_points = false;
     bool prefetch_triplets = false;
-    /// The column cloud's force pass (bench_decks CloudForcePass, 1 thread) lost with them at
-    /// 9 MB of tables (80 mm: 355-362 -> 393-402 ns per particle-step) and gained from 14 MB on
-    /// (120 mm, 200 mm, 400 mm) on this machine's 32 MiB third-level cache.
+    /// The threshold lies between the table sizes at which the column cloud's force pass lost
+    /// with the prefetches and those at which it gained; where it lies depends on the machine's
+    /// caches (measurements: docs/performance.md).
     static constexpr std::size_t prefetch_bytes = std::size_t{12} << 20;
 
     // per-step scratch
-    std::vector<real_t> point_tensor; ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
-    std::vector<real_t> finv;         ///< 9 x n_points: F^-1 (row-major), for the stabilization's own pass (empty without one)
-    std::vector<real_t> spin;         ///< 3 x n_points: W of the point (the same)
-    std::vector<real_t> batch_sums;  ///< per batch of stress points x 4: d_int, d_bv, dt_min, NSNI's d_stab (nsni_batch)
-    std::vector<index_t> batch_idx;  ///< per batch x 2: the point of dt_min, the first bad point (-1: none)
-    std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell (the own pass's; NSNI in the points' batches sums it per batch)
+    std::vector<real_t>
+        point_tensor;         ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
+    std::vector<real_t> finv; ///< 9 x n_points: F^-1 (row-major), for the stabilization's own pass (empty without one)
+    std::vector<real_t> spin; ///< 3 x n_points: W of the point (the same)
+    std::vector<real_t> batch_sums; ///< per batch of stress points x 4: d_int, d_bv, dt_min, NSNI's d_stab (nsni_batch)
+    std::vector<index_t> batch_idx; ///< per batch x 2: the point of dt_min, the first bad point (-1: none)
+    std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell (the own pass's; NSNI in the
+                                     ///< points' batches sums it per batch)
 
     index_t n_points() const { return points.n_points(); }
     index_t n_stab() const { return stabilization.n_points(); }

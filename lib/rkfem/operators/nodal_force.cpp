@@ -304,7 +304,8 @@ template <class Triplet> inline void scatter_triplet(const Triplet& tr, const re
         const real_t* h[6];
         tr.values(k, h);
         for (int a = 0; a < 3; ++a)
-            f[a] += (q[0][a] * *h[0] + q[1][a] * *h[1] + q[2][a] * *h[2]) + (q[3][a] * *h[3] + q[4][a] * *h[4] + q[5][a] * *h[5]);
+            f[a] += (q[0][a] * *h[0] + q[1][a] * *h[1] + q[2][a] * *h[2]) +
+                    (q[3][a] * *h[3] + q[4][a] * *h[4] + q[5][a] * *h[5]);
     }
 #endif
 }
@@ -480,14 +481,12 @@ template <int W>
 inline void first_piola(real_t VJ, real_t q, const real_t (&sn)[6][W], const real_t (&Fi)[3][3][W], int l,
                         real_t (&P)[9][W])
 {
-    const real_t S[3][3] = {{sn[0][l] - q, sn[3][l], sn[5][l]},
-                            {sn[3][l], sn[1][l] - q, sn[4][l]},
-                            {sn[5][l], sn[4][l], sn[2][l] - q}};
+    const real_t S[3][3] = {
+        {sn[0][l] - q, sn[3][l], sn[5][l]}, {sn[3][l], sn[1][l] - q, sn[4][l]}, {sn[5][l], sn[4][l], sn[2][l] - q}};
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             P[3 * j + i][l] = VJ * (S[i][0] * Fi[j][0][l] + S[i][1] * Fi[j][1][l] + S[i][2] * Fi[j][2][l]);
 }
-
 
 /// NSNI in the stress points' batch (NodalBlock::stabilization_triplets, chunked scatter): for
 /// the good lanes of points p0 .. p0 + nl - 1, the three sub-points 3 p + i get
@@ -510,7 +509,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     const bool packed = !blk.stab_triplets.empty();
     // the views are taken where they are read (a few loads each): arrays of them for the lanes
     // were value-initialized, a 1.3 KB memset per batch
-    auto sub_point_views = [&](index_t t, StencilView (&sv)[3])
+    auto sub_point_views = [&](index_t t, StencilView(&sv)[3])
     {
         for (int i = 0; i < 3; ++i)
             sv[i] = stencil_view(st, blk.stab_stencils, 3 * t + i);
@@ -718,14 +717,14 @@ template <bool PLASTIC, bool FULL>
 #else
     constexpr bool uniform = false;
 #endif
-    for (int l = 0; l < W; ++l)
-    {
-        real_t f[3][3], fd[3][3];
-        gather_gradients(stencil_view(op, blk.point_stencils, static_cast<index_t>(lane_point(l))), u, v, f, fd);
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-                F[i][j][l] = f[i][j], Fd[i][j][l] = fd[i][j];
-    }
+        for (int l = 0; l < W; ++l)
+        {
+            real_t f[3][3], fd[3][3];
+            gather_gradients(stencil_view(op, blk.point_stencils, static_cast<index_t>(lane_point(l))), u, v, f, fd);
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    F[i][j][l] = f[i][j], Fd[i][j][l] = fd[i][j];
+        }
 
     alignas(64) real_t Jl[W], Fi[3][3][W], dl[6][W], wl[3][W], so[6][W], sn[6][W];
     const real_t* __restrict s_in = blk.stress.data();
@@ -843,7 +842,8 @@ template <bool PLASTIC, bool FULL>
 
     // J^(1/3) for the stable-step length: two Newton steps from 1 + (J - 1)/3 where |J - 1| <
     // 0.25 (relative error below 1e-7, far below what a time-step estimate needs), std::cbrt
-    // (about 10 ns) only for the lanes outside, blended in without a branch
+    // (a costly scalar call; measurements: docs/performance.md) only for the lanes outside,
+    // blended in without a branch
     alignas(64) real_t far[W], root[W];
     for (int l = 0; l < W; ++l)
     {
@@ -916,7 +916,7 @@ template <bool PLASTIC, bool FULL>
     const bool nsni_here = blk.stabilization_triplets && buf;
     if (nsni_here)
         nsni_batch<W>(blk, v, p0, nl, good, Fi, wl, Jl, dt, buf, lo);
-    // V0 P g into the chunk's buffer (or V0 P out for the transpose gather), for the good points
+        // V0 P g into the chunk's buffer (or V0 P out for the transpose gather), for the good points
 #if defined(__AVX512F__)
     if (uniform && buf && bad < 0)
         scatter_uniform(blk.point_stencils.view(p0), P, buf, lo);
@@ -972,7 +972,8 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
     {
         if (blk.scatter_assembly())
             blk.scatter.run_chunks("rkfem::nodal_points", 0, blk.n_point_chunks, kPointLanes,
-                                   [&](index_t b, real_t* buf, index_t lo) { batch.template operator()<PLASTIC>(b, buf, lo); });
+                                   [&](index_t b, real_t* buf, index_t lo)
+                                   { batch.template operator()<PLASTIC>(b, buf, lo); });
         else
             parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
                          [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
@@ -1026,8 +1027,12 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j)
                     Ls[i][j] = G[i][0] * Fi[j] + G[i][1] * Fi[3 + j] + G[i][2] * Fi[6 + j];
-            const real_t d[6] = {Ls[0][0], Ls[1][1], Ls[2][2], 0.5 * (Ls[0][1] + Ls[1][0]),
-                                 0.5 * (Ls[1][2] + Ls[2][1]), 0.5 * (Ls[2][0] + Ls[0][2])};
+            const real_t d[6] = {Ls[0][0],
+                                 Ls[1][1],
+                                 Ls[2][2],
+                                 0.5 * (Ls[0][1] + Ls[1][0]),
+                                 0.5 * (Ls[1][2] + Ls[2][1]),
+                                 0.5 * (Ls[2][0] + Ls[0][2])};
             const real_t* w = spin + 3 * static_cast<std::size_t>(L);
             real_t s_old[6], sg[6];
             for (int k = 0; k < 6; ++k)
@@ -1069,7 +1074,8 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
                              real_t P[3][9];
                              triplet(t, P);
                              for (int i = 0; i < 3; ++i)
-                                 std::copy(P[i], P[i] + 9, &blk.point_tensor[9 * (static_cast<std::size_t>(np) + 3 * t + i)]);
+                                 std::copy(P[i], P[i] + 9,
+                                           &blk.point_tensor[9 * (static_cast<std::size_t>(np) + 3 * t + i)]);
                          });
         else if (blk.scatter_assembly())
             blk.scatter.run_chunks("rkfem::nodal_stabilization", blk.n_point_chunks,
@@ -1093,7 +1099,8 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
         r.d_hourglass =
             parallel_reduce_sum("rkfem::nodal_stab_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b + 3]; });
     else
-        r.d_hourglass = parallel_reduce_sum("rkfem::nodal_stab_energy", ns, [&](index_t s) { return blk.stab_energy[s]; });
+        r.d_hourglass =
+            parallel_reduce_sum("rkfem::nodal_stab_energy", ns, [&](index_t s) { return blk.stab_energy[s]; });
     return r;
 }
 

@@ -1,7 +1,6 @@
 #include "rkfem/run/summary.hpp"
 
 #include <algorithm>
-#include <limits>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -10,6 +9,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iterator>
+#include <limits>
 #include <sstream>
 #include <vector>
 
@@ -71,7 +71,8 @@ std::uint64_t fnv1a(const char* bytes, std::size_t n, std::uint64_t h = 14695981
 }
 
 /// FNV-1a's step over 64-bit words (n a multiple of 8), continuing from h: a byte at a time the
-/// multiply's latency made the driver's 17 MB take 20 ms, about 1 % of a short run
+/// multiply's latency made hashing the driver's executable a noticeable share of a short run
+/// (measurements: docs/performance.md)
 std::uint64_t fnv1a_words(const char* bytes, std::size_t n, std::uint64_t h)
 {
     for (std::size_t k = 0; k + 8 <= n; k += 8)
@@ -140,8 +141,7 @@ const std::string& solver_build_id()
     return id;
 }
 
-void write_summary_json(const std::string& path, const Model& model, const RunOptions& opt,
-                        const RunSummary& s)
+void write_summary_json(const std::string& path, const Model& model, const RunOptions& opt, const RunSummary& s)
 {
     std::ostringstream o; // written whole at the end (write_file_whole)
     const Energies& e = s.energy;
@@ -190,8 +190,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"energy\": {\"kinetic\": " << num(e.kinetic) << ", \"internal\": " << num(e.internal)
       << ", \"hourglass\": " << num(e.hourglass) << ", \"bulk_viscosity\": " << num(e.bulk_viscosity)
       << ", \"contact\": " << num(e.contact) << ", \"eroded\": " << num(e.eroded) << ", \"damping\": " << num(e.damping)
-      << ", \"external_work\": " << num(e.external_work)
-      << ", \"kinetic0\": " << num(e.kinetic0) << ", \"internal0\": " << num(e.internal0) << "},\n";
+      << ", \"external_work\": " << num(e.external_work) << ", \"kinetic0\": " << num(e.kinetic0)
+      << ", \"internal0\": " << num(e.internal0) << "},\n";
     o << "  \"balance_error\": " << num(e.balance_error()) << ",\n";
     o << "  \"max_balance_error\": " << num(s.max_balance_error) << ",\n";
     o << "  \"hourglass_ratio\": " << num(e.hourglass_ratio()) << ",\n";
@@ -203,19 +203,21 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
         {
             const Vec3 f = model.contacts[k]->resultant();
             o << (k ? ", " : "") << "{\"initial_penetrations\": " << model.contacts[k]->initial_penetrations()
-              << ", \"active_nodes\": " << model.contacts[k]->active_nodes() << ", \"resultant\": [" << num(f[0]) << ", "
-              << num(f[1]) << ", " << num(f[2]) << "]}";
+              << ", \"active_nodes\": " << model.contacts[k]->active_nodes() << ", \"resultant\": [" << num(f[0])
+              << ", " << num(f[1]) << ", " << num(f[2]) << "]}";
         }
         o << "],\n";
     }
     if (s.has_impact)
     {
         const ImpactMeasures& im = s.impact;
-        o << "  \"impact\": {\"apparent_depth\": " << num(im.apparent_depth) << ", \"actual_depth\": "
-          << num(im.actual_depth) << ", \"crater_depth\": " << num(im.crater_depth) << ", \"crater_diameter\": "
-          << num(im.crater_diameter) << ", \"crater_volume\": " << num(im.crater_volume) << ", \"residual_velocity\": " << num(im.residual_velocity)
-          << ", \"projectile_mass\": " << num(im.projectile_mass) << ", \"target_momentum\": "
-          << num(im.target_momentum) << ", \"damaged_volume_0.5\": " << num(im.damaged_volume_half)
+        o << "  \"impact\": {\"apparent_depth\": " << num(im.apparent_depth)
+          << ", \"actual_depth\": " << num(im.actual_depth) << ", \"crater_depth\": " << num(im.crater_depth)
+          << ", \"crater_diameter\": " << num(im.crater_diameter) << ", \"crater_volume\": " << num(im.crater_volume)
+          << ", \"residual_velocity\": " << num(im.residual_velocity)
+          << ", \"projectile_mass\": " << num(im.projectile_mass)
+          << ", \"target_momentum\": " << num(im.target_momentum)
+          << ", \"damaged_volume_0.5\": " << num(im.damaged_volume_half)
           << ", \"damaged_volume_threshold\": " << num(im.damaged_volume_threshold)
           << ", \"eroded_mass\": " << num(im.eroded_mass) << "},\n";
     }
@@ -236,8 +238,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
         o << (ip ? ",\n" : "\n") << "    " << quote(part.name) << ": {";
         const char* axis = "xyz";
         for (int d = 0; d < 3; ++d)
-            o << (d ? ", " : "") << "\"" << axis[d] << "min\": " << num(lo[d]) << ", \"" << axis[d] << "max\": " << num(hi[d])
-              << ", \"length_" << axis[d] << "\": " << num(hi[d] - lo[d]);
+            o << (d ? ", " : "") << "\"" << axis[d] << "min\": " << num(lo[d]) << ", \"" << axis[d]
+              << "max\": " << num(hi[d]) << ", \"length_" << axis[d] << "\": " << num(hi[d] - lo[d]);
         o << "}";
     }
     o << "},\n";
@@ -248,8 +250,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     const std::size_t first_probe_column = nc - 12 * probes.size(); // probes' 12 columns each come last
     for (std::size_t p = 0; p < probes.size(); ++p)
     {
-        o << (p ? ",\n" : "\n") << "    " << quote(probes[p].name) << ": {\"node\": "
-          << model.probe_nodes[p];
+        o << (p ? ",\n" : "\n") << "    " << quote(probes[p].name) << ": {\"node\": " << model.probe_nodes[p];
         for (std::size_t q = 0; q < 12; ++q)
         {
             const std::size_t col = first_probe_column + 12 * p + q;

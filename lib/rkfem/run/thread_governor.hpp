@@ -1,10 +1,10 @@
 #pragma once
 /// @file thread_governor.hpp
 /// Chooses the OpenMP team size of a run between steps from the steps' own wall times, so that a
-/// run on a busy machine is not slower than on one thread. On an idle 2-core machine a step on 2
-/// threads takes about 0.6 of one on 1; while another process holds a core, the static loops
-/// wait at every barrier for the thread that lost its core, and 2 threads took 1.9x as long as 1
-/// on the 100k-hex column deck.
+/// run on a busy machine is not slower than on one thread. On an idle machine a big part's step on
+/// more threads takes less time than on one; while another process holds a core, the static loops
+/// wait at every barrier for the thread that lost its core, and the team can take longer than one
+/// thread (measurements: docs/performance.md).
 ///
 /// The run steps in windows of `window` steps on one team size. Every `probe_interval` steps a
 /// window on the other size follows (one thread while on the largest, the largest while on one),
@@ -13,17 +13,16 @@
 /// switch resets it; on the largest size, a probe on one thread whose median step the current
 /// size's beats by `decisive` (a quarter) or more sets it to `max_interval` at once. On an idle
 /// machine and a big part that costs 8 steps on one thread after 16 steps and then every 4,096
-/// (0.2 % of the steps, 1.6x slower each, on the 100k column); a small part, whose steps are
-/// fork-joins of tiny loops, may find one thread faster (on this machine's 2 cores a cache line
-/// takes about 225 ns from one core to the other: the P3 cantilever as fem-1pt steps 1.5x slower
-/// on 2 threads than on 1). When the machine turns busy (a window of steps preempted
-/// `contention` times per step or more on average, involuntary context switches of the process:
-/// about 0.5 per step on an idle machine on the 100k column, 9 while another process holds a
-/// core) the interval is reset once, so that a probe follows as soon as a window of busy steps
-/// has been timed; the spell ends when the average falls below half that. Results do not depend
-/// on the team size (every reduction sums fixed chunks in order, see core/parallel.hpp), so a
-/// switch changes no bits. The time source is the caller's: the logic is a pure function of the
-/// step times it is given.
+/// (0.2 % of the steps, each slower than on the team); a small part, whose steps are fork-joins of
+/// tiny loops, may find one thread faster (the cache lines the loops share take long to move from
+/// one core to another). When the machine turns busy (a window of steps preempted `contention`
+/// times per step or more on average, involuntary context switches of the process: on an idle
+/// machine well below it, while another process holds a core well above it;
+/// measurements: docs/performance.md) the interval is reset once, so that a probe follows as soon
+/// as a window of busy steps has been timed; the spell ends when the average falls below half
+/// that. Results do not depend on the team size (every reduction sums fixed chunks in order, see
+/// core/parallel.hpp), so a switch changes no bits. The time source is the caller's: the logic is
+/// a pure function of the step times it is given.
 #include <algorithm>
 #include <cstdint>
 #include <vector>

@@ -27,15 +27,14 @@ void KinematicMap::set_rows(index_t begin, index_t end, const std::vector<index_
                             const std::vector<index_t>& columns, const std::vector<real_t>& values,
                             const std::vector<char>* coefficient)
 {
-    RKFEM_REQUIRE(begin >= 0 && end <= size() && begin <= end, "kinematic map: rows [" << begin << ", " << end
-                                                                                        << ") outside " << size()
-                                                                                        << " nodes");
-    RKFEM_REQUIRE(static_cast<index_t>(offsets.size()) == end - begin + 1, "kinematic map: " << offsets.size()
-                                                                                              << " row offsets for "
-                                                                                              << end - begin << " rows");
+    RKFEM_REQUIRE(begin >= 0 && end <= size() && begin <= end,
+                  "kinematic map: rows [" << begin << ", " << end << ") outside " << size() << " nodes");
+    RKFEM_REQUIRE(static_cast<index_t>(offsets.size()) == end - begin + 1,
+                  "kinematic map: " << offsets.size() << " row offsets for " << end - begin << " rows");
     // every node's row (the new ones for [begin, end) read in place, the others as stored,
     // written out with their columns into a scratch row), in node order: the rows are not copied
-    // whole (at P6's target as rkpm that copy was 5 % of the set-up, most of it fresh pages)
+    // whole (at P6's target as rkpm that copy was a noticeable share of the set-up, most of it
+    // fresh pages; measurements: docs/performance.md)
     const index_t n = size();
     std::vector<index_t> scratch_columns;
     std::vector<real_t> scratch_values;

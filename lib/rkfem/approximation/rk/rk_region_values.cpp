@@ -75,7 +75,10 @@ RKFEM_LANE_INLINE void add_moments(real_t w, real_t d0, real_t d1, real_t d2, re
 
 /// std::max's rule by value (std::max returns a reference, which keeps GCC from vectorizing
 /// a loop that takes the maximum of loaded values)
-inline real_t larger(real_t a, real_t b) { return a < b ? b : a; }
+inline real_t larger(real_t a, real_t b)
+{
+    return a < b ? b : a;
+}
 
 /// The symmetric 4 x 4 matrix of order-1 sums (sum w, sum w d_i, sum w d_i d_j) in the scaled
 /// basis H = (1, d / s): entries scaled by 1, 1 / s, 1 / s^2.
@@ -96,12 +99,13 @@ Eigen::Matrix4d scaled_moments(const real_t sums[10], real_t inv_s)
 }
 
 /// LDL^T of a symmetric 4 x 4 with symmetric pivoting on the largest remaining diagonal, as
-/// Eigen::LDLT does it (the same pivots, so evaluate's test on them holds the same), written
-/// out: Eigen's general LDL^T was a tenth of the set-up at this size. The pivoting permutes an
+/// Eigen::LDLT does it (the same pivots, so evaluate's test on them holds the same), written out:
+/// Eigen's general LDL^T was a large share of the set-up at this size. The pivoting permutes an
 /// index (perm_: position -> row of M) instead of moving rows and columns: the same operations on
 /// the same values as the swaps, without the stores (which GCC vectorized into scatters). Its
 /// factorization and solve are scalar code (RKFEM_SCALAR_CODE): vectorized, the solve's permuted
-/// stores became stack scatters, and the set-up of the P1 cylinder took 9% longer.
+/// stores became stack scatters, and the set-up of the P1 cylinder took longer
+/// (measurements: docs/performance.md).
 class Ldlt4
 {
   public:
@@ -266,8 +270,8 @@ void RkRegionValues::resize_candidates(std::size_t n)
         v->resize(n);
     ids_.resize(n);
     slots_.resize(n);
-    for (auto* v : {&dx_, &dy_, &dz_, &phi_, &psi_, &kept_, &dphi_[0], &dphi_[1], &dphi_[2], &grad_[0], &grad_[1],
-                    &grad_[2]})
+    for (auto* v :
+         {&dx_, &dy_, &dz_, &phi_, &psi_, &kept_, &dphi_[0], &dphi_[1], &dphi_[2], &grad_[0], &grad_[1], &grad_[2]})
         v->resize(n);
 }
 
@@ -362,8 +366,7 @@ void RkRegionValues::focus_wide(const Vec3& lo, const Vec3& hi)
         _mm512_storeu_pd(py_.data() + n, _mm512_maskz_compress_pd(m, x1));
         _mm512_storeu_pd(pz_.data() + n, _mm512_maskz_compress_pd(m, x2));
         _mm512_storeu_pd(a_.data() + n, _mm512_maskz_compress_pd(m, a));
-        _mm512_storeu_pd(inv_a_.data() + n,
-                         _mm512_maskz_compress_pd(m, _mm512_loadu_pd(region_inv_a_.data() + k)));
+        _mm512_storeu_pd(inv_a_.data() + n, _mm512_maskz_compress_pd(m, _mm512_loadu_pd(region_inv_a_.data() + k)));
         n += static_cast<std::size_t>(__builtin_popcount(m));
     }
     resize_candidates(copy_kept(k, n, [&](std::size_t j) { return reaches(j, lo, hi); }));
@@ -521,7 +524,7 @@ void RkRegionValues::drop(const Vec3& x)
         return;
     const real_t is = 1.0 / s, is2 = is * is;
     Eigen::Matrix4d M;
-    M << w0, -is * w1, -is * w2, -is * w3,   //
+    M << w0, -is * w1, -is * w2, -is * w3,         //
         -is * w1, is2 * w11, is2 * w12, is2 * w13, //
         -is * w2, is2 * w12, is2 * w22, is2 * w23, //
         -is * w3, is2 * w13, is2 * w23, is2 * w33;
@@ -618,7 +621,6 @@ template <KernelType K, SupportShape S> void RkRegionValues::slopes(const Vec3& 
     a_min_ = a_min;
 }
 
-
 void RkRegionValues::evaluate_gradients(const Vec3& x)
 {
     (this->*slopes_)(x);
@@ -686,7 +688,8 @@ void RkRegionValues::gradients_quadratic(const Vec3& x)
             for (int i = 0; i < 3; ++i)
             {
                 const Vec10 Hi = dH[i] * inv_s;
-                dM[i].noalias() += phi_[k] * (Hi * H.transpose() + H * Hi.transpose()) + dphi_[i][k] * H * H.transpose();
+                dM[i].noalias() +=
+                    phi_[k] * (Hi * H.transpose() + H * Hi.transpose()) + dphi_[i][k] * H * H.transpose();
             }
         }
     const Eigen::LDLT<Mat10> ldlt(M);

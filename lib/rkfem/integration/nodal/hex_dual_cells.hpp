@@ -39,7 +39,8 @@ void build_sub_hex_facet(const real_t xe[8][3], int a, int f, std::array<FacetPo
 int sub_hex_element_face(int a, int f);
 /// The sub-hex's volume as the integral of det J over its natural octant by 2 x 2 x 2 Gauss
 /// points (exact: det J of a trilinear map is at most quadratic in each coordinate); the same
-/// as SubHex::volume to round-off at a third of the cost. Its 8 points at once (sub_hex_points).
+/// as SubHex::volume to round-off, and cheaper (measurements: docs/performance.md). Its 8 points
+/// at once (sub_hex_points).
 real_t sub_hex_volume(const real_t xe[8][3], int a);
 /// Its plain twin, point by point: the same volume to round-off.
 real_t sub_hex_volume_plain(const real_t xe[8][3], int a);

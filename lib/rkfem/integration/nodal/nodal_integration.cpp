@@ -105,8 +105,7 @@ Vec3 sub_hex_centroid(const real_t xe[8][3], int a)
 }
 
 /// Builds an operator from per-point entry lists (parallel over points, concatenated in order).
-template <class PointFn>
-IntegrationOperator assemble(index_t n_points, PointFn&& fn)
+template <class PointFn> IntegrationOperator assemble(index_t n_points, PointFn&& fn)
 {
     std::vector<Entries> entries(static_cast<std::size_t>(n_points));
     std::vector<real_t> weight(static_cast<std::size_t>(n_points)), position(3 * static_cast<std::size_t>(n_points));
@@ -196,7 +195,8 @@ IntegrationOperator build_scni(const HexMesh& mesh, const ShapeEvaluator& shapes
     return scni;
 }
 
-void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, IntegrationOperator& scni, IntegrationOperator* sd)
+void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, IntegrationOperator& scni,
+                   IntegrationOperator* sd)
 {
     std::vector<index_t> offsets, slots;
     node_element_incidence(mesh, offsets, slots);
@@ -205,59 +205,59 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
     std::vector<Entries> sub_entries(n_sub);
     std::vector<real_t> sub_weight(n_sub), sub_position(3 * n_sub);
     std::vector<index_t> sub_owner(n_sub);
-    scni = assemble(mesh.n_nodes(),
-                    [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
-                        std::vector<real_t>& psi)
-                    {
-                        real_t vol = 0.0;
-                        SubHex sh;
-                        real_t xe[8][3];
-                        for (index_t k = offsets[i]; k < offsets[i + 1]; ++k)
-                        {
-                            const index_t e = slots[k] / 8;
-                            const int a = slots[k] % 8;
-                            element_coordinates(mesh, e, xe);
-                            build_sub_hex(xe, a, sh);
-                            vol += sh.volume;
-                            // facets on element faces shared with another element of the cell
-                            // are interior to the nodal cell: skip them
-                            bool use[6];
-                            for (int f = 0; f < 6; ++f)
-                                use[f] = sh.element_face[f] < 0 || nb[6 * e + sh.element_face[f]] < 0;
-                            if (!sd)
-                            {
-                                add_facets(shapes, e, sh, use, out, nodes, psi);
-                                continue;
-                            }
-                            // with the sub-cells: every facet evaluated once, the sub-cell's row
-                            // from all six (as build_sd_scni), the node's from those it uses
-                            const std::size_t s = static_cast<std::size_t>(slots[k]);
-                            Entries& sub = sub_entries[s];
-                            for (int f = 0; f < 6; ++f)
-                            {
-                                const std::size_t begin = sub.size();
-                                bool one[6] = {};
-                                one[f] = true;
-                                add_facets(shapes, e, sh, one, sub, nodes, psi);
-                                if (use[f])
-                                    out.insert(out.end(), sub.begin() + static_cast<std::ptrdiff_t>(begin), sub.end());
-                            }
-                            RKFEM_REQUIRE(sh.volume > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
-                                                                                 << " has non-positive volume "
-                                                                                 << sh.volume);
-                            merge(sub, 1.0 / sh.volume);
-                            sub_weight[s] = sh.volume;
-                            const Vec3 c = sub_hex_centroid(xe, a);
-                            for (int d = 0; d < 3; ++d)
-                                sub_position[3 * s + d] = c[d];
-                            sub_owner[s] = i;
-                        }
-                        RKFEM_REQUIRE(vol > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << vol);
-                        merge(out, 1.0 / vol);
-                        w = vol;
-                        pos = mesh.node(i);
-                        owner = i;
-                    });
+    scni = assemble(
+        mesh.n_nodes(),
+        [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
+            std::vector<real_t>& psi)
+        {
+            real_t vol = 0.0;
+            SubHex sh;
+            real_t xe[8][3];
+            for (index_t k = offsets[i]; k < offsets[i + 1]; ++k)
+            {
+                const index_t e = slots[k] / 8;
+                const int a = slots[k] % 8;
+                element_coordinates(mesh, e, xe);
+                build_sub_hex(xe, a, sh);
+                vol += sh.volume;
+                // facets on element faces shared with another element of the cell
+                // are interior to the nodal cell: skip them
+                bool use[6];
+                for (int f = 0; f < 6; ++f)
+                    use[f] = sh.element_face[f] < 0 || nb[6 * e + sh.element_face[f]] < 0;
+                if (!sd)
+                {
+                    add_facets(shapes, e, sh, use, out, nodes, psi);
+                    continue;
+                }
+                // with the sub-cells: every facet evaluated once, the sub-cell's row
+                // from all six (as build_sd_scni), the node's from those it uses
+                const std::size_t s = static_cast<std::size_t>(slots[k]);
+                Entries& sub = sub_entries[s];
+                for (int f = 0; f < 6; ++f)
+                {
+                    const std::size_t begin = sub.size();
+                    bool one[6] = {};
+                    one[f] = true;
+                    add_facets(shapes, e, sh, one, sub, nodes, psi);
+                    if (use[f])
+                        out.insert(out.end(), sub.begin() + static_cast<std::ptrdiff_t>(begin), sub.end());
+                }
+                RKFEM_REQUIRE(sh.volume > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
+                                                                    << " has non-positive volume " << sh.volume);
+                merge(sub, 1.0 / sh.volume);
+                sub_weight[s] = sh.volume;
+                const Vec3 c = sub_hex_centroid(xe, a);
+                for (int d = 0; d < 3; ++d)
+                    sub_position[3 * s + d] = c[d];
+                sub_owner[s] = i;
+            }
+            RKFEM_REQUIRE(vol > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << vol);
+            merge(out, 1.0 / vol);
+            w = vol;
+            pos = mesh.node(i);
+            owner = i;
+        });
     if (sd)
         *sd = pack(sub_entries, std::move(sub_weight), std::move(sub_position), std::move(sub_owner));
 }
@@ -641,7 +641,8 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
                  });
     for (std::size_t slot = 0; slot < n_sub; ++slot)
         RKFEM_REQUIRE(slot_volume[slot] > 0.0, "SD-SCNI: sub-cell " << slot % 8 << " of element " << slot / 8
-                                                                    << " has non-positive volume " << slot_volume[slot]);
+                                                                    << " has non-positive volume "
+                                                                    << slot_volume[slot]);
     // nodal volumes: each node's sub-hexes in incidence order (the same bits on any thread count)
     std::vector<index_t> inc_offsets, slots;
     node_element_incidence(mesh, inc_offsets, slots);
@@ -651,7 +652,8 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     {
         for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
             op.weight[i] += slot_volume[slots[k]];
-        RKFEM_REQUIRE(op.weight[i] > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << op.weight[i]);
+        RKFEM_REQUIRE(op.weight[i] > 0.0,
+                      "SCNI: nodal cell of node " << i << " has non-positive volume " << op.weight[i]);
     }
     // Each node's row: the sums of its sub-hexes merged by particle, each particle's terms added
     // in the order of their elements' colours (a fixed order, so the same bits on any number of
@@ -697,15 +699,17 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
     for (index_t i = 0; i < nn; ++i)
         op.owner[i] = i;
     // node i's row into nodes[0, count), grad[0, 3 count)
-    auto write_row = [&](index_t i, RowMerger& merger, std::vector<RowMerger::List>& lists, index_t* nodes, real_t* grad)
+    auto write_row =
+        [&](index_t i, RowMerger& merger, std::vector<RowMerger::List>& lists, index_t* nodes, real_t* grad)
     {
         lists_of(i, lists);
         merger.merge(lists, 1.0 / op.weight[i], nodes, grad);
     };
     // Shared stencils straight from the rows: blocks of nodes write their rows in parallel into
     // one buffer, which the sharer reads in node order, so the set-up never holds the whole
-    // operator (at P6's target as rkpm, 194 MB of fresh pages, a fifth of its set-up). Where
-    // sharing does not pay, the rows are written again, into the operator.
+    // operator (at P6's target as rkpm, 194 MB of fresh pages, a large share of its set-up;
+    // measurements: docs/performance.md). Where sharing does not pay, the rows are written
+    // again, into the operator.
     bool shares = shared != nullptr;
     if (shares)
     {
@@ -714,7 +718,8 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
         constexpr index_t kBlockNodes = 2048;
         std::size_t room = 0;
         for (index_t i0 = 0; i0 < nn; i0 += kBlockNodes)
-            room = std::max(room, static_cast<std::size_t>(op.offsets[std::min(nn, i0 + kBlockNodes)] - op.offsets[i0]));
+            room =
+                std::max(room, static_cast<std::size_t>(op.offsets[std::min(nn, i0 + kBlockNodes)] - op.offsets[i0]));
         std::vector<index_t> block_nodes(room);
         std::vector<real_t> block_grad(3 * room);
 #pragma omp parallel
@@ -750,7 +755,8 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
             std::vector<RowMerger::List> lists;
 #pragma omp for schedule(static)
             for (index_t i = 0; i < nn; ++i)
-                write_row(i, merger, lists, op.nodes.data() + op.offsets[i], op.grad.data() + 3 * static_cast<std::size_t>(op.offsets[i]));
+                write_row(i, merger, lists, op.nodes.data() + op.offsets[i],
+                          op.grad.data() + 3 * static_cast<std::size_t>(op.offsets[i]));
         }
     }
     std::vector<FacetSums>().swap(sums);
@@ -774,7 +780,8 @@ IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& sha
                         const bool use[6] = {true, true, true, true, true, true};
                         add_facets(shapes, e, sh, use, out, nodes, psi);
                         RKFEM_REQUIRE(sh.volume > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
-                                                                             << " has non-positive volume " << sh.volume);
+                                                                            << " has non-positive volume "
+                                                                            << sh.volume);
                         merge(out, 1.0 / sh.volume);
                         w = sh.volume;
                         pos = sub_hex_centroid(xe, a);
@@ -796,7 +803,8 @@ IntegrationOperator build_nodal(NodalScheme scheme, const HexMesh& mesh, const S
     return {};
 }
 
-IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vector<real_t>& x, const ShapeEvaluator& shapes)
+IntegrationOperator build_scni_cells(const VoronoiCells& cells, const std::vector<real_t>& x,
+                                     const ShapeEvaluator& shapes)
 {
     return assemble(cells.size(),
                     [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
@@ -858,14 +866,15 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
     // back from the heap fragmented and raised the set-up's peak by a tenth.
     struct FaceSums
     {
-        index_t to = -1;              ///< the cell across
-        int pool = 0;                 ///< in pools[pool], entries [begin, end): by particle,
+        index_t to = -1;                ///< the cell across
+        int pool = 0;                   ///< in pools[pool], entries [begin, end): by particle,
         std::size_t begin = 0, end = 0; ///< ascending, where some point of the face kept it
     };
     std::vector<std::vector<FaceSums>> outbox(static_cast<std::size_t>(n)); // per cell: its faces' sums for later cells
     std::vector<Entries> pools(2 * static_cast<std::size_t>(omp_get_max_threads()));
     std::vector<Entries> rows(static_cast<std::size_t>(std::min(n, block)));
-    std::vector<std::vector<index_t>> taken(rows.size()); // per cell of the block: its faces' first points, to take from earlier cells
+    std::vector<std::vector<index_t>> taken(
+        rows.size()); // per cell of the block: its faces' first points, to take from earlier cells
     auto shared = [&](index_t i, index_t j) { return j >= 0 && std::abs(i - j) <= block; };
     ParallelErrors errors;
 #pragma omp parallel
@@ -891,9 +900,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
         };
         // the region's particles that some point reached, with their sums, onto out (ascending)
         auto collect_hits = [&](Entries& out)
-        {
-            append_marked(out, values.region_particles().data(), acc.data(), hit.data(), values.region_size());
-        };
+        { append_marked(out, values.region_particles().data(), acc.data(), hit.data(), values.region_size()); };
         // row += sign * sums[0 .. m), both by particle ascending (a merge)
         auto add_sums = [&](Entries& row, const std::pair<index_t, Vec3>* sums, std::size_t m, real_t sign)
         {
@@ -944,7 +951,8 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                             face_acc.assign(3 * nr, 0.0);
                             face_hit.assign(nr, 0.0);
                             for (index_t q = f0; q < f1; ++q)
-                                add_point_values(values, cells.points[q].x, cells.points[q].nda, face_acc.data(), face_hit.data());
+                                add_point_values(values, cells.points[q].x, cells.points[q].nda, face_acc.data(),
+                                                 face_hit.data());
                             FaceSums fs{j, my_pool, pool.size(), 0};
                             for (std::size_t k = 0; k < nr; ++k)
                             {
@@ -959,7 +967,8 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                         }
                         else
                             for (index_t q = f0; q < f1; ++q)
-                                add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
+                                add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(),
+                                                 hit.data());
                         f0 = f1;
                     }
                     collect_hits(row);
@@ -1052,7 +1061,8 @@ IntegrationOperator build_sd_cells(const VoronoiCells& cells, const ShapeEvaluat
                             pos += fp.x;
                         }
                         RKFEM_REQUIRE(sc.volume > 0.0, "SD cells: sub-cell " << s << " of cell " << sc.cell
-                                                                               << " has non-positive volume " << sc.volume);
+                                                                             << " has non-positive volume "
+                                                                             << sc.volume);
                         merge(out, 1.0 / sc.volume);
                         w = sc.volume;
                         pos /= static_cast<real_t>(sc.end - sc.begin);
@@ -1150,7 +1160,8 @@ class NsniSources
         std::vector<index_t> sources, served(static_cast<std::size_t>(np), 0);
         for (index_t p = 0; p < np; ++p)
         {
-            RKFEM_REQUIRE(points.owner[p] == p, "NSNI: point " << p << " is not at particle " << p << " (node-ordered points)");
+            RKFEM_REQUIRE(points.owner[p] == p,
+                          "NSNI: point " << p << " is not at particle " << p << " (node-ordered points)");
             ++served[translates.source[p]];
             if (translates.computed(p))
             {
@@ -1189,7 +1200,8 @@ class NsniSources
                         std::vector<index_t>& n = nodes[k - k0];
                         std::vector<Mat3>& h = hess[k - k0];
                         const Vec3 x = rk.position(p);
-                        region.hessians(x, translates.region(p), static_cast<std::size_t>(translates.region_size(p)), n, h);
+                        region.hessians(x, translates.region(p), static_cast<std::size_t>(translates.region_size(p)), n,
+                                        h);
                         if (drop_tolerance > 0.0)
                             prune_rk_hessians(rk, x, drop_tolerance, n, h);
                         setup_progress::advance(served[p]);
@@ -1216,8 +1228,9 @@ class NsniSources
                                 expect += nodes[k - k0].size();
                             if (regions > 0)
                             {
-                                const std::size_t rest = static_cast<std::size_t>(
-                                    static_cast<double>(bound_from[k1]) * static_cast<double>(so_far) / static_cast<double>(regions));
+                                const std::size_t rest = static_cast<std::size_t>(static_cast<double>(bound_from[k1]) *
+                                                                                  static_cast<double>(so_far) /
+                                                                                  static_cast<double>(regions));
                                 expect += rest + rest / 16;
                             }
                             nodes_.reserve(so_far + expect);
@@ -1324,7 +1337,7 @@ class NsniSources
     const RkTranslates& translates_;
     std::vector<index_t> source_index_;
     std::vector<index_t> offsets_{0}, nodes_; // per source k: entries offsets_[k] .. offsets_[k + 1]
-    std::vector<real_t> h_;                    // 6 per entry
+    std::vector<real_t> h_;                   // 6 per entry
 };
 } // namespace
 
@@ -1341,29 +1354,30 @@ IntegrationOperator build_nsni_stabilization(const IntegrationOperator& points, 
     op.position.resize(9 * static_cast<std::size_t>(np));
     op.nodes.resize(static_cast<std::size_t>(op.offsets.back()));
     op.grad.resize(3 * op.nodes.size());
-    parallel_for("rkfem::build_nsni_stabilization::fill", np,
-                 [&](index_t p)
-                 {
-                     static constexpr int kSym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}}; // (i, d) in 00, 01, 02, 11, 12, 22
-                     const index_t* n;
-                     const real_t* h;
-                     const index_t count = sources.entries(p, n, h);
-                     const bool own = translates.computed(p);
-                     for (int i = 0; i < 3; ++i)
-                     {
-                         const std::size_t q = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
-                         for (int d = 0; d < 3; ++d)
-                             op.position[3 * q + d] = points.position[3 * static_cast<std::size_t>(p) + d];
-                         const std::size_t k0 = static_cast<std::size_t>(op.offsets[q]);
-                         for (index_t j = 0; j < count; ++j)
-                         {
-                             const std::size_t k = k0 + static_cast<std::size_t>(j);
-                             op.nodes[k] = own ? n[j] : i == 0 ? translates.counterpart(p, n[j]) : op.nodes[k - count];
-                             for (int d = 0; d < 3; ++d)
-                                 op.grad[3 * k + d] = h[6 * static_cast<std::size_t>(j) + kSym[i][d]];
-                         }
-                     }
-                 });
+    parallel_for(
+        "rkfem::build_nsni_stabilization::fill", np,
+        [&](index_t p)
+        {
+            static constexpr int kSym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}}; // (i, d) in 00, 01, 02, 11, 12, 22
+            const index_t* n;
+            const real_t* h;
+            const index_t count = sources.entries(p, n, h);
+            const bool own = translates.computed(p);
+            for (int i = 0; i < 3; ++i)
+            {
+                const std::size_t q = 3 * static_cast<std::size_t>(p) + static_cast<std::size_t>(i);
+                for (int d = 0; d < 3; ++d)
+                    op.position[3 * q + d] = points.position[3 * static_cast<std::size_t>(p) + d];
+                const std::size_t k0 = static_cast<std::size_t>(op.offsets[q]);
+                for (index_t j = 0; j < count; ++j)
+                {
+                    const std::size_t k = k0 + static_cast<std::size_t>(j);
+                    op.nodes[k] = own ? n[j] : i == 0 ? translates.counterpart(p, n[j]) : op.nodes[k - count];
+                    for (int d = 0; d < 3; ++d)
+                        op.grad[3 * k + d] = h[6 * static_cast<std::size_t>(j) + kSym[i][d]];
+                }
+            }
+        });
     return op;
 }
 
@@ -1407,7 +1421,8 @@ std::vector<real_t> nodal_second_moments(const HexMesh& mesh)
                              for (int w = 4; w > 0; w /= 2)
                                  for (int q = 0; q < w; ++q)
                                      t[q] += t[q + w];
-                             m[3 * static_cast<std::size_t>(L) + d] += 0.125 * t[0]; // sub-hex Jacobian 1/8 of the element's
+                             m[3 * static_cast<std::size_t>(L) + d] +=
+                                 0.125 * t[0]; // sub-hex Jacobian 1/8 of the element's
                          }
                      }
                  });
