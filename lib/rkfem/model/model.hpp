@@ -321,6 +321,7 @@ class Model final : public ExplicitOperator
         bool add = false; ///< adds into f_int (its nodes are shared with another block) or writes them
     };
     std::vector<PlannedBlock> force_blocks_;
+    std::vector<char> event_flags_; ///< apply_events' per-element flags (conversion, erosion), reused
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();

@@ -7,6 +7,7 @@
 
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
@@ -184,16 +185,17 @@ bool Model::apply_events(real_t t, std::int64_t step)
                 next = (std::floor(t / interval * (1 + kScheduleSlack)) + 1) * interval;
             }
             const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(b)];
-            std::vector<char> convert(static_cast<std::size_t>(ne), 0);
-            bool any = false;
+            std::vector<char>& convert = event_flags_; // scratch kept between steps: no allocation
+            convert.assign(static_cast<std::size_t>(ne), 0);
             // each element on its own (meets reads the committed state): on the threads
-#pragma omp parallel for schedule(static) reduction(|| : any)
-            for (index_t e = 0; e < ne; ++e)
-                if (!rk[e] && meets(ps.conversion, b, e))
-                {
-                    convert[e] = 1;
-                    any = true;
-                }
+            const bool any = parallel_for_any("rkfem::conversion_criteria", ne,
+                                              [&](index_t e)
+                                              {
+                                                  if (rk[e] || !meets(ps.conversion, b, e))
+                                                      return false;
+                                                  convert[e] = 1;
+                                                  return true;
+                                              });
             if (any)
                 refresh_motion(); // the motion of the step, before the model changes
             try
@@ -220,21 +222,22 @@ bool Model::apply_events(real_t t, std::int64_t step)
         const bool fails = ps.material.model == "j2" && ps.material.fail > 0.0 && part_fe_side[b] < 0;
         if ((!ps.erosion.active() && !fails) || part_nodal[b] >= 0)
             continue;
-        std::vector<char> keep(static_cast<std::size_t>(ne), 1);
-        index_t removed = 0;
-#pragma omp parallel for schedule(static) reduction(+ : removed)
-        for (index_t e = 0; e < ne; ++e)
-        {
-            const bool erode = (ps.erosion.active() && meets(ps.erosion, b, e)) ||
-                               (fails && element_history(b, e, History::Damage) >= 1.0);
-            keep[e] = !erode;
-            removed += erode;
-        }
-        if (removed == 0)
+        std::vector<char>& keep = event_flags_; // scratch kept between steps: no allocation
+        keep.assign(static_cast<std::size_t>(ne), 1);
+        const bool removed = parallel_for_any("rkfem::erosion_criteria", ne,
+                                              [&](index_t e)
+                                              {
+                                                  const bool erode =
+                                                      (ps.erosion.active() && meets(ps.erosion, b, e)) ||
+                                                      (fails && element_history(b, e, History::Damage) >= 1.0);
+                                                  keep[e] = !erode;
+                                                  return erode;
+                                              });
+        if (!removed)
             continue;
         refresh_motion(); // the motion of the step, before the model changes
+        eroded_elements_ += static_cast<index_t>(std::count(keep.begin(), keep.end(), 0));
         remove_elements(b, keep);
-        eroded_elements_ += removed;
         changed = true;
     }
     return changed;
