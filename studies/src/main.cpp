@@ -198,27 +198,27 @@ bool outputs_writable(const std::string& dir, const char* what, std::initializer
     return true;
 }
 
-int main(int argc, char** argv)
+/// The command line: the subcommand, its file, and the options it took.
+struct Args
 {
-    rkfem::tune_allocator(argv); // glibc's malloc for the set-up's rows (re-executes once; core/allocator_tuning.hpp)
-    // HDF5: every call's result is checked and reported on one line, so its own error stack is not
-    // printed; and no clean-up at exit, where a file whose last flush failed (a full disk) made
-    // HDF5's library termination crash (every file is closed by its owner before exit)
-    H5dont_atexit();
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-    for (int i = 1; i < argc; ++i)
-        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h")
-            return help(i > 1 ? argv[1] : "");
-    if (argc < 3)
-        return usage();
-    const std::string command = argv[1];
-    const std::string deck_path = argv[2];
+    std::string command, deck_path;
     std::vector<std::string> overrides;
     std::string out_dir;
     bool quiet = false;
     std::vector<std::string> only;                // study: case names
     std::string checkpoint_interval, until, from; // times with units, as typed; a checkpoint file
     int checkpoint_keep = 1;
+    double checkpoint_seconds = 0.0, until_seconds = 0.0; // the times, parsed
+};
+
+/// Reads the command line into `a`: -1 when it is whole, else the exit code (the usage printed, or
+/// an option a subcommand does not take refused with one line).
+int parse_args(int argc, char** argv, Args& a)
+{
+    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
+           checkpoint_seconds, until_seconds] = a;
+    command = argv[1];
+    deck_path = argv[2];
     const bool runs = command == "run" || command == "restart";
     for (int i = 3; i < argc; ++i)
     {
@@ -280,7 +280,6 @@ int main(int argc, char** argv)
         }
         return true;
     };
-    double checkpoint_seconds = 0.0, until_seconds = 0.0;
     if (!checkpoint_interval.empty() && !parse_time("--checkpoint-interval", checkpoint_interval, checkpoint_seconds))
         return 2;
     if (!until.empty() && !parse_time("--until", until, until_seconds))
@@ -305,89 +304,176 @@ int main(int argc, char** argv)
         std::fprintf(stderr, "rkfem: check writes nothing and takes no --out (run writes DIR)\n");
         return 2;
     }
-    if (command == "material-point")
+    return -1;
+}
+
+/// rkfem material-point DECK --out DIR
+int material_point_command(const Args& a)
+{
+    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
+                 checkpoint_seconds, until_seconds] = a;
+    if (out_dir.empty())
     {
-        if (out_dir.empty())
-        {
-            std::fprintf(stderr, "rkfem: material-point needs --out DIR\n");
-            return 2;
-        }
-        return run_guarded(
-            [&]
-            {
-                const rkfem::MaterialPointDeck d = rkfem::read_material_point_deck(deck_path);
-                const auto h = rkfem::run_material_point(d);
-                rkfem::write_material_point(h, out_dir);
-                if (!quiet)
-                    std::printf(
-                        "rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
-                        h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
-            });
+        std::fprintf(stderr, "rkfem: material-point needs --out DIR\n");
+        return 2;
     }
-    if (command == "study")
-    {
-        if (out_dir.empty())
+    return run_guarded(
+        [&]
         {
-            std::fprintf(stderr, "rkfem: study needs --out DIR\n");
-            return 2;
-        }
-        rkfem::install_interrupt_handlers();
-        int incomplete = 0;
-        bool taken = false; // out_dir refused: another process writes in it, or an output is in the way
-        const int rc = run_guarded(
-            [&]
+            const rkfem::MaterialPointDeck d = rkfem::read_material_point_deck(deck_path);
+            const auto h = rkfem::run_material_point(d);
+            rkfem::write_material_point(h, out_dir);
+            if (!quiet)
+                std::printf("rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
+                            h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
+        });
+}
+
+/// rkfem study STUDY --out DIR [--only ...]
+int study_command(const Args& a)
+{
+    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
+                 checkpoint_seconds, until_seconds] = a;
+    if (out_dir.empty())
+    {
+        std::fprintf(stderr, "rkfem: study needs --out DIR\n");
+        return 2;
+    }
+    rkfem::install_interrupt_handlers();
+    int incomplete = 0;
+    bool taken = false; // out_dir refused: another process writes in it, or an output is in the way
+    const int rc = run_guarded(
+        [&]
+        {
+            rkfem::Study st = rkfem::read_study(deck_path);
+            if (!only.empty())
+                st = rkfem::select_cases(st, only);
+            // the study is valid: its directory, and nobody else writing in it
+            std::error_code mk;
+            std::filesystem::create_directories(out_dir, mk);
+            std::error_code cases_ec;
+            const auto cases = std::filesystem::status(out_dir + "/cases", cases_ec);
+            if (!mk && std::filesystem::exists(cases) && !std::filesystem::is_directory(cases))
             {
-                rkfem::Study st = rkfem::read_study(deck_path);
-                if (!only.empty())
-                    st = rkfem::select_cases(st, only);
-                // the study is valid: its directory, and nobody else writing in it
-                std::error_code mk;
-                std::filesystem::create_directories(out_dir, mk);
-                std::error_code cases_ec;
-                const auto cases = std::filesystem::status(out_dir + "/cases", cases_ec);
-                if (!mk && std::filesystem::exists(cases) && !std::filesystem::is_directory(cases))
-                {
-                    std::fprintf(
-                        stderr,
-                        "rkfem: study --out %s: %s/cases exists and is not a directory; expected the folder of "
-                        "the cases' outputs (move what is in the way)\n",
-                        out_dir.c_str(), out_dir.c_str());
-                    taken = true;
-                    return;
-                }
-                if (!mk && (!lock_output_directory(out_dir, "study --out") ||
-                            !outputs_writable(out_dir, "study --out", {"table.csv", "table.md", "study.h5"})))
-                {
-                    taken = true;
-                    return;
-                }
-                for (const auto& r : rkfem::run_study(st, out_dir, !quiet))
-                    incomplete += r.status != "completed" && r.status != "reused";
-                if (!quiet)
-                    std::fprintf(stderr, "rkfem: study %s: %zu case(s), %d not completed -> %s/table.md\n",
-                                 st.title.c_str(), st.cases.size(), incomplete, out_dir.c_str());
-            });
-        if (taken)
-            return 2;
-        if (rc == 0 && rkfem::interrupt_signal() != 0)
+                std::fprintf(stderr,
+                             "rkfem: study --out %s: %s/cases exists and is not a directory; expected the folder of "
+                             "the cases' outputs (move what is in the way)\n",
+                             out_dir.c_str(), out_dir.c_str());
+                taken = true;
+                return;
+            }
+            if (!mk && (!lock_output_directory(out_dir, "study --out") ||
+                        !outputs_writable(out_dir, "study --out", {"table.csv", "table.md", "study.h5"})))
+            {
+                taken = true;
+                return;
+            }
+            for (const auto& r : rkfem::run_study(st, out_dir, !quiet))
+                incomplete += r.status != "completed" && r.status != "reused";
+            if (!quiet)
+                std::fprintf(stderr, "rkfem: study %s: %zu case(s), %d not completed -> %s/table.md\n",
+                             st.title.c_str(), st.cases.size(), incomplete, out_dir.c_str());
+        });
+    if (taken)
+        return 2;
+    if (rc == 0 && rkfem::interrupt_signal() != 0)
+    {
+        std::fprintf(stderr,
+                     "rkfem: study interrupted by %s: the case running then wrote its last state, later "
+                     "cases did not run; the table is written (%s/table.md)\n",
+                     rkfem::interrupt_signal_name(rkfem::interrupt_signal()), out_dir.c_str());
+        return 5;
+    }
+    return rc != 0 ? rc : incomplete > 0 ? 4 : 0;
+}
+
+/// rkfem convergence SWEEP --out DIR
+int convergence_command(const Args& a)
+{
+    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
+                 checkpoint_seconds, until_seconds] = a;
+    if (out_dir.empty())
+    {
+        std::fprintf(stderr, "rkfem: convergence needs --out DIR\n");
+        return 2;
+    }
+    return run_guarded([&] { rkfem::run_sweep(rkfem::read_sweep(deck_path), out_dir, quiet); });
+}
+
+/// A restart: the run's directory, its deck, overrides and checkpoint interval from the checkpoint
+/// (--until T becomes one more override). -1, or the exit code with the message printed.
+int read_restart(Args& a, rkfem::StateArchive& checkpoint, std::string& deck_text)
+{
+    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
+           checkpoint_seconds, until_seconds] = a;
+    out_dir = deck_path; // restart DIR
+    try
+    {
+        checkpoint = rkfem::read_checkpoint(from.empty() ? rkfem::newest_checkpoint(out_dir) : from);
+        deck_text = checkpoint.text("run.deck_text");
+        overrides.clear();
+        std::istringstream os(checkpoint.text("run.overrides"));
+        for (std::string line; std::getline(os, line);)
+            overrides.push_back(line);
+        if (checkpoint_seconds == 0.0)
+            checkpoint_seconds = checkpoint.value<double>("run.checkpoint_interval");
+    }
+    catch (const rkfem::Error& e)
+    {
+        std::fprintf(stderr, "rkfem: restart %s: %s\n", out_dir.c_str(), e.what());
+        return 2;
+    }
+    if (!until.empty())
+        overrides.push_back("time.end=" + until);
+    return -1;
+}
+
+/// The output directory of run and restart: made, locked, every output writable, and for a restart
+/// the directory's own run. -1, or the exit code with the message printed.
+int prepare_output(const Args& a, const rkfem::StateArchive& checkpoint)
+{
+    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
+                 checkpoint_seconds, until_seconds] = a;
+    // the output directory must exist (or be made) and take a file, before the run starts
+    std::error_code ec;
+    std::filesystem::create_directories(out_dir, ec);
+    if (ec)
+    {
+        std::fprintf(stderr, "rkfem: --out %s: cannot create the output directory (%s); expected a directory path\n",
+                     out_dir.c_str(), ec.message().c_str());
+        return 2;
+    }
+    // nobody else writing in it (the lock file's creation is also the write test), and every
+    // output a run writes writable where it goes, before the run starts
+    const char* what = command == "restart" ? "restart" : "--out";
+    if (!lock_output_directory(out_dir, what) ||
+        !outputs_writable(out_dir, "--out", {"results.h5", "results.xdmf", "history.csv", "summary.json"}))
+        return 2;
+    if (command == "restart")
+    {
+        // the checkpoint must be this directory's run's: a later run into the same directory
+        // replaced its outputs, and splicing the old state onto them would mix two runs
+        const std::string ours = checkpoint.has("run.run_id") ? checkpoint.text("run.run_id") : "";
+        const std::string theirs = rkfem::results_run_id(out_dir);
+        if (ours != theirs)
         {
             std::fprintf(stderr,
-                         "rkfem: study interrupted by %s: the case running then wrote its last state, later "
-                         "cases did not run; the table is written (%s/table.md)\n",
-                         rkfem::interrupt_signal_name(rkfem::interrupt_signal()), out_dir.c_str());
-            return 5;
-        }
-        return rc != 0 ? rc : incomplete > 0 ? 4 : 0;
-    }
-    if (command == "convergence")
-    {
-        if (out_dir.empty())
-        {
-            std::fprintf(stderr, "rkfem: convergence needs --out DIR\n");
+                         "rkfem: restart %s: the checkpoint belongs to run %s, the results.h5 beside it to run %s; "
+                         "expected the checkpoint the run in this directory wrote (nothing was changed)\n",
+                         out_dir.c_str(), ours.empty() ? "(none recorded)" : ours.c_str(),
+                         theirs.empty() ? "(none: results.h5 is missing or cannot be read)" : theirs.c_str());
             return 2;
         }
-        return run_guarded([&] { rkfem::run_sweep(rkfem::read_sweep(deck_path), out_dir, quiet); });
     }
+    return -1;
+}
+
+/// rkfem check DECK, run DECK --out DIR, restart DIR: a model built from a deck (a restart's from its
+/// checkpoint), checked, then run.
+int model_command(Args a)
+{
+    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
+           checkpoint_seconds, until_seconds] = a;
     if (command == "run" && out_dir.empty())
     {
         std::fprintf(stderr, "rkfem: run needs --out DIR\n");
@@ -403,25 +489,8 @@ int main(int argc, char** argv)
         std::string deck_text;
         if (command == "restart")
         {
-            out_dir = deck_path; // restart DIR
-            try
-            {
-                checkpoint = rkfem::read_checkpoint(from.empty() ? rkfem::newest_checkpoint(out_dir) : from);
-                deck_text = checkpoint.text("run.deck_text");
-                overrides.clear();
-                std::istringstream os(checkpoint.text("run.overrides"));
-                for (std::string line; std::getline(os, line);)
-                    overrides.push_back(line);
-                if (checkpoint_seconds == 0.0)
-                    checkpoint_seconds = checkpoint.value<double>("run.checkpoint_interval");
-            }
-            catch (const rkfem::Error& e)
-            {
-                std::fprintf(stderr, "rkfem: restart %s: %s\n", out_dir.c_str(), e.what());
-                return 2;
-            }
-            if (!until.empty())
-                overrides.push_back("time.end=" + until);
+            if (const int rc = read_restart(a, checkpoint, deck_text); rc >= 0)
+                return rc;
         }
         else if (command == "run" && checkpoint_seconds > 0)
             deck_text = rkfem::read_deck_text(deck_path, "expected a deck file");
@@ -502,38 +571,8 @@ int main(int argc, char** argv)
                       << model.parts.size() << " part(s)\n";
             return 0;
         }
-        // the output directory must exist (or be made) and take a file, before the run starts
-        std::error_code ec;
-        std::filesystem::create_directories(out_dir, ec);
-        if (ec)
-        {
-            std::fprintf(stderr,
-                         "rkfem: --out %s: cannot create the output directory (%s); expected a directory path\n",
-                         out_dir.c_str(), ec.message().c_str());
-            return 2;
-        }
-        // nobody else writing in it (the lock file's creation is also the write test), and every
-        // output a run writes writable where it goes, before the run starts
-        const char* what = command == "restart" ? "restart" : "--out";
-        if (!lock_output_directory(out_dir, what) ||
-            !outputs_writable(out_dir, "--out", {"results.h5", "results.xdmf", "history.csv", "summary.json"}))
-            return 2;
-        if (command == "restart")
-        {
-            // the checkpoint must be this directory's run's: a later run into the same directory
-            // replaced its outputs, and splicing the old state onto them would mix two runs
-            const std::string ours = checkpoint.has("run.run_id") ? checkpoint.text("run.run_id") : "";
-            const std::string theirs = rkfem::results_run_id(out_dir);
-            if (ours != theirs)
-            {
-                std::fprintf(stderr,
-                             "rkfem: restart %s: the checkpoint belongs to run %s, the results.h5 beside it to run %s; "
-                             "expected the checkpoint the run in this directory wrote (nothing was changed)\n",
-                             out_dir.c_str(), ours.empty() ? "(none recorded)" : ours.c_str(),
-                             theirs.empty() ? "(none: results.h5 is missing or cannot be read)" : theirs.c_str());
-                return 2;
-            }
-        }
+        if (const int rc = prepare_output(a, checkpoint); rc >= 0)
+            return rc;
         if (!quiet)
         {
             for (const auto& part : deck.parts)
@@ -606,4 +645,29 @@ int main(int argc, char** argv)
         std::fprintf(stderr, "rkfem: internal error: %s\n", e.what());
         return 1;
     }
+}
+
+int main(int argc, char** argv)
+{
+    rkfem::tune_allocator(argv); // glibc's malloc for the set-up's rows (re-executes once; core/allocator_tuning.hpp)
+    // HDF5: every call's result is checked and reported on one line, so its own error stack is not
+    // printed; and no clean-up at exit, where a file whose last flush failed (a full disk) made
+    // HDF5's library termination crash (every file is closed by its owner before exit)
+    H5dont_atexit();
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    for (int i = 1; i < argc; ++i)
+        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h")
+            return help(i > 1 ? argv[1] : "");
+    if (argc < 3)
+        return usage();
+    Args a;
+    if (const int rc = parse_args(argc, argv, a); rc >= 0)
+        return rc;
+    if (a.command == "material-point")
+        return material_point_command(a);
+    if (a.command == "study")
+        return study_command(a);
+    if (a.command == "convergence")
+        return convergence_command(a);
+    return model_command(a);
 }
