@@ -295,7 +295,7 @@ void NodalBlock::build_tables(Assembly assembly)
     stab_energy.assign(own_stab_pass ? static_cast<std::size_t>(ns) : 0, 0.0);
 
     // the batches the force pass takes as whole vectors, and the order they add a stencil's
-    // entries in (nodal_force.cpp)
+    // entries in (kernels/nodal_fast.hpp)
     auto batches = [](auto& table, const std::vector<index_t>& point_class, index_t n_classes)
     {
         table.uniform = uniform_batches(point_class, table.point_base, kPointLanes);

@@ -1,7 +1,7 @@
 #pragma once
 /// @file nodal_step_estimate.hpp
 /// The stable step of a nodal block from its highest frequency. A nodal block steps at
-/// dt = alpha J^(1/3) l0 / c per point (nodal_force.cpp); its default alpha (rkpm 1.0,
+/// dt = alpha J^(1/3) l0 / c per point (kernels/nodal_fast.hpp); its default alpha (rkpm 1.0,
 /// fem-nodal 0.95) is calibrated in the test suite (verification/operators/
 /// test_nodal_dynamics.cpp, NodalTimeStep) for the default RK functions and stabilization
 /// coefficients only. Outside them the critical alpha moves, and NSNI's falls steeply with the

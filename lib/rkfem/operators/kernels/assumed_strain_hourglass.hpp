@@ -2,7 +2,7 @@
 /// @file assumed_strain_hourglass.hpp
 /// Hourglass control by assumed strain (Belytschko & Bindeman 1993, ASQBI; LS-DYNA's IHQ 6
 /// analog), in the element's co-rotational frame, for the 1-point hexahedron. T is real_t (the
-/// plain twin in hex1pt_reference.cpp) or a lane vector (hex_block.cpp).
+/// plain twin in hex1pt_reference.cpp) or a lane vector (hex_fast.hpp).
 ///
 /// The hourglass velocities qdot_a = sum_I v_I gamma_aI (Flanagan-Belytschko gamma, modes
 /// a = xi eta, eta zeta, zeta xi, xi eta zeta as hex8_modes.hpp orders them) are turned into the

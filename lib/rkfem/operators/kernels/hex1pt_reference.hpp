@@ -1,7 +1,7 @@
 #pragma once
 /// @file hex1pt_reference.hpp
 /// The 1-point hexahedron of a HexBlock, one element at a time, in plain scalar code: read this
-/// first. The fast kernel (hex_block.cpp, force_1pt_batch) computes the same quantities for 8
+/// first. The fast kernel (kernels/hex_fast.hpp, force_1pt_batch) computes the same quantities for 8
 /// elements at once in the elements' mode basis with lane vectors; a test holds it to this one
 /// to round-off (verification/operators/test_reference_kernels.cpp).
 ///

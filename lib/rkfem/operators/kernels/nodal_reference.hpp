@@ -1,7 +1,7 @@
 #pragma once
 /// @file nodal_reference.hpp
 /// The force pass of a nodal block (RK particles or nodal-integrated FE, total Lagrangian), one
-/// point at a time in plain scalar code: read this first. The fast pass (nodal_force.cpp) runs
+/// point at a time in plain scalar code: read this first. The fast pass (nodal_fast.hpp) runs
 /// the same algebra for 8 points at once over structure-of-arrays scratch, with shared stencils,
 /// whole-vector paths along lattice rows and a chunked scatter; a test holds it to this one
 /// (verification/operators/test_reference_kernels.cpp).
