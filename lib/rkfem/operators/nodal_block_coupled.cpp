@@ -1,0 +1,372 @@
+/// @file nodal_block_coupled.cpp
+/// Coupled parts: FE, transition and RK elements in one nodal block, built and updated as
+/// conversion changes the RK elements.
+#include "rkfem/operators/nodal_block_build_detail.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <map>
+#include <memory>
+#include <optional>
+
+#include <omp.h>
+
+#include "rkfem/approximation/coupling/coupled_shapes.hpp"
+#include "rkfem/approximation/rk/rk_region_values.hpp"
+#include "rkfem/approximation/shape_evaluator.hpp"
+#include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/core/setup_progress.hpp"
+#include "rkfem/discretization/cell_list.hpp"
+#include "rkfem/discretization/voronoi_cells.hpp"
+#include "rkfem/integration/nodal/nodal_integration.hpp"
+
+namespace rkfem
+{
+using namespace nodal_build_detail;
+
+namespace
+{
+/// The coupled shapes seen through a sub-mesh of some of the part's elements: element e of the
+/// sub-mesh is element elements[e] of the part (node ids stay the part's).
+class SubMeshShapes final : public ShapeEvaluator
+{
+  public:
+    SubMeshShapes(const CoupledShapes& shapes, const std::vector<index_t>& elements) : s_(shapes), e_(elements) {}
+    void values(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
+                std::vector<real_t>& psi) const override
+    {
+        s_.values(e_[static_cast<std::size_t>(e)], xi, x, nodes, psi);
+    }
+    void gradients_at_node(index_t i, std::vector<index_t>& nodes, std::vector<Vec3>& grad) const override
+    {
+        s_.gradients_at_node(i, nodes, grad);
+    }
+
+  private:
+    const CoupledShapes& s_;
+    const std::vector<index_t>& e_;
+};
+} // namespace
+
+namespace
+{
+/// The part's elements with keep[e] != 0 as a mesh of their own: element k is elements[k] of the
+/// part (element_to_sub the inverse, -1 for the others), node j is sub_to_part[j] (part_to_sub the
+/// inverse), boundary faces extracted.
+struct SubMesh
+{
+    HexMesh mesh;
+    std::vector<index_t> elements, element_to_sub, sub_to_part, part_to_sub;
+};
+SubMesh sub_mesh(const HexMesh& mesh, const std::vector<char>& keep)
+{
+    SubMesh s;
+    s.element_to_sub.assign(static_cast<std::size_t>(mesh.n_elements()), -1);
+    s.part_to_sub.assign(static_cast<std::size_t>(mesh.n_nodes()), -1);
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+    {
+        if (!keep[e])
+            continue;
+        s.element_to_sub[e] = static_cast<index_t>(s.elements.size());
+        s.elements.push_back(e);
+        for (int a = 0; a < 8; ++a)
+        {
+            const index_t i = mesh.conn[8 * e + a];
+            if (s.part_to_sub[i] < 0)
+            {
+                s.part_to_sub[i] = static_cast<index_t>(s.sub_to_part.size());
+                s.sub_to_part.push_back(i);
+                for (int d = 0; d < 3; ++d)
+                    s.mesh.x.push_back(mesh.x[3 * i + d]);
+            }
+            s.mesh.conn.push_back(s.part_to_sub[i]);
+        }
+    }
+    s.mesh.faces = extract_boundary_faces(s.mesh.conn);
+    return s;
+}
+} // namespace
+
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset, const std::vector<char>* rk_set)
+{
+    const std::vector<char> rk_elements = rk_set ? *rk_set : rk_region_elements(ps, mesh);
+    index_t n_rk = 0;
+    for (char c : rk_elements)
+        n_rk += c;
+    if (n_rk == 0 && ps.converts() && ps.formulation == Formulation::FemNodal)
+    {
+        // no RK element yet: nodal-integrated FE on the same cells as a coupled block's
+        NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+        const FemShapes shapes(mesh);
+        if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        {
+            IntegrationOperator sd;
+            build_scni_sd(mesh, shapes, nb.points, &sd);
+            nb.stabilization = build_mscni_stabilization(nb.points, sd);
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        }
+        else
+            nb.points = build_scni(mesh, shapes);
+        nb.particle.assign(static_cast<std::size_t>(mesh.n_nodes()), 0);
+        nb.fe_element.assign(static_cast<std::size_t>(mesh.n_elements()), 1);
+        // physical values: identity rows
+        nb.interp_offsets.resize(static_cast<std::size_t>(mesh.n_nodes()) + 1);
+        for (index_t i = 0; i <= mesh.n_nodes(); ++i)
+            nb.interp_offsets[i] = i;
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+            nb.interp_nodes.push_back(i + offset);
+        nb.interp_values.assign(static_cast<std::size_t>(mesh.n_nodes()), 1.0);
+        const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+        finish_block(nb, offset, l0, l0);
+        return nb;
+    }
+    if (!rk_set && (n_rk == 0 || n_rk == mesh.n_elements()))
+        throw DeckError(ps.regions_loc,
+                        n_rk == 0 ? "contain no element centroid of the part"
+                                  : "contain every element of the part, leaving no FE region",
+                        n_rk == 0 ? "expected regions that hold some of the part's elements"
+                                  : "expected formulation: rkpm for an all-RK part, or smaller regions");
+    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+    const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
+    try
+    {
+        const CoupledShapes shapes(mesh, rk_elements, rk_params(ps.rk), t);
+        const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+        if (ps.formulation == Formulation::FemNodal)
+        {
+            // every node's dual cell
+            IntegrationOperator sd;
+            build_scni_sd(mesh, shapes, nb.points, stabilized ? &sd : nullptr);
+            if (stabilized)
+                nb.stabilization = build_mscni_stabilization(nb.points, sd);
+        }
+        else
+        {
+            // fem-1pt FE side: the FE elements are the part's 1-point block; the nodes of the
+            // transition and RK elements get the dual cells of those elements only (their faces
+            // with FE elements are the cells' boundary), on a sub-mesh with its own numbering
+            std::vector<char> keep(static_cast<std::size_t>(mesh.n_elements()));
+            for (index_t e = 0; e < mesh.n_elements(); ++e)
+                keep[e] = shapes.kind(e) != CoupledShapes::Kind::Fe;
+            const SubMesh sm = sub_mesh(mesh, keep);
+            const SubMeshShapes sub_shapes(shapes, sm.elements);
+            IntegrationOperator sd;
+            build_scni_sd(sm.mesh, sub_shapes, nb.points, stabilized ? &sd : nullptr);
+            if (stabilized)
+                nb.stabilization = build_mscni_stabilization(nb.points, sd);
+            // owners to the part's numbering (the gradients' nodes already are)
+            for (auto* op : {&nb.points, &nb.stabilization})
+                for (auto& o : op->owner)
+                    o = sm.sub_to_part[static_cast<std::size_t>(o)];
+        }
+        if (stabilized)
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+        // physical values: identity at FE nodes, the RK interpolant at particles
+        nb.interp_offsets.assign(1, 0);
+        std::vector<index_t> row_nodes;
+        std::vector<real_t> row_values;
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+        {
+            row_nodes.clear();
+            row_values.clear();
+            shapes.node_row(i, row_nodes, row_values);
+            for (std::size_t k = 0; k < row_nodes.size(); ++k)
+            {
+                nb.interp_nodes.push_back(row_nodes[k] + offset);
+                nb.interp_values.push_back(row_values[k]);
+            }
+            nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
+        }
+        nb.particle.resize(static_cast<std::size_t>(mesh.n_nodes()));
+        nb.fe_element.resize(static_cast<std::size_t>(mesh.n_elements()));
+        for (index_t i = 0; i < mesh.n_nodes(); ++i)
+            nb.particle[i] = shapes.is_particle(i);
+        for (index_t e = 0; e < mesh.n_elements(); ++e)
+            nb.fe_element[e] = shapes.kind(e) == CoupledShapes::Kind::Fe;
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+    finish_block(nb, offset, l0, l0);
+    return nb;
+}
+
+namespace
+{
+/// Replaces the rows of op's points with replace[p] by rows of `from` (point from_point[p]).
+void splice_rows(IntegrationOperator& op, const std::vector<char>& replace, const IntegrationOperator& from,
+                 const std::vector<index_t>& from_point)
+{
+    IntegrationOperator out;
+    out.weight = op.weight;
+    out.position = op.position;
+    out.owner = op.owner;
+    out.parent = op.parent;
+    out.offsets.reserve(op.offsets.size());
+    out.nodes.reserve(op.nodes.size());
+    out.grad.reserve(op.grad.size());
+    for (index_t p = 0; p < op.n_points(); ++p)
+    {
+        const IntegrationOperator& src = replace[p] ? from : op;
+        const index_t q = replace[p] ? from_point[p] : p;
+        for (index_t k = src.offsets[q]; k < src.offsets[q + 1]; ++k)
+        {
+            out.nodes.push_back(src.nodes[k]);
+            out.grad.insert(out.grad.end(), {src.grad[3 * k], src.grad[3 * k + 1], src.grad[3 * k + 2]});
+        }
+        out.offsets.push_back(out.n_entries());
+        if (replace[p])
+        {
+            out.weight[p] = from.weight[q];
+            for (int d = 0; d < 3; ++d)
+                out.position[3 * p + d] = from.position[3 * q + d];
+        }
+    }
+    op = std::move(out);
+}
+} // namespace
+
+ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                                 const std::vector<char>& rk_old, const std::vector<char>& rk_new, NodalBlock& nb)
+{
+    const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
+    const RkParams params = rk_params(ps.rk);
+    auto layout = [&](const std::vector<char>& rk)
+    {
+        for (char c : rk)
+            if (c)
+                return coupled_layout(mesh, rk, params);
+        CoupledLayout all_fe;
+        all_fe.kind.assign(static_cast<std::size_t>(ne), CoupledShapes::Kind::Fe);
+        all_fe.radius.assign(static_cast<std::size_t>(nn), 0.0);
+        return all_fe;
+    };
+    const CoupledLayout before = layout(rk_old), after = layout(rk_new);
+    // particles that appear, disappear or change their support, with the larger radius
+    std::vector<index_t> changed;
+    std::vector<real_t> changed_x, reach;
+    real_t reach_max = 0.0;
+    for (index_t i = 0; i < nn; ++i)
+        if (before.radius[i] != after.radius[i])
+        {
+            changed.push_back(i);
+            for (int d = 0; d < 3; ++d)
+                changed_x.push_back(mesh.x[3 * i + d]);
+            reach.push_back(std::max(before.radius[i], after.radius[i]));
+            reach_max = std::max(reach_max, reach.back());
+        }
+    // elements whose approximation changes: another kind, or a transition or RK element whose
+    // box meets a changed particle's support box (a box contains the sphere of a sphere support)
+    std::vector<char> affected(static_cast<std::size_t>(ne), 0);
+    std::vector<Vec3> lo(static_cast<std::size_t>(ne)), hi(static_cast<std::size_t>(ne));
+    real_t half_max = 0.0;
+    for (index_t e = 0; e < ne; ++e)
+    {
+        lo[e] = hi[e] = mesh.node(mesh.conn[8 * e]);
+        for (int a = 1; a < 8; ++a)
+        {
+            lo[e] = lo[e].cwiseMin(mesh.node(mesh.conn[8 * e + a]));
+            hi[e] = hi[e].cwiseMax(mesh.node(mesh.conn[8 * e + a]));
+        }
+        half_max = std::max(half_max, 0.5 * (hi[e] - lo[e]).maxCoeff());
+        affected[e] = before.kind[e] != after.kind[e];
+    }
+    if (!changed.empty())
+    {
+        const CellList bins(changed_x, reach_max + half_max);
+        for (index_t e = 0; e < ne; ++e)
+        {
+            if (affected[e] || after.kind[e] == CoupledShapes::Kind::Fe)
+                continue;
+            bins.for_each_candidate(0.5 * (lo[e] + hi[e]),
+                                    [&](index_t j)
+                                    {
+                                        const Vec3 x(changed_x[3 * j], changed_x[3 * j + 1], changed_x[3 * j + 2]);
+                                        if (((lo[e].array() - reach[j]) <= x.array()).all() &&
+                                            (x.array() <= (hi[e].array() + reach[j])).all())
+                                            affected[e] = 1;
+                                    });
+        }
+    }
+    // the nodes whose points change, and every element around them
+    std::vector<char> node_changes(static_cast<std::size_t>(nn), 0);
+    for (index_t e = 0; e < ne; ++e)
+        if (affected[e])
+            for (int a = 0; a < 8; ++a)
+                node_changes[mesh.conn[8 * e + a]] = 1;
+    std::vector<char> around(static_cast<std::size_t>(ne), 0);
+    for (index_t e = 0; e < ne; ++e)
+        for (int a = 0; a < 8; ++a)
+            around[e] = around[e] || node_changes[mesh.conn[8 * e + a]];
+    const SubMesh sm = sub_mesh(mesh, around);
+    ChangedRows rows;
+    if (sm.elements.empty())
+        return rows;
+    const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
+    try
+    {
+        const CoupledShapes shapes(mesh, rk_new, params, t);
+        const SubMeshShapes sub_shapes(shapes, sm.elements);
+        IntegrationOperator scni, sd;
+        build_scni_sd(sm.mesh, sub_shapes, scni, nb.n_stab() > 0 ? &sd : nullptr);
+        for (auto& n : scni.nodes)
+            n += offset;
+        // SCNI: point p is node p
+        std::vector<index_t> from(static_cast<std::size_t>(nn), -1);
+        for (index_t i = 0; i < nn; ++i)
+            if (node_changes[i])
+                from[i] = sm.part_to_sub[i];
+        splice_rows(nb.points, node_changes, scni, from);
+        if (nb.n_stab() > 0)
+        {
+            // MSCNI: sub-cell 8 e + a of the node conn[8 e + a]; the sub-mesh's 8 k + a
+            for (auto& n : sd.nodes)
+                n += offset;
+            const IntegrationOperator stab = build_mscni_stabilization(scni, sd);
+            std::vector<char> replace(static_cast<std::size_t>(nb.n_stab()), 0);
+            std::vector<index_t> from_stab(replace.size(), -1);
+            for (index_t e = 0; e < ne; ++e)
+                for (int a = 0; a < 8; ++a)
+                    if (node_changes[mesh.conn[8 * e + a]])
+                    {
+                        replace[8 * e + a] = 1;
+                        from_stab[8 * e + a] = 8 * sm.element_to_sub[e] + a;
+                    }
+            splice_rows(nb.stabilization, replace, stab, from_stab);
+        }
+        // physical values at the nodes whose rows changed
+        std::vector<index_t> row_nodes;
+        std::vector<real_t> row_values;
+        for (index_t i = 0; i < nn; ++i)
+        {
+            if (!node_changes[i])
+                continue;
+            row_nodes.clear();
+            row_values.clear();
+            shapes.node_row(i, row_nodes, row_values);
+            rows.node.push_back(i);
+            for (std::size_t k = 0; k < row_nodes.size(); ++k)
+            {
+                rows.columns.push_back(row_nodes[k] + offset);
+                rows.values.push_back(row_values[k]);
+            }
+            rows.offsets.push_back(static_cast<index_t>(rows.columns.size()));
+        }
+        for (index_t i = 0; i < nn; ++i)
+            nb.particle[i] = shapes.is_particle(i);
+        for (index_t e = 0; e < ne; ++e)
+            nb.fe_element[e] = shapes.kind(e) == CoupledShapes::Kind::Fe;
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    nb.build_tables();
+    return rows;
+}
+
+} // namespace rkfem
