@@ -72,11 +72,11 @@ void BM_NodalInternalForce(benchmark::State& state)
     // cloud (the lattice's shared stencils off)
     if (state.range(4) == 0)
     {
-        blk.share_stencils = false;
+        blk.options.share_stencils = false;
         blk.initialize();
     }
     // RKFEM_BENCH_PLAIN_STORES=1: the stress stored plainly, for an A/B of the streamed stores
-    blk.stream_stress = std::getenv("RKFEM_BENCH_PLAIN_STORES") == nullptr;
+    blk.options.stream_stress = std::getenv("RKFEM_BENCH_PLAIN_STORES") == nullptr;
     NodeSet nodes;
     nodes.resize(mesh.n_nodes());
     for (std::size_t i = 0; i < mesh.x.size(); ++i)

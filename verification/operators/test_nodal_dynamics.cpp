@@ -410,7 +410,7 @@ void dynamic_patch(Formulation form, const std::string& stab, int n, int steps, 
         // streamed stores move the same values: one more pass from the same state, plain
         const ForcePassResult a = nodal_internal_force(fx.blk, fx.nodes, dt);
         const LineVector<real_t> with_streams = fx.blk.stress_trial;
-        fx.blk.stream_stress = false;
+        fx.blk.options.stream_stress = false;
         const ForcePassResult b = nodal_internal_force(fx.blk, fx.nodes, dt);
         EXPECT_TRUE(with_streams == fx.blk.stress_trial) << "streamed and plain stress stores differ";
         EXPECT_EQ(a.d_internal, b.d_internal);

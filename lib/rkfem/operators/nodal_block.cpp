@@ -86,10 +86,11 @@ void NodalBlock::build_tables(Assembly assembly)
     // NSNI held as triplets alone (build_nsni_triplets, or an earlier build of a compact block)
     // stays so: the triplets are already shared, and the sub-point entries are formed only if
     // the gather assembly below needs them
-    const bool held_as_triplets = stab_in_triplets && stabilization_triplets && compact_operators;
+    const bool held_as_triplets = stab_in_triplets && stabilization_triplets && options.compact_operators;
     // the stress points held in shared stencils from the start (build_scni_rk's rows straight
     // into the table) stay so too: the table is the one share_stencils would find
-    const bool points_held = points_in_table && compact_operators && share_stencils && !point_stencils.empty();
+    const bool points_held =
+        points_in_table && options.compact_operators && options.share_stencils && !point_stencils.empty();
     stab_in_triplets = stab_in_triplets && !held_as_triplets;
     points_in_table = points_in_table && !points_held;
     expand_operators();
@@ -124,7 +125,7 @@ void NodalBlock::build_tables(Assembly assembly)
     if (!points_held)
         point_stencils.clear();
     stab_stencils.clear();
-    if (share_stencils)
+    if (options.share_stencils)
     {
         if (!points_held)
             point_stencils = rkfem::share_stencils(points);
@@ -304,7 +305,7 @@ void NodalBlock::build_tables(Assembly assembly)
     };
     batches(point_stencils, point_stencils.point_stencil, point_stencils.n_stencils());
     batches(stab_triplets, stab_triplets.point_triplet, stab_triplets.n_triplets());
-    if (compact_operators && !point_stencils.empty())
+    if (options.compact_operators && !point_stencils.empty())
     {
         release_entries(points);
         points_in_table = true;
@@ -319,10 +320,10 @@ void NodalBlock::build_tables(Assembly assembly)
             point_stencils.empty() ? points.nodes.size() * (sizeof(index_t) + 3 * sizeof(real_t)) : 0;
         const std::size_t triplet_bytes = stab_triplets.node_offset.size() * (sizeof(index_t) + 6 * sizeof(real_t));
         const bool streams = point_bytes + triplet_bytes > prefetch_bytes;
-        prefetch_points = streams && point_bytes > (std::size_t{1} << 20);
-        prefetch_triplets = streams && triplet_bytes > (std::size_t{1} << 20);
+        options.prefetch_points = streams && point_bytes > (std::size_t{1} << 20);
+        options.prefetch_triplets = streams && triplet_bytes > (std::size_t{1} << 20);
     }
-    if (compact_operators && !stab_triplets.empty())
+    if (options.compact_operators && !stab_triplets.empty())
     {
         release_entries(stabilization);
         // NSNI's sub-points sit at their parents (the checks above hold the layout); nothing in
@@ -330,7 +331,7 @@ void NodalBlock::build_tables(Assembly assembly)
         std::vector<real_t>().swap(stabilization.position);
         stab_in_triplets = true;
     }
-    else if (compact_operators && !stab_stencils.empty())
+    else if (options.compact_operators && !stab_stencils.empty())
     {
         release_entries(stabilization);
         stab_in_table = true;

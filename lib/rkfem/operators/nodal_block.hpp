@@ -35,8 +35,39 @@
 
 namespace rkfem
 {
+/// How a nodal block builds and runs its tables. Every choice gives the same numbers (the tests hold
+/// one to the other); they trade memory and time. Set before initialize(); build_tables() sets the
+/// prefetches from the tables' sizes.
+struct NodalBlockOptions
+{
+    /// Shared stencils (point_stencils, stab_stencils) built by initialize() where sharing pays.
+    bool share_stencils = true;
+    /// Blocks whose operators never change in place (all but coupled parts): once a shared
+    /// stencil table holds an operator's entries, build_tables() releases the operator's own
+    /// nodes and gradients (on the P1 cylinder's particles 7.9 of 12.3 KB per particle) and marks
+    /// it held in the table; offsets, weights, positions and owners stay. expand_operators()
+    /// writes the entries back from the tables, the same bits (the operators were snapped to
+    /// them), as build_tables() does first. Read a point's entries through point_view /
+    /// stab_view, which take them from wherever they are.
+    bool compact_operators = false;
+    /// The force pass may write the stress field with streaming stores (core/stream_stores.hpp,
+    /// store_batch8; only past kStreamBytes, with the chunked scatter). Off: plain stores, the
+    /// same values (verification compares the two).
+    bool stream_stress = true;
+    /// The force pass asks for the next batch's stencils, lane by lane into the second-level
+    /// cache, while it scatters this batch's forces (the gathers that read them first otherwise
+    /// wait on memory, and the scatters, which find their stencils in cache, leave memory idle):
+    /// the points' stencils while NSNI scatters (or the points do, without NSNI in the batches),
+    /// NSNI's triplets while the points scatter. Only for tables that stream from memory: set
+    /// where the per-point tables (an irregular cloud's, whose stencils are not shared) hold more
+    /// than NodalBlock::prefetch_bytes together, for each table over 1 MiB; in cache the prefetches only cost.
+    bool prefetch_points = false;
+    bool prefetch_triplets = false;
+};
+
 struct NodalBlock
 {
+    NodalBlockOptions options;
     index_t part = 0;
     ElasticParams material;
     PlasticPoints plastic;                  ///< J2 / K&C history per stress point (inactive for elastic blocks)
@@ -51,25 +82,17 @@ struct NodalBlock
     /// three in one pass over their nodes. initialize() checks the layout.
     bool stabilization_triplets = false;
     /// Shared stencils of `points` and `stabilization` (integration/stencil_table.hpp), built by
-    /// initialize() when `share_stencils` is on and sharing pays (lattices, structured meshes);
+    /// initialize() when `options.share_stencils` is on and sharing pays (lattices, structured meshes);
     /// empty: the force pass reads the operators' own entries. initialize() snaps the operators
     /// to them; an operator changed afterwards needs initialize() again. Batches of 8 points
     /// with one stencil and consecutive bases (along lattice rows) take a whole-vector path.
     StencilTable point_stencils, stab_stencils;
-    bool share_stencils = true;
-    /// Blocks whose operators never change in place (all but coupled parts): once a shared
-    /// stencil table holds an operator's entries, build_tables() releases the operator's own
-    /// nodes and gradients (on the P1 cylinder's particles 7.9 of 12.3 KB per particle) and marks
-    /// it held in the table; offsets, weights, positions and owners stay. expand_operators()
-    /// writes the entries back from the tables, the same bits (the operators were snapped to
-    /// them), as build_tables() does first. Read a point's entries through point_view /
-    /// stab_view, which take them from wherever they are.
-    bool compact_operators = false;
+    /// An operator held only in its shared stencil table (options.compact_operators).
     bool points_in_table = false, stab_in_table = false;
     /// NSNI with the chunked scatter: the sub-points' entries as triplets (integration/
     /// stencil_table.hpp, TripletTable: each point's three sub-points in one stencil of nodes and
     /// six Hessian values per entry), which the force pass reads (nsni_batch); built by
-    /// build_tables() from the shared stencils or the operator. With compact_operators it is the
+    /// build_tables() from the shared stencils or the operator. With options.compact_operators it is the
     /// only copy (stab_in_triplets: the sub-point stencils are released too, 52 bytes per
     /// entry where they took 84, and the sub-points' positions, their parents'), and
     /// expand_operators() writes them back.
@@ -125,22 +148,9 @@ struct NodalBlock
     /// multiple of 8, so every batch of 8 points is one cache line per component
     LineVector<real_t> stress, stress_trial; ///< 6 x stress_stride [Pa]
     std::size_t stress_stride = 0;
-    /// The force pass may write the stress field with streaming stores (core/stream_stores.hpp,
-    /// store_batch8; only past kStreamBytes, with the chunked scatter). Off: plain stores, the
-    /// same values (verification compares the two).
-    bool stream_stress = true;
     std::vector<real_t> stab_stress, stab_stress_trial; ///< 6 x n_stab [Pa]
     std::vector<real_t> jacobian;                       ///< n_points, det F
 
-    /// The force pass asks for the next batch's stencils, lane by lane into the second-level
-    /// cache, while it scatters this batch's forces (the gathers that read them first otherwise
-    /// wait on memory, and the scatters, which find their stencils in cache, leave memory idle):
-    /// the points' stencils while NSNI scatters (or the points do, without NSNI in the batches),
-    /// NSNI's triplets while the points scatter. Only for tables that stream from memory: set
-    /// where the per-point tables (an irregular cloud's, whose stencils are not shared) hold more
-    /// than prefetch_bytes together, for each table over 1 MiB; in cache the prefetches only cost.
-    bool prefetch_points = false;
-    bool prefetch_triplets = false;
     /// The threshold lies between the table sizes at which the column cloud's force pass lost
     /// with the prefetches and those at which it gained; where it lies depends on the machine's
     /// caches (measurements: docs/performance.md).

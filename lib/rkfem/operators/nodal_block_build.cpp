@@ -241,7 +241,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
                 // stabilization is formed from the rows)
                 nb.points =
                     build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr, ps.rk.share_translates,
-                                  nb.share_stencils && !mscni ? &nb.point_stencils : nullptr);
+                                  nb.options.share_stencils && !mscni ? &nb.point_stencils : nullptr);
                 nb.points_in_table = !nb.point_stencils.empty();
             }
             else if (mscni)
@@ -269,7 +269,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     }
     // stable-step length and crack band: the shortest mesh edge at the node
     const std::vector<real_t> l0 = nodal_spacing(mesh, false);
-    nb.compact_operators = true; // a part of one formulation: its operators never change in place
+    nb.options.compact_operators = true; // a part of one formulation: its operators never change in place
     finish_block(nb, offset, l0, l0);
     return nb;
 }

@@ -137,7 +137,7 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     std::vector<real_t> band(cells.volume.size());
     for (std::size_t i = 0; i < band.size(); ++i)
         band[i] = std::cbrt(cells.volume[i]); // crack band: the cell's size
-    nb.compact_operators = true;
+    nb.options.compact_operators = true;
     finish_block(nb, offset, reach, band);
     return nb;
 }
