@@ -222,10 +222,10 @@ int parse_args(int argc, char** argv, Args& a)
     const bool runs = command == "run" || command == "restart";
     for (int i = 3; i < argc; ++i)
     {
-        const std::string a = argv[i];
-        if (a == "--checkpoint-interval" && i + 1 < argc && runs)
+        const std::string arg = argv[i];
+        if (arg == "--checkpoint-interval" && i + 1 < argc && runs)
             checkpoint_interval = argv[++i];
-        else if (a == "--checkpoint-keep" && i + 1 < argc && command == "run")
+        else if (arg == "--checkpoint-keep" && i + 1 < argc && command == "run")
         {
             const std::string n = argv[++i];
             char* end = nullptr;
@@ -238,23 +238,23 @@ int parse_args(int argc, char** argv, Args& a)
             }
             checkpoint_keep = static_cast<int>(k);
         }
-        else if (a == "--until" && i + 1 < argc && command == "restart")
+        else if (arg == "--until" && i + 1 < argc && command == "restart")
             until = argv[++i];
-        else if (a == "--from" && i + 1 < argc && command == "restart")
+        else if (arg == "--from" && i + 1 < argc && command == "restart")
             from = argv[++i];
-        else if (a == "--set" && i + 1 < argc)
+        else if (arg == "--set" && i + 1 < argc)
             overrides.emplace_back(argv[++i]);
-        else if (a.rfind("--set=", 0) == 0)
-            overrides.emplace_back(a.substr(6));
-        else if (a == "--out" && i + 1 < argc)
+        else if (arg.rfind("--set=", 0) == 0)
+            overrides.emplace_back(arg.substr(6));
+        else if (arg == "--out" && i + 1 < argc)
             out_dir = argv[++i];
-        else if (a == "--quiet")
+        else if (arg == "--quiet")
             quiet = true;
-        else if (a == "--only" && i + 1 < argc && command_takes_only(argv[1]))
+        else if (arg == "--only" && i + 1 < argc && command_takes_only(argv[1]))
             only.emplace_back(argv[++i]);
         else
         {
-            std::fprintf(stderr, "rkfem: unknown argument '%s'\n", a.c_str());
+            std::fprintf(stderr, "rkfem: unknown argument '%s'\n", arg.c_str());
             return usage();
         }
     }
@@ -304,75 +304,67 @@ int parse_args(int argc, char** argv, Args& a)
         std::fprintf(stderr, "rkfem: check writes nothing and takes no --out (run writes DIR)\n");
         return 2;
     }
+    // the others write a directory (restart's is DIR itself)
+    if (out_dir.empty() && command != "check" && command != "restart")
+    {
+        std::fprintf(stderr, "rkfem: %s needs --out DIR\n", command.c_str());
+        return 2;
+    }
     return -1;
 }
 
 /// rkfem material-point DECK --out DIR
 int material_point_command(const Args& a)
 {
-    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
-                 checkpoint_seconds, until_seconds] = a;
-    if (out_dir.empty())
-    {
-        std::fprintf(stderr, "rkfem: material-point needs --out DIR\n");
-        return 2;
-    }
     return run_guarded(
         [&]
         {
-            const rkfem::MaterialPointDeck d = rkfem::read_material_point_deck(deck_path);
+            const rkfem::MaterialPointDeck d = rkfem::read_material_point_deck(a.deck_path);
             const auto h = rkfem::run_material_point(d);
-            rkfem::write_material_point(h, out_dir);
-            if (!quiet)
+            rkfem::write_material_point(h, a.out_dir);
+            if (!a.quiet)
                 std::printf("rkfem: %zu states; final stress xx %.6e Pa, plastic strain %.6e -> %s/stress_strain.csv\n",
-                            h.size(), h.back().stress[0], h.back().plastic_strain, out_dir.c_str());
+                            h.size(), h.back().stress[0], h.back().plastic_strain, a.out_dir.c_str());
         });
 }
 
 /// rkfem study STUDY --out DIR [--only ...]
 int study_command(const Args& a)
 {
-    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
-                 checkpoint_seconds, until_seconds] = a;
-    if (out_dir.empty())
-    {
-        std::fprintf(stderr, "rkfem: study needs --out DIR\n");
-        return 2;
-    }
     rkfem::install_interrupt_handlers();
     int incomplete = 0;
     bool taken = false; // out_dir refused: another process writes in it, or an output is in the way
     const int rc = run_guarded(
         [&]
         {
-            rkfem::Study st = rkfem::read_study(deck_path);
-            if (!only.empty())
-                st = rkfem::select_cases(st, only);
+            rkfem::Study st = rkfem::read_study(a.deck_path);
+            if (!a.only.empty())
+                st = rkfem::select_cases(st, a.only);
             // the study is valid: its directory, and nobody else writing in it
             std::error_code mk;
-            std::filesystem::create_directories(out_dir, mk);
+            std::filesystem::create_directories(a.out_dir, mk);
             std::error_code cases_ec;
-            const auto cases = std::filesystem::status(out_dir + "/cases", cases_ec);
+            const auto cases = std::filesystem::status(a.out_dir + "/cases", cases_ec);
             if (!mk && std::filesystem::exists(cases) && !std::filesystem::is_directory(cases))
             {
                 std::fprintf(stderr,
                              "rkfem: study --out %s: %s/cases exists and is not a directory; expected the folder of "
                              "the cases' outputs (move what is in the way)\n",
-                             out_dir.c_str(), out_dir.c_str());
+                             a.out_dir.c_str(), a.out_dir.c_str());
                 taken = true;
                 return;
             }
-            if (!mk && (!lock_output_directory(out_dir, "study --out") ||
-                        !outputs_writable(out_dir, "study --out", {"table.csv", "table.md", "study.h5"})))
+            if (!mk && (!lock_output_directory(a.out_dir, "study --out") ||
+                        !outputs_writable(a.out_dir, "study --out", {"table.csv", "table.md", "study.h5"})))
             {
                 taken = true;
                 return;
             }
-            for (const auto& r : rkfem::run_study(st, out_dir, !quiet))
+            for (const auto& r : rkfem::run_study(st, a.out_dir, !a.quiet))
                 incomplete += r.status != "completed" && r.status != "reused";
-            if (!quiet)
+            if (!a.quiet)
                 std::fprintf(stderr, "rkfem: study %s: %zu case(s), %d not completed -> %s/table.md\n",
-                             st.title.c_str(), st.cases.size(), incomplete, out_dir.c_str());
+                             st.title.c_str(), st.cases.size(), incomplete, a.out_dir.c_str());
         });
     if (taken)
         return 2;
@@ -381,7 +373,7 @@ int study_command(const Args& a)
         std::fprintf(stderr,
                      "rkfem: study interrupted by %s: the case running then wrote its last state, later "
                      "cases did not run; the table is written (%s/table.md)\n",
-                     rkfem::interrupt_signal_name(rkfem::interrupt_signal()), out_dir.c_str());
+                     rkfem::interrupt_signal_name(rkfem::interrupt_signal()), a.out_dir.c_str());
         return 5;
     }
     return rc != 0 ? rc : incomplete > 0 ? 4 : 0;
@@ -390,14 +382,7 @@ int study_command(const Args& a)
 /// rkfem convergence SWEEP --out DIR
 int convergence_command(const Args& a)
 {
-    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
-                 checkpoint_seconds, until_seconds] = a;
-    if (out_dir.empty())
-    {
-        std::fprintf(stderr, "rkfem: convergence needs --out DIR\n");
-        return 2;
-    }
-    return run_guarded([&] { rkfem::run_sweep(rkfem::read_sweep(deck_path), out_dir, quiet); });
+    return run_guarded([&] { rkfem::run_sweep(rkfem::read_sweep(a.deck_path), a.out_dir, a.quiet); });
 }
 
 /// A restart: the run's directory, its deck, overrides and checkpoint interval from the checkpoint
@@ -432,35 +417,33 @@ int read_restart(Args& a, rkfem::StateArchive& checkpoint, std::string& deck_tex
 /// the directory's own run. -1, or the exit code with the message printed.
 int prepare_output(const Args& a, const rkfem::StateArchive& checkpoint)
 {
-    const auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
-                 checkpoint_seconds, until_seconds] = a;
     // the output directory must exist (or be made) and take a file, before the run starts
     std::error_code ec;
-    std::filesystem::create_directories(out_dir, ec);
+    std::filesystem::create_directories(a.out_dir, ec);
     if (ec)
     {
         std::fprintf(stderr, "rkfem: --out %s: cannot create the output directory (%s); expected a directory path\n",
-                     out_dir.c_str(), ec.message().c_str());
+                     a.out_dir.c_str(), ec.message().c_str());
         return 2;
     }
     // nobody else writing in it (the lock file's creation is also the write test), and every
     // output a run writes writable where it goes, before the run starts
-    const char* what = command == "restart" ? "restart" : "--out";
-    if (!lock_output_directory(out_dir, what) ||
-        !outputs_writable(out_dir, "--out", {"results.h5", "results.xdmf", "history.csv", "summary.json"}))
+    const char* what = a.command == "restart" ? "restart" : "--out";
+    if (!lock_output_directory(a.out_dir, what) ||
+        !outputs_writable(a.out_dir, "--out", {"results.h5", "results.xdmf", "history.csv", "summary.json"}))
         return 2;
-    if (command == "restart")
+    if (a.command == "restart")
     {
         // the checkpoint must be this directory's run's: a later run into the same directory
         // replaced its outputs, and splicing the old state onto them would mix two runs
         const std::string ours = checkpoint.has("run.run_id") ? checkpoint.text("run.run_id") : "";
-        const std::string theirs = rkfem::results_run_id(out_dir);
+        const std::string theirs = rkfem::results_run_id(a.out_dir);
         if (ours != theirs)
         {
             std::fprintf(stderr,
                          "rkfem: restart %s: the checkpoint belongs to run %s, the results.h5 beside it to run %s; "
                          "expected the checkpoint the run in this directory wrote (nothing was changed)\n",
-                         out_dir.c_str(), ours.empty() ? "(none recorded)" : ours.c_str(),
+                         a.out_dir.c_str(), ours.empty() ? "(none recorded)" : ours.c_str(),
                          theirs.empty() ? "(none: results.h5 is missing or cannot be read)" : theirs.c_str());
             return 2;
         }
@@ -474,11 +457,6 @@ int model_command(Args a)
 {
     auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
            checkpoint_seconds, until_seconds] = a;
-    if (command == "run" && out_dir.empty())
-    {
-        std::fprintf(stderr, "rkfem: run needs --out DIR\n");
-        return 2;
-    }
     if (command == "run" || command == "restart")
         rkfem::install_interrupt_handlers();
     try

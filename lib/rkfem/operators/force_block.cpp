@@ -36,15 +36,7 @@ PointFault HexForceBlock::fault(index_t bad, const NodeSet& nodes) const
     return {false, bad, -1, bad_volume(element_volume(block_, nodes, bad))};
 }
 
-ForcePassResult FeSideForceBlock::add_forces(NodeSet& nodes, real_t dt, bool)
-{
-    const ForcePassResult r = hex_internal_force(block_, nodes, dt);
-    if (r.bad_element < 0)
-        assemble_block_forces(block_, nodes, true);
-    return r;
-}
-
-FeSideForceBlock::FeSideForceBlock(HexBlock& block, const std::vector<index_t>& local) : block_(block)
+FeSideForceBlock::FeSideForceBlock(HexBlock& block, const std::vector<index_t>& local) : HexForceBlock(block)
 {
     part_of_.assign(static_cast<std::size_t>(block.n_elements()), static_cast<index_t>(local.size()));
     for (std::size_t e = local.size(); e-- > 0;) // the first part element that maps to it
@@ -62,7 +54,9 @@ index_t FeSideForceBlock::part_element(index_t block_element) const
 
 PointFault FeSideForceBlock::fault(index_t bad, const NodeSet& nodes) const
 {
-    return {false, part_element(bad), -1, bad_volume(element_volume(block_, nodes, bad))};
+    PointFault f = HexForceBlock::fault(bad, nodes);
+    f.element = part_element(bad);
+    return f;
 }
 
 ForcePassResult NodalForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)

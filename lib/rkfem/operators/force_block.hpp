@@ -51,7 +51,7 @@ class ForceBlock
 };
 
 /// Gauss-point hexes: hex_internal_force and assemble_block_forces over one HexBlock.
-class HexForceBlock final : public ForceBlock
+class HexForceBlock : public ForceBlock
 {
   public:
     explicit HexForceBlock(HexBlock& block) : block_(block) {}
@@ -64,20 +64,18 @@ class HexForceBlock final : public ForceBlock
     HexBlock& block_;
 };
 
-/// A coupled part's fem-1pt FE side: a HexBlock over some of the part's elements (local maps a
-/// part element to the block's, -1 where the element is not FE). Always adds: it shares the
-/// part's nodes with the part's nodal block.
-class FeSideForceBlock final : public ForceBlock
+/// A coupled part's fem-1pt FE side: the Gauss-point pass over a HexBlock of some of the part's
+/// elements (local maps a part element to the block's, -1 where the element is not FE), with the
+/// block's elements named by the part's. It shares the part's nodes with the part's nodal block,
+/// so the model plans it as adding.
+class FeSideForceBlock final : public HexForceBlock
 {
   public:
     FeSideForceBlock(HexBlock& block, const std::vector<index_t>& local);
-    ForcePassResult add_forces(NodeSet& nodes, real_t dt, bool add) override;
-    void commit() override { block_.commit(); }
     index_t part_element(index_t block_element) const override;
     PointFault fault(index_t bad, const NodeSet& nodes) const override;
 
   private:
-    HexBlock& block_;
     std::vector<index_t> part_of_; ///< block element -> part element (the inverse of local)
 };
 

@@ -236,18 +236,28 @@ void RunRecord::flush_rows(std::size_t first)
     }
 }
 
+bool RunRecord::row_due(real_t t) const
+{
+    return t >= next_history_ - kHistorySlack * t;
+}
+
+bool RunRecord::frame_due(real_t t) const
+{
+    return writer_ && t >= next_output_ - kScheduleSlack * t;
+}
+
 bool RunRecord::due(real_t t) const
 {
-    return t >= next_history_ - kHistorySlack * t || (writer_ && t >= next_output_ - kScheduleSlack * t);
+    return row_due(t) || frame_due(t);
 }
 
 void RunRecord::observe(const Model& model, const LoopState& loop, bool final)
 {
     const real_t t = loop.t;
-    const bool output_now = (writer_ && t >= next_output_ - kScheduleSlack * t) || final || loop.step == 0;
+    const bool output_now = frame_due(t) || final || loop.step == 0;
     if (impact_ && output_now)
         actual_depth_ = impact_->actual_depth(model); // a pass over the target: at outputs only
-    if (t >= next_history_ - kHistorySlack * t || final)
+    if (row_due(t) || final)
         clock(
             [&]
             {
@@ -257,7 +267,7 @@ void RunRecord::observe(const Model& model, const LoopState& loop, bool final)
                 if (history_interval_ > 0)
                     advance_past(next_history_, t, history_interval_);
             });
-    if (writer_ && (t >= next_output_ - kScheduleSlack * t || final))
+    if (writer_ && (frame_due(t) || final))
         clock(
             [&]
             {

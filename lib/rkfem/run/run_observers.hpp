@@ -64,6 +64,8 @@ class RunRecord
 
   private:
     template <class Work> void clock(Work&& work);
+    bool row_due(real_t t) const;   ///< a history row
+    bool frame_due(real_t t) const; ///< a field frame (only with files)
     void flush_rows(std::size_t first);
     RunSummary& sum_;
     std::unique_ptr<ResultsWriter> writer_;
