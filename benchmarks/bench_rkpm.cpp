@@ -19,8 +19,8 @@
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_block.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
@@ -72,11 +72,19 @@ void BM_NodalInternalForce(benchmark::State& state)
     // cloud (the lattice's shared stencils off)
     if (state.range(4) == 0)
     {
-        blk.options.share_stencils = false;
+        {
+            NodalBlockOptions o = blk.options();
+            o.share_stencils = false;
+            blk.set_options(o);
+        }
         blk.initialize();
     }
     // RKFEM_BENCH_PLAIN_STORES=1: the stress stored plainly, for an A/B of the streamed stores
-    blk.options.stream_stress = std::getenv("RKFEM_BENCH_PLAIN_STORES") == nullptr;
+    {
+        NodalBlockOptions o = blk.options();
+        o.stream_stress = std::getenv("RKFEM_BENCH_PLAIN_STORES") == nullptr;
+        blk.set_options(o);
+    }
     NodeSet nodes;
     nodes.resize(mesh.n_nodes());
     for (std::size_t i = 0; i < mesh.x.size(); ++i)

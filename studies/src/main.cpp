@@ -451,6 +451,148 @@ int prepare_output(const Args& a, const rkfem::StateArchive& checkpoint)
     return -1;
 }
 
+namespace
+{
+/// Set-up work that runs past 2 s says what it is doing and how far it is (on stderr).
+void install_setup_progress()
+{
+    const bool tty = isatty(STDERR_FILENO) != 0;
+    rkfem::setup_progress::install(
+        [tty](const std::string& line, bool last)
+        {
+            if (tty)
+                std::fprintf(stderr, "\rrkfem: %s\033[K%s", line.c_str(), last ? "\n" : "");
+            else
+                std::fprintf(stderr, "rkfem: %s\n", line.c_str());
+            std::fflush(stderr);
+        },
+        2.0, tty ? 0.5 : 5.0);
+}
+
+/// A restart's data files are the ones its run read: -1, or 2 with the first file that differs printed.
+int check_data_files(const rkfem::StateArchive& checkpoint, const rkfem::Deck& deck, const std::string& out_dir)
+{
+    // the keyword meshes and point files must be the ones the run read
+    const std::string then = checkpoint.text("run.data_files"), now = rkfem::data_file_hashes(deck);
+    if (then != now)
+    {
+        std::istringstream a(then), b(now);
+        std::string la, lb;
+        while (std::getline(a, la) && std::getline(b, lb) && la == lb)
+        {
+        }
+        const std::string file = la.substr(0, la.find('\t'));
+        std::fprintf(stderr,
+                     "rkfem: restart %s: the data file %s is not the one the run read (its hash was %s, is "
+                     "%s); expected the file as it was\n",
+                     out_dir.c_str(), file.c_str(), la.substr(la.find('\t') + 1).c_str(),
+                     lb.empty() ? "different" : lb.substr(lb.find('\t') + 1).c_str());
+        return 2;
+    }
+    return -1;
+}
+
+/// A restart's model takes the checkpoint's state, which must be before the end time: -1, or 2 with why printed.
+int load_restart_state(rkfem::Model& model, const rkfem::StateArchive& checkpoint, const rkfem::Deck& deck,
+                       const std::string& out_dir)
+{
+    try
+    {
+        model.load_state(checkpoint);
+    }
+    catch (const rkfem::Error& e)
+    {
+        std::fprintf(stderr, "rkfem: restart %s: %s\n", out_dir.c_str(), e.what());
+        return 2;
+    }
+    const double t = checkpoint.value<double>("run.t");
+    if (!(deck.time.end > t))
+    {
+        std::fprintf(stderr,
+                     "rkfem: restart %s: the checkpoint is at t = %.9g s, and the run ends at %.9g s; "
+                     "expected --until past the checkpoint\n",
+                     out_dir.c_str(), t, deck.time.end);
+        return 2;
+    }
+    return -1;
+}
+
+/// rkfem check: the resolved deck in SI, the check report and the model's size on stdout.
+void print_check(const rkfem::Deck& deck, rkfem::Model& model)
+{
+    std::cout << rkfem::to_yaml(deck);
+    std::cout << rkfem::check_report(model);
+    std::cout << "# " << model.nodes.size() << " nodes, " << model.n_elements() << " elements, " << model.parts.size()
+              << " part(s)\n";
+}
+
+/// Unless --quiet: the deck's ignored keys and the set-up's notes as warnings, then the model's size.
+void print_setup_notes(const Args& a, const rkfem::Deck& deck, const rkfem::Model& model)
+{
+    if (!a.quiet)
+    {
+        for (const auto& part : deck.parts)
+            for (const auto& note : part.ignored)
+                std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
+        for (const auto& note : model.setup_notes)
+            std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
+    }
+    if (!a.quiet)
+        std::fprintf(stderr, "rkfem: %s: %d nodes, %d elements, %d thread(s)\n", a.deck_path.c_str(),
+                     model.nodes.size(), model.n_elements(), rkfem::max_threads());
+}
+
+/// The options of run and restart (all but setup_seconds): output, deck, overrides, checkpoints, resume.
+rkfem::RunOptions run_options(const Args& a, const rkfem::Deck& deck, const rkfem::StateArchive& checkpoint,
+                              const std::string& deck_name, const std::string& deck_dir, const std::string& deck_text)
+{
+    rkfem::RunOptions opt;
+    opt.out_dir = a.out_dir;
+    opt.progress = !a.quiet;
+    opt.deck_path = deck_name;
+    opt.overrides = a.overrides;
+    opt.checkpoint_interval = a.checkpoint_seconds;
+    opt.checkpoint_keep = a.checkpoint_keep;
+    opt.deck_text = deck_text;
+    opt.deck_dir = deck_dir;
+    if (a.checkpoint_seconds > 0)
+        opt.data_files = a.command == "restart" && checkpoint.has("run.data_files") ? checkpoint.text("run.data_files")
+                                                                                    : rkfem::data_file_hashes(deck);
+    if (a.command == "restart")
+    {
+        opt.resume = &checkpoint;
+        if (!a.until.empty()) // the stored overrides stay those of the run; --until is this restart's
+            opt.overrides.pop_back();
+    }
+    return opt;
+}
+
+/// A run's exit code from its summary: 5 interrupted, 3 stopped (each said on one line), else 0 (and, unless
+/// --quiet, its statistics).
+int run_exit_code(const Args& a, const rkfem::RunSummary& s)
+{
+    if (s.status == "interrupted")
+    {
+        std::fprintf(stderr, "rkfem: %s; summary.json says so (output kept in %s)\n", s.message.c_str(),
+                     a.out_dir.c_str());
+        return 5;
+    }
+    if (s.status != "completed")
+    {
+        std::fprintf(stderr, "rkfem: run stopped: %s (output so far kept in %s)\n", s.message.c_str(),
+                     a.out_dir.c_str());
+        return 3;
+    }
+    if (!a.quiet)
+        std::fprintf(stderr,
+                     "rkfem: done: %lld steps to t = %.6g s in %.2f s (%.1f ns per "
+                     "element-cycle), energy balance error %.2e, hourglass ratio %.3g\n",
+                     static_cast<long long>(s.steps), s.end_time, s.wall_seconds, s.ns_per_element_cycle,
+                     s.energy.balance_error(), s.energy.hourglass_ratio());
+    return 0;
+}
+} // namespace
+
 /// rkfem check DECK, run DECK --out DIR, restart DIR: a model built from a deck (a restart's from its
 /// checkpoint), checked, then run.
 int model_command(Args a)
@@ -473,20 +615,7 @@ int model_command(Args a)
         else if (command == "run" && checkpoint_seconds > 0)
             deck_text = rkfem::read_deck_text(deck_path, "expected a deck file");
         if (!quiet)
-        {
-            // set-up work that runs past 2 s says what it is doing and how far it is
-            const bool tty = isatty(STDERR_FILENO) != 0;
-            rkfem::setup_progress::install(
-                [tty](const std::string& line, bool last)
-                {
-                    if (tty)
-                        std::fprintf(stderr, "\rrkfem: %s\033[K%s", line.c_str(), last ? "\n" : "");
-                    else
-                        std::fprintf(stderr, "rkfem: %s\n", line.c_str());
-                    std::fflush(stderr);
-                },
-                2.0, tty ? 0.5 : 5.0);
-        }
+            install_setup_progress();
         const std::string deck_name = command == "restart" ? checkpoint.text("run.deck_path") : deck_path;
         // a restart reads the deck's data files from the deck's folder as the run found it
         // (absolute: the restart may start in another working folder)
@@ -500,108 +629,28 @@ int model_command(Args a)
                                                       : rkfem::read_deck(deck_path, overrides);
         if (command == "restart" && checkpoint.has("run.data_files"))
         {
-            // the keyword meshes and point files must be the ones the run read
-            const std::string then = checkpoint.text("run.data_files"), now = rkfem::data_file_hashes(deck);
-            if (then != now)
-            {
-                std::istringstream a(then), b(now);
-                std::string la, lb;
-                while (std::getline(a, la) && std::getline(b, lb) && la == lb)
-                {
-                }
-                const std::string file = la.substr(0, la.find('\t'));
-                std::fprintf(stderr,
-                             "rkfem: restart %s: the data file %s is not the one the run read (its hash was %s, is "
-                             "%s); expected the file as it was\n",
-                             out_dir.c_str(), file.c_str(), la.substr(la.find('\t') + 1).c_str(),
-                             lb.empty() ? "different" : lb.substr(lb.find('\t') + 1).c_str());
-                return 2;
-            }
+            if (const int rc = check_data_files(checkpoint, deck, out_dir); rc >= 0)
+                return rc;
         }
         rkfem::Model model = rkfem::Model::build(deck); // all validation before any output
         if (command == "restart")
         {
-            try
-            {
-                model.load_state(checkpoint);
-            }
-            catch (const rkfem::Error& e)
-            {
-                std::fprintf(stderr, "rkfem: restart %s: %s\n", out_dir.c_str(), e.what());
-                return 2;
-            }
-            const double t = checkpoint.value<double>("run.t");
-            if (!(deck.time.end > t))
-            {
-                std::fprintf(stderr,
-                             "rkfem: restart %s: the checkpoint is at t = %.9g s, and the run ends at %.9g s; "
-                             "expected --until past the checkpoint\n",
-                             out_dir.c_str(), t, deck.time.end);
-                return 2;
-            }
+            if (const int rc = load_restart_state(model, checkpoint, deck, out_dir); rc >= 0)
+                return rc;
         }
         rkfem::check_step_budget(model);
         if (command == "check")
         {
-            std::cout << rkfem::to_yaml(deck);
-            std::cout << rkfem::check_report(model);
-            std::cout << "# " << model.nodes.size() << " nodes, " << model.n_elements() << " elements, "
-                      << model.parts.size() << " part(s)\n";
+            print_check(deck, model);
             return 0;
         }
         if (const int rc = prepare_output(a, checkpoint); rc >= 0)
             return rc;
-        if (!quiet)
-        {
-            for (const auto& part : deck.parts)
-                for (const auto& note : part.ignored)
-                    std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
-            for (const auto& note : model.setup_notes)
-                std::fprintf(stderr, "rkfem: warning: %s\n", note.c_str());
-        }
-        if (!quiet)
-            std::fprintf(stderr, "rkfem: %s: %d nodes, %d elements, %d thread(s)\n", deck_path.c_str(),
-                         model.nodes.size(), model.n_elements(), rkfem::max_threads());
-        rkfem::RunOptions opt;
-        opt.out_dir = out_dir;
-        opt.progress = !quiet;
-        opt.deck_path = deck_name;
-        opt.overrides = overrides;
-        opt.checkpoint_interval = checkpoint_seconds;
-        opt.checkpoint_keep = checkpoint_keep;
-        opt.deck_text = deck_text;
-        opt.deck_dir = deck_dir;
-        if (checkpoint_seconds > 0)
-            opt.data_files = command == "restart" && checkpoint.has("run.data_files")
-                                 ? checkpoint.text("run.data_files")
-                                 : rkfem::data_file_hashes(deck);
-        if (command == "restart")
-        {
-            opt.resume = &checkpoint;
-            if (!until.empty()) // the stored overrides stay those of the run; --until is this restart's
-                opt.overrides.pop_back();
-        }
+        print_setup_notes(a, deck, model);
+        rkfem::RunOptions opt = run_options(a, deck, checkpoint, deck_name, deck_dir, deck_text);
         opt.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
         const rkfem::RunSummary s = rkfem::run_simulation(model, opt);
-        if (s.status == "interrupted")
-        {
-            std::fprintf(stderr, "rkfem: %s; summary.json says so (output kept in %s)\n", s.message.c_str(),
-                         out_dir.c_str());
-            return 5;
-        }
-        if (s.status != "completed")
-        {
-            std::fprintf(stderr, "rkfem: run stopped: %s (output so far kept in %s)\n", s.message.c_str(),
-                         out_dir.c_str());
-            return 3;
-        }
-        if (!quiet)
-            std::fprintf(stderr,
-                         "rkfem: done: %lld steps to t = %.6g s in %.2f s (%.1f ns per "
-                         "element-cycle), energy balance error %.2e, hourglass ratio %.3g\n",
-                         static_cast<long long>(s.steps), s.end_time, s.wall_seconds, s.ns_per_element_cycle,
-                         s.energy.balance_error(), s.energy.hourglass_ratio());
-        return 0;
+        return run_exit_code(a, s);
     }
     catch (const rkfem::DeckError& e)
     {

@@ -8,7 +8,7 @@
 
 #include "../support.hpp"
 #include "rkfem/core/setup_progress.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 
 using namespace rkfem;
 

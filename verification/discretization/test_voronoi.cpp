@@ -25,9 +25,9 @@
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/linear_static.hpp"
 #include "rkfem/operators/nodal_block.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
 
 using namespace rkfem;
 

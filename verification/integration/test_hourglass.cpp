@@ -8,6 +8,7 @@
 #include "../support.hpp"
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/materials/j2_plasticity.hpp"
+#include "rkfem/model/material_from_deck.hpp"
 #include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/operators/linear_static.hpp"
 
@@ -433,7 +434,7 @@ TEST(Hourglass, StiffnessFormsStoreNothingWhereThePointFlowsPerfectlyPlastically
             hg.plastic_scaling = scaled;
             HexBlock blk =
                 test::make_block(mesh, nodes, Formulation::Fem1pt, hg, ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu));
-            blk.plastic.configure(ms);
+            configure_points(blk.plastic, ms);
             blk.initialize(nodes);
             blk.plastic.set_lengths(std::vector<real_t>(1, 0.01));
             // on the surface in shear xz: the element's stress set there, then shear on along xz

@@ -15,8 +15,8 @@
 #include "rkfem/approximation/rk/kinematic_map.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/integration/stencil_table.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_block.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
@@ -614,16 +614,20 @@ TEST(SharedStencils, AskingForTheNextBatchsStencilsKeepsTheBits)
             ASSERT_TRUE(blk.point_stencils.empty()) << name;
             ASSERT_EQ(blk.n_point_chunks > 0, assembly == Assembly::Scatter) << name;
             // a small part's tables stay in cache: no prefetch
-            EXPECT_FALSE(blk.options.prefetch_points || blk.options.prefetch_triplets) << name;
+            EXPECT_FALSE(blk.options().prefetch_points || blk.options().prefetch_triplets) << name;
             NodeSet nodes = wavy_motion(mesh);
             const real_t dt = 1e-7;
             const PassBits plain = pass_bits(blk, nodes, dt);
             EXPECT_NE(plain.r.d_internal, 0.0) << name;
-            blk.options.prefetch_points = true;
-            blk.options.prefetch_triplets = !blk.stab_triplets.empty();
+            {
+                NodalBlockOptions o = blk.options();
+                o.prefetch_points = true;
+                o.prefetch_triplets = !blk.stab_triplets.empty();
+                blk.set_options(o);
+            }
             if (std::string(stab) == "nsni" && assembly == Assembly::Scatter)
             {
-                ASSERT_TRUE(blk.options.prefetch_triplets);
+                ASSERT_TRUE(blk.options().prefetch_triplets);
             }
             expect_same_bits(plain, pass_bits(blk, nodes, dt), name);
         }

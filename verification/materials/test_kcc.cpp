@@ -9,6 +9,7 @@
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/materials/kcc_concrete.hpp"
 #include "rkfem/materials/point_history.hpp"
+#include "rkfem/model/material_from_deck.hpp"
 
 using namespace rkfem;
 
@@ -256,7 +257,7 @@ TEST(KccConcrete, GeneratedParametersCanBeOverridden)
     MaterialSpec ms = kcc_deck("uniaxial-stress", -0.004).material;
     ms.overrides = {{"a0", 15 * MPa}, {"b1", 1.2}, {"ft", 4 * MPa}};
     PlasticPoints pp;
-    pp.configure(ms);
+    configure_points(pp, ms);
     const KccParameters& k = pp.kcc.surfaces;
     EXPECT_EQ(k.a0, 15 * MPa);
     EXPECT_EQ(k.b1, 1.2);
@@ -273,7 +274,7 @@ TEST(KccConcrete, DamageAndEosTablesCanBeReplaced)
     auto d = kcc_deck("uniaxial-stress", -0.006, 0.0, 3000);
     d.material.kcc_eta = {{0, 0}, {2e-5, 0.9}, {1e-4, 1.0}, {2e-4, 0.5}, {4e-4, 0.0}};
     PlasticPoints pp;
-    pp.configure(d.material);
+    configure_points(pp, d.material);
     EXPECT_EQ(pp.kcc.surfaces.lambda_m, 1e-4);
     EXPECT_EQ(pp.kcc.surfaces.lambda_z, 4e-4);
     EXPECT_NEAR(pp.kcc.surfaces.eta(3e-4), 0.25, 1e-15);

@@ -6,9 +6,10 @@
 #include <cstdio>
 
 #include "../support.hpp"
+#include "rkfem/model/material_from_deck.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/hex_block.hpp"
 #include "rkfem/operators/nodal_block.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
@@ -61,7 +62,7 @@ std::vector<Sym6> history(const std::string& model, int kind)
     {
         hb = test::make_block(mesh, nodes, kind == 0 ? Formulation::Fem1pt : Formulation::Fem2x2x2,
                               {HourglassType::None, 0.0}, el, {0.0, 0.0});
-        hb.plastic.configure(ms);
+        configure_points(hb.plastic, ms);
         hb.initialize(nodes);
         // crack band: the element's V^(1/3) = 1 mm, as the model sets it (and as the particles' spacing)
         hb.plastic.set_lengths(std::vector<real_t>(static_cast<std::size_t>(hb.n_points()), 1e-3));

@@ -170,7 +170,7 @@ parts:
                 EXPECT_EQ(n, 3 * 3 * 8) << "event at step " << k;
                 const std::vector<real_t> a = m.nodes.a;
                 r = cd.initialize(m, t);
-                book_event_energy(m, a, dt);
+                m.energy.book_event(m.nodes, a, dt);
             }
             momentum_error = std::max(momentum_error, (momentum() - p0).norm() / mv);
             if (k >= 50)

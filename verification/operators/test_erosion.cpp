@@ -13,7 +13,8 @@
 #include <hdf5.h>
 
 #include "../support.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/model/material_from_deck.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/point_state.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/time/stepper.hpp"
@@ -213,7 +214,7 @@ TEST(PointState, MovesBetweenBlockKinds)
     NodeSet nodes;
     HexBlock hex = test::make_block(mesh, nodes, Formulation::Fem1pt, {HourglassType::Viscous, 0.1},
                                     ElasticParams::from_E_nu(j2.rho, j2.E, j2.nu));
-    hex.plastic.configure(j2);
+    configure_points(hex.plastic, j2);
     hex.plastic.resize(static_cast<std::size_t>(hex.n_points()));
     PartSpec ps = test::steel_nodal_part(Formulation::FemNodal);
     ps.material = j2;

@@ -18,9 +18,9 @@
 #include "../support.hpp"
 #include "rkfem/core/stream_stores.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/linear_static.hpp"
 #include "rkfem/operators/nodal_block.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 #include "rkfem/operators/nodal_step_estimate.hpp"
 
@@ -410,7 +410,11 @@ void dynamic_patch(Formulation form, const std::string& stab, int n, int steps, 
         // streamed stores move the same values: one more pass from the same state, plain
         const ForcePassResult a = nodal_internal_force(fx.blk, fx.nodes, dt);
         const LineVector<real_t> with_streams = fx.blk.stress_trial;
-        fx.blk.options.stream_stress = false;
+        {
+            NodalBlockOptions o = fx.blk.options();
+            o.stream_stress = false;
+            fx.blk.set_options(o);
+        }
         const ForcePassResult b = nodal_internal_force(fx.blk, fx.nodes, dt);
         EXPECT_TRUE(with_streams == fx.blk.stress_trial) << "streamed and plain stress stores differ";
         EXPECT_EQ(a.d_internal, b.d_internal);

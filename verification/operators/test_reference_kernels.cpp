@@ -1,9 +1,10 @@
 // The fast kernels against their plain scalar twins (operators/kernels/*_reference.hpp), to
 // round-off, from a random committed state and random motion: the batched 1-point hex kernel
 // (mode basis, lane vectors, chunked scatter) against hex1pt_reference element by element for
-// every hourglass form; the nodal force pass (SCNI + MSCNI or NSNI, own and shared stencils, whole-vector
-// rows) against nodal_reference for RK and FE functions; both with bulk viscosity, scatter and
-// gather assembly.
+// every hourglass form, elastic and with each inelastic model (J2, K&C, CSCM: the point update
+// and the stiffness forms' plastic scaling); the nodal force pass (SCNI + MSCNI or NSNI, own and shared stencils,
+// whole-vector rows) against nodal_reference for RK and FE functions; both with bulk viscosity, scatter and gather
+// assembly.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -11,9 +12,10 @@
 #include <random>
 
 #include "../support.hpp"
+#include "rkfem/model/material_from_deck.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/kernels/hex1pt_reference.hpp"
 #include "rkfem/operators/kernels/nodal_reference.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;
@@ -35,26 +37,58 @@ void random_motion(NodeSet& nodes, std::mt19937& gen, real_t u_max)
 struct Compared
 {
     real_t force = 0.0, stress = 0.0, hourglass = 0.0, energy = 0.0, dt = 0.0; ///< max relative differences
+    real_t history = 0.0;  ///< inelastic blocks: the trial plastic strain and damage, max relative difference
+    index_t inelastic = 0; ///< elements whose update left the elastic path (plastic strain grew)
 };
 
-Compared compare_hex1pt(HourglassType hg, Assembly assembly)
+/// The material of the comparison: elastic steel, J2 steel (yield 400 MPa), K&C at f'c 45.6 MPa,
+/// CSCM at f'c 30 MPa; the committed stresses are drawn at a scale that makes about half the
+/// inelastic points flow.
+MaterialSpec kernel_material(const std::string& model)
+{
+    MaterialSpec m;
+    m.model = model;
+    m.rho = 7850;
+    m.E = 200e9;
+    m.nu = 0.3;
+    m.sigy = 400e6;
+    m.etan = 2e9;
+    if (model == "kcc" || model == "cscm")
+    {
+        m.rho = 2400;
+        m.fc = model == "kcc" ? 45.6e6 : 30e6;
+        m.nu = 0.2;
+        m.E = 30e9;
+    }
+    return m;
+}
+
+Compared compare_hex1pt(HourglassType hg, Assembly assembly, const std::string& model = "elastic")
 {
     // 5^3 = 125 elements: 15 full batches of 8 and a partial one
     const HexMesh mesh = test::distorted_box(5, 0.01, 0.25);
     NodeSet nodes;
+    const MaterialSpec ms = kernel_material(model);
     HexBlock blk = test::make_block(mesh, nodes, Formulation::Fem1pt, {hg, 0.1},
-                                    ElasticParams::from_E_nu(7850, 200e9, 0.3), {0.06, 1.5});
+                                    ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu), {0.06, 1.5});
+    configure_points(blk.plastic, ms);
     blk.initialize(nodes, assembly);
     std::mt19937 gen(17);
     std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
     random_motion(nodes, gen, 4e-4);
     const std::size_t ne = static_cast<std::size_t>(blk.n_elements());
+    const real_t s_draw = model == "elastic" ? 1e8 : model == "j2" ? 3e8 : model == "kcc" ? 5e6 : 3e7;
     for (int k = 0; k < 6; ++k)
         for (std::size_t e = 0; e < ne; ++e)
-            blk.stress[k * blk.stress_stride + e] = 1e8 * rnd(gen);
+            blk.stress[k * blk.stress_stride + e] = s_draw * rnd(gen);
+    // the CSCM returns its own undamaged stress: draw that (as the damaged one, undamaged)
+    for (std::size_t e = 0; e < blk.plastic.cscm_state.size(); ++e)
+        for (int k = 0; k < 6; ++k)
+            blk.plastic.cscm_state[e].svp[k] = blk.stress[k * blk.stress_stride + e];
     for (auto& q : blk.hg_force)
         q = 1e3 * rnd(gen);
     const real_t dt = 1e-8;
+    PlasticPoints history = blk.plastic; // the reference's own trial history
     const ForcePassResult fast = hex_internal_force(blk, nodes, dt);
     std::fill(nodes.f_int.begin(), nodes.f_int.end(), 0.0);
     assemble_block_forces(blk, nodes);
@@ -65,7 +99,7 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly)
     real_t s_scale = 0.0, q_scale = 0.0;
     for (std::size_t e = 0; e < ne; ++e)
     {
-        const Hex1ptElement r = hex1pt_reference(blk, nodes, static_cast<index_t>(e), dt);
+        const Hex1ptElement r = hex1pt_reference(blk, nodes, static_cast<index_t>(e), dt, &history);
         for (int I = 0; I < 8; ++I)
             for (int d = 0; d < 3; ++d)
                 f_ref[3 * static_cast<std::size_t>(blk.conn[8 * e + I]) + d] += r.f[I][d];
@@ -89,6 +123,19 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly)
     }
     c.stress /= s_scale;
     c.hourglass = q_scale > 0 ? c.hourglass / q_scale : 0.0;
+    if (blk.plastic.active())
+    {
+        real_t e_max = 0.0, d_max = 0.0, e_diff = 0.0, d_diff = 0.0;
+        for (std::size_t e = 0; e < ne; ++e)
+        {
+            e_max = std::max(e_max, std::abs(history.eps_p_trial[e]));
+            d_max = std::max(d_max, std::abs(history.failed_trial[e]));
+            e_diff = std::max(e_diff, std::abs(history.eps_p_trial[e] - blk.plastic.eps_p_trial[e]));
+            d_diff = std::max(d_diff, std::abs(history.failed_trial[e] - blk.plastic.failed_trial[e]));
+            c.inelastic += history.eps_p_trial[e] > history.eps_p[e] ? 1 : 0;
+        }
+        c.history = std::max(e_max > 0 ? e_diff / e_max : 0.0, d_max > 0 ? d_diff / d_max : 0.0);
+    }
     real_t f_scale = 0.0;
     for (std::size_t j = 0; j < f_ref.size(); ++j)
     {
@@ -149,6 +196,55 @@ TEST_P(Hex1ptReference, FastKernelEqualsThePlainOneToRoundOff)
     }
 }
 
+// The plastic twins: each inelastic model in a block with the stiffness forms (whose increments
+// it scales where the material flows) and the viscous form. Round-off in the strain rate
+// (the fast kernel forms it in the mode basis) moves the return mapping by about as much: the
+// bound is the elastic one, 1e-12. The CSCM's return iterates until the yield function is below
+// 1e-8 J2 (materials/cscm_concrete.cpp), so a round-off change in the strain rate can stop it an
+// iterate apart: its bound is that tolerance, 1e-8. Only J2 has an elastic fast path
+// (j2_elastic_lanes): its draw leaves some points elastic.
+class Hex1ptReferenceInelastic : public ::testing::TestWithParam<std::tuple<std::string, HourglassType>>
+{
+};
+
+TEST_P(Hex1ptReferenceInelastic, FastKernelEqualsThePlainOneToRoundOff)
+{
+    const auto& [model, hg] = GetParam();
+    for (Assembly a : {Assembly::Scatter, Assembly::Gather})
+    {
+        const Compared c = compare_hex1pt(hg, a, model);
+        std::printf("%-4s hourglass %-13s %s: %d of 125 elements flow; max relative difference force %.1e, stress "
+                    "%.1e, hourglass force %.1e, energies %.1e, stable step %.1e, history %.1e\n",
+                    model.c_str(), name(hg), a == Assembly::Scatter ? "scatter" : "gather ",
+                    static_cast<int>(c.inelastic), c.force, c.stress, c.hourglass, c.energy, c.dt, c.history);
+        EXPECT_GT(c.inelastic, 10) << "the comparison should exercise the inelastic return";
+        if (model == "j2")
+        {
+            EXPECT_LT(c.inelastic, 125) << "and the elastic lanes";
+        }
+        const real_t bound = model == "cscm" ? 1e-8 : 1e-12;
+        EXPECT_LT(c.force, bound);
+        EXPECT_LT(c.stress, bound);
+        EXPECT_LT(c.hourglass, bound);
+        EXPECT_LT(c.energy, bound);
+        EXPECT_LT(c.dt, 1e-12);
+        EXPECT_LT(c.history, bound);
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, Hex1ptReferenceInelastic,
+                         ::testing::Combine(::testing::Values("j2", "kcc", "cscm"),
+                                            ::testing::Values(HourglassType::Viscous, HourglassType::Stiffness,
+                                                              HourglassType::AssumedStrain)),
+                         [](const auto& info)
+                         {
+                             std::string s = std::get<0>(info.param) + std::string("_") + name(std::get<1>(info.param));
+                             for (char& ch : s)
+                                 if (ch == '-')
+                                     ch = '_';
+                             return s;
+                         });
+
 INSTANTIATE_TEST_SUITE_P(Forms, Hex1ptReference,
                          ::testing::Values(HourglassType::None, HourglassType::Viscous, HourglassType::Stiffness,
                                            HourglassType::ViscousPlain, HourglassType::AssumedStrain),
@@ -166,14 +262,19 @@ namespace
 struct NodalCompared
 {
     real_t force = 0.0, stress = 0.0, stab_stress = 0.0, energy = 0.0, dt = 0.0;
+    real_t history = 0.0;  ///< inelastic blocks: the trial plastic strain and damage, max relative difference
+    index_t inelastic = 0; ///< points whose plastic strain grew
 };
 
 /// An rkpm block (SCNI + MSCNI) on a jittered (own stencils) or regular (shared stencils,
 /// whole-vector batches along rows) mesh, a random committed state and motion.
 NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, real_t bulk_linear,
-                            real_t bulk_quadratic, const std::string& stab = "mscni")
+                            real_t bulk_quadratic, const std::string& stab = "mscni",
+                            const std::string& model = "elastic")
 {
     PartSpec ps = test::steel_nodal_part(form, "scni", stab);
+    if (model != "elastic")
+        ps.material = kernel_material(model);
     ps.nodal.stabilization_coefficient = stab == "nsni" ? 0.25 : 1.0;
     // jittered: the default drop tolerance (27-entry stencils of their own); regular: full
     // stencils, which this 7^3 box shares (with the drop, its boundary layers leave too many
@@ -189,19 +290,37 @@ NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, 
     std::mt19937 gen(23);
     std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
     random_motion(nodes, gen, 2e-4);
+    const real_t s_draw = model == "elastic" ? 1e8 : model == "j2" ? 3e8 : model == "kcc" ? 5e6 : 3e7;
     for (int k = 0; k < 6; ++k)
     {
         for (index_t p = 0; p < blk.n_points(); ++p)
-            blk.stress[k * blk.stress_stride + p] = 1e8 * rnd(gen);
+            blk.stress[k * blk.stress_stride + p] = s_draw * rnd(gen);
         for (index_t s = 0; s < blk.n_stab(); ++s)
-            blk.stab_stress[k * blk.n_stab() + s] = 1e7 * rnd(gen);
+            blk.stab_stress[k * blk.n_stab() + s] = 0.1 * s_draw * rnd(gen);
     }
+    for (std::size_t p = 0; p < blk.plastic.cscm_state.size(); ++p)
+        for (int k = 0; k < 6; ++k)
+            blk.plastic.cscm_state[p].svp[k] = blk.stress[k * blk.stress_stride + p];
     const real_t dt = 1e-8;
+    PlasticPoints history = blk.plastic; // the reference's own trial history
     const ForcePassResult fast = nodal_internal_force(blk, nodes, dt);
     std::fill(nodes.f_int.begin(), nodes.f_int.end(), 0.0);
     assemble_nodal_forces(blk, nodes);
-    const NodalPass ref = nodal_reference(blk, nodes, dt);
+    const NodalPass ref = nodal_reference(blk, nodes, dt, &history);
     NodalCompared c;
+    if (blk.plastic.active())
+    {
+        real_t e_max = 0.0, d_max = 0.0, e_diff = 0.0, d_diff = 0.0;
+        for (std::size_t p = 0; p < static_cast<std::size_t>(blk.n_points()); ++p)
+        {
+            e_max = std::max(e_max, std::abs(history.eps_p_trial[p]));
+            d_max = std::max(d_max, std::abs(history.failed_trial[p]));
+            e_diff = std::max(e_diff, std::abs(history.eps_p_trial[p] - blk.plastic.eps_p_trial[p]));
+            d_diff = std::max(d_diff, std::abs(history.failed_trial[p] - blk.plastic.failed_trial[p]));
+            c.inelastic += history.eps_p_trial[p] > history.eps_p[p] ? 1 : 0;
+        }
+        c.history = std::max(e_max > 0 ? e_diff / e_max : 0.0, d_max > 0 ? d_diff / d_max : 0.0);
+    }
     auto rel = [](auto get_fast, const std::vector<real_t>& r, std::size_t n)
     {
         real_t scale = 0.0, diff = 0.0;
@@ -307,4 +426,29 @@ TEST(BlockTables, RebuildingThemKeepsTheState)
         assemble_nodal_forces(blk, nodes);
         EXPECT_TRUE(nodes.f_int == f1) << "nodal block";
     }
+}
+
+// The nodal pass's plastic twins: each inelastic model on the jittered RK block (own stencils)
+// with MSCNI and on the regular one (shared stencils, whole-vector rows) with NSNI, scatter
+// and gather. Bounds as for the hexahedra (CSCM: its return's yield tolerance, 1e-8).
+TEST(NodalReference, InelasticFastPassEqualsThePlainOne)
+{
+    for (const std::string model : {"j2", "kcc", "cscm"})
+        for (const auto& [jitter, stab] : {std::pair<real_t, std::string>{0.25, "mscni"}, {0.0, "nsni"}})
+            for (Assembly a : {Assembly::Scatter, Assembly::Gather})
+            {
+                const NodalCompared c = compare_nodal(Formulation::Rkpm, jitter, a, 0.06, 1.5, stab, model);
+                std::printf("%-4s %s %s %s: %d points flow; max relative difference force %.1e, stress %.1e, "
+                            "sub-cell stress %.1e, energies %.1e, history %.1e\n",
+                            model.c_str(), jitter > 0 ? "jittered" : "regular ", stab.c_str(),
+                            a == Assembly::Scatter ? "scatter" : "gather ", static_cast<int>(c.inelastic), c.force,
+                            c.stress, c.stab_stress, c.energy, c.history);
+                EXPECT_GT(c.inelastic, 10) << model;
+                const real_t bound = model == "cscm" ? 1e-8 : 1e-12;
+                EXPECT_LT(c.force, bound) << model;
+                EXPECT_LT(c.stress, bound) << model;
+                EXPECT_LT(c.stab_stress, 1e-12) << model;
+                EXPECT_LT(c.energy, bound) << model;
+                EXPECT_LT(c.history, bound) << model;
+            }
 }

@@ -14,9 +14,9 @@
 
 #include "../support.hpp"
 #include "rkfem/core/simd.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/hex_block.hpp"
 #include "rkfem/operators/nodal_block.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 
 using namespace rkfem;

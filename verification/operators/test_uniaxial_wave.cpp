@@ -5,7 +5,7 @@
 
 #include "../support.hpp"
 #include "rkfem/core/state_archive.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/run/simulation.hpp"
 
 using namespace rkfem;

@@ -8,6 +8,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/materials/point_history.hpp"
+#include "rkfem/model/material_from_deck.hpp"
 
 namespace rkfem
 {
@@ -44,7 +45,7 @@ std::vector<MaterialPointRecord> run_material_point(const MaterialPointDeck& dec
     const MaterialSpec& ms = deck.material;
     PointMaterial pm;
     pm.elastic = ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu);
-    pm.plastic.configure(ms);
+    configure_points(pm.plastic, ms);
     pm.plastic.resize(1);
     if (deck.load_path.length > 0)
         pm.plastic.set_lengths({deck.load_path.length});

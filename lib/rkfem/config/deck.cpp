@@ -125,27 +125,23 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
     ctx.overridden[path] = text;
 }
 
-Deck build(const YAML::Node& root, Context& ctx)
+/// output: precision and compression, into out.
+void read_output(const Context& ctx, const YAML::Node& root, OutputSpec& out)
 {
-    if (!root.IsMap())
-        throw DeckError({ctx.name, ""}, "is not a YAML mapping", "expected top-level keys title, time, parts, ...");
-    Section top(ctx, root, "",
-                {"title", "time", "output", "parts", "node_sets", "face_sets", "boundary_conditions", "loads", "probes",
-                 "sections", "contacts", "impact"});
-    Deck deck;
-    deck.path = ctx.name;
-    deck.title = top.text("title", "");
-    deck.time = read_time(ctx, root);
-    deck.time_loc = locate(ctx, root["time"], "time");
     if (root["output"].IsDefined() && !root["output"].IsNull())
     {
         Section o(ctx, root["output"], "output", {"precision", "compression"});
-        deck.output.single = o.choice("precision", {"single", "double"}, "single") == "single";
+        out.single = o.choice("precision", {"single", "double"}, "single") == "single";
         const std::int64_t level = o.integer("compression", 0);
         if (level < 0 || level > 9)
             o.fail("compression", "is outside 0-9", "expected a gzip level from 0 (none) to 9 (smallest)");
-        deck.output.compression = static_cast<int>(level);
+        out.compression = static_cast<int>(level);
     }
+}
+
+/// parts: the mapping of part names to parts, each read in the deck's order, into out.
+void read_parts(const Context& ctx, const YAML::Node& root, const Section& top, std::vector<PartSpec>& out)
+{
     top.require("parts", "a mapping of part names to parts");
     const YAML::Node parts = root["parts"];
     if (!parts.IsMap() || parts.size() == 0)
@@ -154,10 +150,13 @@ Deck build(const YAML::Node& root, Context& ctx)
     for (const auto& kv : parts)
     {
         const std::string name = kv.first.as<std::string>();
-        deck.parts.push_back(read_part(ctx, name, kv.second, "parts." + name));
+        out.push_back(read_part(ctx, name, kv.second, "parts." + name));
     }
-    deck.node_sets = read_sets(ctx, root, "node_sets");
-    deck.face_sets = read_sets(ctx, root, "face_sets");
+}
+
+/// Throws at the first node or face set whose part is not a part of the deck.
+void check_set_parts(const Deck& deck)
+{
     auto check_part = [&](const SetSpec& s, const char* key)
     {
         if (s.part.empty())
@@ -175,7 +174,11 @@ Deck build(const YAML::Node& root, Context& ctx)
         check_part(s, "node_sets");
     for (const auto& s : deck.face_sets)
         check_part(s, "face_sets");
+}
 
+/// boundary_conditions, loads and contacts: lists of entries, each read by its reader, into the deck.
+void read_conditions(const Context& ctx, const YAML::Node& root, const Section& top, Deck& deck)
+{
     auto list = [&](const char* key, auto&& reader, auto& out)
     {
         const YAML::Node n = root[key];
@@ -189,7 +192,11 @@ Deck build(const YAML::Node& root, Context& ctx)
     list("boundary_conditions", read_boundary, deck.boundary_conditions);
     list("loads", read_load, deck.loads);
     list("contacts", read_contact, deck.contacts);
+}
 
+/// Throws at the first boundary condition or load whose set, or contact surface, the deck does not define.
+void check_set_references(const Deck& deck)
+{
     auto set_exists = [&](const std::vector<SetSpec>& sets, const std::string& name)
     { return std::any_of(sets.begin(), sets.end(), [&](const SetSpec& s) { return s.name == name; }); };
     auto names_of = [&](const std::vector<SetSpec>& sets)
@@ -236,7 +243,11 @@ Deck build(const YAML::Node& root, Context& ctx)
             }
         }
     }
+}
 
+/// impact: the target and projectile parts, point, direction and damage, into deck.impact.
+void read_impact(const Context& ctx, const Section& top, Deck& deck)
+{
     if (top.has("impact"))
     {
         Section s(ctx, top.node("impact"), "impact", {"target", "projectile", "point", "direction", "damage"});
@@ -267,7 +278,11 @@ Deck build(const YAML::Node& root, Context& ctx)
             s.fail("projectile", "is the target", "expected the projectile's part, not the target's");
         im.loc = s.loc();
     }
+}
 
+/// probes: the mapping of probe names to points (and parts), into out.
+void read_probes(const Context& ctx, const YAML::Node& root, const Section& top, std::vector<ProbeSpec>& out)
+{
     const YAML::Node probes = root["probes"];
     if (probes.IsDefined() && !probes.IsNull())
     {
@@ -283,9 +298,14 @@ Deck build(const YAML::Node& root, Context& ctx)
             pr.point = s.vec3("point", dim::length);
             pr.part = s.text("part", "");
             pr.loc = s.loc();
-            deck.probes.push_back(pr);
+            out.push_back(pr);
         }
     }
+}
+
+/// sections: the mapping of section names to planes (point, normal, part, tolerance), into out.
+void read_section_planes(const Context& ctx, const YAML::Node& root, const Section& top, std::vector<SectionSpec>& out)
+{
     const YAML::Node sections = root["sections"];
     if (sections.IsDefined() && !sections.IsNull())
     {
@@ -308,9 +328,33 @@ Deck build(const YAML::Node& root, Context& ctx)
             if (s.has("tolerance") && !(sc.tolerance >= 0))
                 s.fail("tolerance", "is negative", "expected a length >= 0");
             sc.loc = s.loc();
-            deck.sections.push_back(sc);
+            out.push_back(sc);
         }
     }
+}
+
+Deck build(const YAML::Node& root, Context& ctx)
+{
+    if (!root.IsMap())
+        throw DeckError({ctx.name, ""}, "is not a YAML mapping", "expected top-level keys title, time, parts, ...");
+    Section top(ctx, root, "",
+                {"title", "time", "output", "parts", "node_sets", "face_sets", "boundary_conditions", "loads", "probes",
+                 "sections", "contacts", "impact"});
+    Deck deck;
+    deck.path = ctx.name;
+    deck.title = top.text("title", "");
+    deck.time = read_time(ctx, root);
+    deck.time_loc = locate(ctx, root["time"], "time");
+    read_output(ctx, root, deck.output);
+    read_parts(ctx, root, top, deck.parts);
+    deck.node_sets = read_sets(ctx, root, "node_sets");
+    deck.face_sets = read_sets(ctx, root, "face_sets");
+    check_set_parts(deck);
+    read_conditions(ctx, root, top, deck);
+    check_set_references(deck);
+    read_impact(ctx, top, deck);
+    read_probes(ctx, root, top, deck.probes);
+    read_section_planes(ctx, root, top, deck.sections);
     return deck;
 }
 } // namespace

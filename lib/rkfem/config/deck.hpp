@@ -9,26 +9,20 @@
 #include <string>
 #include <vector>
 
+#include "rkfem/approximation/rk/rk_spec.hpp"
 #include "rkfem/config/time_function.hpp"
+#include "rkfem/core/input_error.hpp"
 #include "rkfem/core/types.hpp"
+#include "rkfem/discretization/formulation.hpp"
+#include "rkfem/discretization/generator_spec.hpp"
+#include "rkfem/integration/nodal/nodal_integration_spec.hpp"
 #include "rkfem/materials/rate_law.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/hourglass.hpp"
+#include "rkfem/time/time_spec.hpp"
 
 namespace rkfem
 {
-/// Where a value came from: "deck.yaml:12" or "--set parts.a.E=1".
-struct SourceLocation
-{
-    std::string where; ///< "FILE:LINE" or "--set ..."
-    std::string path;  ///< key path, e.g. "parts.column.material.nu"
-};
-
-/// Thrown for any bad input. what() is one line: "DECK:LINE: key.path: what is wrong; expected".
-class DeckError : public std::runtime_error
-{
-  public:
-    DeckError(const SourceLocation& loc, const std::string& problem, const std::string& expected);
-    const SourceLocation location;
-};
 
 /// Material of a part: `elastic` (hypoelastic, Jaumann rate), `j2` (piecewise-linear J2
 /// plasticity with Cowper-Symonds rate scaling and failure, LS-DYNA MAT_024 analog) or `kcc`
@@ -62,38 +56,6 @@ struct MaterialSpec
     SourceLocation loc;
 };
 
-enum class Formulation
-{
-    Fem1pt,   ///< 1-point uniform-strain hex (Flanagan-Belytschko) + hourglass control
-    Fem2x2x2, ///< fully integrated hex, 8 Gauss points
-    FemNodal, ///< trilinear FE functions, nodal integration, state at nodes (total Lagrangian)
-    Rkpm,     ///< RK particles at the mesh nodes, nodal integration (total Lagrangian)
-};
-
-inline bool is_nodal(Formulation f)
-{
-    return f == Formulation::FemNodal || f == Formulation::Rkpm;
-}
-
-enum class HourglassType
-{
-    None,          ///< no control (hourglass modes are free)
-    Viscous,       ///< Flanagan-Belytschko viscous, exact volume integration (LS-DYNA IHQ 3)
-    Stiffness,     ///< Flanagan-Belytschko stiffness, exact volume integration (LS-DYNA IHQ 5)
-    ViscousPlain,  ///< viscous on the raw base vectors Gamma (LS-DYNA IHQ 1 analog): fails the patch test
-    AssumedStrain, ///< Belytschko-Bindeman assumed strain, co-rotational stiffness (LS-DYNA IHQ 6)
-};
-
-struct HourglassSpec
-{
-    HourglassType type = HourglassType::Viscous;
-    real_t coefficient = 0.1; ///< QM
-    /// stiffness forms, materials with history: each increment scaled by the share of the
-    /// step's deviatoric strain the point's update took elastically (assumed_strain_hourglass.hpp);
-    /// default on for assumed-strain, off for stiffness (LS-DYNA's IHQ 5 as documented)
-    bool plastic_scaling = true;
-};
-
 /// Per-element criteria read after each step from committed values (point averages over the
 /// element, its nodes' points on nodal parts) and the element's shape; an element meets them
 /// when any set criterion is met (0: off). Erosion removes such elements (LS-DYNA
@@ -111,95 +73,6 @@ struct ElementCriteria
     bool active() const { return plastic_strain > 0 || damage > 0 || geometric(); }
     /// a criterion on the element's shape (a pass over its nodes per step)
     bool geometric() const { return principal_strain > 0 || volumetric_strain > 0 || time_step > 0; }
-};
-
-struct BulkViscositySpec
-{
-    real_t linear = 0.06;   ///< Q2 (LS-DYNA), multiplies rho c l |tr D|
-    real_t quadratic = 1.5; ///< Q1 (LS-DYNA), multiplies rho l^2 (tr D)^2
-};
-
-/// The NSNI stabilization's default coefficient: the largest power of 2 that keeps the critical
-/// step factor of a regular free block above rkpm's default alpha of 1 (1.039 at 0.25; 0.865 at
-/// 0.5, 0.640 at 1; verification/operators/test_nodal_dynamics.cpp prints them), so NSNI costs
-/// no step; it matches the P3 cantilever's Timoshenko peak as MSCNI does.
-inline constexpr real_t kNsniCoefficient = 0.25;
-
-/// Nodal integration of `fem-nodal` and `rkpm` parts.
-struct NodalIntegrationSpec
-{
-    std::string scheme = "scni";            ///< dni | scni | sd-scni
-    std::string stabilization = "mscni";    ///< none | mscni | nsni (scheme scni only; nsni: rkpm only)
-    real_t stabilization_coefficient = 1.0; ///< c_s (MSCNI: 1 = RKPM2D default; NSNI: kNsniCoefficient)
-    real_t dt_factor =
-        0.0; ///< alpha in dt = alpha J^(1/3) l0 / c (l0: shortest edge at the node); 0: calibrated default
-    /// Cloud parts: SCNI's points on the Voronoi faces, one per triangle of each face's fan
-    /// (`triangles`) or one per face at its centroid (`faces`: exact for linear fields too, a
-    /// cheaper set-up; merge_face_points; measurements: docs/performance.md)
-    std::string facet_points = "triangles";
-};
-
-/// RK approximation of `rkpm` parts.
-struct RkSpec
-{
-    int order = 1;
-    std::string kernel = "cubic-bspline"; ///< cubic-bspline | quintic-bspline | gaussian
-    std::string support = "box";          ///< box | sphere
-    real_t normalized_support = 1.51;     ///< a / h, h = longest incident mesh edge
-    /// Smoothed-gradient stencils drop the functions below this fraction of the largest at each
-    /// facet point (RkShapes, prune_rk_values; order 1 only): 0 keeps them all
-    real_t drop_tolerance = 1e-5;
-    /// The set-up evaluates the RK functions once for elements and particles whose
-    /// neighbourhoods are translates of each other (approximation/rk/rk_translates.hpp) and
-    /// copies the results to the rest; false evaluates every one (the same numbers to round-off)
-    bool share_translates = true;
-    SourceLocation loc;
-};
-
-struct GeneratorSpec
-{
-    enum class Type
-    {
-        Box,
-        Cylinder,
-        Projectile,
-        Cloud,   ///< particles not from a mesh: a jittered lattice or imported points in a box or cylinder body
-        Keyword, ///< *NODE and *ELEMENT_SOLID of an LS-DYNA keyword file (discretization/keyword_mesh.hpp)
-    };
-    Type type = Type::Box;
-    // box
-    Vec3 origin = Vec3::Zero();
-    Vec3 size = Vec3::Zero();
-    std::array<int, 3> divisions{0, 0, 0}; ///< 0: derived from element_size
-    // cylinder (axis +z from `origin`, bottom face at origin.z) and projectile
-    real_t radius = 0.0;
-    real_t height = 0.0;            ///< cylinder height / projectile length
-    std::string core = "butterfly"; ///< cylinder core: butterfly | ogrid
-    real_t inner_radius = 0.0;      ///< cylinder: > 0 makes it a tube (faces top, bottom, side, inner)
-    int direction = -1;             ///< projectile: nose points to -z (-1) or +z (+1); origin = nose centre
-    real_t element_size = 0.0;      ///< cloud: lattice spacing
-    // cloud: the body is the box (origin, size) or the cylinder (origin = bottom centre, radius,
-    // height; axis +z); particles are a lattice of about element_size spacing with interior
-    // coordinates jittered by +-jitter spacing (seeded), or the points of a CSV file (x,y,z per
-    // line, in points_unit)
-    enum class Body
-    {
-        Box,
-        Cylinder,
-    };
-    Body body = Body::Box;
-    real_t jitter = 0.25;
-    int seed = 1;
-    std::string points_file;            ///< resolved against the deck's directory
-    real_t points_unit = 1.0;           ///< metres per file unit
-    std::string points_unit_name = "m"; ///< as the deck wrote it (the resolved deck echoes it)
-    // keyword: the file (resolved against the deck's directory), metres per file length unit,
-    // the PIDs of the solids taken (empty: all)
-    std::string mesh_file;
-    real_t mesh_unit = 1.0;
-    std::string mesh_unit_name = "m"; ///< as the deck wrote it
-    std::vector<long long> mesh_pids;
-    SourceLocation loc;
 };
 
 /// Geometric predicate or generator name selecting nodes (or faces whose 4 nodes all match).
@@ -350,30 +223,6 @@ struct ImpactSpec
     Vec3 direction = -Vec3::UnitZ(); ///< the shot line, into the target (unit)
     real_t damage = 0.95;            ///< actual crater: material at or above this damage is gone
     SourceLocation loc;
-};
-
-enum class StepperKind
-{
-    CentralDifference, ///< hand-written kick-drift-kick
-    ArkodeCd,          ///< the same central difference through SUNDIALS ARKODE ERKStep (1-stage table)
-    ArkodeErk,         ///< ARKODE ERKStep with an explicit Runge-Kutta table (verification)
-};
-
-struct TimeSpec
-{
-    real_t end = 0.0;              ///< termination time [s]
-    real_t output_interval = 0.0;  ///< field output interval [s]; 0: start and end only
-    real_t history_interval = 0.0; ///< history interval [s]; 0: every step
-    real_t dt_scale = 0.9;
-    real_t dt_max = 0.0;                                     ///< 0: unlimited
-    std::int64_t max_steps = 0;                              ///< 0: unlimited
-    StepperKind stepper = StepperKind::ArkodeCd;             ///< the default: within a few % of the hand loop
-    std::string erk_table = "ARKODE_BOGACKI_SHAMPINE_4_2_3"; ///< arkode-erk: built-in name, RK4 or SSPRK3
-    real_t energy_error_limit = 0.05;                        ///< stop when the balance error exceeds this (fraction)
-    /// stop (as unstable) when the step falls below this fraction of the first step (0: no floor;
-    /// LS-DYNA's DTMIN of *CONTROL_TERMINATION)
-    real_t dt_min_fraction = 1e-5;
-    real_t mass_damping = 0.0; ///< dynamic-relaxation damping coefficient [1/s] (a -= c v)
 };
 
 /// Field output storage (results.h5): `output: {precision, compression}`.

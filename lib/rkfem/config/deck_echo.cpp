@@ -147,12 +147,10 @@ void components(std::ostringstream& os, const std::array<bool, 3>& active, const
         }
     os << "}";
 }
-} // namespace
 
-std::string to_yaml(const Deck& d)
+/// Writes the header comment, the title and the time and output settings.
+void write_header(std::ostringstream& os, const Deck& d)
 {
-    std::ostringstream os;
-    os.precision(10);
     os << "# resolved deck, SI units (kg, m, s, N, Pa)\n";
     os << "title: " << scalar(d.title, true) << "\n";
     os << "time: {end: " << d.time.end << ", output_interval: " << d.time.output_interval
@@ -166,199 +164,226 @@ std::string to_yaml(const Deck& d)
        << ", mass_damping: " << d.time.mass_damping << "}\n";
     os << "output: {precision: " << (d.output.single ? "single" : "double") << ", compression: " << d.output.compression
        << "}\n";
-    os << "parts:\n";
-    for (const auto& p : d.parts)
+}
+
+/// Writes a part's generator line: its type and geometry.
+void write_generator(std::ostringstream& os, const GeneratorSpec& g)
+{
+    os << "    generator: {";
+    switch (g.type)
     {
-        const auto& g = p.generator;
-        os << "  " << scalar(p.name) << ":\n";
-        for (const auto& note : p.ignored)
-            os << "    # warning: " << note << "\n";
-        os << "    generator: {";
-        switch (g.type)
+    case GeneratorSpec::Type::Box:
+        os << "type: box, origin: " << vec(g.origin) << ", size: " << vec(g.size);
+        if (g.divisions[0] > 0)
+            os << ", divisions: [" << g.divisions[0] << ", " << g.divisions[1] << ", " << g.divisions[2] << "]";
+        else
+            os << ", element_size: " << g.element_size;
+        break;
+    case GeneratorSpec::Type::Cylinder:
+        os << "type: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius << ", height: " << g.height
+           << ", element_size: " << g.element_size;
+        if (g.inner_radius > 0)
+            os << ", inner_radius: " << g.inner_radius;
+        else
+            os << ", core: " << g.core;
+        break;
+    case GeneratorSpec::Type::Projectile:
+        os << "type: projectile, origin: " << vec(g.origin) << ", radius: " << g.radius << ", length: " << g.height
+           << ", element_size: " << g.element_size << ", direction: " << (g.direction < 0 ? "-z" : "+z");
+        break;
+    case GeneratorSpec::Type::Cloud:
+        if (g.body == GeneratorSpec::Body::Box)
+            os << "type: cloud, origin: " << vec(g.origin) << ", size: " << vec(g.size);
+        else
+            os << "type: cloud, body: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius
+               << ", height: " << g.height;
+        if (g.points_file.empty())
+            os << ", spacing: " << g.element_size << ", jitter: " << g.jitter << ", seed: " << g.seed;
+        else
+            os << ", points: " << scalar(g.points_file) << ", points_unit: " << g.points_unit_name;
+        break;
+    case GeneratorSpec::Type::Keyword:
+        os << "type: keyword, file: " << scalar(g.mesh_file) << ", unit: " << g.mesh_unit_name;
+        if (!g.mesh_pids.empty())
         {
-        case GeneratorSpec::Type::Box:
-            os << "type: box, origin: " << vec(g.origin) << ", size: " << vec(g.size);
-            if (g.divisions[0] > 0)
-                os << ", divisions: [" << g.divisions[0] << ", " << g.divisions[1] << ", " << g.divisions[2] << "]";
-            else
-                os << ", element_size: " << g.element_size;
-            break;
-        case GeneratorSpec::Type::Cylinder:
-            os << "type: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius << ", height: " << g.height
-               << ", element_size: " << g.element_size;
-            if (g.inner_radius > 0)
-                os << ", inner_radius: " << g.inner_radius;
-            else
-                os << ", core: " << g.core;
-            break;
-        case GeneratorSpec::Type::Projectile:
-            os << "type: projectile, origin: " << vec(g.origin) << ", radius: " << g.radius << ", length: " << g.height
-               << ", element_size: " << g.element_size << ", direction: " << (g.direction < 0 ? "-z" : "+z");
-            break;
-        case GeneratorSpec::Type::Cloud:
-            if (g.body == GeneratorSpec::Body::Box)
-                os << "type: cloud, origin: " << vec(g.origin) << ", size: " << vec(g.size);
-            else
-                os << "type: cloud, body: cylinder, origin: " << vec(g.origin) << ", radius: " << g.radius
-                   << ", height: " << g.height;
-            if (g.points_file.empty())
-                os << ", spacing: " << g.element_size << ", jitter: " << g.jitter << ", seed: " << g.seed;
-            else
-                os << ", points: " << scalar(g.points_file) << ", points_unit: " << g.points_unit_name;
-            break;
-        case GeneratorSpec::Type::Keyword:
-            os << "type: keyword, file: " << scalar(g.mesh_file) << ", unit: " << g.mesh_unit_name;
-            if (!g.mesh_pids.empty())
-            {
-                os << ", pid: [";
-                for (std::size_t i = 0; i < g.mesh_pids.size(); ++i)
-                    os << (i ? ", " : "") << g.mesh_pids[i];
-                os << "]";
-            }
-            break;
+            os << ", pid: [";
+            for (std::size_t i = 0; i < g.mesh_pids.size(); ++i)
+                os << (i ? ", " : "") << g.mesh_pids[i];
+            os << "]";
         }
-        os << "}\n";
-        os << "    material: {model: " << p.material.model << ", rho: " << p.material.rho << ", E: " << p.material.E
-           << ", nu: " << p.material.nu;
-        if (p.material.model == "j2")
+        break;
+    }
+    os << "}\n";
+}
+
+/// Writes a j2 material's keys: hardening (curve or sigy, etan), Cowper-Symonds, fail and EOS.
+void write_j2(std::ostringstream& os, const MaterialSpec& m)
+{
+    if (!m.curve.empty())
+    {
+        os << ", curve: [";
+        for (std::size_t i = 0; i < m.curve.size(); ++i)
+            os << (i ? ", " : "") << "[" << m.curve[i].first << ", " << m.curve[i].second << "]";
+        os << "]";
+    }
+    else
+        os << ", sigy: " << m.sigy << ", etan: " << m.etan;
+    if (m.cs_c > 0)
+        os << ", cowper_symonds: {C: " << m.cs_c << ", P: " << m.cs_p << "}";
+    os << ", fail: " << m.fail;
+    if (m.eos_type == "linear")
+        os << ", eos: {type: linear}";
+    else if (m.eos_type == "gruneisen")
+        os << ", eos: {type: gruneisen, c0: " << m.eos_c0 << ", s: " << m.eos_s << ", gamma0: " << m.eos_gamma0
+           << ", a: " << m.eos_a << "}";
+}
+
+/// Writes a kcc or cscm material's keys: fc, rate effects, fracture energy, overrides, eta and EOS tables.
+void write_concrete(std::ostringstream& os, const MaterialSpec& m)
+{
+    os << ", fc: " << m.fc << ", rate_effects: ";
+    const RateLaw& rl = m.rate_law;
+    auto caps = [&]
+    {
+        os << "compression_cap: ";
+        rl.compression_cap > 0.0 ? os << rl.compression_cap : os << "none";
+        os << ", tension_cap: ";
+        rl.tension_cap > 0.0 ? os << rl.tension_cap : os << "none";
+        os << "}";
+    };
+    if (m.model == "cscm" || !rl.active())
+        os << (m.rate_effects ? "true" : "false");
+    else if (rl.kind == RateLaw::Kind::CebMalvarRoss)
+    {
+        os << "{law: ceb-fip, ";
+        caps();
+    }
+    else
+    {
+        os << "{curve: [";
+        for (std::size_t i = 0; i < rl.curve.size(); ++i)
+            os << (i ? ", " : "") << "[" << rl.curve[i].first << ", " << rl.curve[i].second << "]";
+        os << "], ";
+        caps();
+    }
+    if (m.fracture_energy < 0)
+        os << ", fracture_energy: auto";
+    else
+        os << ", fracture_energy: " << m.fracture_energy;
+    for (const auto& [k, v] : m.overrides)
+        os << ", " << k << ": " << v;
+    if (!m.kcc_eta.empty())
+    {
+        os << ", eta: [";
+        for (std::size_t i = 0; i < m.kcc_eta.size(); ++i)
+            os << (i ? ", " : "") << "[" << m.kcc_eta[i].first << ", " << m.kcc_eta[i].second << "]";
+        os << "]";
+    }
+    if (!m.kcc_eos_strain.empty())
+    {
+        auto list = [&](const std::vector<real_t>& v)
         {
-            if (!p.material.curve.empty())
-            {
-                os << ", curve: [";
-                for (std::size_t i = 0; i < p.material.curve.size(); ++i)
-                    os << (i ? ", " : "") << "[" << p.material.curve[i].first << ", " << p.material.curve[i].second
-                       << "]";
-                os << "]";
-            }
-            else
-                os << ", sigy: " << p.material.sigy << ", etan: " << p.material.etan;
-            if (p.material.cs_c > 0)
-                os << ", cowper_symonds: {C: " << p.material.cs_c << ", P: " << p.material.cs_p << "}";
-            os << ", fail: " << p.material.fail;
-            if (p.material.eos_type == "linear")
-                os << ", eos: {type: linear}";
-            else if (p.material.eos_type == "gruneisen")
-                os << ", eos: {type: gruneisen, c0: " << p.material.eos_c0 << ", s: " << p.material.eos_s
-                   << ", gamma0: " << p.material.eos_gamma0 << ", a: " << p.material.eos_a << "}";
-        }
-        if (p.material.model == "kcc" || p.material.model == "cscm")
+            os << "[";
+            for (std::size_t i = 0; i < v.size(); ++i)
+                os << (i ? ", " : "") << v[i];
+            os << "]";
+        };
+        os << ", eos: {strain: ";
+        list(m.kcc_eos_strain);
+        os << ", pressure: ";
+        list(m.kcc_eos_pressure);
+        os << ", unload_bulk: ";
+        list(m.kcc_eos_unload);
+        os << "}";
+    }
+}
+
+/// Writes a part's material line.
+void write_material(std::ostringstream& os, const MaterialSpec& m)
+{
+    os << "    material: {model: " << m.model << ", rho: " << m.rho << ", E: " << m.E << ", nu: " << m.nu;
+    if (m.model == "j2")
+        write_j2(os, m);
+    if (m.model == "kcc" || m.model == "cscm")
+        write_concrete(os, m);
+    os << "}\n";
+}
+
+/// Writes a part's formulation and its options: nodal integration, regions, transition, rk, hourglass, bulk
+/// viscosity, initial velocity, erosion and conversion.
+void write_part_options(std::ostringstream& os, const PartSpec& p)
+{
+    os << "    formulation: "
+       << (p.formulation == Formulation::Fem1pt     ? "fem-1pt"
+           : p.formulation == Formulation::Fem2x2x2 ? "fem-2x2x2"
+           : p.formulation == Formulation::FemNodal ? "fem-nodal"
+                                                    : "rkpm")
+       << "\n";
+    if (is_nodal(p.formulation) || p.coupled())
+        os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
+           << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
+           << ", dt_factor: " << p.nodal.dt_factor << ", facet_points: " << p.nodal.facet_points << "}\n";
+    if (!p.regions.empty())
+    {
+        os << "    regions:\n";
+        for (const auto& r : p.regions)
         {
-            os << ", fc: " << p.material.fc << ", rate_effects: ";
-            const RateLaw& rl = p.material.rate_law;
-            auto caps = [&]
-            {
-                os << "compression_cap: ";
-                rl.compression_cap > 0.0 ? os << rl.compression_cap : os << "none";
-                os << ", tension_cap: ";
-                rl.tension_cap > 0.0 ? os << rl.tension_cap : os << "none";
-                os << "}";
-            };
-            if (p.material.model == "cscm" || !rl.active())
-                os << (p.material.rate_effects ? "true" : "false");
-            else if (rl.kind == RateLaw::Kind::CebMalvarRoss)
-            {
-                os << "{law: ceb-fip, ";
-                caps();
-            }
-            else
-            {
-                os << "{curve: [";
-                for (std::size_t i = 0; i < rl.curve.size(); ++i)
-                    os << (i ? ", " : "") << "[" << rl.curve[i].first << ", " << rl.curve[i].second << "]";
-                os << "], ";
-                caps();
-            }
-            if (p.material.fracture_energy < 0)
-                os << ", fracture_energy: auto";
-            else
-                os << ", fracture_energy: " << p.material.fracture_energy;
-            for (const auto& [k, v] : p.material.overrides)
-                os << ", " << k << ": " << v;
-            if (!p.material.kcc_eta.empty())
-            {
-                os << ", eta: [";
-                for (std::size_t i = 0; i < p.material.kcc_eta.size(); ++i)
-                    os << (i ? ", " : "") << "[" << p.material.kcc_eta[i].first << ", " << p.material.kcc_eta[i].second
-                       << "]";
-                os << "]";
-            }
-            if (!p.material.kcc_eos_strain.empty())
-            {
-                auto list = [&](const std::vector<real_t>& v)
-                {
-                    os << "[";
-                    for (std::size_t i = 0; i < v.size(); ++i)
-                        os << (i ? ", " : "") << v[i];
-                    os << "]";
-                };
-                os << ", eos: {strain: ";
-                list(p.material.kcc_eos_strain);
-                os << ", pressure: ";
-                list(p.material.kcc_eos_pressure);
-                os << ", unload_bulk: ";
-                list(p.material.kcc_eos_unload);
-                os << "}";
-            }
-        }
-        os << "}\n";
-        os << "    formulation: "
-           << (p.formulation == Formulation::Fem1pt     ? "fem-1pt"
-               : p.formulation == Formulation::Fem2x2x2 ? "fem-2x2x2"
-               : p.formulation == Formulation::FemNodal ? "fem-nodal"
-                                                        : "rkpm")
-           << "\n";
-        if (is_nodal(p.formulation) || p.coupled())
-            os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
-               << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
-               << ", dt_factor: " << p.nodal.dt_factor << ", facet_points: " << p.nodal.facet_points << "}\n";
-        if (!p.regions.empty())
-        {
-            os << "    regions:\n";
-            for (const auto& r : p.regions)
-            {
-                os << "      - {formulation: rkpm, ";
-                selector(os, r);
-                os << "}\n";
-            }
-        }
-        if (p.coupled())
-            os << "    transition: " << p.transition << "\n";
-        if (p.formulation == Formulation::Rkpm || p.coupled())
-            os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
-               << ", normalized_support: " << p.rk.normalized_support << ", drop_tolerance: " << p.rk.drop_tolerance
-               << ", share_translates: " << (p.rk.share_translates ? "true" : "false") << "}\n";
-        if (p.formulation == Formulation::Fem1pt)
-        {
-            const char* t = p.hourglass.type == HourglassType::Viscous         ? "viscous"
-                            : p.hourglass.type == HourglassType::Stiffness     ? "stiffness"
-                            : p.hourglass.type == HourglassType::AssumedStrain ? "assumed-strain"
-                            : p.hourglass.type == HourglassType::None          ? "none"
-                                                                               : "viscous-plain";
-            os << "    hourglass: {type: " << t << ", coefficient: " << p.hourglass.coefficient;
-            if (p.hourglass.type == HourglassType::Stiffness || p.hourglass.type == HourglassType::AssumedStrain)
-                os << ", plastic_scaling: " << (p.hourglass.plastic_scaling ? "true" : "false");
+            os << "      - {formulation: rkpm, ";
+            selector(os, r);
             os << "}\n";
         }
-        os << "    bulk_viscosity: {linear: " << p.bulk_viscosity.linear
-           << ", quadratic: " << p.bulk_viscosity.quadratic << "}\n";
-        os << "    initial_velocity: " << vec(p.initial_velocity) << "\n";
-        for (const auto& [key, c] : {std::pair{"erosion", &p.erosion}, std::pair{"conversion", &p.conversion}})
-            if (c->active())
-            {
-                os << "    " << key << ": {effective_plastic_strain: " << c->plastic_strain << ", damage: " << c->damage
-                   << ", principal_strain: " << c->principal_strain << ", volumetric_strain: " << c->volumetric_strain
-                   << ", time_step: " << c->time_step;
-                if (c == &p.conversion)
-                    os << ", interval: " << c->interval;
-                os << "}\n";
-            }
     }
-    sets(os, "node_sets", d.node_sets);
-    sets(os, "face_sets", d.face_sets);
-    if (!d.boundary_conditions.empty())
+    if (p.coupled())
+        os << "    transition: " << p.transition << "\n";
+    if (p.formulation == Formulation::Rkpm || p.coupled())
+        os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
+           << ", normalized_support: " << p.rk.normalized_support << ", drop_tolerance: " << p.rk.drop_tolerance
+           << ", share_translates: " << (p.rk.share_translates ? "true" : "false") << "}\n";
+    if (p.formulation == Formulation::Fem1pt)
+    {
+        const char* t = p.hourglass.type == HourglassType::Viscous         ? "viscous"
+                        : p.hourglass.type == HourglassType::Stiffness     ? "stiffness"
+                        : p.hourglass.type == HourglassType::AssumedStrain ? "assumed-strain"
+                        : p.hourglass.type == HourglassType::None          ? "none"
+                                                                           : "viscous-plain";
+        os << "    hourglass: {type: " << t << ", coefficient: " << p.hourglass.coefficient;
+        if (p.hourglass.type == HourglassType::Stiffness || p.hourglass.type == HourglassType::AssumedStrain)
+            os << ", plastic_scaling: " << (p.hourglass.plastic_scaling ? "true" : "false");
+        os << "}\n";
+    }
+    os << "    bulk_viscosity: {linear: " << p.bulk_viscosity.linear << ", quadratic: " << p.bulk_viscosity.quadratic
+       << "}\n";
+    os << "    initial_velocity: " << vec(p.initial_velocity) << "\n";
+    for (const auto& [key, c] : {std::pair{"erosion", &p.erosion}, std::pair{"conversion", &p.conversion}})
+        if (c->active())
+        {
+            os << "    " << key << ": {effective_plastic_strain: " << c->plastic_strain << ", damage: " << c->damage
+               << ", principal_strain: " << c->principal_strain << ", volumetric_strain: " << c->volumetric_strain
+               << ", time_step: " << c->time_step;
+            if (c == &p.conversion)
+                os << ", interval: " << c->interval;
+            os << "}\n";
+        }
+}
+
+/// Writes one part: its name, warnings, generator, material and options.
+void write_part(std::ostringstream& os, const PartSpec& p)
+{
+    os << "  " << scalar(p.name) << ":\n";
+    for (const auto& note : p.ignored)
+        os << "    # warning: " << note << "\n";
+    write_generator(os, p.generator);
+    write_material(os, p.material);
+    write_part_options(os, p);
+}
+
+/// Writes the boundary_conditions list.
+void write_boundary_conditions(std::ostringstream& os, const std::vector<BoundarySpec>& bcs)
+{
+    if (!bcs.empty())
     {
         os << "boundary_conditions:\n";
-        for (const auto& b : d.boundary_conditions)
+        for (const auto& b : bcs)
         {
             os << "  - {node_set: " << scalar(b.node_set) << ", ";
             if (b.kind == BoundarySpec::Kind::Fixed)
@@ -381,10 +406,15 @@ std::string to_yaml(const Deck& d)
             os << "}\n";
         }
     }
-    if (!d.loads.empty())
+}
+
+/// Writes the loads list.
+void write_loads(std::ostringstream& os, const std::vector<LoadSpec>& loads)
+{
+    if (!loads.empty())
     {
         os << "loads:\n";
-        for (const auto& l : d.loads)
+        for (const auto& l : loads)
         {
             if (l.kind == LoadSpec::Kind::NodalForce)
             {
@@ -396,10 +426,15 @@ std::string to_yaml(const Deck& d)
                 os << "  - {type: pressure, face_set: " << scalar(l.set) << ", pressure: " << fn(l.pressure) << "}\n";
         }
     }
-    if (!d.contacts.empty())
+}
+
+/// Writes the contacts list.
+void write_contacts(std::ostringstream& os, const std::vector<ContactSpec>& contacts)
+{
+    if (!contacts.empty())
     {
         os << "contacts:\n";
-        for (const auto& c : d.contacts)
+        for (const auto& c : contacts)
         {
             os << "  - {type: "
                << (c.kind == ContactSpec::Kind::SurfaceToSurface ? "surface-to-surface"
@@ -424,22 +459,37 @@ std::string to_yaml(const Deck& d)
                << "}}\n";
         }
     }
-    if (d.impact.active)
-        os << "impact: {target: " << scalar(d.impact.target)
-           << (d.impact.projectile.empty() ? "" : ", projectile: " + scalar(d.impact.projectile))
-           << ", point: " << vec(d.impact.point) << ", direction: " << vec(d.impact.direction)
-           << ", damage: " << d.impact.damage << "}\n";
-    if (!d.probes.empty())
+}
+
+/// Writes the impact line, when the deck has an impact.
+void write_impact(std::ostringstream& os, const ImpactSpec& impact)
+{
+    if (impact.active)
+        os << "impact: {target: " << scalar(impact.target)
+           << (impact.projectile.empty() ? "" : ", projectile: " + scalar(impact.projectile))
+           << ", point: " << vec(impact.point) << ", direction: " << vec(impact.direction)
+           << ", damage: " << impact.damage << "}\n";
+}
+
+/// Writes the probes.
+void write_probes(std::ostringstream& os, const std::vector<ProbeSpec>& probes)
+{
+    if (!probes.empty())
     {
         os << "probes:\n";
-        for (const auto& p : d.probes)
+        for (const auto& p : probes)
             os << "  " << scalar(p.name) << ": {point: " << vec(p.point)
                << (p.part.empty() ? "" : ", part: " + scalar(p.part)) << "}\n";
     }
-    if (!d.sections.empty())
+}
+
+/// Writes the section planes.
+void write_sections(std::ostringstream& os, const std::vector<SectionSpec>& sections)
+{
+    if (!sections.empty())
     {
         os << "sections:\n";
-        for (const auto& s : d.sections)
+        for (const auto& s : sections)
         {
             os << "  " << scalar(s.name) << ": {point: " << vec(s.point) << ", normal: " << vec(s.normal)
                << (s.part.empty() ? "" : ", part: " + scalar(s.part));
@@ -448,6 +498,25 @@ std::string to_yaml(const Deck& d)
             os << "}\n";
         }
     }
+}
+} // namespace
+
+std::string to_yaml(const Deck& d)
+{
+    std::ostringstream os;
+    os.precision(10);
+    write_header(os, d);
+    os << "parts:\n";
+    for (const auto& p : d.parts)
+        write_part(os, p);
+    sets(os, "node_sets", d.node_sets);
+    sets(os, "face_sets", d.face_sets);
+    write_boundary_conditions(os, d.boundary_conditions);
+    write_loads(os, d.loads);
+    write_contacts(os, d.contacts);
+    write_impact(os, d.impact);
+    write_probes(os, d.probes);
+    write_sections(os, d.sections);
     return os.str();
 }
 } // namespace rkfem

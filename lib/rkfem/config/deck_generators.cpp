@@ -46,6 +46,157 @@ void read_length_unit(const Section& s, const char* key, real_t& scale, std::str
                "expected the file's length unit, one of " + known_units_for(dim::length));
     scale = u->scale;
 }
+
+/// divisions of a box: three integers >= 1, into g.divisions.
+void read_divisions(const Section& s, GeneratorSpec& g)
+{
+    const YAML::Node d = s.node("divisions");
+    if (!d.IsSequence() || d.size() != 3)
+        s.fail("divisions", "is not a list of 3 integers", "expected [nx, ny, nz] >= 1");
+    for (int i = 0; i < 3; ++i)
+    {
+        int v = 0;
+        try
+        {
+            v = d[i].as<int>();
+        }
+        catch (const std::exception&)
+        {
+            s.fail("divisions", "has a non-integer entry", "expected [nx, ny, nz] >= 1");
+        }
+        if (v < 1)
+            s.fail("divisions", "has an entry below 1", "expected [nx, ny, nz] >= 1");
+        g.divisions[i] = v;
+    }
+}
+
+/// A box generator: origin, size, and divisions or element_size.
+void read_box_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
+{
+    Section s(part.ctx(), gn, gp, {"type", "origin", "size", "element_size", "divisions"});
+    g.type = GeneratorSpec::Type::Box;
+    read_box(s, g);
+    if (s.has("divisions"))
+        read_divisions(s, g);
+    else
+        g.element_size = s.positive("element_size", dim::length);
+    g.loc = s.loc();
+}
+
+/// A cylinder (solid, or a tube) or projectile generator: origin, radius, height or length, element_size, and the
+/// cylinder's core or inner_radius or the projectile's direction.
+void read_cylinder_generator(const Section& part, const YAML::Node& gn, const std::string& gp, const std::string& type,
+                             GeneratorSpec& g)
+{
+    const bool cyl = type == "cylinder";
+    Section s(
+        part.ctx(), gn, gp,
+        cyl ? std::vector<std::string>{"type", "origin", "radius", "height", "element_size", "core", "inner_radius"}
+            : std::vector<std::string>{"type", "origin", "radius", "length", "element_size", "direction"});
+    g.type = cyl ? GeneratorSpec::Type::Cylinder : GeneratorSpec::Type::Projectile;
+    g.origin = s.vec3("origin", dim::length, Vec3::Zero());
+    g.radius = s.positive("radius", dim::length);
+    g.height = s.positive(cyl ? "height" : "length", dim::length);
+    g.element_size = s.positive("element_size", dim::length);
+    if (cyl)
+    {
+        g.core = s.choice("core", {"butterfly", "ogrid"}, "butterfly");
+        if (s.has("inner_radius"))
+        {
+            g.inner_radius = s.positive("inner_radius", dim::length);
+            if (!(g.inner_radius < g.radius))
+                s.fail("inner_radius", "is not below the radius", "expected 0 < inner_radius < radius (a tube)");
+            if (s.has("core"))
+                s.fail("core", "a tube has no core", "remove core, or inner_radius");
+        }
+    }
+    else
+        g.direction = s.choice("direction", {"-z", "+z"}, "-z") == "-z" ? -1 : +1;
+    g.loc = s.loc();
+}
+
+/// A cloud generator: its box or cylinder body, and a jittered lattice (spacing, jitter, seed) or a points file.
+void read_cloud_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
+{
+    Section s(
+        part.ctx(), gn, gp,
+        {"type", "body", "origin", "size", "radius", "height", "spacing", "jitter", "seed", "points", "points_unit"});
+    g.type = GeneratorSpec::Type::Cloud;
+    g.body = s.choice("body", {"box", "cylinder"}, "box") == "box" ? GeneratorSpec::Body::Box
+                                                                   : GeneratorSpec::Body::Cylinder;
+    if (g.body == GeneratorSpec::Body::Box)
+    {
+        for (const char* k : {"radius", "height"})
+            if (s.has(k))
+                s.fail(k, "is not used by a box body", "expected origin and size, or body: cylinder");
+        read_box(s, g);
+    }
+    else
+    {
+        if (s.has("size"))
+            s.fail("size", "is not used by a cylinder body", "expected origin (bottom centre), radius and height");
+        g.origin = s.vec3("origin", dim::length, Vec3::Zero());
+        g.radius = s.positive("radius", dim::length);
+        g.height = s.positive("height", dim::length);
+    }
+    if (s.has("points") == s.has("spacing"))
+        s.fail(s.has("points") ? "points" : "spacing", s.has("points") ? "is given with spacing" : "is missing",
+               "expected either spacing (a jittered lattice) or points (a CSV file of x,y,z)");
+    if (s.has("points"))
+    {
+        g.points_file = data_file(s, "points");
+        read_length_unit(s, "points_unit", g.points_unit, g.points_unit_name);
+    }
+    else
+    {
+        g.element_size = s.positive("spacing", dim::length);
+        g.jitter = s.quantity("jitter", dim::none, 0.25);
+        if (!(g.jitter >= 0.0 && g.jitter <= 0.45))
+            s.fail("jitter", "is outside [0, 0.45]", "expected a fraction of the spacing that keeps the lattice order");
+        g.seed = static_cast<int>(s.integer("seed", 1));
+    }
+    g.loc = s.loc();
+}
+
+/// pid of a keyword mesh: an integer or a list of integers, into g.mesh_pids.
+void read_pids(const Section& s, GeneratorSpec& g)
+{
+    const YAML::Node pn = s.node("pid");
+    std::vector<YAML::Node> items;
+    if (pn.IsSequence())
+        for (std::size_t i = 0; i < pn.size(); ++i)
+            items.push_back(pn[i]);
+    else
+        items.push_back(pn);
+    for (const YAML::Node& it : items)
+    {
+        long long v = 0;
+        try
+        {
+            v = it.as<long long>();
+        }
+        catch (const std::exception&)
+        {
+            s.fail("pid", "is not an integer or a list of integers", "expected the PIDs of the solids to take");
+        }
+        g.mesh_pids.push_back(v);
+    }
+    if (g.mesh_pids.empty())
+        s.fail("pid", "is an empty list", "expected the PIDs of the solids to take");
+}
+
+/// A keyword generator: an LS-DYNA keyword file, its length unit and the PIDs to take.
+void read_keyword_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
+{
+    Section s(part.ctx(), gn, gp, {"type", "file", "unit", "pid"});
+    g.type = GeneratorSpec::Type::Keyword;
+    s.require("file", "the path of an LS-DYNA keyword file (*NODE, *ELEMENT_SOLID)");
+    g.mesh_file = data_file(s, "file");
+    read_length_unit(s, "unit", g.mesh_unit, g.mesh_unit_name);
+    if (s.has("pid"))
+        read_pids(s, g);
+    g.loc = s.loc();
+}
 } // namespace
 
 GeneratorSpec read_generator(const Section& part)
@@ -58,139 +209,13 @@ GeneratorSpec read_generator(const Section& part)
         type = gn["type"].Scalar();
     GeneratorSpec g;
     if (type == "box")
-    {
-        Section s(part.ctx(), gn, gp, {"type", "origin", "size", "element_size", "divisions"});
-        g.type = GeneratorSpec::Type::Box;
-        read_box(s, g);
-        if (s.has("divisions"))
-        {
-            const YAML::Node d = s.node("divisions");
-            if (!d.IsSequence() || d.size() != 3)
-                s.fail("divisions", "is not a list of 3 integers", "expected [nx, ny, nz] >= 1");
-            for (int i = 0; i < 3; ++i)
-            {
-                int v = 0;
-                try
-                {
-                    v = d[i].as<int>();
-                }
-                catch (const std::exception&)
-                {
-                    s.fail("divisions", "has a non-integer entry", "expected [nx, ny, nz] >= 1");
-                }
-                if (v < 1)
-                    s.fail("divisions", "has an entry below 1", "expected [nx, ny, nz] >= 1");
-                g.divisions[i] = v;
-            }
-        }
-        else
-            g.element_size = s.positive("element_size", dim::length);
-        g.loc = s.loc();
-    }
+        read_box_generator(part, gn, gp, g);
     else if (type == "cylinder" || type == "projectile")
-    {
-        const bool cyl = type == "cylinder";
-        Section s(
-            part.ctx(), gn, gp,
-            cyl ? std::vector<std::string>{"type", "origin", "radius", "height", "element_size", "core", "inner_radius"}
-                : std::vector<std::string>{"type", "origin", "radius", "length", "element_size", "direction"});
-        g.type = cyl ? GeneratorSpec::Type::Cylinder : GeneratorSpec::Type::Projectile;
-        g.origin = s.vec3("origin", dim::length, Vec3::Zero());
-        g.radius = s.positive("radius", dim::length);
-        g.height = s.positive(cyl ? "height" : "length", dim::length);
-        g.element_size = s.positive("element_size", dim::length);
-        if (cyl)
-        {
-            g.core = s.choice("core", {"butterfly", "ogrid"}, "butterfly");
-            if (s.has("inner_radius"))
-            {
-                g.inner_radius = s.positive("inner_radius", dim::length);
-                if (!(g.inner_radius < g.radius))
-                    s.fail("inner_radius", "is not below the radius", "expected 0 < inner_radius < radius (a tube)");
-                if (s.has("core"))
-                    s.fail("core", "a tube has no core", "remove core, or inner_radius");
-            }
-        }
-        else
-            g.direction = s.choice("direction", {"-z", "+z"}, "-z") == "-z" ? -1 : +1;
-        g.loc = s.loc();
-    }
+        read_cylinder_generator(part, gn, gp, type, g);
     else if (type == "cloud")
-    {
-        Section s(part.ctx(), gn, gp,
-                  {"type", "body", "origin", "size", "radius", "height", "spacing", "jitter", "seed", "points",
-                   "points_unit"});
-        g.type = GeneratorSpec::Type::Cloud;
-        g.body = s.choice("body", {"box", "cylinder"}, "box") == "box" ? GeneratorSpec::Body::Box
-                                                                       : GeneratorSpec::Body::Cylinder;
-        if (g.body == GeneratorSpec::Body::Box)
-        {
-            for (const char* k : {"radius", "height"})
-                if (s.has(k))
-                    s.fail(k, "is not used by a box body", "expected origin and size, or body: cylinder");
-            read_box(s, g);
-        }
-        else
-        {
-            if (s.has("size"))
-                s.fail("size", "is not used by a cylinder body", "expected origin (bottom centre), radius and height");
-            g.origin = s.vec3("origin", dim::length, Vec3::Zero());
-            g.radius = s.positive("radius", dim::length);
-            g.height = s.positive("height", dim::length);
-        }
-        if (s.has("points") == s.has("spacing"))
-            s.fail(s.has("points") ? "points" : "spacing", s.has("points") ? "is given with spacing" : "is missing",
-                   "expected either spacing (a jittered lattice) or points (a CSV file of x,y,z)");
-        if (s.has("points"))
-        {
-            g.points_file = data_file(s, "points");
-            read_length_unit(s, "points_unit", g.points_unit, g.points_unit_name);
-        }
-        else
-        {
-            g.element_size = s.positive("spacing", dim::length);
-            g.jitter = s.quantity("jitter", dim::none, 0.25);
-            if (!(g.jitter >= 0.0 && g.jitter <= 0.45))
-                s.fail("jitter", "is outside [0, 0.45]",
-                       "expected a fraction of the spacing that keeps the lattice order");
-            g.seed = static_cast<int>(s.integer("seed", 1));
-        }
-        g.loc = s.loc();
-    }
+        read_cloud_generator(part, gn, gp, g);
     else if (type == "keyword")
-    {
-        Section s(part.ctx(), gn, gp, {"type", "file", "unit", "pid"});
-        g.type = GeneratorSpec::Type::Keyword;
-        s.require("file", "the path of an LS-DYNA keyword file (*NODE, *ELEMENT_SOLID)");
-        g.mesh_file = data_file(s, "file");
-        read_length_unit(s, "unit", g.mesh_unit, g.mesh_unit_name);
-        if (s.has("pid"))
-        {
-            const YAML::Node pn = s.node("pid");
-            std::vector<YAML::Node> items;
-            if (pn.IsSequence())
-                for (std::size_t i = 0; i < pn.size(); ++i)
-                    items.push_back(pn[i]);
-            else
-                items.push_back(pn);
-            for (const YAML::Node& it : items)
-            {
-                long long v = 0;
-                try
-                {
-                    v = it.as<long long>();
-                }
-                catch (const std::exception&)
-                {
-                    s.fail("pid", "is not an integer or a list of integers", "expected the PIDs of the solids to take");
-                }
-                g.mesh_pids.push_back(v);
-            }
-            if (g.mesh_pids.empty())
-                s.fail("pid", "is an empty list", "expected the PIDs of the solids to take");
-        }
-        g.loc = s.loc();
-    }
+        read_keyword_generator(part, gn, gp, g);
     else
     {
         const SourceLocation loc = gn.IsMap() && gn["type"].IsDefined() ? locate(part.ctx(), gn["type"], gp + ".type")

@@ -56,32 +56,11 @@ ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::s
                "expected effective_plastic_strain, damage, principal_strain, volumetric_strain or time_step > 0");
     return c;
 }
-} // namespace
 
-PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& path)
+/// nodal_integration: scheme, stabilization (its default from the formulation and regions), its coefficient,
+/// dt_factor and facet_points, into p.nodal; noted as ignored where the formulation does not use it.
+void read_nodal_integration(const Context& ctx, const Section& s, const std::string& f, PartSpec& p)
 {
-    Section s(ctx, n, path,
-              {"generator", "material", "formulation", "hourglass", "bulk_viscosity", "nodal_integration", "rk",
-               "initial_velocity", "regions", "transition", "erosion", "conversion"});
-    PartSpec p;
-    p.name = name;
-    p.loc = s.loc();
-    p.generator = read_generator(s);
-    p.material = read_material(s);
-    const std::string f = s.choice("formulation", {"fem-1pt", "fem-2x2x2", "fem-nodal", "rkpm"}, "fem-1pt");
-    p.formulation = f == "fem-1pt"     ? Formulation::Fem1pt
-                    : f == "fem-2x2x2" ? Formulation::Fem2x2x2
-                    : f == "fem-nodal" ? Formulation::FemNodal
-                                       : Formulation::Rkpm;
-    if (s.has("conversion"))
-    {
-        // evolutionary coupling: state lives at the nodes on both sides, so conversion moves none
-        if (p.formulation != Formulation::FemNodal)
-            s.fail("conversion",
-                   "turns elements of nodal-integrated FE into RK particles (the state stays at the nodes)",
-                   "expected formulation: fem-nodal on a part with conversion");
-        p.conversion = read_criteria(ctx, s, "conversion", p);
-    }
     // the default stabilization of scheme scni: NSNI for RK parts (cheaper per step than MSCNI,
     // the same stable step and the same answers on the seed's P1 and P3; README,
     // nodal_integration; measurements: docs/performance.md), on meshes and clouds; MSCNI where
@@ -118,6 +97,117 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                     "expected facet_points: triangles (or none) on a mesh part; its nodal cells' facets take 2 x 2 "
                     "Gauss points");
     }
+}
+
+/// regions: the RK volumes (box, cylinder or sphere selectors) of an FE part, into p.regions.
+void read_regions(const Context& ctx, const Section& s, PartSpec& p)
+{
+    // FE-RK coupling: the RK regions of an FE part
+    if (p.formulation != Formulation::FemNodal && p.formulation != Formulation::Fem1pt)
+        s.fail("regions", "RK regions are coupled to an FE side of formulation fem-nodal or fem-1pt",
+               "expected formulation: fem-nodal or fem-1pt on a part with regions");
+    if (p.generator.type == GeneratorSpec::Type::Cloud)
+        s.fail("regions", "a cloud part has no elements to divide", "remove regions");
+    p.regions_loc = s.loc("regions");
+    const YAML::Node rn = s.node("regions");
+    if (!rn.IsSequence() || rn.size() == 0)
+        s.fail("regions", "is not a non-empty list",
+               "expected regions: [{select: {type: box | cylinder | sphere, ...}}]");
+    for (std::size_t i = 0; i < rn.size(); ++i)
+    {
+        Section r(ctx, rn[i], s.path("regions") + "." + std::to_string(i), {"formulation", "select"});
+        r.choice("formulation", {"rkpm"}, "rkpm");
+        SelectorSpec sel = read_selector(r);
+        if (sel.type != SelectorSpec::Type::Box && sel.type != SelectorSpec::Type::Cylinder &&
+            sel.type != SelectorSpec::Type::Sphere)
+            r.fail("select", "a region is a volume", "expected select type box, cylinder or sphere");
+        p.regions.push_back(sel);
+    }
+}
+
+/// rk: order, kernel, support, normalized_support, drop_tolerance and share_translates of the RK shape
+/// functions, into p.rk; noted as ignored where the formulation does not use it.
+void read_rk(const Context& ctx, const Section& s, const std::string& f, PartSpec& p)
+{
+    if (p.formulation != Formulation::Rkpm && !p.coupled())
+        ignore(p, s, "rk", f);
+    Section r(ctx, s.node("rk"), s.path("rk"),
+              {"order", "kernel", "support", "normalized_support", "drop_tolerance", "share_translates"});
+    p.rk.loc = r.loc();
+    const std::string order = r.choice("order", {"1", "2"}, "1");
+    p.rk.order = order == "1" ? 1 : 2;
+    p.rk.kernel = r.choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
+    p.rk.support = r.choice("support", {"box", "sphere"}, "box");
+    p.rk.normalized_support = r.quantity("normalized_support", dim::none, 1.51);
+    p.rk.drop_tolerance = r.quantity("drop_tolerance", dim::none, p.rk.order == 1 ? 1e-5 : 0.0);
+    if (!(p.rk.drop_tolerance >= 0.0 && p.rk.drop_tolerance <= 1e-2))
+        r.fail("drop_tolerance", "is outside [0, 0.01]",
+               "expected a small fraction such as 1e-5 (0: keep every function)");
+    p.rk.share_translates = r.choice("share_translates", {"true", "false"}, "true") == "true";
+    if (p.rk.drop_tolerance > 0.0 && p.rk.order != 1)
+        r.fail("drop_tolerance", "restores linear reproduction only", "expected drop_tolerance: 0 with order 2");
+    const real_t c = p.rk.normalized_support;
+    if (!(c >= 1.0 && c <= 4.0))
+        r.fail("normalized_support", "is outside [1, 4]",
+               "expected a / h between 1 and 4 (box 1.5-1.8, sphere 1.6-2.0)");
+    if (std::abs(c - std::round(c)) < 1e-6)
+        r.fail("normalized_support",
+               "is an integer, which puts neighbours exactly on the support boundary of uniform grids",
+               "expected a non-integer value such as " + std::to_string(std::round(c)).substr(0, 1) + ".01");
+}
+
+/// hourglass: type, coefficient and plastic_scaling of the hourglass control, into p.hourglass; noted as ignored
+/// where the formulation does not use it.
+void read_hourglass(const Context& ctx, const Section& s, const std::string& f, PartSpec& p)
+{
+    if (p.formulation != Formulation::Fem1pt)
+        ignore(p, s, "hourglass", f);
+    Section h(ctx, s.node("hourglass"), s.path("hourglass"), {"type", "coefficient", "plastic_scaling"});
+    const std::string t =
+        h.choice("type", {"viscous", "stiffness", "assumed-strain", "none", "viscous-plain"}, "viscous");
+    p.hourglass.type = t == "viscous"          ? HourglassType::Viscous
+                       : t == "stiffness"      ? HourglassType::Stiffness
+                       : t == "assumed-strain" ? HourglassType::AssumedStrain
+                       : t == "none"           ? HourglassType::None
+                                               : HourglassType::ViscousPlain;
+    p.hourglass.coefficient = h.quantity("coefficient", dim::none, 0.1);
+    p.hourglass.plastic_scaling =
+        h.choice("plastic_scaling", {"true", "false"},
+                 p.hourglass.type == HourglassType::AssumedStrain ? "true" : "false") == "true";
+    if (h.has("plastic_scaling") && p.hourglass.type != HourglassType::Stiffness &&
+        p.hourglass.type != HourglassType::AssumedStrain)
+        h.fail("plastic_scaling", "applies to the stiffness forms only",
+               "expected type: stiffness or assumed-strain with plastic_scaling");
+    if (!(p.hourglass.coefficient >= 0.0))
+        h.fail("coefficient", "is negative", "expected QM >= 0 (LS-DYNA default 0.1)");
+}
+} // namespace
+
+PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& path)
+{
+    Section s(ctx, n, path,
+              {"generator", "material", "formulation", "hourglass", "bulk_viscosity", "nodal_integration", "rk",
+               "initial_velocity", "regions", "transition", "erosion", "conversion"});
+    PartSpec p;
+    p.name = name;
+    p.loc = s.loc();
+    p.generator = read_generator(s);
+    p.material = read_material(s);
+    const std::string f = s.choice("formulation", {"fem-1pt", "fem-2x2x2", "fem-nodal", "rkpm"}, "fem-1pt");
+    p.formulation = f == "fem-1pt"     ? Formulation::Fem1pt
+                    : f == "fem-2x2x2" ? Formulation::Fem2x2x2
+                    : f == "fem-nodal" ? Formulation::FemNodal
+                                       : Formulation::Rkpm;
+    if (s.has("conversion"))
+    {
+        // evolutionary coupling: state lives at the nodes on both sides, so conversion moves none
+        if (p.formulation != Formulation::FemNodal)
+            s.fail("conversion",
+                   "turns elements of nodal-integrated FE into RK particles (the state stays at the nodes)",
+                   "expected formulation: fem-nodal on a part with conversion");
+        p.conversion = read_criteria(ctx, s, "conversion", p);
+    }
+    read_nodal_integration(ctx, s, f, p);
     if (p.generator.type == GeneratorSpec::Type::Cloud)
     {
         // a cloud has no elements: RK particles integrated on their Voronoi cells
@@ -126,29 +216,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                    "expected formulation: rkpm");
     }
     if (s.has("regions"))
-    {
-        // FE-RK coupling: the RK regions of an FE part
-        if (p.formulation != Formulation::FemNodal && p.formulation != Formulation::Fem1pt)
-            s.fail("regions", "RK regions are coupled to an FE side of formulation fem-nodal or fem-1pt",
-                   "expected formulation: fem-nodal or fem-1pt on a part with regions");
-        if (p.generator.type == GeneratorSpec::Type::Cloud)
-            s.fail("regions", "a cloud part has no elements to divide", "remove regions");
-        p.regions_loc = s.loc("regions");
-        const YAML::Node rn = s.node("regions");
-        if (!rn.IsSequence() || rn.size() == 0)
-            s.fail("regions", "is not a non-empty list",
-                   "expected regions: [{select: {type: box | cylinder | sphere, ...}}]");
-        for (std::size_t i = 0; i < rn.size(); ++i)
-        {
-            Section r(ctx, rn[i], s.path("regions") + "." + std::to_string(i), {"formulation", "select"});
-            r.choice("formulation", {"rkpm"}, "rkpm");
-            SelectorSpec sel = read_selector(r);
-            if (sel.type != SelectorSpec::Type::Box && sel.type != SelectorSpec::Type::Cylinder &&
-                sel.type != SelectorSpec::Type::Sphere)
-                r.fail("select", "a region is a volume", "expected select type box, cylinder or sphere");
-            p.regions.push_back(sel);
-        }
-    }
+        read_regions(ctx, s, p);
     if (p.coupled())
     {
         p.transition = s.choice("transition", {"mixed", "ramp"}, "mixed");
@@ -160,56 +228,9 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     else if (s.has("transition"))
         s.fail("transition", "is only used by parts with regions or conversion", "remove it or add regions");
     if (s.has("rk"))
-    {
-        if (p.formulation != Formulation::Rkpm && !p.coupled())
-            ignore(p, s, "rk", f);
-        Section r(ctx, s.node("rk"), s.path("rk"),
-                  {"order", "kernel", "support", "normalized_support", "drop_tolerance", "share_translates"});
-        p.rk.loc = r.loc();
-        const std::string order = r.choice("order", {"1", "2"}, "1");
-        p.rk.order = order == "1" ? 1 : 2;
-        p.rk.kernel = r.choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
-        p.rk.support = r.choice("support", {"box", "sphere"}, "box");
-        p.rk.normalized_support = r.quantity("normalized_support", dim::none, 1.51);
-        p.rk.drop_tolerance = r.quantity("drop_tolerance", dim::none, p.rk.order == 1 ? 1e-5 : 0.0);
-        if (!(p.rk.drop_tolerance >= 0.0 && p.rk.drop_tolerance <= 1e-2))
-            r.fail("drop_tolerance", "is outside [0, 0.01]",
-                   "expected a small fraction such as 1e-5 (0: keep every function)");
-        p.rk.share_translates = r.choice("share_translates", {"true", "false"}, "true") == "true";
-        if (p.rk.drop_tolerance > 0.0 && p.rk.order != 1)
-            r.fail("drop_tolerance", "restores linear reproduction only", "expected drop_tolerance: 0 with order 2");
-        const real_t c = p.rk.normalized_support;
-        if (!(c >= 1.0 && c <= 4.0))
-            r.fail("normalized_support", "is outside [1, 4]",
-                   "expected a / h between 1 and 4 (box 1.5-1.8, sphere 1.6-2.0)");
-        if (std::abs(c - std::round(c)) < 1e-6)
-            r.fail("normalized_support",
-                   "is an integer, which puts neighbours exactly on the support boundary of uniform grids",
-                   "expected a non-integer value such as " + std::to_string(std::round(c)).substr(0, 1) + ".01");
-    }
+        read_rk(ctx, s, f, p);
     if (s.has("hourglass"))
-    {
-        if (p.formulation != Formulation::Fem1pt)
-            ignore(p, s, "hourglass", f);
-        Section h(ctx, s.node("hourglass"), s.path("hourglass"), {"type", "coefficient", "plastic_scaling"});
-        const std::string t =
-            h.choice("type", {"viscous", "stiffness", "assumed-strain", "none", "viscous-plain"}, "viscous");
-        p.hourglass.type = t == "viscous"          ? HourglassType::Viscous
-                           : t == "stiffness"      ? HourglassType::Stiffness
-                           : t == "assumed-strain" ? HourglassType::AssumedStrain
-                           : t == "none"           ? HourglassType::None
-                                                   : HourglassType::ViscousPlain;
-        p.hourglass.coefficient = h.quantity("coefficient", dim::none, 0.1);
-        p.hourglass.plastic_scaling =
-            h.choice("plastic_scaling", {"true", "false"},
-                     p.hourglass.type == HourglassType::AssumedStrain ? "true" : "false") == "true";
-        if (h.has("plastic_scaling") && p.hourglass.type != HourglassType::Stiffness &&
-            p.hourglass.type != HourglassType::AssumedStrain)
-            h.fail("plastic_scaling", "applies to the stiffness forms only",
-                   "expected type: stiffness or assumed-strain with plastic_scaling");
-        if (!(p.hourglass.coefficient >= 0.0))
-            h.fail("coefficient", "is negative", "expected QM >= 0 (LS-DYNA default 0.1)");
-    }
+        read_hourglass(ctx, s, f, p);
     if (p.formulation != Formulation::Fem1pt)
         p.hourglass.type = HourglassType::None;
     if (s.has("bulk_viscosity"))

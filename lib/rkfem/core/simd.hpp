@@ -12,6 +12,7 @@
 #endif
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <type_traits>
 
@@ -28,9 +29,7 @@
 /// of lane vectors, which stay in registers only when the call is inlined.
 #define RKFEM_LANE_INLINE inline __attribute__((always_inline))
 
-#if defined(__AVX512F__)
 #include <immintrin.h>
-#endif
 
 #if !defined(__AVX512F__)
 // In a build for the SSE2 baseline GCC notes that a 32-byte vector passed by value has another
@@ -253,5 +252,83 @@ inline void interleave4(__m512d X, __m512d Y, __m512d Z, __m512d q[4])
     q[2] = _mm512_permutex2var_pd(xy_b, first, z_b);
     q[3] = _mm512_permutex2var_pd(xy_b, second, z_b);
 }
+#endif
+/// Orders the streaming stores before it (stream_store) before every store after it.
+inline void stream_fence()
+{
+    _mm_sfence();
+}
+
+#if defined(__AVX512F__)
+/// Stores 8 values at a 64-byte aligned p without reading the line first (non-temporal; the
+/// writer calls stream_fence() before others read them).
+inline void stream_store(double* p, __m512d a)
+{
+    _mm512_stream_pd(p, a);
+}
+
+/// Bit l set where the box of lane l, centre (x, y, z) and half-width reach, reaches the box
+/// [lo, hi]: !(x + reach < lo) and !(x - reach > hi) per axis (unordered compares: a NaN lane is
+/// in, as the scalar test has it).
+inline __mmask8 boxes_reach(__m512d x, __m512d y, __m512d z, __m512d reach, const double lo[3], const double hi[3])
+{
+    return _mm512_cmp_pd_mask(_mm512_add_pd(x, reach), _mm512_set1_pd(lo[0]), _CMP_NLT_UQ) &
+           _mm512_cmp_pd_mask(_mm512_sub_pd(x, reach), _mm512_set1_pd(hi[0]), _CMP_NGT_UQ) &
+           _mm512_cmp_pd_mask(_mm512_add_pd(y, reach), _mm512_set1_pd(lo[1]), _CMP_NLT_UQ) &
+           _mm512_cmp_pd_mask(_mm512_sub_pd(y, reach), _mm512_set1_pd(hi[1]), _CMP_NGT_UQ) &
+           _mm512_cmp_pd_mask(_mm512_add_pd(z, reach), _mm512_set1_pd(lo[2]), _CMP_NLT_UQ) &
+           _mm512_cmp_pd_mask(_mm512_sub_pd(z, reach), _mm512_set1_pd(hi[2]), _CMP_NGT_UQ);
+}
+
+/// The lanes of a set in m, in order, stored at out[0..popcount(m)); out must have room for 8.
+inline void compress_store(double* out, __mmask8 m, __m512d a)
+{
+    _mm512_storeu_pd(out, _mm512_maskz_compress_pd(m, a));
+}
+
+/// The entries of in[0..8) whose bit is set in m, in order, stored at out (room for 8).
+inline void compress_store(std::int32_t* out, __mmask8 m, const std::int32_t* in)
+{
+    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(in));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), _mm256_maskz_compress_epi32(m, v));
+}
+
+/// The indices first + l of the lanes l set in m, in order, stored at out (room for 8).
+inline void compress_store_iota(std::int32_t* out, __mmask8 m, std::int32_t first)
+{
+    const __m256i v = _mm256_add_epi32(_mm256_set1_epi32(first), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), _mm256_maskz_compress_epi32(m, v));
+}
+
+/// The smallest and largest of the ids a loop selects 8 at a time, kept per lane (out of the
+/// loop's dependency chain) and reduced once at the end.
+class IdRange8
+{
+  public:
+    /// Takes ids[l] for the lanes l set in m.
+    void take(__mmask8 m, const std::int32_t* ids)
+    {
+        const __m256i id = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids));
+        first_ = _mm256_mask_min_epi32(first_, m, first_, id);
+        last_ = _mm256_mask_max_epi32(last_, m, last_, id);
+    }
+    /// The smallest and the largest id taken (int32 max and -1 when none was).
+    void bounds(std::int32_t& first, std::int32_t& last) const
+    {
+        alignas(32) std::int32_t f[8], l[8];
+        _mm256_store_si256(reinterpret_cast<__m256i*>(f), first_);
+        _mm256_store_si256(reinterpret_cast<__m256i*>(l), last_);
+        first = f[0];
+        last = l[0];
+        for (int k = 1; k < 8; ++k)
+        {
+            first = f[k] < first ? f[k] : first;
+            last = last < l[k] ? l[k] : last;
+        }
+    }
+
+  private:
+    __m256i first_ = _mm256_set1_epi32(0x7fffffff), last_ = _mm256_set1_epi32(-1);
+};
 #endif
 } // namespace rkfem::simd

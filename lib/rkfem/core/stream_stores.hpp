@@ -11,11 +11,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "rkfem/core/simd.hpp"
 #include "rkfem/core/types.hpp"
-
-#if defined(__AVX512F__)
-#include <immintrin.h>
-#endif
 
 namespace rkfem
 {
@@ -44,7 +41,7 @@ inline index_t values_to_line(const real_t* p)
 /// with streaming stores, the values before the first line boundary and after the last by
 /// value(i). A loop writing several arrays calls it once per array over a block that stays in
 /// L1, so the inputs it reads again come from there (each array gets its own line alignment);
-/// it ends its blocks with _mm_sfence().
+/// it ends its blocks with simd::stream_fence().
 template <class Value, class Lanes>
 inline void stream_range(index_t i0, index_t i1, real_t* out, Value&& value, Lanes&& lanes)
 {
@@ -52,7 +49,7 @@ inline void stream_range(index_t i0, index_t i1, real_t* out, Value&& value, Lan
     for (; i0 < i_line; ++i0)
         out[i0] = value(i0);
     for (; i0 + 8 <= i1; i0 += 8)
-        _mm512_stream_pd(out + i0, lanes(i0));
+        simd::stream_store(out + i0, lanes(i0));
     for (; i0 < i1; ++i0)
         out[i0] = value(i0);
 }
@@ -66,7 +63,7 @@ inline std::size_t batch8_stride(std::size_t n)
 
 /// Writes one batch of 8 points' K components, v[k][l], into a structure-of-arrays field out
 /// (component k of point i at out[k n + i]) from point i0 on. With may_stream (the caller fences:
-/// ChunkedScatter::run_chunks ends every chunk with _mm_sfence), a field past kStreamBytes and
+/// ChunkedScatter::run_chunks ends every chunk with simd::stream_fence), a field past kStreamBytes and
 /// 64-byte aligned component lines (n a multiple of 8), each component is one streaming store of
 /// a whole line: the field is not read for ownership (the element and particle kernels' stress
 /// update writes 48 bytes per point that it would otherwise first read).
@@ -79,7 +76,7 @@ inline bool store_batch8(const real_t (&v)[K][8], real_t* out, std::size_t n, st
         (reinterpret_cast<std::uintptr_t>(out + i0) & 63) == 0)
     {
         for (int k = 0; k < K; ++k)
-            _mm512_stream_pd(out + k * n + i0, _mm512_loadu_pd(v[k]));
+            simd::stream_store(out + k * n + i0, simd::load(v[k]));
         return true;
     }
 #else

@@ -4,7 +4,7 @@
 /// degenerate elements) and a flat-nosed cylindrical projectile. Each names its boundary faces
 /// (box: xmin..zmax, top = zmax, bottom = zmin, side; cylinder: top, bottom, side; projectile:
 /// nose, tail, side).
-#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/generator_spec.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 
 namespace rkfem

@@ -92,35 +92,114 @@ struct Reader
         return v;
     }
 };
-} // namespace
 
-HexMesh read_keyword_mesh(const GeneratorSpec& g)
+/// A solid's card: its eight NIDs, the line it is on and its EID.
+struct Solid
 {
-    Reader rd{g, {g.loc.where, g.loc.path + ".file"}};
-    std::ifstream in(g.mesh_file);
-    if (!in)
-        rd.fail("cannot be opened", "expected an LS-DYNA keyword file with *NODE and *ELEMENT_SOLID");
+    long long nodes[8];
+    int line;
+    long long eid;
+};
+
+/// What the *NODE and *ELEMENT_SOLID cards hold: every node in the file's order, the solids asked for.
+struct KeywordCards
+{
     std::vector<real_t> x; // file order
     std::vector<long long> node_ids;
     std::unordered_map<long long, index_t> node_of; // NID -> index into x / 3
     std::unordered_map<long long, int> node_line;
     std::unordered_map<long long, int> element_line; // EID -> line of its card (every PID)
-    struct Solid
-    {
-        long long nodes[8];
-        int line;
-        long long eid;
-    };
     std::vector<Solid> solids;
+};
+
+/// A two-card solid between its cards: EID and PID read, its node card next.
+struct PendingSolid
+{
+    bool pending = false;      // two-card solid: EID, PID read, nodes next
+    bool pending_take = false; // ...and its PID is among those asked for
+    Solid pend{};
+};
+
+/// One *NODE card: its NID (once in the file) and coordinates, scaled by mesh_unit.
+void read_node_card(Reader& rd, const GeneratorSpec& g, const std::string& text, KeywordCards& cards)
+{
+    auto& [x, node_ids, node_of, node_line, element_line, solids] = cards;
+    const std::vector<std::string> f = fields(text, {8, 16, 16, 16});
+    if (f.size() < 2)
+        rd.fail("a *NODE card has no coordinates", "expected NID, X, Y, Z");
+    const long long nid = rd.integer(f[0], "NID");
+    if (node_of.count(nid))
+        rd.fail("node " + std::to_string(nid) + " is defined again (first on line " + std::to_string(node_line[nid]) +
+                    ")",
+                "expected each NID once");
+    node_of[nid] = static_cast<index_t>(node_ids.size());
+    node_line[nid] = rd.line;
+    node_ids.push_back(nid);
+    for (int d = 0; d < 3; ++d)
+        x.push_back(g.mesh_unit * (static_cast<std::size_t>(d + 1) < f.size()
+                                       ? rd.number(f[static_cast<std::size_t>(d + 1)], "coordinate")
+                                       : 0.0));
+}
+
+/// One *ELEMENT_SOLID card (EID, PID and N1..N8 on one card, or on two): a solid of the PIDs asked for is kept.
+void read_solid_card(Reader& rd, const GeneratorSpec& g, const std::string& text, PendingSolid& p, KeywordCards& cards)
+{
+    auto& [pending, pending_take, pend] = p;
+    const std::vector<std::string> f = fields(text, std::vector<int>(10, 8));
+    std::size_t first = 0; // where the node ids start in f
+    if (!pending)
+    {
+        pend = Solid{};
+        pend.line = rd.line;
+        pend.eid = rd.integer(f[0], "EID");
+        if (const auto [it, fresh] = cards.element_line.emplace(pend.eid, rd.line); !fresh)
+            rd.fail("element " + std::to_string(pend.eid) + " is defined again (first on line " +
+                        std::to_string(it->second) + ")",
+                    "expected each EID once in *ELEMENT_SOLID");
+        const long long pid = f.size() > 1 ? rd.integer(f[1], "PID") : 0;
+        const bool take =
+            g.mesh_pids.empty() || std::find(g.mesh_pids.begin(), g.mesh_pids.end(), pid) != g.mesh_pids.end();
+        std::size_t nonblank = 0;
+        for (std::size_t k = 2; k < f.size(); ++k)
+            nonblank += !f[k].empty();
+        if (nonblank == 0)
+        {
+            pending = true; // two-card format
+            pending_take = take;
+            return;
+        }
+        if (!take)
+            return;
+        first = 2;
+    }
+    else
+    {
+        pending = false;
+        if (!pending_take)
+            return; // not among the PIDs
+    }
+    if (f.size() < first + 8)
+        rd.fail("element " + std::to_string(pend.eid) + " has fewer than 8 nodes", "expected N1..N8 (8-node solids)");
+    for (std::size_t k = first + 8; k < f.size(); ++k)
+        if (!f[k].empty() && rd.integer(f[k], "node") != 0)
+            rd.fail("element " + std::to_string(pend.eid) + " has more than 8 nodes",
+                    "expected 8-node solids (fields 9 and 10 zero)");
+    for (int a = 0; a < 8; ++a)
+        pend.nodes[a] = rd.integer(f[first + static_cast<std::size_t>(a)], "node");
+    cards.solids.push_back(pend);
+}
+
+/// The keyword file's cards up to *END: its nodes and the solids of the PIDs asked for (no *INCLUDE).
+KeywordCards read_cards(Reader& rd, const GeneratorSpec& g, std::ifstream& in)
+{
+    KeywordCards cards;
     enum class Block
     {
         None,
         Node,
         Solid
     } block = Block::None;
-    bool pending = false;      // two-card solid: EID, PID read, nodes next
-    bool pending_take = false; // ...and its PID is among those asked for
-    Solid pend{};
+    PendingSolid p;
     std::string text;
     while (std::getline(in, text))
     {
@@ -131,7 +210,7 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
             continue;
         if (text[0] == '*')
         {
-            if (pending)
+            if (p.pending)
                 rd.fail("a solid's node card is missing before '" + trim(text) + "'", "expected N1..N8 after EID, PID");
             std::string kw = trim(text);
             std::transform(kw.begin(), kw.end(), kw.begin(), [](unsigned char c) { return std::toupper(c); });
@@ -145,79 +224,20 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
         if (trim(text).empty())
             continue;
         if (block == Block::Node)
-        {
-            const std::vector<std::string> f = fields(text, {8, 16, 16, 16});
-            if (f.size() < 2)
-                rd.fail("a *NODE card has no coordinates", "expected NID, X, Y, Z");
-            const long long nid = rd.integer(f[0], "NID");
-            if (node_of.count(nid))
-                rd.fail("node " + std::to_string(nid) + " is defined again (first on line " +
-                            std::to_string(node_line[nid]) + ")",
-                        "expected each NID once");
-            node_of[nid] = static_cast<index_t>(node_ids.size());
-            node_line[nid] = rd.line;
-            node_ids.push_back(nid);
-            for (int d = 0; d < 3; ++d)
-                x.push_back(g.mesh_unit * (static_cast<std::size_t>(d + 1) < f.size()
-                                               ? rd.number(f[static_cast<std::size_t>(d + 1)], "coordinate")
-                                               : 0.0));
-        }
+            read_node_card(rd, g, text, cards);
         else if (block == Block::Solid)
-        {
-            const std::vector<std::string> f = fields(text, std::vector<int>(10, 8));
-            std::size_t first = 0; // where the node ids start in f
-            if (!pending)
-            {
-                pend = Solid{};
-                pend.line = rd.line;
-                pend.eid = rd.integer(f[0], "EID");
-                if (const auto [it, fresh] = element_line.emplace(pend.eid, rd.line); !fresh)
-                    rd.fail("element " + std::to_string(pend.eid) + " is defined again (first on line " +
-                                std::to_string(it->second) + ")",
-                            "expected each EID once in *ELEMENT_SOLID");
-                const long long pid = f.size() > 1 ? rd.integer(f[1], "PID") : 0;
-                const bool take =
-                    g.mesh_pids.empty() || std::find(g.mesh_pids.begin(), g.mesh_pids.end(), pid) != g.mesh_pids.end();
-                std::size_t nonblank = 0;
-                for (std::size_t k = 2; k < f.size(); ++k)
-                    nonblank += !f[k].empty();
-                if (nonblank == 0)
-                {
-                    pending = true; // two-card format
-                    pending_take = take;
-                    continue;
-                }
-                if (!take)
-                    continue;
-                first = 2;
-            }
-            else
-            {
-                pending = false;
-                if (!pending_take)
-                    continue; // not among the PIDs
-            }
-            if (f.size() < first + 8)
-                rd.fail("element " + std::to_string(pend.eid) + " has fewer than 8 nodes",
-                        "expected N1..N8 (8-node solids)");
-            for (std::size_t k = first + 8; k < f.size(); ++k)
-                if (!f[k].empty() && rd.integer(f[k], "node") != 0)
-                    rd.fail("element " + std::to_string(pend.eid) + " has more than 8 nodes",
-                            "expected 8-node solids (fields 9 and 10 zero)");
-            for (int a = 0; a < 8; ++a)
-                pend.nodes[a] = rd.integer(f[first + static_cast<std::size_t>(a)], "node");
-            solids.push_back(pend);
-        }
+            read_solid_card(rd, g, text, p, cards);
     }
-    if (pending)
+    if (p.pending)
         rd.fail("the last solid's node card is missing", "expected N1..N8 after EID, PID");
-    rd.line = 0;
-    if (solids.empty())
-        rd.fail(g.mesh_pids.empty() ? "has no *ELEMENT_SOLID elements" : "has no solids with the PIDs asked for",
-                "expected 8-node solids" + std::string(g.mesh_pids.empty() ? "" : " of the parts named by pid"));
+    return cards;
+}
 
-    // keep the nodes the selected solids use, in the file's order
-    HexMesh m;
+/// Numbers the nodes the solids use from 0, in the file's order, their coordinates into m.x: the new index of
+/// each file node, -1 for the others.
+std::vector<index_t> keep_used_nodes(Reader& rd, const KeywordCards& cards, HexMesh& m)
+{
+    const auto& [x, node_ids, node_of, node_line, element_line, solids] = cards;
     std::vector<index_t> new_index(node_ids.size(), -1);
     for (const Solid& s : solids)
         for (long long nid : s.nodes)
@@ -239,6 +259,14 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
             new_index[i] = kept++;
             m.x.insert(m.x.end(), {x[3 * i], x[3 * i + 1], x[3 * i + 2]});
         }
+    return new_index;
+}
+
+/// The solids' connectivity and EIDs into m, then the kept nodes' NIDs; fails on a solid with a repeated node or
+/// with the same eight nodes as another.
+void add_solids(Reader& rd, const KeywordCards& cards, const std::vector<index_t>& new_index, HexMesh& m)
+{
+    const auto& [x, node_ids, node_of, node_line, element_line, solids] = cards;
     // the same eight nodes twice: two solids in one place (mass and stiffness doubled)
     std::map<std::array<long long, 8>, const Solid*> by_nodes;
     for (const Solid& s : solids)
@@ -264,7 +292,11 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
     for (std::size_t i = 0; i < new_index.size(); ++i)
         if (new_index[i] >= 0)
             m.node_ids.push_back(node_ids[i]);
-    // inverted or degenerate corners, by the file's ids (the trilinear map must be one to one)
+}
+
+/// Fails on an inverted or degenerate corner, named by the file's ids (the trilinear map must be one to one).
+void check_corners(Reader& rd, const std::vector<Solid>& solids, const HexMesh& m)
+{
     if (const HexCorner c = worst_corner(m); c.element >= 0 && !(c.scaled_jacobian > kDegenerateScaledJacobian))
     {
         const Solid& s = solids[static_cast<std::size_t>(c.element)];
@@ -276,6 +308,26 @@ HexMesh read_keyword_mesh(const GeneratorSpec& g)
         rd.fail(what.str(), "expected N1..N4 counter-clockwise seen from N5..N8, LS-DYNA's node order, and every "
                             "corner of a solid convex (scaled Jacobian above 0)");
     }
+}
+} // namespace
+
+HexMesh read_keyword_mesh(const GeneratorSpec& g)
+{
+    Reader rd{g, {g.loc.where, g.loc.path + ".file"}};
+    std::ifstream in(g.mesh_file);
+    if (!in)
+        rd.fail("cannot be opened", "expected an LS-DYNA keyword file with *NODE and *ELEMENT_SOLID");
+    const KeywordCards cards = read_cards(rd, g, in);
+    rd.line = 0;
+    if (cards.solids.empty())
+        rd.fail(g.mesh_pids.empty() ? "has no *ELEMENT_SOLID elements" : "has no solids with the PIDs asked for",
+                "expected 8-node solids" + std::string(g.mesh_pids.empty() ? "" : " of the parts named by pid"));
+
+    // keep the nodes the selected solids use, in the file's order
+    HexMesh m;
+    const std::vector<index_t> new_index = keep_used_nodes(rd, cards, m);
+    add_solids(rd, cards, new_index, m);
+    check_corners(rd, cards.solids, m);
     m.faces = extract_boundary_faces(m.conn);
     std::vector<index_t>& all = m.named_faces["all"];
     for (index_t f = 0; f < static_cast<index_t>(m.faces.size()); ++f)

@@ -20,7 +20,7 @@
 /// elements selected.
 /// Only the selected elements' nodes are kept, in the file's order. Named faces: `all` (every
 /// boundary face); select others with plane, box, cylinder or sphere selectors.
-#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/generator_spec.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 
 namespace rkfem

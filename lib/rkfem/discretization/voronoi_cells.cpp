@@ -46,34 +46,6 @@ struct Plane
 };
 } // namespace
 
-std::vector<HalfSpace> box_halfspaces(const Vec3& lo, const Vec3& hi)
-{
-    std::vector<HalfSpace> h;
-    for (int d = 0; d < 3; ++d)
-    {
-        Vec3 n = Vec3::Zero();
-        n[d] = 1.0;
-        h.push_back({n, hi[d]});
-        h.push_back({-n, -lo[d]});
-    }
-    return h;
-}
-
-std::vector<HalfSpace> cylinder_halfspaces(const Vec3& origin, real_t radius, real_t height, int sides)
-{
-    RKFEM_REQUIRE(sides >= 3, "cylinder_halfspaces: " << sides << " sides");
-    std::vector<HalfSpace> h;
-    for (int k = 0; k < sides; ++k)
-    {
-        const real_t a = 2.0 * M_PI * k / sides;
-        const Vec3 n(std::cos(a), std::sin(a), 0.0);
-        h.push_back({n, n.dot(origin) + radius});
-    }
-    h.push_back({Vec3::UnitZ(), origin[2] + height});
-    h.push_back({-Vec3::UnitZ(), -origin[2]});
-    return h;
-}
-
 namespace
 {
 /// A vertex of a cell, from CGAL's approximation p: the intersection of the three planes through
@@ -174,6 +146,471 @@ Vec3 deepest_point(const std::vector<Plane>& bisectors, const std::vector<HalfSp
                                                                   << ") is flat: no room inside the body");
     return xi + p;
 }
+
+/// What every cell of voronoi_cells reads: the points, the body, the hull, the points' tolerance,
+/// the box a cut cell starts from and each point's Delaunay neighbours (ascending).
+struct CellInputs
+{
+    const std::vector<real_t>& x;
+    const std::vector<HalfSpace>& body;
+    VoronoiHull hull;
+    bool with_sub_cells;
+    real_t tol;
+    Vec3 box_lo, box_hi;
+    const std::vector<index_t>& adj_offsets;
+    const std::vector<index_t>& adj_ids;
+};
+
+/// One point's cell under construction, into its part `cells` (the inputs copied in, for the
+/// cell's own use).
+struct CellBuild : CellInputs
+{
+    CellBuild(const CellInputs& in, index_t point, VoronoiCells& part)
+        : CellInputs(in), i(point), xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]), cells(part)
+    {
+    }
+
+    const index_t i;
+    const Vec3 xi;
+    VoronoiCells& cells;
+    // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
+    std::vector<Plane> planes;
+    ConvexCell cell;
+    std::vector<int> cut_order;
+    std::vector<index_t> owner; // neighbour per plane, -1 body
+    real_t dmin = kNoLimit, dmax = 0.0;
+    std::size_t n_bisectors = 0;
+    // The cell in an order of its own: CGAL's hull lists vertices and facets, and starts each
+    // facet, in an order that follows memory addresses, which vary from run to run
+    // (address-space randomization), and a vertex's double (its lazy construction's interval)
+    // depended on which of the planes through it the hull used; every sum below then rounded
+    // differently from run to run. Each vertex is solved again from the planes through it
+    // (CornerSolver), facets start at their smallest vertex, and both are sorted. The cut
+    // cell's vertices are solved again the same way.
+    std::vector<Vec3> corners;
+    std::vector<std::vector<Vec3>> polygons;
+
+    /// The bisectors with the Delaunay neighbours, and the neighbours' least and largest distance.
+    void add_bisectors()
+    {
+        const index_t* adj_begin = adj_ids.data() + adj_offsets[i];
+        const index_t* adj_end = adj_ids.data() + adj_offsets[i + 1];
+        for (const index_t* v = adj_begin; v != adj_end; ++v)
+        {
+            const index_t j = *v;
+            const Vec3 xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
+            const Vec3 nrm = xj - xi;
+            const Vec3 mid = 0.5 * (xi + xj);
+            // a x + b y + c z + d <= 0 on x_i's side
+            planes.push_back({nrm, -nrm.dot(mid)});
+            owner.push_back(j);
+        }
+        // the body's planes that can cut the cell: within twice the farthest Delaunay neighbour
+        // (a faceted body has many, and each plane costs every cell's construction); checked
+        // below, all planes when the cell would reach past one left out
+        for (const index_t* v = adj_begin; v != adj_end; ++v)
+        {
+            const index_t j = *v;
+            const real_t d = (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm();
+            dmin = std::min(dmin, d);
+            dmax = std::max(dmax, d);
+        }
+        n_bisectors = planes.size();
+    }
+
+    /// The body's planes after the bisectors: all, or those within twice the farthest neighbour.
+    void add_body_planes(bool all)
+    {
+        planes.resize(n_bisectors);
+        owner.resize(n_bisectors);
+        for (const HalfSpace& h : body)
+            if (all || h.offset - h.normal.dot(xi) <= 2.0 * dmax)
+            {
+                planes.push_back({h.normal, -h.offset});
+                owner.push_back(-1);
+            }
+    }
+
+    // the point inside the cell that CGAL's dual construction starts from: x_i, pushed to at
+    // least 0.2 d_min (d_min: its nearest neighbour's distance) from every body face, the
+    // nearest face first. The dual points scale with 1 / (distance of the point to each
+    // plane), so a point on or near a face (a generated boundary particle, an imported point)
+    // made the construction ill-conditioned: an unoptimized build got cells reaching outside
+    // the body. The push is at most about sqrt(3) 0.2 d_min (a box corner), inside the
+    // bisectors (d_min / 2 away).
+    /// p's least distance to a body face.
+    real_t min_body_distance(const Vec3& p) const
+    {
+        real_t d = kNoLimit;
+        for (const HalfSpace& h : body)
+            d = std::min(d, h.offset - h.normal.dot(p));
+        return d;
+    }
+
+    // (for the exact construction only)
+    /// The start point: x_i pushed off the body's faces, or the centre of the largest ball in the cell.
+    Vec3 start_point() const
+    {
+        Vec3 xin = xi;
+        for (int pass = 0; pass < 8; ++pass)
+        {
+            const HalfSpace* nearest = nullptr;
+            real_t nearest_dist = 0.2 * dmin;
+            for (const HalfSpace& h : body)
+            {
+                const real_t dist = h.offset - h.normal.dot(xin); // unit normals
+                if (dist < nearest_dist)
+                {
+                    nearest_dist = dist;
+                    nearest = &h;
+                }
+            }
+            if (nearest == nullptr)
+                break;
+            xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
+        }
+        // a body thinner than 0.2 d_min across (a cloud one spacing thick, a point file of a
+        // plate) has no room for that push: it left the start point outside a face, a broken
+        // precondition on which CGAL's hull freed an invalid pointer or never returned. There the
+        // start point is the centre of the largest ball in the cell (a small linear programme on
+        // the normalized planes, exact)
+        if (min_body_distance(xin) < 0.1 * dmin)
+            xin = deepest_point(planes, body, xi, i);
+        return xin;
+    }
+
+    /// Whether p is inside the body (within tol).
+    bool inside(const Vec3& p) const
+    {
+        bool in = true;
+        for (const HalfSpace& h : body)
+            in = in && h.normal.dot(p) <= h.offset + tol;
+        return in;
+    }
+
+    /// The cell as CGAL's dual hull of its planes (VoronoiHull::Exact): its corners and polygons.
+    void exact_hull()
+    {
+        const Vec3 xin = start_point();
+        std::vector<EK::Plane_3> exact;
+        auto hull_of_planes = [&](Polyhedron& P)
+        {
+            exact.clear();
+            for (const Plane& q : planes)
+                exact.emplace_back(q.n[0], q.n[1], q.n[2], q.d);
+            CGAL::halfspace_intersection_3(exact.begin(), exact.end(), P, EK::Point_3(xin[0], xin[1], xin[2]));
+        };
+        Polyhedron P;
+        add_body_planes(false);
+        hull_of_planes(P);
+        bool inside_body = true;
+        for (auto v = P.vertices_begin(); v != P.vertices_end() && inside_body; ++v)
+            inside_body = inside(vec(v->point()));
+        if (!inside_body)
+        {
+            ++cells.rebuilt_with_all_planes;
+            P.clear();
+            add_body_planes(true);
+            hull_of_planes(P);
+        }
+        std::unordered_map<const void*, std::size_t> corner_of;
+        CornerSolver corner_point(planes);
+        for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
+        {
+            corner_of[&*v] = corners.size();
+            corners.push_back(corner_point(vec(v->point()), 1e-9 * dmax));
+        }
+        for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
+        {
+            std::vector<Vec3> poly;
+            auto h = f->facet_begin();
+            do
+            {
+                poly.push_back(corners[corner_of.at(&*h->vertex())]);
+            } while (++h != f->facet_begin());
+            polygons.push_back(std::move(poly));
+        }
+    }
+
+    /// The cell as the body's box cut by its planes (VoronoiHull::Clip): its corners and polygons.
+    void cut_box()
+    {
+        // the body's box cut by the bisectors, nearest first, then by the body's
+        // planes; a vertex within 1e-10 of the farthest neighbour's distance of a
+        // plane is on it
+        auto cut_cell = [&]()
+        {
+            cell.reset_box(box_lo, box_hi);
+            cut_order.resize(planes.size());
+            std::iota(cut_order.begin(), cut_order.end(), 0);
+            std::stable_sort(cut_order.begin(), cut_order.begin() + static_cast<std::ptrdiff_t>(n_bisectors),
+                             [&](int a, int b) { return planes[a].n.squaredNorm() < planes[b].n.squaredNorm(); });
+            try
+            {
+                for (const int q : cut_order)
+                    cell.cut(planes[q].n, -planes[q].d, q, 1e-10 * dmax * planes[q].n.norm());
+            }
+            catch (const Error&)
+            {
+                throw Error("Voronoi cells: the cell of point " + std::to_string(i) +
+                            " has no interior (a cut left nothing of it)");
+            }
+        };
+        add_body_planes(false);
+        cut_cell();
+        bool inside_body = true;
+        for (const Vec3& p : cell.vertices())
+            inside_body = inside_body && inside(p);
+        if (!inside_body)
+        {
+            ++cells.rebuilt_with_all_planes;
+            add_body_planes(true);
+            cut_cell();
+        }
+        for (const int t : cell.face_tag())
+            RKFEM_REQUIRE(t != ConvexCell::kBox, "Voronoi cells: the cell of point " << i << " (" << xi.transpose()
+                                                                                     << ") reaches past the body");
+        CornerSolver corner_point(planes);
+        for (const Vec3& p : cell.vertices())
+            corners.push_back(corner_point(p, 1e-9 * dmax));
+        for (int f = 0; f < cell.n_faces(); ++f)
+        {
+            std::vector<Vec3> poly;
+            for (int k = cell.face_offsets()[f]; k < cell.face_offsets()[f + 1]; ++k)
+                poly.push_back(corners[static_cast<std::size_t>(cell.face_vertices()[k])]);
+            polygons.push_back(std::move(poly));
+        }
+    }
+
+    /// The polygons in an order of their own (each from its smallest vertex, sorted); returns the
+    /// sub-cells' apex.
+    Vec3 sort_facets()
+    {
+        auto before = [](const Vec3& a, const Vec3& b)
+        { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end()); };
+        for (std::vector<Vec3>& poly : polygons)
+            std::rotate(poly.begin(), std::min_element(poly.begin(), poly.end(), before), poly.end());
+        std::sort(polygons.begin(), polygons.end(),
+                  [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b)
+                  { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), before); });
+        // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
+        std::vector<Vec3> sorted_corners = corners;
+        std::sort(sorted_corners.begin(), sorted_corners.end(), before);
+        Vec3 apex = Vec3::Zero();
+        for (const Vec3& p : sorted_corners)
+            apex += p;
+        apex /= static_cast<real_t>(corners.size());
+        return apex;
+    }
+
+    /// The facet points of the polygons' triangles (with sub-cells, each polygon's pyramid's
+    /// boundary too) and the spacing; returns the cell's volume.
+    real_t facet_points(const Vec3& apex, std::vector<std::vector<CellFacetPoint>>& pyramids)
+    {
+        real_t vol = 0.0;
+        for (const std::vector<Vec3>& poly : polygons)
+        {
+            Vec3 c = Vec3::Zero();
+            for (const Vec3& p : poly)
+                c += p;
+            c /= static_cast<real_t>(poly.size());
+            // which plane this facet lies on: the one with the smallest distance of the centroid
+            // and a normal parallel to the facet's
+            Vec3 area = Vec3::Zero();
+            for (std::size_t k = 0; k < poly.size(); ++k)
+                area += 0.5 * (poly[k] - c).cross(poly[(k + 1) % poly.size()] - c);
+            if (area.norm() == 0.0)
+                continue;
+            index_t nb = -1;
+            real_t best = kNoLimit;
+            for (std::size_t q = 0; q < planes.size(); ++q)
+            {
+                const Vec3& pn = planes[q].n;
+                const real_t dist = std::abs(pn.dot(c) + planes[q].d) / pn.norm();
+                if (pn.dot(area) > 0 && dist < best)
+                {
+                    best = dist;
+                    nb = owner[q];
+                }
+            }
+            // the facet's sub-cell: the pyramid from the apex over the polygon, bounded by the
+            // facet's triangles and one side triangle per polygon edge (shared, with the opposite
+            // normal, by the neighbouring pyramid of the same cell)
+            if (with_sub_cells)
+                pyramids.emplace_back();
+            for (std::size_t k = 0; k < poly.size(); ++k)
+            {
+                const Vec3& a = poly[k];
+                const Vec3& b = poly[(k + 1) % poly.size()];
+                const Vec3 nda = 0.5 * (a - c).cross(b - c);
+                const Vec3 xq = (a + b + c) / 3.0;
+                cells.points.push_back({xq, nda, nb, k == 0});
+                vol += xq.dot(nda) / 3.0;
+                if (!with_sub_cells)
+                    continue;
+                std::vector<CellFacetPoint>& pyr = pyramids.back();
+                pyr.push_back({xq, nda, nb});
+                // side (apex, b, a): outward from the pyramid when the base's normal is outward
+                pyr.push_back({(apex + a + b) / 3.0, 0.5 * (b - apex).cross(a - apex), -1});
+            }
+            if (nb >= 0)
+                cells.spacing[0] =
+                    std::max(cells.spacing[0], (Vec3(x[3 * nb], x[3 * nb + 1], x[3 * nb + 2]) - xi).norm());
+        }
+        return vol;
+    }
+
+    /// The sub-cells from the pyramids: those under 1e-3 of the cell's volume joined to the largest.
+    void add_sub_cells(const std::vector<std::vector<CellFacetPoint>>& pyramids, real_t vol)
+    {
+        // sub-cells: the pyramids, those under 1e-3 of the cell's volume (over the tiny facets
+        // that jitter makes) joined to the largest one. A thin pyramid's boundary terms are large
+        // and cancel: alone, its smoothed gradient carries round-off up to 1e-10 of its terms;
+        // joined, the union (two closed pieces) still reproduces linear fields exactly.
+        // Without sub-cells no pyramid was built (above), and the passes below run on none.
+        std::vector<real_t> pv(pyramids.size(), 0.0);
+        std::size_t largest = 0;
+        for (std::size_t k = 0; k < pyramids.size(); ++k)
+        {
+            for (const CellFacetPoint& fp : pyramids[k])
+                pv[k] += fp.x.dot(fp.nda) / 3.0;
+            if (pv[k] > pv[largest])
+                largest = k;
+        }
+        for (std::size_t k = 0; k < pyramids.size(); ++k)
+        {
+            if (k == largest || pv[k] < 1e-3 * vol)
+                continue;
+            cells.sub_cells.push_back({i, pv[k], static_cast<index_t>(cells.sub_points.size()), 0});
+            cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
+            cells.sub_cells.back().end = static_cast<index_t>(cells.sub_points.size());
+        }
+        VoronoiCells::SubCell joined{i, 0.0, static_cast<index_t>(cells.sub_points.size()), 0};
+        for (std::size_t k = 0; k < pyramids.size(); ++k)
+            if (k == largest || pv[k] < 1e-3 * vol)
+            {
+                joined.volume += pv[k];
+                cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
+            }
+        joined.end = static_cast<index_t>(cells.sub_points.size());
+        if (with_sub_cells)
+            cells.sub_cells.push_back(joined);
+    }
+};
+
+/// Point i's cell into its part `cells`: its facet points, volume, spacing and sub-cells.
+void build_cell(const CellInputs& in, index_t i, VoronoiCells& cells)
+{
+    cells.volume.assign(1, 0.0);
+    cells.spacing.assign(1, 0.0);
+    CellBuild c(in, i, cells);
+    c.add_bisectors();
+    if (in.hull == VoronoiHull::Exact)
+        c.exact_hull();
+    else
+        c.cut_box();
+    const Vec3 apex = c.sort_facets();
+    std::vector<std::vector<CellFacetPoint>> pyramids; // per facet polygon: its pyramid's boundary
+    const real_t vol = c.facet_points(apex, pyramids);
+    RKFEM_REQUIRE(vol > 0.0, "Voronoi cells: cell " << i << " has non-positive volume " << vol);
+    c.add_sub_cells(pyramids, vol);
+    cells.volume[0] = vol;
+    setup_progress::advance();
+}
+
+/// The box a cut cell starts from (VoronoiHull::Clip): the body's, with a margin.
+void body_box(const std::vector<HalfSpace>& body, const Vec3& lo, const Vec3& hi, Vec3& box_lo, Vec3& box_hi)
+{
+    const Vec3 centre = 0.5 * (lo + hi);
+    real_t reach = (hi - lo).norm();
+    for (const HalfSpace& h : body)
+        reach = std::max(reach, std::abs(h.offset - h.normal.dot(centre)));
+    ConvexCell whole;
+    whole.reset_box(centre - Vec3::Constant(4.0 * reach), centre + Vec3::Constant(4.0 * reach));
+    for (std::size_t q = 0; q < body.size(); ++q)
+        whole.cut(body[q].normal, body[q].offset, static_cast<int>(q), 1e-12 * reach);
+    for (const int t : whole.face_tag())
+        RKFEM_REQUIRE(t != ConvexCell::kBox, "Voronoi cells: the body's planes do not bound it within "
+                                                 << 4.0 * reach << " of the points' centre");
+    box_lo = box_hi = whole.vertices().front();
+    for (const Vec3& p : whole.vertices())
+    {
+        box_lo = box_lo.cwiseMin(p);
+        box_hi = box_hi.cwiseMax(p);
+    }
+    const Vec3 margin = Vec3::Constant(1e-6 * (box_hi - box_lo).norm());
+    box_lo -= margin;
+    box_hi += margin;
+}
+
+/// The Delaunay neighbours of every point, ascending, after checking that each is inside the body.
+void delaunay_neighbours(const std::vector<real_t>& x, const std::vector<HalfSpace>& body, index_t n, real_t tol,
+                         std::vector<index_t>& adj_offsets, std::vector<index_t>& adj_ids)
+{
+    std::vector<std::pair<K::Point_3, index_t>> pts;
+    for (index_t i = 0; i < n; ++i)
+    {
+        const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+        for (const HalfSpace& h : body)
+            RKFEM_REQUIRE(h.normal.dot(p) <= h.offset + tol,
+                          "Voronoi cells: point " << i << " (" << p.transpose() << ") is not inside the body");
+        pts.emplace_back(K::Point_3(p[0], p[1], p[2]), i);
+    }
+    const Delaunay dt(pts.begin(), pts.end());
+    std::vector<Delaunay::Vertex_handle> vh(static_cast<std::size_t>(n));
+    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
+        vh[v->info()] = v;
+
+    // the Delaunay neighbours of every point, first (the triangulation's traversal marks its
+    // cells, so it stays on one thread), in the order of the points: CGAL lists them in an order
+    // that follows their addresses, which vary from run to run (address-space randomization),
+    // and so did the planes' order, the cells' facets and the round-off of every sum over them
+    {
+        std::vector<Delaunay::Vertex_handle> adj;
+        for (index_t i = 0; i < n; ++i)
+        {
+            RKFEM_REQUIRE(vh[i] != Delaunay::Vertex_handle(),
+                          "Voronoi cells: point " << i << " duplicates another point");
+            adj.clear();
+            dt.finite_adjacent_vertices(vh[i], std::back_inserter(adj));
+            const std::size_t first = adj_ids.size();
+            for (const auto& v : adj)
+                adj_ids.push_back(v->info());
+            std::sort(adj_ids.begin() + static_cast<std::ptrdiff_t>(first), adj_ids.end());
+            adj_offsets[i + 1] = static_cast<index_t>(adj_ids.size());
+        }
+    }
+}
+
+/// The block's parts [first, last) joined onto cells_out in point order, and emptied.
+void join_parts(VoronoiCells& cells_out, std::vector<VoronoiCells>& parts, index_t first, index_t last)
+{
+    VoronoiCells& cells = cells_out; // the join
+    for (index_t i = first; i < last; ++i)
+    {
+        VoronoiCells& part = parts[static_cast<std::size_t>(i - first)];
+        cells.volume[i] = part.volume[0];
+        cells.spacing[i] = part.spacing[0];
+        cells.points.insert(cells.points.end(), part.points.begin(), part.points.end());
+        cells.offsets.push_back(static_cast<index_t>(cells.points.size()));
+        const index_t shift = static_cast<index_t>(cells.sub_points.size());
+        for (VoronoiCells::SubCell sc : part.sub_cells)
+        {
+            sc.begin += shift;
+            sc.end += shift;
+            cells.sub_cells.push_back(sc);
+        }
+        cells.sub_points.insert(cells.sub_points.end(), part.sub_points.begin(), part.sub_points.end());
+        cells.rebuilt_with_all_planes += part.rebuilt_with_all_planes;
+        // emptied, its room kept for the next block's cell: freed, a block's 4 MB of parts
+        // went back to the system and came again as fresh pages, block after block (a
+        // quarter of the 24k-particle column's page zeroing)
+        part.points.clear();
+        part.sub_cells.clear();
+        part.sub_points.clear();
+        part.rebuilt_with_all_planes = 0;
+    }
+}
 } // namespace
 
 VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfSpace>& body, VoronoiHull hull,
@@ -194,62 +631,10 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
     // the body's planes are far from it, cut by them)
     Vec3 box_lo = lo, box_hi = hi;
     if (hull == VoronoiHull::Clip)
-    {
-        const Vec3 centre = 0.5 * (lo + hi);
-        real_t reach = (hi - lo).norm();
-        for (const HalfSpace& h : body)
-            reach = std::max(reach, std::abs(h.offset - h.normal.dot(centre)));
-        ConvexCell whole;
-        whole.reset_box(centre - Vec3::Constant(4.0 * reach), centre + Vec3::Constant(4.0 * reach));
-        for (std::size_t q = 0; q < body.size(); ++q)
-            whole.cut(body[q].normal, body[q].offset, static_cast<int>(q), 1e-12 * reach);
-        for (const int t : whole.face_tag())
-            RKFEM_REQUIRE(t != ConvexCell::kBox, "Voronoi cells: the body's planes do not bound it within "
-                                                     << 4.0 * reach << " of the points' centre");
-        box_lo = box_hi = whole.vertices().front();
-        for (const Vec3& p : whole.vertices())
-        {
-            box_lo = box_lo.cwiseMin(p);
-            box_hi = box_hi.cwiseMax(p);
-        }
-        const Vec3 margin = Vec3::Constant(1e-6 * (box_hi - box_lo).norm());
-        box_lo -= margin;
-        box_hi += margin;
-    }
-    std::vector<std::pair<K::Point_3, index_t>> pts;
-    for (index_t i = 0; i < n; ++i)
-    {
-        const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-        for (const HalfSpace& h : body)
-            RKFEM_REQUIRE(h.normal.dot(p) <= h.offset + tol,
-                          "Voronoi cells: point " << i << " (" << p.transpose() << ") is not inside the body");
-        pts.emplace_back(K::Point_3(p[0], p[1], p[2]), i);
-    }
-    const Delaunay dt(pts.begin(), pts.end());
-    std::vector<Delaunay::Vertex_handle> vh(static_cast<std::size_t>(n));
-    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
-        vh[v->info()] = v;
-
-    // the Delaunay neighbours of every point, first (the triangulation's traversal marks its
-    // cells, so it stays on one thread), in the order of the points: CGAL lists them in an order
-    // that follows their addresses, which vary from run to run (address-space randomization),
-    // and so did the planes' order, the cells' facets and the round-off of every sum over them
+        body_box(body, lo, hi, box_lo, box_hi);
     std::vector<index_t> adj_offsets(static_cast<std::size_t>(n) + 1, 0), adj_ids;
-    {
-        std::vector<Delaunay::Vertex_handle> adj;
-        for (index_t i = 0; i < n; ++i)
-        {
-            RKFEM_REQUIRE(vh[i] != Delaunay::Vertex_handle(),
-                          "Voronoi cells: point " << i << " duplicates another point");
-            adj.clear();
-            dt.finite_adjacent_vertices(vh[i], std::back_inserter(adj));
-            const std::size_t first = adj_ids.size();
-            for (const auto& v : adj)
-                adj_ids.push_back(v->info());
-            std::sort(adj_ids.begin() + static_cast<std::ptrdiff_t>(first), adj_ids.end());
-            adj_offsets[i + 1] = static_cast<index_t>(adj_ids.size());
-        }
-    }
+    delaunay_neighbours(x, body, n, tol, adj_offsets, adj_ids);
+    const CellInputs in{x, body, hull, with_sub_cells, tol, box_lo, box_hi, adj_offsets, adj_ids};
     // each cell on its own (its planes, hull and facets are its own; CGAL's lazy exact kernel
     // is thread-safe) into a part of its own, the parts joined in point order: the same cells,
     // bit for bit, on any number of threads; in blocks of points, so that the parts never hold
@@ -270,302 +655,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
             VoronoiCells& cells = parts[static_cast<std::size_t>(i - first)];
             try
             {
-                cells.volume.assign(1, 0.0);
-                cells.spacing.assign(1, 0.0);
-                const Vec3 xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-                const index_t* adj_begin = adj_ids.data() + adj_offsets[i];
-                const index_t* adj_end = adj_ids.data() + adj_offsets[i + 1];
-                // half-spaces: bisectors with the Delaunay neighbours, then the body; origin at x_i
-                std::vector<Plane> planes;
-                ConvexCell cell;
-                std::vector<int> cut_order;
-                std::vector<index_t> owner; // neighbour per plane, -1 body
-                for (const index_t* v = adj_begin; v != adj_end; ++v)
-                {
-                    const index_t j = *v;
-                    const Vec3 xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
-                    const Vec3 nrm = xj - xi;
-                    const Vec3 mid = 0.5 * (xi + xj);
-                    // a x + b y + c z + d <= 0 on x_i's side
-                    planes.push_back({nrm, -nrm.dot(mid)});
-                    owner.push_back(j);
-                }
-                // the body's planes that can cut the cell: within twice the farthest Delaunay neighbour
-                // (a faceted body has many, and each plane costs every cell's construction); checked
-                // below, all planes when the cell would reach past one left out
-                real_t dmin = kNoLimit, dmax = 0.0;
-                for (const index_t* v = adj_begin; v != adj_end; ++v)
-                {
-                    const index_t j = *v;
-                    const real_t d = (Vec3(x[3 * j], x[3 * j + 1], x[3 * j + 2]) - xi).norm();
-                    dmin = std::min(dmin, d);
-                    dmax = std::max(dmax, d);
-                }
-                const std::size_t n_bisectors = planes.size();
-                auto add_body_planes = [&](bool all)
-                {
-                    planes.resize(n_bisectors);
-                    owner.resize(n_bisectors);
-                    for (const HalfSpace& h : body)
-                        if (all || h.offset - h.normal.dot(xi) <= 2.0 * dmax)
-                        {
-                            planes.push_back({h.normal, -h.offset});
-                            owner.push_back(-1);
-                        }
-                };
-                // the point inside the cell that CGAL's dual construction starts from: x_i, pushed to at
-                // least 0.2 d_min (d_min: its nearest neighbour's distance) from every body face, the
-                // nearest face first. The dual points scale with 1 / (distance of the point to each
-                // plane), so a point on or near a face (a generated boundary particle, an imported point)
-                // made the construction ill-conditioned: an unoptimized build got cells reaching outside
-                // the body. The push is at most about sqrt(3) 0.2 d_min (a box corner), inside the
-                // bisectors (d_min / 2 away).
-                auto min_body_distance = [&](const Vec3& p)
-                {
-                    real_t d = kNoLimit;
-                    for (const HalfSpace& h : body)
-                        d = std::min(d, h.offset - h.normal.dot(p));
-                    return d;
-                };
-                // (for the exact construction only)
-                auto start_point = [&]()
-                {
-                    Vec3 xin = xi;
-                    for (int pass = 0; pass < 8; ++pass)
-                    {
-                        const HalfSpace* nearest = nullptr;
-                        real_t nearest_dist = 0.2 * dmin;
-                        for (const HalfSpace& h : body)
-                        {
-                            const real_t dist = h.offset - h.normal.dot(xin); // unit normals
-                            if (dist < nearest_dist)
-                            {
-                                nearest_dist = dist;
-                                nearest = &h;
-                            }
-                        }
-                        if (nearest == nullptr)
-                            break;
-                        xin -= (0.2 * dmin - nearest_dist) * nearest->normal;
-                    }
-                    // a body thinner than 0.2 d_min across (a cloud one spacing thick, a point file of a
-                    // plate) has no room for that push: it left the start point outside a face, a broken
-                    // precondition on which CGAL's hull freed an invalid pointer or never returned. There the
-                    // start point is the centre of the largest ball in the cell (a small linear programme on
-                    // the normalized planes, exact)
-                    if (min_body_distance(xin) < 0.1 * dmin)
-                        xin = deepest_point(planes, body, xi, i);
-                    return xin;
-                };
-                // The cell in an order of its own: CGAL's hull lists vertices and facets, and starts each
-                // facet, in an order that follows memory addresses, which vary from run to run
-                // (address-space randomization), and a vertex's double (its lazy construction's interval)
-                // depended on which of the planes through it the hull used; every sum below then rounded
-                // differently from run to run. Each vertex is solved again from the planes through it
-                // (CornerSolver), facets start at their smallest vertex, and both are sorted. The cut
-                // cell's vertices are solved again the same way.
-                std::vector<Vec3> corners;
-                std::vector<std::vector<Vec3>> polygons;
-                auto inside = [&](const Vec3& p)
-                {
-                    bool in = true;
-                    for (const HalfSpace& h : body)
-                        in = in && h.normal.dot(p) <= h.offset + tol;
-                    return in;
-                };
-                if (hull == VoronoiHull::Exact)
-                {
-                    const Vec3 xin = start_point();
-                    std::vector<EK::Plane_3> exact;
-                    auto hull_of_planes = [&](Polyhedron& P)
-                    {
-                        exact.clear();
-                        for (const Plane& q : planes)
-                            exact.emplace_back(q.n[0], q.n[1], q.n[2], q.d);
-                        CGAL::halfspace_intersection_3(exact.begin(), exact.end(), P,
-                                                       EK::Point_3(xin[0], xin[1], xin[2]));
-                    };
-                    Polyhedron P;
-                    add_body_planes(false);
-                    hull_of_planes(P);
-                    bool inside_body = true;
-                    for (auto v = P.vertices_begin(); v != P.vertices_end() && inside_body; ++v)
-                        inside_body = inside(vec(v->point()));
-                    if (!inside_body)
-                    {
-                        ++cells.rebuilt_with_all_planes;
-                        P.clear();
-                        add_body_planes(true);
-                        hull_of_planes(P);
-                    }
-                    std::unordered_map<const void*, std::size_t> corner_of;
-                    CornerSolver corner_point(planes);
-                    for (auto v = P.vertices_begin(); v != P.vertices_end(); ++v)
-                    {
-                        corner_of[&*v] = corners.size();
-                        corners.push_back(corner_point(vec(v->point()), 1e-9 * dmax));
-                    }
-                    for (auto f = P.facets_begin(); f != P.facets_end(); ++f)
-                    {
-                        std::vector<Vec3> poly;
-                        auto h = f->facet_begin();
-                        do
-                        {
-                            poly.push_back(corners[corner_of.at(&*h->vertex())]);
-                        } while (++h != f->facet_begin());
-                        polygons.push_back(std::move(poly));
-                    }
-                }
-                else
-                {
-                    // the body's box cut by the bisectors, nearest first, then by the body's
-                    // planes; a vertex within 1e-10 of the farthest neighbour's distance of a
-                    // plane is on it
-                    auto cut_cell = [&]()
-                    {
-                        cell.reset_box(box_lo, box_hi);
-                        cut_order.resize(planes.size());
-                        std::iota(cut_order.begin(), cut_order.end(), 0);
-                        std::stable_sort(
-                            cut_order.begin(), cut_order.begin() + static_cast<std::ptrdiff_t>(n_bisectors),
-                            [&](int a, int b) { return planes[a].n.squaredNorm() < planes[b].n.squaredNorm(); });
-                        try
-                        {
-                            for (const int q : cut_order)
-                                cell.cut(planes[q].n, -planes[q].d, q, 1e-10 * dmax * planes[q].n.norm());
-                        }
-                        catch (const Error&)
-                        {
-                            throw Error("Voronoi cells: the cell of point " + std::to_string(i) +
-                                        " has no interior (a cut left nothing of it)");
-                        }
-                    };
-                    add_body_planes(false);
-                    cut_cell();
-                    bool inside_body = true;
-                    for (const Vec3& p : cell.vertices())
-                        inside_body = inside_body && inside(p);
-                    if (!inside_body)
-                    {
-                        ++cells.rebuilt_with_all_planes;
-                        add_body_planes(true);
-                        cut_cell();
-                    }
-                    for (const int t : cell.face_tag())
-                        RKFEM_REQUIRE(t != ConvexCell::kBox, "Voronoi cells: the cell of point "
-                                                                 << i << " (" << xi.transpose()
-                                                                 << ") reaches past the body");
-                    CornerSolver corner_point(planes);
-                    for (const Vec3& p : cell.vertices())
-                        corners.push_back(corner_point(p, 1e-9 * dmax));
-                    for (int f = 0; f < cell.n_faces(); ++f)
-                    {
-                        std::vector<Vec3> poly;
-                        for (int k = cell.face_offsets()[f]; k < cell.face_offsets()[f + 1]; ++k)
-                            poly.push_back(corners[static_cast<std::size_t>(cell.face_vertices()[k])]);
-                        polygons.push_back(std::move(poly));
-                    }
-                }
-                real_t vol = 0.0;
-                auto before = [](const Vec3& a, const Vec3& b)
-                { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end()); };
-                for (std::vector<Vec3>& poly : polygons)
-                    std::rotate(poly.begin(), std::min_element(poly.begin(), poly.end(), before), poly.end());
-                std::sort(polygons.begin(), polygons.end(),
-                          [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b)
-                          { return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), before); });
-                // apex of the sub-cells: the average of the cell's vertices (inside a convex cell)
-                std::vector<Vec3> sorted_corners = corners;
-                std::sort(sorted_corners.begin(), sorted_corners.end(), before);
-                Vec3 apex = Vec3::Zero();
-                for (const Vec3& p : sorted_corners)
-                    apex += p;
-                apex /= static_cast<real_t>(corners.size());
-                std::vector<std::vector<CellFacetPoint>> pyramids; // per facet polygon: its pyramid's boundary
-                for (const std::vector<Vec3>& poly : polygons)
-                {
-                    Vec3 c = Vec3::Zero();
-                    for (const Vec3& p : poly)
-                        c += p;
-                    c /= static_cast<real_t>(poly.size());
-                    // which plane this facet lies on: the one with the smallest distance of the centroid
-                    // and a normal parallel to the facet's
-                    Vec3 area = Vec3::Zero();
-                    for (std::size_t k = 0; k < poly.size(); ++k)
-                        area += 0.5 * (poly[k] - c).cross(poly[(k + 1) % poly.size()] - c);
-                    if (area.norm() == 0.0)
-                        continue;
-                    index_t nb = -1;
-                    real_t best = kNoLimit;
-                    for (std::size_t q = 0; q < planes.size(); ++q)
-                    {
-                        const Vec3& pn = planes[q].n;
-                        const real_t dist = std::abs(pn.dot(c) + planes[q].d) / pn.norm();
-                        if (pn.dot(area) > 0 && dist < best)
-                        {
-                            best = dist;
-                            nb = owner[q];
-                        }
-                    }
-                    // the facet's sub-cell: the pyramid from the apex over the polygon, bounded by the
-                    // facet's triangles and one side triangle per polygon edge (shared, with the opposite
-                    // normal, by the neighbouring pyramid of the same cell)
-                    if (with_sub_cells)
-                        pyramids.emplace_back();
-                    for (std::size_t k = 0; k < poly.size(); ++k)
-                    {
-                        const Vec3& a = poly[k];
-                        const Vec3& b = poly[(k + 1) % poly.size()];
-                        const Vec3 nda = 0.5 * (a - c).cross(b - c);
-                        const Vec3 xq = (a + b + c) / 3.0;
-                        cells.points.push_back({xq, nda, nb, k == 0});
-                        vol += xq.dot(nda) / 3.0;
-                        if (!with_sub_cells)
-                            continue;
-                        std::vector<CellFacetPoint>& pyr = pyramids.back();
-                        pyr.push_back({xq, nda, nb});
-                        // side (apex, b, a): outward from the pyramid when the base's normal is outward
-                        pyr.push_back({(apex + a + b) / 3.0, 0.5 * (b - apex).cross(a - apex), -1});
-                    }
-                    if (nb >= 0)
-                        cells.spacing[0] =
-                            std::max(cells.spacing[0], (Vec3(x[3 * nb], x[3 * nb + 1], x[3 * nb + 2]) - xi).norm());
-                }
-                RKFEM_REQUIRE(vol > 0.0, "Voronoi cells: cell " << i << " has non-positive volume " << vol);
-                // sub-cells: the pyramids, those under 1e-3 of the cell's volume (over the tiny facets
-                // that jitter makes) joined to the largest one. A thin pyramid's boundary terms are large
-                // and cancel: alone, its smoothed gradient carries round-off up to 1e-10 of its terms;
-                // joined, the union (two closed pieces) still reproduces linear fields exactly.
-                // Without sub-cells no pyramid was built (above), and the passes below run on none.
-                std::vector<real_t> pv(pyramids.size(), 0.0);
-                std::size_t largest = 0;
-                for (std::size_t k = 0; k < pyramids.size(); ++k)
-                {
-                    for (const CellFacetPoint& fp : pyramids[k])
-                        pv[k] += fp.x.dot(fp.nda) / 3.0;
-                    if (pv[k] > pv[largest])
-                        largest = k;
-                }
-                for (std::size_t k = 0; k < pyramids.size(); ++k)
-                {
-                    if (k == largest || pv[k] < 1e-3 * vol)
-                        continue;
-                    cells.sub_cells.push_back({i, pv[k], static_cast<index_t>(cells.sub_points.size()), 0});
-                    cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
-                    cells.sub_cells.back().end = static_cast<index_t>(cells.sub_points.size());
-                }
-                VoronoiCells::SubCell joined{i, 0.0, static_cast<index_t>(cells.sub_points.size()), 0};
-                for (std::size_t k = 0; k < pyramids.size(); ++k)
-                    if (k == largest || pv[k] < 1e-3 * vol)
-                    {
-                        joined.volume += pv[k];
-                        cells.sub_points.insert(cells.sub_points.end(), pyramids[k].begin(), pyramids[k].end());
-                    }
-                joined.end = static_cast<index_t>(cells.sub_points.size());
-                if (with_sub_cells)
-                    cells.sub_cells.push_back(joined);
-                cells.volume[0] = vol;
-                setup_progress::advance();
+                build_cell(in, i, cells);
             }
             catch (...)
             {
@@ -579,31 +669,7 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
         }
         if (error)
             std::rethrow_exception(error);
-        VoronoiCells& cells = cells_out; // the join
-        for (index_t i = first; i < last; ++i)
-        {
-            VoronoiCells& part = parts[static_cast<std::size_t>(i - first)];
-            cells.volume[i] = part.volume[0];
-            cells.spacing[i] = part.spacing[0];
-            cells.points.insert(cells.points.end(), part.points.begin(), part.points.end());
-            cells.offsets.push_back(static_cast<index_t>(cells.points.size()));
-            const index_t shift = static_cast<index_t>(cells.sub_points.size());
-            for (VoronoiCells::SubCell sc : part.sub_cells)
-            {
-                sc.begin += shift;
-                sc.end += shift;
-                cells.sub_cells.push_back(sc);
-            }
-            cells.sub_points.insert(cells.sub_points.end(), part.sub_points.begin(), part.sub_points.end());
-            cells.rebuilt_with_all_planes += part.rebuilt_with_all_planes;
-            // emptied, its room kept for the next block's cell: freed, a block's 4 MB of parts
-            // went back to the system and came again as fresh pages, block after block (a
-            // quarter of the 24k-particle column's page zeroing)
-            part.points.clear();
-            part.sub_cells.clear();
-            part.sub_points.clear();
-            part.rebuilt_with_all_planes = 0;
-        }
+        join_parts(cells_out, parts, first, last);
         // after the first block, room for every cell's points at once from its points per cell,
         // with a margin (grown by doubling, the points were copied into fresh pages about ten
         // times: 200 MB of pages touched for the 100 MB of a 24k-particle column). Memory
@@ -618,34 +684,4 @@ VoronoiCells voronoi_cells(const std::vector<real_t>& x, const std::vector<HalfS
     }
     return cells_out;
 }
-void merge_face_points(VoronoiCells& cells)
-{
-    std::vector<CellFacetPoint> points;
-    std::vector<index_t> offsets{0};
-    points.reserve(cells.points.size() / 4);
-    offsets.reserve(cells.offsets.size());
-    for (index_t i = 0; i < cells.size(); ++i)
-    {
-        for (index_t q = cells.offsets[i]; q < cells.offsets[i + 1];)
-        {
-            const index_t r = cells.face_end(i, q);
-            // the triangles' centroids weighted by their areas: the polygon's centroid
-            Vec3 x = Vec3::Zero(), nda = Vec3::Zero();
-            real_t area = 0.0;
-            for (index_t k = q; k < r; ++k)
-            {
-                const real_t a = cells.points[k].nda.norm();
-                x += a * cells.points[k].x;
-                area += a;
-                nda += cells.points[k].nda;
-            }
-            points.push_back({area > 0.0 ? Vec3(x / area) : cells.points[q].x, nda, cells.points[q].neighbour, true});
-            q = r;
-        }
-        offsets.push_back(static_cast<index_t>(points.size()));
-    }
-    cells.points = std::move(points);
-    cells.offsets = std::move(offsets);
-}
-
 } // namespace rkfem

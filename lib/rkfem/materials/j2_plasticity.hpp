@@ -12,7 +12,6 @@
 #include <utility>
 #include <vector>
 
-#include "rkfem/config/deck.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/eos.hpp"
 #include "rkfem/materials/objective_rate.hpp"
@@ -150,41 +149,6 @@ inline real_t j2_update(const J2Params& p, const real_t d[6], const real_t w[3],
         *e += power * dt * std::exp(*ev);
     }
     return dep;
-}
-/// J2 parameters of a deck material (empty curve, i.e. inactive, for model elastic).
-inline J2Params j2_params(const MaterialSpec& m)
-{
-    J2Params p;
-    if (m.model != "j2")
-        return p;
-    const ElasticParams el = ElasticParams::from_E_nu(m.rho, m.E, m.nu);
-    if (!m.curve.empty())
-    {
-        p.elastic = el;
-        p.curve = m.curve;
-        if (p.curve.size() == 1)
-            p.curve.emplace_back(1.0, p.curve[0].second);
-    }
-    else
-        p = J2Params::bilinear(el, m.E, m.sigy, m.etan);
-    p.cs_c = m.cs_c;
-    p.cs_p = m.cs_p;
-    p.fail = m.fail;
-    if (m.eos_type == "linear")
-    {
-        p.eos.kind = Eos::Kind::Linear;
-        p.eos.bulk = el.bulk_modulus();
-    }
-    else if (m.eos_type == "gruneisen")
-    {
-        p.eos.kind = Eos::Kind::Gruneisen;
-        p.eos.rho0 = m.rho;
-        p.eos.c0 = m.eos_c0;
-        p.eos.s = m.eos_s;
-        p.eos.gamma0 = m.eos_gamma0;
-        p.eos.a = m.eos_a;
-    }
-    return p;
 }
 
 } // namespace rkfem

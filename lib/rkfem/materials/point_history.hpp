@@ -7,49 +7,14 @@
 /// per point; the branch on the kind is uniform over a block.
 #include <algorithm>
 #include <cmath>
-#include <initializer_list>
-#include <string_view>
 #include <vector>
 
-#include "rkfem/config/deck.hpp"
 #include "rkfem/materials/cscm_concrete.hpp"
 #include "rkfem/materials/j2_plasticity.hpp"
 #include "rkfem/materials/kcc_concrete.hpp"
 
 namespace rkfem
 {
-/// Sets the named fields a deck material overrides (names the deck reader accepted).
-inline void apply_overrides(const std::vector<std::pair<std::string, real_t>>& overrides,
-                            std::initializer_list<std::pair<std::string_view, real_t*>> fields)
-{
-    for (const auto& [name, v] : overrides)
-        for (const auto& [key, field] : fields)
-            if (name == key)
-                *field = v;
-}
-
-/// The CSCM of a deck material: Murray's fits from f'c, then the deck's overrides by name.
-inline CscmModel cscm_model(const MaterialSpec& m)
-{
-    CscmModel c = CscmModel::from_fc(m.fc, m.rho, m.nu, m.E, m.fracture_energy > 0 ? m.fracture_energy : 0.0);
-    c.rate_effects = m.rate_effects;
-    apply_overrides(m.overrides, {{"alpha", &c.alpha},
-                                  {"theta", &c.theta},
-                                  {"lambda", &c.lambda},
-                                  {"beta", &c.beta},
-                                  {"R", &c.R},
-                                  {"X0", &c.X0},
-                                  {"W", &c.W},
-                                  {"D1", &c.D1},
-                                  {"D2", &c.D2},
-                                  {"B", &c.B},
-                                  {"D", &c.D},
-                                  {"Gfc", &c.Gfc},
-                                  {"length", &c.default_length}});
-    c.finish();
-    return c;
-}
-
 struct PlasticPoints
 {
     enum class Kind
@@ -68,55 +33,23 @@ struct PlasticPoints
     std::vector<CscmState> cscm_state, cscm_trial;
     std::vector<real_t> ev, ev_trial, energy, energy_trial; ///< J2 with an EOS: ln(V/V0), E [J/m^3]
 
-    /// From a deck material (J2 or K&C; None for elastic).
-    void configure(const MaterialSpec& m)
+    /// J2 points with the parameters p.
+    void set_j2(const J2Params& p)
     {
-        if (m.model == "j2")
-        {
-            kind = Kind::J2;
-            params = j2_params(m);
-        }
-        else if (m.model == "kcc")
-        {
-            kind = Kind::Kcc;
-            kcc = KccModel::from_fc(m.fc, m.rho, m.nu, m.E);
-            kcc.rate = m.rate_law;
-            kcc.rate.fc = m.fc;
-            KccParameters& k = kcc.surfaces;
-            apply_overrides(m.overrides, {{"a0", &k.a0},
-                                          {"a1", &k.a1},
-                                          {"a2", &k.a2},
-                                          {"a0y", &k.a0y},
-                                          {"a1y", &k.a1y},
-                                          {"a2y", &k.a2y},
-                                          {"a1f", &k.a1f},
-                                          {"a2f", &k.a2f},
-                                          {"b1", &k.b1},
-                                          {"b2", &k.b2},
-                                          {"b3", &k.b3},
-                                          {"omega", &k.omega},
-                                          {"ft", &k.ft}});
-            if (!m.kcc_eta.empty())
-            {
-                k.eta_table = m.kcc_eta;
-                if (k.eta_table.back().first < 1e10) // the return walks the table to large lambda
-                    k.eta_table.emplace_back(1e10, k.eta_table.back().second);
-            }
-            if (!m.kcc_eos_strain.empty())
-                for (int i = 0; i < 10; ++i)
-                {
-                    kcc.eos_strain[i] = m.kcc_eos_strain[i];
-                    kcc.eos_pressure[i] = m.kcc_eos_pressure[i];
-                    kcc.eos_unload[i] = m.kcc_eos_unload[i];
-                }
-            k.update_derived();
-            kcc.fracture_energy = m.fracture_energy < 0 ? ceb_fracture_energy(m.fc) : m.fracture_energy;
-        }
-        else if (m.model == "cscm")
-        {
-            kind = Kind::Cscm;
-            cscm = cscm_model(m);
-        }
+        kind = Kind::J2;
+        params = p;
+    }
+    /// K&C points of model m.
+    void set_kcc(const KccModel& m)
+    {
+        kind = Kind::Kcc;
+        kcc = m;
+    }
+    /// CSCM points of model m.
+    void set_cscm(const CscmModel& m)
+    {
+        kind = Kind::Cscm;
+        cscm = m;
     }
     bool active() const { return kind != Kind::None; }
     /// Committed 0..1 damage index of point p: J2 the failed flag; K&C D = clamp(delta - 1, 0, 1)

@@ -12,48 +12,12 @@
 #include "rkfem/core/memory_limit.hpp"
 #include "rkfem/core/setup_progress.hpp"
 #include "rkfem/discretization/generators.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/model/material_from_deck.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_step_estimate.hpp"
 
 namespace rkfem
 {
-namespace
-{
-bool matches(const SelectorSpec& s, const Vec3& p, real_t tol)
-{
-    switch (s.type)
-    {
-    case SelectorSpec::Type::Plane:
-        return std::abs((p - s.point).dot(s.normal)) <= tol;
-    case SelectorSpec::Type::Box:
-        return (p.array() >= s.min.array() - tol).all() && (p.array() <= s.max.array() + tol).all();
-    case SelectorSpec::Type::Cylinder:
-    {
-        const Vec3 r = p - s.point;
-        const Vec3 radial = r - r.dot(s.normal) * s.normal;
-        return std::abs(radial.norm() - s.radius) <= tol;
-    }
-    case SelectorSpec::Type::Sphere:
-        return (p - s.point).norm() <= s.radius;
-    case SelectorSpec::Type::Named:
-        return false;
-    }
-    return false;
-}
-
-real_t default_tolerance(const NodeSet& nodes, index_t begin, index_t end)
-{
-    Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
-    for (index_t i = begin; i < end; ++i)
-        for (int d = 0; d < 3; ++d)
-        {
-            lo[d] = std::min(lo[d], nodes.x0[3 * i + d]);
-            hi[d] = std::max(hi[d], nodes.x0[3 * i + d]);
-        }
-    return 1e-6 * (hi - lo).norm();
-}
-} // namespace
-
 index_t Model::n_elements() const
 {
     index_t n = 0;
@@ -235,6 +199,241 @@ std::string PartInfo::node_name(index_t i) const
            " in results.h5)";
 }
 
+/// The nodes, output mesh and blocks of part ip (its nodes from `offset` on, its elements from
+/// `elem_offset` on); advances both past the part.
+void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, index_t& elem_offset)
+{
+    const PartSpec& ps = deck_.parts[ip];
+    PartInfo info;
+    info.name = ps.name;
+    info.node_begin = offset;
+    info.node_end = offset + mesh.n_nodes();
+    info.element_offset = elem_offset;
+    for (index_t i = 0; i < mesh.n_nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+        {
+            const std::size_t g = 3 * static_cast<std::size_t>(offset + i) + k;
+            nodes.x0[g] = nodes.x[g] = mesh.x[3 * i + k];
+            nodes.v[g] = ps.initial_velocity[k];
+        }
+    for (index_t i = info.node_begin; i < info.node_end; ++i)
+        nodes.part[i] = static_cast<index_t>(ip);
+    for (const auto& f : mesh.faces)
+        info.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset, f[3] + offset});
+    info.named_faces = mesh.named_faces;
+    info.element_ids = mesh.element_ids;
+    info.node_ids = mesh.node_ids;
+    for (const auto& [name, ids] : mesh.named_nodes)
+        for (index_t i : ids)
+            info.named_nodes[name].push_back(i + offset);
+
+    HexBlock blk;
+    blk.part = static_cast<index_t>(ip);
+    blk.formulation = ps.formulation;
+    blk.hourglass = ps.hourglass;
+    blk.bulk_viscosity = ps.bulk_viscosity;
+    blk.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
+    blk.mesh_only = is_nodal(ps.formulation) || ps.coupled();
+    if (!blk.mesh_only)
+        configure_points(blk.plastic, ps.material);
+    blk.conn = mesh.conn;
+    for (auto& c : blk.conn)
+        c += offset;
+    blk.node_begin = info.node_begin;
+    blk.node_end = info.node_end;
+    blk.initialize(nodes);
+    if (!blk.mesh_only)
+    {
+        // crack-band length per point: the element's V^(1/3)
+        std::vector<real_t> h(static_cast<std::size_t>(blk.n_points()));
+        for (index_t q = 0; q < blk.n_points(); ++q)
+            h[q] = std::cbrt(blk.volume0[q / blk.points_per_element()]);
+        blk.plastic.set_lengths(h);
+    }
+    part_nodal.push_back(-1);
+    part_fe_side.push_back(-1);
+    rk_elements_.push_back(ps.coupled() ? rk_region_elements(ps, mesh) : std::vector<char>{});
+    if (is_nodal(ps.formulation) || ps.coupled())
+        build_nodal_part(ps, ip, mesh, offset, blk);
+    for (index_t e = 0; e < blk.n_elements(); ++e)
+        if (!(blk.volume0[e] > 0.0))
+            throw DeckError({ps.generator.loc.where, ps.loc.path + ".generator"},
+                            "element " + std::to_string(e) + " has non-positive volume " +
+                                std::to_string(blk.volume0[e]) + " m^3",
+                            "expected a generator that makes valid (positive-volume) hexahedra");
+    if (!is_nodal(ps.formulation) && !ps.coupled())
+        add_lumped_mass(blk, nodes);
+    elem_offset += blk.n_elements();
+    offset = info.node_end;
+    blocks.push_back(std::move(blk));
+    parts.push_back(std::move(info));
+}
+
+/// The nodal block of a nodal or coupled part (its FE side too, fem-1pt), mass and step factor.
+void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset,
+                             const HexBlock& blk)
+{
+    NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(ps, mesh, offset)
+                    : ps.coupled()                                  ? build_coupled_block(ps, mesh, offset)
+                                                                    : build_nodal_block(ps, mesh, offset);
+    nb.part = static_cast<index_t>(ip);
+    add_nodal_mass(nb, nodes);
+    if (!ps.coupled() && !nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk))
+        measure_step_factor(ps, nb, *this);
+    // RK regions of coupled parts and those a conversion makes are not measured
+    if ((ps.coupled() || ps.conversion.active()) && !nodal_step_calibrated(Formulation::Rkpm, ps.nodal, ps.rk) &&
+        ps.nodal.dt_factor == 0.0)
+        setup_notes.push_back(ps.loc.path +
+                              ".nodal_integration.dt_factor: the default, which is calibrated for the default RK "
+                              "functions and stabilization only; the step of a coupled part's or a conversion's "
+                              "RK region is not measured (set dt_factor below the default if the run goes "
+                              "unstable)");
+    part_nodal.back() = static_cast<index_t>(nodal_blocks.size());
+    if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
+        build_fe_side(ps, mesh, blk, nb);
+    nodal_blocks.push_back(std::move(nb));
+}
+
+/// The FE elements of a coupled part with a fem-1pt FE side: a 1-point block of their own (the
+/// part's block only holds the mesh for output).
+void Model::build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb)
+{
+    FeSide side;
+    side.local.assign(static_cast<std::size_t>(mesh.n_elements()), -1);
+    HexBlock& fb = side.block;
+    fb.part = blk.part;
+    fb.formulation = Formulation::Fem1pt;
+    fb.hourglass = ps.hourglass;
+    fb.bulk_viscosity = ps.bulk_viscosity;
+    fb.material = blk.material;
+    configure_points(fb.plastic, ps.material);
+    fb.node_begin = blk.node_begin;
+    fb.node_end = blk.node_end;
+    for (index_t e = 0; e < mesh.n_elements(); ++e)
+        if (nb.fe_element[e])
+        {
+            side.local[e] = fb.n_elements();
+            fb.conn.insert(fb.conn.end(), blk.conn.begin() + 8 * static_cast<std::ptrdiff_t>(e),
+                           blk.conn.begin() + 8 * static_cast<std::ptrdiff_t>(e + 1));
+        }
+    fb.initialize(nodes);
+    std::vector<real_t> h(static_cast<std::size_t>(fb.n_points()));
+    for (index_t q = 0; q < fb.n_points(); ++q)
+        h[q] = std::cbrt(fb.volume0[q]);
+    fb.plastic.set_lengths(h);
+    add_lumped_mass(fb, nodes);
+    part_fe_side.back() = static_cast<index_t>(fe_sides.size());
+    fe_sides.push_back(std::move(side));
+}
+
+/// Boundary conditions per dof (later entries override earlier ones) and the loads' sets.
+void Model::build_conditions_and_loads()
+{
+    std::map<index_t, std::size_t> dof_slot;
+    for (index_t bi = 0; bi < static_cast<index_t>(deck_.boundary_conditions.size()); ++bi)
+    {
+        const auto& b = deck_.boundary_conditions[bi];
+        for (index_t n : node_sets.at(b.node_set))
+            for (int k = 0; k < 3; ++k)
+                if (b.active[k])
+                {
+                    const DofCondition c{3 * n + k, b.kind, &b.value[k], bi};
+                    auto it = dof_slot.find(c.dof);
+                    if (it == dof_slot.end())
+                    {
+                        dof_slot[c.dof] = conditions.size();
+                        conditions.push_back(c);
+                    }
+                    else
+                        conditions[it->second] = c;
+                }
+    }
+    for (const auto& l : deck_.loads)
+    {
+        if (l.kind == LoadSpec::Kind::NodalForce)
+            nodal_loads_.push_back({&l, node_sets.at(l.set)});
+        else
+            pressure_loads_.push_back({&l, &face_sets.at(l.set)});
+    }
+}
+
+/// The kinematic map from the RK rows of every nodal block, moved out of the blocks (they served
+/// the build only).
+void Model::build_kinematic_map()
+{
+    kinematics.reset(nodes.size());
+    for (NodalBlock& nb : nodal_blocks)
+    {
+        if (nb.interp_offsets.empty())
+            continue;
+        const std::vector<char> all(static_cast<std::size_t>(nb.node_end - nb.node_begin), 1);
+        kinematics.set_rows(nb.node_begin, nb.node_end, nb.interp_offsets, nb.interp_nodes, nb.interp_values,
+                            nb.particle.empty() ? &all : &nb.particle);
+        std::vector<index_t>().swap(nb.interp_offsets);
+        std::vector<index_t>().swap(nb.interp_nodes);
+        std::vector<real_t>().swap(nb.interp_values);
+    }
+}
+
+/// Consistent pressure distribution on rkpm faces (Psi_I at 2x2 Gauss points of each face) and
+/// on cloud parts' facet points.
+void Model::build_rk_face_loads()
+{
+    for (const auto& [load, faces] : pressure_loads_)
+    {
+        RkFaceLoads rl;
+        rl.point_offsets.assign(1, 0);
+        RkSample smp;
+        for (const Quad& q : *faces)
+        {
+            const index_t ip = nodes.part[q[0]];
+            // faces of coupled parts: lumped at the corners like FE faces, each corner's force
+            // at its physical point, spread to the coefficients through the kinematic map
+            const bool is_rk = deck_.parts[ip].formulation == Formulation::Rkpm;
+            rl.is_rk.push_back(is_rk);
+            if (!is_rk)
+            {
+                for (int gp = 0; gp < 4; ++gp)
+                    rl.point_offsets.push_back(rl.point_offsets.back());
+                continue;
+            }
+            const RkShapeFunctions& rk = *nodal_blocks[part_nodal[ip]].rk; // local numbering
+            const real_t g = 1.0 / std::sqrt(3.0);
+            Vec3 xc[4];
+            for (int c = 0; c < 4; ++c)
+                xc[c] = Vec3(nodes.x0[3 * q[c]], nodes.x0[3 * q[c] + 1], nodes.x0[3 * q[c] + 2]);
+            for (int gp = 0; gp < 4; ++gp)
+            {
+                const real_t r = gp % 2 ? g : -g, s = gp / 2 ? g : -g;
+                const Vec3 X = 0.25 * ((1 - r) * (1 - s) * xc[0] + (1 + r) * (1 - s) * xc[1] +
+                                       (1 + r) * (1 + s) * xc[2] + (1 - r) * (1 + s) * xc[3]);
+                rk.evaluate(X, false, smp);
+                for (index_t k = 0; k < smp.size(); ++k)
+                {
+                    rl.nodes.push_back(smp.nodes[k] + parts[ip].node_begin);
+                    rl.psi.push_back(smp.psi[k]);
+                }
+                rl.point_offsets.push_back(static_cast<index_t>(rl.nodes.size()));
+            }
+        }
+        rk_face_loads_.push_back(std::move(rl));
+        CloudFaceLoads cl;
+        for (const CloudFacet& cf : cloud_face_sets.at(load->set))
+        {
+            nodal_blocks[part_nodal[cf.part]].rk->evaluate(cf.x, true, smp);
+            for (index_t k = 0; k < smp.size(); ++k)
+            {
+                cl.nodes.push_back(smp.nodes[k] + parts[cf.part].node_begin);
+                cl.psi.push_back(smp.psi[k]);
+                cl.grad.push_back(smp.grad[k]);
+            }
+            cl.offsets.push_back(static_cast<index_t>(cl.nodes.size()));
+            cl.nda.push_back(cf.nda);
+        }
+        cloud_face_loads_.push_back(std::move(cl));
+    }
+}
+
 Model Model::build(const Deck& deck)
 {
     check_size(deck);
@@ -253,400 +452,15 @@ Model Model::build(const Deck& deck)
     m.nodes.resize(n_nodes);
     index_t offset = 0, elem_offset = 0;
     for (std::size_t ip = 0; ip < d.parts.size(); ++ip)
-    {
-        const PartSpec& ps = d.parts[ip];
-        const HexMesh& mesh = meshes[ip];
-        PartInfo info;
-        info.name = ps.name;
-        info.node_begin = offset;
-        info.node_end = offset + mesh.n_nodes();
-        info.element_offset = elem_offset;
-        for (index_t i = 0; i < mesh.n_nodes(); ++i)
-            for (int k = 0; k < 3; ++k)
-            {
-                const std::size_t g = 3 * static_cast<std::size_t>(offset + i) + k;
-                m.nodes.x0[g] = m.nodes.x[g] = mesh.x[3 * i + k];
-                m.nodes.v[g] = ps.initial_velocity[k];
-            }
-        for (index_t i = info.node_begin; i < info.node_end; ++i)
-            m.nodes.part[i] = static_cast<index_t>(ip);
-        for (const auto& f : mesh.faces)
-            info.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset, f[3] + offset});
-        info.named_faces = mesh.named_faces;
-        info.element_ids = mesh.element_ids;
-        info.node_ids = mesh.node_ids;
-        for (const auto& [name, ids] : mesh.named_nodes)
-            for (index_t i : ids)
-                info.named_nodes[name].push_back(i + offset);
-
-        HexBlock blk;
-        blk.part = static_cast<index_t>(ip);
-        blk.formulation = ps.formulation;
-        blk.hourglass = ps.hourglass;
-        blk.bulk_viscosity = ps.bulk_viscosity;
-        blk.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
-        blk.mesh_only = is_nodal(ps.formulation) || ps.coupled();
-        if (!blk.mesh_only)
-            blk.plastic.configure(ps.material);
-        blk.conn = mesh.conn;
-        for (auto& c : blk.conn)
-            c += offset;
-        blk.node_begin = info.node_begin;
-        blk.node_end = info.node_end;
-        blk.initialize(m.nodes);
-        if (!blk.mesh_only)
-        {
-            // crack-band length per point: the element's V^(1/3)
-            std::vector<real_t> h(static_cast<std::size_t>(blk.n_points()));
-            for (index_t q = 0; q < blk.n_points(); ++q)
-                h[q] = std::cbrt(blk.volume0[q / blk.points_per_element()]);
-            blk.plastic.set_lengths(h);
-        }
-        m.part_nodal.push_back(-1);
-        m.part_fe_side.push_back(-1);
-        m.rk_elements_.push_back(ps.coupled() ? rk_region_elements(ps, mesh) : std::vector<char>{});
-        if (is_nodal(ps.formulation) || ps.coupled())
-        {
-            NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(ps, mesh, offset)
-                            : ps.coupled()                                  ? build_coupled_block(ps, mesh, offset)
-                                                                            : build_nodal_block(ps, mesh, offset);
-            nb.part = static_cast<index_t>(ip);
-            add_nodal_mass(nb, m.nodes);
-            if (!ps.coupled() && !nodal_step_calibrated(ps))
-                measure_step_factor(ps, nb, m);
-            // RK regions of coupled parts and those a conversion makes are not measured
-            if ((ps.coupled() || ps.conversion.active()) &&
-                !nodal_step_calibrated(Formulation::Rkpm, ps.nodal, ps.rk) && ps.nodal.dt_factor == 0.0)
-                m.setup_notes.push_back(
-                    ps.loc.path + ".nodal_integration.dt_factor: the default, which is calibrated for the default RK "
-                                  "functions and stabilization only; the step of a coupled part's or a conversion's "
-                                  "RK region is not measured (set dt_factor below the default if the run goes "
-                                  "unstable)");
-            m.part_nodal.back() = static_cast<index_t>(m.nodal_blocks.size());
-            if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
-            {
-                // the FE elements of a coupled part with a fem-1pt FE side: a 1-point block of
-                // their own (the part's block above only holds the mesh for output)
-                FeSide side;
-                side.local.assign(static_cast<std::size_t>(mesh.n_elements()), -1);
-                HexBlock& fb = side.block;
-                fb.part = blk.part;
-                fb.formulation = Formulation::Fem1pt;
-                fb.hourglass = ps.hourglass;
-                fb.bulk_viscosity = ps.bulk_viscosity;
-                fb.material = blk.material;
-                fb.plastic.configure(ps.material);
-                fb.node_begin = blk.node_begin;
-                fb.node_end = blk.node_end;
-                for (index_t e = 0; e < mesh.n_elements(); ++e)
-                    if (nb.fe_element[e])
-                    {
-                        side.local[e] = fb.n_elements();
-                        fb.conn.insert(fb.conn.end(), blk.conn.begin() + 8 * static_cast<std::ptrdiff_t>(e),
-                                       blk.conn.begin() + 8 * static_cast<std::ptrdiff_t>(e + 1));
-                    }
-                fb.initialize(m.nodes);
-                std::vector<real_t> h(static_cast<std::size_t>(fb.n_points()));
-                for (index_t q = 0; q < fb.n_points(); ++q)
-                    h[q] = std::cbrt(fb.volume0[q]);
-                fb.plastic.set_lengths(h);
-                add_lumped_mass(fb, m.nodes);
-                m.part_fe_side.back() = static_cast<index_t>(m.fe_sides.size());
-                m.fe_sides.push_back(std::move(side));
-            }
-            m.nodal_blocks.push_back(std::move(nb));
-        }
-        for (index_t e = 0; e < blk.n_elements(); ++e)
-            if (!(blk.volume0[e] > 0.0))
-                throw DeckError({ps.generator.loc.where, ps.loc.path + ".generator"},
-                                "element " + std::to_string(e) + " has non-positive volume " +
-                                    std::to_string(blk.volume0[e]) + " m^3",
-                                "expected a generator that makes valid (positive-volume) hexahedra");
-        if (!is_nodal(ps.formulation) && !ps.coupled())
-            add_lumped_mass(blk, m.nodes);
-        elem_offset += blk.n_elements();
-        offset = info.node_end;
-        m.blocks.push_back(std::move(blk));
-        m.parts.push_back(std::move(info));
-    }
-
-    auto part_range = [&](const std::string& name)
-    {
-        std::vector<index_t> ids;
-        for (index_t ip = 0; ip < static_cast<index_t>(m.parts.size()); ++ip)
-            if (name.empty() || m.parts[ip].name == name)
-                ids.push_back(ip);
-        return ids;
-    };
-
-    // node sets
-    for (const auto& s : d.node_sets)
-    {
-        std::vector<index_t> ids;
-        for (index_t ip : part_range(s.part))
-        {
-            const PartInfo& pi = m.parts[ip];
-            if (s.select.type == SelectorSpec::Type::Named)
-            {
-                if (s.select.name == "all")
-                {
-                    for (index_t i = pi.node_begin; i < pi.node_end; ++i)
-                        ids.push_back(i);
-                    continue;
-                }
-                if (auto nit = pi.named_nodes.find(s.select.name); nit != pi.named_nodes.end())
-                {
-                    ids.insert(ids.end(), nit->second.begin(), nit->second.end());
-                    continue;
-                }
-                auto it = pi.named_faces.find(s.select.name);
-                if (it == pi.named_faces.end())
-                {
-                    std::string names = "all";
-                    for (const auto& [n, _] : pi.named_faces)
-                        names += ", " + n;
-                    for (const auto& [n, _] : pi.named_nodes)
-                        names += ", " + n;
-                    throw DeckError({s.loc.where, s.loc.path + ".select.name"},
-                                    "part '" + pi.name + "' has no set named '" + s.select.name + "'",
-                                    "expected one of " + names);
-                }
-                for (index_t f : it->second)
-                    for (index_t n : pi.faces[f])
-                        ids.push_back(n);
-            }
-            else
-            {
-                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
-                                                           : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
-                for (index_t i = pi.node_begin; i < pi.node_end; ++i)
-                    if (matches(s.select, Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]), tol))
-                        ids.push_back(i);
-            }
-        }
-        std::sort(ids.begin(), ids.end());
-        ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
-        if (ids.empty())
-            throw DeckError({s.loc.where, s.loc.path + ".select"}, "selects no node",
-                            "expected a selector that matches at least one node of " +
-                                (s.part.empty() ? std::string("any part") : "part '" + s.part + "'"));
-        m.node_sets[s.name] = std::move(ids);
-    }
-    // face sets
-    for (const auto& s : d.face_sets)
-    {
-        std::vector<Quad> faces;
-        std::vector<CloudFacet> facets;
-        for (index_t ip : part_range(s.part))
-        {
-            const PartInfo& pi = m.parts[ip];
-            if (m.is_cloud(ip))
-            {
-                // the boundary facet points of the Voronoi cells: by the box face they lie on
-                // (named) or by the selector applied to the point
-                static const std::map<std::string, Vec3> normals = {{"xmin", -Vec3::UnitX()},   {"xmax", Vec3::UnitX()},
-                                                                    {"ymin", -Vec3::UnitY()},   {"ymax", Vec3::UnitY()},
-                                                                    {"zmin", -Vec3::UnitZ()},   {"zmax", Vec3::UnitZ()},
-                                                                    {"bottom", -Vec3::UnitZ()}, {"top", Vec3::UnitZ()}};
-                const bool named = s.select.type == SelectorSpec::Type::Named;
-                const bool cylinder = d.parts[ip].generator.body == GeneratorSpec::Body::Cylinder;
-                if (named && s.select.name != "side" &&
-                    (!normals.count(s.select.name) ||
-                     (cylinder && s.select.name != "top" && s.select.name != "bottom")))
-                    throw DeckError({s.loc.where, s.loc.path + ".select.name"},
-                                    "cloud part '" + pi.name + "' has no face set named '" + s.select.name + "'",
-                                    cylinder ? "expected one of top, bottom, side (a cylinder body)"
-                                             : "expected one of xmin, xmax, ymin, ymax, zmin, zmax, top, bottom, side");
-                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
-                                                           : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
-                for (const CellFacetPoint& fp : m.nodal_blocks[m.part_nodal[ip]].boundary_facets)
-                {
-                    const Vec3 n = fp.nda.normalized();
-                    const bool take = !named                    ? matches(s.select, fp.x, tol)
-                                      : s.select.name == "side" ? std::abs(n[2]) < 1e-9
-                                                                : n.dot(normals.at(s.select.name)) > 1.0 - 1e-9;
-                    if (take)
-                        facets.push_back({ip, fp.x, fp.nda});
-                }
-                continue;
-            }
-            if (s.select.type == SelectorSpec::Type::Named)
-            {
-                auto it = pi.named_faces.find(s.select.name);
-                if (it == pi.named_faces.end())
-                {
-                    std::string names;
-                    for (const auto& [n, _] : pi.named_faces)
-                        names += (names.empty() ? "" : ", ") + n;
-                    throw DeckError({s.loc.where, s.loc.path + ".select.name"},
-                                    "part '" + pi.name + "' has no face set named '" + s.select.name + "'",
-                                    "expected one of " + names);
-                }
-                for (index_t f : it->second)
-                    faces.push_back(pi.faces[f]);
-            }
-            else
-            {
-                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
-                                                           : default_tolerance(m.nodes, pi.node_begin, pi.node_end);
-                for (const auto& f : pi.faces)
-                {
-                    bool all = true;
-                    for (index_t n : f)
-                        all =
-                            all && matches(s.select,
-                                           Vec3(m.nodes.x0[3 * n], m.nodes.x0[3 * n + 1], m.nodes.x0[3 * n + 2]), tol);
-                    if (all)
-                        faces.push_back(f);
-                }
-            }
-        }
-        if (faces.empty() && facets.empty())
-            throw DeckError({s.loc.where, s.loc.path + ".select"}, "selects no boundary face",
-                            "expected a selector that matches all four nodes of at least one boundary face "
-                            "(on cloud parts: a point of the cells' boundary facets)");
-        m.face_sets[s.name] = std::move(faces);
-        m.cloud_face_sets[s.name] = std::move(facets);
-    }
-    // boundary conditions (later entries override earlier ones on the same dof)
-    std::map<index_t, std::size_t> dof_slot;
-    for (index_t bi = 0; bi < static_cast<index_t>(d.boundary_conditions.size()); ++bi)
-    {
-        const auto& b = d.boundary_conditions[bi];
-        for (index_t n : m.node_sets.at(b.node_set))
-            for (int k = 0; k < 3; ++k)
-                if (b.active[k])
-                {
-                    const DofCondition c{3 * n + k, b.kind, &b.value[k], bi};
-                    auto it = dof_slot.find(c.dof);
-                    if (it == dof_slot.end())
-                    {
-                        dof_slot[c.dof] = m.conditions.size();
-                        m.conditions.push_back(c);
-                    }
-                    else
-                        m.conditions[it->second] = c;
-                }
-    }
-    for (const auto& l : d.loads)
-    {
-        if (l.kind == LoadSpec::Kind::NodalForce)
-            m.nodal_loads_.push_back({&l, m.node_sets.at(l.set)});
-        else
-            m.pressure_loads_.push_back({&l, &m.face_sets.at(l.set)});
-    }
-    // probes: nearest node
-    for (const auto& p : d.probes)
-    {
-        index_t best = -1;
-        real_t best_d = kNoLimit;
-        for (index_t ip : part_range(p.part))
-            for (index_t i = m.parts[ip].node_begin; i < m.parts[ip].node_end; ++i)
-            {
-                const real_t dd =
-                    (Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - p.point).squaredNorm();
-                if (dd < best_d)
-                {
-                    best_d = dd;
-                    best = i;
-                }
-            }
-        if (best < 0)
-            throw DeckError({p.loc.where, p.loc.path + ".part"}, "unknown part '" + p.part + "'",
-                            "expected the name of a part");
-        m.probe_nodes.push_back(best);
-    }
-    // sections: the nodes on the positive side of each plane
-    for (const auto& sc : d.sections)
-    {
-        std::vector<index_t> side;
-        bool known = sc.part.empty();
-        for (index_t ip : part_range(sc.part))
-        {
-            known = true;
-            const real_t tol = sc.tolerance >= 0
-                                   ? sc.tolerance
-                                   : default_tolerance(m.nodes, m.parts[ip].node_begin, m.parts[ip].node_end);
-            for (index_t i = m.parts[ip].node_begin; i < m.parts[ip].node_end; ++i)
-                if ((Vec3(m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]) - sc.point).dot(sc.normal) >=
-                    -tol)
-                    side.push_back(i);
-        }
-        if (!known)
-            throw DeckError({sc.loc.where, sc.loc.path + ".part"}, "unknown part '" + sc.part + "'",
-                            "expected the name of a part");
-        m.section_nodes.push_back(std::move(side));
-    }
-    // the kinematic map: the RK rows of every nodal block, moved out of the block (it served
-    // the build only)
-    m.kinematics.reset(m.nodes.size());
-    for (NodalBlock& nb : m.nodal_blocks)
-    {
-        if (nb.interp_offsets.empty())
-            continue;
-        const std::vector<char> all(static_cast<std::size_t>(nb.node_end - nb.node_begin), 1);
-        m.kinematics.set_rows(nb.node_begin, nb.node_end, nb.interp_offsets, nb.interp_nodes, nb.interp_values,
-                              nb.particle.empty() ? &all : &nb.particle);
-        std::vector<index_t>().swap(nb.interp_offsets);
-        std::vector<index_t>().swap(nb.interp_nodes);
-        std::vector<real_t>().swap(nb.interp_values);
-    }
+        m.build_part(ip, meshes[ip], offset, elem_offset);
+    m.build_node_sets();
+    m.build_face_sets();
+    m.build_conditions_and_loads();
+    m.build_probes_and_sections();
+    m.build_kinematic_map();
     m.contact.set_map(&m.kinematics);
     m.build_rk_constraints();
-    // consistent pressure distribution on rkpm faces: Psi_I at 2x2 Gauss points of each face
-    for (const auto& [load, faces] : m.pressure_loads_)
-    {
-        RkFaceLoads rl;
-        rl.point_offsets.assign(1, 0);
-        RkSample smp;
-        for (const Quad& q : *faces)
-        {
-            const index_t ip = m.nodes.part[q[0]];
-            // faces of coupled parts: lumped at the corners like FE faces, each corner's force
-            // at its physical point, spread to the coefficients through the kinematic map
-            const bool is_rk = d.parts[ip].formulation == Formulation::Rkpm;
-            rl.is_rk.push_back(is_rk);
-            if (!is_rk)
-            {
-                for (int gp = 0; gp < 4; ++gp)
-                    rl.point_offsets.push_back(rl.point_offsets.back());
-                continue;
-            }
-            const RkShapeFunctions& rk = *m.nodal_blocks[m.part_nodal[ip]].rk; // local numbering
-            const real_t g = 1.0 / std::sqrt(3.0);
-            Vec3 xc[4];
-            for (int c = 0; c < 4; ++c)
-                xc[c] = Vec3(m.nodes.x0[3 * q[c]], m.nodes.x0[3 * q[c] + 1], m.nodes.x0[3 * q[c] + 2]);
-            for (int gp = 0; gp < 4; ++gp)
-            {
-                const real_t r = gp % 2 ? g : -g, s = gp / 2 ? g : -g;
-                const Vec3 X = 0.25 * ((1 - r) * (1 - s) * xc[0] + (1 + r) * (1 - s) * xc[1] +
-                                       (1 + r) * (1 + s) * xc[2] + (1 - r) * (1 + s) * xc[3]);
-                rk.evaluate(X, false, smp);
-                for (index_t k = 0; k < smp.size(); ++k)
-                {
-                    rl.nodes.push_back(smp.nodes[k] + m.parts[ip].node_begin);
-                    rl.psi.push_back(smp.psi[k]);
-                }
-                rl.point_offsets.push_back(static_cast<index_t>(rl.nodes.size()));
-            }
-        }
-        m.rk_face_loads_.push_back(std::move(rl));
-        CloudFaceLoads cl;
-        for (const CloudFacet& cf : m.cloud_face_sets.at(load->set))
-        {
-            m.nodal_blocks[m.part_nodal[cf.part]].rk->evaluate(cf.x, true, smp);
-            for (index_t k = 0; k < smp.size(); ++k)
-            {
-                cl.nodes.push_back(smp.nodes[k] + m.parts[cf.part].node_begin);
-                cl.psi.push_back(smp.psi[k]);
-                cl.grad.push_back(smp.grad[k]);
-            }
-            cl.offsets.push_back(static_cast<index_t>(cl.nodes.size()));
-            cl.nda.push_back(cf.nda);
-        }
-        m.cloud_face_loads_.push_back(std::move(cl));
-    }
+    m.build_rk_face_loads();
     m.collect_loaded_dofs();
     m.plan_conditions();
     m.reaction_prev_.assign(m.conditions.size(), 0.0);

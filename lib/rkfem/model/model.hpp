@@ -23,6 +23,7 @@
 #include "rkfem/operators/hex_block.hpp"
 #include "rkfem/operators/nodal_block.hpp"
 #include "rkfem/time/explicit_operator.hpp"
+#include "rkfem/time/stepper.hpp"
 
 namespace rkfem
 {
@@ -244,6 +245,11 @@ class Model final : public ExplicitOperator
     /// The model's own events after an accepted step (erosion and conversion by the parts'
     /// criteria); true when the discretization changed.
     bool apply_events(real_t t, std::int64_t step);
+    /// After an event changed the discretization at the end of a step dt: the stepper starts
+    /// again from this state; the kinetic energy the prescribed velocities' new map imposes is
+    /// booked as external work, and what the new accelerations change in the leapfrog kinetic
+    /// energy is booked by the ledger (Energies::book_event). Returns the new stable step.
+    real_t restart_after_event(TimeStepper& stepper, real_t t, real_t dt);
     /// Does element e of a block meet the criteria (committed point values, current shape)?
     bool meets(const ElementCriteria& c, index_t block, index_t e) const;
     index_t eroded_elements() const { return eroded_elements_; }
@@ -297,6 +303,17 @@ class Model final : public ExplicitOperator
 
   private:
     Deck deck_;
+    // Model::build's steps, in order (model.cpp, model_sets.cpp)
+    void build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, index_t& elem_offset);
+    void build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset, const HexBlock& blk);
+    void build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb);
+    std::vector<index_t> parts_named(const std::string& name) const;
+    void build_node_sets();
+    void build_face_sets();
+    void build_conditions_and_loads();
+    void build_probes_and_sections();
+    void build_kinematic_map();
+    void build_rk_face_loads();
     int topology_version_ = 0;
     index_t eroded_elements_ = 0;
     index_t converted_elements_ = 0;
@@ -322,6 +339,7 @@ class Model final : public ExplicitOperator
     };
     std::vector<PlannedBlock> force_blocks_;
     std::vector<char> event_flags_; ///< apply_events' per-element flags (conversion, erosion), reused
+    std::vector<real_t> event_a_;   ///< restart_after_event's accelerations before the event, reused
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();

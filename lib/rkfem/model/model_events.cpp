@@ -294,4 +294,16 @@ void Model::plan_assembly()
         else
             shared_node_ranges_.push_back(r);
 }
+
+real_t Model::restart_after_event(TimeStepper& stepper, real_t t, real_t dt)
+{
+    event_a_ = nodes.a;
+    const real_t kinetic = energy.kinetic;
+    const StepReport rep = stepper.initialize(*this, t);
+    // prescribed velocities imposed again through a new kinematic map (a conversion made
+    // constrained nodes particles): the supports did that work
+    energy.external_work += energy.kinetic - kinetic;
+    energy.book_event(nodes, event_a_, dt);
+    return rep.dt_stable;
+}
 } // namespace rkfem

@@ -12,6 +12,13 @@
 
 namespace rkfem
 {
+/// The bulk viscosity coefficients of a part (deck key `bulk_viscosity`).
+struct BulkViscositySpec
+{
+    real_t linear = 0.06;   ///< Q2 (LS-DYNA), multiplies rho c l |tr D|
+    real_t quadratic = 1.5; ///< Q1 (LS-DYNA), multiplies rho l^2 (tr D)^2
+};
+
 /// Bulk viscosity pressure (LS-DYNA form): q = rho l (Q1 l trD^2 - Q2 c trD) when trD < 0.
 template <class T> inline T bulk_q(T rho, real_t c, T l, T trd, real_t q1, real_t q2)
 {

@@ -4,7 +4,10 @@
 /// (loads, prescribed motion) and through contact, and the initial energies the balance is
 /// measured from. The ledger starts once, at the first start of a stepper; a stepper started
 /// again (after an event that changed the discretization, or any re-initialisation) continues it.
+#include <vector>
+
 #include "rkfem/core/types.hpp"
+#include "rkfem/discretization/node_set.hpp"
 
 namespace rkfem
 {
@@ -24,7 +27,7 @@ struct Energies
     real_t contact = 0.0;
     /// Energy events took out of the mechanical system (erosion): at each event, the change of
     /// the leapfrog-consistent kinetic energy that the new accelerations make, with no work
-    /// term behind it (the removed elements' last half impulse, book_event_energy).
+    /// term behind it (the removed elements' last half impulse, book_event).
     real_t eroded = 0.0;
     real_t kinetic0 = 0.0, internal0 = 0.0; ///< leapfrog-consistent kinetic energy at t = 0
 
@@ -49,6 +52,14 @@ struct Energies
         started_ = true;
     }
     bool started() const { return started_; }
+
+    /// After an event that changed the forces at t(n+1) (accelerations a_old before, n.a after
+    /// the stepper started again): the leapfrog-consistent kinetic energy 1/2 m v(n+1/2).v(n+3/2)
+    /// now takes a_new where the ledger booked a_old, a change no work term accounts for. Books
+    /// -1/2 sum m v(n+1/2) . (dt/2)(a_new - a_old) into `eroded`, v(n+1/2) = v - dt/2 a_old, dt
+    /// the step that ended at the event; and sets the leapfrog correction of the kinetic energy
+    /// from a_new (the restart measured it without one).
+    void book_event(const NodeSet& n, const std::vector<real_t>& a_old, real_t dt);
 
   private:
     bool started_ = false;

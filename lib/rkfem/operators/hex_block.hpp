@@ -13,11 +13,13 @@
 
 #include "rkfem/core/huge_pages.hpp"
 
-#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/formulation.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/point_history.hpp"
-#include "rkfem/operators/chunked_scatter.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/hourglass.hpp"
+#include "rkfem/operators/kernels/chunked_scatter.hpp"
 
 namespace rkfem
 {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <immintrin.h>
 #include <memory>
 
 #include "rkfem/core/error.hpp"
@@ -81,56 +80,49 @@ void NodalBlock::expand_operators()
     points_in_table = stab_in_table = stab_in_triplets = false;
 }
 
-void NodalBlock::build_tables(Assembly assembly)
+namespace
 {
-    // NSNI held as triplets alone (build_nsni_triplets, or an earlier build of a compact block)
-    // stays so: the triplets are already shared, and the sub-point entries are formed only if
-    // the gather assembly below needs them
-    const bool held_as_triplets = stab_in_triplets && stabilization_triplets && options.compact_operators;
-    // the stress points held in shared stencils from the start (build_scni_rk's rows straight
-    // into the table) stay so too: the table is the one share_stencils would find
-    const bool points_held =
-        points_in_table && options.compact_operators && options.share_stencils && !point_stencils.empty();
-    stab_in_triplets = stab_in_triplets && !held_as_triplets;
-    points_in_table = points_in_table && !points_held;
-    expand_operators();
-    stab_in_triplets = held_as_triplets;
-    points_in_table = points_held;
-    const index_t np = n_points(), ns = n_stab();
-    const index_t nn = node_end - node_begin;
-
-    if (stabilization_triplets && held_as_triplets)
-        RKFEM_REQUIRE(ns == 3 * np && stab_triplets.point_triplet.size() == static_cast<std::size_t>(np),
-                      "nodal block: " << ns << " NSNI sub-points and " << stab_triplets.point_triplet.size()
+/// NSNI's layout (build_nsni_stabilization): sub-points 3 p + i of parent p, with one node list;
+/// held as triplets alone, one triplet per point.
+void check_nsni_layout(const NodalBlock& b, bool held_as_triplets)
+{
+    const index_t np = b.n_points(), ns = b.n_stab();
+    if (b.stabilization_triplets && held_as_triplets)
+        RKFEM_REQUIRE(ns == 3 * np && b.stab_triplets.point_triplet.size() == static_cast<std::size_t>(np),
+                      "nodal block: " << ns << " NSNI sub-points and " << b.stab_triplets.point_triplet.size()
                                       << " triplets for " << np << " points");
-    else if (stabilization_triplets)
+    else if (b.stabilization_triplets)
     {
-        // NSNI's layout (build_nsni_stabilization): sub-points 3 p + i of parent p, with one node list
         RKFEM_REQUIRE(ns == 3 * np, "nodal block: " << ns << " NSNI sub-points for " << np << " points");
         for (index_t t = 0; t < np; ++t)
         {
-            const index_t k0 = stabilization.offsets[3 * t], n = stabilization.offsets[3 * t + 1] - k0;
+            const index_t k0 = b.stabilization.offsets[3 * t], n = b.stabilization.offsets[3 * t + 1] - k0;
             for (int i = 0; i < 3; ++i)
             {
-                const index_t ki = stabilization.offsets[3 * t + i];
-                RKFEM_REQUIRE(stabilization.parent[3 * t + i] == t && stabilization.offsets[3 * t + i + 1] - ki == n &&
-                                  std::equal(stabilization.nodes.begin() + k0, stabilization.nodes.begin() + k0 + n,
-                                             stabilization.nodes.begin() + ki),
-                              "nodal block: NSNI sub-point " << 3 * t + i << " does not share the nodes of its point "
-                                                             << t);
+                const index_t ki = b.stabilization.offsets[3 * t + i];
+                RKFEM_REQUIRE(
+                    b.stabilization.parent[3 * t + i] == t && b.stabilization.offsets[3 * t + i + 1] - ki == n &&
+                        std::equal(b.stabilization.nodes.begin() + k0, b.stabilization.nodes.begin() + k0 + n,
+                                   b.stabilization.nodes.begin() + ki),
+                    "nodal block: NSNI sub-point " << 3 * t + i << " does not share the nodes of its point " << t);
             }
         }
     }
-    // shared stencils first: they snap the operators' gradients, which the transpose copies
+}
+
+/// Shared stencils (they snap the operators' gradients, which the transposes copy) and NSNI's
+/// triplets.
+void share_tables(NodalBlock& b, bool points_held, bool held_as_triplets, bool share)
+{
     if (!points_held)
-        point_stencils.clear();
-    stab_stencils.clear();
-    if (options.share_stencils)
+        b.point_stencils.clear();
+    b.stab_stencils.clear();
+    if (share)
     {
         if (!points_held)
-            point_stencils = rkfem::share_stencils(points);
+            b.point_stencils = rkfem::share_stencils(b.points);
         if (!held_as_triplets)
-            stab_stencils = rkfem::share_stencils(stabilization);
+            b.stab_stencils = rkfem::share_stencils(b.stabilization);
     }
     // NSNI's triplets: per entry the six values the pass reads. They snap the operator, as
     // shared stencils do (whose sub-points, snapped one class at a time, differ from symmetry by
@@ -138,16 +130,22 @@ void NodalBlock::build_tables(Assembly assembly)
     // one symmetric operator; they replace the sub-points' shared stencils.
     if (!held_as_triplets)
     {
-        stab_triplets.clear();
-        if (stabilization_triplets)
-            stab_triplets = build_triplets(stabilization, stab_stencils);
-        if (!stab_triplets.empty())
+        b.stab_triplets.clear();
+        if (b.stabilization_triplets)
+            b.stab_triplets = build_triplets(b.stabilization, b.stab_stencils);
+        if (!b.stab_triplets.empty())
         {
-            stab_stencils.clear();
-            expand_triplets(stabilization, stab_triplets);
+            b.stab_stencils.clear();
+            expand_triplets(b.stabilization, b.stab_triplets);
         }
     }
+}
 
+/// The chunked scatter's chunks (or none: the transpose gather); returns whether the pass
+/// scatters.
+bool cut_scatter_chunks(NodalBlock& b, Assembly assembly, bool points_held)
+{
+    const index_t np = b.n_points(), nn = b.node_end - b.node_begin;
     // chunked scatter: fixed chunks of stress points, then of stabilization points, each with
     // the node range its entries touch. About n / 16 stress points per chunk (at least 512) first,
     // so that a part of a few thousand particles has work for every thread; where their node
@@ -160,53 +158,53 @@ void NodalBlock::build_tables(Assembly assembly)
     auto cut_chunks = [&](index_t point_chunk)
     {
         bool local = true;
-        scatter.clear();
-        scatter.node_begin = node_begin;
-        scatter.node_end = node_end;
-        n_point_chunks = 0;
+        b.scatter.clear();
+        b.scatter.node_begin = b.node_begin;
+        b.scatter.node_end = b.node_end;
+        b.n_point_chunks = 0;
         local = true;
-        for (const IntegrationOperator* op : {&points, &stabilization})
+        for (const IntegrationOperator* op : {&b.points, &b.stabilization})
         {
             // NSNI triplets run in their point's batch (nsni_batch): the point chunks cover their nodes
-            if (op == &stabilization && stabilization_triplets)
+            if (op == &b.stabilization && b.stabilization_triplets)
                 continue;
             // stabilization chunks cover as many nodes as stress-point chunks (about 8 sub-cells
             // per node)
             const index_t n = op->n_points();
             const index_t size = point_chunk * std::max<index_t>(1, np > 0 ? n / np : 1);
-            const std::size_t added = scatter.add_chunks(
+            const std::size_t added = b.scatter.add_chunks(
                 n, size,
                 [&](index_t first, index_t last, index_t& lo, index_t& hi)
                 {
                     // NSNI's triplets run in their points' batches: their nodes too
-                    if (op == &points && stabilization_triplets && !stab_triplets.empty())
+                    if (op == &b.points && b.stabilization_triplets && !b.stab_triplets.empty())
                         for (index_t t = first; t < last; ++t)
                         {
-                            const TripletView v = stab_triplets.view(t);
+                            const TripletView v = b.stab_triplets.view(t);
                             for (index_t k = 0; k < v.size; ++k)
                             {
                                 lo = std::min(lo, v.base + v.offset[k]);
                                 hi = std::max(hi, v.base + v.offset[k] + 1);
                             }
                         }
-                    else if (op == &points && stabilization_triplets)
-                        for (index_t k = stabilization.offsets[3 * first]; k < stabilization.offsets[3 * last]; ++k)
+                    else if (op == &b.points && b.stabilization_triplets)
+                        for (index_t k = b.stabilization.offsets[3 * first]; k < b.stabilization.offsets[3 * last]; ++k)
                         {
-                            lo = std::min(lo, stabilization.nodes[k]);
-                            hi = std::max(hi, stabilization.nodes[k] + 1);
+                            lo = std::min(lo, b.stabilization.nodes[k]);
+                            hi = std::max(hi, b.stabilization.nodes[k] + 1);
                         }
                     auto touch = [&](index_t node)
                     {
-                        RKFEM_REQUIRE(node >= node_begin && node < node_end,
+                        RKFEM_REQUIRE(node >= b.node_begin && node < b.node_end,
                                       "nodal block: entry touches node " << node << " outside the part's range ["
-                                                                         << node_begin << ", " << node_end << ")");
+                                                                         << b.node_begin << ", " << b.node_end << ")");
                         lo = std::min(lo, node);
                         hi = std::max(hi, node + 1);
                     };
-                    if (op == &points && points_held)
+                    if (op == &b.points && points_held)
                         for (index_t p = first; p < last; ++p)
                         {
-                            const StencilView v = point_view(p);
+                            const StencilView v = b.point_view(p);
                             for (index_t k = 0; k < v.size; ++k)
                                 touch(v.base + v.offset[k]);
                         }
@@ -214,8 +212,8 @@ void NodalBlock::build_tables(Assembly assembly)
                         for (index_t k = op->offsets[first]; k < op->offsets[last]; ++k)
                             touch(op->nodes[k]);
                 });
-            if (op == &points)
-                n_point_chunks = static_cast<index_t>(scatter.chunks.size());
+            if (op == &b.points)
+                b.n_point_chunks = static_cast<index_t>(b.scatter.chunks.size());
             // a point order without locality (an imported cloud in random order) makes every
             // chunk's range the whole block: then the transpose gather
             local = local && ChunkedScatter::local(added, nn);
@@ -226,75 +224,115 @@ void NodalBlock::build_tables(Assembly assembly)
     const bool local = ChunkedScatter::cut_until_local(point_chunk, std::max<index_t>(2048, np / 4), cut_chunks);
     const bool use_scatter = assembly == Assembly::Scatter || (assembly == Assembly::Automatic && local);
     if (use_scatter)
-        scatter.finish();
+        b.scatter.finish();
     else
     {
-        scatter.clear();
-        n_point_chunks = 0;
+        b.scatter.clear();
+        b.n_point_chunks = 0;
     }
-    // transpose (node -> entries) for the gather assembly, which reads the sub-point entries
-    node_entry_offsets.clear();
-    node_point.clear();
-    node_grad.clear();
-    if (!use_scatter && (held_as_triplets || points_held))
-        expand_operators();
-    const index_t ne_p = points.n_entries(), ne_s = stabilization.n_entries();
+    return use_scatter;
+}
+
+/// The transpose (node -> entries) for the gather assembly, which reads the sub-point entries.
+void build_gather_transpose(NodalBlock& b, bool use_scatter, bool held_in_tables)
+{
+    const index_t np = b.n_points(), ns = b.n_stab(), nn = b.node_end - b.node_begin;
+    b.node_entry_offsets.clear();
+    b.node_point.clear();
+    b.node_grad.clear();
+    if (!use_scatter && held_in_tables)
+        b.expand_operators();
+    const index_t ne_p = b.points.n_entries(), ne_s = b.stabilization.n_entries();
     if (!use_scatter)
     {
         std::vector<index_t> entry_point(static_cast<std::size_t>(ne_p + ne_s));
         for (index_t p = 0; p < np; ++p)
-            for (index_t k = points.offsets[p]; k < points.offsets[p + 1]; ++k)
+            for (index_t k = b.points.offsets[p]; k < b.points.offsets[p + 1]; ++k)
                 entry_point[k] = p;
         for (index_t s = 0; s < ns; ++s)
-            for (index_t k = stabilization.offsets[s]; k < stabilization.offsets[s + 1]; ++k)
+            for (index_t k = b.stabilization.offsets[s]; k < b.stabilization.offsets[s + 1]; ++k)
                 entry_point[ne_p + k] = np + s;
-        node_entry_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
-        auto node_of = [&](index_t k) { return k < ne_p ? points.nodes[k] : stabilization.nodes[k - ne_p]; };
+        b.node_entry_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+        auto node_of = [&](index_t k) { return k < ne_p ? b.points.nodes[k] : b.stabilization.nodes[k - ne_p]; };
         for (index_t k = 0; k < ne_p + ne_s; ++k)
         {
             const index_t n = node_of(k);
-            ++node_entry_offsets[n - node_begin + 1];
+            ++b.node_entry_offsets[n - b.node_begin + 1];
         }
         for (index_t i = 0; i < nn; ++i)
-            node_entry_offsets[i + 1] += node_entry_offsets[i];
-        node_point.resize(static_cast<std::size_t>(ne_p + ne_s));
-        node_grad.resize(3 * static_cast<std::size_t>(ne_p + ne_s));
-        std::vector<index_t> fill(node_entry_offsets.begin(), node_entry_offsets.end() - 1);
+            b.node_entry_offsets[i + 1] += b.node_entry_offsets[i];
+        b.node_point.resize(static_cast<std::size_t>(ne_p + ne_s));
+        b.node_grad.resize(3 * static_cast<std::size_t>(ne_p + ne_s));
+        std::vector<index_t> fill(b.node_entry_offsets.begin(), b.node_entry_offsets.end() - 1);
         for (index_t k = 0; k < ne_p + ne_s; ++k)
         {
-            const index_t q = fill[node_of(k) - node_begin]++;
-            node_point[q] = entry_point[k];
-            const real_t* g = k < ne_p ? &points.grad[3 * static_cast<std::size_t>(k)]
-                                       : &stabilization.grad[3 * static_cast<std::size_t>(k - ne_p)];
+            const index_t q = fill[node_of(k) - b.node_begin]++;
+            b.node_point[q] = entry_point[k];
+            const real_t* g = k < ne_p ? &b.points.grad[3 * static_cast<std::size_t>(k)]
+                                       : &b.stabilization.grad[3 * static_cast<std::size_t>(k - ne_p)];
             for (int d = 0; d < 3; ++d)
-                node_grad[3 * static_cast<std::size_t>(q) + d] = g[d];
+                b.node_grad[3 * static_cast<std::size_t>(q) + d] = g[d];
         }
     }
+}
 
-    owner_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
+/// The points each node owns (CSR).
+void build_owner_lists(NodalBlock& b)
+{
+    const index_t np = b.n_points(), nn = b.node_end - b.node_begin;
+    b.owner_offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
     for (index_t p = 0; p < np; ++p)
-        ++owner_offsets[points.owner[p] - node_begin + 1];
+        ++b.owner_offsets[b.points.owner[p] - b.node_begin + 1];
     for (index_t i = 0; i < nn; ++i)
-        owner_offsets[i + 1] += owner_offsets[i];
-    owner_points.resize(static_cast<std::size_t>(np));
+        b.owner_offsets[i + 1] += b.owner_offsets[i];
+    b.owner_points.resize(static_cast<std::size_t>(np));
     {
-        std::vector<index_t> f(owner_offsets.begin(), owner_offsets.end() - 1);
+        std::vector<index_t> f(b.owner_offsets.begin(), b.owner_offsets.end() - 1);
         for (index_t p = 0; p < np; ++p)
-            owner_points[f[points.owner[p] - node_begin]++] = p;
+            b.owner_points[f[b.points.owner[p] - b.node_begin]++] = p;
     }
+}
 
-    jacobian.assign(static_cast<std::size_t>(np), 1.0);
-    point_tensor.assign(use_scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
+/// The per-step scratch: Jacobians, the gather's point tensors, the stabilization's own pass's
+/// F^-1 and spin, the batch sums.
+void size_step_scratch(NodalBlock& b, bool use_scatter)
+{
+    const index_t np = b.n_points(), ns = b.n_stab();
+    b.jacobian.assign(static_cast<std::size_t>(np), 1.0);
+    b.point_tensor.assign(use_scatter ? 0 : 9 * static_cast<std::size_t>(np + ns), 0.0);
     // the parents' F^-1 and spin for the stabilization's own pass (NSNI with the chunked scatter
     // runs in the points' batches and needs neither)
-    const bool own_stab_pass = ns > 0 && !(stabilization_triplets && use_scatter);
-    finv.assign(own_stab_pass ? 9 * static_cast<std::size_t>(np) : 0, 0.0);
-    spin.assign(own_stab_pass ? 3 * static_cast<std::size_t>(np) : 0, 0.0);
+    const bool own_stab_pass = ns > 0 && !(b.stabilization_triplets && use_scatter);
+    b.finv.assign(own_stab_pass ? 9 * static_cast<std::size_t>(np) : 0, 0.0);
+    b.spin.assign(own_stab_pass ? 3 * static_cast<std::size_t>(np) : 0, 0.0);
     const std::size_t nb = static_cast<std::size_t>((np + kPointLanes - 1) / kPointLanes);
-    batch_sums.assign(4 * nb, 0.0);
-    batch_idx.assign(2 * nb, -1);
-    stab_energy.assign(own_stab_pass ? static_cast<std::size_t>(ns) : 0, 0.0);
+    b.batch_sums.assign(4 * nb, 0.0);
+    b.batch_idx.assign(2 * nb, -1);
+    b.stab_energy.assign(own_stab_pass ? static_cast<std::size_t>(ns) : 0, 0.0);
+}
+} // namespace
 
+void NodalBlock::build_tables(Assembly assembly)
+{
+    // NSNI held as triplets alone (build_nsni_triplets, or an earlier build of a compact block)
+    // stays so: the triplets are already shared, and the sub-point entries are formed only if
+    // the gather assembly below needs them
+    const bool held_as_triplets = stab_in_triplets && stabilization_triplets && options_.compact_operators;
+    // the stress points held in shared stencils from the start (build_scni_rk's rows straight
+    // into the table) stay so too: the table is the one share_stencils would find
+    const bool points_held =
+        points_in_table && options_.compact_operators && options_.share_stencils && !point_stencils.empty();
+    stab_in_triplets = stab_in_triplets && !held_as_triplets;
+    points_in_table = points_in_table && !points_held;
+    expand_operators();
+    stab_in_triplets = held_as_triplets;
+    points_in_table = points_held;
+    check_nsni_layout(*this, held_as_triplets);
+    share_tables(*this, points_held, held_as_triplets, options_.share_stencils);
+    const bool use_scatter = cut_scatter_chunks(*this, assembly, points_held);
+    build_gather_transpose(*this, use_scatter, held_as_triplets || points_held);
+    build_owner_lists(*this);
+    size_step_scratch(*this, use_scatter);
     // the batches the force pass takes as whole vectors, and the order they add a stencil's
     // entries in (kernels/nodal_fast.hpp)
     auto batches = [](auto& table, const std::vector<index_t>& point_class, index_t n_classes)
@@ -305,7 +343,7 @@ void NodalBlock::build_tables(Assembly assembly)
     };
     batches(point_stencils, point_stencils.point_stencil, point_stencils.n_stencils());
     batches(stab_triplets, stab_triplets.point_triplet, stab_triplets.n_triplets());
-    if (options.compact_operators && !point_stencils.empty())
+    if (options_.compact_operators && !point_stencils.empty())
     {
         release_entries(points);
         points_in_table = true;
@@ -320,10 +358,10 @@ void NodalBlock::build_tables(Assembly assembly)
             point_stencils.empty() ? points.nodes.size() * (sizeof(index_t) + 3 * sizeof(real_t)) : 0;
         const std::size_t triplet_bytes = stab_triplets.node_offset.size() * (sizeof(index_t) + 6 * sizeof(real_t));
         const bool streams = point_bytes + triplet_bytes > prefetch_bytes;
-        options.prefetch_points = streams && point_bytes > (std::size_t{1} << 20);
-        options.prefetch_triplets = streams && triplet_bytes > (std::size_t{1} << 20);
+        options_.prefetch_points = streams && point_bytes > (std::size_t{1} << 20);
+        options_.prefetch_triplets = streams && triplet_bytes > (std::size_t{1} << 20);
     }
-    if (options.compact_operators && !stab_triplets.empty())
+    if (options_.compact_operators && !stab_triplets.empty())
     {
         release_entries(stabilization);
         // NSNI's sub-points sit at their parents (the checks above hold the layout); nothing in
@@ -331,7 +369,7 @@ void NodalBlock::build_tables(Assembly assembly)
         std::vector<real_t>().swap(stabilization.position);
         stab_in_triplets = true;
     }
-    else if (options.compact_operators && !stab_stencils.empty())
+    else if (options_.compact_operators && !stab_stencils.empty())
     {
         release_entries(stabilization);
         stab_in_table = true;

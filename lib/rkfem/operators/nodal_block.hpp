@@ -22,7 +22,6 @@
 #include "rkfem/core/huge_pages.hpp"
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
-#include "rkfem/config/deck.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/discretization/node_set.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
@@ -30,8 +29,9 @@
 #include "rkfem/integration/stencil_table.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/materials/point_history.hpp"
-#include "rkfem/operators/chunked_scatter.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
 #include "rkfem/operators/hex_block.hpp"
+#include "rkfem/operators/kernels/chunked_scatter.hpp"
 
 namespace rkfem
 {
@@ -67,7 +67,9 @@ struct NodalBlockOptions
 
 struct NodalBlock
 {
-    NodalBlockOptions options;
+    /// The block's path choices (set before initialize(); build_tables() sets the prefetches).
+    const NodalBlockOptions& options() const { return options_; }
+    void set_options(const NodalBlockOptions& o) { options_ = o; }
     index_t part = 0;
     ElasticParams material;
     PlasticPoints plastic;                  ///< J2 / K&C history per stress point (inactive for elastic blocks)
@@ -82,17 +84,17 @@ struct NodalBlock
     /// three in one pass over their nodes. initialize() checks the layout.
     bool stabilization_triplets = false;
     /// Shared stencils of `points` and `stabilization` (integration/stencil_table.hpp), built by
-    /// initialize() when `options.share_stencils` is on and sharing pays (lattices, structured meshes);
+    /// initialize() when `options().share_stencils` is on and sharing pays (lattices, structured meshes);
     /// empty: the force pass reads the operators' own entries. initialize() snaps the operators
     /// to them; an operator changed afterwards needs initialize() again. Batches of 8 points
     /// with one stencil and consecutive bases (along lattice rows) take a whole-vector path.
     StencilTable point_stencils, stab_stencils;
-    /// An operator held only in its shared stencil table (options.compact_operators).
+    /// An operator held only in its shared stencil table (options().compact_operators).
     bool points_in_table = false, stab_in_table = false;
     /// NSNI with the chunked scatter: the sub-points' entries as triplets (integration/
     /// stencil_table.hpp, TripletTable: each point's three sub-points in one stencil of nodes and
     /// six Hessian values per entry), which the force pass reads (nsni_batch); built by
-    /// build_tables() from the shared stencils or the operator. With options.compact_operators it is the
+    /// build_tables() from the shared stencils or the operator. With options().compact_operators it is the
     /// only copy (stab_in_triplets: the sub-point stencils are released too, 52 bytes per
     /// entry where they took 84, and the sub-points' positions, their parents'), and
     /// expand_operators() writes them back.
@@ -181,6 +183,9 @@ struct NodalBlock
         if (plastic.active())
             plastic.commit();
     }
+
+  private:
+    NodalBlockOptions options_;
 };
 
 /// Stress points per batch of the force pass (one AVX-512 register of doubles); point state

@@ -14,8 +14,10 @@
 /// reference state (every stabilization and material the pass has, elastic at that size).
 #include <string>
 
-#include "rkfem/config/deck.hpp"
+#include "rkfem/approximation/rk/rk_spec.hpp"
+#include "rkfem/discretization/formulation.hpp"
 #include "rkfem/discretization/node_set.hpp"
+#include "rkfem/integration/nodal/nodal_integration_spec.hpp"
 #include "rkfem/operators/nodal_block.hpp"
 
 namespace rkfem
@@ -40,10 +42,6 @@ HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real
 /// `formulation` with the default RK functions (order 1, cubic B-spline, box at a/h 1.51; rkpm)
 /// and the default stabilization coefficient. Elsewhere the set-up measures alpha_crit.
 bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& nodal, const RkSpec& rk);
-inline bool nodal_step_calibrated(const PartSpec& ps)
-{
-    return nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk);
-}
 
 /// The fraction of the measured alpha_crit a part without a calibrated default steps at (the
 /// quotient approaches omega_max from below; time.dt_scale applies on top, as for every part).

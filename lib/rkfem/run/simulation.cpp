@@ -104,21 +104,6 @@ void warn_initial_penetrations(const Model& model, bool enabled)
                              : "pushed out by the penalty (mortar contact holds no offsets)");
 }
 
-/// After an event changed the discretization: the stepper starts again from this state, and what
-/// the new accelerations change in the kinetic energy is booked (event_a: scratch for the
-/// accelerations before). Returns the new stable step.
-real_t restart_after_event(TimeStepper& stepper, Model& model, real_t t, real_t dt, std::vector<real_t>& event_a)
-{
-    event_a = model.nodes.a;
-    const real_t kinetic = model.energy.kinetic;
-    const StepReport rep = stepper.initialize(model, t);
-    // prescribed velocities imposed again through a new kinematic map (a conversion made
-    // constrained nodes particles): the supports did that work
-    model.energy.external_work += model.energy.kinetic - kinetic;
-    book_event_energy(model, event_a, dt);
-    return rep.dt_stable;
-}
-
 /// An unstable run: the summary says where and when. The fields written so far stay; then the last
 /// good state (the last accepted step's, when it was not written yet) and the state the run failed
 /// in, each at its own time (a step's end, or an ERK stage): the failed frame can be inspected and
@@ -197,150 +182,213 @@ std::string newest_checkpoint(const std::string& dir)
     return checkpoint_path(dir);
 }
 
-RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserver& observer)
+namespace
 {
-    const TimeSpec& ts = model.deck().time;
-    RunSummary sum;
-    const auto wall0 = std::chrono::steady_clock::now();
-    auto elapsed = [&] { return std::chrono::duration<real_t>(std::chrono::steady_clock::now() - wall0).count(); };
-    const StateArchive* resume = opt.resume;
-    RKFEM_REQUIRE(!resume || !opt.out_dir.empty(), "a restart continues a run's directory: out_dir is empty");
-    // the run's id (results.h5, checkpoints, summary.json): a new one, or a restart continues its
-    // checkpoint's run (one from before ids: none)
-    sum.run_id = !resume ? new_run_id() : resume->has("run.run_id") ? resume->text("run.run_id") : std::string();
-    RunRecord record(model, opt, sum);
-    Checkpointer checkpoints(opt);
-    auto stepper = make_stepper(ts);
-    Progress progress(opt.progress);
-    LoopState loop;
-    real_t start_seconds = 0.0; // the stepper's first start
-    if (resume)
+/// One run: the stepper, the loop's state and the observers the steps feed (history and
+/// fields, checkpoints, progress, the caller's observer). start(), then step() until it returns
+/// false, then end(); fail() on an instability; finish() writes the summary either way.
+class RunLoop
+{
+  public:
+    RunLoop(Model& model, const RunOptions& opt, const StepObserver& observer, RunSummary& sum)
+        : model_(model), opt_(opt), observer_(observer), ts_(model.deck().time), sum_(sum),
+          wall0_(std::chrono::steady_clock::now()), resume_(opt.resume), record_(model, opt, name_run(sum, opt)),
+          checkpoints_(opt), stepper_(make_stepper(ts_)), progress_(opt.progress), team_(max_threads()),
+          governor_(adaptive(opt) ? team_ : 1, opt.thread_governor),
+          defer_motion_(!observer && !opt.events), motion_restore_{model}, team_restore_{team_}
     {
-        RKFEM_REQUIRE(resume->text("run.stepper") == stepper->name(), "the checkpoint was written with time.stepper "
-                                                                          << resume->text("run.stepper")
-                                                                          << "; the deck now has " << stepper->name());
-        loop.load(*resume, sum);
-        record.load(*resume);
-        checkpoints.load(*resume, loop.t);
+        if (resume_)
+        {
+            RKFEM_REQUIRE(resume_->text("run.stepper") == stepper_->name(),
+                          "the checkpoint was written with time.stepper " << resume_->text("run.stepper")
+                                                                          << "; the deck now has " << stepper_->name());
+            loop_.load(*resume_, sum_);
+            record_.load(*resume_);
+            checkpoints_.load(*resume_, loop_.t);
+        }
+        model_.defer_motion(defer_motion_);
     }
-    bool in_step = false; // a step is under way: a failure in it leaves t and step at the last good one
-    // the team size per step (run/thread_governor.hpp); the OpenMP default again after the loop
-    const char* adapt_env = std::getenv("RKFEM_ADAPTIVE_THREADS");
-    const bool adapt = opt.adaptive_threads && !(adapt_env && std::string(adapt_env) == "0");
-    const int team = max_threads();
-    ThreadGovernor governor(adapt ? team : 1, opt.thread_governor);
-    // The nodes' motion (kinetic energy, the parts' mass and momentum: a pass over every node) is
-    // computed on the steps that read it (Model::defer_motion): balance checks every
-    // kBalanceEvery steps, history rows, fields, checkpoints, the last step. Observers and event
-    // hooks may read the model on any step: with them, every step.
-    constexpr std::int64_t kBalanceEvery = 8;
-    const bool defer_motion = !observer && !opt.events;
-    model.defer_motion(defer_motion);
+
+    /// The stepper's start (or a checkpoint's state), and the first observation.
+    void start()
+    {
+        StepReport rep;
+        if (resume_)
+        {
+            stepper_->load_state(model_, loop_.t, *resume_);
+            rep.t = loop_.t;
+            rep.dt_stable = loop_.dt_stable;
+        }
+        else
+            rep = stepper_->initialize(model_, loop_.t);
+        start_seconds_ = elapsed() - sum_.output_seconds;
+        if (!resume_) // a restart's state at t is already in the output
+        {
+            observe(false);
+            warn_initial_penetrations(model_, opt_.progress);
+        }
+        loop_.dt_stable = rep.dt_stable;
+        work_items_ = model_.n_work_items();
+    }
+
+    /// One step and what follows it (events, the balance check, observers, checkpoint, progress);
+    /// false when the run has ended (end time, max_steps, an interrupt).
+    bool step()
+    {
+        real_t& t = loop_.t;
+        std::int64_t& step = loop_.step;
+        if (!(t < ts_.end * (1 - kScheduleSlack)) || (ts_.max_steps > 0 && step >= ts_.max_steps))
+            return false;
+        const real_t dt = next_time_step(ts_, t, loop_.dt_stable);
+        check_step(ts_, loop_, dt, sum_.dt_first);
+        ++step;
+        in_step_ = true;
+        const StepReport rep = governed_step(governor_, *stepper_, model_, t, dt, step);
+        in_step_ = false;
+        t = rep.t;
+        loop_.dt_last = dt;
+        if (step == 1)
+            sum_.dt_first = sum_.dt_min = dt;
+        sum_.dt_min = std::min(sum_.dt_min, dt);
+        loop_.dt_stable = rep.dt_stable;
+        loop_.element_steps += static_cast<std::size_t>(work_items_);
+        // SIGINT / SIGTERM: this step is the last; its state is written as the end's is
+        const int stop_signal = interrupt_signal();
+        const bool last =
+            t >= ts_.end * (1 - kScheduleSlack) || (ts_.max_steps > 0 && step >= ts_.max_steps) || stop_signal != 0;
+        // the nodes' motion (kinetic energy, the parts' momentum) for what reads it this step:
+        // the balance check (every kBalanceEvery steps), history rows, fields, checkpoints
+        const bool check_due =
+            !defer_motion_ || step % kBalanceEvery == 0 || last || record_.due(t) || checkpoints_.due(t);
+        if (check_due)
+            model_.refresh_motion();
+        const bool own = model_.apply_events(t, step);
+        if ((opt_.events && opt_.events(model_, t, step)) || own)
+        {
+            loop_.dt_stable = model_.restart_after_event(*stepper_, t, dt);
+            work_items_ = model_.n_work_items();
+        }
+        const real_t err = check_due ? model_.energy.balance_error() : 0.0;
+        sum_.max_balance_error = std::max(sum_.max_balance_error, err);
+        observe(last);
+        if (check_due)
+            check_energy_balance(model_, ts_, loop_, err);
+        if (checkpoints_.due(t) || (checkpoints_.active() && last))
+        {
+            const auto t0 = std::chrono::steady_clock::now();
+            checkpoints_.write(model_, *stepper_, record_, loop_, sum_);
+            sum_.output_seconds += std::chrono::duration<real_t>(std::chrono::steady_clock::now() - t0).count();
+        }
+        progress_.update(t, ts_.end, step, dt, energy_ratio(model_.energy), elapsed());
+        if (stop_signal != 0)
+        {
+            std::ostringstream os;
+            os << "interrupted by " << interrupt_signal_name(stop_signal) << " at t = " << t << " s, step " << step
+               << "; the state there written"
+               << (checkpoints_.active() ? " (frame, history row and checkpoint)" : " (frame and history row)");
+            sum_.status = "interrupted";
+            sum_.message = os.str();
+            return false;
+        }
+        return true;
+    }
+
+    /// The end state's motion and the last progress line.
+    void end()
+    {
+        model_.refresh_motion();
+        progress_.update(loop_.t, ts_.end, loop_.step, loop_.dt_last, energy_ratio(model_.energy), elapsed(), true);
+    }
+
+    void fail(const InstabilityError& e) { record_instability(e, model_, *stepper_, record_, loop_, in_step_, sum_); }
+
+    /// The summary and the run's last output.
+    void finish()
+    {
+        progress_.finish();
+        set_threads(team_);
+        finish_summary(sum_, model_, governor_, loop_, elapsed(), opt_.setup_seconds + start_seconds_, start_seconds_);
+        record_.finish(model_, opt_);
+    }
+
+  private:
+    /// The nodes' motion (kinetic energy, the parts' mass and momentum: a pass over every node) is
+    /// computed on the steps that read it (Model::defer_motion): balance checks every
+    /// kBalanceEvery steps, history rows, fields, checkpoints, the last step. Observers and event
+    /// hooks may read the model on any step: with them, every step.
+    static constexpr std::int64_t kBalanceEvery = 8;
+
+    /// The run's id (results.h5, checkpoints, summary.json): a new one, or a restart continues its
+    /// checkpoint's run (one from before ids: none).
+    static RunSummary& name_run(RunSummary& sum, const RunOptions& opt)
+    {
+        const StateArchive* resume = opt.resume;
+        RKFEM_REQUIRE(!resume || !opt.out_dir.empty(), "a restart continues a run's directory: out_dir is empty");
+        sum.run_id = !resume ? new_run_id() : resume->has("run.run_id") ? resume->text("run.run_id") : std::string();
+        return sum;
+    }
+    /// The team size per step (run/thread_governor.hpp); the OpenMP default again after the loop.
+    static bool adaptive(const RunOptions& opt)
+    {
+        const char* env = std::getenv("RKFEM_ADAPTIVE_THREADS");
+        return opt.adaptive_threads && !(env && std::string(env) == "0");
+    }
+    real_t elapsed() const { return std::chrono::duration<real_t>(std::chrono::steady_clock::now() - wall0_).count(); }
+    void observe(bool final_step)
+    {
+        record_.observe(model_, loop_, final_step);
+        if (observer_)
+            observer_(model_, loop_.t, loop_.dt_last, loop_.step);
+    }
+
+    Model& model_;
+    const RunOptions& opt_;
+    const StepObserver& observer_;
+    const TimeSpec& ts_;
+    RunSummary& sum_;
+    const std::chrono::steady_clock::time_point wall0_;
+    const StateArchive* resume_;
+    RunRecord record_;
+    Checkpointer checkpoints_;
+    std::unique_ptr<TimeStepper> stepper_;
+    Progress progress_;
+    LoopState loop_;
+    real_t start_seconds_ = 0.0; ///< the stepper's first start
+    bool in_step_ = false;       ///< a step is under way: a failure in it leaves t and step at the last good one
+    index_t work_items_ = 0;     ///< elements, and the stress points of nodal parts
+    const int team_;
+    ThreadGovernor governor_;
+    const bool defer_motion_;
     struct MotionRestore
     {
         Model& m;
         ~MotionRestore() { m.defer_motion(false); }
-    } motion_restore{model};
+    } motion_restore_;
     struct TeamRestore
     {
         int n;
         ~TeamRestore() { set_threads(n); }
-    } team_restore{team};
-    real_t& t = loop.t;
-    std::int64_t& step = loop.step;
+    } team_restore_;
+};
+} // namespace
+
+RunSummary run_simulation(Model& model, const RunOptions& opt, const StepObserver& observer)
+{
+    RunSummary sum;
+    RunLoop run(model, opt, observer, sum);
     try
     {
-        StepReport rep;
-        if (resume)
+        run.start();
+        while (run.step())
         {
-            stepper->load_state(model, t, *resume);
-            rep.t = t;
-            rep.dt_stable = loop.dt_stable;
         }
-        else
-            rep = stepper->initialize(model, t);
-        start_seconds = elapsed() - sum.output_seconds;
-        auto observe = [&](bool final_step)
-        {
-            record.observe(model, loop, final_step);
-            if (observer)
-                observer(model, t, loop.dt_last, step);
-        };
-        if (!resume) // a restart's state at t is already in the output
-        {
-            observe(false);
-            warn_initial_penetrations(model, opt.progress);
-        }
-        loop.dt_stable = rep.dt_stable;
-        index_t ne = model.n_work_items(); // elements, and the stress points of nodal parts
-        std::vector<real_t> event_a;       // accelerations before an event
-        while (t < ts.end * (1 - kScheduleSlack))
-        {
-            if (ts.max_steps > 0 && step >= ts.max_steps)
-                break;
-            const real_t dt = next_time_step(ts, t, loop.dt_stable);
-            check_step(ts, loop, dt, sum.dt_first);
-            ++step;
-            in_step = true;
-            rep = governed_step(governor, *stepper, model, t, dt, step);
-            in_step = false;
-            t = rep.t;
-            loop.dt_last = dt;
-            if (step == 1)
-                sum.dt_first = sum.dt_min = dt;
-            sum.dt_min = std::min(sum.dt_min, dt);
-            loop.dt_stable = rep.dt_stable;
-            loop.element_steps += static_cast<std::size_t>(ne);
-            // SIGINT / SIGTERM: this step is the last; its state is written as the end's is
-            const int stop_signal = interrupt_signal();
-            const bool last =
-                t >= ts.end * (1 - kScheduleSlack) || (ts.max_steps > 0 && step >= ts.max_steps) || stop_signal != 0;
-            // the nodes' motion (kinetic energy, the parts' momentum) for what reads it this step:
-            // the balance check (every kBalanceEvery steps), history rows, fields, checkpoints
-            const bool check_due =
-                !defer_motion || step % kBalanceEvery == 0 || last || record.due(t) || checkpoints.due(t);
-            if (check_due)
-                model.refresh_motion();
-            const bool own = model.apply_events(t, step);
-            if ((opt.events && opt.events(model, t, step)) || own)
-            {
-                loop.dt_stable = restart_after_event(*stepper, model, t, dt, event_a);
-                ne = model.n_work_items();
-            }
-            const real_t err = check_due ? model.energy.balance_error() : 0.0;
-            sum.max_balance_error = std::max(sum.max_balance_error, err);
-            observe(last);
-            if (check_due)
-                check_energy_balance(model, ts, loop, err);
-            if (checkpoints.due(t) || (checkpoints.active() && last))
-            {
-                const auto t0 = std::chrono::steady_clock::now();
-                checkpoints.write(model, *stepper, record, loop, sum);
-                sum.output_seconds += std::chrono::duration<real_t>(std::chrono::steady_clock::now() - t0).count();
-            }
-            progress.update(t, ts.end, step, dt, energy_ratio(model.energy), elapsed());
-            if (stop_signal != 0)
-            {
-                std::ostringstream os;
-                os << "interrupted by " << interrupt_signal_name(stop_signal) << " at t = " << t << " s, step " << step
-                   << "; the state there written"
-                   << (checkpoints.active() ? " (frame, history row and checkpoint)" : " (frame and history row)");
-                sum.status = "interrupted";
-                sum.message = os.str();
-                break;
-            }
-        }
-        model.refresh_motion();
-        progress.update(t, ts.end, step, loop.dt_last, energy_ratio(model.energy), elapsed(), true);
+        run.end();
     }
     catch (const InstabilityError& e)
     {
-        record_instability(e, model, *stepper, record, loop, in_step, sum);
+        run.fail(e);
     }
-    progress.finish();
-    set_threads(team);
-    finish_summary(sum, model, governor, loop, elapsed(), opt.setup_seconds + start_seconds, start_seconds);
-    record.finish(model, opt);
+    run.finish();
     return sum;
 }
 } // namespace rkfem

@@ -75,125 +75,126 @@ void write_strings(hid_t loc, const char* name, const std::vector<std::string>& 
     H5Tclose(type);
 }
 
-/// The data rows of a history.csv (whole lines after the header), -1 without the file.
-} // namespace
-
-std::string study_detail::one_line(std::string s)
+/// table.csv: one row per case and metric (long form, for notebooks).
+void write_table_csv(const Study& st, const std::vector<StudyCaseResult>& results, const fs::path& out)
 {
-    std::replace(s.begin(), s.end(), '\n', ' ');
-    std::replace(s.begin(), s.end(), '|', '/');
-    return s;
+    std::ostringstream csv; // written whole (write_file_whole)
+    csv << "case,metric,unit,ours,published,rel_diff,source,status\n";
+    for (std::size_t c = 0; c < results.size(); ++c)
+        for (std::size_t k = 0; k < st.metrics.size(); ++k)
+        {
+            const auto it = st.cases[c].published.find(st.metrics[k].name);
+            const real_t ours = results[c].values[k];
+            const real_t pub = it == st.cases[c].published.end() ? nan : it->second.value;
+            const real_t rel = std::isfinite(pub) && pub != 0 ? (ours - pub) / std::abs(pub) : nan;
+            csv << csv_field(results[c].name) << "," << csv_field(st.metrics[k].name) << ","
+                << csv_field(st.metrics[k].unit) << "," << fmt(ours, 12) << "," << fmt(pub, 12) << "," << fmt(rel, 12)
+                << "," << csv_field(it == st.cases[c].published.end() ? "" : it->second.source) << ","
+                << results[c].status << "\n";
+        }
+    write_file_whole((out / "table.csv").string(), csv.str());
 }
 
-/// Fixed-length string dataset.
-void study_detail::write_outputs(const Study& st, const std::vector<StudyCaseResult>& results, const fs::path& out)
+/// table.md's cells "ours (published[n], diff)" per case and metric; each published value's source into `sources`.
+std::vector<std::vector<std::string>> table_cells(const Study& st, const std::vector<StudyCaseResult>& results,
+                                                  std::vector<std::string>& sources)
 {
-    // table.csv: one row per case and metric (long form, for notebooks)
-    {
-        std::ostringstream csv; // written whole (write_file_whole)
-        csv << "case,metric,unit,ours,published,rel_diff,source,status\n";
-        for (std::size_t c = 0; c < results.size(); ++c)
-            for (std::size_t k = 0; k < st.metrics.size(); ++k)
+    std::vector<std::vector<std::string>> cells(results.size(), std::vector<std::string>(st.metrics.size()));
+    for (std::size_t c = 0; c < results.size(); ++c)
+        for (std::size_t k = 0; k < st.metrics.size(); ++k)
+        {
+            const real_t ours = results[c].values[k];
+            std::string cell = std::isfinite(ours) ? fmt(ours) : "-";
+            const auto it = st.cases[c].published.find(st.metrics[k].name);
+            if (it != st.cases[c].published.end())
             {
-                const auto it = st.cases[c].published.find(st.metrics[k].name);
-                const real_t ours = results[c].values[k];
-                const real_t pub = it == st.cases[c].published.end() ? nan : it->second.value;
-                const real_t rel = std::isfinite(pub) && pub != 0 ? (ours - pub) / std::abs(pub) : nan;
-                csv << csv_field(results[c].name) << "," << csv_field(st.metrics[k].name) << ","
-                    << csv_field(st.metrics[k].unit) << "," << fmt(ours, 12) << "," << fmt(pub, 12) << ","
-                    << fmt(rel, 12) << "," << csv_field(it == st.cases[c].published.end() ? "" : it->second.source)
-                    << "," << results[c].status << "\n";
-            }
-        write_file_whole((out / "table.csv").string(), csv.str());
-    }
-    // table.md: a cell "ours (published[n], diff)" per case and metric; cases as rows (or, with
-    // table_rows: metrics, metrics as rows, the layout of the seed's Table 2)
-    {
-        std::vector<std::vector<std::string>> cells(results.size(), std::vector<std::string>(st.metrics.size()));
-        std::vector<std::string> sources;
-        for (std::size_t c = 0; c < results.size(); ++c)
-            for (std::size_t k = 0; k < st.metrics.size(); ++k)
-            {
-                const real_t ours = results[c].values[k];
-                std::string cell = std::isfinite(ours) ? fmt(ours) : "-";
-                const auto it = st.cases[c].published.find(st.metrics[k].name);
-                if (it != st.cases[c].published.end())
+                const real_t pub = it->second.value;
+                char tag[24]; // "[n]" (GCC 12 warns falsely about "[" + std::to_string(n))
+                std::snprintf(tag, sizeof tag, "[%zu]", sources.size() + 1);
+                sources.push_back(std::string(tag) + " " + results[c].name + " / " + st.metrics[k].name + ": " +
+                                  it->second.source);
+                cell += " (" + fmt(pub) + tag;
+                if (std::isfinite(ours) && pub != 0)
                 {
-                    const real_t pub = it->second.value;
-                    char tag[24]; // "[n]" (GCC 12 warns falsely about "[" + std::to_string(n))
-                    std::snprintf(tag, sizeof tag, "[%zu]", sources.size() + 1);
-                    sources.push_back(std::string(tag) + " " + results[c].name + " / " + st.metrics[k].name + ": " +
-                                      it->second.source);
-                    cell += " (" + fmt(pub) + tag;
-                    if (std::isfinite(ours) && pub != 0)
-                    {
-                        char d[32];
-                        std::snprintf(d, sizeof d, ", %+.1f%%", 100 * (ours - pub) / std::abs(pub));
-                        cell += d;
-                    }
-                    cell += ")";
+                    char d[32];
+                    std::snprintf(d, sizeof d, ", %+.1f%%", 100 * (ours - pub) / std::abs(pub));
+                    cell += d;
                 }
-                cells[c][k] = cell;
+                cell += ")";
             }
-        auto metric_label = [&](const StudyMetric& m) { return m.name + (m.unit.empty() ? "" : " [" + m.unit + "]"); };
-        std::ostringstream md; // written whole (write_file_whole)
-        md << "# " << one_line(st.title) << "\n\n";
-        md << "Each cell: ours (published, relative difference). Study file: `" << st.path << "`.\n\n";
-        if (!st.rows_are_metrics)
+            cells[c][k] = cell;
+        }
+    return cells;
+}
+
+/// table.md: the cells with cases as rows (or, with table_rows: metrics, metrics as rows, the layout of the
+/// seed's Table 2), the published values' sources and the cases that did not complete.
+void write_table_md(const Study& st, const std::vector<StudyCaseResult>& results, const fs::path& out)
+{
+    std::vector<std::string> sources;
+    const std::vector<std::vector<std::string>> cells = table_cells(st, results, sources);
+    auto metric_label = [&](const StudyMetric& m) { return m.name + (m.unit.empty() ? "" : " [" + m.unit + "]"); };
+    std::ostringstream md; // written whole (write_file_whole)
+    md << "# " << one_line(st.title) << "\n\n";
+    md << "Each cell: ours (published, relative difference). Study file: `" << st.path << "`.\n\n";
+    if (!st.rows_are_metrics)
+    {
+        md << "| case | status |";
+        for (const auto& m : st.metrics)
+            md << " " << metric_label(m) << " |";
+        md << "\n|---|---|";
+        for (std::size_t k = 0; k < st.metrics.size(); ++k)
+            md << "---:|";
+        md << "\n";
+        for (std::size_t c = 0; c < results.size(); ++c)
         {
-            md << "| case | status |";
-            for (const auto& m : st.metrics)
-                md << " " << metric_label(m) << " |";
-            md << "\n|---|---|";
+            md << "| " << results[c].name << " | " << results[c].status << " |";
             for (std::size_t k = 0; k < st.metrics.size(); ++k)
-                md << "---:|";
+                md << " " << cells[c][k] << " |";
             md << "\n";
-            for (std::size_t c = 0; c < results.size(); ++c)
-            {
-                md << "| " << results[c].name << " | " << results[c].status << " |";
-                for (std::size_t k = 0; k < st.metrics.size(); ++k)
-                    md << " " << cells[c][k] << " |";
-                md << "\n";
-            }
         }
-        else
-        {
-            md << "| metric |";
-            for (const auto& r : results)
-                md << " " << r.name << " |";
-            md << "\n|---|";
-            for (std::size_t c = 0; c < results.size(); ++c)
-                md << "---:|";
-            md << "\n| status |";
-            for (const auto& r : results)
-                md << " " << r.status << " |";
-            md << "\n";
-            for (std::size_t k = 0; k < st.metrics.size(); ++k)
-            {
-                md << "| " << metric_label(st.metrics[k]) << " |";
-                for (std::size_t c = 0; c < results.size(); ++c)
-                    md << " " << cells[c][k] << " |";
-                md << "\n";
-            }
-        }
-        if (!sources.empty())
-        {
-            md << "\nPublished values:\n\n";
-            for (const auto& s : sources)
-                md << "- " << one_line(s) << "\n";
-        }
-        bool any_failed = false;
-        for (const auto& r : results)
-            if (r.status == "failed" || r.status == "unstable" || r.status == "interrupted")
-            {
-                if (!any_failed)
-                    md << "\nCases that did not complete:\n\n";
-                any_failed = true;
-                md << "- " << r.name << " (" << r.status << "): " << one_line(r.message) << "\n";
-            }
-        write_file_whole((out / "table.md").string(), md.str());
     }
-    // study.h5: metric names and units, per case its values, published values and its history
+    else
+    {
+        md << "| metric |";
+        for (const auto& r : results)
+            md << " " << r.name << " |";
+        md << "\n|---|";
+        for (std::size_t c = 0; c < results.size(); ++c)
+            md << "---:|";
+        md << "\n| status |";
+        for (const auto& r : results)
+            md << " " << r.status << " |";
+        md << "\n";
+        for (std::size_t k = 0; k < st.metrics.size(); ++k)
+        {
+            md << "| " << metric_label(st.metrics[k]) << " |";
+            for (std::size_t c = 0; c < results.size(); ++c)
+                md << " " << cells[c][k] << " |";
+            md << "\n";
+        }
+    }
+    if (!sources.empty())
+    {
+        md << "\nPublished values:\n\n";
+        for (const auto& s : sources)
+            md << "- " << one_line(s) << "\n";
+    }
+    bool any_failed = false;
+    for (const auto& r : results)
+        if (r.status == "failed" || r.status == "unstable" || r.status == "interrupted")
+        {
+            if (!any_failed)
+                md << "\nCases that did not complete:\n\n";
+            any_failed = true;
+            md << "- " << r.name << " (" << r.status << "): " << one_line(r.message) << "\n";
+        }
+    write_file_whole((out / "table.md").string(), md.str());
+}
+
+/// study.h5: metric names and units, per case its values, published values and its history.
+void write_study_h5(const Study& st, const std::vector<StudyCaseResult>& results, const fs::path& out)
+{
     const std::string h5 = (out / "study.h5").string();
     const hid_t file = H5Fcreate(h5.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (file < 0)
@@ -242,6 +243,24 @@ void study_detail::write_outputs(const Study& st, const std::vector<StudyCaseRes
     }
     H5Gclose(g);
     H5Fclose(file);
+}
+
+/// The data rows of a history.csv (whole lines after the header), -1 without the file.
+} // namespace
+
+std::string study_detail::one_line(std::string s)
+{
+    std::replace(s.begin(), s.end(), '\n', ' ');
+    std::replace(s.begin(), s.end(), '|', '/');
+    return s;
+}
+
+/// Fixed-length string dataset.
+void study_detail::write_outputs(const Study& st, const std::vector<StudyCaseResult>& results, const fs::path& out)
+{
+    write_table_csv(st, results, out);
+    write_table_md(st, results, out);
+    write_study_h5(st, results, out);
 }
 
 } // namespace rkfem

@@ -33,14 +33,14 @@ void cd_kick_range(index_t j0, index_t j1, const real_t* __restrict v, const rea
 #if defined(__AVX512F__)
     if (stream) // (set only without dv)
     {
-        const __m512d c0 = _mm512_set1_pd(0.5 * h_prev), c1 = _mm512_set1_pd(0.5 * h);
+        const simd::dvec c0 = simd::broadcast(0.5 * h_prev), c1 = simd::broadcast(0.5 * h);
         auto vf = [&](index_t j) { return v[j] + 0.5 * h_prev * a[j]; };
-        auto vf8 = [&](index_t j) { return _mm512_fmadd_pd(c0, _mm512_loadu_pd(a + j), _mm512_loadu_pd(v + j)); };
+        auto vf8 = [&](index_t j) { return simd::mul_add(c0, simd::load(a + j), simd::load(v + j)); };
         stream_range(j0, j1, v_full, vf, vf8);
         stream_range(
             j0, j1, du, [&](index_t j) { return vf(j) + 0.5 * h * a[j]; },
-            [&](index_t j) { return _mm512_fmadd_pd(c1, _mm512_loadu_pd(a + j), vf8(j)); });
-        _mm_sfence();
+            [&](index_t j) { return simd::mul_add(c1, simd::load(a + j), vf8(j)); });
+        simd::stream_fence();
         return;
     }
 #endif

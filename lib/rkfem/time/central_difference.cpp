@@ -38,37 +38,6 @@ void central_difference_drift(NodeSet& n, real_t dt, real_t* u_before)
                      });
 }
 
-void book_event_energy(ExplicitOperator& model, const std::vector<real_t>& a_old, real_t dt)
-{
-    const NodeSet& n = model.state();
-    const real_t h = 0.5 * dt;
-    const real_t change = parallel_reduce_sum("rkfem::event_energy", n.size(),
-                                              [&](index_t i)
-                                              {
-                                                  real_t s = 0.0;
-                                                  for (int d = 0; d < 3; ++d)
-                                                  {
-                                                      const std::size_t j = 3 * static_cast<std::size_t>(i) + d;
-                                                      const real_t v_half = n.v[j] - h * a_old[j];
-                                                      s += v_half * (n.a[j] - a_old[j]);
-                                                  }
-                                                  return 0.5 * n.mass[i] * h * s;
-                                              });
-    model.ledger().eroded -= change;
-    // the restart measured the kinetic energy without the leapfrog correction (it has no step);
-    // the step just taken gives it, with the new accelerations, so the balance holds at the
-    // event as well as after it
-    model.ledger().kinetic_correction =
-        -0.125 * dt * dt *
-        parallel_reduce_sum("rkfem::event_kinetic_correction", n.size(),
-                            [&](index_t i)
-                            {
-                                const std::size_t j = 3 * static_cast<std::size_t>(i);
-                                return n.mass[i] *
-                                       (n.a[j] * n.a[j] + n.a[j + 1] * n.a[j + 1] + n.a[j + 2] * n.a[j + 2]);
-                            });
-}
-
 StepReport start_model(ExplicitOperator& model, real_t t)
 {
     NodeSet& n = model.state();

@@ -23,14 +23,6 @@ void central_difference_kick(NodeSet& nodes, real_t h, real_t* v_before = nullpt
 /// u += dt v over all nodes; u before it into u_before when given (3 n values).
 void central_difference_drift(NodeSet& nodes, real_t dt, real_t* u_before = nullptr);
 
-/// After an event that changed the forces at t(n+1) (accelerations a_old before, nodes.a after
-/// the stepper started again): the leapfrog-consistent kinetic energy 1/2 m v(n+1/2).v(n+3/2)
-/// now takes a_new where the ledger booked a_old, a change no work term accounts for. Books
-/// -1/2 sum m v(n+1/2) . (dt/2)(a_new - a_old) into ledger().eroded, v(n+1/2) = v - dt/2 a_old,
-/// dt the step that ended at the event; and sets the leapfrog correction of the kinetic energy
-/// from a_new (the restart measured it without one).
-void book_event_energy(ExplicitOperator& model, const std::vector<real_t>& a_old, real_t dt);
-
 class CentralDifference final : public TimeStepper
 {
   public:

@@ -115,22 +115,18 @@ void op_linear_sum(realtype a, N_Vector x, realtype b, N_Vector y, N_Vector z)
                      if (stream)
                      {
                          // one array at a time over the block (stream_stores.hpp)
-                         const __m512d va = _mm512_set1_pd(a), vb = _mm512_set1_pd(b), vs = _mm512_set1_pd(scale);
+                         const simd::dvec va = simd::broadcast(a), vb = simd::broadcast(b), vs = simd::broadcast(scale);
                          stream_range(
                              i0, i1, zu, [&](index_t i) { return a * xu[i] + b * yu[i]; },
-                             [&](index_t i) {
-                                 return _mm512_fmadd_pd(va, _mm512_loadu_pd(xu + i),
-                                                        _mm512_mul_pd(vb, _mm512_loadu_pd(yu + i)));
-                             });
+                             [&](index_t i) { return simd::mul_add(va, simd::load(xu + i), vb * simd::load(yu + i)); });
                          stream_range(
                              i0, i1, zv, [&](index_t i) { return a * xv[i] + b * ((yu[i] - bv[i]) * scale); },
                              [&](index_t i)
                              {
-                                 const __m512d yv =
-                                     _mm512_mul_pd(_mm512_sub_pd(_mm512_loadu_pd(yu + i), _mm512_loadu_pd(bv + i)), vs);
-                                 return _mm512_fmadd_pd(va, _mm512_loadu_pd(xv + i), _mm512_mul_pd(vb, yv));
+                                 const simd::dvec yv = (simd::load(yu + i) - simd::load(bv + i)) * vs;
+                                 return simd::mul_add(va, simd::load(xv + i), vb * yv);
                              });
-                         _mm_sfence();
+                         simd::stream_fence();
                          return;
                      }
 #endif

@@ -7,9 +7,9 @@
 #include <memory>
 #include <string>
 
-#include "rkfem/config/deck.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/types.hpp"
+#include "rkfem/time/time_spec.hpp"
 
 namespace rkfem
 {

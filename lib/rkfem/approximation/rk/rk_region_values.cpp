@@ -149,34 +149,24 @@ void RkRegionValues::focus_wide(const Vec3& lo, const Vec3& hi)
         v->resize(nr + 8);
     ids_.resize(nr + 8);
     slots_.resize(nr + 8);
-    const __m512d grow = _mm512_set1_pd(1.0 + 1e-12);
-    const __m512d lo0 = _mm512_set1_pd(lo[0]), lo1 = _mm512_set1_pd(lo[1]), lo2 = _mm512_set1_pd(lo[2]);
-    const __m512d hi0 = _mm512_set1_pd(hi[0]), hi1 = _mm512_set1_pd(hi[1]), hi2 = _mm512_set1_pd(hi[2]);
-    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const simd::dvec grow = simd::broadcast(1.0 + 1e-12);
+    const double lo3[3] = {lo[0], lo[1], lo[2]}, hi3[3] = {hi[0], hi[1], hi[2]};
     std::size_t n = 0, k = 0;
     for (; k + 8 <= nr; k += 8)
     {
-        const __m512d a = _mm512_loadu_pd(region_a_.data() + k);
-        const __m512d reach = _mm512_mul_pd(a, grow);
-        const __m512d x0 = _mm512_loadu_pd(region_x_[0].data() + k), x1 = _mm512_loadu_pd(region_x_[1].data() + k),
-                      x2 = _mm512_loadu_pd(region_x_[2].data() + k);
-        __mmask8 m = _mm512_cmp_pd_mask(_mm512_add_pd(x0, reach), lo0, _CMP_NLT_UQ);
-        m &= _mm512_cmp_pd_mask(_mm512_sub_pd(x0, reach), hi0, _CMP_NGT_UQ);
-        m &= _mm512_cmp_pd_mask(_mm512_add_pd(x1, reach), lo1, _CMP_NLT_UQ);
-        m &= _mm512_cmp_pd_mask(_mm512_sub_pd(x1, reach), hi1, _CMP_NGT_UQ);
-        m &= _mm512_cmp_pd_mask(_mm512_add_pd(x2, reach), lo2, _CMP_NLT_UQ);
-        m &= _mm512_cmp_pd_mask(_mm512_sub_pd(x2, reach), hi2, _CMP_NGT_UQ);
+        const simd::dvec a = simd::load(region_a_.data() + k);
+        const simd::dvec x0 = simd::load(region_x_[0].data() + k), x1 = simd::load(region_x_[1].data() + k),
+                         x2 = simd::load(region_x_[2].data() + k);
+        const auto m = simd::boxes_reach(x0, x1, x2, a * grow, lo3, hi3);
         if (m == 0)
             continue;
-        const __m256i ids = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(region_ids_.data() + k));
-        const __m256i slots = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(k)), lane);
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(ids_.data() + n), _mm256_maskz_compress_epi32(m, ids));
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(slots_.data() + n), _mm256_maskz_compress_epi32(m, slots));
-        _mm512_storeu_pd(px_.data() + n, _mm512_maskz_compress_pd(m, x0));
-        _mm512_storeu_pd(py_.data() + n, _mm512_maskz_compress_pd(m, x1));
-        _mm512_storeu_pd(pz_.data() + n, _mm512_maskz_compress_pd(m, x2));
-        _mm512_storeu_pd(a_.data() + n, _mm512_maskz_compress_pd(m, a));
-        _mm512_storeu_pd(inv_a_.data() + n, _mm512_maskz_compress_pd(m, _mm512_loadu_pd(region_inv_a_.data() + k)));
+        simd::compress_store(ids_.data() + n, m, region_ids_.data() + k);
+        simd::compress_store_iota(slots_.data() + n, m, static_cast<std::int32_t>(k));
+        simd::compress_store(px_.data() + n, m, x0);
+        simd::compress_store(py_.data() + n, m, x1);
+        simd::compress_store(pz_.data() + n, m, x2);
+        simd::compress_store(a_.data() + n, m, a);
+        simd::compress_store(inv_a_.data() + n, m, simd::load(region_inv_a_.data() + k));
         n += static_cast<std::size_t>(__builtin_popcount(m));
     }
     resize_candidates(copy_kept(k, n, [&](std::size_t j) { return reaches(j, lo, hi); }));

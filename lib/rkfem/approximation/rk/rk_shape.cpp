@@ -8,13 +8,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <immintrin.h>
 #include <limits>
 #include <sstream>
 #include <utility>
 
 #include "rkfem/approximation/rk/rk_basis.hpp"
 #include "rkfem/core/mark_set.hpp"
+#include "rkfem/core/simd.hpp"
 
 namespace rkfem
 {
@@ -218,7 +218,8 @@ void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::v
     const index_t* ids = cells_.ids().data();
 #if defined(__AVX512F__) && defined(__AVX512VL__)
     // the hits' smallest and largest particle per lane, out of the loop's dependency chain
-    __m256i first = _mm256_set1_epi32(std::numeric_limits<index_t>::max()), last = _mm256_set1_epi32(-1);
+    simd::IdRange8 range;
+    const double lo3[3] = {lo[0], lo[1], lo[2]}, hi3[3] = {hi[0], hi[1], hi[2]};
 #endif
     cells_.for_each_run_near_box(lo, hi,
                                  [&](index_t q0, index_t q1)
@@ -227,23 +228,12 @@ void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::v
 #if defined(__AVX512F__) && defined(__AVX512VL__)
                                      // !(x + r < lo) and !(x - r > hi) per axis, as the plain
                                      // test (unordered compares: a NaN is in, as there)
-                                     const __m512d lo0 = _mm512_set1_pd(lo[0]), lo1 = _mm512_set1_pd(lo[1]),
-                                                   lo2 = _mm512_set1_pd(lo[2]), hi0 = _mm512_set1_pd(hi[0]),
-                                                   hi1 = _mm512_set1_pd(hi[1]), hi2 = _mm512_set1_pd(hi[2]);
                                      for (; q + 8 <= q1; q += 8)
                                      {
-                                         const __m512d r = _mm512_loadu_pd(br + q), x = _mm512_loadu_pd(bx + q),
-                                                       y = _mm512_loadu_pd(by + q), z = _mm512_loadu_pd(bz + q);
-                                         const __mmask8 in = _mm512_cmp_pd_mask(_mm512_add_pd(x, r), lo0, _CMP_NLT_UQ) &
-                                                             _mm512_cmp_pd_mask(_mm512_sub_pd(x, r), hi0, _CMP_NGT_UQ) &
-                                                             _mm512_cmp_pd_mask(_mm512_add_pd(y, r), lo1, _CMP_NLT_UQ) &
-                                                             _mm512_cmp_pd_mask(_mm512_sub_pd(y, r), hi1, _CMP_NGT_UQ) &
-                                                             _mm512_cmp_pd_mask(_mm512_add_pd(z, r), lo2, _CMP_NLT_UQ) &
-                                                             _mm512_cmp_pd_mask(_mm512_sub_pd(z, r), hi2, _CMP_NGT_UQ);
-                                         const __m256i id =
-                                             _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + q));
-                                         first = _mm256_mask_min_epi32(first, in, first, id);
-                                         last = _mm256_mask_max_epi32(last, in, last, id);
+                                         const auto in =
+                                             simd::boxes_reach(simd::load(bx + q), simd::load(by + q),
+                                                               simd::load(bz + q), simd::load(br + q), lo3, hi3);
+                                         range.take(in, ids + q);
                                          for (unsigned bits = in; bits != 0; bits &= bits - 1)
                                              hits.set(ids[q + __builtin_ctz(bits)]);
                                      }
@@ -257,10 +247,9 @@ void RkShapeFunctions::particles_near_box(const Vec3& lo, const Vec3& hi, std::v
                                      }
                                  });
 #if defined(__AVX512F__) && defined(__AVX512VL__)
-    alignas(32) index_t f[8], l[8];
-    _mm256_store_si256(reinterpret_cast<__m256i*>(f), first);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(l), last);
-    hits.cover(*std::min_element(f, f + 8), *std::max_element(l, l + 8));
+    index_t first, last;
+    range.bounds(first, last);
+    hits.cover(first, last);
 #endif
     out.clear();
     hits.drain([&](index_t j) { out.push_back(j); });

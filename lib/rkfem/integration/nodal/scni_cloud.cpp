@@ -62,6 +62,144 @@ void append_marked(Entries& out, const index_t* particle, const real_t* s, const
     }
     out.resize(m);
 }
+
+/// A face's sums that a cell hands on to the cell across (build_scni_cells_rk).
+struct FaceSums
+{
+    index_t to = -1;                ///< the cell across
+    int pool = 0;                   ///< in pools[pool], entries [begin, end): by particle,
+    std::size_t begin = 0, end = 0; ///< ascending, where some point of the face kept it
+};
+
+/// One thread's work on build_scni_cells_rk's rows: its region values, its sums (per region
+/// particle: acc / hit, the same of one face) and scratch for a merge; the cells' outboxes.
+struct RowWork
+{
+    const VoronoiCells& cells;
+    RkRegionValues& values;
+    std::vector<real_t>& acc;
+    std::vector<real_t>& hit;
+    std::vector<real_t>& face_acc;
+    std::vector<real_t>& face_hit;
+    Entries& merged;
+    std::vector<std::vector<FaceSums>>& outbox;
+    const index_t block;
+
+    /// Whether cells i and j share their face's sums (no further apart than a block).
+    bool shared(index_t i, index_t j) const { return j >= 0 && std::abs(i - j) <= block; }
+
+    /// the region of the box of points [q0, q1) of a cell gathered, and acc / hit zeroed over it
+    std::size_t gather_region(index_t q0, index_t q1)
+    {
+        Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
+        for (index_t q = q0; q < q1; ++q)
+        {
+            lo = lo.cwiseMin(cells.points[q].x);
+            hi = hi.cwiseMax(cells.points[q].x);
+        }
+        values.gather(lo, hi);
+        const std::size_t nr = values.region_size();
+        acc.assign(3 * nr, 0.0);
+        hit.assign(nr, 0.0);
+        return nr;
+    }
+
+    /// the region's particles that some point reached, with their sums, onto out (ascending)
+    void collect_hits(Entries& out)
+    {
+        append_marked(out, values.region_particles().data(), acc.data(), hit.data(), values.region_size());
+    }
+
+    /// row += sign * sums[0 .. m), both by particle ascending (a merge)
+    void add_sums(Entries& row, const std::pair<index_t, Vec3>* sums, std::size_t m, real_t sign)
+    {
+        merged.clear();
+        std::size_t a = 0, b = 0;
+        while (a < row.size() || b < m)
+            if (b == m || (a < row.size() && row[a].first < sums[b].first))
+                merged.push_back(row[a++]);
+            else if (a == row.size() || sums[b].first < row[a].first)
+            {
+                merged.emplace_back(sums[b].first, sign * sums[b].second);
+                ++b;
+            }
+            else
+            {
+                merged.emplace_back(row[a].first, row[a].second + sign * sums[b].second);
+                ++a, ++b;
+            }
+        row.swap(merged);
+    }
+
+    /// Cell i's own faces into its row, the sums of those it hands on onto pool (my_pool) and its
+    /// outbox, and the first points of those it takes from earlier cells into take.
+    void own_faces(index_t i, Entries& row, std::vector<index_t>& take, Entries& pool, int my_pool)
+    {
+        const index_t q0 = cells.offsets[i], q1 = cells.offsets[i + 1];
+        const std::size_t nr = gather_region(q0, q1);
+        const index_t* particle = values.region_particles().data();
+        for (index_t f0 = q0; f0 < q1;)
+        {
+            const index_t f1 = cells.face_end(i, f0), j = cells.points[f0].neighbour;
+            if (shared(i, j) && j < i)
+                take.push_back(f0);
+            else if (shared(i, j))
+            {
+                face_acc.assign(3 * nr, 0.0);
+                face_hit.assign(nr, 0.0);
+                for (index_t q = f0; q < f1; ++q)
+                    add_point_values(values, cells.points[q].x, cells.points[q].nda, face_acc.data(), face_hit.data());
+                FaceSums fs{j, my_pool, pool.size(), 0};
+                for (std::size_t k = 0; k < nr; ++k)
+                {
+                    acc[k] += face_acc[k];
+                    acc[nr + k] += face_acc[nr + k];
+                    acc[2 * nr + k] += face_acc[2 * nr + k];
+                    hit[k] = hit[k] < face_hit[k] ? face_hit[k] : hit[k];
+                }
+                append_marked(pool, particle, face_acc.data(), face_hit.data(), nr);
+                fs.end = pool.size();
+                outbox[static_cast<std::size_t>(i)].push_back(fs);
+            }
+            else
+                for (index_t q = f0; q < f1; ++q)
+                    add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
+            f0 = f1;
+        }
+        collect_hits(row);
+    }
+};
+
+/// The operator's weights, positions and owners, one row per cell (the rows still to come).
+void init_cell_operator(IntegrationOperator& op, const VoronoiCells& cells, const std::vector<real_t>& x, index_t n)
+{
+    op.weight = cells.volume;
+    op.position.assign(x.begin(), x.begin() + 3 * static_cast<std::ptrdiff_t>(n));
+    op.owner.resize(static_cast<std::size_t>(n));
+    for (index_t i = 0; i < n; ++i)
+        op.owner[i] = i;
+    op.offsets.assign(1, 0);
+    op.offsets.reserve(static_cast<std::size_t>(n) + 1);
+}
+
+/// The rows of cells [b0, b1) appended to op, with room for the rest where the block does not fit.
+void append_block_rows(IntegrationOperator& op, std::vector<Entries>& rows, index_t b0, index_t b1, index_t n)
+{
+    // room for the rest at the entries per cell so far, where the block does not fit
+    std::size_t in_block = 0;
+    for (index_t i = b0; i < b1; ++i)
+        in_block += rows[static_cast<std::size_t>(i - b0)].size();
+    const std::size_t need = op.nodes.size() + in_block;
+    if (need > op.nodes.capacity())
+    {
+        const std::size_t guess = need / static_cast<std::size_t>(b1) * static_cast<std::size_t>(n);
+        const std::size_t room = std::max(need, guess + guess / 32);
+        op.nodes.reserve(room);
+        op.grad.reserve(3 * room);
+    }
+    for (index_t i = b0; i < b1; ++i)
+        append_row(op, rows[static_cast<std::size_t>(i - b0)]);
+}
 } // namespace
 
 IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::vector<real_t>& x,
@@ -70,13 +208,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
     RKFEM_REQUIRE(block > 0, "build_scni_cells_rk: blocks of " << block << " cells");
     const index_t n = cells.size();
     IntegrationOperator op;
-    op.weight = cells.volume;
-    op.position.assign(x.begin(), x.begin() + 3 * static_cast<std::ptrdiff_t>(n));
-    op.owner.resize(static_cast<std::size_t>(n));
-    for (index_t i = 0; i < n; ++i)
-        op.owner[i] = i;
-    op.offsets.assign(1, 0);
-    op.offsets.reserve(static_cast<std::size_t>(n) + 1);
+    init_cell_operator(op, cells, x, n);
     // The rows a block of cells at a time, appended in cell order as they come. A face between
     // cells i < j no further apart than a block is evaluated once, by i: its points are the same
     // from both sides (each triangle of a face's centroid fan is an edge and the centroid, up to
@@ -86,18 +218,11 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
     // The sums go to a pool per thread and block parity, reused two blocks on (a block's cells
     // take only from their own block and the one before): sums held in vectors of their own came
     // back from the heap fragmented and raised the set-up's peak by a tenth.
-    struct FaceSums
-    {
-        index_t to = -1;                ///< the cell across
-        int pool = 0;                   ///< in pools[pool], entries [begin, end): by particle,
-        std::size_t begin = 0, end = 0; ///< ascending, where some point of the face kept it
-    };
     std::vector<std::vector<FaceSums>> outbox(static_cast<std::size_t>(n)); // per cell: its faces' sums for later cells
     std::vector<Entries> pools(2 * static_cast<std::size_t>(omp_get_max_threads()));
     std::vector<Entries> rows(static_cast<std::size_t>(std::min(n, block)));
     std::vector<std::vector<index_t>> taken(
         rows.size()); // per cell of the block: its faces' first points, to take from earlier cells
-    auto shared = [&](index_t i, index_t j) { return j >= 0 && std::abs(i - j) <= block; };
     ParallelErrors errors;
 #pragma omp parallel
     {
@@ -105,44 +230,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
         // per region particle: sum psi n dA [component][particle], hit (0 / 1); the same of one face
         std::vector<real_t> acc, hit, face_acc, face_hit;
         Entries merged;
-        // the region of the box of points [q0, q1) of a cell gathered, and acc / hit zeroed over it
-        auto gather_region = [&](index_t q0, index_t q1)
-        {
-            Vec3 lo = Vec3::Constant(std::numeric_limits<real_t>::max()), hi = -lo;
-            for (index_t q = q0; q < q1; ++q)
-            {
-                lo = lo.cwiseMin(cells.points[q].x);
-                hi = hi.cwiseMax(cells.points[q].x);
-            }
-            values.gather(lo, hi);
-            const std::size_t nr = values.region_size();
-            acc.assign(3 * nr, 0.0);
-            hit.assign(nr, 0.0);
-            return nr;
-        };
-        // the region's particles that some point reached, with their sums, onto out (ascending)
-        auto collect_hits = [&](Entries& out)
-        { append_marked(out, values.region_particles().data(), acc.data(), hit.data(), values.region_size()); };
-        // row += sign * sums[0 .. m), both by particle ascending (a merge)
-        auto add_sums = [&](Entries& row, const std::pair<index_t, Vec3>* sums, std::size_t m, real_t sign)
-        {
-            merged.clear();
-            std::size_t a = 0, b = 0;
-            while (a < row.size() || b < m)
-                if (b == m || (a < row.size() && row[a].first < sums[b].first))
-                    merged.push_back(row[a++]);
-                else if (a == row.size() || sums[b].first < row[a].first)
-                {
-                    merged.emplace_back(sums[b].first, sign * sums[b].second);
-                    ++b;
-                }
-                else
-                {
-                    merged.emplace_back(row[a].first, row[a].second + sign * sums[b].second);
-                    ++a, ++b;
-                }
-            row.swap(merged);
-        };
+        RowWork work{cells, values, acc, hit, face_acc, face_hit, merged, outbox, block};
         for (index_t b0 = 0; b0 < n; b0 += block)
         {
             const index_t b1 = std::min(n, b0 + block);
@@ -160,40 +248,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                 take.clear();
                 try
                 {
-                    const index_t q0 = cells.offsets[i], q1 = cells.offsets[i + 1];
-                    const std::size_t nr = gather_region(q0, q1);
-                    const index_t* particle = values.region_particles().data();
-                    for (index_t f0 = q0; f0 < q1;)
-                    {
-                        const index_t f1 = cells.face_end(i, f0), j = cells.points[f0].neighbour;
-                        if (shared(i, j) && j < i)
-                            take.push_back(f0);
-                        else if (shared(i, j))
-                        {
-                            face_acc.assign(3 * nr, 0.0);
-                            face_hit.assign(nr, 0.0);
-                            for (index_t q = f0; q < f1; ++q)
-                                add_point_values(values, cells.points[q].x, cells.points[q].nda, face_acc.data(),
-                                                 face_hit.data());
-                            FaceSums fs{j, my_pool, pool.size(), 0};
-                            for (std::size_t k = 0; k < nr; ++k)
-                            {
-                                acc[k] += face_acc[k];
-                                acc[nr + k] += face_acc[nr + k];
-                                acc[2 * nr + k] += face_acc[2 * nr + k];
-                                hit[k] = hit[k] < face_hit[k] ? face_hit[k] : hit[k];
-                            }
-                            append_marked(pool, particle, face_acc.data(), face_hit.data(), nr);
-                            fs.end = pool.size();
-                            outbox[static_cast<std::size_t>(i)].push_back(fs);
-                        }
-                        else
-                            for (index_t q = f0; q < f1; ++q)
-                                add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(),
-                                                 hit.data());
-                        f0 = f1;
-                    }
-                    collect_hits(row);
+                    work.own_faces(i, row, take, pool, my_pool);
                 }
                 catch (...)
                 {
@@ -217,17 +272,17 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
                                 from = &fs;
                         if (from)
                         {
-                            add_sums(row, pools[static_cast<std::size_t>(from->pool)].data() + from->begin,
-                                     from->end - from->begin, -1.0);
+                            work.add_sums(row, pools[static_cast<std::size_t>(from->pool)].data() + from->begin,
+                                          from->end - from->begin, -1.0);
                             continue;
                         }
                         const index_t f1 = cells.face_end(i, f0);
-                        gather_region(f0, f1);
+                        work.gather_region(f0, f1);
                         for (index_t q = f0; q < f1; ++q)
                             add_point_values(values, cells.points[q].x, cells.points[q].nda, acc.data(), hit.data());
                         Entries own;
-                        collect_hits(own);
-                        add_sums(row, own.data(), own.size(), 1.0);
+                        work.collect_hits(own);
+                        work.add_sums(row, own.data(), own.size(), 1.0);
                     }
                     const real_t scale = 1.0 / cells.volume[i];
                     for (auto& e : row)
@@ -241,20 +296,7 @@ IntegrationOperator build_scni_cells_rk(const VoronoiCells& cells, const std::ve
             }
 #pragma omp single
             {
-                // room for the rest at the entries per cell so far, where the block does not fit
-                std::size_t in_block = 0;
-                for (index_t i = b0; i < b1; ++i)
-                    in_block += rows[static_cast<std::size_t>(i - b0)].size();
-                const std::size_t need = op.nodes.size() + in_block;
-                if (need > op.nodes.capacity())
-                {
-                    const std::size_t guess = need / static_cast<std::size_t>(b1) * static_cast<std::size_t>(n);
-                    const std::size_t room = std::max(need, guess + guess / 32);
-                    op.nodes.reserve(room);
-                    op.grad.reserve(3 * room);
-                }
-                for (index_t i = b0; i < b1; ++i)
-                    append_row(op, rows[static_cast<std::size_t>(i - b0)]);
+                append_block_rows(op, rows, b0, b1, n);
                 // the cells a block back: no later cell takes from them
                 for (index_t i = std::max<index_t>(0, b0 - block); i < b0; ++i)
                     std::vector<FaceSums>().swap(outbox[static_cast<std::size_t>(i)]);

@@ -246,134 +246,162 @@ class RowMerger
     MarkSet marks_;
     std::vector<real_t> sum_;
 };
-} // namespace
 
-IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
-                                  IntegrationOperator* sd, bool share_translates, StencilTable* shared)
+/// build_scni_rk's phases and what they share: the elements' translates and the sources' facet
+/// sums, the sub-hexes' volumes (with sd the sub-cells' rows), the nodes' sub-hexes, the elements'
+/// colours, and the operator `op` the phases fill.
+struct ScniRkWork
 {
+    ScniRkWork(const HexMesh& m, const RkShapeFunctions& r, IntegrationOperator* s, IntegrationOperator& o)
+        : mesh(m), rk(r), sd(s), op(o)
+    {
+    }
+
+    const HexMesh& mesh;
+    const RkShapeFunctions& rk;
+    IntegrationOperator* const sd;
+    IntegrationOperator& op;
     const std::vector<index_t> nb = face_neighbours(mesh);
     const index_t nn = mesh.n_nodes(), ne = mesh.n_elements();
-    // The region of an element: the particles whose supports reach its box (a trilinear element
-    // lies in its nodes' box). Elements whose regions, shapes and boundary faces are translates
-    // of an earlier element's take its facet sums (RkTranslates).
-    auto frame = [&](index_t e, Vec3& lo, Vec3& hi, Vec3& ref, std::vector<real_t>& own)
+    RkTranslates translates;
+    std::vector<index_t> sources, served, sums_of;
+    std::vector<FacetSums> sums;
+    std::vector<real_t> slot_volume;
+    std::size_t n_sub = 0;
+    std::vector<Entries> sub_rows;
+    std::vector<real_t> sub_position;
+    std::vector<index_t> sub_owner;
+    std::vector<index_t> inc_offsets, slots, colour_of;
+
+    /// The elements' translates, the sources among them and the count of elements each serves.
+    void find_sources(bool share_translates)
     {
-        real_t xe[8][3];
-        element_coordinates(mesh, e, xe);
-        lo = hi = ref = Vec3(xe[0][0], xe[0][1], xe[0][2]);
-        for (int a = 1; a < 8; ++a)
-            for (int d = 0; d < 3; ++d)
-            {
-                lo[d] = std::min(lo[d], xe[a][d]);
-                hi[d] = std::max(hi[d], xe[a][d]);
-                own.push_back(xe[a][d] - xe[0][d]);
-            }
-        for (int f = 0; f < 6; ++f)
-            own.push_back(nb[6 * static_cast<std::size_t>(e) + f] < 0 ? 1.0 : 0.0);
-    };
-    const RkTranslates translates = find_rk_translates(rk, ne, frame, share_translates);
-    // the sources' facet sums, each with the count of elements it serves (the progress count)
-    std::vector<index_t> sources, served(static_cast<std::size_t>(ne), 0);
-    for (index_t e = 0; e < ne; ++e)
-    {
-        if (translates.computed(e))
-            sources.push_back(e);
-        ++served[translates.source[e]];
-    }
-    std::vector<index_t> sums_of(static_cast<std::size_t>(ne), -1);
-    for (std::size_t k = 0; k < sources.size(); ++k)
-        sums_of[sources[k]] = static_cast<index_t>(k);
-    std::vector<FacetSums> sums(sources.size());
-    ParallelErrors errors;
-#pragma omp parallel
-    {
-        ElementFacetSums element(rk, drop_tolerance);
-        real_t xe[8][3];
-        bool boundary_face[6];
-#pragma omp for schedule(dynamic, 16)
-        for (std::size_t k = 0; k < sources.size(); ++k)
+        // The region of an element: the particles whose supports reach its box (a trilinear element
+        // lies in its nodes' box). Elements whose regions, shapes and boundary faces are translates
+        // of an earlier element's take its facet sums (RkTranslates).
+        auto frame = [&](index_t e, Vec3& lo, Vec3& hi, Vec3& ref, std::vector<real_t>& own)
         {
-            const index_t e = sources[k];
-            try
+            real_t xe[8][3];
+            element_coordinates(mesh, e, xe);
+            lo = hi = ref = Vec3(xe[0][0], xe[0][1], xe[0][2]);
+            for (int a = 1; a < 8; ++a)
+                for (int d = 0; d < 3; ++d)
+                {
+                    lo[d] = std::min(lo[d], xe[a][d]);
+                    hi[d] = std::max(hi[d], xe[a][d]);
+                    own.push_back(xe[a][d] - xe[0][d]);
+                }
+            for (int f = 0; f < 6; ++f)
+                own.push_back(nb[6 * static_cast<std::size_t>(e) + f] < 0 ? 1.0 : 0.0);
+        };
+        translates = find_rk_translates(rk, ne, frame, share_translates);
+        // the sources' facet sums, each with the count of elements it serves (the progress count)
+        served.assign(static_cast<std::size_t>(ne), 0);
+        for (index_t e = 0; e < ne; ++e)
+        {
+            if (translates.computed(e))
+                sources.push_back(e);
+            ++served[translates.source[e]];
+        }
+        sums_of.assign(static_cast<std::size_t>(ne), -1);
+        for (std::size_t k = 0; k < sources.size(); ++k)
+            sums_of[sources[k]] = static_cast<index_t>(k);
+        sums.resize(sources.size());
+    }
+
+    /// The sources' facet sums, in parallel.
+    void compute_facet_sums(real_t drop_tolerance)
+    {
+        ParallelErrors errors;
+#pragma omp parallel
+        {
+            ElementFacetSums element(rk, drop_tolerance);
+            real_t xe[8][3];
+            bool boundary_face[6];
+#pragma omp for schedule(dynamic, 16)
+            for (std::size_t k = 0; k < sources.size(); ++k)
             {
-                element_coordinates(mesh, e, xe);
-                for (int f = 0; f < 6; ++f)
-                    boundary_face[f] = nb[6 * static_cast<std::size_t>(e) + f] < 0;
-                element.values().gather(translates.region(e), static_cast<std::size_t>(translates.region_size(e)));
-                element.compute(xe, boundary_face, sd != nullptr, sums[k]);
-                setup_progress::advance(served[e]);
-            }
-            catch (...)
-            {
-                errors.capture();
+                const index_t e = sources[k];
+                try
+                {
+                    element_coordinates(mesh, e, xe);
+                    for (int f = 0; f < 6; ++f)
+                        boundary_face[f] = nb[6 * static_cast<std::size_t>(e) + f] < 0;
+                    element.values().gather(translates.region(e), static_cast<std::size_t>(translates.region_size(e)));
+                    element.compute(xe, boundary_face, sd != nullptr, sums[k]);
+                    setup_progress::advance(served[e]);
+                }
+                catch (...)
+                {
+                    errors.capture();
+                }
             }
         }
+        errors.rethrow();
     }
-    errors.rethrow();
-    // Sub-hex volumes, and with sd the sub-cells' rows (each one list of its element's sums,
-    // read through the element's own region), weights, centroids and owners, per slot 8 e + a.
-    std::vector<real_t> slot_volume(8 * static_cast<std::size_t>(ne));
-    const std::size_t n_sub = sd ? 8 * static_cast<std::size_t>(ne) : 0;
-    std::vector<Entries> sub_rows(n_sub);
-    std::vector<real_t> sub_position(3 * n_sub);
-    std::vector<index_t> sub_owner(n_sub);
-    parallel_for("rkfem::build_scni_rk::sub_cells", ne,
-                 [&](index_t e)
-                 {
-                     real_t xe[8][3];
-                     element_coordinates(mesh, e, xe);
-                     for (int a = 0; a < 8; ++a)
-                         slot_volume[8 * static_cast<std::size_t>(e) + a] = sub_hex_volume(xe, a);
-                     if (!sd)
-                         return;
-                     const FacetSums& from = sums[sums_of[translates.source[e]]];
-                     const index_t* ids = translates.region(e);
-                     for (int a = 0; a < 8; ++a)
-                     {
-                         const std::size_t slot = 8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(a);
-                         if (!(slot_volume[slot] > 0.0))
-                             continue; // reported below, in element order
-                         const real_t scale = 1.0 / slot_volume[slot];
-                         for (index_t k = from.start[8 + a]; k < from.start[9 + a]; ++k)
-                         {
-                             const real_t* g = from.g.data() + 3 * static_cast<std::size_t>(k);
-                             sub_rows[slot].emplace_back(ids[from.slot[k]], Vec3(g[0], g[1], g[2]) * scale);
-                         }
-                         const Vec3 c = sub_hex_centroid(xe, a);
-                         for (int d = 0; d < 3; ++d)
-                             sub_position[3 * slot + d] = c[d];
-                         sub_owner[slot] = mesh.conn[slot];
-                     }
-                 });
-    for (std::size_t slot = 0; slot < n_sub; ++slot)
-        RKFEM_REQUIRE(slot_volume[slot] > 0.0, "SD-SCNI: sub-cell " << slot % 8 << " of element " << slot / 8
-                                                                    << " has non-positive volume "
-                                                                    << slot_volume[slot]);
-    // nodal volumes: each node's sub-hexes in incidence order (the same bits on any thread count)
-    std::vector<index_t> inc_offsets, slots;
-    node_element_incidence(mesh, inc_offsets, slots);
-    IntegrationOperator op;
-    op.weight.assign(static_cast<std::size_t>(nn), 0.0);
-    for (index_t i = 0; i < nn; ++i)
+
+    /// The sub-hexes' volumes, and with sd the sub-cells' rows, centroids and owners.
+    void sub_cells()
     {
-        for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
-            op.weight[i] += slot_volume[slots[k]];
-        RKFEM_REQUIRE(op.weight[i] > 0.0,
-                      "SCNI: nodal cell of node " << i << " has non-positive volume " << op.weight[i]);
+        // Sub-hex volumes, and with sd the sub-cells' rows (each one list of its element's sums,
+        // read through the element's own region), weights, centroids and owners, per slot 8 e + a.
+        slot_volume.resize(8 * static_cast<std::size_t>(ne));
+        n_sub = sd ? 8 * static_cast<std::size_t>(ne) : 0;
+        sub_rows.resize(n_sub);
+        sub_position.resize(3 * n_sub);
+        sub_owner.resize(n_sub);
+        parallel_for("rkfem::build_scni_rk::sub_cells", ne,
+                     [&](index_t e)
+                     {
+                         real_t xe[8][3];
+                         element_coordinates(mesh, e, xe);
+                         for (int a = 0; a < 8; ++a)
+                             slot_volume[8 * static_cast<std::size_t>(e) + a] = sub_hex_volume(xe, a);
+                         if (!sd)
+                             return;
+                         const FacetSums& from = sums[sums_of[translates.source[e]]];
+                         const index_t* ids = translates.region(e);
+                         for (int a = 0; a < 8; ++a)
+                         {
+                             const std::size_t slot = 8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(a);
+                             if (!(slot_volume[slot] > 0.0))
+                                 continue; // reported below, in element order
+                             const real_t scale = 1.0 / slot_volume[slot];
+                             for (index_t k = from.start[8 + a]; k < from.start[9 + a]; ++k)
+                             {
+                                 const real_t* g = from.g.data() + 3 * static_cast<std::size_t>(k);
+                                 sub_rows[slot].emplace_back(ids[from.slot[k]], Vec3(g[0], g[1], g[2]) * scale);
+                             }
+                             const Vec3 c = sub_hex_centroid(xe, a);
+                             for (int d = 0; d < 3; ++d)
+                                 sub_position[3 * slot + d] = c[d];
+                             sub_owner[slot] = mesh.conn[slot];
+                         }
+                     });
+        for (std::size_t slot = 0; slot < n_sub; ++slot)
+            RKFEM_REQUIRE(slot_volume[slot] > 0.0, "SD-SCNI: sub-cell " << slot % 8 << " of element " << slot / 8
+                                                                        << " has non-positive volume "
+                                                                        << slot_volume[slot]);
     }
-    // Each node's row: the sums of its sub-hexes merged by particle, each particle's terms added
-    // in the order of their elements' colours (a fixed order, so the same bits on any number of
-    // threads), then scaled by 1 / V: a pass that counts each row's particles, then one that
-    // writes the rows at their offsets.
-    std::vector<index_t> colour_offsets, by_colour;
-    colour_elements(mesh, colour_offsets, by_colour);
-    std::vector<index_t> colour_of(static_cast<std::size_t>(ne));
-    for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
-        for (index_t q = colour_offsets[c]; q < colour_offsets[c + 1]; ++q)
-            colour_of[by_colour[q]] = static_cast<index_t>(c);
-    // per node: its sub-hexes' lists in colour order (a count pass, then a pass that writes the
-    // merged rows)
-    auto lists_of = [&](index_t i, std::vector<RowMerger::List>& lists)
+
+    /// The nodes' volumes, the op's weights, from their sub-hexes.
+    void nodal_volumes()
+    {
+        // nodal volumes: each node's sub-hexes in incidence order (the same bits on any thread count)
+        node_element_incidence(mesh, inc_offsets, slots);
+        op.weight.assign(static_cast<std::size_t>(nn), 0.0);
+        for (index_t i = 0; i < nn; ++i)
+        {
+            for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
+                op.weight[i] += slot_volume[slots[k]];
+            RKFEM_REQUIRE(op.weight[i] > 0.0,
+                          "SCNI: nodal cell of node " << i << " has non-positive volume " << op.weight[i]);
+        }
+    }
+
+    /// per node: its sub-hexes' lists in colour order (a count pass, then a pass that writes the
+    /// merged rows)
+    void lists_of(index_t i, std::vector<RowMerger::List>& lists) const
     {
         lists.clear();
         for (index_t k = inc_offsets[i]; k < inc_offsets[i + 1]; ++k)
@@ -385,89 +413,125 @@ IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& r
         }
         std::sort(lists.begin(), lists.end(),
                   [](const RowMerger::List& p, const RowMerger::List& q) { return p.colour < q.colour; });
-    };
-    op.offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
-#pragma omp parallel
-    {
-        RowMerger merger(rk.size());
-        std::vector<RowMerger::List> lists;
-#pragma omp for schedule(static)
-        for (index_t i = 0; i < nn; ++i)
-        {
-            lists_of(i, lists);
-            op.offsets[i + 1] = merger.count(lists);
-        }
     }
-    for (index_t i = 0; i < nn; ++i)
-        op.offsets[i + 1] += op.offsets[i];
-    op.position = mesh.x;
-    op.owner.resize(static_cast<std::size_t>(nn));
-    for (index_t i = 0; i < nn; ++i)
-        op.owner[i] = i;
-    // node i's row into nodes[0, count), grad[0, 3 count)
-    auto write_row =
-        [&](index_t i, RowMerger& merger, std::vector<RowMerger::List>& lists, index_t* nodes, real_t* grad)
+
+    /// The elements' colours and the rows' offsets (a pass that counts each row's particles), and the
+    /// op's positions and owners.
+    void count_rows()
     {
-        lists_of(i, lists);
-        merger.merge(lists, 1.0 / op.weight[i], nodes, grad);
-    };
-    // Shared stencils straight from the rows: blocks of nodes write their rows in parallel into
-    // one buffer, which the sharer reads in node order, so the set-up never holds the whole
-    // operator (at P6's target as rkpm, 194 MB of fresh pages, a large share of its set-up;
-    // measurements: docs/performance.md). Where sharing does not pay, the rows are written
-    // again, into the operator.
-    bool shares = shared != nullptr;
-    if (shares)
-    {
-        shared->clear();
-        StencilSharer sharer(nn, static_cast<std::size_t>(op.offsets[nn]));
-        constexpr index_t kBlockNodes = 2048;
-        std::size_t room = 0;
-        for (index_t i0 = 0; i0 < nn; i0 += kBlockNodes)
-            room =
-                std::max(room, static_cast<std::size_t>(op.offsets[std::min(nn, i0 + kBlockNodes)] - op.offsets[i0]));
-        std::vector<index_t> block_nodes(room);
-        std::vector<real_t> block_grad(3 * room);
-#pragma omp parallel
-        {
-            RowMerger merger(rk.size());
-            std::vector<RowMerger::List> lists;
-            for (index_t i0 = 0; i0 < nn && shares; i0 += kBlockNodes)
-            {
-                const index_t i1 = std::min(nn, i0 + kBlockNodes);
-                const index_t base = op.offsets[i0];
-#pragma omp for schedule(static)
-                for (index_t i = i0; i < i1; ++i)
-                    write_row(i, merger, lists, block_nodes.data() + (op.offsets[i] - base),
-                              block_grad.data() + 3 * static_cast<std::size_t>(op.offsets[i] - base));
-#pragma omp single
-                for (index_t i = i0; i < i1 && shares; ++i)
-                    shares = sharer.add(block_nodes.data() + (op.offsets[i] - base),
-                                        block_grad.data() + 3 * static_cast<std::size_t>(op.offsets[i] - base),
-                                        op.offsets[i + 1] - op.offsets[i]);
-                // (the single's barrier: every thread sees `shares`)
-            }
-        }
-        if (shares)
-            *shared = sharer.take();
-    }
-    if (!shares)
-    {
-        op.nodes.resize(static_cast<std::size_t>(op.offsets[nn]));
-        op.grad.resize(3 * op.nodes.size());
+        // Each node's row: the sums of its sub-hexes merged by particle, each particle's terms added
+        // in the order of their elements' colours (a fixed order, so the same bits on any number of
+        // threads), then scaled by 1 / V: a pass that counts each row's particles, then one that
+        // writes the rows at their offsets.
+        std::vector<index_t> colour_offsets, by_colour;
+        colour_elements(mesh, colour_offsets, by_colour);
+        colour_of.resize(static_cast<std::size_t>(ne));
+        for (std::size_t c = 0; c + 1 < colour_offsets.size(); ++c)
+            for (index_t q = colour_offsets[c]; q < colour_offsets[c + 1]; ++q)
+                colour_of[by_colour[q]] = static_cast<index_t>(c);
+        op.offsets.assign(static_cast<std::size_t>(nn) + 1, 0);
 #pragma omp parallel
         {
             RowMerger merger(rk.size());
             std::vector<RowMerger::List> lists;
 #pragma omp for schedule(static)
             for (index_t i = 0; i < nn; ++i)
-                write_row(i, merger, lists, op.nodes.data() + op.offsets[i],
-                          op.grad.data() + 3 * static_cast<std::size_t>(op.offsets[i]));
+            {
+                lists_of(i, lists);
+                op.offsets[i + 1] = merger.count(lists);
+            }
+        }
+        for (index_t i = 0; i < nn; ++i)
+            op.offsets[i + 1] += op.offsets[i];
+        op.position = mesh.x;
+        op.owner.resize(static_cast<std::size_t>(nn));
+        for (index_t i = 0; i < nn; ++i)
+            op.owner[i] = i;
+    }
+
+    /// node i's row into nodes[0, count), grad[0, 3 count)
+    void write_row(index_t i, RowMerger& merger, std::vector<RowMerger::List>& lists, index_t* nodes,
+                   real_t* grad) const
+    {
+        lists_of(i, lists);
+        merger.merge(lists, 1.0 / op.weight[i], nodes, grad);
+    }
+
+    /// The rows: into shared stencils (with shared, where sharing pays), else into the op.
+    void write_rows(StencilTable* shared)
+    {
+        // Shared stencils straight from the rows: blocks of nodes write their rows in parallel into
+        // one buffer, which the sharer reads in node order, so the set-up never holds the whole
+        // operator (at P6's target as rkpm, 194 MB of fresh pages, a large share of its set-up;
+        // measurements: docs/performance.md). Where sharing does not pay, the rows are written
+        // again, into the operator.
+        bool shares = shared != nullptr;
+        if (shares)
+        {
+            shared->clear();
+            StencilSharer sharer(nn, static_cast<std::size_t>(op.offsets[nn]));
+            constexpr index_t kBlockNodes = 2048;
+            std::size_t room = 0;
+            for (index_t i0 = 0; i0 < nn; i0 += kBlockNodes)
+                room = std::max(room,
+                                static_cast<std::size_t>(op.offsets[std::min(nn, i0 + kBlockNodes)] - op.offsets[i0]));
+            std::vector<index_t> block_nodes(room);
+            std::vector<real_t> block_grad(3 * room);
+#pragma omp parallel
+            {
+                RowMerger merger(rk.size());
+                std::vector<RowMerger::List> lists;
+                for (index_t i0 = 0; i0 < nn && shares; i0 += kBlockNodes)
+                {
+                    const index_t i1 = std::min(nn, i0 + kBlockNodes);
+                    const index_t base = op.offsets[i0];
+#pragma omp for schedule(static)
+                    for (index_t i = i0; i < i1; ++i)
+                        write_row(i, merger, lists, block_nodes.data() + (op.offsets[i] - base),
+                                  block_grad.data() + 3 * static_cast<std::size_t>(op.offsets[i] - base));
+#pragma omp single
+                    for (index_t i = i0; i < i1 && shares; ++i)
+                        shares = sharer.add(block_nodes.data() + (op.offsets[i] - base),
+                                            block_grad.data() + 3 * static_cast<std::size_t>(op.offsets[i] - base),
+                                            op.offsets[i + 1] - op.offsets[i]);
+                    // (the single's barrier: every thread sees `shares`)
+                }
+            }
+            if (shares)
+                *shared = sharer.take();
+        }
+        if (!shares)
+        {
+            op.nodes.resize(static_cast<std::size_t>(op.offsets[nn]));
+            op.grad.resize(3 * op.nodes.size());
+#pragma omp parallel
+            {
+                RowMerger merger(rk.size());
+                std::vector<RowMerger::List> lists;
+#pragma omp for schedule(static)
+                for (index_t i = 0; i < nn; ++i)
+                    write_row(i, merger, lists, op.nodes.data() + op.offsets[i],
+                              op.grad.data() + 3 * static_cast<std::size_t>(op.offsets[i]));
+            }
         }
     }
-    std::vector<FacetSums>().swap(sums);
+};
+} // namespace
+
+IntegrationOperator build_scni_rk(const HexMesh& mesh, const RkShapeFunctions& rk, real_t drop_tolerance,
+                                  IntegrationOperator* sd, bool share_translates, StencilTable* shared)
+{
+    IntegrationOperator op;
+    ScniRkWork w(mesh, rk, sd, op);
+    w.find_sources(share_translates);
+    w.compute_facet_sums(drop_tolerance);
+    w.sub_cells();
+    w.nodal_volumes();
+    w.count_rows();
+    w.write_rows(shared);
+    std::vector<FacetSums>().swap(w.sums);
     if (sd)
-        *sd = pack(sub_rows, slot_volume, std::move(sub_position), std::move(sub_owner));
+        *sd = pack(w.sub_rows, w.slot_volume, std::move(w.sub_position), std::move(w.sub_owner));
     return op;
 }
 

@@ -5,6 +5,7 @@
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
+#include "rkfem/core/error.hpp"
 #include "rkfem/discretization/hex_mesh.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
@@ -12,8 +13,10 @@
 
 namespace rkfem
 {
-Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt)
+Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, PlasticPoints* history)
 {
+    const bool inelastic = blk.plastic.active();
+    RKFEM_REQUIRE(!inelastic || history != nullptr, "hex1pt_reference: an inelastic block needs a history copy");
     Hex1ptElement out;
     const ElasticParams mat = blk.material;
     const real_t c = mat.wave_speed();
@@ -45,7 +48,14 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
     for (int k = 0; k < 6; ++k)
         s_old[k] = blk.stress[k * blk.stress_stride + static_cast<std::size_t>(e)];
     std::copy(s_old, s_old + 6, out.stress);
-    elastic_update(mat, dv, wv, dt, out.stress);
+    if (inelastic)
+        history->update(static_cast<std::size_t>(e), dv, wv, dt, out.stress);
+    else
+        elastic_update(mat, dv, wv, dt, out.stress);
+    // the share of the step the material took elastically, for the stiffness forms' increments
+    const real_t share = inelastic && blk.hourglass.plastic_scaling
+                             ? assumed_strain_tangent_share<real_t>(s_old, out.stress, dv, wv, mat.mu, dt)
+                             : 1.0;
 
     // characteristic length: volume over the largest face area
     std::vector<real_t> xv(&x[0][0], &x[0][0] + 24);
@@ -111,7 +121,7 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                 for (int i = 0; i < 3; ++i)
                 {
                     q[m][i] = (frame[i][0] * qdot[a][0] + frame[i][1] * qdot[a][1] + frame[i][2] * qdot[a][2]) / 8.0;
-                    dS[m][i] = dt * blk.hourglass.coefficient * mat.mu / 3.0 * q[m][i] / Jf[i];
+                    dS[m][i] = dt * blk.hourglass.coefficient * mat.mu / 3.0 * share * q[m][i] / Jf[i];
                 }
             }
             real_t dQ[4][3];
@@ -164,7 +174,7 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                     real_t& Q = Q_fb[a][i];
                     if (hg == HourglassType::Stiffness)
                     {
-                        Q = Q_rot[i] + ch * dt * qdot[a][i];
+                        Q = Q_rot[i] + ch * dt * share * qdot[a][i];
                         out.d_hourglass += 0.5 * dt * (Q_rot[i] + Q) * qdot[a][i];
                     }
                     else

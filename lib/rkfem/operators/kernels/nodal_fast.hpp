@@ -198,7 +198,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     for (int l = 0; l < nl; ++l)
     {
         // the next batch's lane l: its stencil, which the next gather reads first
-        if (blk.options.prefetch_points && p0 + W + l < blk.n_points())
+        if (blk.options().prefetch_points && p0 + W + l < blk.n_points())
             prefetch_to_l2(stencil_view(blk.points, blk.point_stencils, p0 + W + l));
         if (!good[l])
             continue;
@@ -306,7 +306,7 @@ template <bool PLASTIC, bool FULL>
                            wl[2][l], dt, s0, s1, s2, s3, s4, s5);
             sn[0][l] = s0, sn[1][l] = s1, sn[2][l] = s2, sn[3][l] = s3, sn[4][l] = s4, sn[5][l] = s5;
         }
-        store_batch8<6>(sn, s_out, snp, static_cast<std::size_t>(p0), buf != nullptr && blk.options.stream_stress);
+        store_batch8<6>(sn, s_out, snp, static_cast<std::size_t>(p0), buf != nullptr && blk.options().stream_stress);
     }
     else
     {
@@ -340,7 +340,8 @@ template <bool PLASTIC, bool FULL>
         }
         // then the predictor's stresses are the new ones (what the lane loop below stores)
         if (all_elastic)
-            store_batch8<6>(sn, s_out, snp, static_cast<std::size_t>(p0), buf != nullptr && blk.options.stream_stress);
+            store_batch8<6>(sn, s_out, snp, static_cast<std::size_t>(p0),
+                            buf != nullptr && blk.options().stream_stress);
         for (int l = 0; l < W && !all_elastic; ++l)
         {
             const std::size_t p = lane_point(l);
@@ -462,9 +463,9 @@ template <bool PLASTIC, bool FULL>
             // asked for while NSNI scattered), else its stencil
             if (p + W < static_cast<std::size_t>(np))
             {
-                if (nsni_here && blk.options.prefetch_triplets)
+                if (nsni_here && blk.options().prefetch_triplets)
                     prefetch_to_l2(blk.stab_triplets.view(static_cast<index_t>(p + W)));
-                else if (!nsni_here && blk.options.prefetch_points)
+                else if (!nsni_here && blk.options().prefetch_points)
                     prefetch_to_l2(stencil_view(op, blk.point_stencils, static_cast<index_t>(p + W)));
             }
             if (!good[l])

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "rkfem/core/error.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
 
@@ -60,8 +61,10 @@ real_t stress_power(const real_t s_old[6], const real_t s_new[6], const real_t d
 }
 } // namespace
 
-NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt)
+NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt, PlasticPoints* history)
 {
+    const bool inelastic = blk.plastic.active();
+    RKFEM_REQUIRE(!inelastic || history != nullptr, "nodal_reference: an inelastic block needs a history copy");
     NodalPass out;
     out.f.assign(nodes.f_int.size(), 0.0);
     const IntegrationOperator& op = blk.points;
@@ -84,7 +87,10 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
         real_t* s = &out.stress[6 * static_cast<std::size_t>(p)];
         for (int k = 0; k < 6; ++k)
             s_old[k] = s[k] = blk.stress[k * blk.stress_stride + static_cast<std::size_t>(p)];
-        elastic_update(mat, d, w, dt, s);
+        if (!inelastic)
+            elastic_update(mat, d, w, dt, s);
+        else if (J > 0.0)
+            history->update(static_cast<std::size_t>(p), d, w, dt, s);
         const real_t len = blk.dt_factor * std::cbrt(J) * blk.length0[static_cast<std::size_t>(p)];
         const real_t trd = d[0] + d[1] + d[2];
         const real_t q = bulk_q(mat.rho / J, c, len, trd, q1, q2);

@@ -9,10 +9,11 @@
 /// tensors are never written out: the buffers stay in cache while a chunk runs.
 #include <algorithm>
 #include <cstddef>
-#include <immintrin.h>
+
 #include <vector>
 
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/core/simd.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
@@ -118,7 +119,7 @@ struct ChunkedScatter
                                for (index_t b = ch.first / width; b * width < ch.last; ++b)
                                    batch(b, buf, ch.lo);
                                // the batches may write with streaming stores (core/stream_stores.hpp)
-                               _mm_sfence();
+                               simd::stream_fence();
                            });
     }
     /// f[3 n + a] = the sum over the chunks covering node n of their buffer values, in chunk

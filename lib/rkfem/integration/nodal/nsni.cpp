@@ -1,6 +1,6 @@
-/// @file stabilization.cpp
-/// Stabilization of nodal integration: MSCNI (from SCNI and its sub-cells) and NSNI (the
-/// gradients' Taylor terms at three sub-points per particle).
+/// @file nsni.cpp
+/// Naturally stabilized nodal integration (NSNI): the gradients' Taylor terms at three
+/// sub-points per particle, as an operator or as shared triplets.
 #include "rkfem/integration/nodal/nodal_common.hpp"
 
 #include <algorithm>
@@ -24,32 +24,6 @@
 namespace rkfem
 {
 using namespace nodal_detail;
-
-IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd)
-{
-    IntegrationOperator op;
-    op.weight = sd.weight;
-    op.position = sd.position;
-    op.owner = sd.owner;
-    op.parent = sd.owner; // SCNI point index = node index
-    for (index_t s = 0; s < sd.n_points(); ++s)
-    {
-        const index_t L = sd.owner[s];
-        Entries e;
-        for (index_t k = sd.offsets[s]; k < sd.offsets[s + 1]; ++k)
-            e.emplace_back(sd.nodes[k], sd.gradient(k));
-        for (index_t k = scni.offsets[L]; k < scni.offsets[L + 1]; ++k)
-            e.emplace_back(scni.nodes[k], -scni.gradient(k));
-        merge(e, 1.0);
-        for (const auto& [n, g] : e)
-        {
-            op.nodes.push_back(n);
-            op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
-        }
-        op.offsets.push_back(op.n_entries());
-    }
-    return op;
-}
 
 RkTranslates particle_translates(const RkShapeFunctions& rk, bool share)
 {

@@ -1,5 +1,5 @@
-/// @file moments_boundary.cpp
-/// Nodal second moments (NSNI's weights) and the boundary quadrature of a hex mesh.
+/// @file second_moments.cpp
+/// Nodal second moments of a hex mesh's dual cells (NSNI's weights), and of cubes.
 #include "rkfem/integration/nodal/nodal_common.hpp"
 
 #include <algorithm>
@@ -113,31 +113,5 @@ std::vector<real_t> cube_second_moments(const std::vector<real_t>& volume)
         m[3 * i] = m[3 * i + 1] = m[3 * i + 2] = volume[i] * s * s / 12.0;
     }
     return m;
-}
-
-std::vector<BoundaryPoint> boundary_quadrature(const HexMesh& mesh)
-{
-    const std::vector<index_t> nb = face_neighbours(mesh);
-    std::vector<BoundaryPoint> out;
-    SubHex sh;
-    real_t xe[8][3];
-    for (index_t e = 0; e < mesh.n_elements(); ++e)
-    {
-        bool any = false;
-        for (int f = 0; f < 6; ++f)
-            any = any || nb[6 * e + f] < 0;
-        if (!any)
-            continue;
-        element_coordinates(mesh, e, xe);
-        for (int a = 0; a < 8; ++a)
-        {
-            build_sub_hex(xe, a, sh);
-            for (int f = 1; f < 6; f += 2) // external facets
-                if (nb[6 * e + sh.element_face[f]] < 0)
-                    for (const FacetPoint& fp : sh.facets[f])
-                        out.push_back({e, mesh.conn[8 * e + a], fp});
-        }
-    }
-    return out;
 }
 } // namespace rkfem

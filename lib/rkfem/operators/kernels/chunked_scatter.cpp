@@ -1,4 +1,4 @@
-#include "rkfem/operators/chunked_scatter.hpp"
+#include "rkfem/operators/kernels/chunked_scatter.hpp"
 
 #include <algorithm>
 #include <immintrin.h>

@@ -1,7 +1,7 @@
 /// @file nodal_block_coupled.cpp
 /// Coupled parts: FE, transition and RK elements in one nodal block, built and updated as
 /// conversion changes the RK elements.
-#include "rkfem/operators/nodal_block_build_detail.hpp"
+#include "rkfem/model/nodal_block_build_detail.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -8,7 +8,7 @@
 #include "rkfem/approximation/rk/rk_translates.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 
 namespace rkfem::nodal_build_detail
 {

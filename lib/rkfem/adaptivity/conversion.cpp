@@ -6,7 +6,7 @@
 
 #include "rkfem/core/error.hpp"
 #include "rkfem/model/model.hpp"
-#include "rkfem/operators/nodal_block_build.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
 
 namespace rkfem
 {

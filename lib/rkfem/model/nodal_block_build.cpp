@@ -1,5 +1,5 @@
-#include "rkfem/operators/nodal_block_build.hpp"
-#include "rkfem/operators/nodal_block_build_detail.hpp"
+#include "rkfem/model/nodal_block_build.hpp"
+#include "rkfem/model/nodal_block_build_detail.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -19,6 +19,7 @@
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/discretization/voronoi_cells.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
+#include "rkfem/model/material_from_deck.hpp"
 
 namespace rkfem
 {
@@ -53,7 +54,7 @@ NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset)
 {
     NodalBlock nb;
     nb.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
-    nb.plastic.configure(ps.material);
+    configure_points(nb.plastic, ps.material);
     nb.node_begin = offset;
     nb.node_end = offset + n_nodes;
     nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);
@@ -241,7 +242,7 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
                 // stabilization is formed from the rows)
                 nb.points =
                     build_scni_rk(mesh, *rk, ps.rk.drop_tolerance, mscni ? &sd : nullptr, ps.rk.share_translates,
-                                  nb.options.share_stencils && !mscni ? &nb.point_stencils : nullptr);
+                                  nb.options().share_stencils && !mscni ? &nb.point_stencils : nullptr);
                 nb.points_in_table = !nb.point_stencils.empty();
             }
             else if (mscni)
@@ -269,7 +270,10 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     }
     // stable-step length and crack band: the shortest mesh edge at the node
     const std::vector<real_t> l0 = nodal_spacing(mesh, false);
-    nb.options.compact_operators = true; // a part of one formulation: its operators never change in place
+    // a part of one formulation: its operators never change in place
+    NodalBlockOptions o = nb.options();
+    o.compact_operators = true;
+    nb.set_options(o);
     finish_block(nb, offset, l0, l0);
     return nb;
 }

@@ -1,6 +1,6 @@
 /// @file nodal_block_cloud.cpp
 /// Particle clouds: Voronoi cells, SCNI and stabilization, and the lumped mass of nodal blocks.
-#include "rkfem/operators/nodal_block_build_detail.hpp"
+#include "rkfem/model/nodal_block_build_detail.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -137,7 +137,11 @@ NodalBlock build_cloud_block(const PartSpec& ps, const HexMesh& cloud, index_t o
     std::vector<real_t> band(cells.volume.size());
     for (std::size_t i = 0; i < band.size(); ++i)
         band[i] = std::cbrt(cells.volume[i]); // crack band: the cell's size
-    nb.options.compact_operators = true;
+    {
+        NodalBlockOptions o = nb.options();
+        o.compact_operators = true;
+        nb.set_options(o);
+    }
     finish_block(nb, offset, reach, band);
     return nb;
 }
