@@ -1,5 +1,5 @@
 // Events between steps that change the discretization (erosion; conversion in
-// model_conversion.cpp), and the assembly plan
+// adaptivity/conversion.cpp), and the assembly plan
 // they keep up to date.
 #include "rkfem/model/model.hpp"
 

@@ -1,6 +1,6 @@
 #pragma once
 /// @file nodal_block_build_detail.hpp
-/// What the nodal block builders share (internal to operators/): nodal_block_build.cpp (mesh parts),
+/// What the nodal block builders share (internal to model/): nodal_block_build.cpp (mesh parts),
 /// nodal_block_coupled.cpp (coupled parts) and nodal_block_cloud.cpp (particle clouds).
 #include <vector>
 
