@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <array>
+#include <cstdio>
 
 #include "../support.hpp"
 #include "rkfem/approximation/fem/hex8_basis.hpp"
@@ -279,8 +281,8 @@ TEST(Hourglass, AssumedStrainPassesThePatchTestAndIsObjective)
         blk.commit();
     }
     real_t stored = 0.0;
-    for (real_t s : blk.hg_force)
-        stored = std::max(stored, std::abs(s));
+    for (std::size_t k = 0; k < 12 * static_cast<std::size_t>(blk.n_elements()); ++k) // the forces, not the sizes
+        stored = std::max(stored, std::abs(blk.hg_force[k]));
     EXPECT_LT(stored, 1e-6) << "hourglass stress under a linear field (Pa x m: would be ~1e6 if it leaked)";
 
     // objectivity: load bending mode zeta xi along x, then turn the element a quarter turn about z
@@ -290,6 +292,86 @@ TEST(Hourglass, AssumedStrainPassesThePatchTestAndIsObjective)
     const real_t err = t.error, scale = t.scale, e_hg = t.work;
     EXPECT_LT(err, 1e-6 * scale) << "the frame turns exactly with a rigid rotation";
     EXPECT_LT(std::abs(e_hg), 1e-12) << "a rigid rotation does no hourglass work";
+}
+
+namespace
+{
+/// One cube of edge h with the assumed-strain form (QM 1) through a closed cycle: the nodes move
+/// in hourglass mode 1 (eta zeta) along x for n steps, the element is squashed along x to
+/// half its length (a linear velocity field, no hourglass rate of its own), the hourglass motion
+/// is reversed for n steps, and the element is stretched back. Returns the hourglass work of each
+/// leg (Energies' booking: the work of the hourglass forces against the motion). With `forget`
+/// the frame sizes the forces were stored at are cleared before every step (the stored forces
+/// are then held whatever the stiffness does, the rule before assumed_strain_keep).
+std::array<real_t, 4> hourglass_cycle(bool forget)
+{
+    OneElement e(HourglassType::AssumedStrain, 1.0);
+    const real_t dt = 1e-7, amp = 0.2; // 8 x 400 steps x 2e-8 m: the mode's amplitude about 1e-5 h
+    const int n = 400;
+    std::array<real_t, 4> work{};
+    auto step = [&](int leg)
+    {
+        if (forget)
+            for (int i = 0; i < 3; ++i)
+                e.blk.hg_force[HexBlock::kHgSizeRow + i] = 0.0;
+        for (std::size_t j = 0; j < e.nodes.x.size(); ++j)
+            e.nodes.x[j] += dt * e.nodes.v[j];
+        work[static_cast<std::size_t>(leg)] += hex_internal_force(e.blk, e.nodes, dt).d_hourglass;
+        e.blk.commit();
+    };
+    auto squash = [&](int leg, real_t to)
+    {
+        // x = x1 s(t) about x = 0, s linear from 1 to `to`: v_x = x1 ds/dt
+        const std::vector<real_t> x1 = e.nodes.x;
+        for (int k = 1; k <= n; ++k)
+        {
+            for (int I = 0; I < 8; ++I)
+            {
+                const index_t node = e.blk.conn[I];
+                e.nodes.v[3 * node] = x1[3 * node] * (to - 1.0) / (n * dt);
+                e.nodes.v[3 * node + 1] = e.nodes.v[3 * node + 2] = 0.0;
+            }
+            step(leg);
+        }
+    };
+    e.set_hourglass_velocity(1, 0, amp);
+    for (int k = 0; k < n; ++k)
+        step(0);
+    squash(1, 0.5);
+    e.set_hourglass_velocity(1, 0, -amp);
+    for (int k = 0; k < n; ++k)
+        step(2);
+    squash(3, 2.0);
+    return work;
+}
+} // namespace
+
+TEST(Hourglass, AssumedStrainGivesBackNoMoreThanItStored)
+{
+    // The stored shear force Q_x1 is a spring of stiffness k ~ H_22 + H_33 = J_1 (J_3 / J_2 +
+    // J_2 / J_3): squashing the element to half its length along x halves k (a linear field: no
+    // hourglass rate, no work). Loading stores Q0 = k0 d with work W = Q0 d / 2; unloading at the
+    // same rate runs Q down by (k0 / 2) d.
+    //   held (the forces kept as stored): Q0 -> Q0 / 2, the unloading returns (3/4) Q0 d = 1.5 W
+    //     and the cycle ends at -W / 2: the form did work on the element;
+    //   kept (assumed_strain_keep: Q0 -> Q0 / sqrt 2 at the squash, the spring's energy Q^2 / 2k
+    //     unchanged): the unloading returns (Q0 / sqrt 2 - Q0 / 4) d = (sqrt 2 - 1/2) W and the
+    //     cycle ends at (3/2 - sqrt 2) W = 0.0858 W, between 0 and W.
+    // The stretch back does no hourglass work either way (to round-off).
+    const std::array<real_t, 4> kept = hourglass_cycle(false), held = hourglass_cycle(true);
+    const real_t load = kept[0];
+    const real_t net_kept = kept[0] + kept[1] + kept[2] + kept[3], net_held = held[0] + held[1] + held[2] + held[3];
+    std::printf("hourglass work per leg [J]: kept (load, squash, unload, stretch) %.4e %.4e %.4e %.4e, net %.4e "
+                "(%.5f W); held %.4e %.4e %.4e %.4e, net %.4e (%.5f W)\n",
+                kept[0], kept[1], kept[2], kept[3], net_kept, net_kept / load, held[0], held[1], held[2], held[3],
+                net_held, net_held / load);
+    ASSERT_GT(load, 0.0);
+    EXPECT_NEAR(held[0], load, 1e-12 * load); // the legs before the squash are the same
+    // the mode's amplitude is about 1e-5 h, so the element's shape (and k) moves by that much
+    EXPECT_NEAR(net_held / load, -0.5, 1e-4) << "the defect the rule removes";
+    EXPECT_NEAR(net_kept / load, 1.5 - std::sqrt(2.0), 1e-4);
+    EXPECT_GE(net_kept, 0.0);
+    EXPECT_LE(net_kept, load);
 }
 
 namespace
@@ -451,8 +533,8 @@ TEST(Hourglass, StiffnessFormsStoreNothingWhereThePointFlowsPerfectlyPlastically
             }
             const ForcePassResult r = hex_internal_force(blk, nodes, dt);
             real_t stored = 0.0;
-            for (real_t q : blk.hg_force_trial)
-                stored = std::max(stored, std::abs(q));
+            for (int k = 0; k < 12; ++k) // the forces (assumed strain: the frame sizes follow)
+                stored = std::max(stored, std::abs(blk.hg_force_trial[static_cast<std::size_t>(k)]));
             // the point starts 1e-9 below yield: of the step's 77 kPa of elastic shear increment
             // it takes 0.17 Pa elastically, a share of 2e-6
             const char* name = t == HourglassType::Stiffness ? "stiffness" : "assumed-strain";
@@ -471,5 +553,73 @@ TEST(Hourglass, StiffnessFormsStoreNothingWhereThePointFlowsPerfectlyPlastically
                 EXPECT_GT(r.d_hourglass, 0.0) << name;
             }
         }
+    }
+}
+
+TEST(Hourglass, StiffnessFormsGiveBackWhatTheyStoredWhereThePointFlows)
+{
+    // One J2 element without hardening: an hourglass rate (mode zeta xi along y) loads the stored
+    // forces for n steps while the point is elastic (no deviatoric strain: the whole increment),
+    // then the point is put on its yield surface and sheared (it flows: a share of about 0) while
+    // the hourglass rate runs back for n steps. The unloads take the whole increment
+    // (scaled_hourglass_update), so the stored forces come back to zero with their displacement
+    // and give back what was stored: the cycle's hourglass work is zero to the share's 1e-6. Had
+    // the unloads been scaled too, the forces would stay as stored while the displacement went
+    // back, and the cycle would end at minus the loading's work.
+    for (HourglassType t : {HourglassType::Stiffness, HourglassType::AssumedStrain})
+    {
+        const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(0.01), {1, 1, 1});
+        NodeSet nodes;
+        const MaterialSpec ms = test::j2_material(7850, 200e9, 0.3, 300e6, 0.0);
+        HourglassSpec hg{t, 0.1};
+        hg.plastic_scaling = true;
+        HexBlock blk =
+            test::make_block(mesh, nodes, Formulation::Fem1pt, hg, ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu));
+        configure_points(blk.plastic, ms);
+        blk.initialize(nodes);
+        blk.plastic.set_lengths(std::vector<real_t>(1, 0.01));
+        const real_t dt = 1e-8, gamma_rate = 100.0;
+        const int n = 50;
+        auto set_velocity = [&](real_t hourglass, real_t shear)
+        {
+            for (index_t i = 0; i < nodes.size(); ++i)
+            {
+                const Vec3 x(nodes.x[3 * i], nodes.x[3 * i + 1], nodes.x[3 * i + 2]);
+                const Vec3 xi = 2.0 * mesh.node(i) / 0.01 - Vec3::Ones();
+                nodes.v[3 * i] = shear * x[2];
+                nodes.v[3 * i + 1] = hourglass * xi[2] * xi[0];
+                nodes.v[3 * i + 2] = 0.0;
+            }
+        };
+        auto step = [&]
+        {
+            for (std::size_t j = 0; j < nodes.x.size(); ++j)
+                nodes.x[j] += dt * nodes.v[j];
+            const real_t w = hex_internal_force(blk, nodes, dt).d_hourglass;
+            blk.commit();
+            return w;
+        };
+        real_t load = 0.0, unload = 0.0, stored = 0.0;
+        set_velocity(1.0, 0.0);
+        for (int k = 0; k < n; ++k)
+            load += step();
+        for (int k = 0; k < 12; ++k)
+            stored = std::max(stored, std::abs(blk.hg_force[static_cast<std::size_t>(k)]));
+        // onto the yield surface in shear xz, then shear flow with the hourglass rate reversed
+        for (int k = 0; k < 6; ++k)
+            blk.stress[static_cast<std::size_t>(k) * blk.stress_stride] = 0.0;
+        blk.stress[5 * blk.stress_stride] = 300e6 / std::sqrt(3.0) * (1 - 1e-9);
+        set_velocity(-1.0, gamma_rate);
+        for (int k = 0; k < n; ++k)
+            unload += step();
+        real_t left = 0.0;
+        for (int k = 0; k < 12; ++k)
+            left = std::max(left, std::abs(blk.hg_force[static_cast<std::size_t>(k)]));
+        const char* name = t == HourglassType::Stiffness ? "stiffness" : "assumed-strain";
+        std::printf("%s: loading work %.4e J, unloading %.4e J, net %.2e of it; stored force %.3e N, left %.2e of it\n",
+                    name, load, unload, (load + unload) / load, stored, left / stored);
+        ASSERT_GT(load, 0.0) << name;
+        EXPECT_LT(std::abs(load + unload), 1e-3 * load) << name;
+        EXPECT_LT(left, 1e-3 * stored) << name;
     }
 }

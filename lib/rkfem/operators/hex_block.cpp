@@ -38,8 +38,8 @@ void HexBlock::initialize(const NodeSet& nodes, Assembly assembly)
     stress_trial.assign(6 * stress_stride, 0.0);
     if (plastic.active())
         plastic.resize(np);
-    hg_force.assign(12 * static_cast<std::size_t>(ne), 0.0);
-    hg_force_trial.assign(12 * static_cast<std::size_t>(ne), 0.0);
+    hg_force.assign(static_cast<std::size_t>(hg_rows()) * ne, 0.0);
+    hg_force_trial.assign(static_cast<std::size_t>(hg_rows()) * ne, 0.0);
     build_tables(nodes, assembly);
 }
 
@@ -67,8 +67,8 @@ void HexBlock::remove_elements(const std::vector<char>& keep, const NodeSet& nod
     stress = s2;
     stress_trial = std::move(s2);
     stress_stride = stride2;
-    std::vector<real_t> hg2(12 * static_cast<std::size_t>(ne2));
-    for (int k = 0; k < 12; ++k)
+    std::vector<real_t> hg2(static_cast<std::size_t>(hg_rows()) * ne2);
+    for (int k = 0; k < hg_rows(); ++k)
         for (index_t q = 0; q < ne2; ++q)
             hg2[static_cast<std::size_t>(k) * ne2 + q] = hg_force[static_cast<std::size_t>(k) * ne + kept[q]];
     hg_force = hg2;

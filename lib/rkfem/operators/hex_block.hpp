@@ -55,8 +55,13 @@ struct HexBlock
     /// store_batch8; only past kStreamBytes, with the chunked scatter). Off: plain stores, the
     /// same values (verification compares the two).
     bool stream_stress = true;
-    std::vector<real_t> hg_force, hg_force_trial; ///< 12 x n_elements (stiffness form) [N]
-    std::vector<real_t> volume0;                  ///< n_elements, reference volume [m^3]
+    /// The stiffness forms' hourglass state, hg_rows() x n_elements: the 12 stored generalized
+    /// forces [N], then (assumed strain) the element's 3 frame sizes when they were last updated
+    /// [m] (0: never), from which the stored forces follow the change of their stiffness
+    std::vector<real_t> hg_force, hg_force_trial;
+    static constexpr int kHgSizeRow = 12; ///< the first frame-size row of hg_force (assumed strain)
+    int hg_rows() const { return hourglass.type == HourglassType::AssumedStrain ? 15 : 12; }
+    std::vector<real_t> volume0; ///< n_elements, reference volume [m^3]
 
     /// Scatter assembly of 1-point blocks (chunks of elements, see chunked_scatter.hpp); empty:
     /// elem_force and the transpose gather

@@ -52,10 +52,10 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
         history->update(static_cast<std::size_t>(e), dv, wv, dt, out.stress);
     else
         elastic_update(mat, dv, wv, dt, out.stress);
-    // the share of the step the material took elastically, for the stiffness forms' increments
-    const real_t share = inelastic && blk.hourglass.plastic_scaling
-                             ? assumed_strain_tangent_share<real_t>(s_old, out.stress, dv, wv, mat.mu, dt)
-                             : 1.0;
+    // the share of the step the material took elastically: the stiffness forms' loads take it,
+    // their unloads do not (scaled_hourglass_update)
+    const bool scaled = inelastic && blk.hourglass.plastic_scaling;
+    const real_t share = scaled ? assumed_strain_tangent_share<real_t>(s_old, out.stress, dv, wv, mat.mu, dt) : 1.0;
 
     // characteristic length: volume over the largest face area
     std::vector<real_t> xv(&x[0][0], &x[0][0] + 24);
@@ -121,11 +121,20 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                 for (int i = 0; i < 3; ++i)
                 {
                     q[m][i] = (frame[i][0] * qdot[a][0] + frame[i][1] * qdot[a][1] + frame[i][2] * qdot[a][2]) / 8.0;
-                    dS[m][i] = dt * blk.hourglass.coefficient * mat.mu / 3.0 * share * q[m][i] / Jf[i];
+                    dS[m][i] = dt * blk.hourglass.coefficient * mat.mu / 3.0 * q[m][i] / Jf[i];
                 }
             }
             real_t dQ[4][3];
             assumed_strain_forces(dS, Jf, nu, dQ);
+            // the stored forces follow the change of their stiffness since they were stored
+            real_t Jo[3], keep[4][3];
+            for (int i = 0; i < 3; ++i)
+            {
+                Jo[i] =
+                    blk.hg_force[static_cast<std::size_t>(HexBlock::kHgSizeRow + i) * ne + static_cast<std::size_t>(e)];
+                out.hg_size[i] = Jf[i];
+            }
+            assumed_strain_keep(Jo, Jf, keep);
             for (int m = 0; m < 4; ++m)
             {
                 const int a = kAssumedStrainMode[m];
@@ -133,10 +142,20 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                 for (int i = 0; i < 3; ++i)
                 {
                     const real_t Q_old =
+                        keep[m][i] *
                         blk.hg_force[static_cast<std::size_t>(3 * m + i) * ne + static_cast<std::size_t>(e)];
-                    Q_new[i] = Q_old + dQ[m][i];
-                    out.hg_force[m][i] = Q_new[i];
-                    out.d_hourglass += dt * (Q_old + 0.5 * dQ[m][i]) * q[m][i];
+                    if (scaled)
+                    {
+                        Q_new[i] = scaled_hourglass_update(Q_old, dQ[m][i], share);
+                        out.hg_force[m][i] = Q_new[i];
+                        out.d_hourglass += 0.5 * dt * (Q_old + Q_new[i]) * q[m][i];
+                    }
+                    else
+                    {
+                        Q_new[i] = Q_old + dQ[m][i];
+                        out.hg_force[m][i] = Q_new[i];
+                        out.d_hourglass += dt * (Q_old + 0.5 * dQ[m][i]) * q[m][i];
+                    }
                 }
                 // the generalized force on FB mode a, global component j
                 for (int j = 0; j < 3; ++j)
@@ -174,7 +193,8 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
                     real_t& Q = Q_fb[a][i];
                     if (hg == HourglassType::Stiffness)
                     {
-                        Q = Q_rot[i] + ch * dt * share * qdot[a][i];
+                        Q = scaled ? scaled_hourglass_update(Q_rot[i], ch * dt * qdot[a][i], share)
+                                   : Q_rot[i] + ch * dt * qdot[a][i];
                         out.d_hourglass += 0.5 * dt * (Q_rot[i] + Q) * qdot[a][i];
                     }
                     else

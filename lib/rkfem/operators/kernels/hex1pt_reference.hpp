@@ -17,7 +17,8 @@
 ///     c_h = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V); with plastic_scaling on an inelastic block
 ///     the increment is scaled by the share of the step the material took elastically,
 ///     assumed_strain_tangent_share);
-///     assumed strain (LS-DYNA IHQ 6): kernels/assumed_strain_hourglass.hpp;
+///     assumed strain (LS-DYNA IHQ 6): kernels/assumed_strain_hourglass.hpp, the stored forces
+///     first scaled by assumed_strain_keep as the frame sizes change;
 ///   f_I = (sigma - q 1 - (1/V) sum_a Q_a (x) h_a) b_I + sum_a Gamma_aI Q_a;
 ///   energies over dt: stress power V (sigma_old + sigma_new)/2 : d, hourglass Q . qdot
 ///   (stiffness: (Q_old + Q_new)/2 . qdot), bulk viscosity -V q tr d;
@@ -34,6 +35,7 @@ struct Hex1ptElement
     real_t stress[6] = {};      ///< trial stress, Voigt (xx yy zz xy yz zx) [Pa]
     real_t hg_force[4][3] = {}; ///< hourglass generalized forces Q_a (stiffness form: trial; assumed
                                 ///< strain: the trial stored forces of modes m, frame components)
+    real_t hg_size[3] = {};     ///< assumed strain: the frame sizes J_i the trial forces were stored at
     real_t volume = 0.0;
     real_t d_internal = 0.0, d_hourglass = 0.0, d_bulk_viscosity = 0.0; ///< [J] over dt
     real_t dt_stable = 0.0;                                             ///< [s]

@@ -262,10 +262,26 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         assumed_strain_frame(A[mode_xi], A[mode_eta], A[mode_zeta], e, Jf);
         const dvec inv_j[3] = {1.0 / Jf[0], 1.0 / Jf[1], 1.0 / Jf[2]};
         const real_t nu = mat.lambda / (2.0 * (mat.lambda + mat.mu));
-        dvec gain = simd::broadcast(blk.hourglass.coefficient * mat.mu / 3.0 * dt);
-        if constexpr (PLASTIC) // an elastic material takes the whole increment
+        // the stored forces follow the change of their stiffness since they were stored
+        dvec Jo[3], keep[4][3];
+        for (int i = 0; i < 3; ++i)
+        {
+            const std::size_t row = static_cast<std::size_t>(HexBlock::kHgSizeRow + i) * np;
+            Jo[i] = load_lanes(blk.hg_force.data() + row);
+            store_lanes(blk.hg_force_trial.data() + row, Jf[i]);
+        }
+        assumed_strain_keep(Jo, Jf, keep);
+        const dvec gain = simd::broadcast(blk.hourglass.coefficient * mat.mu / 3.0 * dt);
+        // materials with history: loads take the share of the step the material took
+        // elastically (an elastic material takes the whole increment), unloads all of it
+        [[maybe_unused]] dvec share;
+        [[maybe_unused]] bool scaled = false;
+        if constexpr (PLASTIC)
             if (blk.hourglass.plastic_scaling)
-                gain = gain * assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
+            {
+                share = assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
+                scaled = true;
+            }
         // the stored forces Q (frame components) grow by the stiffness of the present shape
         // applied to the step's hourglass stress increment dS = gain q / J
         dvec q[4][3], dS[4][3], dQ[4][3], Qn[4][3];
@@ -290,10 +306,18 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             for (int i = 0; i < 3; ++i)
             {
                 const std::size_t slot = static_cast<std::size_t>(3 * m + i) * np;
-                const dvec Qo = load_lanes(blk.hg_force.data() + slot);
-                Qn[m][i] = Qo + dQ[m][i];
+                const dvec Qo = load_lanes(blk.hg_force.data() + slot) * keep[m][i];
+                if (scaled)
+                {
+                    Qn[m][i] = scaled_hourglass_update(Qo, dQ[m][i], share);
+                    de_hg = mul_add((Qo + Qn[m][i]) * q[m][i], 0.5 * dt, de_hg);
+                }
+                else
+                {
+                    Qn[m][i] = Qo + dQ[m][i];
+                    de_hg = mul_add(mul_add(0.5, dQ[m][i], Qo) * q[m][i], dt, de_hg);
+                }
                 store_lanes(blk.hg_force_trial.data() + slot, Qn[m][i]);
-                de_hg = mul_add(mul_add(0.5, dQ[m][i], Qo) * q[m][i], dt, de_hg);
             }
             for (int j = 0; j < 3; ++j)
                 Q[a][j] = 0.125 * mul_add(e[2][j], Qn[m][2], mul_add(e[1][j], Qn[m][1], e[0][j] * Qn[m][0]));
@@ -316,11 +340,16 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
         }
         else
             coef = 0.25 * qm * mat.rho * c * lc * lc;
-        // the stiffness form's increment, scaled where the material flows (plastic_scaling)
-        dvec coef_dt = coef * dt;
+        // the stiffness form's loads scaled where the material flows (plastic_scaling; unloads whole)
+        const dvec coef_dt = coef * dt;
+        [[maybe_unused]] dvec share;
+        [[maybe_unused]] bool scaled = false;
         if constexpr (PLASTIC && HG == HourglassType::Stiffness)
             if (blk.hourglass.plastic_scaling)
-                coef_dt = coef_dt * assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
+            {
+                share = assumed_strain_tangent_share(so, sn, dl, wl, mat.mu, dt);
+                scaled = true;
+            }
         for (int a = 0; a < 4; ++a)
         {
             // stiffness form: the stored force turns with the element's spin first, Q += dt W Q
@@ -349,7 +378,8 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
                 if constexpr (HG == HourglassType::Stiffness)
                 {
                     const std::size_t slot = static_cast<std::size_t>(3 * a + i) * np;
-                    const dvec Qnew = mul_add(coef_dt, qd, Qrot[i]);
+                    const dvec Qnew =
+                        scaled ? scaled_hourglass_update(Qrot[i], coef_dt * qd, share) : mul_add(coef_dt, qd, Qrot[i]);
                     store_lanes(blk.hg_force_trial.data() + slot, Qnew);
                     Q[a][i] = Qnew;
                     de_hg = mul_add((Qrot[i] + Qnew) * qd, 0.5 * dt, de_hg);
