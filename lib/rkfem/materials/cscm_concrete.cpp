@@ -209,22 +209,48 @@ CscmModel::Softening CscmModel::softening(real_t h) const
     return out;
 }
 
-real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], real_t dt, real_t s[6], CscmState& st)
+namespace
+{
+/// Elastic trial state of a CSCM point.
+struct CscmTrial
+{
+    real_t sT[6];  ///< trial stress
+    real_t dev[6]; ///< its deviator
+    real_t PT;     ///< its pressure (compression positive)
+    real_t J2T;    ///< its J2
+    real_t bh;     ///< its Lode angle (Rubin's beta hat)
+};
+
+/// Result of the inviscid return.
+struct CscmReturn
+{
+    real_t P, sc, evp, kap, eps_p; ///< pressure, deviator scale, compaction, cap parameter, effective plastic strain
+    bool plastic;                  ///< the trial stress lay outside the surface
+};
+
+/// Objective rotation of the stress and strain histories, the elastic trial stress and the total strain update.
+static inline void cscm_trial_stress(const CscmModel& m, const real_t d[6], const real_t w[3], real_t dt, CscmState& st,
+                                     CscmTrial& t)
 {
     rotate_stress(w, dt, st.svp);
     rotate_stress(w, dt, st.eps);
     const real_t K = m.bulk, G = m.shear;
     const real_t tr = d[0] + d[1] + d[2];
-    real_t sT[6];
+    auto& sT = t.sT;
     for (int c = 0; c < 3; ++c)
         sT[c] = st.svp[c] + dt * ((K - 2.0 * G / 3.0) * tr + 2.0 * G * d[c]);
     for (int c = 3; c < 6; ++c)
         sT[c] = st.svp[c] + dt * 2.0 * G * d[c];
     for (int c = 0; c < 6; ++c)
         st.eps[c] += d[c] * dt;
+}
 
+/// Pressure, deviator, J2 and Lode angle (beta hat) of the trial stress.
+static inline void cscm_trial_invariants(const CscmModel& m, CscmTrial& t)
+{
+    const auto& sT = t.sT;
+    auto& dev = t.dev;
     const real_t PT = -(sT[0] + sT[1] + sT[2]);
-    real_t dev[6];
     for (int c = 0; c < 3; ++c)
         dev[c] = sT[c] + PT / 3.0;
     for (int c = 3; c < 6; ++c)
@@ -243,13 +269,20 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
             s3 = std::copysign(1.0, s3);
         bh = std::asin(s3) / 3.0;
     }
-    const real_t kappa_n = std::isnan(st.kappa) ? m.kappa0 : st.kappa;
-    const real_t cb = std::cos(bh), sb = std::sin(bh);
+    t.PT = PT;
+    t.J2T = J2T;
+    t.bh = bh;
+}
+
+/// Inviscid return to the shear surface and cap: cutting plane in P, deviator scale sc, compaction evp.
+static inline void cscm_return(const CscmModel& m, const CscmTrial& trial, real_t cb, real_t sb, real_t kappa_n,
+                               real_t evp_n, real_t eps_p_n, CscmReturn& r)
+{
+    const real_t K = m.bulk, G = m.shear;
+    const real_t PT = trial.PT, J2T = trial.J2T;
     auto yield = [&](real_t P, real_t J2, real_t kappa) { return m.yield_cs(P, J2, cb, sb, kappa); };
 
-    // inviscid return (cutting plane in P, deviator scale sc, compaction evp)
-    const real_t evp_n = st.evp;
-    real_t P = PT, sc = 1.0, evp = evp_n, kap = kappa_n, eps_p = st.eps_p;
+    real_t P = PT, sc = 1.0, evp = evp_n, kap = kappa_n, eps_p = eps_p_n;
     bool plastic = false;
     // yield tolerance relative to J2: Rubin's scaling has a corner at the compressive meridian
     // (d Rubin / d beta_hat = 0.35 at I1 = 76 MPa), so the Lode angle's rounding shows in f
@@ -310,56 +343,78 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
             }
         }
     }
-    real_t work = 0.0;
-    if (plastic)
-    {
-        // plastic work of the return: sigma^P : C^-1 (sigma^T - sigma^P) >= 0 for a convex surface
-        work = std::max(0.0, P * (PT - P) / (9.0 * K) + sc * (1.0 - sc) * J2T / G);
-        real_t gamma = 1.0;
-        if (m.rate_effects)
-        {
-            real_t dd = 0.0;
-            for (int c = 0; c < 3; ++c)
-                dd += d[c] * d[c] + 2.0 * d[c + 3] * d[c + 3];
-            const real_t rate = std::sqrt(2.0 / 3.0 * dd);
-            if (rate > 0.0)
-            {
-                const real_t eta_t = m.eta0t / std::pow(rate, m.nt), eta_s = m.srate * eta_t;
-                const real_t ratio = J2T > 0.0 ? std::abs(PT) / std::sqrt(3.0 * J2T) : kNoLimit;
-                real_t eta, over;
-                if (PT < 0.0)
-                {
-                    eta = eta_s + std::min(1.0, std::pow(ratio, m.pwrt)) * (eta_t - eta_s);
-                    over = m.overt;
-                }
-                else
-                {
-                    const real_t eta_c = m.eta0c / std::pow(rate, m.nc);
-                    eta = eta_s + std::min(1.0, std::pow(ratio, m.pwrc)) * (eta_c - eta_s);
-                    over = m.overc;
-                }
-                eta = std::min(eta, over / (m.E * rate));
-                gamma = dt / (eta + dt);
-            }
-        }
-        for (int c = 0; c < 3; ++c)
-        {
-            const real_t sp = sc * dev[c] - P / 3.0;
-            st.svp[c] = sp + (1.0 - gamma) * (sT[c] - sp);
-        }
-        for (int c = 3; c < 6; ++c)
-        {
-            const real_t sp = sc * dev[c];
-            st.svp[c] = sp + (1.0 - gamma) * (sT[c] - sp);
-        }
-        st.evp += gamma * (evp - st.evp);
-        st.kappa = gamma == 1.0 ? kap : m.kappa_of_X(m.X_of_compaction(st.evp));
-        st.eps_p += gamma * (eps_p - st.eps_p);
-        work *= gamma;
-    }
-    else
-        std::copy(sT, sT + 6, st.svp);
+    r.P = P;
+    r.sc = sc;
+    r.evp = evp;
+    r.kap = kap;
+    r.eps_p = eps_p;
+    r.plastic = plastic;
+}
 
+/// Rate effects: the viscoplastic fraction gamma = dt / (eta + dt) of the return applied this step (1: inviscid).
+static inline real_t cscm_rate_gamma(const CscmModel& m, const real_t d[6], real_t dt, real_t PT, real_t J2T)
+{
+    real_t gamma = 1.0;
+    if (m.rate_effects)
+    {
+        real_t dd = 0.0;
+        for (int c = 0; c < 3; ++c)
+            dd += d[c] * d[c] + 2.0 * d[c + 3] * d[c + 3];
+        const real_t rate = std::sqrt(2.0 / 3.0 * dd);
+        if (rate > 0.0)
+        {
+            const real_t eta_t = m.eta0t / std::pow(rate, m.nt), eta_s = m.srate * eta_t;
+            const real_t ratio = J2T > 0.0 ? std::abs(PT) / std::sqrt(3.0 * J2T) : kNoLimit;
+            real_t eta, over;
+            if (PT < 0.0)
+            {
+                eta = eta_s + std::min(1.0, std::pow(ratio, m.pwrt)) * (eta_t - eta_s);
+                over = m.overt;
+            }
+            else
+            {
+                const real_t eta_c = m.eta0c / std::pow(rate, m.nc);
+                eta = eta_s + std::min(1.0, std::pow(ratio, m.pwrc)) * (eta_c - eta_s);
+                over = m.overc;
+            }
+            eta = std::min(eta, over / (m.E * rate));
+            gamma = dt / (eta + dt);
+        }
+    }
+    return gamma;
+}
+
+/// Viscoplastic stress and history: the return relaxed toward the trial state by gamma; returns the plastic work.
+static inline real_t cscm_viscoplastic(const CscmModel& m, const real_t d[6], real_t dt, const CscmTrial& t,
+                                       const CscmReturn& r, CscmState& st)
+{
+    const real_t K = m.bulk, G = m.shear;
+    const auto& sT = t.sT;
+    const auto& dev = t.dev;
+    const real_t PT = t.PT, J2T = t.J2T, P = r.P, sc = r.sc;
+    // plastic work of the return: sigma^P : C^-1 (sigma^T - sigma^P) >= 0 for a convex surface
+    real_t work = std::max(0.0, P * (PT - P) / (9.0 * K) + sc * (1.0 - sc) * J2T / G);
+    const real_t gamma = cscm_rate_gamma(m, d, dt, PT, J2T);
+    for (int c = 0; c < 3; ++c)
+    {
+        const real_t sp = sc * dev[c] - P / 3.0;
+        st.svp[c] = sp + (1.0 - gamma) * (sT[c] - sp);
+    }
+    for (int c = 3; c < 6; ++c)
+    {
+        const real_t sp = sc * dev[c];
+        st.svp[c] = sp + (1.0 - gamma) * (sT[c] - sp);
+    }
+    st.evp += gamma * (r.evp - st.evp);
+    st.kappa = gamma == 1.0 ? r.kap : m.kappa_of_X(m.X_of_compaction(st.evp));
+    st.eps_p += gamma * (r.eps_p - st.eps_p);
+    work *= gamma;
+    return work;
+}
+
+/// Brittle and ductile damage from the energy norms of the undamaged stress and total strain; the damage applied.
+static inline void cscm_damage(const CscmModel& m, const CscmReturn& r, real_t evp_n, CscmState& st)
+{
     // damage from the energy norms of the undamaged stress and the total strain
     const real_t Pv = -(st.svp[0] + st.svp[1] + st.svp[2]);
     const real_t C = std::isnan(st.C) ? m.soft0.C : st.C;
@@ -367,7 +422,7 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
     // a threshold is set where the point first yields with dilatant flow (on the shear part of
     // the surface, not compacting on the cap) in its pressure regime: the damage threshold
     // surface coincides with the shear surface [U]
-    const bool on_shear = plastic && evp < evp_n;
+    const bool on_shear = r.plastic && r.evp < evp_n;
     if (Pv < 0.0)
     {
         const real_t tau = std::sqrt(m.E) * std::max(max_principal(st.eps), 0.0);
@@ -397,6 +452,28 @@ real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], rea
         }
     }
     st.d = Pv >= 0.0 ? st.dc : std::max(st.db, st.dc);
+}
+} // namespace
+
+real_t cscm_update(const CscmModel& m, const real_t d[6], const real_t w[3], real_t dt, real_t s[6], CscmState& st)
+{
+    CscmTrial t;
+    cscm_trial_stress(m, d, w, dt, st, t);
+    cscm_trial_invariants(m, t);
+    const real_t kappa_n = std::isnan(st.kappa) ? m.kappa0 : st.kappa;
+    const real_t cb = std::cos(t.bh), sb = std::sin(t.bh);
+
+    // inviscid return (cutting plane in P, deviator scale sc, compaction evp)
+    const real_t evp_n = st.evp;
+    CscmReturn r;
+    cscm_return(m, t, cb, sb, kappa_n, evp_n, st.eps_p, r);
+    real_t work = 0.0;
+    if (r.plastic)
+        work = cscm_viscoplastic(m, d, dt, t, r, st);
+    else
+        std::copy(t.sT, t.sT + 6, st.svp);
+
+    cscm_damage(m, r, evp_n, st);
     for (int c = 0; c < 6; ++c)
         s[c] = (1.0 - st.d) * st.svp[c];
     return work;

@@ -57,12 +57,21 @@ real_t KccModel::eos(real_t ev, real_t& ev_min) const
     return pmin + k * (ev_min - ev);
 }
 
-real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_t dt, real_t s[6], KccState& st)
+namespace
+{
+/// Trial state of a KCC point.
+struct KccTrial
+{
+    real_t p;       ///< pressure (compression positive), after the tensile cutoff
+    real_t dev_cut; ///< volumetric strain past the cutoff this step
+    real_t dev[6];  ///< trial deviator (scaled onto the surface by the return)
+    real_t J2, q;   ///< its J2 and sqrt(3 J2)
+};
+
+/// Volumetric strain, EOS pressure and tensile cutoff (the excess opening taken as plastic).
+static inline void kcc_pressure(const KccModel& m, real_t tr, real_t dt, KccState& st, KccTrial& t)
 {
     const KccParameters& k = m.surfaces;
-    rotate_stress(w, dt, s);
-    const real_t G = m.shear;
-    const real_t tr = d[0] + d[1] + d[2];
     st.ev += tr * dt;
     // pressure (compression positive) from the EOS on the elastic part of the volumetric strain
     const real_t ev_eos = st.ev - st.ev_plastic;
@@ -85,10 +94,18 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
         }
         p = cutoff;
     }
+    t.p = p;
+    t.dev_cut = dev_cut;
+}
 
+/// Trial deviator (elastic shear increment on the rotated stress), its J2 and q = sqrt(3 J2).
+static inline void kcc_trial_deviator(const KccModel& m, const real_t d[6], real_t dt, const real_t s[6], real_t tr,
+                                      KccTrial& t)
+{
+    const real_t G = m.shear;
+    auto& dev = t.dev;
     // trial deviator
     const real_t mean = (s[0] + s[1] + s[2]) / 3.0;
-    real_t dev[6];
     for (int c = 0; c < 3; ++c)
         dev[c] = s[c] - mean + 2.0 * G * (d[c] - tr / 3.0) * dt;
     for (int c = 3; c < 6; ++c)
@@ -96,105 +113,150 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
     const real_t J2 = 0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]) + dev[3] * dev[3] + dev[4] * dev[4] +
                       dev[5] * dev[5];
     const real_t q = std::sqrt(3.0 * J2);
-    real_t work = 0.0;
-    if (q > 0.0)
+    t.J2 = J2;
+    t.q = q;
+}
+
+/// Willam-Warnke factor at the trial deviator's Lode angle (from the tensile meridian).
+static inline real_t kcc_lode_factor(const KccParameters& k, const KccTrial& t)
+{
+    const auto& dev = t.dev;
+    const real_t J2 = t.J2;
+    // Lode angle from the tensile meridian: cos 3 theta = (3 sqrt 3 / 2) J3 / J2^(3/2)
+    const real_t J3 = dev[0] * (dev[1] * dev[2] - dev[4] * dev[4]) - dev[3] * (dev[3] * dev[2] - dev[4] * dev[5]) +
+                      dev[5] * (dev[3] * dev[4] - dev[1] * dev[5]);
+    const real_t c3 = std::clamp(1.5 * std::sqrt(3.0) * J3 / (J2 * std::sqrt(J2)), -1.0, 1.0);
+    const real_t theta = std::acos(c3) / 3.0;
+    const real_t wlode = willam_warnke(theta, k.psi(t.p));
+    return wlode;
+}
+
+/// Rate enhancement factor r_f (radial scaling Delta sigma_e(p) = r_f Delta sigma(p / r_f)); 1 without rate effects.
+static inline real_t kcc_rate_factor(const KccModel& m, const real_t d[6], real_t p)
+{
+    // rate enhancement: radial scaling Delta sigma_e(p) = r_f Delta sigma(p / r_f)
+    real_t rf = 1.0;
+    if (m.rate.active())
     {
-        // Lode angle from the tensile meridian: cos 3 theta = (3 sqrt 3 / 2) J3 / J2^(3/2)
-        const real_t J3 = dev[0] * (dev[1] * dev[2] - dev[4] * dev[4]) - dev[3] * (dev[3] * dev[2] - dev[4] * dev[5]) +
-                          dev[5] * (dev[3] * dev[4] - dev[1] * dev[5]);
-        const real_t c3 = std::clamp(1.5 * std::sqrt(3.0) * J3 / (J2 * std::sqrt(J2)), -1.0, 1.0);
-        const real_t theta = std::acos(c3) / 3.0;
-        const real_t wlode = willam_warnke(theta, k.psi(p));
-        // rate enhancement: radial scaling Delta sigma_e(p) = r_f Delta sigma(p / r_f)
-        real_t rf = 1.0;
-        if (m.rate.active())
-        {
-            const real_t rate = RateLaw::loading_rate(d, p < 0.0);
-            rf = m.rate.dif(rate, p < 0.0);
-        }
-        auto surface = [&](real_t lambda)
-        {
-            const real_t ps = p / rf;
-            const real_t dm = k.max_surface(ps);
-            real_t ds;
-            if (lambda <= k.lambda_m)
-            {
-                const real_t dy = k.yield_surface(ps);
-                ds = k.eta(lambda) * (dm - dy) + dy;
-            }
-            else
-            {
-                const real_t dr = k.residual_surface(ps);
-                ds = k.eta(lambda) * (dm - dr) + dr;
-            }
-            return wlode * rf * std::max(ds, 0.0);
-        };
-        const real_t pd = std::max(p / rf, -0.999 * k.ft); // keep 1 + p/(r_f f_t) > 0
-        const real_t bexp = p >= 0.0 ? k.b1 : k.b2;
-        const real_t dlam_per_ep = (p >= 0.0 ? 1.0 : st.tension_scale) / (rf * std::pow(1.0 + pd / k.ft, bexp));
-        if (q > surface(st.lambda))
-        {
-            // g(x) = q - 3 G x - H(lambda_n + x c) = 0 with c = d lambda / d eps_p. H is linear in
-            // eta and eta is piecewise linear in lambda, so g is piecewise linear in x: walk the
-            // eta-table segments from lambda_n and solve exactly in the one where g changes sign.
-            const real_t ps = p / rf;
-            const real_t A = wlode * rf;
-            const real_t dm = k.max_surface(ps), dy = k.yield_surface(ps), dr = k.residual_surface(ps);
-            auto H = [&](real_t lam, real_t eta)
-            { return A * std::max(eta * (dm - (lam <= k.lambda_m ? dy : dr)) + (lam <= k.lambda_m ? dy : dr), 0.0); };
-            const auto& tab = k.eta_table;
-            real_t x = 0.0, lam = st.lambda;
-            real_t dep = q / (3.0 * G); // fallback: full return (surface collapsed)
-            std::size_t i = 0;
-            while (i + 1 < tab.size() && tab[i + 1].first <= lam)
-                ++i;
-            for (; i + 1 < tab.size(); ++i)
-            {
-                // segment [tab[i], tab[i+1]] (split at lambda_m where the branch changes)
-                real_t l1 = tab[i + 1].first;
-                const real_t slope_eta = (tab[i + 1].second - tab[i].second) / (tab[i + 1].first - tab[i].first);
-                const real_t eta0 = tab[i].second + slope_eta * (lam - tab[i].first);
-                if (lam < k.lambda_m && l1 > k.lambda_m)
-                    l1 = k.lambda_m;
-                const real_t g0 = q - 3.0 * G * x - H(lam, eta0);
-                const real_t eta1 = tab[i].second + slope_eta * (l1 - tab[i].first);
-                const real_t x1 = x + (l1 - lam) / dlam_per_ep;
-                const real_t g1 = q - 3.0 * G * x1 - H(l1, eta1);
-                if (g1 <= 0.0)
-                {
-                    // g linear on the segment (unless the surface clamps at 0; then still monotone)
-                    dep = x + (x1 - x) * g0 / (g0 - g1);
-                    break;
-                }
-                x = x1;
-                lam = l1;
-                if (l1 < tab[i + 1].first)
-                    --i; // continue on the same table segment past lambda_m
-            }
-            const real_t scale = std::max(0.0, 1.0 - 3.0 * G * dep / q);
-            // plastic work density of the return: s : d eps_p = q_new dep
-            work = scale * q * dep;
-            for (auto& x : dev)
-                x *= scale;
-            st.lambda += dep * dlam_per_ep;
-            st.eps_p += dep;
-            // partially associated dilatancy: d ev_p = omega dep d(w Delta sigma)/dp
-            const real_t h = 1e-6 * std::max(std::abs(p), k.fc);
-            auto surf_at = [&](real_t pp)
-            {
-                const real_t dm = k.max_surface(pp / rf);
-                const real_t e = k.eta(st.lambda);
-                const real_t other = st.lambda <= k.lambda_m ? k.yield_surface(pp / rf) : k.residual_surface(pp / rf);
-                return wlode * rf * std::max(e * (dm - other) + other, 0.0);
-            };
-            const real_t dsdp = (surf_at(p + h) - surf_at(p - h)) / (2.0 * h);
-            // acts on the pressure from the next update on (explicit, one step lag)
-            st.ev_plastic += k.omega * dep * dsdp;
-        }
+        const real_t rate = RateLaw::loading_rate(d, p < 0.0);
+        rf = m.rate.dif(rate, p < 0.0);
     }
+    return rf;
+}
+
+/// Plastic strain increment dep of the return: root of q - 3 G dep - H(lambda), walking the eta-table segments.
+static inline real_t kcc_eta_walk(const KccParameters& k, real_t G, real_t q, real_t p, real_t rf, real_t wlode,
+                                  real_t lambda_n, real_t dlam_per_ep)
+{
+    // g(x) = q - 3 G x - H(lambda_n + x c) = 0 with c = d lambda / d eps_p. H is linear in
+    // eta and eta is piecewise linear in lambda, so g is piecewise linear in x: walk the
+    // eta-table segments from lambda_n and solve exactly in the one where g changes sign.
+    const real_t ps = p / rf;
+    const real_t A = wlode * rf;
+    const real_t dm = k.max_surface(ps), dy = k.yield_surface(ps), dr = k.residual_surface(ps);
+    auto H = [&](real_t lam, real_t eta)
+    { return A * std::max(eta * (dm - (lam <= k.lambda_m ? dy : dr)) + (lam <= k.lambda_m ? dy : dr), 0.0); };
+    const auto& tab = k.eta_table;
+    real_t x = 0.0, lam = lambda_n;
+    real_t dep = q / (3.0 * G); // fallback: full return (surface collapsed)
+    std::size_t i = 0;
+    while (i + 1 < tab.size() && tab[i + 1].first <= lam)
+        ++i;
+    for (; i + 1 < tab.size(); ++i)
+    {
+        // segment [tab[i], tab[i+1]] (split at lambda_m where the branch changes)
+        real_t l1 = tab[i + 1].first;
+        const real_t slope_eta = (tab[i + 1].second - tab[i].second) / (tab[i + 1].first - tab[i].first);
+        const real_t eta0 = tab[i].second + slope_eta * (lam - tab[i].first);
+        if (lam < k.lambda_m && l1 > k.lambda_m)
+            l1 = k.lambda_m;
+        const real_t g0 = q - 3.0 * G * x - H(lam, eta0);
+        const real_t eta1 = tab[i].second + slope_eta * (l1 - tab[i].first);
+        const real_t x1 = x + (l1 - lam) / dlam_per_ep;
+        const real_t g1 = q - 3.0 * G * x1 - H(l1, eta1);
+        if (g1 <= 0.0)
+        {
+            // g linear on the segment (unless the surface clamps at 0; then still monotone)
+            dep = x + (x1 - x) * g0 / (g0 - g1);
+            break;
+        }
+        x = x1;
+        lam = l1;
+        if (l1 < tab[i + 1].first)
+            --i; // continue on the same table segment past lambda_m
+    }
+    return dep;
+}
+
+/// Slope d(w Delta sigma)/dp of the damaged surface at damage lambda, by a central difference (for the dilatancy).
+static inline real_t kcc_dilatancy_slope(const KccParameters& k, real_t p, real_t rf, real_t wlode, real_t lambda)
+{
+    const real_t h = 1e-6 * std::max(std::abs(p), k.fc);
+    auto surf_at = [&](real_t pp)
+    {
+        const real_t dm = k.max_surface(pp / rf);
+        const real_t e = k.eta(lambda);
+        const real_t other = lambda <= k.lambda_m ? k.yield_surface(pp / rf) : k.residual_surface(pp / rf);
+        return wlode * rf * std::max(e * (dm - other) + other, 0.0);
+    };
+    const real_t dsdp = (surf_at(p + h) - surf_at(p - h)) / (2.0 * h);
+    return dsdp;
+}
+
+/// Deviatoric return to the damaged surface, damage and plastic strain update, dilatancy; returns the plastic work.
+static inline real_t kcc_shear_return(const KccModel& m, real_t wlode, real_t rf, KccTrial& t, KccState& st)
+{
+    const KccParameters& k = m.surfaces;
+    const real_t G = m.shear;
+    const real_t p = t.p, q = t.q;
+    auto& dev = t.dev;
+    real_t work = 0.0;
+    auto surface = [&](real_t lambda)
+    {
+        const real_t ps = p / rf;
+        const real_t dm = k.max_surface(ps);
+        real_t ds;
+        if (lambda <= k.lambda_m)
+        {
+            const real_t dy = k.yield_surface(ps);
+            ds = k.eta(lambda) * (dm - dy) + dy;
+        }
+        else
+        {
+            const real_t dr = k.residual_surface(ps);
+            ds = k.eta(lambda) * (dm - dr) + dr;
+        }
+        return wlode * rf * std::max(ds, 0.0);
+    };
+    const real_t pd = std::max(p / rf, -0.999 * k.ft); // keep 1 + p/(r_f f_t) > 0
+    const real_t bexp = p >= 0.0 ? k.b1 : k.b2;
+    const real_t dlam_per_ep = (p >= 0.0 ? 1.0 : st.tension_scale) / (rf * std::pow(1.0 + pd / k.ft, bexp));
+    if (q > surface(st.lambda))
+    {
+        const real_t dep = kcc_eta_walk(k, G, q, p, rf, wlode, st.lambda, dlam_per_ep);
+        const real_t scale = std::max(0.0, 1.0 - 3.0 * G * dep / q);
+        // plastic work density of the return: s : d eps_p = q_new dep
+        work = scale * q * dep;
+        for (auto& x : dev)
+            x *= scale;
+        st.lambda += dep * dlam_per_ep;
+        st.eps_p += dep;
+        // partially associated dilatancy: d ev_p = omega dep d(w Delta sigma)/dp
+        const real_t dsdp = kcc_dilatancy_slope(k, p, rf, wlode, st.lambda);
+        // acts on the pressure from the next update on (explicit, one step lag)
+        st.ev_plastic += k.omega * dep * dsdp;
+    }
+    return work;
+}
+
+/// b3 volumetric damage in near-hydrostatic tension past the cutoff (materials.md 1.5).
+static inline void kcc_volumetric_damage(const KccParameters& k, const KccTrial& t, real_t tr, real_t dt, KccState& st)
+{
+    const auto& dev = t.dev;
+    const real_t p = t.p;
     // b3 volumetric damage in near-hydrostatic tension past the cutoff (materials.md 1.5):
     // d lambda += b3 f_d k_d d eps_v, f_d = 1 - (sqrt(3 J2) / |p|) / 0.1, k_d = 1 [U]
-    if (dev_cut > 0.0 && tr > 0.0)
+    if (t.dev_cut > 0.0 && tr > 0.0)
     {
         const real_t J2n = 0.5 * (dev[0] * dev[0] + dev[1] * dev[1] + dev[2] * dev[2]) + dev[3] * dev[3] +
                            dev[4] * dev[4] + dev[5] * dev[5];
@@ -202,10 +264,29 @@ real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_
         const real_t fd = ratio < 0.1 ? 1.0 - ratio / 0.1 : 0.0;
         st.lambda += k.b3 * fd * st.tension_scale * tr * dt;
     }
+}
+} // namespace
+
+real_t kcc_update(const KccModel& m, const real_t d[6], const real_t w[3], real_t dt, real_t s[6], KccState& st)
+{
+    const KccParameters& k = m.surfaces;
+    rotate_stress(w, dt, s);
+    const real_t tr = d[0] + d[1] + d[2];
+    KccTrial t;
+    kcc_pressure(m, tr, dt, st, t);
+    kcc_trial_deviator(m, d, dt, s, tr, t);
+    real_t work = 0.0;
+    if (t.q > 0.0)
+    {
+        const real_t wlode = kcc_lode_factor(k, t);
+        const real_t rf = kcc_rate_factor(m, d, t.p);
+        work = kcc_shear_return(m, wlode, rf, t, st);
+    }
+    kcc_volumetric_damage(k, t, tr, dt, st);
     for (int c = 0; c < 3; ++c)
-        s[c] = dev[c] - p;
+        s[c] = t.dev[c] - t.p;
     for (int c = 3; c < 6; ++c)
-        s[c] = dev[c];
+        s[c] = t.dev[c];
     return work;
 }
 real_t ceb_fracture_energy(real_t fc_pa)
