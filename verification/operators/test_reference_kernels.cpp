@@ -113,9 +113,13 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly, const std::string& 
             c.stress = std::max(c.stress, std::abs(blk.stress_trial[k * blk.stress_stride + e] - r.stress[k]));
         }
         if (hg == HourglassType::AssumedStrain)
+        {
             for (int i = 0; i < 3; ++i)
+            {
                 EXPECT_NEAR(blk.hg_force_trial[(HexBlock::kHgSizeRow + i) * ne + e], r.hg_size[i], 1e-14 * r.hg_size[i])
                     << "element " << e;
+            }
+        }
         if (hg == HourglassType::Stiffness || hg == HourglassType::AssumedStrain)
             for (int a = 0; a < 4; ++a)
                 for (int i = 0; i < 3; ++i)
