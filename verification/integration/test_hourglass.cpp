@@ -9,10 +9,13 @@
 
 #include "../support.hpp"
 #include "rkfem/approximation/fem/hex8_basis.hpp"
+#include "rkfem/core/state_archive.hpp"
 #include "rkfem/materials/j2_plasticity.hpp"
 #include "rkfem/model/material_from_deck.hpp"
+#include "rkfem/model/model.hpp"
 #include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/operators/linear_static.hpp"
+#include "rkfem/time/central_difference.hpp"
 
 using namespace rkfem;
 
@@ -622,4 +625,47 @@ TEST(Hourglass, StiffnessFormsGiveBackWhatTheyStoredWhereThePointFlows)
         EXPECT_LT(std::abs(load + unload), 1e-3 * load) << name;
         EXPECT_LT(left, 1e-3 * stored) << name;
     }
+}
+
+TEST(Hourglass, AssumedStrainRestartsFromACheckpointWithoutFrameSizes)
+{
+    // The assumed-strain form keeps, beside its 12 stored forces per element, the 3 frame sizes
+    // they were stored at (HexBlock::hg_rows). A checkpoint written before that holds the forces
+    // only: it loads with the sizes at 0, as on a block's first step (assumed_strain_keep then
+    // keeps the forces whole), and a checkpoint with the sizes loads them.
+    const Deck d = read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/taylor_bar.yaml",
+                             {"parts.bar.hourglass.type=assumed-strain", "time.end=2us"});
+    Model m = Model::build(d);
+    CentralDifference cd;
+    real_t t = 0.0;
+    StepReport r = cd.initialize(m, t);
+    for (int k = 1; k <= 20; ++k)
+    {
+        const real_t dt = next_time_step(d.time, t, r.dt_stable);
+        r = cd.step(m, t, dt, k);
+        t = r.t;
+    }
+    const HexBlock& b = m.blocks[0];
+    const std::size_t rows12 = 12 * static_cast<std::size_t>(b.n_elements());
+    ASSERT_EQ(b.hg_force.size(), 15 * static_cast<std::size_t>(b.n_elements()));
+    real_t largest = 0.0, smallest_size = kNoLimit;
+    for (std::size_t k = 0; k < rows12; ++k)
+        largest = std::max(largest, std::abs(b.hg_force[k]));
+    for (std::size_t k = rows12; k < b.hg_force.size(); ++k)
+        smallest_size = std::min(smallest_size, b.hg_force[k]);
+    ASSERT_GT(largest, 0.0) << "20 steps of impact store hourglass forces";
+    ASSERT_GT(smallest_size, 0.0) << "and the sizes they were stored at";
+    StateArchive full;
+    m.save_state(full);
+    StateArchive old = full;
+    old.put("block.0.hg_force", std::vector<real_t>(b.hg_force.begin(), b.hg_force.begin() + rows12));
+    Model from_full = Model::build(d), from_old = Model::build(d);
+    from_full.load_state(full);
+    from_old.load_state(old);
+    EXPECT_EQ(from_full.blocks[0].hg_force, b.hg_force);
+    const std::vector<real_t>& h = from_old.blocks[0].hg_force;
+    ASSERT_EQ(h.size(), b.hg_force.size());
+    EXPECT_TRUE(std::equal(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(rows12), b.hg_force.begin()));
+    EXPECT_TRUE(
+        std::all_of(h.begin() + static_cast<std::ptrdiff_t>(rows12), h.end(), [](real_t v) { return v == 0.0; }));
 }

@@ -43,7 +43,15 @@ void load_hex_state(const StateArchive& a, const std::string& prefix, HexBlock& 
 {
     a.get_same_size(prefix + "stress", b.stress);
     b.stress_trial = b.stress;
-    a.get_same_size(prefix + "hg_force", b.hg_force);
+    // a checkpoint from before the assumed-strain form kept its frame sizes holds the 12 force rows
+    // only: the sizes start at 0, as on a block's first step (assumed_strain_keep keeps the forces)
+    const std::size_t rows12 = 12 * static_cast<std::size_t>(b.n_elements());
+    std::vector<real_t> hg;
+    a.get(prefix + "hg_force", hg);
+    if (hg.size() == rows12 && b.hg_force.size() > rows12)
+        std::copy(hg.begin(), hg.end(), b.hg_force.begin());
+    else
+        a.get_same_size(prefix + "hg_force", b.hg_force);
     b.hg_force_trial = b.hg_force;
     load_plastic(a, prefix, b.plastic);
 }
