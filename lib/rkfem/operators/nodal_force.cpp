@@ -24,25 +24,27 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
     const real_t* u = nodes.u.data();
     const real_t* v = nodes.v.data();
 
-    auto batch = [&]<PlasticPoints::Kind MK>(index_t b, real_t* buf, index_t lo)
+    auto batch = [&]<bool PLASTIC>(index_t b, real_t* buf, index_t lo)
     {
         if ((b + 1) * kPointLanes <= np)
-            nodal_points_batch<MK, true>(blk, u, v, b, dt, buf, lo);
+            nodal_points_batch<PLASTIC, true>(blk, u, v, b, dt, buf, lo);
         else
-            nodal_points_batch<MK, false>(blk, u, v, b, dt, buf, lo);
+            nodal_points_batch<PLASTIC, false>(blk, u, v, b, dt, buf, lo);
     };
-    // the material chosen once for the block
-    dispatch_kind(blk.plastic.kind,
-                  [&]<PlasticPoints::Kind MK>()
-                  {
-                      if (blk.scatter_assembly())
-                          blk.scatter.run_chunks("rkfem::nodal_points", 0, blk.n_point_chunks, kPointLanes,
-                                                 [&](index_t b, real_t* buf, index_t lo)
-                                                 { batch.template operator()<MK>(b, buf, lo); });
-                      else
-                          parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
-                                       [&](index_t b) { batch.template operator()<MK>(b, nullptr, 0); });
-                  });
+    auto run = [&]<bool PLASTIC>()
+    {
+        if (blk.scatter_assembly())
+            blk.scatter.run_chunks("rkfem::nodal_points", 0, blk.n_point_chunks, kPointLanes,
+                                   [&](index_t b, real_t* buf, index_t lo)
+                                   { batch.template operator()<PLASTIC>(b, buf, lo); });
+        else
+            parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
+                         [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
+    };
+    if (blk.plastic.active())
+        run.template operator()<true>();
+    else
+        run.template operator()<false>();
 
     ForcePassResult r;
     const index_t nb = (np + kPointLanes - 1) / kPointLanes;
