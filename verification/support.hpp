@@ -119,6 +119,28 @@ inline MaterialSpec j2_material(real_t rho, real_t E, real_t nu, real_t sigy, re
     return m;
 }
 
+/// A material of each model for tests that run one history through every block or kernel: steel
+/// (elastic, or J2 with yield 400 MPa and tangent 2 GPa), K&C at f'c 45.6 MPa, CSCM at f'c 30 MPa.
+inline MaterialSpec block_material(const std::string& model)
+{
+    MaterialSpec m = j2_material(7850, 200e9, 0.3, 400e6, 2e9);
+    m.model = model;
+    if (model == "kcc" || model == "cscm")
+    {
+        m.rho = 2400;
+        m.fc = 45.6e6;
+        m.nu = 0.19;
+        m.E = 4700.0 * std::sqrt(45.6) * 1e6;
+    }
+    if (model == "cscm")
+    {
+        m.fc = 30e6;
+        m.nu = 0.2;
+        m.E = 21.5e9 * std::cbrt(3.0);
+    }
+    return m;
+}
+
 /// A single block (part 0) over all nodes of `mesh`.
 inline HexBlock make_block(const HexMesh& mesh, NodeSet& nodes, Formulation f, HourglassSpec hg, ElasticParams mat,
                            BulkViscositySpec bv = {0.0, 0.0})

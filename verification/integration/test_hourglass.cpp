@@ -41,6 +41,31 @@ struct OneElement
     }
 };
 
+/// The largest stored hourglass force of `hg` (a block's committed or trial state): its 12 force
+/// rows per element (the assumed-strain form's frame sizes follow them).
+real_t largest_hourglass_force(const HexBlock& blk, const std::vector<real_t>& hg)
+{
+    real_t largest = 0.0;
+    for (std::size_t k = 0; k < 12 * static_cast<std::size_t>(blk.n_elements()); ++k)
+        largest = std::max(largest, std::abs(hg[k]));
+    return largest;
+}
+
+/// One 1 cm cube of J2 steel without hardening (yield 300 MPa, crack band 1 cm) with a stiffness
+/// form `t` at QM 0.1, its plastic scaling on or off.
+HexBlock perfectly_plastic_cube(HourglassType t, bool scaled, const HexMesh& mesh, NodeSet& nodes)
+{
+    const MaterialSpec ms = test::j2_material(7850, 200e9, 0.3, 300e6, 0.0);
+    HourglassSpec hg{t, 0.1};
+    hg.plastic_scaling = scaled;
+    HexBlock blk =
+        test::make_block(mesh, nodes, Formulation::Fem1pt, hg, ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu));
+    configure_points(blk.plastic, ms);
+    blk.initialize(nodes);
+    blk.plastic.set_lengths(std::vector<real_t>(1, 0.01));
+    return blk;
+}
+
 /// Loads the element of (blk, nodes) by moving its nodes 20 steps of dt at their velocities, then
 /// turns it rigidly by a quarter turn about the z line through c in `steps` steps (x = R(theta)
 /// x1, v = omega z-hat x (x - c)), committing each step. Returns the hourglass work during the
@@ -283,9 +308,7 @@ TEST(Hourglass, AssumedStrainPassesThePatchTestAndIsObjective)
         EXPECT_NEAR(hex_internal_force(blk, nodes, 1e-7).d_hourglass, 0.0, 1e-20);
         blk.commit();
     }
-    real_t stored = 0.0;
-    for (std::size_t k = 0; k < 12 * static_cast<std::size_t>(blk.n_elements()); ++k) // the forces, not the sizes
-        stored = std::max(stored, std::abs(blk.hg_force[k]));
+    const real_t stored = largest_hourglass_force(blk, blk.hg_force);
     EXPECT_LT(stored, 1e-6) << "hourglass stress under a linear field (Pa x m: would be ~1e6 if it leaked)";
 
     // objectivity: load bending mode zeta xi along x, then turn the element a quarter turn about z
@@ -514,14 +537,7 @@ TEST(Hourglass, StiffnessFormsStoreNothingWhereThePointFlowsPerfectlyPlastically
         {
             const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(0.01), {1, 1, 1});
             NodeSet nodes;
-            const MaterialSpec ms = test::j2_material(7850, 200e9, 0.3, 300e6, 0.0);
-            HourglassSpec hg{t, 0.1};
-            hg.plastic_scaling = scaled;
-            HexBlock blk =
-                test::make_block(mesh, nodes, Formulation::Fem1pt, hg, ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu));
-            configure_points(blk.plastic, ms);
-            blk.initialize(nodes);
-            blk.plastic.set_lengths(std::vector<real_t>(1, 0.01));
+            HexBlock blk = perfectly_plastic_cube(t, scaled, mesh, nodes);
             // on the surface in shear xz: the element's stress set there, then shear on along xz
             blk.stress[3 * blk.stress_stride] = 0.0;
             blk.stress[5 * blk.stress_stride] = 300e6 / std::sqrt(3.0) * (1 - 1e-9);
@@ -535,9 +551,7 @@ TEST(Hourglass, StiffnessFormsStoreNothingWhereThePointFlowsPerfectlyPlastically
                 nodes.v[3 * i + 1] = 1.0 * xi[2] * xi[0];
             }
             const ForcePassResult r = hex_internal_force(blk, nodes, dt);
-            real_t stored = 0.0;
-            for (int k = 0; k < 12; ++k) // the forces (assumed strain: the frame sizes follow)
-                stored = std::max(stored, std::abs(blk.hg_force_trial[static_cast<std::size_t>(k)]));
+            const real_t stored = largest_hourglass_force(blk, blk.hg_force_trial);
             // the point starts 1e-9 below yield: of the step's 77 kPa of elastic shear increment
             // it takes 0.17 Pa elastically, a share of 2e-6
             const char* name = t == HourglassType::Stiffness ? "stiffness" : "assumed-strain";
@@ -573,14 +587,7 @@ TEST(Hourglass, StiffnessFormsGiveBackWhatTheyStoredWhereThePointFlows)
     {
         const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(0.01), {1, 1, 1});
         NodeSet nodes;
-        const MaterialSpec ms = test::j2_material(7850, 200e9, 0.3, 300e6, 0.0);
-        HourglassSpec hg{t, 0.1};
-        hg.plastic_scaling = true;
-        HexBlock blk =
-            test::make_block(mesh, nodes, Formulation::Fem1pt, hg, ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu));
-        configure_points(blk.plastic, ms);
-        blk.initialize(nodes);
-        blk.plastic.set_lengths(std::vector<real_t>(1, 0.01));
+        HexBlock blk = perfectly_plastic_cube(t, true, mesh, nodes);
         const real_t dt = 1e-8, gamma_rate = 100.0;
         const int n = 50;
         auto set_velocity = [&](real_t hourglass, real_t shear)
@@ -602,12 +609,11 @@ TEST(Hourglass, StiffnessFormsGiveBackWhatTheyStoredWhereThePointFlows)
             blk.commit();
             return w;
         };
-        real_t load = 0.0, unload = 0.0, stored = 0.0;
+        real_t load = 0.0, unload = 0.0;
         set_velocity(1.0, 0.0);
         for (int k = 0; k < n; ++k)
             load += step();
-        for (int k = 0; k < 12; ++k)
-            stored = std::max(stored, std::abs(blk.hg_force[static_cast<std::size_t>(k)]));
+        const real_t stored = largest_hourglass_force(blk, blk.hg_force);
         // onto the yield surface in shear xz, then shear flow with the hourglass rate reversed
         for (int k = 0; k < 6; ++k)
             blk.stress[static_cast<std::size_t>(k) * blk.stress_stride] = 0.0;
@@ -615,9 +621,7 @@ TEST(Hourglass, StiffnessFormsGiveBackWhatTheyStoredWhereThePointFlows)
         set_velocity(-1.0, gamma_rate);
         for (int k = 0; k < n; ++k)
             unload += step();
-        real_t left = 0.0;
-        for (int k = 0; k < 12; ++k)
-            left = std::max(left, std::abs(blk.hg_force[static_cast<std::size_t>(k)]));
+        const real_t left = largest_hourglass_force(blk, blk.hg_force);
         const char* name = t == HourglassType::Stiffness ? "stiffness" : "assumed-strain";
         std::printf("%s: loading work %.4e J, unloading %.4e J, net %.2e of it; stored force %.3e N, left %.2e of it\n",
                     name, load, unload, (load + unload) / load, stored, left / stored);

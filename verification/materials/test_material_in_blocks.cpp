@@ -16,31 +16,6 @@ using namespace rkfem;
 
 namespace
 {
-MaterialSpec material(const std::string& model)
-{
-    MaterialSpec m;
-    m.model = model;
-    m.rho = 7850;
-    m.E = 200e9;
-    m.nu = 0.3;
-    m.sigy = 400e6;
-    m.etan = 2e9;
-    if (model == "kcc" || model == "cscm")
-    {
-        m.rho = 2400;
-        m.fc = 45.6e6;
-        m.nu = 0.19;
-        m.E = 4700.0 * std::sqrt(45.6) * 1e6;
-    }
-    if (model == "cscm")
-    {
-        m.fc = 30e6;
-        m.nu = 0.2;
-        m.E = 21.5e9 * std::cbrt(3.0);
-    }
-    return m;
-}
-
 /// Velocity gradient of the homogeneous motion [1/s]: stretch, shear and spin.
 Mat3 velocity_gradient()
 {
@@ -54,7 +29,7 @@ std::vector<Sym6> history(const std::string& model, int kind)
 {
     const HexMesh mesh = generate_box(Vec3::Zero(), Vec3::Constant(1e-3), {1, 1, 1});
     NodeSet nodes;
-    const MaterialSpec ms = material(model);
+    const MaterialSpec ms = test::block_material(model);
     const ElasticParams el = ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu);
     HexBlock hb;
     NodalBlock nb;

@@ -41,26 +41,37 @@ struct Compared
     index_t inelastic = 0; ///< elements whose update left the elastic path (plastic strain grew)
 };
 
-/// The material of the comparison: elastic steel, J2 steel (yield 400 MPa), K&C at f'c 45.6 MPa,
-/// CSCM at f'c 30 MPa; the committed stresses are drawn at a scale that makes about half the
-/// inelastic points flow.
-MaterialSpec kernel_material(const std::string& model)
+/// The scale of the random committed stresses for a model (test::block_material's): about half
+/// the inelastic points flow in the step.
+real_t stress_draw(const std::string& model)
 {
-    MaterialSpec m;
-    m.model = model;
-    m.rho = 7850;
-    m.E = 200e9;
-    m.nu = 0.3;
-    m.sigy = 400e6;
-    m.etan = 2e9;
-    if (model == "kcc" || model == "cscm")
+    return model == "elastic" ? 1e8 : model == "j2" ? 3e8 : model == "kcc" ? 5e6 : 3e7;
+}
+
+/// The CSCM returns its own undamaged stress: its committed one is the block's drawn stress
+/// (as the damaged one, undamaged). Nothing for other models.
+void cscm_stress_from_block(PlasticPoints& pp, const real_t* stress, std::size_t stride)
+{
+    for (std::size_t p = 0; p < pp.cscm_state.size(); ++p)
+        for (int k = 0; k < 6; ++k)
+            pp.cscm_state[p].svp[k] = stress[k * stride + p];
+}
+
+/// The trial plastic strain and damage of `ref` (the plain twin's) against `fast`'s over n
+/// points: the larger of their max relative differences; `flowing` counts the points whose
+/// plastic strain grew.
+real_t history_difference(const PlasticPoints& ref, const PlasticPoints& fast, std::size_t n, index_t& flowing)
+{
+    real_t e_max = 0.0, d_max = 0.0, e_diff = 0.0, d_diff = 0.0;
+    for (std::size_t p = 0; p < n; ++p)
     {
-        m.rho = 2400;
-        m.fc = model == "kcc" ? 45.6e6 : 30e6;
-        m.nu = 0.2;
-        m.E = 30e9;
+        e_max = std::max(e_max, std::abs(ref.eps_p_trial[p]));
+        d_max = std::max(d_max, std::abs(ref.failed_trial[p]));
+        e_diff = std::max(e_diff, std::abs(ref.eps_p_trial[p] - fast.eps_p_trial[p]));
+        d_diff = std::max(d_diff, std::abs(ref.failed_trial[p] - fast.failed_trial[p]));
+        flowing += ref.eps_p_trial[p] > ref.eps_p[p] ? 1 : 0;
     }
-    return m;
+    return std::max(e_max > 0 ? e_diff / e_max : 0.0, d_max > 0 ? d_diff / d_max : 0.0);
 }
 
 Compared compare_hex1pt(HourglassType hg, Assembly assembly, const std::string& model = "elastic")
@@ -68,7 +79,7 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly, const std::string& 
     // 5^3 = 125 elements: 15 full batches of 8 and a partial one
     const HexMesh mesh = test::distorted_box(5, 0.01, 0.25);
     NodeSet nodes;
-    const MaterialSpec ms = kernel_material(model);
+    const MaterialSpec ms = test::block_material(model);
     HexBlock blk = test::make_block(mesh, nodes, Formulation::Fem1pt, {hg, 0.1},
                                     ElasticParams::from_E_nu(ms.rho, ms.E, ms.nu), {0.06, 1.5});
     configure_points(blk.plastic, ms);
@@ -77,14 +88,11 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly, const std::string& 
     std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
     random_motion(nodes, gen, 4e-4);
     const std::size_t ne = static_cast<std::size_t>(blk.n_elements());
-    const real_t s_draw = model == "elastic" ? 1e8 : model == "j2" ? 3e8 : model == "kcc" ? 5e6 : 3e7;
+    const real_t s_draw = stress_draw(model);
     for (int k = 0; k < 6; ++k)
         for (std::size_t e = 0; e < ne; ++e)
             blk.stress[k * blk.stress_stride + e] = s_draw * rnd(gen);
-    // the CSCM returns its own undamaged stress: draw that (as the damaged one, undamaged)
-    for (std::size_t e = 0; e < blk.plastic.cscm_state.size(); ++e)
-        for (int k = 0; k < 6; ++k)
-            blk.plastic.cscm_state[e].svp[k] = blk.stress[k * blk.stress_stride + e];
+    cscm_stress_from_block(blk.plastic, blk.stress.data(), blk.stress_stride);
     for (auto& q : blk.hg_force)
         q = 1e3 * rnd(gen);
     // assumed strain: the frame sizes the forces were stored at, about the elements' own (4 x 2 mm)
@@ -136,18 +144,7 @@ Compared compare_hex1pt(HourglassType hg, Assembly assembly, const std::string& 
     c.stress /= s_scale;
     c.hourglass = q_scale > 0 ? c.hourglass / q_scale : 0.0;
     if (blk.plastic.active())
-    {
-        real_t e_max = 0.0, d_max = 0.0, e_diff = 0.0, d_diff = 0.0;
-        for (std::size_t e = 0; e < ne; ++e)
-        {
-            e_max = std::max(e_max, std::abs(history.eps_p_trial[e]));
-            d_max = std::max(d_max, std::abs(history.failed_trial[e]));
-            e_diff = std::max(e_diff, std::abs(history.eps_p_trial[e] - blk.plastic.eps_p_trial[e]));
-            d_diff = std::max(d_diff, std::abs(history.failed_trial[e] - blk.plastic.failed_trial[e]));
-            c.inelastic += history.eps_p_trial[e] > history.eps_p[e] ? 1 : 0;
-        }
-        c.history = std::max(e_max > 0 ? e_diff / e_max : 0.0, d_max > 0 ? d_diff / d_max : 0.0);
-    }
+        c.history = history_difference(history, blk.plastic, ne, c.inelastic);
     real_t f_scale = 0.0;
     for (std::size_t j = 0; j < f_ref.size(); ++j)
     {
@@ -286,7 +283,7 @@ NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, 
 {
     PartSpec ps = test::steel_nodal_part(form, "scni", stab);
     if (model != "elastic")
-        ps.material = kernel_material(model);
+        ps.material = test::block_material(model);
     ps.nodal.stabilization_coefficient = stab == "nsni" ? 0.25 : 1.0;
     // jittered: the default drop tolerance (27-entry stencils of their own); regular: full
     // stencils, which this 7^3 box shares (with the drop, its boundary layers leave too many
@@ -302,7 +299,7 @@ NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, 
     std::mt19937 gen(23);
     std::uniform_real_distribution<real_t> rnd(-1.0, 1.0);
     random_motion(nodes, gen, 2e-4);
-    const real_t s_draw = model == "elastic" ? 1e8 : model == "j2" ? 3e8 : model == "kcc" ? 5e6 : 3e7;
+    const real_t s_draw = stress_draw(model);
     for (int k = 0; k < 6; ++k)
     {
         for (index_t p = 0; p < blk.n_points(); ++p)
@@ -310,9 +307,7 @@ NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, 
         for (index_t s = 0; s < blk.n_stab(); ++s)
             blk.stab_stress[k * blk.n_stab() + s] = 0.1 * s_draw * rnd(gen);
     }
-    for (std::size_t p = 0; p < blk.plastic.cscm_state.size(); ++p)
-        for (int k = 0; k < 6; ++k)
-            blk.plastic.cscm_state[p].svp[k] = blk.stress[k * blk.stress_stride + p];
+    cscm_stress_from_block(blk.plastic, blk.stress.data(), blk.stress_stride);
     const real_t dt = 1e-8;
     PlasticPoints history = blk.plastic; // the reference's own trial history
     const ForcePassResult fast = nodal_internal_force(blk, nodes, dt);
@@ -321,18 +316,7 @@ NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, 
     const NodalPass ref = nodal_reference(blk, nodes, dt, &history);
     NodalCompared c;
     if (blk.plastic.active())
-    {
-        real_t e_max = 0.0, d_max = 0.0, e_diff = 0.0, d_diff = 0.0;
-        for (std::size_t p = 0; p < static_cast<std::size_t>(blk.n_points()); ++p)
-        {
-            e_max = std::max(e_max, std::abs(history.eps_p_trial[p]));
-            d_max = std::max(d_max, std::abs(history.failed_trial[p]));
-            e_diff = std::max(e_diff, std::abs(history.eps_p_trial[p] - blk.plastic.eps_p_trial[p]));
-            d_diff = std::max(d_diff, std::abs(history.failed_trial[p] - blk.plastic.failed_trial[p]));
-            c.inelastic += history.eps_p_trial[p] > history.eps_p[p] ? 1 : 0;
-        }
-        c.history = std::max(e_max > 0 ? e_diff / e_max : 0.0, d_max > 0 ? d_diff / d_max : 0.0);
-    }
+        c.history = history_difference(history, blk.plastic, static_cast<std::size_t>(blk.n_points()), c.inelastic);
     auto rel = [](auto get_fast, const std::vector<real_t>& r, std::size_t n)
     {
         real_t scale = 0.0, diff = 0.0;
