@@ -889,6 +889,8 @@ TEST(Decks, ContactsAreCheckedWithTheirLines)
     expect_rejected("contact_friction.yaml",
                     replace(pair, "surfaces: [col]", "surfaces: [col, col], friction: {static: -0.1}"),
                     ":13: contacts.0.friction.static", "is negative");
+    expect_rejected("contact_damping.yaml", replace(pair, "surfaces: [col]", "surfaces: [col, col], damping: 120 %"),
+                    ":13: contacts.0.damping", "is outside [0, 1]");
     // two parts that overlap at the start: the run says how many nodes start inside (held at
     // that depth, not pushed out) and summary.json records them
     {

@@ -326,6 +326,92 @@ TEST(SurfaceToSurface, IdenticalBarsExchangeVelocitiesAndConserveMomentum)
     }
 }
 
+// A stiff one-element cube on soft penalty springs moves as a rigid body on springs and dashpots
+// (its own lowest mode is about 30 times the contact's; Poisson's ratio 0: a lone free 1-point hex
+// breathes at 2 c / L sqrt((1 + nu) / (1 - nu)), above the step 0.9 L / c allows for nu > 0.1). Its 4 bottom nodes each
+// hold a spring k and a dashpot c = 2 zeta sqrt(k m*) with m* the reduced mass of the node and what it meets (a node of
+// mass M / 8, or against the second cube's point a node pair of reduced mass mu / 8, mu the cubes'
+// reduced mass): for the bodies' relative motion 4 c / (2 sqrt(4 k mu)) = zeta / sqrt(2) of
+// critical. Mortar's springs act per unit area between nodal masses per area, which need not sum
+// to the bodies': but wherever the soft stiffness k = s m* / dt0^2 holds, a dashpot
+// 2 zeta sqrt(k m*) = 2 zeta k dt0 / sqrt(s), so the bodies' ratio is zeta omega dt0 / sqrt(s) with
+// omega = pi / (the undamped contact's duration): measured from the undamped run there (for
+// node-to-segment the same formula gives 1 / sqrt(2) to 0.4 %). The dashpot never pulls (the force stops at zero before
+// the overlap does), so they separate with e = exp(-z theta / sqrt(1 - z^2)), theta = pi - atan(2 z sqrt(1 - z^2) / (1
+// - 2 z^2)) (Schwager & Poschel 2007), z = zeta / sqrt(2); without damping e = 1.
+const char* damped_cubes_deck = R"(
+title: a stiff cube on damped contact springs
+time: {end: 40 us, stepper: central-difference}
+parts:
+  a:
+    generator: {type: box, origin: [-0.5 mm, -0.5 mm, 0.001 mm], size: [1 mm, 1 mm, 1 mm], divisions: [1, 1, 1]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    bulk_viscosity: {linear: 0, quadratic: 0}
+    initial_velocity: [0, 0, -1 m/s]
+  b:
+    generator: {type: box, origin: [-1 mm, -1 mm, -2 mm], size: [2 mm, 2 mm, 2 mm], divisions: [1, 1, 1]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0}
+    formulation: fem-1pt
+    hourglass: {type: stiffness, coefficient: 0.05}
+    bulk_viscosity: {linear: 0, quadratic: 0}
+contacts:
+  - {type: surface-to-surface, surfaces: [a, b], penalty_scale: 1e-6, soft_scale: 0.002}
+)";
+
+real_t dashpot_restitution(real_t z)
+{
+    const real_t s = std::sqrt(1.0 - z * z);
+    const real_t theta = std::acos(-1.0) - std::atan(2.0 * z * s / (1.0 - 2.0 * z * z));
+    return std::exp(-z * theta / s);
+}
+
+TEST(ContactDamping, StiffCubesSeparateWithTheDashpotsRestitution)
+{
+    real_t undamped_duration = 0.0;
+    for (const char* kind : {"node-to-segment", "mortar", "rigid-wall"})
+        for (const real_t zeta : {0.0, 0.3, 0.6})
+        {
+            const bool wall = std::string(kind) == "rigid-wall";
+            std::string deck = damped_cubes_deck;
+            if (wall) // the wall in place of cube b's top face, the same spring per node (m* = m)
+            {
+                const std::string line = "  - {type: surface-to-surface, surfaces: [a, b], penalty_scale: 1e-6, "
+                                         "soft_scale: 0.002}";
+                deck.replace(deck.find(line), line.size(),
+                             "  - {type: rigid-wall, surfaces: [a], point: [0, 0, 0], normal: [0, 0, 1], "
+                             "penalty_scale: 0.002}");
+            }
+            const bool mortar = std::string(kind) == "mortar";
+            std::vector<std::string> set{"contacts.0.damping=" + std::to_string(zeta)};
+            if (mortar)
+                set.push_back("contacts.0.formulation=mortar");
+            const ImpactRun r = impact(deck.c_str(), set);
+            ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
+            const real_t va = r.momentum[0][2] / r.mass[0], vb = r.momentum[1][2] / r.mass[1];
+            const real_t e = wall ? va / 1.0 : (va - vb) / 1.0;
+            if (zeta == 0.0)
+                undamped_duration = r.t_last - r.t_first;
+            const real_t dt0 = 1e-3 / std::sqrt(200e9 / 7850.0); // cube a's critical step, L / c
+            const real_t ratio =
+                mortar ? std::acos(-1.0) / undamped_duration * dt0 / std::sqrt(0.002) : 1.0 / std::sqrt(2.0);
+            const real_t expected = dashpot_restitution(zeta * ratio);
+            std::printf("damped contact (%s, zeta %.1f): restitution %.5f, theory %.5f (%+.2f%%), contact %.2f us, "
+                        "largest balance error %.2e\n",
+                        kind, zeta, e, expected, 100 * (e / expected - 1), 1e6 * (r.t_last - r.t_first),
+                        r.worst_balance);
+            // central difference with the dashpot on the half-step velocity: an error of order
+            // omega dt = 0.03 on the dissipated share
+            EXPECT_NEAR(e / expected, 1.0, 0.01);
+            EXPECT_LT(r.worst_balance, 0.01); // the dashpots' work is the contact term's
+            if (!wall)
+            {
+                EXPECT_LT(r.momentum_drift, 1e-10 * r.mass[0]);
+            }
+        }
+}
+
 TEST(SurfaceToSurface, AStiffPenaltyBoundsTheStep)
 {
     // penalty_scale 1 puts two springs of k dt0^2 / m = 0.67 each (one per pass) on the bars' end

@@ -207,7 +207,9 @@ struct ContactSpec
     real_t thickness = 0.0;       ///< [m]
     real_t max_penetration = 0.5; ///< of the element depth behind a segment
     real_t mu_static = 0.0, mu_dynamic = 0.0;
-    real_t decay = 0.0;                                                         ///< [s/m]
+    real_t decay = 0.0; ///< [s/m]
+    /// Viscous damping of the normal approach, fraction of critical (LS-DYNA's VDC / 100): 0..1
+    real_t damping = 0.0;
     Vec3 point = Vec3::Zero(), normal = Vec3::UnitZ(), velocity = Vec3::Zero(); ///< rigid wall
     SourceLocation loc;
 };

@@ -9,7 +9,7 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
     if (!n.IsMap())
         throw DeckError(locate(ctx, n, p), n.IsNull() ? "is empty" : "is not a mapping",
                         "expected {type: surface-to-surface | single-surface | rigid-wall, ...}");
-    const std::vector<std::string> common{"type", "surfaces", "friction"};
+    const std::vector<std::string> common{"type", "surfaces", "friction", "damping"};
     std::vector<std::string> keys = common;
     const YAML::Node type_node = n["type"];
     const std::string type = type_node.IsScalar() ? type_node.Scalar() : "";
@@ -61,6 +61,10 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
         if (!(c.decay >= 0.0))
             f.fail("decay", "is negative", "expected an exponential decay coefficient >= 0 s/m");
     }
+    // LS-DYNA's VDC is in percent of critical: `damping: 20 %` reads as 0.2
+    c.damping = s.quantity("damping", dim::none, 0.0);
+    if (!(c.damping >= 0.0 && c.damping <= 1.0))
+        s.fail("damping", "is outside [0, 1]", "expected a fraction of critical damping, e.g. 0.2 or 20 %");
     auto scale = [&](const char* key, real_t fallback, real_t hi)
     {
         const real_t v = s.quantity(key, dim::none, fallback);

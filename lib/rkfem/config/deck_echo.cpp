@@ -456,7 +456,7 @@ void write_contacts(std::ostringstream& os, const std::vector<ContactSpec>& cont
                    << ", soft_scale: " << c.soft_scale << ", thickness: " << c.thickness
                    << ", max_penetration: " << c.max_penetration;
             os << ", friction: {static: " << c.mu_static << ", dynamic: " << c.mu_dynamic << ", decay: " << c.decay
-               << "}}\n";
+               << "}, damping: " << c.damping << "}\n";
         }
     }
 }

@@ -426,9 +426,9 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                     if (soft)
                         k_a = std::max(k_a, 0.5 * p_.soft_scale * mu_star / (s_.dt0 * s_.dt0));
 
-                    const real_t pressure = k_a * pen;
-                    Vec3 f = (-o.w * pressure) * n; // on the slave
-                    if (p_.friction.active() && s_.dt0 > 0.0)
+                    const bool friction = p_.friction.active() && s_.dt0 > 0.0;
+                    Vec3 v_rel = Vec3::Zero();
+                    if (friction || p_.damping.active())
                     {
                         if (!have_vs)
                             for (int a = 0; a < 4; ++a)
@@ -437,9 +437,16 @@ void MortarContact::evaluate(Pass& pass, const PhysicalNodes& nodes)
                             for (int b = 0; b < 4; ++b)
                                 vm[b] = nodes.v(qm[b]);
                         have_vs = have_vm = true;
-                        Vec3 v_rel = Vec3::Zero();
                         for (int a = 0; a < 4; ++a)
                             v_rel += o.Ns[a] * vs[a] - o.Nm[a] * vm[a];
+                    }
+                    // each pass carries half the pair's spring, so half its reduced mass (the
+                    // slave closes on the master while (v_S - v_M) . n > 0)
+                    const real_t pressure =
+                        p_.damping.active() ? p_.damping.force(k_a, pen, v_rel.dot(n), 0.5 * mu_star) : k_a * pen;
+                    Vec3 f = (-o.w * pressure) * n; // on the slave
+                    if (friction)
+                    {
                         const Vec3 v_t = v_rel - v_rel.dot(n) * n;
                         f += o.w * p_.friction.force(v_t, pressure, 0.5 * mu_star, s_.dt0);
                     }
@@ -519,7 +526,7 @@ void MortarContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
         touched_[ii] = 0;
         node_k_[ii] = 0.0;
     }
-    s_.bound_step(k_over_m);
+    s_.bound_step(k_over_m, p_.damping.step_factor());
 }
 
 void MortarContact::save_state(StateArchive& a, const std::string& prefix) const

@@ -24,7 +24,9 @@
 ///                 interpolated), dt0 the first critical step the contact sees (SOFT = 1);
 ///   - the force w k_A p n pushes S back (on S's nodes -N_a^S of it) and M away (+N_b^M), plus
 ///     Coulomb friction on the relative tangential velocity with the traction bounded by the one
-///     that stops the slip within dt0 (mu* |v_t| / dt0; contact_algorithm.hpp, Friction).
+///     that stops the slip within dt0 (mu* |v_t| / dt0; contact_algorithm.hpp, Friction);
+///     optionally a dashpot on the closing speed (NormalDamping: max(0, k_A p + c v_n) with
+///     c = 2 zeta sqrt(k_A mu* / 2), each pass carrying half the pair).
 /// The step bound is node-to-segment's, k a node's share of the penalty (sum over points of
 /// k_A w N, both passes).
 /// What it does not do (node-to-segment does): single-surface (self) contact, and holding

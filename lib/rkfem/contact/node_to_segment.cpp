@@ -173,102 +173,102 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
     const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
     const index_t n_slave = static_cast<index_t>(slave.nodes.size());
     const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < kNoLimit;
-    parallel_for("rkfem::contact_node_to_segment", n_slave,
-                 [&](index_t k)
-                 {
-                     Hit& h = pass.hits[static_cast<std::size_t>(k)];
-                     h.segment = -1;
-                     const index_t i = slave.nodes[k];
-                     const Vec3 xs = nodes.x(i);
-                     const Vec3& ns = node_normal_[static_cast<std::size_t>(pass.slave)][static_cast<std::size_t>(k)];
-                     real_t best = kNoLimit;
-                     SegmentPoint at;
-                     for (index_t c = pass.offsets[k]; c < pass.offsets[k + 1]; ++c)
-                     {
-                         const index_t s = pass.candidates[c];
-                         const Quad& q = master.segments[s];
-                         const Vec3 corners[4] = {nodes.x(q[0]), nodes.x(q[1]), nodes.x(q[2]), nodes.x(q[3])};
-                         // the node must lie within the deepest reach of the segment's box
-                         const real_t reach = p_.max_penetration * master.depth[s] + p_.thickness;
-                         const Vec3 lo = corners[0].cwiseMin(corners[1]).cwiseMin(corners[2].cwiseMin(corners[3]));
-                         const Vec3 hi = corners[0].cwiseMax(corners[1]).cwiseMax(corners[2].cwiseMax(corners[3]));
-                         if ((xs.array() < lo.array() - reach).any() || (xs.array() > hi.array() + reach).any())
-                             continue;
-                         const SegmentPoint sp = project_on_segment(corners, xs);
-                         if (!sp.inside || !(sp.normal.dot(ns) < 0.0))
-                             continue;
-                         const real_t gap = (xs - sp.x).dot(sp.normal);
-                         const real_t pen = p_.thickness - gap;
-                         if (!(pen > 0.0) || pen > reach || pen >= best)
-                             continue;
-                         best = pen;
-                         h.segment = s;
-                         at = sp;
-                     }
-                     const std::size_t kk = static_cast<std::size_t>(k);
-                     real_t& offset = pass.offset[kk];
-                     real_t& last = pass.last_penetration[kk];
-                     if (fresh_)
-                     {
-                         // new surfaces: a node in contact before keeps its depth and offset
-                         const std::size_t ip = static_cast<std::size_t>(&pass - passes_.data());
-                         last = offset = 0.0;
-                         if (ip < before_.size())
-                         {
-                             const auto& was = before_[ip];
-                             const auto it =
-                                 std::lower_bound(was.begin(), was.end(), Before{i, 0.0, 0.0},
-                                                  [](const Before& x, const Before& y) { return x.node < y.node; });
-                             if (it != was.end() && it->node == i)
-                             {
-                                 last = it->penetration;
-                                 offset = it->offset;
-                             }
-                         }
-                     }
-                     if (h.segment < 0)
-                     {
-                         offset = last = 0.0;
-                         return;
-                     }
-                     const Quad& q = master.segments[h.segment];
-                     real_t m_m = 0.0;
-                     Vec3 v_m = Vec3::Zero();
-                     for (int a = 0; a < 4; ++a)
-                     {
-                         h.N[a] = at.N[a];
-                         m_m += at.N[a] * nodes.mass(q[a]);
-                         v_m += at.N[a] * nodes.v(q[a]);
-                     }
-                     const Vec3 v_rel = nodes.v(i) - v_m;
-                     // the growth of the depth one step of approach explains (room for a step up to
-                     // 1.5 dt0; none at the start) acts at once; more came in sideways, across a
-                     // segment's edge, or with an event, and is held as an offset, which shrinks
-                     // as the node moves out
-                     const real_t approach =
-                         fresh_ && !s_.started ? 0.0 : 1.5 * s_.dt0 * std::max(0.0, -v_rel.dot(at.normal));
-                     offset = std::min(offset, best) + std::max(0.0, best - last - approach);
-                     last = best;
-                     best -= offset;
-                     const real_t m_s = nodes.mass(i);
-                     const real_t m_star = m_s * m_m / (m_s + m_m);
-                     // the slave node's area that faces the segment
-                     const std::size_t ss = static_cast<std::size_t>(pass.slave);
-                     real_t area = 0.0;
-                     for (index_t j = node_segment_offsets_[ss][k]; j < node_segment_offsets_[ss][k + 1]; ++j)
-                         area += 0.25 * std::max(0.0, -segment_area_[ss][node_segments_[ss][j]].dot(at.normal));
-                     real_t k_pen = p_.penalty_scale * master.bulk_modulus[h.segment] * area / master.depth[h.segment];
-                     if (soft)
-                         k_pen = std::max(k_pen, p_.soft_scale * m_star / (s_.dt0 * s_.dt0));
-                     const real_t fn = k_pen * best;
-                     h.f = fn * at.normal;
-                     if (p_.friction.active() && s_.dt0 > 0.0)
-                     {
-                         const Vec3 v_t = v_rel - v_rel.dot(at.normal) * at.normal;
-                         h.f += p_.friction.force(v_t, fn, m_star, s_.dt0);
-                     }
-                     h.k = k_pen;
-                 });
+    parallel_for(
+        "rkfem::contact_node_to_segment", n_slave,
+        [&](index_t k)
+        {
+            Hit& h = pass.hits[static_cast<std::size_t>(k)];
+            h.segment = -1;
+            const index_t i = slave.nodes[k];
+            const Vec3 xs = nodes.x(i);
+            const Vec3& ns = node_normal_[static_cast<std::size_t>(pass.slave)][static_cast<std::size_t>(k)];
+            real_t best = kNoLimit;
+            SegmentPoint at;
+            for (index_t c = pass.offsets[k]; c < pass.offsets[k + 1]; ++c)
+            {
+                const index_t s = pass.candidates[c];
+                const Quad& q = master.segments[s];
+                const Vec3 corners[4] = {nodes.x(q[0]), nodes.x(q[1]), nodes.x(q[2]), nodes.x(q[3])};
+                // the node must lie within the deepest reach of the segment's box
+                const real_t reach = p_.max_penetration * master.depth[s] + p_.thickness;
+                const Vec3 lo = corners[0].cwiseMin(corners[1]).cwiseMin(corners[2].cwiseMin(corners[3]));
+                const Vec3 hi = corners[0].cwiseMax(corners[1]).cwiseMax(corners[2].cwiseMax(corners[3]));
+                if ((xs.array() < lo.array() - reach).any() || (xs.array() > hi.array() + reach).any())
+                    continue;
+                const SegmentPoint sp = project_on_segment(corners, xs);
+                if (!sp.inside || !(sp.normal.dot(ns) < 0.0))
+                    continue;
+                const real_t gap = (xs - sp.x).dot(sp.normal);
+                const real_t pen = p_.thickness - gap;
+                if (!(pen > 0.0) || pen > reach || pen >= best)
+                    continue;
+                best = pen;
+                h.segment = s;
+                at = sp;
+            }
+            const std::size_t kk = static_cast<std::size_t>(k);
+            real_t& offset = pass.offset[kk];
+            real_t& last = pass.last_penetration[kk];
+            if (fresh_)
+            {
+                // new surfaces: a node in contact before keeps its depth and offset
+                const std::size_t ip = static_cast<std::size_t>(&pass - passes_.data());
+                last = offset = 0.0;
+                if (ip < before_.size())
+                {
+                    const auto& was = before_[ip];
+                    const auto it = std::lower_bound(was.begin(), was.end(), Before{i, 0.0, 0.0},
+                                                     [](const Before& x, const Before& y) { return x.node < y.node; });
+                    if (it != was.end() && it->node == i)
+                    {
+                        last = it->penetration;
+                        offset = it->offset;
+                    }
+                }
+            }
+            if (h.segment < 0)
+            {
+                offset = last = 0.0;
+                return;
+            }
+            const Quad& q = master.segments[h.segment];
+            real_t m_m = 0.0;
+            Vec3 v_m = Vec3::Zero();
+            for (int a = 0; a < 4; ++a)
+            {
+                h.N[a] = at.N[a];
+                m_m += at.N[a] * nodes.mass(q[a]);
+                v_m += at.N[a] * nodes.v(q[a]);
+            }
+            const Vec3 v_rel = nodes.v(i) - v_m;
+            // the growth of the depth one step of approach explains (room for a step up to
+            // 1.5 dt0; none at the start) acts at once; more came in sideways, across a
+            // segment's edge, or with an event, and is held as an offset, which shrinks
+            // as the node moves out
+            const real_t approach = fresh_ && !s_.started ? 0.0 : 1.5 * s_.dt0 * std::max(0.0, -v_rel.dot(at.normal));
+            offset = std::min(offset, best) + std::max(0.0, best - last - approach);
+            last = best;
+            best -= offset;
+            const real_t m_s = nodes.mass(i);
+            const real_t m_star = m_s * m_m / (m_s + m_m);
+            // the slave node's area that faces the segment
+            const std::size_t ss = static_cast<std::size_t>(pass.slave);
+            real_t area = 0.0;
+            for (index_t j = node_segment_offsets_[ss][k]; j < node_segment_offsets_[ss][k + 1]; ++j)
+                area += 0.25 * std::max(0.0, -segment_area_[ss][node_segments_[ss][j]].dot(at.normal));
+            real_t k_pen = p_.penalty_scale * master.bulk_modulus[h.segment] * area / master.depth[h.segment];
+            if (soft)
+                k_pen = std::max(k_pen, p_.soft_scale * m_star / (s_.dt0 * s_.dt0));
+            const real_t fn =
+                p_.damping.active() ? p_.damping.force(k_pen, best, -v_rel.dot(at.normal), m_star) : k_pen * best;
+            h.f = fn * at.normal;
+            if (p_.friction.active() && s_.dt0 > 0.0)
+            {
+                const Vec3 v_t = v_rel - v_rel.dot(at.normal) * at.normal;
+                h.f += p_.friction.force(v_t, fn, m_star, s_.dt0);
+            }
+            h.k = k_pen;
+        });
 }
 
 void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactClock& clock, ContactChannel& channel)
@@ -329,7 +329,7 @@ void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactC
             k_over_m = std::max(k_over_m, node_k_[ii] / nodes.mass(i));
         node_k_[ii] = 0.0;
     }
-    s_.bound_step(k_over_m);
+    s_.bound_step(k_over_m, p_.damping.step_factor());
 }
 
 void NodeToSegmentContact::save_state(StateArchive& a, const std::string& prefix) const

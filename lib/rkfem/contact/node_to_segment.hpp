@@ -23,6 +23,8 @@
 ///                 uniform penetration, and a node on an edge counts only its face that touches);
 ///       soft:     k = max(segment, soft_scale m* / dt0^2)  (LS-DYNA SOFT = 1), m* = m_s m_m / (m_s
 ///                 + m_m), m_m = sum N_a m_a, dt0 the first critical step the contact sees;
+///   - optionally a dashpot on the closing speed, f_n = max(0, k p + c v_n), c = 2 zeta sqrt(k m*)
+///     (contact_algorithm.hpp, NormalDamping; LS-DYNA's VDC);
 ///   - Coulomb friction on the relative tangential velocity (contact_algorithm.hpp, Friction);
 ///   - the depth acts as far as the node's approach explains it: per evaluation the depth may
 ///     grow by 1.5 dt0 |v_rel . n| (one step of approach, with room); growth beyond that (a node
@@ -32,7 +34,8 @@
 ///     the force never jumps up by more than one step of approach, and contact does not create
 ///     energy.
 /// The step: the contact bounds it at dt0 / sqrt(1 + kappa dt0^2 / 2), kappa the largest k / m over
-/// the nodes in contact (k the springs on a node, m its mass; node_to_segment.cpp says why).
+/// the nodes in contact (k the springs on a node, m its mass; node_to_segment.cpp says why), times
+/// NormalDamping::step_factor with a dashpot.
 /// Forces are computed in parallel per slave node into a fixed slot each, then added to the
 /// channel in node order: the bits do not depend on the thread count.
 #include <vector>
@@ -51,6 +54,7 @@ struct ContactParameters
     real_t thickness = 0.0;       ///< contact starts at this gap [m]
     real_t max_penetration = 0.5; ///< of the element depth behind a segment; deeper is released
     Friction friction;
+    NormalDamping damping;
 };
 
 class NodeToSegmentContact final : public SurfaceContact

@@ -5,6 +5,7 @@
 #include <array>
 
 #include <algorithm>
+#include <cmath>
 
 #include "rkfem/core/parallel.hpp"
 
@@ -47,9 +48,11 @@ void RigidWall::add_forces(const PhysicalNodes& nodes, const ContactClock& clock
                          return;
                      }
                      const real_t m = nodes.mass(i);
-                     const real_t fn = -p_.scale * m / (dt0_ * dt0_) * gap;
-                     f = fn * n;
                      const Vec3 v_rel = nodes.v(i) - p_.velocity;
+                     const real_t k_wall = p_.scale * m / (dt0_ * dt0_);
+                     const real_t fn =
+                         p_.damping.active() ? p_.damping.force(k_wall, -gap, -v_rel.dot(n), m) : -k_wall * gap;
+                     f = fn * n;
                      f += p_.friction.force(v_rel - v_rel.dot(n) * n, fn, m, dt0_);
                  });
     for (std::size_t k = 0; k < nodes_.size(); ++k)
@@ -59,6 +62,13 @@ void RigidWall::add_forces(const PhysicalNodes& nodes, const ContactClock& clock
             resultant_ += f_[k];
             ++active_;
         }
+}
+
+real_t RigidWall::stable_step() const
+{
+    if (!p_.damping.active() || dt0_ == 0.0)
+        return kNoLimit;
+    return p_.damping.step_factor() * dt0_ / std::sqrt(1.0 + 0.5 * p_.scale);
 }
 
 void RigidWall::save_state(StateArchive& a, const std::string& prefix) const

@@ -6,8 +6,11 @@
 /// gets the force
 ///   f = k (-g) n + friction,   k = scale m_s / dt0^2,
 /// dt0 the first critical step the wall sees (the soft penalty of node-to-segment contact with
-/// an infinite master mass), and Coulomb friction on v_s - v_w (contact_algorithm.hpp). The wall
-/// takes the reaction; its resultant is the force on the nodes (LS-DYNA's RWFORC).
+/// an infinite master mass), and Coulomb friction on v_s - v_w (contact_algorithm.hpp). With a
+/// dashpot (NormalDamping, m* = m_s) the normal force is max(0, k (-g) + c v_n) and the wall bounds
+/// the step at NormalDamping::step_factor dt0 / sqrt(1 + scale / 2) (node-to-segment's bound for
+/// kappa = scale / dt0^2); without one it sets no bound (scale <= 0.8 keeps the step stable). The
+/// wall takes the reaction; its resultant is the force on the nodes (LS-DYNA's RWFORC).
 #include <vector>
 
 #include "rkfem/contact/contact_algorithm.hpp"
@@ -21,6 +24,7 @@ struct RigidWallParameters
     Vec3 velocity = Vec3::Zero();
     real_t scale = 0.1;
     Friction friction;
+    NormalDamping damping;
 };
 
 class RigidWall final : public ContactAlgorithm
@@ -32,6 +36,7 @@ class RigidWall final : public ContactAlgorithm
     void set_surfaces(std::vector<ContactSurface> surfaces) override;
     void save_state(StateArchive& archive, const std::string& prefix) const override;
     void load_state(const StateArchive& archive, const std::string& prefix) override;
+    real_t stable_step() const override;
     Vec3 resultant() const override { return resultant_; }
     index_t active_nodes() const override { return active_; }
 

@@ -37,12 +37,12 @@ void SurfaceContactState::record_search(const PhysicalNodes& nodes, const std::v
     ++searches;
 }
 
-void SurfaceContactState::bound_step(real_t kappa)
+void SurfaceContactState::bound_step(real_t kappa, real_t factor)
 {
     // The bound holds from the first contact on: it acts one step late, and a node that touches
     // at every other step would otherwise take every first step at the elements' step
     if (kappa > 0.0 && dt0 > 0.0)
-        dt_bound = std::min(dt_bound, dt0 / std::sqrt(1.0 + 0.5 * kappa * dt0 * dt0));
+        dt_bound = std::min(dt_bound, factor * dt0 / std::sqrt(1.0 + 0.5 * kappa * dt0 * dt0));
 }
 
 void SurfaceContactState::save(StateArchive& a, const std::string& prefix) const

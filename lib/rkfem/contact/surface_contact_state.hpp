@@ -32,7 +32,8 @@ struct SurfaceContactState
     void record_search(const PhysicalNodes& nodes, const std::vector<index_t>& surface_nodes);
     /// Bounds the step from kappa, the largest k / m over the nodes in contact (node_to_segment.cpp
     /// says why): dt0 / sqrt(1 + kappa dt0^2 / 2), held from the first contact on.
-    void bound_step(real_t kappa);
+    /// With a dashpot, times its factor (NormalDamping::step_factor).
+    void bound_step(real_t kappa, real_t factor = 1.0);
     void save(StateArchive& archive, const std::string& prefix) const;
     void load(const StateArchive& archive, const std::string& prefix);
 };

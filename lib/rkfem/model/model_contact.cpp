@@ -259,6 +259,7 @@ void Model::build_contacts()
             p.velocity = c.velocity;
             p.scale = c.penalty_scale;
             p.friction = friction;
+            p.damping.zeta = c.damping;
             contacts.push_back(std::make_unique<RigidWall>(contact_surfaces(c), p));
             continue;
         }
@@ -269,6 +270,7 @@ void Model::build_contacts()
         p.thickness = c.thickness;
         p.max_penetration = c.max_penetration;
         p.friction = friction;
+        p.damping.zeta = c.damping;
         if (c.mortar)
             contacts.push_back(std::make_unique<MortarContact>(contact_surfaces(c), p));
         else
