@@ -247,14 +247,16 @@ struct PlasticPoints
     /// committed one and s is left as it is: a rate-dependent surface seen at the new state's
     /// strain rate would otherwise return the stress with no strain increment, adding damage at
     /// every restart.
-    real_t update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
+    /// The kernels call it with the block's kind as a compile-time constant (dispatch_kind), so
+    /// the model is chosen once per block, not per point.
+    template <Kind K> real_t update_as(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
     {
         if (dt == 0.0)
         {
             keep(p);
             return 0.0;
         }
-        if (kind == Kind::Kcc)
+        if constexpr (K == Kind::Kcc)
         {
             KccState st = kcc_state[p];
             const real_t work = kcc_update(kcc, d, w, dt, s, st);
@@ -263,7 +265,7 @@ struct PlasticPoints
             failed_trial[p] = st.lambda; // damage function (0 intact) [output]
             return work;
         }
-        if (kind == Kind::Cscm)
+        else if constexpr (K == Kind::Cscm)
         {
             CscmState st = cscm_state[p];
             const real_t work = cscm_update(cscm, d, w, dt, s, st);
@@ -272,19 +274,52 @@ struct PlasticPoints
             failed_trial[p] = st.d; // damage 0..1 [output]
             return work;
         }
-        real_t e = eps_p[p], f = failed[p];
-        if (!ev.empty())
-        {
-            real_t v = ev[p], en = energy[p];
-            j2_update(params, d, w, dt, s, e, f, &v, &en);
-            ev_trial[p] = v;
-            energy_trial[p] = en;
-        }
         else
-            j2_update(params, d, w, dt, s, e, f);
-        eps_p_trial[p] = e;
-        failed_trial[p] = f;
-        return 0.0;
+        {
+            real_t e = eps_p[p], f = failed[p];
+            if (!ev.empty())
+            {
+                real_t v = ev[p], en = energy[p];
+                j2_update(params, d, w, dt, s, e, f, &v, &en);
+                ev_trial[p] = v;
+                energy_trial[p] = en;
+            }
+            else
+                j2_update(params, d, w, dt, s, e, f);
+            eps_p_trial[p] = e;
+            failed_trial[p] = f;
+            return 0.0;
+        }
+    }
+    /// update_as with the block's kind chosen at run time (for callers outside the kernels).
+    real_t update(std::size_t p, const real_t d[6], const real_t w[3], real_t dt, real_t s[6])
+    {
+        switch (kind)
+        {
+        case Kind::Kcc:
+            return update_as<Kind::Kcc>(p, d, w, dt, s);
+        case Kind::Cscm:
+            return update_as<Kind::Cscm>(p, d, w, dt, s);
+        default:
+            return update_as<Kind::J2>(p, d, w, dt, s);
+        }
     }
 };
+
+/// Calls f.template operator()<K>() with kind k as a compile-time constant: the one dispatch of a
+/// block's force pass on its material (Kind::None: elastic).
+template <class F> void dispatch_kind(PlasticPoints::Kind k, F&& f)
+{
+    switch (k)
+    {
+    case PlasticPoints::Kind::None:
+        return f.template operator()<PlasticPoints::Kind::None>();
+    case PlasticPoints::Kind::J2:
+        return f.template operator()<PlasticPoints::Kind::J2>();
+    case PlasticPoints::Kind::Kcc:
+        return f.template operator()<PlasticPoints::Kind::Kcc>();
+    case PlasticPoints::Kind::Cscm:
+        return f.template operator()<PlasticPoints::Kind::Cscm>();
+    }
+}
 } // namespace rkfem

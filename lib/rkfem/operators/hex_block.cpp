@@ -165,30 +165,29 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
     use_huge_pages(node_elem_slots);
 }
 
-/// All batches of a 1-point block, with the material kind chosen once for the block.
+/// All batches of a 1-point block, with the hourglass form and the material (dispatch_kind) chosen
+/// once for the block.
 template <HourglassType HG> void run_1pt(HexBlock& blk, const NodeSet& nodes, index_t nb, real_t dt)
 {
     const bool partial_last = blk.n_elements() % W != 0;
-    auto batch = [&]<bool PLASTIC>(index_t b, real_t* buf, index_t lo)
+    auto batch = [&]<PlasticPoints::Kind MK>(index_t b, real_t* buf, index_t lo)
     {
         if (partial_last && b == nb - 1)
-            force_1pt_batch<HG, PLASTIC, false>(blk, nodes, b, dt, buf, lo);
+            force_1pt_batch<HG, MK, false>(blk, nodes, b, dt, buf, lo);
         else
-            force_1pt_batch<HG, PLASTIC, true>(blk, nodes, b, dt, buf, lo);
+            force_1pt_batch<HG, MK, true>(blk, nodes, b, dt, buf, lo);
     };
-    auto run = [&]<bool PLASTIC>()
-    {
-        if (!blk.scatter.empty())
-            blk.scatter.run_chunks("rkfem::hex1pt", 0, static_cast<index_t>(blk.scatter.chunks.size()), W,
-                                   [&](index_t b, real_t* buf, index_t lo)
-                                   { batch.template operator()<PLASTIC>(b, buf, lo); });
-        else
-            parallel_for("rkfem::hex1pt", nb, [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
-    };
-    if (blk.plastic.active())
-        run.template operator()<true>();
-    else
-        run.template operator()<false>();
+    dispatch_kind(blk.plastic.kind,
+                  [&]<PlasticPoints::Kind MK>()
+                  {
+                      if (!blk.scatter.empty())
+                          blk.scatter.run_chunks("rkfem::hex1pt", 0, static_cast<index_t>(blk.scatter.chunks.size()), W,
+                                                 [&](index_t b, real_t* buf, index_t lo)
+                                                 { batch.template operator()<MK>(b, buf, lo); });
+                      else
+                          parallel_for("rkfem::hex1pt", nb,
+                                       [&](index_t b) { batch.template operator()<MK>(b, nullptr, 0); });
+                  });
 }
 
 ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t dt)
@@ -221,24 +220,21 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
     else
     {
         nb = ne;
-        auto run = [&](auto plastic)
-        {
-            parallel_for("rkfem::hex2x2x2", ne,
-                         [&](index_t e)
-                         {
-                             real_t out[4];
-                             index_t bad = -1;
-                             force_2x2x2_element<decltype(plastic)::value>(blk, nodes, e, dt, out, bad);
-                             for (int k = 0; k < 4; ++k)
-                                 blk.batch_sums[4 * e + k] = out[k];
-                             blk.batch_idx[2 * e] = e;
-                             blk.batch_idx[2 * e + 1] = bad;
-                         });
-        };
-        if (blk.plastic.active())
-            run(std::true_type{});
-        else
-            run(std::false_type{});
+        dispatch_kind(blk.plastic.kind,
+                      [&]<PlasticPoints::Kind MK>()
+                      {
+                          parallel_for("rkfem::hex2x2x2", ne,
+                                       [&](index_t e)
+                                       {
+                                           real_t out[4];
+                                           index_t bad = -1;
+                                           force_2x2x2_element<MK>(blk, nodes, e, dt, out, bad);
+                                           for (int k = 0; k < 4; ++k)
+                                               blk.batch_sums[4 * e + k] = out[k];
+                                           blk.batch_idx[2 * e] = e;
+                                           blk.batch_idx[2 * e + 1] = bad;
+                                       });
+                      });
     }
     r.d_internal = parallel_reduce_sum("rkfem::hex_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b]; });
     r.d_hourglass = parallel_reduce_sum("rkfem::hex_energy", nb, [&](index_t b) { return blk.batch_sums[4 * b + 1]; });

@@ -15,6 +15,22 @@
 
 namespace rkfem
 {
+namespace nodal_kernels
+{
+// each material kind's batch kernel is compiled in its own unit (kernels/nodal_points_<kind>.cpp)
+#define RKFEM_NODAL_POINTS_ELSEWHERE(K, FULL)                                                                          \
+    extern template void nodal_points_batch<PlasticPoints::Kind::K, FULL>(NodalBlock&, const real_t*, const real_t*,   \
+                                                                          index_t, real_t, real_t*, index_t);
+RKFEM_NODAL_POINTS_ELSEWHERE(None, true)
+RKFEM_NODAL_POINTS_ELSEWHERE(None, false)
+RKFEM_NODAL_POINTS_ELSEWHERE(J2, true)
+RKFEM_NODAL_POINTS_ELSEWHERE(J2, false)
+RKFEM_NODAL_POINTS_ELSEWHERE(Kcc, true)
+RKFEM_NODAL_POINTS_ELSEWHERE(Kcc, false)
+RKFEM_NODAL_POINTS_ELSEWHERE(Cscm, true)
+RKFEM_NODAL_POINTS_ELSEWHERE(Cscm, false)
+#undef RKFEM_NODAL_POINTS_ELSEWHERE
+} // namespace nodal_kernels
 using namespace nodal_kernels;
 
 ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt)
@@ -24,27 +40,25 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
     const real_t* u = nodes.u.data();
     const real_t* v = nodes.v.data();
 
-    auto batch = [&]<bool PLASTIC>(index_t b, real_t* buf, index_t lo)
+    auto batch = [&]<PlasticPoints::Kind MK>(index_t b, real_t* buf, index_t lo)
     {
         if ((b + 1) * kPointLanes <= np)
-            nodal_points_batch<PLASTIC, true>(blk, u, v, b, dt, buf, lo);
+            nodal_points_batch<MK, true>(blk, u, v, b, dt, buf, lo);
         else
-            nodal_points_batch<PLASTIC, false>(blk, u, v, b, dt, buf, lo);
+            nodal_points_batch<MK, false>(blk, u, v, b, dt, buf, lo);
     };
-    auto run = [&]<bool PLASTIC>()
-    {
-        if (blk.scatter_assembly())
-            blk.scatter.run_chunks("rkfem::nodal_points", 0, blk.n_point_chunks, kPointLanes,
-                                   [&](index_t b, real_t* buf, index_t lo)
-                                   { batch.template operator()<PLASTIC>(b, buf, lo); });
-        else
-            parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
-                         [&](index_t b) { batch.template operator()<PLASTIC>(b, nullptr, 0); });
-    };
-    if (blk.plastic.active())
-        run.template operator()<true>();
-    else
-        run.template operator()<false>();
+    // the material chosen once for the block
+    dispatch_kind(blk.plastic.kind,
+                  [&]<PlasticPoints::Kind MK>()
+                  {
+                      if (blk.scatter_assembly())
+                          blk.scatter.run_chunks("rkfem::nodal_points", 0, blk.n_point_chunks, kPointLanes,
+                                                 [&](index_t b, real_t* buf, index_t lo)
+                                                 { batch.template operator()<MK>(b, buf, lo); });
+                      else
+                          parallel_for("rkfem::nodal_points", (np + kPointLanes - 1) / kPointLanes,
+                                       [&](index_t b) { batch.template operator()<MK>(b, nullptr, 0); });
+                  });
 
     ForcePassResult r;
     const index_t nb = (np + kPointLanes - 1) / kPointLanes;

@@ -45,10 +45,11 @@ inline index_t n_batches(index_t ne)
 /// modes in one butterfly each, the exact-volume gradient is 12 cross products of position
 /// modes, the velocity gradient and the hourglass velocities come from the velocity modes, and
 /// the nodal forces (stress and hourglass) are one inverse butterfly of their modes.
-template <HourglassType HG, bool PLASTIC, bool FULL>
+template <HourglassType HG, PlasticPoints::Kind MK, bool FULL>
 RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, index_t batch, real_t dt, real_t* buf,
                                         index_t lo)
 {
+    constexpr bool PLASTIC = MK != PlasticPoints::Kind::None; // the material, chosen once per block (dispatch_kind)
     using simd::dvec;
     using simd::mul_add;
     const index_t ne = blk.n_elements();
@@ -185,10 +186,11 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             simd::store(wv[k], wl[k]);
         // the lanes that stay elastic (J2) at once, the others one by one
         std::size_t pt[W];
-        bool elastic[W];
+        bool elastic[W] = {};
         for (int l = 0; l < W; ++l)
             pt[l] = lane_element(l < nl ? l : 0);
-        blk.plastic.j2_elastic_lanes<W>(pt, nl, dv, wv, dt, sv, elastic);
+        if constexpr (MK == PlasticPoints::Kind::J2)
+            blk.plastic.j2_elastic_lanes<W>(pt, nl, dv, wv, dt, sv, elastic);
         for (int l = 0; l < nl; ++l)
         {
             if (elastic[l])
@@ -196,7 +198,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             const real_t d[6] = {dv[0][l], dv[1][l], dv[2][l], dv[3][l], dv[4][l], dv[5][l]};
             const real_t w[3] = {wv[0][l], wv[1][l], wv[2][l]};
             real_t s[6] = {sv[0][l], sv[1][l], sv[2][l], sv[3][l], sv[4][l], sv[5][l]};
-            blk.plastic.update(lane_element(l), d, w, dt, s);
+            blk.plastic.template update_as<MK>(lane_element(l), d, w, dt, s);
             for (int k = 0; k < 6; ++k)
                 sv[k][l] = s[k];
         }
@@ -574,9 +576,10 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
 }
 
 /// Fully integrated hex: 8 Gauss points, stress per point, bulk viscosity from the mean tr D.
-template <bool PLASTIC>
+template <PlasticPoints::Kind MK>
 void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t dt, real_t out[4], index_t& bad)
 {
+    constexpr bool PLASTIC = MK != PlasticPoints::Kind::None;
     const std::size_t ss = blk.stress_stride;
     real_t xe[8][3], ve[8][3];
     for (int I = 0; I < 8; ++I)
@@ -617,7 +620,7 @@ void force_2x2x2_element(HexBlock& blk, const NodeSet& nodes, index_t e, real_t 
         for (int k = 0; k < 6; ++k)
             s_old[k] = s_new[gp][k] = blk.stress[k * ss + p];
         if constexpr (PLASTIC)
-            blk.plastic.update(p, d, w, dt, s_new[gp]);
+            blk.plastic.template update_as<MK>(p, d, w, dt, s_new[gp]);
         else
             elastic_update(mat, d, w, dt, s_new[gp]);
         for (int k = 0; k < 6; ++k)

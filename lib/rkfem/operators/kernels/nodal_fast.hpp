@@ -225,10 +225,11 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
 /// the block's end repeat its first point and nothing of theirs is stored. With a scatter buffer
 /// (buf != null, chunked assembly) V0 P g goes straight into it; otherwise V0 P is stored for the
 /// transpose gather.
-template <bool PLASTIC, bool FULL>
+template <PlasticPoints::Kind MK, bool FULL>
 [[gnu::noinline]] void nodal_points_batch(NodalBlock& blk, const real_t* u, const real_t* v, index_t batch, real_t dt,
                                           real_t* buf, index_t lo)
 {
+    constexpr bool PLASTIC = MK != PlasticPoints::Kind::None; // the material, chosen once per block (dispatch_kind)
     constexpr int W = kPointLanes;
     const IntegrationOperator& op = blk.points;
     const index_t np = blk.n_points();
@@ -330,7 +331,8 @@ template <bool PLASTIC, bool FULL>
                 for (int l = 0; l < W; ++l)
                     for (int k = 0; k < 6; ++k)
                         sn[k][l] = so[k][l] = s_in[k * snp + pt[l]];
-            blk.plastic.j2_elastic_lanes<W>(pt, nl, dl, wl, dt, sn, elastic);
+            if constexpr (MK == PlasticPoints::Kind::J2)
+                blk.plastic.j2_elastic_lanes<W>(pt, nl, dl, wl, dt, sn, elastic);
             if constexpr (FULL)
             {
                 all_elastic = true;
@@ -361,7 +363,7 @@ template <bool PLASTIC, bool FULL>
                     for (int k = 0; k < 6; ++k)
                         s[k] = sn[k][l];
                 else if (active && Jl[l] > 0.0)
-                    blk.plastic.update(static_cast<index_t>(p), d, w, dt, s);
+                    blk.plastic.template update_as<MK>(static_cast<index_t>(p), d, w, dt, s);
             }
             else
                 elastic_update(mat, d, w, dt, s);
