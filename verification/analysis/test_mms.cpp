@@ -11,6 +11,7 @@
 
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/input_error.hpp"
 
 using namespace rkfem;
 

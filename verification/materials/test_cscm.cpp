@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "rkfem/analysis/material_point.hpp"
+#include "rkfem/config/deck.hpp"
 #include "rkfem/materials/cscm_concrete.hpp"
 
 using namespace rkfem;

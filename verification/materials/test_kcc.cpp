@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "rkfem/analysis/material_point.hpp"
+#include "rkfem/config/deck.hpp"
 #include "rkfem/materials/kcc_concrete.hpp"
 #include "rkfem/materials/point_history.hpp"
 #include "rkfem/model/material_from_deck.hpp"

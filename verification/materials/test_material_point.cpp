@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 
 #include "rkfem/analysis/material_point.hpp"
+#include "rkfem/config/deck.hpp"
 #include "rkfem/materials/elastic.hpp"
 
 using namespace rkfem;

@@ -8,6 +8,7 @@
 #include <hdf5.h>
 #include <yaml-cpp/yaml.h>
 
+#include "rkfem/config/deck.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
 

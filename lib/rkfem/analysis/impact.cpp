@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/model/model.hpp"
 
 namespace rkfem
 {

@@ -23,10 +23,12 @@
 ///     remaining elements), the momentum the target carries along d, the target's volume with
 ///     damage above 0.5 and above the threshold (eroded elements included: they failed), and the
 ///     eroded mass.
-#include "rkfem/model/model.hpp"
+#include "rkfem/core/types.hpp"
 
 namespace rkfem
 {
+class Model;
+struct ImpactSpec;
 struct ImpactMeasures
 {
     real_t apparent_depth = 0.0;           ///< [m]

@@ -13,7 +13,7 @@
 #include <string>
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
-#include "rkfem/config/deck.hpp"
+#include "rkfem/discretization/formulation.hpp"
 
 namespace rkfem
 {

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "rkfem/config/deck.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/io/hdf5_dataset.hpp"
 #include "rkfem/materials/point_history.hpp"

@@ -14,10 +14,11 @@
 #include <string>
 #include <vector>
 
-#include "rkfem/config/deck.hpp"
+#include "rkfem/core/types.hpp"
 
 namespace rkfem
 {
+struct MaterialPointDeck;
 struct MaterialPointRecord
 {
     real_t time = 0.0;

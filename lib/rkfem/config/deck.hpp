@@ -16,6 +16,7 @@
 #include "rkfem/discretization/formulation.hpp"
 #include "rkfem/discretization/generator_spec.hpp"
 #include "rkfem/integration/nodal/nodal_integration_spec.hpp"
+#include "rkfem/io/output_spec.hpp"
 #include "rkfem/materials/rate_law.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
 #include "rkfem/operators/hourglass.hpp"
@@ -225,13 +226,6 @@ struct ImpactSpec
     Vec3 direction = -Vec3::UnitZ(); ///< the shot line, into the target (unit)
     real_t damage = 0.95;            ///< actual crater: material at or above this damage is gone
     SourceLocation loc;
-};
-
-/// Field output storage (results.h5): `output: {precision, compression}`.
-struct OutputSpec
-{
-    bool single = true;  ///< fields as 32-bit floats (coordinates stay 64-bit); false: all 64-bit
-    int compression = 0; ///< gzip level 0-9 (with byte shuffle); 0: none
 };
 
 struct Deck

@@ -12,6 +12,12 @@
 
 #include "rkfem/core/types.hpp"
 
+/// A vectorization hint for the loop that follows, with OpenMP's simd clauses if any:
+/// `RKFEM_SIMD()` or `RKFEM_SIMD(reduction(+ : s) reduction(min : m))`. The one place the kernels'
+/// loop pragmas are spelled, as parallel_for is for their threads.
+#define RKFEM_PRAGMA(...) _Pragma(#__VA_ARGS__)
+#define RKFEM_SIMD(...) RKFEM_PRAGMA(omp simd __VA_ARGS__)
+
 namespace rkfem
 {
 /// The first exception thrown inside a parallel loop, kept to be rethrown after it (an exception

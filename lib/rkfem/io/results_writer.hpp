@@ -19,8 +19,8 @@
 #include <string>
 #include <vector>
 
-#include "rkfem/config/deck.hpp"
 #include "rkfem/core/types.hpp"
+#include "rkfem/io/output_spec.hpp"
 
 namespace rkfem
 {

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
 
 namespace rkfem
 {
@@ -457,18 +458,18 @@ std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real
     const int n = static_cast<int>(lengths.size());
     // the narrow bracket's end works once; lengths outside it take the widest (rare)
     real_t narrow[2];
-#pragma omp parallel for schedule(static)
-    for (int e = 0; e < 2; ++e)
-        narrow[e] = kcc_tension_work(m, e == 0 ? kNarrowLo : kNarrowHi);
-#pragma omp parallel for schedule(dynamic)
-    for (int i = 0; i < n; ++i)
-    {
-        const real_t len = lengths[static_cast<std::size_t>(i)];
-        const real_t target = m.fracture_energy / len;
-        scales[static_cast<std::size_t>(i)] = narrow[0] > target && narrow[1] < target
-                                                  ? scale_for_length(m, len, kNarrowLo, kNarrowHi, narrow[0], narrow[1])
-                                                  : kcc_tension_scale_for_length(m, len);
-    }
+    parallel_for_tasks("rkfem::kcc::narrow_bracket", 2,
+                       [&](index_t e) { narrow[e] = kcc_tension_work(m, e == 0 ? kNarrowLo : kNarrowHi); });
+    parallel_for_tasks("rkfem::kcc::tension_scales", n,
+                       [&](index_t i)
+                       {
+                           const real_t len = lengths[static_cast<std::size_t>(i)];
+                           const real_t target = m.fracture_energy / len;
+                           scales[static_cast<std::size_t>(i)] =
+                               narrow[0] > target && narrow[1] < target
+                                   ? scale_for_length(m, len, kNarrowLo, kNarrowHi, narrow[0], narrow[1])
+                                   : kcc_tension_scale_for_length(m, len);
+                       });
     for (std::size_t p = 0; p < h.size(); ++p)
     {
         if (exact)

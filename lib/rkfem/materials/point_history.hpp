@@ -9,6 +9,7 @@
 #include <cmath>
 #include <vector>
 
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/materials/cscm_concrete.hpp"
 #include "rkfem/materials/j2_plasticity.hpp"
 #include "rkfem/materials/kcc_concrete.hpp"
@@ -209,7 +210,7 @@ struct PlasticPoints
                 sy[l] = -1.0; // never elastic here: update() zeroes its deviator
         }
         const real_t G = params.elastic.mu, K = params.elastic.bulk_modulus();
-#pragma omp simd
+        RKFEM_SIMD()
         for (int l = 0; l < W; ++l)
         {
             real_t s0 = s[0][l], s1 = s[1][l], s2 = s[2][l], s3 = s[3][l], s4 = s[4][l], s5 = s[5][l];

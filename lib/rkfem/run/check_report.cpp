@@ -6,6 +6,7 @@
 #include <sstream>
 #include <vector>
 
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
 
 namespace rkfem
@@ -192,9 +193,8 @@ SmallestStep smallest_element_step(const Model& model)
             // the elements' steps on the threads, then the first smallest in element order
             const index_t ne = model.blocks[b].n_elements();
             dt.resize(static_cast<std::size_t>(ne));
-#pragma omp parallel for schedule(static)
-            for (index_t e = 0; e < ne; ++e)
-                dt[static_cast<std::size_t>(e)] = model.element_time_step(b, e);
+            parallel_for("rkfem::check::element_steps", ne,
+                         [&](index_t e) { dt[static_cast<std::size_t>(e)] = model.element_time_step(b, e); });
             for (index_t e = 0; e < ne; ++e)
                 if (dt[static_cast<std::size_t>(e)] < s.dt * (1 - 1e-12))
                     s = {dt[static_cast<std::size_t>(e)], b, e};

@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "rkfem/approximation/rk/rk_basis.hpp"
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/core/simd.hpp"
 
 namespace rkfem::rk_region_detail
@@ -229,9 +230,7 @@ template <KernelType K, SupportShape S> void RkRegionValues::slopes(const Vec3& 
     real_t t10 = 0, t11 = 0, t12 = 0, t13 = 0, t111 = 0, t112 = 0, t113 = 0, t122 = 0, t123 = 0, t133 = 0;
     real_t t20 = 0, t21 = 0, t22 = 0, t23 = 0, t211 = 0, t212 = 0, t213 = 0, t222 = 0, t223 = 0, t233 = 0;
     real_t count = 0, a_min = std::numeric_limits<real_t>::infinity();
-#pragma omp simd reduction(+ : s0, s1, s2, s3, s11, s12, s13, s22, s23, s33, count, t00, t01, t02, t03, t011, t012, \
-                               t013, t022, t023, t033, t10, t11, t12, t13, t111, t112, t113, t122, t123, t133, t20, \
-                               t21, t22, t23, t211, t212, t213, t222, t223, t233) reduction(min : a_min)
+    RKFEM_SIMD(reduction(+ : s0, s1, s2, s3, s11, s12, s13, s22, s23, s33, count, t00, t01, t02, t03, t011, t012, t013, t022, t023, t033, t10, t11, t12, t13, t111, t112, t113, t122, t123, t133, t20, t21, t22, t23, t211, t212, t213, t222, t223, t233) reduction(min : a_min))
     for (std::size_t k = 0; k < n; ++k)
     {
         const real_t d0 = x0 - px[k], d1 = x1 - py[k], d2 = x2 - pz[k];

@@ -17,6 +17,7 @@
 #include "rkfem/core/simd.hpp"
 
 #include "rkfem/approximation/rk/rk_region_detail.hpp"
+#include "rkfem/core/parallel.hpp"
 
 namespace rkfem
 {
@@ -61,7 +62,7 @@ void RkRegionValues::gradients_linear(const Vec3& x)
     const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi = phi_.data();
     const real_t *q0 = dphi_[0].data(), *q1 = dphi_[1].data(), *q2 = dphi_[2].data();
     real_t *psi = psi_.data(), *g0 = grad_[0].data(), *g1 = grad_[1].data(), *g2 = grad_[2].data();
-#pragma omp simd
+    RKFEM_SIMD()
     for (std::size_t k = 0; k < n; ++k)
     {
         const real_t bH = c0 + c1 * dx[k] + c2 * dy[k] + c3 * dz[k];

@@ -14,6 +14,7 @@
 #include "rkfem/core/simd.hpp"
 
 #include "rkfem/approximation/rk/rk_region_detail.hpp"
+#include "rkfem/core/parallel.hpp"
 
 namespace rkfem
 {
@@ -183,7 +184,7 @@ template <KernelType K, SupportShape S> void RkRegionValues::windows(const Vec3&
     real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi_out = phi_.data(), *kept = kept_.data();
     real_t s0 = 0, s1 = 0, s2 = 0, s3 = 0, s11 = 0, s12 = 0, s13 = 0, s22 = 0, s23 = 0, s33 = 0;
     real_t count = 0, a_min = std::numeric_limits<real_t>::infinity();
-#pragma omp simd reduction(+ : s0, s1, s2, s3, s11, s12, s13, s22, s23, s33, count) reduction(min : a_min)
+    RKFEM_SIMD(reduction(+ : s0, s1, s2, s3, s11, s12, s13, s22, s23, s33, count) reduction(min : a_min))
     for (std::size_t k = 0; k < n; ++k)
     {
         const real_t d0 = x0 - px[k], d1 = x1 - py[k], d2 = x2 - pz[k];
@@ -248,7 +249,7 @@ void RkRegionValues::values_linear(const Vec3& x)
     const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi = phi_.data();
     real_t* psi = psi_.data();
     real_t big = 0.0;
-#pragma omp simd reduction(max : big)
+    RKFEM_SIMD(reduction(max : big))
     for (std::size_t k = 0; k < n; ++k)
     {
         psi[k] = phi[k] * (c0 + c1 * dx[k] + c2 * dy[k] + c3 * dz[k]);
@@ -303,8 +304,7 @@ void RkRegionValues::drop(const Vec3& x)
     real_t n_dropped = 0.0, s = 0.0;
     real_t w0 = 0, w1 = 0, w2 = 0, w3 = 0, w11 = 0, w12 = 0, w13 = 0, w22 = 0, w23 = 0, w33 = 0;
     real_t p0 = 0, p1 = 0, p2 = 0, p3 = 0;
-#pragma omp simd reduction(+ : n_dropped, w0, w1, w2, w3, w11, w12, w13, w22, w23, w33, p0, p1, p2, p3) \
-    reduction(max : s)
+    RKFEM_SIMD(reduction(+ : n_dropped, w0, w1, w2, w3, w11, w12, w13, w22, w23, w33, p0, p1, p2, p3) reduction(max : s))
     for (std::size_t k = 0; k < n; ++k)
     {
         const real_t was = kept[k], value = psi[k];
@@ -338,7 +338,7 @@ void RkRegionValues::drop(const Vec3& x)
         throw SingularMomentError(os.str());
     }
     const real_t c0 = c[0], c1 = is * c[1], c2 = is * c[2], c3 = is * c[3];
-#pragma omp simd
+    RKFEM_SIMD()
     for (std::size_t k = 0; k < n; ++k)
         psi[k] += std::abs(psi[k]) * (c0 - c1 * dx[k] - c2 * dy[k] - c3 * dz[k]);
 }

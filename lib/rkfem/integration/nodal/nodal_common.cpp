@@ -129,7 +129,7 @@ void add_point_values(RkRegionValues& values, const Vec3& x, const Vec3& nda, re
     const real_t n0 = nda[0], n1 = nda[1], n2 = nda[2];
     const real_t *psi = values.psi(), *kept = values.kept();
     real_t *g0 = g, *g1 = g + n, *g2 = g + 2 * n;
-#pragma omp simd
+    RKFEM_SIMD()
     for (std::size_t k = 0; k < n; ++k)
     {
         g0[k] += psi[k] * n0;

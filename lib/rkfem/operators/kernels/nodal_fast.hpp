@@ -6,6 +6,7 @@
 /// and the batch pass over the stress points with the material update. Their plain scalar twin,
 /// which a newcomer reads first, is nodal_reference.cpp beside this file;
 /// verification/operators/test_reference_kernels.cpp holds the two to round-off.
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/operators/kernels/nodal_gather.hpp"
 
 namespace rkfem::nodal_kernels
@@ -121,7 +122,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
             }
     // the point's rotation of the step, for its three sub-points (elastic_update's from w)
     alignas(64) real_t R[9][W];
-#pragma omp simd
+    RKFEM_SIMD()
     for (int l = 0; l < W; ++l)
     {
         const Rotation<real_t> r = hughes_winget(wl[0][l], wl[1][l], wl[2][l], dt);
@@ -131,7 +132,7 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
     alignas(64) real_t P[3][9][W];
     for (int i = 0; i < 3; ++i)
     {
-#pragma omp simd
+        RKFEM_SIMD()
         for (int l = 0; l < W; ++l)
         {
             real_t Ls[3][3];
@@ -263,7 +264,7 @@ template <PlasticPoints::Kind MK, bool FULL>
     alignas(64) real_t Jl[W], Fi[3][3][W], dl[6][W], wl[3][W], so[6][W], sn[6][W];
     const real_t* __restrict s_in = blk.stress.data();
     real_t* __restrict s_out = blk.stress_trial.data();
-#pragma omp simd
+    RKFEM_SIMD()
     for (int l = 0; l < W; ++l)
     {
         const real_t J = F[0][0][l] * (F[1][1][l] * F[2][2][l] - F[1][2][l] * F[2][1][l]) -
@@ -296,7 +297,7 @@ template <PlasticPoints::Kind MK, bool FULL>
     }
     if constexpr (!PLASTIC && FULL)
     {
-#pragma omp simd
+        RKFEM_SIMD()
         for (int l = 0; l < W; ++l)
         {
             const std::size_t p = static_cast<std::size_t>(p0 + l);
@@ -323,7 +324,7 @@ template <PlasticPoints::Kind MK, bool FULL>
             if constexpr (FULL) // the batch's points are consecutive: a row per component
                 for (int k = 0; k < 6; ++k)
                 {
-#pragma omp simd
+                    RKFEM_SIMD()
                     for (int l = 0; l < W; ++l)
                         sn[k][l] = so[k][l] = s_in[k * snp + static_cast<std::size_t>(p0) + l];
                 }
@@ -390,7 +391,7 @@ template <PlasticPoints::Kind MK, bool FULL>
     // bulk viscosity (LS-DYNA form) with l = alpha J^(1/3) l0, the length of the stable-step
     // estimate, energies, V0 P = V0 J (sigma - q 1) F^-T
     alignas(64) real_t P[9][W], e_int[W], e_bv[W], dtl[W];
-#pragma omp simd
+    RKFEM_SIMD()
     for (int l = 0; l < W; ++l)
     {
         const std::size_t p = lane_point(l);
