@@ -67,11 +67,11 @@ void BM_SeedDeckStep(benchmark::State& state)
         benchmark::Counter(nn * state.iterations() * 1e-9, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
     state.counters["ns_per_item_step"] = benchmark::Counter(items * state.iterations() * 1e-9,
                                                             benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-    if (rk && !m.nodal_blocks.empty())
+    if (rk && m.nodal_block(0))
     {
         // per particle: SCNI entries, NSNI entries per direction, and the batches of 8 whose
         // points share one stencil at consecutive bases (the whole-vector path)
-        const NodalBlock& blk = m.nodal_blocks.front();
+        const NodalBlock& blk = *m.nodal_block(0);
         const index_t np = blk.n_points();
         double entries = 0.0, stab = 0.0;
         for (index_t p = 0; p < np; ++p)
@@ -111,7 +111,7 @@ void BM_CloudForcePass(benchmark::State& state)
         Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_cloud.yaml",
                                {"parts.column.generator.size=[4 mm, 4 mm, " + std::to_string(state.range(1)) + " mm]",
                                 "parts.column.rk.normalized_support=" + std::to_string(state.range(2) / 100.0)}));
-    NodalBlock& blk = m.nodal_blocks.at(0);
+    NodalBlock& blk = *m.nodal_block(0);
     NodeSet& nodes = m.nodes;
     for (std::size_t i = 0; i < nodes.x0.size(); ++i)
     {

@@ -64,14 +64,14 @@ TEST(Impact, CraterDepthsDamagedVolumeAndProjectileOfAKnownCrater)
     EXPECT_EQ(r.target_momentum, 0.0);
 
     // one more layer eroded under the column deepens the crater to 3 mm
-    std::vector<char> keep2(static_cast<std::size_t>(m.blocks[0].n_elements()), 1);
-    for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+    std::vector<char> keep2(static_cast<std::size_t>(m.meshes[0].n_elements()), 1);
+    for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)
     {
         Vec3 c = Vec3::Zero();
         for (int j = 0; j < 8; ++j)
-            c += 0.125 * Vec3(m.nodes.x0[3 * m.blocks[0].conn[8 * e + j]],
-                              m.nodes.x0[3 * m.blocks[0].conn[8 * e + j] + 1],
-                              m.nodes.x0[3 * m.blocks[0].conn[8 * e + j] + 2]);
+            c += 0.125 * Vec3(m.nodes.x0[3 * m.meshes[0].conn[8 * e + j]],
+                              m.nodes.x0[3 * m.meshes[0].conn[8 * e + j] + 1],
+                              m.nodes.x0[3 * m.meshes[0].conn[8 * e + j] + 2]);
         if (c[2] > 1e-3 && c[2] < 2e-3 && c[0] > 1e-3 && c[0] < 3e-3 && c[1] > 1e-3 && c[1] < 3e-3)
             keep2[static_cast<std::size_t>(e)] = 0;
     }
@@ -112,13 +112,13 @@ TEST(Impact, InterpolatedCraterOfAKnownDamageField)
                                       "parts.target.generator.divisions=[6, 6, 4]", "impact.point=[3 mm, 3 mm, 4 mm]"});
     const ImpactAnalysis impact(m, m.deck().impact);
     EXPECT_EQ(impact.crater(m).depth, 0.0);
-    std::vector<char> keep(static_cast<std::size_t>(m.blocks[0].n_elements()), 1);
-    for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+    std::vector<char> keep(static_cast<std::size_t>(m.meshes[0].n_elements()), 1);
+    for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)
     {
         Vec3 c = Vec3::Zero();
         for (int j = 0; j < 8; ++j)
         {
-            const index_t n = m.blocks[0].conn[8 * e + j];
+            const index_t n = m.meshes[0].conn[8 * e + j];
             c += 0.125 * Vec3(m.nodes.x0[3 * n], m.nodes.x0[3 * n + 1], m.nodes.x0[3 * n + 2]);
         }
         if (c[0] > 1e-3 && c[0] < 5e-3 && c[1] > 1e-3 && c[1] < 5e-3 && c[2] > 2e-3)

@@ -502,8 +502,8 @@ TEST(SurfaceToSurface, PatchTestExactWithMortarOrMatchingMeshesNodeToSegmentWith
         const RunSummary s = run_simulation(m, opt);
         ASSERT_EQ(s.status, "completed") << s.message;
         real_t zz = 0.0, lateral = 0.0;
-        for (std::size_t b = 0; b < m.blocks.size(); ++b)
-            for (index_t e = 0; e < m.blocks[b].n_elements(); ++e)
+        for (std::size_t b = 0; b < m.meshes.size(); ++b)
+            for (index_t e = 0; e < m.meshes[b].n_elements(); ++e)
             {
                 const Sym6 sig = m.element_stress(static_cast<index_t>(b), e);
                 zz = std::max(zz, std::abs(sig[2] / -p - 1.0));
@@ -601,7 +601,7 @@ contacts:
     const index_t segments_before = m.contact_surface({"block"}, {}).n_segments();
     m.compute_forces(0.0, 0.0, 0);
     EXPECT_EQ(m.contacts[0]->active_nodes(), 0);
-    std::vector<char> keep(static_cast<std::size_t>(m.blocks[0].n_elements()), 1);
+    std::vector<char> keep(static_cast<std::size_t>(m.meshes[0].n_elements()), 1);
     for (index_t e = 32; e < 48; ++e) // the top layer (elements in z order)
         keep[static_cast<std::size_t>(e)] = 0;
     m.remove_elements(0, keep);

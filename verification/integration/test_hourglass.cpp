@@ -649,7 +649,7 @@ TEST(Hourglass, AssumedStrainRestartsFromACheckpointWithoutFrameSizes)
         r = cd.step(m, t, dt, k);
         t = r.t;
     }
-    const HexBlock& b = m.blocks[0];
+    const HexBlock& b = m.meshes[0];
     const std::size_t rows12 = 12 * static_cast<std::size_t>(b.n_elements());
     ASSERT_EQ(b.hg_force.size(), 15 * static_cast<std::size_t>(b.n_elements()));
     real_t largest = 0.0, smallest_size = kNoLimit;
@@ -666,8 +666,8 @@ TEST(Hourglass, AssumedStrainRestartsFromACheckpointWithoutFrameSizes)
     Model from_full = Model::build(d), from_old = Model::build(d);
     from_full.load_state(full);
     from_old.load_state(old);
-    EXPECT_EQ(from_full.blocks[0].hg_force, b.hg_force);
-    const std::vector<real_t>& h = from_old.blocks[0].hg_force;
+    EXPECT_EQ(from_full.meshes[0].hg_force, b.hg_force);
+    const std::vector<real_t>& h = from_old.meshes[0].hg_force;
     ASSERT_EQ(h.size(), b.hg_force.size());
     EXPECT_TRUE(std::equal(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(rows12), b.hg_force.begin()));
     EXPECT_TRUE(

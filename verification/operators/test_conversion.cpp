@@ -24,7 +24,7 @@ namespace
 {
 std::vector<char> elements_above(const Model& m, real_t z)
 {
-    const HexBlock& b = m.blocks[0];
+    const HexBlock& b = m.meshes[0];
     std::vector<char> flags(static_cast<std::size_t>(b.n_elements()), 0);
     for (index_t e = 0; e < b.n_elements(); ++e)
     {
@@ -75,7 +75,7 @@ TEST(ConversionPatch, LinearFieldKeepsItsUniformStressThroughAConversion)
         }
         ASSERT_EQ(conv.converted_elements(), 48);
         // stress of every point, against the unconverted run
-        const NodalBlock &p = plain.nodal_blocks[0], &c = conv.nodal_blocks[0];
+        const NodalBlock &p = *plain.nodal_block(0), &c = *conv.nodal_block(0);
         real_t smax = 0.0, ds = 0.0;
         for (int k = 0; k < 6; ++k)
             for (index_t q = 0; q < p.n_points(); ++q)
@@ -124,7 +124,7 @@ TEST(ConversionPatch, LinearFieldKeepsItsUniformStressThroughAConversion)
         EXPECT_LT(dv / vmax, 1e-12) << transition;
         // the zones the output shows: 16 FE-only elements at the bottom, ... 48 RK
         index_t zones[3] = {0, 0, 0};
-        for (index_t e = 0; e < conv.blocks[0].n_elements(); ++e)
+        for (index_t e = 0; e < conv.meshes[0].n_elements(); ++e)
             ++zones[conv.element_zone(0, e)];
         EXPECT_EQ(zones[2], 48);
         EXPECT_EQ(zones[1], 16); // the layer below the RK half
@@ -223,7 +223,7 @@ Wave run_wave(const std::vector<std::string>& overrides)
     const test::RunWithBalance r = test::run_with_balance(m, 20 * h / c);
     EXPECT_EQ(r.summary.status, "completed") << r.summary.message;
     w.balance = r.balance;
-    for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+    for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)
     {
         w.szz.push_back(m.element_stress(0, e)[ZZ]);
         w.zone.push_back(m.element_zone(0, e));
@@ -299,8 +299,8 @@ TEST(ConversionUpdate, RebuildsOnlyWhereTheApproximationChangedWithTheWholeRebui
             dg = std::max(dg, std::abs(a.grad[k] - b.grad[k]));
         }
     };
-    compare(inc->nodal_blocks[0].points, whole->nodal_blocks[0].points);
-    compare(inc->nodal_blocks[0].stabilization, whole->nodal_blocks[0].stabilization);
+    compare(inc->nodal_block(0)->points, whole->nodal_block(0)->points);
+    compare(inc->nodal_block(0)->stabilization, whole->nodal_block(0)->stabilization);
     real_t du = 0.0, umax = 0.0, dmap = 0.0;
     for (index_t i = 0; i < inc->nodes.size(); ++i)
     {

@@ -50,7 +50,7 @@ Wave run_wave(const std::vector<std::string>& overrides)
     const test::RunWithBalance r = test::run_with_balance(m, 20 * h / c);
     EXPECT_EQ(r.summary.status, "completed") << r.summary.message;
     w.balance = r.balance;
-    for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+    for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)
         w.szz.push_back(m.element_stress(0, e)[ZZ]);
     return w;
 }

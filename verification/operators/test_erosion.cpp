@@ -142,7 +142,7 @@ TEST(Erosion, J2FailureDeletesAnElementOnceAllItsPointsHaveFailed)
         EXPECT_GT(m.eroded_elements(), 0);
         EXPECT_LT(m.eroded_elements(), 80);
         index_t partly = 0;
-        for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+        for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)
         {
             const real_t failed = m.element_history(0, e, Model::History::Damage);
             EXPECT_LT(failed, 1.0) << "element " << e << " failed at every point and is still in the mesh";

@@ -218,12 +218,12 @@ parts:
 )";
     {
         Model m = test::model_from(deck);
-        EXPECT_EQ(m.nodal_blocks.at(0).dt_factor, 1.0);
+        EXPECT_EQ(m.nodal_block(0)->dt_factor, 1.0);
         EXPECT_TRUE(m.setup_notes.empty());
     }
     {
         Model m = test::model_from(deck, {"parts.b.rk.normalized_support=1.35"});
-        NodalBlock& blk = m.nodal_blocks.at(0);
+        NodalBlock& blk = *m.nodal_block(0);
         const HighestFrequency hf = nodal_highest_frequency(blk, m.nodes.mass);
         std::printf("a/h 1.35: alpha_crit %.4f, dt_factor %.4f\n", hf.alpha_crit, blk.dt_factor);
         EXPECT_LT(hf.alpha_crit, 0.75);
@@ -234,7 +234,7 @@ parts:
     {
         Model m =
             test::model_from(deck, {"parts.b.rk.normalized_support=1.35", "parts.b.nodal_integration.dt_factor=1.2"});
-        EXPECT_EQ(m.nodal_blocks.at(0).dt_factor, 1.2);
+        EXPECT_EQ(m.nodal_block(0)->dt_factor, 1.2);
         ASSERT_EQ(m.setup_notes.size(), 1u);
         EXPECT_NE(m.setup_notes[0].find("above the part's critical factor"), std::string::npos) << m.setup_notes[0];
     }
@@ -245,7 +245,7 @@ parts:
         Model m = test::model_from(deck, {"parts.b.formulation=fem-nodal", "parts.b.nodal_integration={scheme: scni}",
                                           "parts.b.conversion={principal_strain: 0.1}",
                                           std::string("parts.b.rk.normalized_support=") + support});
-        EXPECT_EQ(m.nodal_blocks.at(0).dt_factor, 0.95) << support; // fem-nodal's default
+        EXPECT_EQ(m.nodal_block(0)->dt_factor, 0.95) << support; // fem-nodal's default
         ASSERT_EQ(m.setup_notes.size(), std::string(support) == "1.51" ? 0u : 1u) << support;
         if (!m.setup_notes.empty())
         {

@@ -237,9 +237,8 @@ TEST(SharedNodes, AnRkPartAfterAnotherPartHasTheSameForces)
 )";
     const std::string head = "title: numbering\ntime: {end: 1 us}\nparts:";
     Model alone = test::model_from(head + rk_part), after = test::model_from(head + fe_part + rk_part);
-    ASSERT_EQ(alone.nodal_blocks.size(), 1u);
-    ASSERT_EQ(after.nodal_blocks.size(), 1u);
-    NodalBlock &a = alone.nodal_blocks[0], &b = after.nodal_blocks[0];
+    ASSERT_TRUE(alone.nodal_block(0) && after.nodal_block(1) && !after.nodal_block(0));
+    NodalBlock &a = *alone.nodal_block(0), &b = *after.nodal_block(1);
     ASSERT_TRUE(a.stabilization_triplets && !a.stab_triplets.empty());
     const index_t shift = b.node_begin - a.node_begin, n = a.node_end - a.node_begin;
     ASSERT_GT(shift, 0);

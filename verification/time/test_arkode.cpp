@@ -400,9 +400,9 @@ boundary_conditions:
         Model m = test::model_from(deck);
         run(m, *st, steps, [&](int, real_t) { return dt; });
         real_t s = 0.0;
-        for (index_t e = 0; e < m.blocks[0].n_elements(); ++e)
+        for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)
             s += m.element_plastic_strain(0, e);
-        return s / m.blocks[0].n_elements();
+        return s / m.meshes[0].n_elements();
     };
     const real_t dt0 = 0.05 * 1e-3 / 5856.4; // 0.05 of the element transit time
     const int steps0 = 400;                  // about 3.4 us

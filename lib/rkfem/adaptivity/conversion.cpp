@@ -16,7 +16,7 @@ HexMesh Model::part_mesh(index_t part) const
     HexMesh mesh;
     mesh.x.assign(nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_begin),
                   nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_end));
-    mesh.conn = blocks[static_cast<std::size_t>(part)].conn;
+    mesh.conn = meshes[static_cast<std::size_t>(part)].conn;
     for (index_t& n : mesh.conn)
         n -= info.node_begin;
     mesh.faces = extract_boundary_faces(mesh.conn);
@@ -26,7 +26,7 @@ HexMesh Model::part_mesh(index_t part) const
 void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
 {
     const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
-    NodalBlock& nb = nodal_blocks[static_cast<std::size_t>(part_nodal[part])];
+    NodalBlock& nb = *nodal_block(part);
     const HexMesh mesh = part_mesh(part);
     const index_t begin = parts[part].node_begin, n = parts[part].node_end - begin;
     ChangedRows changed;
@@ -137,7 +137,7 @@ index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
 
 int Model::element_zone(index_t block, index_t e) const
 {
-    if (part_nodal[block] < 0)
+    if (!nodal_block(block))
         return 0;
     if (deck_.parts[static_cast<std::size_t>(block)].formulation == Formulation::Rkpm)
         return 2;
@@ -146,7 +146,7 @@ int Model::element_zone(index_t block, index_t e) const
         return 0;
     if (rk[static_cast<std::size_t>(e)])
         return 2;
-    const HexBlock& blk = blocks[static_cast<std::size_t>(block)];
+    const HexBlock& blk = meshes[static_cast<std::size_t>(block)];
     for (int a = 0; a < 8; ++a)
         if (kinematics.carries_coefficients(blk.conn[8 * static_cast<std::size_t>(e) + a]))
             return 1;

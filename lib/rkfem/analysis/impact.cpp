@@ -98,7 +98,7 @@ bool ImpactAnalysis::removed(const Model& model, index_t e) const
 real_t ImpactAnalysis::actual_depth(const Model& model) const
 {
     // the removed elements of the target: eroded ones, then damaged ones still in the block
-    const HexBlock& blk = model.blocks[static_cast<std::size_t>(target_)];
+    const HexBlock& blk = model.meshes[static_cast<std::size_t>(target_)];
     const Model::ErodedElements& gone = model.eroded(target_);
     std::vector<const index_t*> cells;
     for (std::size_t k = 0; k < gone.volume0.size(); ++k)
@@ -158,7 +158,7 @@ real_t ImpactAnalysis::actual_depth(const Model& model) const
 ImpactAnalysis::Crater ImpactAnalysis::crater(const Model& model) const
 {
     Crater out;
-    const HexBlock& blk = model.blocks[static_cast<std::size_t>(target_)];
+    const HexBlock& blk = model.meshes[static_cast<std::size_t>(target_)];
     const Model::ErodedElements& gone = model.eroded(target_);
     const PartInfo& part = model.parts[static_cast<std::size_t>(target_)];
     const index_t n0 = part.node_begin, nn = part.node_end - part.node_begin;
@@ -286,7 +286,7 @@ ImpactMeasures ImpactAnalysis::measure(const Model& model) const
     const PartInfo& target = model.parts[static_cast<std::size_t>(target_)];
     for (index_t i = target.node_begin; i < target.node_end; ++i)
         r.target_momentum += model.nodes.mass[i] * model.physical(model.nodes.v, i).dot(spec_.direction);
-    const HexBlock& blk = model.blocks[static_cast<std::size_t>(target_)];
+    const HexBlock& blk = model.meshes[static_cast<std::size_t>(target_)];
     for (index_t e = 0; e < blk.n_elements(); ++e)
     {
         const real_t d = model.element_history(target_, e, Model::History::Damage);
@@ -299,12 +299,12 @@ ImpactMeasures ImpactAnalysis::measure(const Model& model) const
         r.damaged_volume_half += v;
         r.damaged_volume_threshold += v;
     }
-    for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
+    for (index_t b = 0; b < static_cast<index_t>(model.meshes.size()); ++b)
         for (real_t v : model.eroded(b).volume0)
-            r.eroded_mass += model.blocks[static_cast<std::size_t>(b)].material.rho * v;
+            r.eroded_mass += model.meshes[static_cast<std::size_t>(b)].material.rho * v;
     if (projectile_ >= 0)
     {
-        const HexBlock& pb = model.blocks[static_cast<std::size_t>(projectile_)];
+        const HexBlock& pb = model.meshes[static_cast<std::size_t>(projectile_)];
         for (index_t e = 0; e < pb.n_elements(); ++e)
             r.projectile_mass += pb.material.rho * pb.volume0[static_cast<std::size_t>(e)];
     }

@@ -188,7 +188,7 @@ void ResultsWriter::write_mesh(const Model& model)
     write_dataset_as(g, "coordinates", model.nodes.x0.data(), mesh.n_nodes, 3, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE,
                      storage_.compression);
     std::vector<index_t> conn, part;
-    for (const auto& b : model.blocks)
+    for (const auto& b : model.meshes)
     {
         conn.insert(conn.end(), b.conn.begin(), b.conn.end());
         part.insert(part.end(), b.n_elements(), b.part);
@@ -295,11 +295,11 @@ void ResultsWriter::write_frame(const Model& model, real_t time)
             stress[6 * c + k] = s[xdmf_order[k]];
         pressure[c] = -(s[0] + s[1] + s[2]) / 3.0;
     };
-    for (std::size_t b = 0; b < model.blocks.size(); ++b)
-        for (index_t e = 0; e < model.blocks[b].n_elements(); ++e, ++c)
+    for (std::size_t b = 0; b < model.meshes.size(); ++b)
+        for (index_t e = 0; e < model.meshes[b].n_elements(); ++e, ++c)
         {
             put_stress(model.element_stress(static_cast<index_t>(b), e));
-            volume[c] = element_volume(model.blocks[b], model.nodes, e);
+            volume[c] = element_volume(model.meshes[b], model.nodes, e);
             eps[c] = model.element_plastic_strain(static_cast<index_t>(b), e);
             damage[c] = model.element_history(static_cast<index_t>(b), e, Model::History::Damage);
             delta[c] = model.element_history(static_cast<index_t>(b), e, Model::History::KccDelta);
@@ -309,7 +309,7 @@ void ResultsWriter::write_frame(const Model& model, real_t time)
     {
         if (!model.is_cloud(ip))
             continue;
-        const NodalBlock& nb = model.nodal_blocks[model.part_nodal[ip]];
+        const NodalBlock& nb = *model.nodal_block(ip);
         for (index_t i = model.parts[ip].node_begin; i < model.parts[ip].node_end; ++i, ++c)
         {
             put_stress(model.nodal_stress(i));

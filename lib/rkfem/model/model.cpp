@@ -21,18 +21,18 @@ namespace rkfem
 index_t Model::n_elements() const
 {
     index_t n = 0;
-    for (const auto& b : blocks)
+    for (const auto& b : meshes)
         n += b.n_elements();
     return n;
 }
 
 std::pair<index_t, index_t> Model::locate_element(index_t global) const
 {
-    for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
+    for (index_t b = 0; b < static_cast<index_t>(meshes.size()); ++b)
     {
-        if (global < blocks[b].n_elements())
+        if (global < meshes[b].n_elements())
             return {b, global};
-        global -= blocks[b].n_elements();
+        global -= meshes[b].n_elements();
     }
     return {-1, -1};
 }
@@ -250,8 +250,8 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
             h[q] = std::cbrt(blk.volume0[q / blk.points_per_element()]);
         blk.plastic.set_lengths(h);
     }
-    part_nodal.push_back(-1);
-    part_fe_side.push_back(-1);
+    part_nodal_.push_back(-1);
+    part_fe_side_.push_back(-1);
     rk_elements_.push_back(ps.coupled() ? rk_region_elements(ps, mesh) : std::vector<char>{});
     if (is_nodal(ps.formulation) || ps.coupled())
         build_nodal_part(ps, ip, mesh, offset, blk);
@@ -265,7 +265,12 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
         add_lumped_mass(blk, nodes);
     elem_offset += blk.n_elements();
     offset = info.node_end;
-    blocks.push_back(std::move(blk));
+    const bool integrates = !blk.mesh_only;
+    RKFEM_REQUIRE(meshes.size() < meshes.capacity(),
+                  "Model::build_part: meshes not reserved (the blocks refer into it)");
+    meshes.push_back(std::move(blk));
+    if (integrates) // the Gauss-point part's mesh block is its integration block
+        blocks_.push_back({std::make_unique<HexForceBlock>(meshes.back()), static_cast<index_t>(ip), false});
     parts.push_back(std::move(info));
 }
 
@@ -288,15 +293,21 @@ void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& 
                               "functions and stabilization only; the step of a coupled part's or a conversion's "
                               "RK region is not measured (set dt_factor below the default if the run goes "
                               "unstable)");
-    part_nodal.back() = static_cast<index_t>(nodal_blocks.size());
+    std::optional<FeSide> side;
     if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
-        build_fe_side(ps, mesh, blk, nb);
-    nodal_blocks.push_back(std::move(nb));
+        side = build_fe_side(ps, mesh, blk, nb);
+    part_nodal_.back() = static_cast<index_t>(blocks_.size());
+    blocks_.push_back({std::make_unique<NodalForceBlock>(std::move(nb)), static_cast<index_t>(ip), false});
+    if (side)
+    {
+        part_fe_side_.back() = static_cast<index_t>(blocks_.size());
+        blocks_.push_back({std::make_unique<FeSideForceBlock>(std::move(*side)), static_cast<index_t>(ip), true});
+    }
 }
 
 /// The FE elements of a coupled part with a fem-1pt FE side: a 1-point block of their own (the
 /// part's block only holds the mesh for output).
-void Model::build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb)
+FeSide Model::build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb)
 {
     FeSide side;
     side.local.assign(static_cast<std::size_t>(mesh.n_elements()), -1);
@@ -322,8 +333,7 @@ void Model::build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBloc
         h[q] = std::cbrt(fb.volume0[q]);
     fb.plastic.set_lengths(h);
     add_lumped_mass(fb, nodes);
-    part_fe_side.back() = static_cast<index_t>(fe_sides.size());
-    fe_sides.push_back(std::move(side));
+    return side;
 }
 
 /// Boundary conditions per dof (later entries override earlier ones) and the loads' sets.
@@ -362,8 +372,11 @@ void Model::build_conditions_and_loads()
 void Model::build_kinematic_map()
 {
     kinematics.reset(nodes.size());
-    for (NodalBlock& nb : nodal_blocks)
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
     {
+        if (!nodal_block(ip) || nodal_block(ip)->interp_offsets.empty())
+            continue;
+        NodalBlock& nb = *nodal_block(ip);
         if (nb.interp_offsets.empty())
             continue;
         const std::vector<char> all(static_cast<std::size_t>(nb.node_end - nb.node_begin), 1);
@@ -397,7 +410,7 @@ void Model::build_rk_face_loads()
                     rl.point_offsets.push_back(rl.point_offsets.back());
                 continue;
             }
-            const RkShapeFunctions& rk = *nodal_blocks[part_nodal[ip]].rk; // local numbering
+            const RkShapeFunctions& rk = *nodal_block(ip)->rk; // local numbering
             const real_t g = 1.0 / std::sqrt(3.0);
             Vec3 xc[4];
             for (int c = 0; c < 4; ++c)
@@ -420,7 +433,7 @@ void Model::build_rk_face_loads()
         CloudFaceLoads cl;
         for (const CloudFacet& cf : cloud_face_sets.at(load->set))
         {
-            nodal_blocks[part_nodal[cf.part]].rk->evaluate(cf.x, true, smp);
+            nodal_block(cf.part)->rk->evaluate(cf.x, true, smp);
             for (index_t k = 0; k < smp.size(); ++k)
             {
                 cl.nodes.push_back(smp.nodes[k] + parts[cf.part].node_begin);
@@ -440,19 +453,20 @@ Model Model::build(const Deck& deck)
     Model m;
     m.deck_ = deck;
     const Deck& d = m.deck_;
-    // meshes
-    std::vector<HexMesh> meshes;
+    // the parts' meshes
+    std::vector<HexMesh> generated;
     index_t n_nodes = 0;
     for (const auto& p : d.parts)
     {
-        meshes.push_back(generate(p.generator));
-        check_mesh(p, meshes.back(), m.setup_notes);
-        n_nodes += meshes.back().n_nodes();
+        generated.push_back(generate(p.generator));
+        check_mesh(p, generated.back(), m.setup_notes);
+        n_nodes += generated.back().n_nodes();
     }
     m.nodes.resize(n_nodes);
     index_t offset = 0, elem_offset = 0;
+    m.meshes.reserve(d.parts.size()); // the block list refers into it
     for (std::size_t ip = 0; ip < d.parts.size(); ++ip)
-        m.build_part(ip, meshes[ip], offset, elem_offset);
+        m.build_part(ip, generated[ip], offset, elem_offset);
     m.build_node_sets();
     m.build_face_sets();
     m.build_conditions_and_loads();
@@ -468,7 +482,7 @@ Model Model::build(const Deck& deck)
     m.part_pending_.assign(m.parts.size(), {});
     m.reaction_inertia_.assign(m.conditions.size(), 0.0);
     m.contact.resize(m.nodes.size());
-    m.eroded_.resize(m.blocks.size());
+    m.eroded_.resize(m.meshes.size());
     m.build_contacts();
     m.check_initial_overlaps();
     m.plan_assembly();
@@ -477,8 +491,9 @@ Model Model::build(const Deck& deck)
     std::sort(m.constrained_dofs_.begin(), m.constrained_dofs_.end());
     // the RK parts' shape functions served the set-up (the face loads above sample them); the
     // run reads only what was built from them (64 bytes a P1 particle)
-    for (NodalBlock& nb : m.nodal_blocks)
-        nb.rk.reset();
+    for (index_t ip = 0; ip < static_cast<index_t>(m.parts.size()); ++ip)
+        if (NodalBlock* nb = m.nodal_block(ip))
+            nb->rk.reset();
     return m;
 }
 } // namespace rkfem

@@ -1,9 +1,10 @@
 #pragma once
 /// @file model.hpp
-/// The model built from a deck: nodes of every part in one NodeSet, one HexBlock per part (its
-/// mesh and output; it integrates Gauss-point FE parts), nodal blocks for fem-nodal, rkpm and
-/// coupled parts, the kinematic map, named node and face sets, boundary conditions, loads,
-/// contact and probes. It implements the explicit operator (time/explicit_operator.hpp) the
+/// The model built from a deck: nodes of every part in one NodeSet, one mesh per part (`meshes`:
+/// output, probes, contact surfaces, events), one list of integration blocks the step runs
+/// (operators/force_block.hpp: a Gauss-point part's mesh block, a nodal part's block, a coupled
+/// part's nodal block and FE side), the kinematic map, named node and face sets, boundary
+/// conditions, loads, contact and probes. It implements the explicit operator (time/explicit_operator.hpp) the
 /// steppers call, and the events between steps. Its definitions are split by concept:
 /// model.cpp (build), model_conditions, model_loads, model_step, model_events, model_fields.
 #include <array>
@@ -73,22 +74,29 @@ class Model final : public ExplicitOperator
 
     const Deck& deck() const { return deck_; }
     NodeSet nodes;
-    std::vector<HexBlock> blocks;         ///< one per part, same order (mesh and output of every part;
-                                          ///< integrates only fem-1pt / fem-2x2x2 parts)
-    std::vector<NodalBlock> nodal_blocks; ///< fem-nodal and rkpm parts
-    std::vector<index_t> part_nodal;      ///< per part: index into nodal_blocks, -1 for Gauss-point FE
+    /// One per part, same order: the part's mesh for output, probes, contact surfaces and events
+    /// (conn, node range, reference volumes, the node -> element transpose, elastic constants). A
+    /// Gauss-point FE part's (fem-1pt, fem-2x2x2) mesh block is also its integration block, which the
+    /// block list refers to; the others are mesh_only. Its size is fixed once built (the list
+    /// holds references into it).
+    std::vector<HexBlock> meshes;
+    /// The integration blocks the step runs (operators/force_block.hpp): n_blocks() of them in the
+    /// order of the parts, for each part its nodal block and then its FE side, or its Gauss-point
+    /// block. internal_forces and commit are loops over them.
+    index_t n_blocks() const { return static_cast<index_t>(blocks_.size()); }
+    ForceBlock& block(index_t k) { return *blocks_[static_cast<std::size_t>(k)].block; }
+    const ForceBlock& block(index_t k) const { return *blocks_[static_cast<std::size_t>(k)].block; }
+    /// The part's nodal block (fem-nodal, rkpm, the nodal side of a coupled part); null for
+    /// Gauss-point FE parts.
+    NodalBlock* nodal_block(index_t part);
+    const NodalBlock* nodal_block(index_t part) const;
+    /// A coupled part's fem-1pt FE side (the 1-point block of its FE elements, integrated beside
+    /// its nodal block, which holds the transition and RK elements' nodes); null for none.
+    FeSide* fe_side(index_t part);
+    const FeSide* fe_side(index_t part) const;
     /// What the set-up decided that the user should read (the driver prints each as a warning,
     /// `check` lists them): a nodal part's step factor lowered to its measured critical value.
     std::vector<std::string> setup_notes;
-    /// Coupled parts with a fem-1pt FE side: the 1-point block of their FE elements, integrated
-    /// besides the part's nodal block (which holds the transition and RK elements' nodes).
-    struct FeSide
-    {
-        HexBlock block;
-        std::vector<index_t> local; ///< element of the part -> element of `block`, -1 if not FE
-    };
-    std::vector<FeSide> fe_sides;
-    std::vector<index_t> part_fe_side; ///< per part: index into fe_sides, -1 for none
     std::vector<PartInfo> parts;
     std::map<std::string, std::vector<index_t>> node_sets;
     std::map<std::string, std::vector<Quad>> face_sets;
@@ -298,7 +306,7 @@ class Model final : public ExplicitOperator
 
     /// Decides how the blocks assemble f_int: a block whose node range overlaps another's adds
     /// into it, and those ranges are zeroed once per evaluation; a block alone on its nodes
-    /// writes them. Call again after the blocks change.
+    /// writes them. Call again after an event changed the blocks.
     void plan_assembly();
 
   private:
@@ -306,7 +314,7 @@ class Model final : public ExplicitOperator
     // Model::build's steps, in order (model.cpp, model_sets.cpp)
     void build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, index_t& elem_offset);
     void build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset, const HexBlock& blk);
-    void build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb);
+    FeSide build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb);
     std::vector<index_t> parts_named(const std::string& name) const;
     void build_node_sets();
     void build_face_sets();
@@ -328,18 +336,18 @@ class Model final : public ExplicitOperator
     /// The part's mesh in the reference configuration, local node numbering.
     HexMesh part_mesh(index_t part) const;
     std::vector<ErodedElements> eroded_; ///< per block
-    /// The integration blocks as the step sees them (operators/force_block.hpp), in the order of
-    /// the parts (a part's nodal block, then its FE side): views of blocks, nodal_blocks and
-    /// fe_sides that plan_assembly() rebuilds whenever those change.
+    /// The one list of integration blocks (operators/force_block.hpp), in the order of the parts;
+    /// plan_assembly() decides which add and which write.
     struct PlannedBlock
     {
         std::unique_ptr<ForceBlock> block;
         index_t part = 0;
         bool add = false; ///< adds into f_int (its nodes are shared with another block) or writes them
     };
-    std::vector<PlannedBlock> force_blocks_;
-    std::vector<char> event_flags_; ///< apply_events' per-element flags (conversion, erosion), reused
-    std::vector<real_t> event_a_;   ///< restart_after_event's accelerations before the event, reused
+    std::vector<PlannedBlock> blocks_;
+    std::vector<index_t> part_nodal_, part_fe_side_; ///< per part: index into blocks_, -1 for none
+    std::vector<char> event_flags_;                  ///< apply_events' per-element flags (conversion, erosion), reused
+    std::vector<real_t> event_a_;                    ///< restart_after_event's accelerations before the event, reused
     std::vector<std::pair<index_t, index_t>> shared_node_ranges_; ///< zeroed before the blocks add
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();

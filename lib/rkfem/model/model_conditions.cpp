@@ -17,7 +17,7 @@ namespace rkfem
 {
 struct RkVelocityConstraint
 {
-    index_t block = 0; ///< nodal block
+    index_t block = 0; ///< the part whose nodal block it constrains
     int component = 0;
     std::vector<index_t> condition; ///< index into Model::conditions, per constrained node
     std::vector<index_t> node;      ///< global node per constrained node
@@ -147,9 +147,11 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step, real_t* vel)
 
 void Model::build_rk_constraints()
 {
-    for (index_t b = 0; b < static_cast<index_t>(nodal_blocks.size()); ++b)
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
     {
-        const NodalBlock& nb = nodal_blocks[b];
+        if (!nodal_block(ip))
+            continue;
+        const NodalBlock& nb = *nodal_block(ip);
         bool any = false;
         for (index_t i = nb.node_begin; i < nb.node_end && !any; ++i)
             any = kinematics.carries_coefficients(i);
@@ -158,7 +160,7 @@ void Model::build_rk_constraints()
         for (int k = 0; k < 3; ++k)
         {
             auto rc = std::make_shared<RkVelocityConstraint>();
-            rc->block = b;
+            rc->block = ip;
             rc->component = k;
             rc->slot.assign(static_cast<std::size_t>(nb.node_end - nb.node_begin), -1);
             for (index_t ci = 0; ci < static_cast<index_t>(conditions.size()); ++ci)

@@ -24,7 +24,7 @@ ContactSurface Model::contact_surface(const std::vector<std::string>& names, con
             throw DeckError({loc.where, loc.path + ".surfaces"},
                             "part '" + parts[ip].name + "' is a particle cloud, which has no surface segments yet",
                             "expected parts generated as meshes (box, cylinder, projectile)");
-        const HexBlock& blk = blocks[static_cast<std::size_t>(ip)];
+        const HexBlock& blk = meshes[static_cast<std::size_t>(ip)];
         std::vector<index_t> owner;
         const std::vector<Quad> faces = extract_boundary_faces(blk.conn, &owner);
         s.add(faces, owner, blk.conn, nodes.x0, blk.material.bulk_modulus());
@@ -52,7 +52,7 @@ ContactSurface Model::contact_surface(const std::vector<std::string>& names, con
         for (const Quad& q : faces)
         {
             const index_t ip = nodes.part[q[0]];
-            s.add({q}, {}, {}, nodes.x0, blocks[static_cast<std::size_t>(ip)].material.bulk_modulus());
+            s.add({q}, {}, {}, nodes.x0, meshes[static_cast<std::size_t>(ip)].material.bulk_modulus());
         }
     }
     if (s.n_segments() == 0)
@@ -142,7 +142,7 @@ void Model::check_initial_overlaps() const
         for (const auto& [solid, surface] : pairs)
         {
             // the surface part's boundary nodes, binned
-            const HexBlock& sb = blocks[static_cast<std::size_t>(surface)];
+            const HexBlock& sb = meshes[static_cast<std::size_t>(surface)];
             std::vector<index_t> probe;
             for (const Quad& q : extract_boundary_faces(sb.conn))
                 probe.insert(probe.end(), q.begin(), q.end());
@@ -152,7 +152,7 @@ void Model::check_initial_overlaps() const
             px.reserve(3 * probe.size());
             for (index_t i : probe)
                 px.insert(px.end(), {nodes.x0[3 * i], nodes.x0[3 * i + 1], nodes.x0[3 * i + 2]});
-            const HexBlock& ab = blocks[static_cast<std::size_t>(solid)];
+            const HexBlock& ab = meshes[static_cast<std::size_t>(solid)];
             const index_t ne = ab.n_elements();
             if (probe.empty() || ne == 0)
                 continue;

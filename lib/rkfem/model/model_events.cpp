@@ -17,25 +17,25 @@ namespace rkfem
 {
 void Model::remove_elements(index_t block, const std::vector<char>& keep)
 {
-    RKFEM_REQUIRE(block >= 0 && block < static_cast<index_t>(blocks.size()), "remove_elements: no block " << block);
-    RKFEM_REQUIRE(part_nodal[block] < 0, "remove_elements: part '" << parts[block].name
-                                                                   << "' is integrated at its nodes; only Gauss-point "
-                                                                      "FE parts lose elements");
-    eroded_.resize(blocks.size());
+    RKFEM_REQUIRE(block >= 0 && block < static_cast<index_t>(meshes.size()), "remove_elements: no block " << block);
+    RKFEM_REQUIRE(!nodal_block(block), "remove_elements: part '" << parts[block].name
+                                                                 << "' is integrated at its nodes; only Gauss-point "
+                                                                    "FE parts lose elements");
+    eroded_.resize(meshes.size());
     ErodedElements& gone = eroded_[static_cast<std::size_t>(block)];
-    const HexBlock& blk = blocks[block];
+    const HexBlock& blk = meshes[block];
     for (index_t e = 0; e < blk.n_elements(); ++e)
         if (!keep[static_cast<std::size_t>(e)])
         {
             gone.conn.insert(gone.conn.end(), blk.conn.begin() + 8 * e, blk.conn.begin() + 8 * e + 8);
             gone.volume0.push_back(blk.volume0[static_cast<std::size_t>(e)]);
         }
-    blocks[block].remove_elements(keep, nodes);
+    meshes[block].remove_elements(keep, nodes);
     index_t offset = 0;
     for (std::size_t ip = 0; ip < parts.size(); ++ip)
     {
         parts[ip].element_offset = offset;
-        offset += blocks[ip].n_elements();
+        offset += meshes[ip].n_elements();
     }
     plan_assembly();
     refresh_contact_surfaces(); // eroding contact: the newly exposed faces join the surfaces
@@ -60,7 +60,7 @@ real_t area_time_step(const real_t (&x)[8][3], real_t V, real_t c)
 
 void Model::element_corners(index_t block, index_t e, real_t (&x)[8][3], real_t (&X)[8][3]) const
 {
-    const HexBlock& blk = blocks[static_cast<std::size_t>(block)];
+    const HexBlock& blk = meshes[static_cast<std::size_t>(block)];
     for (int I = 0; I < 8; ++I)
         for (int d = 0; d < 3; ++d)
         {
@@ -86,7 +86,7 @@ class ShapeMeasures
 {
   public:
     ShapeMeasures(const Model& m, index_t block, index_t e)
-        : c_(m.blocks[static_cast<std::size_t>(block)].material.wave_speed())
+        : c_(m.meshes[static_cast<std::size_t>(block)].material.wave_speed())
     {
         m.element_corners(block, e, x_, X_);
     }
@@ -167,10 +167,10 @@ bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
 bool Model::apply_events(real_t t, std::int64_t step)
 {
     bool changed = false;
-    for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
+    for (index_t b = 0; b < static_cast<index_t>(meshes.size()); ++b)
     {
         const PartSpec& ps = deck_.parts[static_cast<std::size_t>(b)];
-        const index_t ne = blocks[b].n_elements();
+        const index_t ne = meshes[b].n_elements();
         if (ps.converts())
         {
             // evolutionary coupling: FE and transition elements that meet the criteria turn RK
@@ -178,7 +178,7 @@ bool Model::apply_events(real_t t, std::int64_t step)
             const real_t interval = ps.conversion.interval;
             if (interval > 0.0)
             {
-                next_conversion_check_.resize(blocks.size(), 0.0);
+                next_conversion_check_.resize(meshes.size(), 0.0);
                 real_t& next = next_conversion_check_[static_cast<std::size_t>(b)];
                 if (t < next)
                     continue;
@@ -219,8 +219,8 @@ bool Model::apply_events(real_t t, std::int64_t step)
         }
         // J2 failure on Gauss-point elements deletes the element once all its points have failed
         // (LS-DYNA MAT_024 FAIL); the damage index of a J2 point is its failed flag, 0 or 1
-        const bool fails = ps.material.model == "j2" && ps.material.fail > 0.0 && part_fe_side[b] < 0;
-        if ((!ps.erosion.active() && !fails) || part_nodal[b] >= 0)
+        const bool fails = ps.material.model == "j2" && ps.material.fail > 0.0 && !fe_side(b);
+        if ((!ps.erosion.active() && !fails) || nodal_block(b))
             continue;
         std::vector<char>& keep = event_flags_; // scratch kept between steps: no allocation
         keep.assign(static_cast<std::size_t>(ne), 1);
@@ -243,48 +243,56 @@ bool Model::apply_events(real_t t, std::int64_t step)
     return changed;
 }
 
+NodalBlock* Model::nodal_block(index_t part)
+{
+    const index_t k = part_nodal_[static_cast<std::size_t>(part)];
+    return k < 0 ? nullptr : &static_cast<NodalForceBlock&>(*blocks_[static_cast<std::size_t>(k)].block).nodal();
+}
+
+const NodalBlock* Model::nodal_block(index_t part) const
+{
+    const index_t k = part_nodal_[static_cast<std::size_t>(part)];
+    return k < 0 ? nullptr : &static_cast<const NodalForceBlock&>(*blocks_[static_cast<std::size_t>(k)].block).nodal();
+}
+
+FeSide* Model::fe_side(index_t part)
+{
+    const index_t k = part_fe_side_[static_cast<std::size_t>(part)];
+    return k < 0 ? nullptr : &static_cast<FeSideForceBlock&>(*blocks_[static_cast<std::size_t>(k)].block).side();
+}
+
+const FeSide* Model::fe_side(index_t part) const
+{
+    const index_t k = part_fe_side_[static_cast<std::size_t>(part)];
+    return k < 0 ? nullptr : &static_cast<const FeSideForceBlock&>(*blocks_[static_cast<std::size_t>(k)].block).side();
+}
+
 void Model::plan_assembly()
 {
-    // each block's node range (nodal parts: the nodal block's)
+    // each block's node range (an FE side's: its part's)
     std::vector<std::pair<index_t, index_t>> range;
-    for (std::size_t ib = 0; ib < blocks.size(); ++ib)
-        if (part_nodal[ib] >= 0)
-            range.emplace_back(nodal_blocks[part_nodal[ib]].node_begin, nodal_blocks[part_nodal[ib]].node_end);
-        else
-            range.emplace_back(blocks[ib].node_begin, blocks[ib].node_end);
-    std::vector<char> adds(blocks.size(), 0);
-    for (std::size_t a = 0; a < range.size(); ++a)
+    for (std::size_t k = 0; k < blocks_.size(); ++k)
     {
-        // a coupled part's FE side shares the part's nodes with its nodal block: both add
-        if (part_fe_side[a] >= 0)
-            adds[a] = 1;
-        for (std::size_t b = 0; b < range.size(); ++b)
-            if (a != b && range[a].first < range[b].second && range[b].first < range[a].second)
-                adds[a] = 1;
+        const index_t part = blocks_[k].part;
+        if (static_cast<index_t>(k) == part_nodal_[static_cast<std::size_t>(part)])
+            range.emplace_back(nodal_block(part)->node_begin, nodal_block(part)->node_end);
+        else
+            range.emplace_back(meshes[static_cast<std::size_t>(part)].node_begin,
+                               meshes[static_cast<std::size_t>(part)].node_end);
     }
-    // the step's view of the blocks, part by part: a nodal part's block and its FE side, or the
-    // part's Gauss-point block
-    force_blocks_.clear();
-    for (std::size_t ib = 0; ib < blocks.size(); ++ib)
+    // a block adds when its nodes are another block's too (a coupled part's nodal block and FE
+    // side share the part's nodes)
+    for (std::size_t a = 0; a < blocks_.size(); ++a)
     {
-        const index_t part = static_cast<index_t>(ib);
-        if (part_nodal[ib] >= 0)
-        {
-            force_blocks_.push_back(
-                {std::make_unique<NodalForceBlock>(nodal_blocks[part_nodal[ib]]), part, adds[ib] != 0});
-            if (part_fe_side[ib] >= 0)
-            {
-                FeSide& side = fe_sides[static_cast<std::size_t>(part_fe_side[ib])];
-                force_blocks_.push_back({std::make_unique<FeSideForceBlock>(side.block, side.local), part, true});
-            }
-        }
-        else
-            force_blocks_.push_back({std::make_unique<HexForceBlock>(blocks[ib]), part, adds[ib] != 0});
+        blocks_[a].add = false;
+        for (std::size_t b = 0; b < blocks_.size(); ++b)
+            if (a != b && range[a].first < range[b].second && range[b].first < range[a].second)
+                blocks_[a].add = true;
     }
     // the union of the adding blocks' ranges, as disjoint sorted intervals
     std::vector<std::pair<index_t, index_t>> shared;
     for (std::size_t a = 0; a < range.size(); ++a)
-        if (adds[a])
+        if (blocks_[a].add)
             shared.push_back(range[a]);
     std::sort(shared.begin(), shared.end());
     shared_node_ranges_.clear();

@@ -41,28 +41,27 @@ real_t history_value(const PlasticPoints& pp, std::size_t p, Model::History h)
 real_t Model::element_history(index_t b, index_t e, History h) const
 {
     auto value = [h](const PlasticPoints& pp, std::size_t p) { return history_value(pp, p, h); };
-    if (part_fe_side[b] >= 0 && fe_sides[part_fe_side[b]].local[e] >= 0)
+    if (fe_side(b) && fe_side(b)->local[e] >= 0)
     {
-        const HexBlock& fb = fe_sides[part_fe_side[b]].block;
-        return fb.plastic.active() ? value(fb.plastic, static_cast<std::size_t>(fe_sides[part_fe_side[b]].local[e]))
-                                   : 0.0;
+        const HexBlock& fb = fe_side(b)->block;
+        return fb.plastic.active() ? value(fb.plastic, static_cast<std::size_t>(fe_side(b)->local[e])) : 0.0;
     }
-    if (part_nodal[b] >= 0)
+    if (nodal_block(b))
     {
-        const NodalBlock& nb = nodal_blocks[part_nodal[b]];
+        const NodalBlock& nb = *nodal_block(b);
         if (!nb.plastic.active())
             return 0.0;
         real_t s = 0.0;
         int count = 0;
         for (int I = 0; I < 8; ++I)
         {
-            const index_t i = blocks[b].conn[8 * static_cast<std::size_t>(e) + I] - nb.node_begin;
+            const index_t i = meshes[b].conn[8 * static_cast<std::size_t>(e) + I] - nb.node_begin;
             for (index_t k = nb.owner_offsets[i]; k < nb.owner_offsets[i + 1]; ++k, ++count)
                 s += value(nb.plastic, static_cast<std::size_t>(nb.owner_points[k]));
         }
         return count ? s / count : 0.0;
     }
-    const HexBlock& blk = blocks[b];
+    const HexBlock& blk = meshes[b];
     if (!blk.plastic.active())
         return 0.0;
     const index_t npe = blk.points_per_element();
@@ -75,9 +74,9 @@ real_t Model::element_history(index_t b, index_t e, History h) const
 real_t Model::nodal_history(index_t node, History h) const
 {
     const index_t ip = nodes.part[node];
-    if (part_nodal[ip] < 0)
+    if (!nodal_block(ip))
         return 0.0;
-    const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+    const NodalBlock& nb = *nodal_block(ip);
     if (!nb.plastic.active())
         return 0.0;
     const index_t i = node - nb.node_begin;
@@ -105,31 +104,32 @@ index_t Model::n_cells() const
 index_t Model::n_work_items() const
 {
     index_t n = 0;
-    for (index_t b = 0; b < static_cast<index_t>(blocks.size()); ++b)
-        n += part_nodal[b] >= 0 ? nodal_blocks[part_nodal[b]].n_points() : blocks[b].n_elements();
-    for (const FeSide& fs : fe_sides)
-        n += fs.block.n_elements();
+    for (index_t b = 0; b < static_cast<index_t>(meshes.size()); ++b)
+        n += nodal_block(b) ? nodal_block(b)->n_points() : meshes[b].n_elements();
+    for (index_t b = 0; b < static_cast<index_t>(meshes.size()); ++b)
+        if (fe_side(b))
+            n += fe_side(b)->block.n_elements();
     return n;
 }
 
 Sym6 Model::element_stress(index_t b, index_t e) const
 {
-    if (part_fe_side[b] >= 0 && fe_sides[part_fe_side[b]].local[e] >= 0)
+    if (fe_side(b) && fe_side(b)->local[e] >= 0)
     {
-        const HexBlock& fb = fe_sides[part_fe_side[b]].block;
+        const HexBlock& fb = fe_side(b)->block;
         Sym6 s;
         for (int k = 0; k < 6; ++k)
-            s[k] = fb.stress[k * fb.stress_stride + static_cast<std::size_t>(fe_sides[part_fe_side[b]].local[e])];
+            s[k] = fb.stress[k * fb.stress_stride + static_cast<std::size_t>(fe_side(b)->local[e])];
         return s;
     }
-    if (part_nodal[b] >= 0)
+    if (nodal_block(b))
     {
         Sym6 s = Sym6::Zero();
         for (int I = 0; I < 8; ++I)
-            s += nodal_stress(blocks[b].conn[8 * static_cast<std::size_t>(e) + I]);
+            s += nodal_stress(meshes[b].conn[8 * static_cast<std::size_t>(e) + I]);
         return s / 8.0;
     }
-    const HexBlock& blk = blocks[b];
+    const HexBlock& blk = meshes[b];
     const index_t npe = blk.points_per_element();
     const std::size_t np = blk.stress_stride;
     Sym6 s = Sym6::Zero();
@@ -142,9 +142,9 @@ Sym6 Model::element_stress(index_t b, index_t e) const
 Sym6 Model::nodal_stress(index_t node) const
 {
     const index_t ip = nodes.part[node];
-    if (part_nodal[ip] >= 0)
+    if (nodal_block(ip))
     {
-        const NodalBlock& nb = nodal_blocks[part_nodal[ip]];
+        const NodalBlock& nb = *nodal_block(ip);
         const index_t i = node - nb.node_begin;
         const std::size_t np = nb.stress_stride;
         Sym6 s = Sym6::Zero();
@@ -152,11 +152,11 @@ Sym6 Model::nodal_stress(index_t node) const
         for (index_t k = k0; k < k1; ++k)
             for (int c = 0; c < 6; ++c)
                 s[c] += nb.stress[c * np + nb.owner_points[k]];
-        if (k1 > k0 || part_fe_side[ip] < 0)
+        if (k1 > k0 || !fe_side(ip))
             return k1 > k0 ? Sym6(s / static_cast<real_t>(k1 - k0)) : s;
         // a node of a coupled part's FE side that owns no point: the average of its elements
     }
-    const HexBlock& blk = blocks[ip];
+    const HexBlock& blk = meshes[ip];
     const index_t i = node - blk.node_begin;
     Sym6 s = Sym6::Zero();
     const index_t k0 = blk.node_elem_offsets[i], k1 = blk.node_elem_offsets[i + 1];

@@ -140,7 +140,7 @@ void Model::build_face_sets()
                                              : "expected one of xmin, xmax, ymin, ymax, zmin, zmax, top, bottom, side");
                 const real_t tol =
                     s.select.tolerance >= 0 ? s.select.tolerance : default_tolerance(nodes, pi.node_begin, pi.node_end);
-                for (const CellFacetPoint& fp : nodal_blocks[part_nodal[ip]].boundary_facets)
+                for (const CellFacetPoint& fp : nodal_block(ip)->boundary_facets)
                 {
                     const Vec3 n = fp.nda.normalized();
                     const bool take = !named                    ? matches(s.select, fp.x, tol)

@@ -83,14 +83,18 @@ void Model::save_state(StateArchive& a) const
     a.put("nodes.v", nodes.v);
     a.put("nodes.a", nodes.a);
     a.put("nodes.mass", nodes.mass);
-    for (std::size_t b = 0; b < blocks.size(); ++b)
-        save_hex(a, "block." + std::to_string(b) + ".", blocks[b]);
-    for (std::size_t b = 0; b < fe_sides.size(); ++b)
-        save_hex(a, "fe_side." + std::to_string(b) + ".", fe_sides[b].block);
-    for (std::size_t b = 0; b < nodal_blocks.size(); ++b)
+    for (std::size_t b = 0; b < meshes.size(); ++b)
+        save_hex(a, "block." + std::to_string(b) + ".", meshes[b]);
+    // FE sides and nodal blocks numbered in the order of their parts
+    for (index_t ip = 0, b = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+        if (const FeSide* side = fe_side(ip))
+            save_hex(a, "fe_side." + std::to_string(b++) + ".", side->block);
+    for (index_t ip = 0, b = 0; ip < static_cast<index_t>(parts.size()); ++ip)
     {
-        const NodalBlock& nb = nodal_blocks[b];
-        const std::string prefix = "nodal." + std::to_string(b) + ".";
+        if (!nodal_block(ip))
+            continue;
+        const NodalBlock& nb = *nodal_block(ip);
+        const std::string prefix = "nodal." + std::to_string(b++) + ".";
         a.put(prefix + "stress", nb.stress);
         a.put(prefix + "stab_stress", nb.stab_stress);
         a.put(prefix + "jacobian", nb.jacobian);
@@ -126,16 +130,16 @@ void Model::save_state(StateArchive& a) const
 
 void Model::load_state(const StateArchive& a)
 {
-    // erosion first: the blocks take the saved element lists, then their state
+    // erosion first: the mesh blocks take the saved element lists, then their state
     bool eroded_any = false;
-    for (std::size_t b = 0; b < blocks.size(); ++b)
+    for (std::size_t b = 0; b < meshes.size(); ++b)
     {
         std::vector<index_t> conn;
         a.get("block." + std::to_string(b) + ".conn", conn);
-        if (conn == blocks[b].conn)
+        if (conn == meshes[b].conn)
             continue;
-        const std::vector<char> keep = kept_elements(blocks[b].conn, conn, "part '" + parts[b].name + "'");
-        blocks[b].remove_elements(keep, nodes);
+        const std::vector<char> keep = kept_elements(meshes[b].conn, conn, "part '" + parts[b].name + "'");
+        meshes[b].remove_elements(keep, nodes);
         eroded_any = true;
     }
     if (eroded_any)
@@ -144,7 +148,7 @@ void Model::load_state(const StateArchive& a)
         for (std::size_t ip = 0; ip < parts.size(); ++ip)
         {
             parts[ip].element_offset = offset;
-            offset += blocks[ip].n_elements();
+            offset += meshes[ip].n_elements();
         }
         plan_assembly();
         refresh_contact_surfaces(); // the faces erosion exposed (their state is loaded below)
@@ -167,14 +171,17 @@ void Model::load_state(const StateArchive& a)
     a.get_same_size("nodes.a", nodes.a);
     a.get_same_size("nodes.mass", nodes.mass);
     update_coordinates();
-    for (std::size_t b = 0; b < blocks.size(); ++b)
-        load_hex_state(a, "block." + std::to_string(b) + ".", blocks[b]);
-    for (std::size_t b = 0; b < fe_sides.size(); ++b)
-        load_hex_state(a, "fe_side." + std::to_string(b) + ".", fe_sides[b].block);
-    for (std::size_t b = 0; b < nodal_blocks.size(); ++b)
+    for (std::size_t b = 0; b < meshes.size(); ++b)
+        load_hex_state(a, "block." + std::to_string(b) + ".", meshes[b]);
+    for (index_t ip = 0, b = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+        if (FeSide* side = fe_side(ip))
+            load_hex_state(a, "fe_side." + std::to_string(b++) + ".", side->block);
+    for (index_t ip = 0, b = 0; ip < static_cast<index_t>(parts.size()); ++ip)
     {
-        NodalBlock& nb = nodal_blocks[b];
-        const std::string prefix = "nodal." + std::to_string(b) + ".";
+        if (!nodal_block(ip))
+            continue;
+        NodalBlock& nb = *nodal_block(ip);
+        const std::string prefix = "nodal." + std::to_string(b++) + ".";
         a.get_same_size(prefix + "stress", nb.stress);
         nb.stress_trial = nb.stress;
         a.get_same_size(prefix + "stab_stress", nb.stab_stress);

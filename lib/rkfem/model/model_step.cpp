@@ -63,7 +63,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
     for (const auto& [lo, hi] : shared_node_ranges_)
         std::fill(nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(lo),
                   nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(hi), 0.0);
-    for (const PlannedBlock& pb : force_blocks_)
+    for (const PlannedBlock& pb : blocks_)
     {
         const ForcePassResult r = pb.block->add_forces(nodes, dt, pb.add);
         const PartInfo& part = parts[static_cast<std::size_t>(pb.part)];
@@ -135,7 +135,7 @@ void Model::accelerations()
 
 void Model::commit()
 {
-    for (const PlannedBlock& pb : force_blocks_)
+    for (const PlannedBlock& pb : blocks_)
         pb.block->commit();
     energy.internal += pending_int_;
     energy.hourglass += pending_hg_;

@@ -21,14 +21,20 @@ std::string bad_volume(real_t volume)
         os << "a NaN volume";
     return os.str();
 }
+
+/// The Gauss-point pass over a hex block and its forces into f_int
+ForcePassResult hex_pass(HexBlock& block, NodeSet& nodes, real_t dt, bool add)
+{
+    const ForcePassResult r = hex_internal_force(block, nodes, dt);
+    if (r.bad_element < 0)
+        assemble_block_forces(block, nodes, add);
+    return r;
+}
 } // namespace
 
 ForcePassResult HexForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)
 {
-    const ForcePassResult r = hex_internal_force(block_, nodes, dt);
-    if (r.bad_element < 0)
-        assemble_block_forces(block_, nodes, add);
-    return r;
+    return hex_pass(block_, nodes, dt, add);
 }
 
 PointFault HexForceBlock::fault(index_t bad, const NodeSet& nodes) const
@@ -36,12 +42,19 @@ PointFault HexForceBlock::fault(index_t bad, const NodeSet& nodes) const
     return {false, bad, -1, bad_volume(element_volume(block_, nodes, bad))};
 }
 
-FeSideForceBlock::FeSideForceBlock(HexBlock& block, const std::vector<index_t>& local) : HexForceBlock(block)
+FeSideForceBlock::FeSideForceBlock(FeSide side) : side_(std::move(side))
 {
+    const HexBlock& block = side_.block;
+    const std::vector<index_t>& local = side_.local;
     part_of_.assign(static_cast<std::size_t>(block.n_elements()), static_cast<index_t>(local.size()));
     for (std::size_t e = local.size(); e-- > 0;) // the first part element that maps to it
         if (local[e] >= 0 && local[e] < block.n_elements())
             part_of_[static_cast<std::size_t>(local[e])] = static_cast<index_t>(e);
+}
+
+ForcePassResult FeSideForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)
+{
+    return hex_pass(side_.block, nodes, dt, add);
 }
 
 index_t FeSideForceBlock::part_element(index_t block_element) const
@@ -54,9 +67,7 @@ index_t FeSideForceBlock::part_element(index_t block_element) const
 
 PointFault FeSideForceBlock::fault(index_t bad, const NodeSet& nodes) const
 {
-    PointFault f = HexForceBlock::fault(bad, nodes);
-    f.element = part_element(bad);
-    return f;
+    return {false, part_element(bad), -1, bad_volume(element_volume(side_.block, nodes, bad))};
 }
 
 ForcePassResult NodalForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)

@@ -4,17 +4,18 @@
 /// that updates their material state (trial) and adds the block's nodal forces into f_int, the
 /// commit of that state, and where a point the pass flagged sits, for the message.
 ///
-/// Three implementations wrap the storage the model builds today: a block of Gauss-point hexes
-/// (fem-1pt, fem-2x2x2), a nodal block (fem-nodal, rkpm, the nodal side of a coupled part) and a
-/// coupled part's fem-1pt FE side (a hex block over some of the part's elements). The model
-/// keeps them in one list in the order of the parts (for each part its nodal block, then its
-/// FE side), so its force evaluation and commit are loops over that list, and the sums they
-/// book are added in the same order as before the interface existed.
+/// Three implementations: a block of Gauss-point hexes (fem-1pt, fem-2x2x2; the part's mesh block,
+/// which the model owns), a nodal block (fem-nodal, rkpm, the nodal side of a coupled part) and a
+/// coupled part's fem-1pt FE side (a hex block over some of the part's elements); the last two own
+/// their block. The model keeps them in one list in the order of the parts (for each part its
+/// nodal block, then its FE side), so its force evaluation and commit are loops over that list.
+/// A new kind of block (semi-Lagrangian RK) is one more implementation and one more entry there.
 ///
 /// Invariants: a pass either returns a bad point (bad_element >= 0) and leaves f_int as it was,
 /// or adds (writes, when the block is alone on its nodes: `add` false) every node of its range.
 /// A block never touches another block's state; blocks share nodes only through f_int.
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rkfem/discretization/node_set.hpp"
@@ -50,8 +51,10 @@ class ForceBlock
     virtual PointFault fault(index_t bad, const NodeSet& nodes) const = 0;
 };
 
-/// Gauss-point hexes: hex_internal_force and assemble_block_forces over one HexBlock.
-class HexForceBlock : public ForceBlock
+/// Gauss-point hexes: hex_internal_force and assemble_block_forces over one HexBlock, the part's
+/// mesh block (Model::meshes), which the model owns: the part's mesh and its integration are one
+/// object for fem-1pt and fem-2x2x2 parts.
+class HexForceBlock final : public ForceBlock
 {
   public:
     explicit HexForceBlock(HexBlock& block) : block_(block) {}
@@ -64,33 +67,46 @@ class HexForceBlock : public ForceBlock
     HexBlock& block_;
 };
 
-/// A coupled part's fem-1pt FE side: the Gauss-point pass over a HexBlock of some of the part's
-/// elements (local maps a part element to the block's, -1 where the element is not FE), with the
-/// block's elements named by the part's. It shares the part's nodes with the part's nodal block,
-/// so the model plans it as adding.
-class FeSideForceBlock final : public HexForceBlock
+/// A coupled part's fem-1pt FE side: a 1-point block over the part's FE elements (local maps a
+/// part element to the block's, -1 where the element is not FE), integrated beside the part's
+/// nodal block, whose nodes it shares.
+struct FeSide
+{
+    HexBlock block;
+    std::vector<index_t> local; ///< element of the part -> element of `block`, -1 if not FE
+};
+
+/// The FE side's Gauss-point pass, with the block's elements named by the part's. It owns the side.
+class FeSideForceBlock final : public ForceBlock
 {
   public:
-    FeSideForceBlock(HexBlock& block, const std::vector<index_t>& local);
+    explicit FeSideForceBlock(FeSide side);
+    ForcePassResult add_forces(NodeSet& nodes, real_t dt, bool add) override;
+    void commit() override { side_.block.commit(); }
     index_t part_element(index_t block_element) const override;
     PointFault fault(index_t bad, const NodeSet& nodes) const override;
+    FeSide& side() { return side_; }
+    const FeSide& side() const { return side_; }
 
   private:
+    FeSide side_;
     std::vector<index_t> part_of_; ///< block element -> part element (the inverse of local)
 };
 
 /// Points at nodes (fem-nodal, rkpm, a coupled part's nodal side): nodal_internal_force and
-/// assemble_nodal_forces over one NodalBlock.
+/// assemble_nodal_forces over the NodalBlock it owns.
 class NodalForceBlock final : public ForceBlock
 {
   public:
-    explicit NodalForceBlock(NodalBlock& block) : block_(block) {}
+    explicit NodalForceBlock(NodalBlock block) : block_(std::move(block)) {}
     ForcePassResult add_forces(NodeSet& nodes, real_t dt, bool add) override;
     void commit() override { block_.commit(); }
     index_t part_element(index_t) const override { return 0; }
     PointFault fault(index_t bad, const NodeSet& nodes) const override;
+    NodalBlock& nodal() { return block_; }
+    const NodalBlock& nodal() const { return block_; }
 
   private:
-    NodalBlock& block_;
+    NodalBlock block_;
 };
 } // namespace rkfem

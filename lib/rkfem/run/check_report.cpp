@@ -187,11 +187,11 @@ SmallestStep smallest_element_step(const Model& model)
 {
     SmallestStep s;
     std::vector<real_t> dt;
-    for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
-        if (model.part_nodal[b] < 0)
+    for (index_t b = 0; b < static_cast<index_t>(model.meshes.size()); ++b)
+        if (!model.nodal_block(b))
         {
             // the elements' steps on the threads, then the first smallest in element order
-            const index_t ne = model.blocks[b].n_elements();
+            const index_t ne = model.meshes[b].n_elements();
             dt.resize(static_cast<std::size_t>(ne));
             parallel_for("rkfem::check::element_steps", ne,
                          [&](index_t e) { dt[static_cast<std::size_t>(e)] = model.element_time_step(b, e); });
@@ -232,10 +232,10 @@ std::string check_report(Model& model)
     for (std::size_t p = 0; p < model.parts.size(); ++p)
     {
         const PlasticPoints* pts = nullptr;
-        if (model.part_nodal[p] >= 0)
-            pts = &model.nodal_blocks[model.part_nodal[p]].plastic;
-        else if (p < model.blocks.size())
-            pts = &model.blocks[p].plastic;
+        if (model.nodal_block(p))
+            pts = &model.nodal_block(p)->plastic;
+        else if (p < model.meshes.size())
+            pts = &model.meshes[p].plastic;
         if (!pts || (pts->kind != PlasticPoints::Kind::Kcc && pts->kind != PlasticPoints::Kind::Cscm))
             continue;
         any = true;
@@ -254,21 +254,21 @@ std::string check_report(Model& model)
                   rep.dt_stable * scale);
     os << line;
     auto [b, e] = rep.dt_element >= 0 ? model.locate_element(rep.dt_element) : std::pair<index_t, index_t>{-1, -1};
-    if (b >= 0 && model.part_nodal[b] < 0)
+    if (b >= 0 && !model.nodal_block(b))
     {
         // the kernels' reduction breaks ties by thread; name the first element of the smallest step
         const SmallestStep s = smallest_element_step(model);
         b = s.block;
         e = s.element;
     }
-    if (b >= 0 && model.part_nodal[b] >= 0 && model.part_fe_side[b] < 0)
+    if (b >= 0 && model.nodal_block(b) && !model.fe_side(b))
         os << ", set by part '" << model.parts[b].name << "' (its nodal integration points)";
     else if (b >= 0)
     {
         Vec3 c = Vec3::Zero();
         for (int i = 0; i < 8; ++i)
         {
-            const index_t n = model.blocks[b].conn[8 * e + i];
+            const index_t n = model.meshes[b].conn[8 * e + i];
             c += Vec3(model.nodes.x0[3 * n], model.nodes.x0[3 * n + 1], model.nodes.x0[3 * n + 2]) / 8;
         }
         for (int d = 0; d < 3; ++d)

@@ -144,8 +144,8 @@ void finish_summary(RunSummary& sum, const Model& model, const ThreadGovernor& g
     sum.stepping_seconds = std::max(0.0, sum.wall_seconds - sum.output_seconds - start_seconds);
     sum.ns_per_element_cycle = loop.element_steps > 0 ? 1e9 * sum.stepping_seconds / loop.element_steps : 0.0;
     sum.energy = model.energy;
-    for (index_t b = 0; b < static_cast<index_t>(model.blocks.size()); ++b)
-        for (index_t e = 0; e < model.blocks[b].n_elements(); ++e)
+    for (index_t b = 0; b < static_cast<index_t>(model.meshes.size()); ++b)
+        for (index_t e = 0; e < model.meshes[b].n_elements(); ++e)
             sum.max_plastic_strain = std::max(sum.max_plastic_strain, model.element_plastic_strain(b, e));
 }
 
