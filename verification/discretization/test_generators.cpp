@@ -361,8 +361,13 @@ TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)
            "node 3 is defined again (first on line 4)");
     expect(keyword_error("k_missing.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,18\n"), "k_missing.k:11",
            "names node 18, which no *NODE card defines");
-    expect(keyword_error("k_prism.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,3,5,6,7,7\n"), "k_prism.k:11",
-           "repeats node 3");
+    // a wedge written as a hex (node 3 and node 7 repeated) is a solid, checked at its whole corners;
+    // upside down it is refused there; three distinct nodes are no solid
+    EXPECT_EQ(keyword_error("k_prism.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,3,5,6,7,7\n"), "");
+    expect(keyword_error("k_prism_inverted.k", nodes + "*ELEMENT_SOLID\n1,1,5,6,7,7,1,2,3,3\n"),
+           "k_prism_inverted.k:11", "element 1 is inverted at its node");
+    expect(keyword_error("k_sliver.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,2,2,5,5,5,5\n"), "k_sliver.k:11",
+           "element 1 has 3 distinct nodes");
     expect(keyword_error("k_inverted.k", nodes + "*ELEMENT_SOLID\n1,1,5,6,7,8,1,2,3,4\n"), "k_inverted.k:11",
            "element 1 is inverted at its node 5 (scaled Jacobian -1 there)");
     // node 7 pushed through the opposite corner: the centre stays positive, corner 7 does not

@@ -19,13 +19,20 @@ HexCorner worst_corner(const HexMesh& m)
     for (index_t e = 0; e < m.n_elements(); ++e)
         for (int a = 0; a < 8; ++a)
         {
-            const Vec3 xa = m.node(m.conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(a)]);
+            const index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
+            // a corner of a degenerate solid (a wedge or tetrahedron written as a hex) where an
+            // edge collapses has no Jacobian of its own: its other corners are checked
+            bool collapsed = false;
+            for (int k = 0; k < 3; ++k)
+                collapsed = collapsed || c[kCornerEdges[a][k]] == c[a];
+            if (collapsed)
+                continue;
+            const Vec3 xa = m.node(c[a]);
             Vec3 edge[3];
             real_t length = 1.0;
             for (int k = 0; k < 3; ++k)
             {
-                edge[k] =
-                    m.node(m.conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(kCornerEdges[a][k])]) - xa;
+                edge[k] = m.node(c[kCornerEdges[a][k]]) - xa;
                 length *= edge[k].norm();
             }
             // d x / d xi along an edge from a corner at xi = s runs against s: the product of
@@ -100,10 +107,16 @@ std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::
         {
             const index_t e = static_cast<index_t>(i / 6);
             const int f = static_cast<int>(i % 6);
+            const Quad q{conn[8 * e + hex_faces[f][0]], conn[8 * e + hex_faces[f][1]], conn[8 * e + hex_faces[f][2]],
+                         conn[8 * e + hex_faces[f][3]]};
+            // a degenerate solid's face collapsed to an edge or a point has no area: not a face
+            const int distinct =
+                1 + (q[1] != q[0]) + (q[2] != q[0] && q[2] != q[1]) + (q[3] != q[0] && q[3] != q[1] && q[3] != q[2]);
+            if (distinct < 3)
+                continue;
             if (owner)
                 owner->push_back(e);
-            faces.push_back({conn[8 * e + hex_faces[f][0]], conn[8 * e + hex_faces[f][1]],
-                             conn[8 * e + hex_faces[f][2]], conn[8 * e + hex_faces[f][3]]});
+            faces.push_back(q);
         }
     return faces;
 }

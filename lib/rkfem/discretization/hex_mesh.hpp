@@ -64,7 +64,10 @@ Vec3 quad_normal(const std::vector<real_t>& x, const Quad& q);
 /// the unit edges to its xi, eta and zeta neighbours (signed so that a right-handed element in
 /// LS-DYNA's node order is positive; 1 for a cube, 0 for a flat corner or an edge of no length,
 /// negative where the corner is inverted). The trilinear map of the element is one to one
-/// where every corner is positive, and inverted or singular somewhere where one is not.
+/// where every corner is positive, and inverted or singular somewhere where one is not. A
+/// degenerate solid (a node repeated: a wedge, pyramid or tetrahedron written as a hex, as
+/// pre-processors write them for LS-DYNA) is checked at its corners whose three edges are all
+/// there; the corners where an edge collapses are skipped.
 struct HexCorner
 {
     index_t element = -1; ///< -1: no elements
@@ -72,6 +75,20 @@ struct HexCorner
     real_t scaled_jacobian = 1.0;
 };
 HexCorner worst_corner(const HexMesh& m);
+/// The number of distinct nodes of the 8 of a solid (8 for a hex; 6 a wedge, 5 a pyramid, 4 a
+/// tetrahedron written as a hex).
+inline int distinct_nodes(const index_t* c)
+{
+    int n = 0;
+    for (int a = 0; a < 8; ++a)
+    {
+        bool seen = false;
+        for (int b = 0; b < a; ++b)
+            seen = seen || c[b] == c[a];
+        n += !seen;
+    }
+    return n;
+}
 /// At or below this scaled Jacobian a corner is degenerate (a solid refused at set-up)
 inline constexpr real_t kDegenerateScaledJacobian = 1e-6;
 

@@ -152,6 +152,16 @@ void check_mesh(const PartSpec& ps, const HexMesh& mesh, std::vector<std::string
         throw DeckError({ps.generator.loc.where, ps.loc.path + ".generator"}, what.str(),
                         "expected a generator that makes valid (convex, positive-volume) hexahedra");
     }
+    // degenerate solids (a node repeated) run as 1-point or 2x2x2 hexes; the nodal and RK
+    // formulations build their cells and supports from hexahedra
+    if (is_nodal(ps.formulation) || ps.coupled())
+        for (index_t e = 0; e < mesh.n_elements(); ++e)
+            if (const int n = distinct_nodes(mesh.conn.data() + 8 * static_cast<std::size_t>(e)); n < 8)
+                throw DeckError({ps.loc.where, ps.loc.path + ".formulation"},
+                                "element " + std::to_string(mesh.element_label(e)) + " of the mesh has " +
+                                    std::to_string(n) + " distinct nodes (a wedge, pyramid or tetrahedron)",
+                                "expected fem-1pt or fem-2x2x2 for a mesh with degenerate solids (the nodal and RK "
+                                "formulations build their cells from hexahedra)");
     // exact repeats of a position (pre-processors write the same digits for an unmerged node)
     const index_t n = mesh.n_nodes();
     std::vector<index_t> order(static_cast<std::size_t>(n));

@@ -303,7 +303,14 @@ void add_lumped_mass(const HexBlock& blk, NodeSet& nodes)
     {
         real_t m = 0.0;
         for (index_t k = blk.node_elem_offsets[i]; k < blk.node_elem_offsets[i + 1]; ++k)
-            m += blk.material.rho * blk.volume0[blk.node_elem_slots[k] / 8] / 8.0;
+        {
+            // a degenerate solid's mass goes in equal shares to its distinct nodes (a wedge's sixths)
+            const index_t e = blk.node_elem_slots[k] / 8, a = blk.node_elem_slots[k] % 8;
+            const index_t* c = blk.conn.data() + 8 * static_cast<std::size_t>(e);
+            if (std::find(c, c + a, c[a]) != c + a)
+                continue; // the node's second corner in this element
+            m += blk.material.rho * blk.volume0[e] / static_cast<real_t>(distinct_nodes(c));
+        }
         nodes.mass[blk.node_begin + i] += m;
     }
 }

@@ -120,6 +120,7 @@ void assemble_block_forces(HexBlock& blk, NodeSet& nodes, bool add = false);
 /// The current volume of element e (exact for the trilinear hex, from nodes.x) [m^3].
 real_t element_volume(const HexBlock& blk, const NodeSet& nodes, index_t e);
 
-/// Lumped mass rho V0 / 8 to each node of each element.
+/// Lumped mass rho V0 / 8 to each node of each element (a degenerate solid: rho V0 / n to each of its n distinct
+/// nodes).
 void add_lumped_mass(const HexBlock& blk, NodeSet& nodes);
 } // namespace rkfem
