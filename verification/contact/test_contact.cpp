@@ -412,6 +412,31 @@ TEST(ContactDamping, StiffCubesSeparateWithTheDashpotsRestitution)
         }
 }
 
+// A lone 1-point hex (no node shared with another element: a single-element model, a fragment
+// erosion leaves) breathes at omega = 2 c / L sqrt((1 + nu) / (1 - nu)), above the 2 c / L the step
+// L / c allows: at nu 0.3 and 0.9 of L / c, omega dt = 2.45 and the cube bounced off a soft wall went
+// unstable within 30 steps. It takes L / c sqrt((1 - nu) / (1 + nu)) now (HexBlock::isolated,
+// lone_element_step) and leaves the wall with its speed.
+TEST(RigidWall, ALoneElementTakesItsBreathingModesStep)
+{
+    std::string deck = damped_cubes_deck;
+    const std::string line = "  - {type: surface-to-surface, surfaces: [a, b], penalty_scale: 1e-6, soft_scale: 0.002}";
+    deck.replace(deck.find(line), line.size(),
+                 "  - {type: rigid-wall, surfaces: [a], point: [0, 0, 0], normal: [0, 0, 1], penalty_scale: 0.002}");
+    const ImpactRun r = impact(deck.c_str(), {"parts.a.material.nu=0.3", "parts.b.material.nu=0.3"});
+    ASSERT_EQ(r.summary.status, "completed") << r.summary.message;
+    const real_t e = r.momentum[0][2] / r.mass[0] / 1.0;
+    Model m = test::model_from(deck, {"parts.a.material.nu=0.3"});
+    const HexBlock& a = m.meshes[0];
+    ASSERT_EQ(a.isolated.size(), 1u);
+    const real_t c = a.material.wave_speed(), nu = 0.3;
+    const real_t expected = 1e-3 / c * std::sqrt((1 - nu) / (1 + nu));
+    std::printf("lone element: step %.6e s (L / c sqrt((1 - nu) / (1 + nu)) %.6e s), restitution %.5f\n",
+                lone_element_step(a, m.nodes, 0), expected, e);
+    EXPECT_NEAR(lone_element_step(a, m.nodes, 0), expected, 1e-12 * expected);
+    EXPECT_NEAR(e, 1.0, 0.01);
+}
+
 TEST(SurfaceToSurface, AStiffPenaltyBoundsTheStep)
 {
     // penalty_scale 1 puts two springs of k dt0^2 / m = 0.67 each (one per pass) on the bars' end

@@ -146,12 +146,14 @@ TEST(ThreadGovernor, SwitchingTheTeamEveryFewStepsKeepsTheBits)
         omp_set_num_threads(saved);
         return std::make_pair(m.nodes.u, s);
     };
-    // every probe wins (margin -100) and probes come at once (no busy spell resets a window): the
-    // team changes every 3 steps
+    // every probe wins (margin -1e9: a probe loses only if a billion times slower; at -100 a probe
+    // step descheduled for a time slice on a machine with more busy threads than cores lost, and
+    // the run made 9 changes, 2026-12-06) and probes come at once (no busy spell resets a
+    // window): the team changes every 3 steps
     ThreadGovernor::Options flip;
     flip.window = 2;
     flip.probe_interval = 1;
-    flip.margin = -100.0;
+    flip.margin = -1e9;
     flip.contention = 1e9;
     const auto [u_flip, s_flip] = run(true, 2, flip);
     const auto [u_one, s_one] = run(false, 1, {});

@@ -163,6 +163,41 @@ void HexBlock::build_tables(const NodeSet& nodes, Assembly assembly)
         use_huge_pages(*a);
     use_huge_pages(conn);
     use_huge_pages(node_elem_slots);
+    // elements no other element shares a node with (a single-element model, a fragment erosion
+    // left): their breathing mode takes its own step (lone_element_step)
+    isolated.clear();
+    for (index_t e = 0; e < ne && !mesh_only; ++e)
+    {
+        bool alone = true;
+        for (int a = 0; a < 8 && alone; ++a)
+        {
+            const index_t i = conn[8 * static_cast<std::size_t>(e) + a] - node_begin;
+            for (index_t k = node_elem_offsets[i]; k < node_elem_offsets[i + 1] && alone; ++k)
+                alone = node_elem_slots[k] / 8 == e;
+        }
+        if (alone)
+            isolated.push_back(e);
+    }
+}
+
+real_t lone_element_step(const HexBlock& blk, const NodeSet& nodes, index_t e)
+{
+    real_t x[8][3];
+    for (int I = 0; I < 8; ++I)
+        for (int d = 0; d < 3; ++d)
+            x[I][d] = nodes.x[3 * static_cast<std::size_t>(blk.conn[8 * static_cast<std::size_t>(e) + I]) + d];
+    real_t area = 0.0;
+    for (const auto& f : hex_faces)
+    {
+        const Vec3 p0(x[f[0]][0], x[f[0]][1], x[f[0]][2]), p1(x[f[1]][0], x[f[1]][1], x[f[1]][2]);
+        const Vec3 p2(x[f[2]][0], x[f[2]][1], x[f[2]][2]), p3(x[f[3]][0], x[f[3]][1], x[f[3]][2]);
+        area = std::max(area, 0.5 * (p2 - p0).cross(p3 - p1).norm());
+    }
+    const ElasticParams& m = blk.material;
+    // uniform dilation of a lone hex with lumped mass: omega^2 = 4 (3 lambda + 2 mu) / (rho L^2),
+    // above the (2 c / L)^2 the step L / c assumes by sqrt(3 K / M) = sqrt((1 + nu) / (1 - nu))
+    const real_t factor = std::sqrt(m.plane_wave_modulus() / (3.0 * m.bulk_modulus()));
+    return area > 0.0 ? factor * element_volume(blk, nodes, e) / area / m.wave_speed() : 0.0;
 }
 
 /// All batches of a 1-point block, with the hourglass form and the material (dispatch_kind) chosen
@@ -252,6 +287,12 @@ ForcePassResult hex_internal_force(HexBlock& blk, const NodeSet& nodes, real_t d
         if (std::isnan(blk.batch_sums[4 * b + 3]) && r.bad_element < 0)
             r.bad_element = blk.batch_idx[2 * b];
     }
+    for (const index_t e : blk.isolated)
+        if (const real_t lone = lone_element_step(blk, nodes, e); lone < r.dt_stable)
+        {
+            r.dt_stable = lone;
+            r.dt_element = e;
+        }
     return r;
 }
 

@@ -67,6 +67,9 @@ struct HexBlock
     /// elem_force and the transpose gather
     ChunkedScatter scatter;
 
+    /// Elements no other element of the block shares a node with (build_tables)
+    std::vector<index_t> isolated;
+
     // per-step scratch
     std::vector<real_t> elem_force; ///< n_elements x 24 [N] (gather assembly only)
     std::vector<real_t> batch_sums; ///< n_batches x 4: d_int, d_hg, d_bv, dt_min
@@ -119,6 +122,11 @@ void assemble_block_forces(HexBlock& blk, NodeSet& nodes, bool add = false);
 
 /// The current volume of element e (exact for the trilinear hex, from nodes.x) [m^3].
 real_t element_volume(const HexBlock& blk, const NodeSet& nodes, index_t e);
+
+/// The stable step of an element no other element shares a node with: its uniform dilation
+/// (breathing) mode has omega = 2 c / L sqrt(3 K / M), above the 2 c / L of the step V / A_max / c
+/// by sqrt((1 + nu) / (1 - nu)) (1.36 at nu 0.3), so it takes V / A_max / c sqrt(M / (3 K)).
+real_t lone_element_step(const HexBlock& blk, const NodeSet& nodes, index_t e);
 
 /// Lumped mass rho V0 / 8 to each node of each element (a degenerate solid: rho V0 / n to each of its n distinct
 /// nodes).
