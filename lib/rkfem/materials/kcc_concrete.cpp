@@ -127,8 +127,7 @@ static inline real_t kcc_lode_factor(const KccParameters& k, const KccTrial& t)
     const real_t J3 = dev[0] * (dev[1] * dev[2] - dev[4] * dev[4]) - dev[3] * (dev[3] * dev[2] - dev[4] * dev[5]) +
                       dev[5] * (dev[3] * dev[4] - dev[1] * dev[5]);
     const real_t c3 = std::clamp(1.5 * std::sqrt(3.0) * J3 / (J2 * std::sqrt(J2)), -1.0, 1.0);
-    const real_t theta = std::acos(c3) / 3.0;
-    const real_t wlode = willam_warnke(theta, k.psi(t.p));
+    const real_t wlode = willam_warnke_cos(cos_third_acos(c3), k.psi(t.p));
     return wlode;
 }
 

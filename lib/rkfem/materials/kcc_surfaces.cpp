@@ -110,10 +110,39 @@ real_t KccParameters::eta(real_t lambda) const
     return piecewise_linear(eta_table.data(), eta_table.size(), lambda);
 }
 
+real_t cos_third_acos(real_t c3)
+{
+    // f(s) = cos(2/3 acos s) on s in [0, 1] as a polynomial of degree 18 in x = 2 s - 1: the
+    // Chebyshev interpolant at the 19 Chebyshev points (to 60 digits) in monomial form, within
+    // 2.3e-16 of f (verification/materials/test_kcc_surfaces.cpp holds it to cos(acos(c3) / 3)
+    // over [-1, 1]); evaluated by Estrin's scheme, whose chain is 9 operations deep where Horner's
+    // or Clenshaw's is 18 (the point update waits on it)
+    static constexpr real_t m[19] = {
+        0.766044443118978,       0.2474090663228534,     -0.015509188436485936,   0.0024663528150656285,
+        -0.0005041246911381233,  0.00011642545331824931, -2.891993630551945e-05,  7.541075563453027e-06,
+        -2.0358696650818406e-06, 5.641643328528482e-07,  -1.5954336266674776e-07, 4.5826322066904776e-08,
+        -1.334861626366851e-08,  3.982036064644077e-09,  -1.1846250703174136e-09, 3.093616173100703e-10,
+        -9.309326514430476e-11,  5.11466452650849e-11,   -1.5686102744613355e-11};
+    const real_t s = std::sqrt(0.5 * (1.0 + std::clamp(c3, -1.0, 1.0)));
+    const real_t x = 2.0 * s - 1.0, x2 = x * x, x4 = x2 * x2, x8 = x4 * x4, x16 = x8 * x8;
+    real_t p[10];
+    for (int k = 0; k < 9; ++k)
+        p[k] = std::fma(m[2 * k + 1], x, m[2 * k]);
+    p[9] = m[18];
+    const real_t q0 = std::fma(p[1], x2, p[0]), q1 = std::fma(p[3], x2, p[2]), q2 = std::fma(p[5], x2, p[4]);
+    const real_t q3 = std::fma(p[7], x2, p[6]), q4 = std::fma(p[9], x2, p[8]);
+    const real_t r0 = std::fma(q1, x4, q0), r1 = std::fma(q3, x4, q2);
+    return std::fma(q4, x16, std::fma(r1, x8, r0));
+}
+
 real_t willam_warnke(real_t theta, real_t psi)
 {
+    return willam_warnke_cos(std::cos(theta), psi);
+}
+
+real_t willam_warnke_cos(real_t c, real_t psi)
+{
     psi = std::clamp(psi, 0.5, 1.0);
-    const real_t c = std::cos(theta);
     const real_t q = 1.0 - psi * psi;
     const real_t num = 2.0 * q * c + (2.0 * psi - 1.0) * std::sqrt(4.0 * q * c * c + 5.0 * psi * psi - 4.0 * psi);
     const real_t den = 4.0 * q * c * c + (1.0 - 2.0 * psi) * (1.0 - 2.0 * psi);
