@@ -61,6 +61,22 @@ inline HexMesh distorted_box(int n, real_t h, real_t jitter, unsigned seed = 7)
     return m;
 }
 
+/// Each hex of m split into two wedges written as degenerate hexes, as pre-processors write them for
+/// LS-DYNA (a node repeated: N1 N2 N3 N3 N4 N5 N6 N6): the prisms (0 1 3, 4 5 7) and (1 2 3, 5 6 7),
+/// whose triangles lie in the hex's bottom and top faces. The nodes stay; faces are not rebuilt.
+inline HexMesh split_into_wedges(const HexMesh& m)
+{
+    HexMesh w = m;
+    w.conn.clear();
+    for (index_t e = 0; e < m.n_elements(); ++e)
+    {
+        const index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
+        w.conn.insert(w.conn.end(), {c[0], c[1], c[3], c[3], c[4], c[5], c[7], c[7]});
+        w.conn.insert(w.conn.end(), {c[1], c[2], c[3], c[3], c[5], c[6], c[7], c[7]});
+    }
+    return w;
+}
+
 /// Writes nodes (x: 3 per node) and 8-node solids (conn: 8 per element, 0-based; pid per element,
 /// empty: all 1) as an LS-DYNA keyword file in the temp folder (NIDs and EIDs from 1, comma
 /// fields with 17 digits, so the mesh reads back bit for bit); an element whose volume comes out

@@ -24,26 +24,11 @@ struct PatchResult
     real_t interior_residual = 0; ///< max |f_I| over interior nodes / force scale
 };
 
-/// Each hex split into two wedges written as degenerate hexes, as pre-processors write them for
-/// LS-DYNA (a node repeated: N1 N2 N3 N3 N4 N5 N6 N6): the prisms (0 1 3, 4 5 7) and (1 2 3, 5 6 7),
-/// whose triangles lie in the hex's bottom and top faces.
-HexMesh split_into_wedges(const HexMesh& m)
-{
-    HexMesh w = m;
-    w.conn.clear();
-    for (index_t e = 0; e < m.n_elements(); ++e)
-    {
-        const index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
-        w.conn.insert(w.conn.end(), {c[0], c[1], c[3], c[3], c[4], c[5], c[7], c[7]});
-        w.conn.insert(w.conn.end(), {c[1], c[2], c[3], c[3], c[5], c[6], c[7], c[7]});
-    }
-    return w;
-}
-
 PatchResult run_patch(Formulation f, HourglassType hg, int n = 3, bool wedges = false)
 {
     const real_t h = 0.01;
-    const HexMesh mesh = wedges ? split_into_wedges(test::distorted_box(n, h, 0.25)) : test::distorted_box(n, h, 0.25);
+    const HexMesh mesh =
+        wedges ? test::split_into_wedges(test::distorted_box(n, h, 0.25)) : test::distorted_box(n, h, 0.25);
     NodeSet nodes;
     const ElasticParams mat = ElasticParams::from_E_nu(7850, 200e9, 0.3);
     HexBlock blk = test::make_block(mesh, nodes, f, {hg, 0.1}, mat);

@@ -104,15 +104,8 @@ TEST(UniaxialWave, OnePointViscousHourglassMatchesTheory)
 // part's formulation, since the nodal and RK cells are built from hexahedra.
 TEST(UniaxialWave, WedgesFromAKeywordMeshMatchTheory)
 {
-    const HexMesh box = generate_box(Vec3::Zero(), Vec3(1e-3, 1e-3, 0.3), {1, 1, 300});
-    std::vector<index_t> conn;
-    for (index_t e = 0; e < box.n_elements(); ++e)
-    {
-        const index_t* c = box.conn.data() + 8 * static_cast<std::size_t>(e);
-        conn.insert(conn.end(), {c[0], c[1], c[3], c[3], c[4], c[5], c[7], c[7]});
-        conn.insert(conn.end(), {c[1], c[2], c[3], c[3], c[5], c[6], c[7], c[7]});
-    }
-    const std::string file = test::write_keyword_mesh("rkfem_wedge_column.k", box.x, conn);
+    const HexMesh wedges = test::split_into_wedges(generate_box(Vec3::Zero(), Vec3(1e-3, 1e-3, 0.3), {1, 1, 300}));
+    const std::string file = test::write_keyword_mesh("rkfem_wedge_column.k", wedges.x, wedges.conn);
     const std::string wedge_deck = R"(
 title: wave in wedges
 time: {end: 26 us}

@@ -13,6 +13,18 @@ constexpr int kCornerEdges[8][4] = {{1, 3, 4, -1}, {0, 2, 5, 1},  {3, 1, 6, -1},
                                     {5, 7, 0, 1},  {4, 6, 1, -1}, {7, 5, 2, 1},  {6, 4, 3, -1}};
 } // namespace
 
+real_t largest_face_area(const real_t (&x)[8][3])
+{
+    real_t area = 0.0;
+    for (const auto& f : hex_faces)
+    {
+        const Vec3 p0(x[f[0]][0], x[f[0]][1], x[f[0]][2]), p1(x[f[1]][0], x[f[1]][1], x[f[1]][2]);
+        const Vec3 p2(x[f[2]][0], x[f[2]][1], x[f[2]][2]), p3(x[f[3]][0], x[f[3]][1], x[f[3]][2]);
+        area = std::max(area, 0.5 * (p2 - p0).cross(p3 - p1).norm());
+    }
+    return area;
+}
+
 HexCorner worst_corner(const HexMesh& m)
 {
     HexCorner worst;

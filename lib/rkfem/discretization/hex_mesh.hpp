@@ -75,9 +75,12 @@ struct HexCorner
     real_t scaled_jacobian = 1.0;
 };
 HexCorner worst_corner(const HexMesh& m);
+/// The largest of a hex's six face areas (each |(x2 - x0) x (x3 - x1)| / 2), corners x[8][3]: the
+/// A_max of the element step V / A_max / c.
+real_t largest_face_area(const real_t (&x)[8][3]);
 /// The number of distinct nodes of the 8 of a solid (8 for a hex; 6 a wedge, 5 a pyramid, 4 a
 /// tetrahedron written as a hex).
-inline int distinct_nodes(const index_t* c)
+template <class Id> int distinct_nodes(const Id* c)
 {
     int n = 0;
     for (int a = 0; a < 8; ++a)

@@ -274,10 +274,7 @@ void add_solids(Reader& rd, const KeywordCards& cards, const std::vector<index_t
         rd.line = s.line;
         // a wedge, pyramid or tetrahedron written as a hex repeats nodes (LS-DYNA runs them as
         // degenerate hexes, as the Gauss-point FE parts here do); fewer than 4 distinct nodes is no solid
-        int distinct = 0;
-        for (int a = 0; a < 8; ++a)
-            distinct += std::find(s.nodes, s.nodes + a, s.nodes[a]) == s.nodes + a;
-        if (distinct < 4)
+        if (const int distinct = distinct_nodes(s.nodes); distinct < 4)
             rd.fail("element " + std::to_string(s.eid) + " has " + std::to_string(distinct) + " distinct nodes",
                     "expected a solid: a hexahedron, or a wedge, pyramid or tetrahedron written with repeated nodes");
         std::array<long long, 8> key;

@@ -387,8 +387,6 @@ void Model::build_kinematic_map()
         if (!nodal_block(ip) || nodal_block(ip)->interp_offsets.empty())
             continue;
         NodalBlock& nb = *nodal_block(ip);
-        if (nb.interp_offsets.empty())
-            continue;
         const std::vector<char> all(static_cast<std::size_t>(nb.node_end - nb.node_begin), 1);
         kinematics.set_rows(nb.node_begin, nb.node_end, nb.interp_offsets, nb.interp_nodes, nb.interp_values,
                             nb.particle.empty() ? &all : &nb.particle);

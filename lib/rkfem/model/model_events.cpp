@@ -4,6 +4,7 @@
 #include "rkfem/model/model.hpp"
 
 #include <algorithm>
+#include <utility>
 
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/error.hpp"
@@ -47,13 +48,7 @@ namespace
 /// An element's step as the kernels take it: V over its largest face area, over the wave speed.
 real_t area_time_step(const real_t (&x)[8][3], real_t V, real_t c)
 {
-    real_t area = 0.0;
-    for (const auto& f : hex_faces)
-    {
-        const Vec3 p0(x[f[0]][0], x[f[0]][1], x[f[0]][2]), p1(x[f[1]][0], x[f[1]][1], x[f[1]][2]);
-        const Vec3 p2(x[f[2]][0], x[f[2]][1], x[f[2]][2]), p3(x[f[3]][0], x[f[3]][1], x[f[3]][2]);
-        area = std::max(area, 0.5 * (p2 - p0).cross(p3 - p1).norm());
-    }
+    const real_t area = largest_face_area(x);
     return area > 0.0 ? V / area / c : 0.0;
 }
 } // namespace
@@ -245,8 +240,7 @@ bool Model::apply_events(real_t t, std::int64_t step)
 
 NodalBlock* Model::nodal_block(index_t part)
 {
-    const index_t k = part_nodal_[static_cast<std::size_t>(part)];
-    return k < 0 ? nullptr : &static_cast<NodalForceBlock&>(*blocks_[static_cast<std::size_t>(k)].block).nodal();
+    return const_cast<NodalBlock*>(std::as_const(*this).nodal_block(part));
 }
 
 const NodalBlock* Model::nodal_block(index_t part) const
@@ -257,8 +251,7 @@ const NodalBlock* Model::nodal_block(index_t part) const
 
 FeSide* Model::fe_side(index_t part)
 {
-    const index_t k = part_fe_side_[static_cast<std::size_t>(part)];
-    return k < 0 ? nullptr : &static_cast<FeSideForceBlock&>(*blocks_[static_cast<std::size_t>(k)].block).side();
+    return const_cast<FeSide*>(std::as_const(*this).fe_side(part));
 }
 
 const FeSide* Model::fe_side(index_t part) const

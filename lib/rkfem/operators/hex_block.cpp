@@ -186,13 +186,7 @@ real_t lone_element_step(const HexBlock& blk, const NodeSet& nodes, index_t e)
     for (int I = 0; I < 8; ++I)
         for (int d = 0; d < 3; ++d)
             x[I][d] = nodes.x[3 * static_cast<std::size_t>(blk.conn[8 * static_cast<std::size_t>(e) + I]) + d];
-    real_t area = 0.0;
-    for (const auto& f : hex_faces)
-    {
-        const Vec3 p0(x[f[0]][0], x[f[0]][1], x[f[0]][2]), p1(x[f[1]][0], x[f[1]][1], x[f[1]][2]);
-        const Vec3 p2(x[f[2]][0], x[f[2]][1], x[f[2]][2]), p3(x[f[3]][0], x[f[3]][1], x[f[3]][2]);
-        area = std::max(area, 0.5 * (p2 - p0).cross(p3 - p1).norm());
-    }
+    const real_t area = largest_face_area(x);
     const ElasticParams& m = blk.material;
     // uniform dilation of a lone hex with lumped mass: omega^2 = 4 (3 lambda + 2 mu) / (rho L^2),
     // above the (2 c / L)^2 the step L / c assumes by sqrt(3 K / M) = sqrt((1 + nu) / (1 - nu))

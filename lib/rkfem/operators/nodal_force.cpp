@@ -18,18 +18,10 @@ namespace rkfem
 namespace nodal_kernels
 {
 // each material kind's batch kernel is compiled in its own unit (kernels/nodal_points_<kind>.cpp)
-#define RKFEM_NODAL_POINTS_ELSEWHERE(K, FULL)                                                                          \
-    extern template void nodal_points_batch<PlasticPoints::Kind::K, FULL>(NodalBlock&, const real_t*, const real_t*,   \
-                                                                          index_t, real_t, real_t*, index_t);
-RKFEM_NODAL_POINTS_ELSEWHERE(None, true)
-RKFEM_NODAL_POINTS_ELSEWHERE(None, false)
-RKFEM_NODAL_POINTS_ELSEWHERE(J2, true)
-RKFEM_NODAL_POINTS_ELSEWHERE(J2, false)
-RKFEM_NODAL_POINTS_ELSEWHERE(Kcc, true)
-RKFEM_NODAL_POINTS_ELSEWHERE(Kcc, false)
-RKFEM_NODAL_POINTS_ELSEWHERE(Cscm, true)
-RKFEM_NODAL_POINTS_ELSEWHERE(Cscm, false)
-#undef RKFEM_NODAL_POINTS_ELSEWHERE
+RKFEM_NODAL_POINTS_BATCHES(extern, None);
+RKFEM_NODAL_POINTS_BATCHES(extern, J2);
+RKFEM_NODAL_POINTS_BATCHES(extern, Kcc);
+RKFEM_NODAL_POINTS_BATCHES(extern, Cscm);
 } // namespace nodal_kernels
 using namespace nodal_kernels;
 

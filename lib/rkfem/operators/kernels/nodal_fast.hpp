@@ -489,4 +489,14 @@ template <PlasticPoints::Kind MK, bool FULL>
     blk.batch_idx[2 * b] = dt_point;
     blk.batch_idx[2 * b + 1] = bad;
 }
+
+/// The instantiation of nodal_points_batch for material kind KIND (None, J2, Kcc, Cscm), both FULL
+/// forms: each kind is compiled in a unit of its own (kernels/nodal_points_<kind>.cpp); with
+/// `extern` (RKFEM_NODAL_POINTS_BATCHES(extern, KIND)) the declaration nodal_force.cpp makes so
+/// that it instantiates none of them.
+#define RKFEM_NODAL_POINTS_BATCHES(EXTERN, KIND)                                                                       \
+    EXTERN template void nodal_points_batch<PlasticPoints::Kind::KIND, true>(                                          \
+        NodalBlock&, const real_t*, const real_t*, index_t, real_t, real_t*, index_t);                                 \
+    EXTERN template void nodal_points_batch<PlasticPoints::Kind::KIND, false>(                                         \
+        NodalBlock&, const real_t*, const real_t*, index_t, real_t, real_t*, index_t)
 } // namespace rkfem::nodal_kernels

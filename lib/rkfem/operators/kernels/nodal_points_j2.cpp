@@ -5,8 +5,5 @@
 
 namespace rkfem::nodal_kernels
 {
-template void nodal_points_batch<PlasticPoints::Kind::J2, true>(NodalBlock&, const real_t*, const real_t*, index_t,
-                                                                real_t, real_t*, index_t);
-template void nodal_points_batch<PlasticPoints::Kind::J2, false>(NodalBlock&, const real_t*, const real_t*, index_t,
-                                                                 real_t, real_t*, index_t);
+RKFEM_NODAL_POINTS_BATCHES(, J2);
 } // namespace rkfem::nodal_kernels

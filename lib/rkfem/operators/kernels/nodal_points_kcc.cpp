@@ -5,8 +5,5 @@
 
 namespace rkfem::nodal_kernels
 {
-template void nodal_points_batch<PlasticPoints::Kind::Kcc, true>(NodalBlock&, const real_t*, const real_t*, index_t,
-                                                                 real_t, real_t*, index_t);
-template void nodal_points_batch<PlasticPoints::Kind::Kcc, false>(NodalBlock&, const real_t*, const real_t*, index_t,
-                                                                  real_t, real_t*, index_t);
+RKFEM_NODAL_POINTS_BATCHES(, Kcc);
 } // namespace rkfem::nodal_kernels
