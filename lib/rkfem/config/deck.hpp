@@ -103,6 +103,11 @@ struct PartSpec
     GeneratorSpec generator;
     MaterialSpec material;
     Formulation formulation = Formulation::Fem1pt;
+    /// rkpm parts: kernels in the reference configuration (false, total Lagrangian) or in the
+    /// current one (`kinematics: semi-lagrangian`, operators/semi_lagrangian_block.hpp)
+    bool semi_lagrangian = false;
+    /// semi-Lagrangian parts: the neighbour lists' skin as a fraction of the largest support
+    real_t neighbour_skin = 0.3;
     HourglassSpec hourglass;
     BulkViscositySpec bulk_viscosity;
     NodalIntegrationSpec nodal;

@@ -65,19 +65,37 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
     // the same stable step and the same answers on the seed's P1 and P3; README,
     // nodal_integration; measurements: docs/performance.md), on meshes and clouds; MSCNI where
     // there are no RK second derivatives (fem-nodal, coupled parts)
-    const std::string default_stab = p.formulation == Formulation::Rkpm && !s.has("regions") ? "nsni" : "mscni";
+    const std::string default_stab = p.semi_lagrangian                                         ? "face-gradient"
+                                     : p.formulation == Formulation::Rkpm && !s.has("regions") ? "nsni"
+                                                                                               : "mscni";
     p.nodal.stabilization = default_stab;
     p.nodal.stabilization_coefficient = default_stab == "nsni" ? kNsniCoefficient : 1.0;
+    if (p.semi_lagrangian)
+        p.nodal.scheme = "snni";
     if (s.has("nodal_integration"))
     {
         if (!is_nodal(p.formulation) && !s.has("regions"))
             ignore(p, s, "nodal_integration", f); // read (and checked) below, then not used
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor", "facet_points"});
-        p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni"}, "scni");
-        p.nodal.stabilization =
-            ni.choice("stabilization", {"mscni", "nsni", "none"}, p.nodal.scheme == "scni" ? default_stab : "none");
-        if (p.nodal.stabilization != "none" && p.nodal.scheme != "scni")
+        p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni", "snni"}, p.semi_lagrangian ? "snni" : "scni");
+        if ((p.nodal.scheme == "snni") != p.semi_lagrangian)
+            ni.fail("scheme",
+                    p.semi_lagrangian ? "semi-Lagrangian particles are integrated on cubes about their current "
+                                        "positions (SNNI); " +
+                                            p.nodal.scheme + " needs cells of the reference configuration"
+                                      : "snni integrates semi-Lagrangian particles",
+                    p.semi_lagrangian ? "expected scheme: snni with kinematics: semi-lagrangian"
+                                      : "expected scheme: scni, sd-scni or dni (or kinematics: semi-lagrangian)");
+        p.nodal.stabilization = ni.choice("stabilization", {"mscni", "nsni", "face-gradient", "none"},
+                                          p.nodal.scheme == "scni" || p.semi_lagrangian ? default_stab : "none");
+        if ((p.nodal.stabilization == "face-gradient") != (p.semi_lagrangian && p.nodal.stabilization != "none"))
+            ni.fail("stabilization",
+                    p.semi_lagrangian ? "semi-Lagrangian particles are stabilized by face-gradient (or none)"
+                                      : "face-gradient stabilizes semi-Lagrangian particles (scheme snni)",
+                    p.semi_lagrangian ? "expected stabilization: face-gradient or none"
+                                      : "expected stabilization: mscni, nsni or none");
+        if (p.nodal.stabilization != "none" && p.nodal.scheme != "scni" && p.nodal.scheme != "snni")
             ni.fail("stabilization", p.nodal.stabilization + " stabilizes scheme scni only",
                     "expected stabilization: none with scheme " + p.nodal.scheme);
         if (p.nodal.stabilization == "nsni" && (p.formulation != Formulation::Rkpm || s.has("regions")))
@@ -97,6 +115,25 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
                     "expected facet_points: triangles (or none) on a mesh part; its nodal cells' facets take 2 x 2 "
                     "Gauss points");
     }
+}
+
+/// kinematics (lagrangian | semi-lagrangian, rkpm parts) and semi_lagrangian.neighbour_skin, into p.
+void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
+{
+    p.semi_lagrangian = s.choice("kinematics", {"lagrangian", "semi-lagrangian"}, "lagrangian") == "semi-lagrangian";
+    if (p.semi_lagrangian && p.formulation != Formulation::Rkpm)
+        s.fail("kinematics", "semi-lagrangian moves the kernels of RK particles with the material",
+               "expected formulation: rkpm with kinematics: semi-lagrangian (or kinematics: lagrangian)");
+    if (!s.has("semi_lagrangian"))
+        return;
+    if (!p.semi_lagrangian)
+        s.fail("semi_lagrangian", "sets up semi-Lagrangian RK particles, and this part's kinematics is lagrangian",
+               "expected kinematics: semi-lagrangian with a semi_lagrangian section");
+    Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"), {"neighbour_skin"});
+    p.neighbour_skin = sl.quantity("neighbour_skin", dim::none, 0.3);
+    if (!(p.neighbour_skin >= 0.0 && p.neighbour_skin <= 2.0))
+        sl.fail("neighbour_skin", "is outside [0, 2]",
+                "expected the skin as a fraction of the largest support radius (0: rebuild every step; 0.3 default)");
 }
 
 /// regions: the RK volumes (box, cylinder or sphere selectors) of an FE part, into p.regions.
@@ -187,7 +224,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
 {
     Section s(ctx, n, path,
               {"generator", "material", "formulation", "hourglass", "bulk_viscosity", "nodal_integration", "rk",
-               "initial_velocity", "regions", "transition", "erosion", "conversion"});
+               "initial_velocity", "regions", "transition", "erosion", "conversion", "kinematics", "semi_lagrangian"});
     PartSpec p;
     p.name = name;
     p.loc = s.loc();
@@ -207,6 +244,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                    "expected formulation: fem-nodal on a part with conversion");
         p.conversion = read_criteria(ctx, s, "conversion", p);
     }
+    read_kinematics(ctx, s, p);
     read_nodal_integration(ctx, s, f, p);
     if (p.generator.type == GeneratorSpec::Type::Cloud)
     {

@@ -15,6 +15,7 @@
 #include "rkfem/model/material_from_deck.hpp"
 #include "rkfem/model/nodal_block_build.hpp"
 #include "rkfem/operators/nodal_step_estimate.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 
 namespace rkfem
 {
@@ -288,6 +289,11 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
 void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset,
                              const HexBlock& blk)
 {
+    if (ps.semi_lagrangian)
+    {
+        build_semi_lagrangian_part(ps, ip, mesh, offset);
+        return;
+    }
     NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(ps, mesh, offset)
                     : ps.coupled()                                  ? build_coupled_block(ps, mesh, offset)
                                                                     : build_nodal_block(ps, mesh, offset);
@@ -313,6 +319,70 @@ void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& 
         part_fe_side_.back() = static_cast<index_t>(blocks_.size());
         blocks_.push_back({std::make_unique<FeSideForceBlock>(std::move(*side)), static_cast<index_t>(ip), true});
     }
+}
+
+/// A semi-Lagrangian rkpm part: the Lagrangian build (SCNI, no stabilization) gives the particles'
+/// volumes, masses, step lengths and supports; the block takes them and rebuilds its own tables
+/// in the current configuration every step.
+void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset)
+{
+    PartSpec lagrangian = ps;
+    lagrangian.semi_lagrangian = false;
+    lagrangian.nodal.scheme = "scni";
+    lagrangian.nodal.stabilization = "none";
+    NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(lagrangian, mesh, offset)
+                                                                    : build_nodal_block(lagrangian, mesh, offset);
+    nb.part = static_cast<index_t>(ip);
+    add_nodal_mass(nb, nodes);
+    RKFEM_REQUIRE(nb.rk, "semi-Lagrangian part '" << ps.name << "': the build kept no RK functions");
+    std::vector<real_t> radius(static_cast<std::size_t>(nb.rk->size()));
+    real_t a_max = 0.0;
+    for (index_t i = 0; i < nb.rk->size(); ++i)
+        a_max = std::max(a_max, radius[i] = nb.rk->radius(i));
+    // mesh parts: each node's cell is the box of its dual cell (the node and the centroids of its
+    // elements), scaled to the node's volume; the boxes of a box mesh tile it. Clouds: cubes.
+    std::vector<real_t> cells;
+    if (ps.generator.type != GeneratorSpec::Type::Cloud)
+    {
+        const std::size_t n = static_cast<std::size_t>(mesh.n_nodes());
+        std::vector<real_t> lo(mesh.x), hi(mesh.x);
+        for (index_t e = 0; e < mesh.n_elements(); ++e)
+        {
+            Vec3 c = Vec3::Zero();
+            for (int k = 0; k < 8; ++k)
+                c += mesh.node(mesh.conn[8 * static_cast<std::size_t>(e) + k]) / 8.0;
+            for (int k = 0; k < 8; ++k)
+            {
+                const std::size_t i = static_cast<std::size_t>(mesh.conn[8 * static_cast<std::size_t>(e) + k]);
+                for (int d = 0; d < 3; ++d)
+                {
+                    lo[3 * i + d] = std::min(lo[3 * i + d], c[d]);
+                    hi[3 * i + d] = std::max(hi[3 * i + d], c[d]);
+                }
+            }
+        }
+        cells.assign(12 * n, 0.0);
+        for (std::size_t i = 0; i < n; ++i)
+        {
+            real_t box = 1.0;
+            for (int d = 0; d < 3; ++d)
+                box *= hi[3 * i + d] - lo[3 * i + d];
+            const real_t scale = box > 0.0 ? std::cbrt(nb.points.weight[i] / box) : 0.0;
+            for (int d = 0; d < 3; ++d)
+            {
+                cells[12 * i + d] = 0.5 * (lo[3 * i + d] + hi[3 * i + d]) - mesh.x[3 * i + d];
+                cells[12 * i + 3 + 4 * d] = 0.5 * scale * (hi[3 * i + d] - lo[3 * i + d]);
+            }
+        }
+    }
+    SemiLagrangianOptions opt;
+    opt.rk = nb.rk->params();
+    opt.skin = ps.neighbour_skin * a_max;
+    opt.stabilization_coefficient = ps.nodal.stabilization == "none" ? 0.0 : ps.nodal.stabilization_coefficient;
+    part_nodal_.back() = static_cast<index_t>(blocks_.size());
+    blocks_.push_back(
+        {std::make_unique<SemiLagrangianForceBlock>(std::move(nb), std::move(radius), std::move(cells), opt),
+         static_cast<index_t>(ip), false});
 }
 
 /// The FE elements of a coupled part with a fem-1pt FE side: a 1-point block of their own (the

@@ -314,6 +314,7 @@ class Model final : public ExplicitOperator
     // Model::build's steps, in order (model.cpp, model_sets.cpp)
     void build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, index_t& elem_offset);
     void build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset, const HexBlock& blk);
+    void build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset);
     FeSide build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb);
     std::vector<index_t> parts_named(const std::string& name) const;
     void build_node_sets();

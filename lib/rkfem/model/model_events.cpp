@@ -246,7 +246,7 @@ NodalBlock* Model::nodal_block(index_t part)
 const NodalBlock* Model::nodal_block(index_t part) const
 {
     const index_t k = part_nodal_[static_cast<std::size_t>(part)];
-    return k < 0 ? nullptr : &static_cast<const NodalForceBlock&>(*blocks_[static_cast<std::size_t>(k)].block).nodal();
+    return k < 0 ? nullptr : std::as_const(*blocks_[static_cast<std::size_t>(k)].block).nodal_points();
 }
 
 FeSide* Model::fe_side(index_t part)

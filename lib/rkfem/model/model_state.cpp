@@ -98,6 +98,8 @@ void Model::save_state(StateArchive& a) const
         a.put(prefix + "stress", nb.stress);
         a.put(prefix + "stab_stress", nb.stab_stress);
         a.put(prefix + "jacobian", nb.jacobian);
+        if (!nb.cells.empty())
+            a.put(prefix + "cells", nb.cells);
         save_plastic(a, prefix, nb.plastic);
     }
     a.put_value("energy", energy);
@@ -187,6 +189,11 @@ void Model::load_state(const StateArchive& a)
         a.get_same_size(prefix + "stab_stress", nb.stab_stress);
         nb.stab_stress_trial = nb.stab_stress;
         a.get_same_size(prefix + "jacobian", nb.jacobian);
+        if (!nb.cells.empty())
+        {
+            a.get_same_size(prefix + "cells", nb.cells);
+            nb.cells_trial = nb.cells;
+        }
         load_plastic(a, prefix, nb.plastic);
     }
     energy = a.value<Energies>("energy");

@@ -4,12 +4,13 @@
 /// that updates their material state (trial) and adds the block's nodal forces into f_int, the
 /// commit of that state, and where a point the pass flagged sits, for the message.
 ///
-/// Three implementations: a block of Gauss-point hexes (fem-1pt, fem-2x2x2; the part's mesh block,
+/// Four implementations: a block of Gauss-point hexes (fem-1pt, fem-2x2x2; the part's mesh block,
 /// which the model owns), a nodal block (fem-nodal, rkpm, the nodal side of a coupled part) and a
 /// coupled part's fem-1pt FE side (a hex block over some of the part's elements); the last two own
 /// their block. The model keeps them in one list in the order of the parts (for each part its
 /// nodal block, then its FE side), so its force evaluation and commit are loops over that list.
-/// A new kind of block (semi-Lagrangian RK) is one more implementation and one more entry there.
+/// The fourth, semi-Lagrangian RK particles (semi_lagrangian_block.hpp), takes a nodal block's
+/// place in that list.
 ///
 /// Invariants: a pass either returns a bad point (bad_element >= 0) and leaves f_int as it was,
 /// or adds (writes, when the block is alone on its nodes: `add` false) every node of its range.
@@ -49,6 +50,10 @@ class ForceBlock
     virtual index_t part_element(index_t block_element) const = 0;
     /// What is wrong at the point a pass returned as bad_element.
     virtual PointFault fault(index_t bad, const NodeSet& nodes) const = 0;
+    /// The state of a block whose points sit at nodes (nodal and semi-Lagrangian blocks: one
+    /// NodalBlock, which output, probes and checkpoints read); null for Gauss-point blocks.
+    virtual NodalBlock* nodal_points() { return nullptr; }
+    virtual const NodalBlock* nodal_points() const { return nullptr; }
 };
 
 /// Gauss-point hexes: hex_internal_force and assemble_block_forces over one HexBlock, the part's
@@ -103,6 +108,8 @@ class NodalForceBlock final : public ForceBlock
     void commit() override { block_.commit(); }
     index_t part_element(index_t) const override { return 0; }
     PointFault fault(index_t bad, const NodeSet& nodes) const override;
+    NodalBlock* nodal_points() override { return &block_; }
+    const NodalBlock* nodal_points() const override { return &block_; }
     NodalBlock& nodal() { return block_; }
     const NodalBlock& nodal() const { return block_; }
 

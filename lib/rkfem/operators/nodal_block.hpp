@@ -151,7 +151,11 @@ struct NodalBlock
     LineVector<real_t> stress, stress_trial; ///< 6 x stress_stride [Pa]
     std::size_t stress_stride = 0;
     std::vector<real_t> stab_stress, stab_stress_trial; ///< 6 x n_stab [Pa]
-    std::vector<real_t> jacobian;                       ///< n_points, det F
+    std::vector<real_t> jacobian;                       ///< n_points, det F (semi-Lagrangian: V / V0)
+    /// Semi-Lagrangian blocks (semi_lagrangian_block.hpp): per particle its smoothing cell, the
+    /// offset c of its centre from the particle, then its three half-edge vectors e_1, e_2, e_3
+    /// (12 values); empty for the others.
+    std::vector<real_t> cells, cells_trial;
 
     /// The threshold lies between the table sizes at which the column cloud's force pass lost
     /// with the prefetches and those at which it gained; where it lies depends on the machine's
@@ -180,6 +184,7 @@ struct NodalBlock
     {
         stress.swap(stress_trial);
         stab_stress.swap(stab_stress_trial);
+        cells.swap(cells_trial);
         if (plastic.active())
             plastic.commit();
     }

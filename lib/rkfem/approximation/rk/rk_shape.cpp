@@ -71,7 +71,10 @@ void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singul
     const auto D = ldlt.vectorD();
     const real_t dmax = D.cwiseAbs().maxCoeff();
     if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
+    {
         singular("pivot ratio below 1e-12");
+        return;
+    }
     const VecM b = ldlt.solve(H0);
     VecM db[3];
     if (gradients)
@@ -118,6 +121,17 @@ RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> ra
             binned_[d * n + q] = x_[3 * j + static_cast<std::size_t>(d)];
         binned_[3 * n + q] = a_[j] * (1.0 + 1e-12);
     }
+}
+
+bool rk_solve_sample(RkSample& sample, real_t s, int order, bool gradients)
+{
+    bool ok = sample.size() >= (order == 1 ? 4 : 10);
+    auto singular = [&](const char*) { ok = false; };
+    if (ok && order == 1)
+        solve_and_fill<4>(sample, s, gradients, singular);
+    else if (ok)
+        solve_and_fill<10>(sample, s, gradients, singular);
+    return ok;
 }
 
 void RkShapeFunctions::evaluate(const Vec3& x, bool gradients, RkSample& out) const

@@ -121,6 +121,14 @@ class RkShapeFunctions
     std::vector<real_t> binned_;
 };
 
+/// Psi_k (and, with `gradients`, their direct gradients) at a point from the kernels of the
+/// particles that cover it, which `sample` holds (phi, dphi and dx = x - x_k per entry; its
+/// `nodes` are the caller's labels, not read), with basis scale s (RkShapeFunctions' rule: the
+/// smallest covering support). Returns false, leaving psi and grad unset, where the moment
+/// matrix is singular (fewer entries than the basis, or a pivot ratio below 1e-12). For callers
+/// with their own neighbour search (the semi-Lagrangian block's moving particles).
+bool rk_solve_sample(RkSample& sample, real_t s, int order, bool gradients);
+
 /// Drops the values psi_k < tau max |psi| of the functions at x (nodes, psi from evaluate) and
 /// corrects the rest, psi_k += |psi_k| H_k . c with H_k = (1, (x_k - x) / s), so that they
 /// reproduce 1 and x at x again (a 4 x 4 solve). Nothing changes when nothing is dropped.

@@ -1,0 +1,517 @@
+#include "rkfem/operators/semi_lagrangian_block.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+
+#include "rkfem/core/parallel.hpp"
+#include "rkfem/discretization/cell_list.hpp"
+#include "rkfem/materials/elastic.hpp"
+#include "rkfem/operators/bulk_viscosity.hpp"
+
+namespace rkfem
+{
+namespace
+{
+/// Per-thread scratch of the force pass, sized to the longest neighbour row (kept between steps).
+struct Scratch
+{
+    RkSample sample;
+    std::vector<real_t> b;    ///< 3 per row entry: the smoothed gradient
+    std::vector<real_t> face; ///< 6 x 3 per row entry: grad Psi at the face centres (0: not covering)
+};
+
+Scratch& scratch()
+{
+    thread_local Scratch s;
+    return s;
+}
+
+/// sym and skew parts of L in Voigt order (d: xx yy zz xy yz zx; w: xy yz zx), as the other blocks
+void split(const Mat3& L, real_t d[6], real_t w[3])
+{
+    d[0] = L(0, 0), d[1] = L(1, 1), d[2] = L(2, 2);
+    d[3] = 0.5 * (L(0, 1) + L(1, 0)), d[4] = 0.5 * (L(1, 2) + L(2, 1)), d[5] = 0.5 * (L(2, 0) + L(0, 2));
+    w[0] = 0.5 * (L(0, 1) - L(1, 0)), w[1] = 0.5 * (L(1, 2) - L(2, 1)), w[2] = 0.5 * (L(2, 0) - L(0, 2));
+}
+
+real_t stress_power(const real_t s_old[6], const real_t s_new[6], const real_t d[6])
+{
+    real_t power = 0.0;
+    for (int k = 0; k < 6; ++k)
+        power += (k < 3 ? 0.5 : 1.0) * (s_old[k] + s_new[k]) * d[k];
+    return power;
+}
+
+/// sigma g for a Voigt stress
+Vec3 traction(const real_t s[6], const real_t g[3])
+{
+    return {s[0] * g[0] + s[3] * g[1] + s[5] * g[2], s[3] * g[0] + s[1] * g[1] + s[4] * g[2],
+            s[5] * g[0] + s[4] * g[1] + s[2] * g[2]};
+}
+
+/// A particle's smoothing cell: the parallelepiped about x + c with half-edge vectors e_i
+/// (cells[12 p ..]: c, e_1, e_2, e_3). Face f lies on edge f / 2, on its - side for even f: its
+/// centre x + c -+ e_i and its outward area vector -+ 4 e_j x e_k ((i, j, k) cyclic).
+struct Cell
+{
+    Vec3 c, e[3];
+    explicit Cell(const real_t* v)
+        : c(v[0], v[1], v[2]), e{{v[3], v[4], v[5]}, {v[6], v[7], v[8]}, {v[9], v[10], v[11]}}
+    {
+    }
+    real_t volume() const { return 8.0 * e[0].dot(e[1].cross(e[2])); }
+    Vec3 centre(const Vec3& x, int f) const { return x + c + (f % 2 == 0 ? -1.0 : 1.0) * e[f / 2]; }
+    Vec3 area(int f) const
+    {
+        const int i = f / 2;
+        return (f % 2 == 0 ? -4.0 : 4.0) * e[(i + 1) % 3].cross(e[(i + 2) % 3]);
+    }
+    void store(real_t* v) const
+    {
+        for (int d = 0; d < 3; ++d)
+        {
+            v[d] = c[d];
+            for (int k = 0; k < 3; ++k)
+                v[3 + 3 * k + d] = e[k][d];
+        }
+    }
+};
+
+/// The cell moved by the velocity gradient over dt, as material lines move in a linear field
+/// (e <- e + dt L e, c <- c + dt L c); a cell stretched past kCellAspect (the ratio of its
+/// largest principal half-width to its smallest) becomes the cube of its volume about the particle.
+constexpr real_t kCellAspect = 4.0;
+Cell advance(const Cell& cell, const Mat3& L, real_t dt)
+{
+    Cell out = cell;
+    out.c += dt * (L * cell.c);
+    for (int k = 0; k < 3; ++k)
+        out.e[k] += dt * (L * cell.e[k]);
+    Mat3 E;
+    E << out.e[0], out.e[1], out.e[2];
+    const Eigen::SelfAdjointEigenSolver<Mat3> eig(E.transpose() * E, Eigen::EigenvaluesOnly);
+    const Vec3 lam = eig.eigenvalues();
+    const real_t V = out.volume();
+    if (V > 0.0 && lam[2] > kCellAspect * kCellAspect * lam[0])
+    {
+        const real_t half = 0.5 * std::cbrt(V);
+        out.c.setZero();
+        out.e[0] = Vec3(half, 0, 0), out.e[1] = Vec3(0, half, 0), out.e[2] = Vec3(0, 0, half);
+    }
+    return out;
+}
+
+/// Psi (and grad Psi) at point p from the row's particles that cover it; sample.nodes holds the
+/// row positions. False where the moment matrix is singular.
+bool evaluate_at(const Vec3& p, const index_t* row, index_t n, index_t begin, const std::vector<real_t>& x,
+                 const std::vector<real_t>& radius, const RkParams& rk, RkSample& sample)
+{
+    sample.clear();
+    real_t scale = kNoLimit;
+    const bool box = rk.support == SupportShape::Box;
+    for (index_t k = 0; k < n; ++k)
+    {
+        const index_t j = row[k];
+        const std::size_t g = 3 * static_cast<std::size_t>(begin + j);
+        const Vec3 dx(p[0] - x[g], p[1] - x[g + 1], p[2] - x[g + 2]);
+        const real_t a = radius[static_cast<std::size_t>(j)];
+        if (box && (std::abs(dx[0]) >= a || std::abs(dx[1]) >= a || std::abs(dx[2]) >= a))
+            continue;
+        real_t phi = 0.0;
+        Vec3 dphi;
+        if (kernel_3d(rk.kernel, rk.support, dx, a, phi, dphi) && phi > 0.0)
+        {
+            sample.nodes.push_back(k);
+            sample.phi.push_back(phi);
+            sample.dphi.push_back(dphi);
+            sample.dx.push_back(dx);
+            scale = std::min(scale, a);
+        }
+    }
+    return rk_solve_sample(sample, scale, rk.order, true);
+}
+} // namespace
+
+SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector<real_t> radius0,
+                                                   std::vector<real_t> cells, SemiLagrangianOptions options)
+    : state_(std::move(state)), radius0_(std::move(radius0)), opt_(options)
+{
+    const index_t np = state_.n_points();
+    const std::size_t n = static_cast<std::size_t>(np);
+    RKFEM_REQUIRE(np == state_.node_end - state_.node_begin && radius0_.size() == n &&
+                      (cells.empty() || cells.size() == 12 * n),
+                  "semi-Lagrangian block: one stress point, one support radius and one cell per particle expected, "
+                  "got "
+                      << np << " points, " << radius0_.size() << " radii and " << cells.size() / 12 << " cells for "
+                      << state_.node_end - state_.node_begin << " particles");
+    for (index_t p = 0; p < np; ++p)
+        RKFEM_REQUIRE(state_.points.owner[p] == state_.node_begin + p,
+                      "semi-Lagrangian block: point " << p << " is not owned by particle " << p);
+    // the Lagrangian operators served the build (volumes, lengths); their entries are not used
+    IntegrationOperator pts;
+    pts.weight = state_.points.weight;
+    pts.position = state_.points.position;
+    pts.owner = state_.points.owner;
+    pts.offsets.assign(n + 1, 0);
+    state_.points = std::move(pts);
+    state_.stabilization = IntegrationOperator{};
+    state_.point_stencils = StencilTable{};
+    state_.stab_stencils = StencilTable{};
+    state_.stab_triplets = TripletTable{};
+    state_.points_in_table = state_.stab_in_table = state_.stab_in_triplets = false;
+    state_.stabilization_triplets = false;
+    state_.scatter = ChunkedScatter{};
+    std::vector<index_t>().swap(state_.interp_offsets);
+    std::vector<index_t>().swap(state_.interp_nodes);
+    std::vector<real_t>().swap(state_.interp_values);
+    state_.stabilization_coefficient = opt_.stabilization_coefficient;
+    state_.stab_stress.assign(36 * n, 0.0);
+    state_.stab_stress_trial = state_.stab_stress;
+    // cells: given, or cubes of the particles' volumes about them
+    if (cells.empty())
+    {
+        cells.assign(12 * n, 0.0);
+        for (std::size_t p = 0; p < n; ++p)
+            for (int k = 0; k < 3; ++k)
+                cells[12 * p + 3 + 4 * static_cast<std::size_t>(k)] = 0.5 * std::cbrt(state_.points.weight[p]);
+    }
+    state_.cells = std::move(cells);
+    state_.cells_trial = state_.cells;
+    state_.jacobian.resize(n);
+    for (std::size_t p = 0; p < n; ++p)
+    {
+        const real_t V = Cell(&state_.cells[12 * p]).volume();
+        RKFEM_REQUIRE(V > 0.0, "semi-Lagrangian block: particle " << p << "'s cell has volume " << V);
+        state_.jacobian[p] = V / state_.points.weight[p];
+    }
+    volume_trial_ = state_.jacobian;
+    radius_ = radius0_;
+    point_sums_.assign(4 * n, 0.0);
+    bad_.assign(n, 0);
+}
+
+real_t SemiLagrangianForceBlock::radius(index_t p) const
+{
+    return radius0_[p] * std::max(1.0, std::cbrt(state_.jacobian[p]));
+}
+
+real_t SemiLagrangianForceBlock::reach() const
+{
+    real_t a = 0.0, s = 0.0;
+    for (index_t p = 0; p < n_particles(); ++p)
+    {
+        a = std::max(a, radius_[p]);
+        const Cell cell(&state_.cells[12 * static_cast<std::size_t>(p)]);
+        s = std::max(s, cell.c.norm() + std::max({cell.e[0].norm(), cell.e[1].norm(), cell.e[2].norm()}));
+    }
+    return a + s;
+}
+
+void SemiLagrangianForceBlock::update_neighbours(const std::vector<real_t>& x)
+{
+    const index_t np = n_particles();
+    for (index_t p = 0; p < np; ++p)
+        radius_[p] = radius(p);
+    const real_t r = reach();
+    if (rebuilds_ > 0)
+    {
+        const std::size_t b = 3 * static_cast<std::size_t>(state_.node_begin);
+        const real_t d2 = -parallel_reduce_min("rkfem::semi_lagrangian::displacement", np,
+                                               [&](index_t p)
+                                               {
+                                                   real_t s = 0.0;
+                                                   for (int d = 0; d < 3; ++d)
+                                                   {
+                                                       const real_t u = x[b + 3 * p + d] - x_built_[3 * p + d];
+                                                       s += u * u;
+                                                   }
+                                                   return -s;
+                                               });
+        if (2.0 * std::sqrt(d2) + std::max(0.0, r - reach_built_) <= opt_.skin)
+            return;
+    }
+    build_neighbours(x);
+}
+
+void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
+{
+    const index_t np = n_particles();
+    const std::size_t b = 3 * static_cast<std::size_t>(state_.node_begin);
+    x_built_.assign(x.begin() + static_cast<std::ptrdiff_t>(b), x.begin() + static_cast<std::ptrdiff_t>(b + 3 * np));
+    reach_built_ = reach();
+    const real_t R = reach_built_ + opt_.skin;
+    const bool box = opt_.rk.support == SupportShape::Box;
+    // a box of half-width R lies inside the sphere of radius sqrt(3) R: bins of that size
+    const CellList cells(x_built_, box ? std::sqrt(3.0) * R : R);
+    auto within = [&](index_t i, index_t j)
+    {
+        real_t s = 0.0, m = 0.0;
+        for (int d = 0; d < 3; ++d)
+        {
+            const real_t u = x_built_[3 * j + d] - x_built_[3 * i + d];
+            s += u * u;
+            m = std::max(m, std::abs(u));
+        }
+        return box ? m < R : s < R * R;
+    };
+    offsets_.assign(static_cast<std::size_t>(np) + 1, 0);
+    parallel_for("rkfem::semi_lagrangian::count", np,
+                 [&](index_t i)
+                 {
+                     const Vec3 p(x_built_[3 * i], x_built_[3 * i + 1], x_built_[3 * i + 2]);
+                     index_t c = 0;
+                     cells.for_each_candidate(p, [&](index_t j) { c += within(i, j); });
+                     offsets_[i + 1] = c;
+                 });
+    for (index_t i = 0; i < np; ++i)
+        offsets_[i + 1] += offsets_[i];
+    ids_.resize(static_cast<std::size_t>(offsets_[np]));
+    parallel_for("rkfem::semi_lagrangian::fill", np,
+                 [&](index_t i)
+                 {
+                     const Vec3 p(x_built_[3 * i], x_built_[3 * i + 1], x_built_[3 * i + 2]);
+                     index_t q = offsets_[i];
+                     cells.for_each_candidate(p,
+                                              [&](index_t j)
+                                              {
+                                                  if (within(i, j))
+                                                      ids_[q++] = j;
+                                              });
+                     std::sort(ids_.begin() + offsets_[i], ids_.begin() + offsets_[i + 1]);
+                 });
+    // the lists are symmetric (one reach for all): (L, J)'s twin is L's place in J's row
+    transpose_.resize(ids_.size());
+    parallel_for("rkfem::semi_lagrangian::transpose", np,
+                 [&](index_t i)
+                 {
+                     for (index_t k = offsets_[i]; k < offsets_[i + 1]; ++k)
+                     {
+                         const index_t j = ids_[k];
+                         const auto first = ids_.begin() + offsets_[j], last = ids_.begin() + offsets_[j + 1];
+                         transpose_[k] = static_cast<index_t>(std::lower_bound(first, last, i) - ids_.begin());
+                     }
+                 });
+    pair_force_.resize(3 * ids_.size());
+    ++rebuilds_;
+}
+
+ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)
+{
+    const index_t np = n_particles();
+    update_neighbours(nodes.x);
+    const NodalBlock& blk = state_;
+    const ElasticParams mat = blk.material;
+    const real_t c = mat.wave_speed();
+    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+    ElasticParams smat = mat;
+    smat.lambda *= opt_.stabilization_coefficient;
+    smat.mu *= opt_.stabilization_coefficient;
+    const bool stabilized = opt_.stabilization_coefficient > 0.0;
+    const bool inelastic = blk.plastic.active();
+    const index_t begin = blk.node_begin;
+    const std::vector<real_t>& x = nodes.x;
+    const std::vector<real_t>& vel = nodes.v;
+
+    parallel_for(
+        "rkfem::semi_lagrangian::points", np,
+        [&](index_t L)
+        {
+            Scratch& sc = scratch();
+            const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+            const index_t n = offsets_[L + 1] - offsets_[L];
+            sc.b.assign(3 * static_cast<std::size_t>(n), 0.0);
+            sc.face.assign(18 * static_cast<std::size_t>(n), 0.0);
+            const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+            const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
+            const Cell cell(&blk.cells[12 * static_cast<std::size_t>(L)]);
+            const real_t inv_V = 1.0 / cell.volume();
+            bad_[L] = 0;
+            for (int f = 0; f < 6; ++f)
+            {
+                if (!evaluate_at(cell.centre(xL, f), row, n, begin, x, radius_, opt_.rk, sc.sample))
+                {
+                    bad_[L] = 1;
+                    return;
+                }
+                const Vec3 af = inv_V * cell.area(f);
+                for (index_t e = 0; e < sc.sample.size(); ++e)
+                {
+                    const std::size_t k = static_cast<std::size_t>(sc.sample.nodes[e]);
+                    for (int d = 0; d < 3; ++d)
+                    {
+                        sc.b[3 * k + d] += sc.sample.psi[e] * af[d];
+                        sc.face[18 * k + 3 * static_cast<std::size_t>(f) + d] = sc.sample.grad[e][d];
+                    }
+                }
+            }
+            Mat3 Lg = Mat3::Zero();
+            for (index_t k = 0; k < n; ++k)
+            {
+                const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
+                Lg += Vec3(vel[g], vel[g + 1], vel[g + 2]) *
+                      Vec3(sc.b[3 * k], sc.b[3 * k + 1], sc.b[3 * k + 2]).transpose();
+            }
+            real_t d[6], w[3], s_old[6], sig[6];
+            split(Lg, d, w);
+            for (int k = 0; k < 6; ++k)
+                s_old[k] = sig[k] = blk.stress[k * blk.stress_stride + static_cast<std::size_t>(L)];
+            const real_t trd = d[0] + d[1] + d[2];
+            const Cell moved = advance(cell, Lg, dt);
+            moved.store(&state_.cells_trial[12 * static_cast<std::size_t>(L)]);
+            const real_t ratio = moved.volume() / blk.points.weight[L];
+            volume_trial_[L] = ratio;
+            if (!(ratio > 0.0) || !std::isfinite(ratio))
+            {
+                bad_[L] = 1;
+                return;
+            }
+            if (!inelastic)
+                elastic_update(mat, d, w, dt, sig);
+            else
+                state_.plastic.update(static_cast<std::size_t>(L), d, w, dt, sig);
+            for (int k = 0; k < 6; ++k)
+                state_.stress_trial[k * blk.stress_stride + static_cast<std::size_t>(L)] = sig[k];
+            const real_t Vn = blk.points.weight[L] * ratio;
+            const real_t len = blk.dt_factor * std::cbrt(ratio) * blk.length0[static_cast<std::size_t>(L)];
+            const real_t q = bulk_q(mat.rho / ratio, c, len, trd, q1, q2);
+            real_t* sums = &point_sums_[4 * static_cast<std::size_t>(L)];
+            sums[0] = dt * Vn * stress_power(s_old, sig, d);
+            sums[1] = -dt * Vn * q * trd;
+            sums[2] = 0.0;
+            sums[3] = element_dt(c, len, trd, q1, q2);
+            real_t sq[6] = {sig[0] - q, sig[1] - q, sig[2] - q, sig[3], sig[4], sig[5]};
+            real_t* pf = &pair_force_[3 * static_cast<std::size_t>(offsets_[L])];
+            for (index_t k = 0; k < n; ++k)
+            {
+                const Vec3 t = Vn * traction(sq, &sc.b[3 * k]);
+                for (int a = 0; a < 3; ++a)
+                    pf[3 * k + a] = t[a];
+            }
+            if (!stabilized)
+                return;
+            // the face centres' stabilization stresses, each from its gradient's departure from b
+            for (int f = 0; f < 6; ++f)
+            {
+                Mat3 Lf = Mat3::Zero();
+                for (index_t k = 0; k < n; ++k)
+                {
+                    const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
+                    const real_t* gf = &sc.face[18 * k + 3 * static_cast<std::size_t>(f)];
+                    Lf += Vec3(vel[g], vel[g + 1], vel[g + 2]) *
+                          Vec3(gf[0] - sc.b[3 * k], gf[1] - sc.b[3 * k + 1], gf[2] - sc.b[3 * k + 2]).transpose();
+                }
+                real_t df[6], wf_unused[3], sf_old[6];
+                split(Lf, df, wf_unused);
+                real_t* sf =
+                    &state_.stab_stress_trial[36 * static_cast<std::size_t>(L) + 6 * static_cast<std::size_t>(f)];
+                for (int k = 0; k < 6; ++k)
+                    sf_old[k] = sf[k] =
+                        blk.stab_stress[36 * static_cast<std::size_t>(L) + 6 * static_cast<std::size_t>(f) + k];
+                elastic_update(smat, df, w, dt, sf);
+                sums[2] += dt * Vn / 6.0 * stress_power(sf_old, sf, df);
+                for (index_t k = 0; k < n; ++k)
+                {
+                    const real_t* gf = &sc.face[18 * k + 3 * static_cast<std::size_t>(f)];
+                    const real_t g[3] = {gf[0] - sc.b[3 * k], gf[1] - sc.b[3 * k + 1], gf[2] - sc.b[3 * k + 2]};
+                    const Vec3 t = Vn / 6.0 * traction(sf, g);
+                    for (int a = 0; a < 3; ++a)
+                        pf[3 * k + a] += t[a];
+                }
+            }
+        });
+
+    ForcePassResult r;
+    for (index_t p = 0; p < np; ++p)
+        if (bad_[p])
+        {
+            r.bad_element = p;
+            return r;
+        }
+    for (index_t p = 0; p < np; ++p)
+    {
+        const real_t* sums = &point_sums_[4 * static_cast<std::size_t>(p)];
+        r.d_internal += sums[0];
+        r.d_bulk_viscosity += sums[1];
+        r.d_hourglass += sums[2];
+        if (sums[3] < r.dt_stable)
+        {
+            r.dt_stable = sums[3];
+            r.dt_element = p;
+        }
+    }
+    // each particle's force: the entries (L, J) of the rows its own row names, in its row's order
+    parallel_for("rkfem::semi_lagrangian::gather", np,
+                 [&](index_t J)
+                 {
+                     Vec3 f = Vec3::Zero();
+                     for (index_t k = offsets_[J]; k < offsets_[J + 1]; ++k)
+                     {
+                         const std::size_t t = 3 * static_cast<std::size_t>(transpose_[k]);
+                         f += Vec3(pair_force_[t], pair_force_[t + 1], pair_force_[t + 2]);
+                     }
+                     real_t* out = &nodes.f_int[3 * static_cast<std::size_t>(begin + J)];
+                     for (int a = 0; a < 3; ++a)
+                         out[a] = add ? out[a] + f[a] : f[a];
+                 });
+    return r;
+}
+
+void SemiLagrangianForceBlock::commit()
+{
+    state_.commit();
+    state_.jacobian.swap(volume_trial_);
+    volume_trial_ = state_.jacobian;
+}
+
+PointFault SemiLagrangianForceBlock::fault(index_t bad, const NodeSet&) const
+{
+    std::ostringstream os;
+    const real_t j = volume_trial_[static_cast<std::size_t>(bad)];
+    if (!(j > 0.0) || !std::isfinite(j))
+        os << "has a non-positive or NaN volume ratio V / V0 = " << j;
+    else
+        os << "has a singular RK moment matrix at a face of its smoothing cell (too few particles cover it: "
+              "the particle has separated from its neighbours)";
+    return {true, -1, state_.points.owner[static_cast<std::size_t>(bad)], os.str()};
+}
+
+bool SemiLagrangianForceBlock::smoothed_gradient(index_t p, const std::vector<real_t>& x, std::vector<index_t>& nodes,
+                                                 std::vector<real_t>& grad, std::vector<real_t>* face_gradients)
+{
+    for (index_t q = 0; q < n_particles(); ++q)
+        radius_[q] = radius(q);
+    build_neighbours(x);
+    const index_t* row = &ids_[static_cast<std::size_t>(offsets_[p])];
+    const index_t n = offsets_[p + 1] - offsets_[p];
+    const std::size_t gp = 3 * static_cast<std::size_t>(state_.node_begin + p);
+    const Vec3 xp(x[gp], x[gp + 1], x[gp + 2]);
+    const Cell cell(&state_.cells[12 * static_cast<std::size_t>(p)]);
+    nodes.assign(row, row + n);
+    for (index_t& j : nodes)
+        j += state_.node_begin;
+    grad.assign(3 * static_cast<std::size_t>(n), 0.0);
+    if (face_gradients)
+        face_gradients->assign(18 * static_cast<std::size_t>(n), 0.0);
+    RkSample sample;
+    for (int f = 0; f < 6; ++f)
+    {
+        if (!evaluate_at(cell.centre(xp, f), row, n, state_.node_begin, x, radius_, opt_.rk, sample))
+            return false;
+        const Vec3 af = cell.area(f) / cell.volume();
+        for (index_t e = 0; e < sample.size(); ++e)
+        {
+            const std::size_t k = static_cast<std::size_t>(sample.nodes[e]);
+            for (int d = 0; d < 3; ++d)
+            {
+                grad[3 * k + d] += sample.psi[e] * af[d];
+                if (face_gradients)
+                    (*face_gradients)[18 * k + 3 * static_cast<std::size_t>(f) + d] = sample.grad[e][d];
+            }
+        }
+    }
+    return true;
+}
+} // namespace rkfem

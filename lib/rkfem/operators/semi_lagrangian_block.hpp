@@ -1,0 +1,114 @@
+#pragma once
+/// @file semi_lagrangian_block.hpp
+/// RK particles with kernels in the current configuration (semi-Lagrangian RKPM; Guan et al.
+/// 2009, 2011; digest: ../shared/reference/rkpm-methods.md section 3), integrated by SNNI on
+/// cells that move with the material: each particle L owns a parallelepiped (NodalBlock::cells:
+/// its centre's offset c_L from the particle and half-edge vectors e_i; on meshes at first the
+/// box of the node's dual cell, so the cells of a box mesh tile it; cubes of the particles'
+/// volumes on clouds), and per step
+///   Psi_J and grad Psi_J at the cell's six face centres x_f = x_L + c_L -+ e_i (the kernel
+///     phi(x - x_J) with support a_J = a0_J max(1, (V_J / V0_J)^(1/3)): it follows the particle's
+///     volume and never falls below its start),
+///   b_J = (1 / V_L) sum_f Psi_J(x_f) A_f  (the smoothed gradient; A_f = -+ 4 e_j x e_k, the
+///     face's outward area vector),
+///   L_L = sum_J v_J (x) b_J,  D, W = sym, skew L;  sigma_L by the rate-form material (the one
+///     every block uses: Jaumann rotation, then the constitutive update),
+///   the cell moved as material lines move in the linear field L (e_i += dt L e_i, c_L += dt L
+///     c_L), V_L = 8 det(e_1, e_2, e_3); a cell stretched past 4:1 becomes the cube of its volume,
+///   f_J += V_L (sigma_L - q 1) b_J.
+/// One face-centre point per face integrates linear fields exactly on a parallelepiped, so b_J
+/// reproduces them (sum_J x_J (x) b_J = 1) whatever the cell's shape; where cells tile the body
+/// (a box mesh at the start) the integration constraint holds too, and it is lost where they
+/// overlap or leave gaps (verification/operators/test_semi_lagrangian.cpp measures both).
+/// Stabilization (SNNI alone has zero-energy modes: a sawtooth's face values vanish), ours: the
+/// MSCNI term with the cell's face centres as sub-points, gradient g_fJ = grad Psi_J(x_f) - b_J,
+///   D_f = sym(sum_J v_J (x) g_fJ),  sigma_f += dt c_s C : D_f (rotated with W_L),
+///   f_J += (V_L / 6) sigma_f g_fJ.
+/// sum_J g_fJ = 0 and sum_J x_J (x) g_fJ = 0 (linear reproduction), so the term vanishes for
+/// linear fields (the patch test of the smoothed part is kept where SNNI keeps it) and conserves
+/// linear and angular momentum, as the main term does (sum_J b_J = 0, sum_J x_J (x) b_J = 1).
+///
+/// The unknowns of the particles are their velocities (the first-order shortcut of the digest,
+/// section 3.1): the particle moves with v_J, and the kinematic map takes them as physical values
+/// (identity rows), so boundary conditions, loads, contact and output read them directly. For a
+/// linear field v_J = v(x_J) is the exact RK interpolant; otherwise the interpolant at x_J differs
+/// from v_J by O(h^2).
+///
+/// Neighbours: a list per particle of every particle within reach + skin (box support: along
+/// each axis; sphere: distance), reach = the largest support plus the farthest face centre of a cell, rebuilt
+/// when twice the largest displacement since the build plus the reach's growth passes the skin.
+/// Forces are summed per particle over its list in a fixed order (ascending particles), so the
+/// result does not depend on the thread count. The state (stress, face stresses, volume ratio,
+/// material history) lives in a NodalBlock (one stress point per particle), which output,
+/// probes and checkpoints read as they read a Lagrangian block's.
+#include <vector>
+
+#include "rkfem/approximation/rk/rk_shape.hpp"
+#include "rkfem/operators/force_block.hpp"
+
+namespace rkfem
+{
+struct SemiLagrangianOptions
+{
+    RkParams rk;
+    real_t skin = 0.0; ///< neighbour list skin [m]
+    /// c_s of the face-gradient stabilization (0: plain SNNI)
+    real_t stabilization_coefficient = 1.0;
+};
+
+class SemiLagrangianForceBlock final : public ForceBlock
+{
+  public:
+    /// `state`: a block of one stress point per particle (point p owned by node node_begin + p),
+    /// its weights the particles' volumes V0 and its length0 their step lengths, as a Lagrangian
+    /// build makes it; its operators' entries are not used and are released. `radius0`: the
+    /// support radius of each particle at the start [m].
+    /// `cells`: each particle's smoothing cell at the start (12 values, NodalBlock::cells), its
+    /// volume the particle's (the nodal dual cell's box on meshes); empty: cubes of the volumes
+    /// about the particles.
+    SemiLagrangianForceBlock(NodalBlock state, std::vector<real_t> radius0, std::vector<real_t> cells,
+                             SemiLagrangianOptions options);
+
+    ForcePassResult add_forces(NodeSet& nodes, real_t dt, bool add) override;
+    void commit() override;
+    index_t part_element(index_t) const override { return 0; }
+    PointFault fault(index_t bad, const NodeSet& nodes) const override;
+    NodalBlock* nodal_points() override { return &state_; }
+    const NodalBlock* nodal_points() const override { return &state_; }
+
+    /// Current volume of particle p (committed) [m^3].
+    real_t volume(index_t p) const { return state_.points.weight[p] * state_.jacobian[p]; }
+    /// Current support radius of particle p (committed volume) [m].
+    real_t radius(index_t p) const;
+    index_t n_particles() const { return state_.n_points(); }
+    /// Times the neighbour lists were built, and their entries now.
+    index_t rebuilds() const { return rebuilds_; }
+    std::size_t neighbour_entries() const { return ids_.size(); }
+    const SemiLagrangianOptions& options() const { return opt_; }
+
+    /// The smoothed gradients b_J at particle p in the positions x (global node ids of the
+    /// particles of its neighbour list, 3 per entry), from its committed cell, and the direct
+    /// gradients at its face centres (18 per entry, face-major) where asked. False: a singular
+    /// moment matrix at a face centre. For tests and probes (allocates; rebuilds the lists).
+    bool smoothed_gradient(index_t p, const std::vector<real_t>& x, std::vector<index_t>& nodes,
+                           std::vector<real_t>& grad, std::vector<real_t>* face_gradients = nullptr);
+
+  private:
+    void update_neighbours(const std::vector<real_t>& x);
+    void build_neighbours(const std::vector<real_t>& x);
+    real_t reach() const;
+    NodalBlock state_;
+    std::vector<real_t> radius0_, radius_;
+    std::vector<real_t> volume_trial_; ///< volume ratio V / V0 after the pass (committed on commit)
+    SemiLagrangianOptions opt_;
+    // neighbour lists (local particle numbers, ascending per row)
+    std::vector<index_t> offsets_{0}, ids_;
+    std::vector<index_t> transpose_; ///< per entry (L, J): the entry (J, L) of J's row
+    std::vector<real_t> x_built_;    ///< positions at the build (3 per particle)
+    real_t reach_built_ = 0.0;       ///< reach at the build [m]
+    index_t rebuilds_ = 0;
+    std::vector<real_t> pair_force_; ///< per entry (L, J): the force of L's point on J [N]
+    std::vector<real_t> point_sums_; ///< per particle: d_int, d_bv, d_stab, dt
+    std::vector<char> bad_;          ///< per particle: singular moment matrix or a bad volume
+};
+} // namespace rkfem
