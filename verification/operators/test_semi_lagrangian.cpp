@@ -299,6 +299,58 @@ TEST(SemiLagrangian, ResultsDoNotDependOnThreadCount)
         ASSERT_EQ(u1[i], u2[i]) << "dof " << i;
 }
 
+// The fast pass (RK functions face by face from the particles that reach the cell, L from the
+// face velocities, forces scattered per face) against the plain one (the algebra as written, over
+// each particle's whole row): a K&C block struck at 30 m/s, 46 steps, the same displacements and
+// stresses to round-off.
+TEST(SemiLagrangian, FastPassMatchesThePlainOne)
+{
+    auto run = [](bool plain)
+    {
+        Model m = test::model_from(R"(
+title: struck K&C block
+time: {end: 10 us}
+parts:
+  block:
+    generator: {type: box, size: [6 mm, 6 mm, 12 mm], element_size: 1 mm}
+    material: {model: kcc, rho: 2400 kg/m^3, fc: 45.6 MPa}
+    formulation: rkpm
+    kinematics: semi-lagrangian
+node_sets:
+  struck: {select: {type: named, name: bottom}}
+boundary_conditions:
+  - {node_set: struck, velocity: {z: 30 m/s}}
+)");
+        sl_block(m).set_plain(plain);
+        RunOptions opt;
+        opt.progress = false;
+        const RunSummary s = run_simulation(m, opt);
+        EXPECT_EQ(s.status, "completed") << s.message;
+        std::vector<real_t> out = m.nodes.u;
+        for (index_t i = 0; i < m.nodes.size(); ++i)
+        {
+            const Sym6 st = m.nodal_stress(i);
+            out.insert(out.end(), st.data(), st.data() + 6);
+        }
+        return std::pair{out, s.steps};
+    };
+    const auto [fast, steps_fast] = run(false);
+    const auto [plain, steps_plain] = run(true);
+    ASSERT_EQ(fast.size(), plain.size());
+    ASSERT_EQ(steps_fast, steps_plain);
+    const std::size_t nu = fast.size() - 6 * (fast.size() / 9);
+    real_t umax = 0.0, smax = 0.0, du = 0.0, ds = 0.0;
+    for (std::size_t i = 0; i < fast.size(); ++i)
+    {
+        (i < nu ? umax : smax) = std::max(i < nu ? umax : smax, std::abs(plain[i]));
+        (i < nu ? du : ds) = std::max(i < nu ? du : ds, std::abs(fast[i] - plain[i]));
+    }
+    std::printf("fast against plain pass, %d steps: displacements within %.2e, stresses within %.2e of their largest\n",
+                static_cast<int>(steps_fast), du / umax, ds / smax);
+    EXPECT_LT(du / umax, 1e-9);
+    EXPECT_LT(ds / smax, 1e-8);
+}
+
 TEST(SemiLagrangian, DeckErrorsNameTheKey)
 {
     auto error_of = [](const std::vector<std::string>& overrides)

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 #include "rkfem/core/parallel.hpp"
@@ -26,6 +27,156 @@ struct Scratch
 Scratch& scratch()
 {
     thread_local Scratch s;
+    return s;
+}
+
+/// The RK functions at one face centre: row entries, values, gradients.
+struct FaceSample
+{
+    std::vector<index_t> k;
+    std::vector<real_t> psi;
+    std::vector<Vec3> grad;
+};
+
+/// Psi and grad Psi at a point from the kernels of its n covering particles (order 1: the 4 x 4
+/// moment matrix and its derivatives accumulated entry by entry, symmetric; the same algebra as
+/// rk_shape.cpp's solve_and_fill, which the plain pass calls). False where M is singular.
+bool linear_rk(std::size_t n, const real_t* phi, const Vec3* dphi, const Vec3* dx, real_t s, real_t* psi, Vec3* grad)
+{
+    if (n < 4)
+        return false;
+    using Mat4 = Eigen::Matrix<real_t, 4, 4>;
+    using Vec4 = Eigen::Matrix<real_t, 4, 1>;
+    const real_t inv_s = 1.0 / s;
+    // the upper triangles of M and of A_d = sum dphi_d H H^T, 10 entries each
+    real_t m[10] = {}, A[3][10] = {};
+    for (std::size_t e = 0; e < n; ++e)
+    {
+        const real_t h[4] = {1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s};
+        real_t hh[10];
+        int q = 0;
+        for (int a = 0; a < 4; ++a)
+            for (int b = a; b < 4; ++b)
+                hh[q++] = h[a] * h[b];
+        for (int t = 0; t < 10; ++t)
+        {
+            m[t] += phi[e] * hh[t];
+            A[0][t] += dphi[e][0] * hh[t];
+            A[1][t] += dphi[e][1] * hh[t];
+            A[2][t] += dphi[e][2] * hh[t];
+        }
+    }
+    auto full = [](const real_t* u)
+    {
+        Mat4 F;
+        int q = 0;
+        for (int a = 0; a < 4; ++a)
+            for (int b = a; b < 4; ++b)
+                F(a, b) = F(b, a) = u[q++];
+        return F;
+    };
+    const Mat4 M = full(m);
+    Eigen::LDLT<Mat4> ldlt(M);
+    const auto D = ldlt.vectorD();
+    const real_t dmax = D.cwiseAbs().maxCoeff();
+    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
+        return false;
+    Vec4 e0 = Vec4::Zero();
+    e0[0] = 1.0;
+    const Vec4 b = ldlt.solve(e0);
+    Vec4 db[3];
+    for (int d = 0; d < 3; ++d)
+    {
+        // dM_d = A_d + (1 / s) (e_{d+1} M_0^T + M_0 e_{d+1}^T): the basis' own derivative
+        Mat4 dM = full(A[d]);
+        dM.row(d + 1) += inv_s * M.row(0);
+        dM.col(d + 1) += inv_s * M.col(0);
+        db[d] = -ldlt.solve(dM * b);
+    }
+    for (std::size_t e = 0; e < n; ++e)
+    {
+        const Vec4 h(1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s);
+        const real_t bH = b.dot(h);
+        psi[e] = bH * phi[e];
+        for (int d = 0; d < 3; ++d)
+            grad[e][d] = phi[e] * (db[d].dot(h) + inv_s * b[d + 1]) + dphi[e][d] * bH;
+    }
+    return true;
+}
+
+/// Per-thread scratch of the fast pass: the row entries that reach the cell's face centres and
+/// the functions at each centre (kept between steps).
+struct FastScratch
+{
+    std::vector<index_t> cand_k;
+    std::vector<Vec3> cand_dx; ///< the cell's centre minus the particle
+    std::vector<real_t> cand_a;
+    FaceSample face[6];
+    std::vector<real_t> phi;
+    std::vector<Vec3> dphi, dx;
+    RkSample sample; // order 2
+
+    void reset(std::size_t n)
+    {
+        cand_k.clear();
+        cand_dx.clear();
+        cand_a.clear();
+        cand_k.reserve(n);
+    }
+    void add_candidate(index_t k, const Vec3& d, real_t a)
+    {
+        cand_k.push_back(k);
+        cand_dx.push_back(d);
+        cand_a.push_back(a);
+    }
+    /// The functions at the face centre (the cell's centre + off) into face[f].
+    bool face_functions(int f, const Vec3& off, const RkParams& rk)
+    {
+        FaceSample& fs = face[f];
+        fs.k.clear();
+        phi.clear();
+        dphi.clear();
+        dx.clear();
+        real_t scale = kNoLimit;
+        const bool box = rk.support == SupportShape::Box;
+        for (std::size_t c = 0; c < cand_k.size(); ++c)
+        {
+            const Vec3 d = cand_dx[c] + off;
+            const real_t a = cand_a[c];
+            if (box && (std::abs(d[0]) >= a || std::abs(d[1]) >= a || std::abs(d[2]) >= a))
+                continue;
+            real_t p = 0.0;
+            Vec3 dp;
+            if (kernel_3d(rk.kernel, rk.support, d, a, p, dp) && p > 0.0)
+            {
+                fs.k.push_back(cand_k[c]);
+                phi.push_back(p);
+                dphi.push_back(dp);
+                dx.push_back(d);
+                scale = std::min(scale, a);
+            }
+        }
+        const std::size_t n = fs.k.size();
+        fs.psi.resize(n);
+        fs.grad.resize(n);
+        if (rk.order == 1)
+            return linear_rk(n, phi.data(), dphi.data(), dx.data(), scale, fs.psi.data(), fs.grad.data());
+        sample.clear();
+        sample.nodes.assign(fs.k.begin(), fs.k.end());
+        sample.phi = phi;
+        sample.dphi = dphi;
+        sample.dx = dx;
+        if (!rk_solve_sample(sample, scale, rk.order, true))
+            return false;
+        std::copy(sample.psi.begin(), sample.psi.end(), fs.psi.begin());
+        std::copy(sample.grad.begin(), sample.grad.end(), fs.grad.begin());
+        return true;
+    }
+};
+
+FastScratch& fast_scratch()
+{
+    thread_local FastScratch s;
     return s;
 }
 
@@ -298,131 +449,256 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
     ++rebuilds_;
 }
 
+bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt, PointUpdate& u)
+{
+    const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+    const NodalBlock& blk = state_;
+    const ElasticParams mat = blk.material;
+    const std::size_t p = static_cast<std::size_t>(L);
+    real_t d[6], s_old[6];
+    split(Lg, d, u.w);
+    for (int k = 0; k < 6; ++k)
+        s_old[k] = u.sig[k] = blk.stress[k * blk.stress_stride + p];
+    const real_t trd = d[0] + d[1] + d[2];
+    const Cell moved = advance(cell, Lg, dt);
+    moved.store(&state_.cells_trial[12 * p]);
+    const real_t ratio = moved.volume() / blk.points.weight[L];
+    volume_trial_[p] = ratio;
+    if (!(ratio > 0.0) || !std::isfinite(ratio))
+        return false;
+    if (!blk.plastic.active())
+        elastic_update(mat, d, u.w, dt, u.sig);
+    else
+        state_.plastic.update(p, d, u.w, dt, u.sig);
+    for (int k = 0; k < 6; ++k)
+        state_.stress_trial[k * blk.stress_stride + p] = u.sig[k];
+    u.V = blk.points.weight[L] * ratio;
+    const real_t c = mat.wave_speed(), q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
+    const real_t len = blk.dt_factor * std::cbrt(ratio) * blk.length0[p];
+    u.q = bulk_q(mat.rho / ratio, c, len, trd, q1, q2);
+    real_t* sums = &point_sums_[4 * p];
+    sums[0] = dt * u.V * stress_power(s_old, u.sig, d);
+    sums[1] = -dt * u.V * u.q * trd;
+    sums[2] = 0.0;
+    sums[3] = element_dt(c, len, trd, q1, q2);
+    return true;
+}
+
+void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, const real_t w[3], real_t V, real_t dt,
+                                           real_t sf[6])
+{
+    ElasticParams smat = state_.material;
+    smat.lambda *= opt_.stabilization_coefficient;
+    smat.mu *= opt_.stabilization_coefficient;
+    real_t df[6], unused[3], sf_old[6];
+    split(Lf, df, unused);
+    const std::size_t at = 36 * static_cast<std::size_t>(L) + 6 * static_cast<std::size_t>(f);
+    for (int k = 0; k < 6; ++k)
+        sf_old[k] = sf[k] = state_.stab_stress[at + k];
+    elastic_update(smat, df, w, dt, sf);
+    for (int k = 0; k < 6; ++k)
+        state_.stab_stress_trial[at + k] = sf[k];
+    point_sums_[4 * static_cast<std::size_t>(L) + 2] += dt * V / 6.0 * stress_power(sf_old, sf, df);
+}
+
+void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
+{
+    const index_t np = n_particles();
+    const bool stabilized = opt_.stabilization_coefficient > 0.0;
+    const index_t begin = state_.node_begin;
+    const std::vector<real_t>& x = nodes.x;
+    const std::vector<real_t>& vel = nodes.v;
+    parallel_for("rkfem::semi_lagrangian::points_plain", np,
+                 [&](index_t L)
+                 {
+                     Scratch& sc = scratch();
+                     const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+                     const index_t n = offsets_[L + 1] - offsets_[L];
+                     sc.b.assign(3 * static_cast<std::size_t>(n), 0.0);
+                     sc.face.assign(18 * static_cast<std::size_t>(n), 0.0);
+                     const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+                     const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
+                     const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                     const real_t inv_V = 1.0 / cell.volume();
+                     bad_[L] = 0;
+                     for (int f = 0; f < 6; ++f)
+                     {
+                         if (!evaluate_at(cell.centre(xL, f), row, n, begin, x, radius_, opt_.rk, sc.sample))
+                         {
+                             bad_[L] = 1;
+                             return;
+                         }
+                         const Vec3 af = inv_V * cell.area(f);
+                         for (index_t e = 0; e < sc.sample.size(); ++e)
+                         {
+                             const std::size_t k = static_cast<std::size_t>(sc.sample.nodes[e]);
+                             for (int d = 0; d < 3; ++d)
+                             {
+                                 sc.b[3 * k + d] += sc.sample.psi[e] * af[d];
+                                 sc.face[18 * k + 3 * static_cast<std::size_t>(f) + d] = sc.sample.grad[e][d];
+                             }
+                         }
+                     }
+                     auto velocity = [&](index_t k)
+                     {
+                         const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
+                         return Vec3(vel[g], vel[g + 1], vel[g + 2]);
+                     };
+                     Mat3 Lg = Mat3::Zero();
+                     for (index_t k = 0; k < n; ++k)
+                         Lg += velocity(k) * Vec3(sc.b[3 * k], sc.b[3 * k + 1], sc.b[3 * k + 2]).transpose();
+                     PointUpdate u;
+                     if (!update_point(L, Lg, dt, u))
+                     {
+                         bad_[L] = 1;
+                         return;
+                     }
+                     const real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q,
+                                           u.sig[3],       u.sig[4],       u.sig[5]};
+                     real_t* pf = &pair_force_[3 * static_cast<std::size_t>(offsets_[L])];
+                     for (index_t k = 0; k < n; ++k)
+                     {
+                         const Vec3 t = u.V * traction(sq, &sc.b[3 * k]);
+                         for (int a = 0; a < 3; ++a)
+                             pf[3 * k + a] = t[a];
+                     }
+                     if (!stabilized)
+                         return;
+                     // the face centres' stabilization stresses, each from its gradient's departure from b
+                     for (int f = 0; f < 6; ++f)
+                     {
+                         auto g = [&](index_t k)
+                         {
+                             const real_t* gf = &sc.face[18 * k + 3 * static_cast<std::size_t>(f)];
+                             return Vec3(gf[0] - sc.b[3 * k], gf[1] - sc.b[3 * k + 1], gf[2] - sc.b[3 * k + 2]);
+                         };
+                         Mat3 Lf = Mat3::Zero();
+                         for (index_t k = 0; k < n; ++k)
+                             Lf += velocity(k) * g(k).transpose();
+                         real_t sf[6];
+                         update_face(L, f, Lf, u.w, u.V, dt, sf);
+                         for (index_t k = 0; k < n; ++k)
+                         {
+                             const Vec3 gk = g(k);
+                             const real_t gg[3] = {gk[0], gk[1], gk[2]};
+                             const Vec3 t = u.V / 6.0 * traction(sf, gg);
+                             for (int a = 0; a < 3; ++a)
+                                 pf[3 * k + a] += t[a];
+                         }
+                     }
+                 });
+}
+
+void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
+{
+    const index_t np = n_particles();
+    const bool stabilized = opt_.stabilization_coefficient > 0.0;
+    const index_t begin = state_.node_begin;
+    const std::vector<real_t>& x = nodes.x;
+    const std::vector<real_t>& vel = nodes.v;
+    parallel_for("rkfem::semi_lagrangian::points", np,
+                 [&](index_t L)
+                 {
+                     FastScratch& sc = fast_scratch();
+                     const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+                     const index_t n = offsets_[L + 1] - offsets_[L];
+                     const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+                     const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
+                     const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                     const real_t V = cell.volume();
+                     bad_[L] = 0;
+                     // the row's particles that reach some face centre (the box of the centres, widened
+                     // by each support), with their offsets from the cell's centre
+                     const Vec3 xc = xL + cell.c;
+                     Vec3 ext = Vec3::Zero();
+                     for (int i = 0; i < 3; ++i)
+                         ext = ext.cwiseMax(cell.e[i].cwiseAbs());
+                     sc.reset(static_cast<std::size_t>(n));
+                     for (index_t k = 0; k < n; ++k)
+                     {
+                         const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
+                         const Vec3 dx(xc[0] - x[g], xc[1] - x[g + 1], xc[2] - x[g + 2]);
+                         const real_t a = radius_[static_cast<std::size_t>(row[k])];
+                         if (std::abs(dx[0]) < a + ext[0] && std::abs(dx[1]) < a + ext[1] &&
+                             std::abs(dx[2]) < a + ext[2])
+                             sc.add_candidate(k, dx, a);
+                     }
+                     Vec3 vh[6];
+                     Mat3 G[6];
+                     for (int f = 0; f < 6; ++f)
+                     {
+                         const Vec3 off = (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
+                         if (!sc.face_functions(f, off, opt_.rk))
+                         {
+                             bad_[L] = 1;
+                             return;
+                         }
+                         vh[f].setZero();
+                         G[f].setZero();
+                         const FaceSample& fs = sc.face[f];
+                         for (std::size_t e = 0; e < fs.k.size(); ++e)
+                         {
+                             const std::size_t g = 3 * static_cast<std::size_t>(begin + row[fs.k[e]]);
+                             const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
+                             vh[f] += fs.psi[e] * v;
+                             G[f] += v * fs.grad[e].transpose();
+                         }
+                     }
+                     // L = (1 / V) sum_f v^h(x_f) (x) A_f
+                     Mat3 Lg = Mat3::Zero();
+                     for (int f = 0; f < 6; ++f)
+                         Lg += vh[f] * cell.area(f).transpose();
+                     Lg /= V;
+                     PointUpdate u;
+                     if (!update_point(L, Lg, dt, u))
+                     {
+                         bad_[L] = 1;
+                         return;
+                     }
+                     // f_J = V_n (sigma - q 1 - (1/6) sum_f sigma_f) b_J + (V_n / 6) sum_f sigma_f grad Psi_J(x_f),
+                     // with V_n b_J = (V_n / V) sum_f Psi_J(x_f) A_f: scattered face by face
+                     real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
+                     real_t sf[6][6] = {};
+                     if (stabilized)
+                         for (int f = 0; f < 6; ++f)
+                         {
+                             update_face(L, f, G[f] - Lg, u.w, u.V, dt, sf[f]);
+                             for (int k = 0; k < 6; ++k)
+                                 sq[k] -= sf[f][k] / 6.0;
+                         }
+                     real_t* pf = &pair_force_[3 * static_cast<std::size_t>(offsets_[L])];
+                     std::fill(pf, pf + 3 * static_cast<std::size_t>(n), 0.0);
+                     for (int f = 0; f < 6; ++f)
+                     {
+                         const Vec3 af = (u.V / V) * cell.area(f);
+                         const real_t a[3] = {af[0], af[1], af[2]};
+                         const Vec3 t = traction(sq, a);
+                         const FaceSample& fs = sc.face[f];
+                         for (std::size_t e = 0; e < fs.k.size(); ++e)
+                         {
+                             Vec3 fe = fs.psi[e] * t;
+                             if (stabilized)
+                             {
+                                 const real_t gg[3] = {fs.grad[e][0], fs.grad[e][1], fs.grad[e][2]};
+                                 fe += (u.V / 6.0) * traction(sf[f], gg);
+                             }
+                             real_t* out = pf + 3 * static_cast<std::size_t>(fs.k[e]);
+                             for (int d = 0; d < 3; ++d)
+                                 out[d] += fe[d];
+                         }
+                     }
+                 });
+}
+
 ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)
 {
     const index_t np = n_particles();
+    const index_t begin = state_.node_begin;
     update_neighbours(nodes.x);
-    const NodalBlock& blk = state_;
-    const ElasticParams mat = blk.material;
-    const real_t c = mat.wave_speed();
-    const real_t q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
-    ElasticParams smat = mat;
-    smat.lambda *= opt_.stabilization_coefficient;
-    smat.mu *= opt_.stabilization_coefficient;
-    const bool stabilized = opt_.stabilization_coefficient > 0.0;
-    const bool inelastic = blk.plastic.active();
-    const index_t begin = blk.node_begin;
-    const std::vector<real_t>& x = nodes.x;
-    const std::vector<real_t>& vel = nodes.v;
-
-    parallel_for(
-        "rkfem::semi_lagrangian::points", np,
-        [&](index_t L)
-        {
-            Scratch& sc = scratch();
-            const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-            const index_t n = offsets_[L + 1] - offsets_[L];
-            sc.b.assign(3 * static_cast<std::size_t>(n), 0.0);
-            sc.face.assign(18 * static_cast<std::size_t>(n), 0.0);
-            const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-            const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
-            const Cell cell(&blk.cells[12 * static_cast<std::size_t>(L)]);
-            const real_t inv_V = 1.0 / cell.volume();
-            bad_[L] = 0;
-            for (int f = 0; f < 6; ++f)
-            {
-                if (!evaluate_at(cell.centre(xL, f), row, n, begin, x, radius_, opt_.rk, sc.sample))
-                {
-                    bad_[L] = 1;
-                    return;
-                }
-                const Vec3 af = inv_V * cell.area(f);
-                for (index_t e = 0; e < sc.sample.size(); ++e)
-                {
-                    const std::size_t k = static_cast<std::size_t>(sc.sample.nodes[e]);
-                    for (int d = 0; d < 3; ++d)
-                    {
-                        sc.b[3 * k + d] += sc.sample.psi[e] * af[d];
-                        sc.face[18 * k + 3 * static_cast<std::size_t>(f) + d] = sc.sample.grad[e][d];
-                    }
-                }
-            }
-            Mat3 Lg = Mat3::Zero();
-            for (index_t k = 0; k < n; ++k)
-            {
-                const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
-                Lg += Vec3(vel[g], vel[g + 1], vel[g + 2]) *
-                      Vec3(sc.b[3 * k], sc.b[3 * k + 1], sc.b[3 * k + 2]).transpose();
-            }
-            real_t d[6], w[3], s_old[6], sig[6];
-            split(Lg, d, w);
-            for (int k = 0; k < 6; ++k)
-                s_old[k] = sig[k] = blk.stress[k * blk.stress_stride + static_cast<std::size_t>(L)];
-            const real_t trd = d[0] + d[1] + d[2];
-            const Cell moved = advance(cell, Lg, dt);
-            moved.store(&state_.cells_trial[12 * static_cast<std::size_t>(L)]);
-            const real_t ratio = moved.volume() / blk.points.weight[L];
-            volume_trial_[L] = ratio;
-            if (!(ratio > 0.0) || !std::isfinite(ratio))
-            {
-                bad_[L] = 1;
-                return;
-            }
-            if (!inelastic)
-                elastic_update(mat, d, w, dt, sig);
-            else
-                state_.plastic.update(static_cast<std::size_t>(L), d, w, dt, sig);
-            for (int k = 0; k < 6; ++k)
-                state_.stress_trial[k * blk.stress_stride + static_cast<std::size_t>(L)] = sig[k];
-            const real_t Vn = blk.points.weight[L] * ratio;
-            const real_t len = blk.dt_factor * std::cbrt(ratio) * blk.length0[static_cast<std::size_t>(L)];
-            const real_t q = bulk_q(mat.rho / ratio, c, len, trd, q1, q2);
-            real_t* sums = &point_sums_[4 * static_cast<std::size_t>(L)];
-            sums[0] = dt * Vn * stress_power(s_old, sig, d);
-            sums[1] = -dt * Vn * q * trd;
-            sums[2] = 0.0;
-            sums[3] = element_dt(c, len, trd, q1, q2);
-            real_t sq[6] = {sig[0] - q, sig[1] - q, sig[2] - q, sig[3], sig[4], sig[5]};
-            real_t* pf = &pair_force_[3 * static_cast<std::size_t>(offsets_[L])];
-            for (index_t k = 0; k < n; ++k)
-            {
-                const Vec3 t = Vn * traction(sq, &sc.b[3 * k]);
-                for (int a = 0; a < 3; ++a)
-                    pf[3 * k + a] = t[a];
-            }
-            if (!stabilized)
-                return;
-            // the face centres' stabilization stresses, each from its gradient's departure from b
-            for (int f = 0; f < 6; ++f)
-            {
-                Mat3 Lf = Mat3::Zero();
-                for (index_t k = 0; k < n; ++k)
-                {
-                    const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
-                    const real_t* gf = &sc.face[18 * k + 3 * static_cast<std::size_t>(f)];
-                    Lf += Vec3(vel[g], vel[g + 1], vel[g + 2]) *
-                          Vec3(gf[0] - sc.b[3 * k], gf[1] - sc.b[3 * k + 1], gf[2] - sc.b[3 * k + 2]).transpose();
-                }
-                real_t df[6], wf_unused[3], sf_old[6];
-                split(Lf, df, wf_unused);
-                real_t* sf =
-                    &state_.stab_stress_trial[36 * static_cast<std::size_t>(L) + 6 * static_cast<std::size_t>(f)];
-                for (int k = 0; k < 6; ++k)
-                    sf_old[k] = sf[k] =
-                        blk.stab_stress[36 * static_cast<std::size_t>(L) + 6 * static_cast<std::size_t>(f) + k];
-                elastic_update(smat, df, w, dt, sf);
-                sums[2] += dt * Vn / 6.0 * stress_power(sf_old, sf, df);
-                for (index_t k = 0; k < n; ++k)
-                {
-                    const real_t* gf = &sc.face[18 * k + 3 * static_cast<std::size_t>(f)];
-                    const real_t g[3] = {gf[0] - sc.b[3 * k], gf[1] - sc.b[3 * k + 1], gf[2] - sc.b[3 * k + 2]};
-                    const Vec3 t = Vn / 6.0 * traction(sf, g);
-                    for (int a = 0; a < 3; ++a)
-                        pf[3 * k + a] += t[a];
-                }
-            }
-        });
-
+    if (opt_.plain)
+        points_plain(nodes, dt);
+    else
+        points_fast(nodes, dt);
     ForcePassResult r;
     for (index_t p = 0; p < np; ++p)
         if (bad_[p])

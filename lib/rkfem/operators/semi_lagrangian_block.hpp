@@ -54,6 +54,11 @@ struct SemiLagrangianOptions
     real_t skin = 0.0; ///< neighbour list skin [m]
     /// c_s of the face-gradient stabilization (0: plain SNNI)
     real_t stabilization_coefficient = 1.0;
+    /// The plain pass (points_plain: the algebra as written above, over each particle's whole
+    /// neighbour row) instead of the fast one (points_fast: the RK functions of each face centre
+    /// from the row's particles that reach the cell, L from the interpolated face velocities, the
+    /// forces scattered face by face); a test holds the fast one to the plain one.
+    bool plain = false;
 };
 
 class SemiLagrangianForceBlock final : public ForceBlock
@@ -85,6 +90,8 @@ class SemiLagrangianForceBlock final : public ForceBlock
     index_t rebuilds() const { return rebuilds_; }
     std::size_t neighbour_entries() const { return ids_.size(); }
     const SemiLagrangianOptions& options() const { return opt_; }
+    /// Runs the plain pass instead of the fast one (SemiLagrangianOptions::plain).
+    void set_plain(bool plain) { opt_.plain = plain; }
 
     /// The smoothed gradients b_J at particle p in the positions x (global node ids of the
     /// particles of its neighbour list, 3 per entry), from its committed cell, and the direct
@@ -94,6 +101,20 @@ class SemiLagrangianForceBlock final : public ForceBlock
                            std::vector<real_t>& grad, std::vector<real_t>* face_gradients = nullptr);
 
   private:
+    /// A particle's material update from its velocity gradient (trial stress, cell and volume, its
+    /// energies and step in point_sums_); false on a non-positive or NaN volume.
+    struct PointUpdate
+    {
+        real_t sig[6];
+        real_t w[3];
+        real_t q = 0.0; ///< bulk viscosity [Pa]
+        real_t V = 0.0; ///< volume after the step [m^3]
+    };
+    bool update_point(index_t L, const Mat3& Lg, real_t dt, PointUpdate& u);
+    /// Face f's stabilization stress (trial, into sf) from its velocity gradient Lf, and its work.
+    void update_face(index_t L, int f, const Mat3& Lf, const real_t w[3], real_t V, real_t dt, real_t sf[6]);
+    void points_plain(const NodeSet& nodes, real_t dt);
+    void points_fast(const NodeSet& nodes, real_t dt);
     void update_neighbours(const std::vector<real_t>& x);
     void build_neighbours(const std::vector<real_t>& x);
     real_t reach() const;
