@@ -108,6 +108,9 @@ struct PartSpec
     bool semi_lagrangian = false;
     /// semi-Lagrangian parts: the neighbour lists' skin as a fraction of the largest support
     real_t neighbour_skin = 0.3;
+    /// semi-Lagrangian parts: 1, tables rebuilt every step; N > 1, Lagrangian RK with a
+    /// reference reset every N steps
+    index_t reset_interval = 1;
     HourglassSpec hourglass;
     BulkViscositySpec bulk_viscosity;
     NodalIntegrationSpec nodal;

@@ -129,11 +129,17 @@ void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
     if (!p.semi_lagrangian)
         s.fail("semi_lagrangian", "sets up semi-Lagrangian RK particles, and this part's kinematics is lagrangian",
                "expected kinematics: semi-lagrangian with a semi_lagrangian section");
-    Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"), {"neighbour_skin"});
+    Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"), {"neighbour_skin", "reset_interval"});
     p.neighbour_skin = sl.quantity("neighbour_skin", dim::none, 0.3);
     if (!(p.neighbour_skin >= 0.0 && p.neighbour_skin <= 2.0))
         sl.fail("neighbour_skin", "is outside [0, 2]",
                 "expected the skin as a fraction of the largest support radius (0: rebuild every step; 0.3 default)");
+    const real_t every = sl.quantity("reset_interval", dim::none, 1.0);
+    if (!(every >= 1.0 && every <= 1e6 && every == std::floor(every)))
+        sl.fail("reset_interval", "is not a whole number of steps from 1 to 10^6",
+                "expected 1 (kernels rebuilt every step) or N > 1 (Lagrangian RK reset to the current configuration "
+                "every N steps)");
+    p.reset_interval = static_cast<index_t>(every);
 }
 
 /// regions: the RK volumes (box, cylinder or sphere selectors) of an FE part, into p.regions.

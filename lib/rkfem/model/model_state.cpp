@@ -100,6 +100,8 @@ void Model::save_state(StateArchive& a) const
         a.put(prefix + "jacobian", nb.jacobian);
         if (!nb.cells.empty())
             a.put(prefix + "cells", nb.cells);
+        if (!nb.reference.empty())
+            a.put(prefix + "reference", nb.reference);
         save_plastic(a, prefix, nb.plastic);
     }
     a.put_value("energy", energy);
@@ -194,6 +196,8 @@ void Model::load_state(const StateArchive& a)
             a.get_same_size(prefix + "cells", nb.cells);
             nb.cells_trial = nb.cells;
         }
+        if (!nb.reference.empty())
+            a.get_same_size(prefix + "reference", nb.reference);
         load_plastic(a, prefix, nb.plastic);
     }
     energy = a.value<Energies>("energy");

@@ -156,6 +156,10 @@ struct NodalBlock
     /// offset c of its centre from the particle, then its three half-edge vectors e_1, e_2, e_3
     /// (12 values); empty for the others.
     std::vector<real_t> cells, cells_trial;
+    /// Semi-Lagrangian blocks with reference resets: per particle the displacement at the last
+    /// reset (3 values), then per particle its volume and step length then (2 n values), then
+    /// the steps since (1 value); the tables are those of that configuration. Empty otherwise.
+    std::vector<real_t> reference;
 
     /// The threshold lies between the table sizes at which the column cloud's force pass lost
     /// with the prefetches and those at which it gained; where it lies depends on the machine's

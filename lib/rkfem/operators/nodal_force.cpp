@@ -25,11 +25,11 @@ RKFEM_NODAL_POINTS_BATCHES(extern, Cscm);
 } // namespace nodal_kernels
 using namespace nodal_kernels;
 
-ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt)
+ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt, const real_t* u_from)
 {
     const index_t np = blk.n_points(), ns = blk.n_stab();
     const ElasticParams mat = blk.material;
-    const real_t* u = nodes.u.data();
+    const real_t* u = u_from ? u_from : nodes.u.data();
     const real_t* v = nodes.v.data();
 
     auto batch = [&]<PlasticPoints::Kind MK>(index_t b, real_t* buf, index_t lo)

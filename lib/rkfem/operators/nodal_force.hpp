@@ -10,8 +10,10 @@
 namespace rkfem
 {
 /// Internal force pass (material update into trial state, per-point tensors); assembly is
-/// separate (assemble_nodal_forces). d_hourglass carries the stabilization work.
-ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt);
+/// separate (assemble_nodal_forces). d_hourglass carries the stabilization work. `u`: the
+/// displacements F is formed from (3 per node, indexed by global node id), nodes.u where null
+/// (a block with reference resets passes those since its last reset).
+ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real_t dt, const real_t* u = nullptr);
 
 /// f_int[node] = sum over the node's entries, for the block's node range. Once per force pass:
 /// with the chunked scatter it consumes the chunk sums (ChunkedScatter::reduce). With `add` the

@@ -11,6 +11,7 @@
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/nodal_force.hpp"
 
 namespace rkfem
 {
@@ -114,7 +115,9 @@ struct FastScratch
     FaceSample face[6];
     std::vector<real_t> phi;
     std::vector<Vec3> dphi, dx;
-    RkSample sample; // order 2
+    RkSample sample;           // order 2
+    std::vector<index_t> slot; ///< per row entry: its place among those covering a face centre (-1: none)
+    index_t n_union = 0;
 
     void reset(std::size_t n)
     {
@@ -128,6 +131,24 @@ struct FastScratch
         cand_k.push_back(k);
         cand_dx.push_back(d);
         cand_a.push_back(a);
+    }
+    /// Which candidates cover the face centre (the cell's centre + off): face[f].k only.
+    void face_cover(int f, const Vec3& off, const RkParams& rk)
+    {
+        FaceSample& fs = face[f];
+        fs.k.clear();
+        const bool box = rk.support == SupportShape::Box;
+        for (std::size_t c = 0; c < cand_k.size(); ++c)
+        {
+            const Vec3 d = cand_dx[c] + off;
+            const real_t a = cand_a[c];
+            if (box && (std::abs(d[0]) >= a || std::abs(d[1]) >= a || std::abs(d[2]) >= a))
+                continue;
+            real_t p = 0.0;
+            Vec3 dp;
+            if (kernel_3d(rk.kernel, rk.support, d, a, p, dp) && p > 0.0)
+                fs.k.push_back(cand_k[c]);
+        }
     }
     /// The functions at the face centre (the cell's centre + off) into face[f].
     bool face_functions(int f, const Vec3& off, const RkParams& rk)
@@ -231,16 +252,12 @@ struct Cell
     }
 };
 
-/// The cell moved by the velocity gradient over dt, as material lines move in a linear field
-/// (e <- e + dt L e, c <- c + dt L c); a cell stretched past kCellAspect (the ratio of its
-/// largest principal half-width to its smallest) becomes the cube of its volume about the particle.
+/// A cell stretched past kCellAspect (the ratio of its largest principal half-width to its
+/// smallest) becomes the cube of its volume about the particle.
 constexpr real_t kCellAspect = 4.0;
-Cell advance(const Cell& cell, const Mat3& L, real_t dt)
+/// A cell stretched past kCellAspect becomes the cube of its volume about the particle.
+Cell square_up(Cell out)
 {
-    Cell out = cell;
-    out.c += dt * (L * cell.c);
-    for (int k = 0; k < 3; ++k)
-        out.e[k] += dt * (L * cell.e[k]);
     Mat3 E;
     E << out.e[0], out.e[1], out.e[2];
     const Eigen::SelfAdjointEigenSolver<Mat3> eig(E.transpose() * E, Eigen::EigenvaluesOnly);
@@ -253,6 +270,27 @@ Cell advance(const Cell& cell, const Mat3& L, real_t dt)
         out.e[0] = Vec3(half, 0, 0), out.e[1] = Vec3(0, half, 0), out.e[2] = Vec3(0, 0, half);
     }
     return out;
+}
+
+/// The cell moved by the velocity gradient over dt, as material lines move in a linear field
+/// (e <- e + dt L e, c <- c + dt L c), squared up past kCellAspect.
+Cell advance(const Cell& cell, const Mat3& L, real_t dt)
+{
+    Cell out = cell;
+    out.c += dt * (L * cell.c);
+    for (int k = 0; k < 3; ++k)
+        out.e[k] += dt * (L * cell.e[k]);
+    return square_up(out);
+}
+
+/// The cell mapped by a deformation gradient F (reference resets), with advance's aspect rule.
+Cell deform(const Cell& cell, const Mat3& F)
+{
+    Cell out = cell;
+    out.c = F * cell.c;
+    for (int k = 0; k < 3; ++k)
+        out.e[k] = F * cell.e[k];
+    return square_up(out);
 }
 
 /// Psi (and grad Psi) at point p from the row's particles that cover it; sample.nodes holds the
@@ -339,14 +377,29 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
         state_.jacobian[p] = V / state_.points.weight[p];
     }
     volume_trial_ = state_.jacobian;
+    v0_ = state_.points.weight;
     radius_ = radius0_;
+    if (resets())
+    {
+        // the reference of the start: u = 0, the particles' volumes and step lengths
+        state_.reference.assign(5 * n + 1, 0.0);
+        for (std::size_t p = 0; p < n; ++p)
+        {
+            state_.reference[3 * n + p] = Cell(&state_.cells[12 * p]).volume();
+            state_.reference[4 * n + p] = state_.length0[p];
+        }
+        u_rel_.assign(3 * static_cast<std::size_t>(state_.node_end), 0.0);
+        NodalBlockOptions o = state_.options();
+        o.share_stencils = false; // rows of a moving cloud: nothing to share
+        state_.set_options(o);
+    }
     point_sums_.assign(4 * n, 0.0);
     bad_.assign(n, 0);
 }
 
 real_t SemiLagrangianForceBlock::radius(index_t p) const
 {
-    return radius0_[p] * std::max(1.0, std::cbrt(state_.jacobian[p]));
+    return radius0_[p] * std::max(1.0, std::cbrt(volume(p) / v0_[p]));
 }
 
 real_t SemiLagrangianForceBlock::reach() const
@@ -492,12 +545,14 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
     smat.mu *= opt_.stabilization_coefficient;
     real_t df[6], unused[3], sf_old[6];
     split(Lf, df, unused);
-    const std::size_t at = 36 * static_cast<std::size_t>(L) + 6 * static_cast<std::size_t>(f);
+    // component-major, sub-point 6 L + f, as the nodal blocks' stabilization stresses
+    const std::size_t ns = 6 * static_cast<std::size_t>(n_particles());
+    const std::size_t at = 6 * static_cast<std::size_t>(L) + static_cast<std::size_t>(f);
     for (int k = 0; k < 6; ++k)
-        sf_old[k] = sf[k] = state_.stab_stress[at + k];
+        sf_old[k] = sf[k] = state_.stab_stress[k * ns + at];
     elastic_update(smat, df, w, dt, sf);
     for (int k = 0; k < 6; ++k)
-        state_.stab_stress_trial[at + k] = sf[k];
+        state_.stab_stress_trial[k * ns + at] = sf[k];
     point_sums_[4 * static_cast<std::size_t>(L) + 2] += dt * V / 6.0 * stress_power(sf_old, sf, df);
 }
 
@@ -692,6 +747,8 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
 
 ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)
 {
+    if (resets())
+        return reference_pass(nodes, dt, add);
     const index_t np = n_particles();
     const index_t begin = state_.node_begin;
     update_neighbours(nodes.x);
@@ -738,14 +795,218 @@ ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, 
 void SemiLagrangianForceBlock::commit()
 {
     state_.commit();
+    if (resets())
+    {
+        state_.reference.back() += 1.0; // the steps since the reset
+        return;
+    }
     state_.jacobian.swap(volume_trial_);
     volume_trial_ = state_.jacobian;
+}
+
+ForcePassResult SemiLagrangianForceBlock::reference_pass(NodeSet& nodes, real_t dt, bool add)
+{
+    const std::size_t n = static_cast<std::size_t>(n_particles());
+    const std::size_t b = 3 * static_cast<std::size_t>(state_.node_begin);
+    if (!tables_built_)
+        build_reference_tables(nodes); // the start, or a restart's reference
+    if (state_.reference.back() >= static_cast<real_t>(opt_.reset_interval))
+        reset_reference(nodes);
+    ForcePassResult r;
+    for (std::size_t p = 0; p < n; ++p)
+        if (bad_[p])
+        {
+            r.bad_element = static_cast<index_t>(p);
+            return r;
+        }
+    for (std::size_t i = 0; i < 3 * n; ++i)
+        u_rel_[b + i] = nodes.u[b + i] - state_.reference[i];
+    r = nodal_internal_force(state_, nodes, dt, u_rel_.data());
+    if (r.bad_element < 0)
+        assemble_nodal_forces(state_, nodes, add);
+    return r;
+}
+
+void SemiLagrangianForceBlock::reset_reference(const NodeSet& nodes)
+{
+    const index_t np = n_particles();
+    const std::size_t n = static_cast<std::size_t>(np);
+    const std::size_t b = 3 * static_cast<std::size_t>(state_.node_begin);
+    std::vector<real_t>& ref = state_.reference;
+    for (std::size_t i = 0; i < 3 * n; ++i)
+        u_rel_[b + i] = nodes.u[b + i] - ref[i];
+    parallel_for("rkfem::semi_lagrangian::reset", np,
+                 [&](index_t p)
+                 {
+                     // F since the last reset, on its tables
+                     Mat3 F = Mat3::Identity();
+                     const StencilView st = state_.point_view(p);
+                     for (index_t j = 0; j < st.size; ++j)
+                     {
+                         const std::size_t g = 3 * static_cast<std::size_t>(st.base + st.offset[j]);
+                         const Vec3 du(u_rel_[g], u_rel_[g + 1], u_rel_[g + 2]);
+                         F += du * Vec3(st.grad[3 * j], st.grad[3 * j + 1], st.grad[3 * j + 2]).transpose();
+                     }
+                     const std::size_t q = static_cast<std::size_t>(p);
+                     const Cell moved = deform(Cell(&state_.cells[12 * q]), F);
+                     moved.store(&state_.cells[12 * q]);
+                     moved.store(&state_.cells_trial[12 * q]);
+                     const real_t V = moved.volume();
+                     ref[4 * n + q] *= std::cbrt(V / ref[3 * n + q]);
+                     ref[3 * n + q] = V;
+                     for (int d = 0; d < 3; ++d)
+                         ref[3 * q + d] = nodes.u[b + 3 * q + d];
+                 });
+    ref.back() = 0.0;
+    build_reference_tables(nodes);
+}
+
+void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
+{
+    const index_t np = n_particles();
+    const std::size_t n = static_cast<std::size_t>(np);
+    const index_t begin = state_.node_begin;
+    const std::size_t b = 3 * static_cast<std::size_t>(begin);
+    const std::vector<real_t>& ref = state_.reference;
+    // the reference configuration, its volumes and lengths
+    std::vector<real_t>& xr = u_rel_; // positions here, differences again in the pass
+    for (std::size_t i = 0; i < 3 * n; ++i)
+        xr[b + i] = nodes.x0[b + i] + ref[i];
+    for (std::size_t p = 0; p < n; ++p)
+    {
+        state_.points.weight[p] = ref[3 * n + p];
+        state_.length0[p] = ref[4 * n + p];
+        state_.jacobian[p] = 1.0;
+        radius_[p] = radius(static_cast<index_t>(p));
+        for (int d = 0; d < 3; ++d)
+            state_.points.position[3 * p + d] = xr[b + 3 * p + d];
+    }
+    update_neighbours(xr);
+    IntegrationOperator& pts = state_.points;
+    IntegrationOperator& stab = state_.stabilization;
+    // per particle the row's particles that cover a face centre: counted, then filled
+    std::vector<index_t> count(n + 1, 0);
+    auto faces = [&](index_t L, FastScratch& sc, bool solve)
+    {
+        const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+        const index_t nr = offsets_[L + 1] - offsets_[L];
+        const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+        const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+        const Vec3 xc = Vec3(xr[gL], xr[gL + 1], xr[gL + 2]) + cell.c;
+        Vec3 ext = Vec3::Zero();
+        for (int i = 0; i < 3; ++i)
+            ext = ext.cwiseMax(cell.e[i].cwiseAbs());
+        sc.reset(static_cast<std::size_t>(nr));
+        for (index_t k = 0; k < nr; ++k)
+        {
+            const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
+            const Vec3 dx(xc[0] - xr[g], xc[1] - xr[g + 1], xc[2] - xr[g + 2]);
+            const real_t a = radius_[static_cast<std::size_t>(row[k])];
+            if (std::abs(dx[0]) < a + ext[0] && std::abs(dx[1]) < a + ext[1] && std::abs(dx[2]) < a + ext[2])
+                sc.add_candidate(k, dx, a);
+        }
+        for (int f = 0; f < 6; ++f)
+        {
+            const Vec3 off = (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
+            if (!solve)
+                sc.face_cover(f, off, opt_.rk);
+            else if (!sc.face_functions(f, off, opt_.rk))
+                return false;
+        }
+        // the union, in row order: slot per row entry
+        sc.slot.assign(static_cast<std::size_t>(nr), -1);
+        index_t m = 0;
+        for (int f = 0; f < 6; ++f)
+            for (index_t k : sc.face[f].k)
+                sc.slot[static_cast<std::size_t>(k)] = 0;
+        for (index_t k = 0; k < nr; ++k)
+            if (sc.slot[static_cast<std::size_t>(k)] == 0)
+                sc.slot[static_cast<std::size_t>(k)] = m++;
+        sc.n_union = m;
+        return true;
+    };
+    parallel_for("rkfem::semi_lagrangian::count_tables", np,
+                 [&](index_t L)
+                 {
+                     FastScratch& sc = fast_scratch();
+                     faces(L, sc, false);
+                     count[static_cast<std::size_t>(L) + 1] = sc.n_union;
+                 });
+    pts.offsets.resize(n + 1);
+    pts.offsets[0] = 0;
+    for (std::size_t p = 0; p < n; ++p)
+        pts.offsets[p + 1] = pts.offsets[p] + count[p + 1];
+    const std::size_t entries = static_cast<std::size_t>(pts.offsets[n]);
+    pts.nodes.resize(entries);
+    pts.grad.resize(3 * entries);
+    stab.weight.resize(6 * n);
+    stab.position.resize(18 * n);
+    stab.owner.resize(6 * n);
+    stab.parent.resize(6 * n);
+    stab.offsets.resize(6 * n + 1);
+    stab.offsets[0] = 0;
+    for (std::size_t p = 0; p < n; ++p)
+        for (std::size_t f = 0; f < 6; ++f)
+            stab.offsets[6 * p + f + 1] = stab.offsets[6 * p + f] + count[p + 1];
+    stab.nodes.resize(6 * entries);
+    stab.grad.resize(18 * entries);
+    parallel_for("rkfem::semi_lagrangian::fill_tables", np,
+                 [&](index_t L)
+                 {
+                     const std::size_t p = static_cast<std::size_t>(L);
+                     for (std::size_t f = 0; f < 6; ++f)
+                     {
+                         stab.weight[6 * p + f] = pts.weight[p] / 6.0;
+                         stab.owner[6 * p + f] = pts.owner[p];
+                         stab.parent[6 * p + f] = L;
+                         for (int d = 0; d < 3; ++d)
+                             stab.position[18 * p + 3 * f + d] = pts.position[3 * p + d];
+                     }
+                     FastScratch& sc = fast_scratch();
+                     bad_[L] = !faces(L, sc, true);
+                     if (bad_[L])
+                         return;
+                     const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+                     const index_t nr = offsets_[L + 1] - offsets_[L];
+                     const index_t k0 = pts.offsets[p];
+                     const Cell cell(&state_.cells[12 * p]);
+                     const real_t inv_V = 1.0 / cell.volume();
+                     for (index_t k = 0; k < nr; ++k)
+                         if (const index_t s = sc.slot[static_cast<std::size_t>(k)]; s >= 0)
+                         {
+                             pts.nodes[static_cast<std::size_t>(k0 + s)] = begin + row[k];
+                             for (std::size_t f = 0; f < 6; ++f)
+                                 stab.nodes[static_cast<std::size_t>(stab.offsets[6 * p + f] + s)] = begin + row[k];
+                         }
+                     real_t* bg = &pts.grad[3 * static_cast<std::size_t>(k0)];
+                     std::fill(bg, bg + 3 * sc.n_union, 0.0);
+                     for (int f = 0; f < 6; ++f)
+                     {
+                         const Vec3 af = inv_V * cell.area(f);
+                         const FaceSample& fs = sc.face[f];
+                         for (std::size_t e = 0; e < fs.k.size(); ++e)
+                             for (int d = 0; d < 3; ++d)
+                                 bg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.psi[e] * af[d];
+                     }
+                     for (std::size_t f = 0; f < 6; ++f)
+                     {
+                         real_t* sg = &stab.grad[3 * static_cast<std::size_t>(stab.offsets[6 * p + f])];
+                         for (index_t s = 0; s < 3 * sc.n_union; ++s)
+                             sg[s] = -bg[s];
+                         const FaceSample& fs = sc.face[f];
+                         for (std::size_t e = 0; e < fs.k.size(); ++e)
+                             for (int d = 0; d < 3; ++d)
+                                 sg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.grad[e][d];
+                     }
+                 });
+    state_.build_tables();
+    tables_built_ = true;
 }
 
 PointFault SemiLagrangianForceBlock::fault(index_t bad, const NodeSet&) const
 {
     std::ostringstream os;
-    const real_t j = volume_trial_[static_cast<std::size_t>(bad)];
+    const real_t j = (resets() ? state_.jacobian : volume_trial_)[static_cast<std::size_t>(bad)];
     if (!(j > 0.0) || !std::isfinite(j))
         os << "has a non-positive or NaN volume ratio V / V0 = " << j;
     else

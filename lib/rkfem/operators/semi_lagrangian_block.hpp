@@ -59,6 +59,13 @@ struct SemiLagrangianOptions
     /// from the row's particles that reach the cell, L from the interpolated face velocities, the
     /// forces scattered face by face); a test holds the fast one to the plain one.
     bool plain = false;
+    /// 1: the tables are rebuilt every step by the block's own pass. N > 1: Lagrangian RK with a
+    /// reference reset every N steps (the digest's section 3.7, LS-DYNA SPG's pseudo-Lagrangian
+    /// kernel): at a reset the SNNI tables (b_J per particle, grad Psi_J(x_f) - b_J per face) are
+    /// built in the current configuration, the cells moved by F since the last reset, and between
+    /// resets the nodal blocks' pass (nodal_force.hpp) forms F = 1 + sum_J (u_J - u_J^reset)
+    /// (x) b_J on them.
+    index_t reset_interval = 1;
 };
 
 class SemiLagrangianForceBlock final : public ForceBlock
@@ -114,12 +121,22 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// Face f's stabilization stress (trial, into sf) from its velocity gradient Lf, and its work.
     void update_face(index_t L, int f, const Mat3& Lf, const real_t w[3], real_t V, real_t dt, real_t sf[6]);
     void points_plain(const NodeSet& nodes, real_t dt);
+    /// Reference resets: the tables of the configuration x0 + u^reset (NodalBlock::reference),
+    /// and the reset itself (the cells moved by F, the reference taken from the nodes).
+    void build_reference_tables(const NodeSet& nodes);
+    void reset_reference(const NodeSet& nodes);
+    ForcePassResult reference_pass(NodeSet& nodes, real_t dt, bool add);
+    bool resets() const { return opt_.reset_interval > 1; }
     void points_fast(const NodeSet& nodes, real_t dt);
     void update_neighbours(const std::vector<real_t>& x);
     void build_neighbours(const std::vector<real_t>& x);
     real_t reach() const;
     NodalBlock state_;
     std::vector<real_t> radius0_, radius_;
+    std::vector<real_t> v0_;           ///< the particles' volumes at the start [m^3]
+    std::vector<real_t> u_rel_;        ///< reference resets: u - u^reset (3 per node up to node_end)
+    bool tables_built_ = false;        ///< reference resets: the tables match NodalBlock::reference
+    bool reset_due_ = false;           ///< reference resets: the next pass resets first
     std::vector<real_t> volume_trial_; ///< volume ratio V / V0 after the pass (committed on commit)
     SemiLagrangianOptions opt_;
     // neighbour lists (local particle numbers, ascending per row)
