@@ -9,6 +9,7 @@
 #include <random>
 
 #include "../support.hpp"
+#include "rkfem/operators/nodal_step_estimate.hpp"
 #include "rkfem/operators/semi_lagrangian_block.hpp"
 #include "rkfem/run/simulation.hpp"
 
@@ -411,4 +412,95 @@ TEST(SemiLagrangian, DeckErrorsNameTheKey)
     EXPECT_NE(error_of({"parts.block.semi_lagrangian={neighbour_skin: -1}"}).find("neighbour_skin"), std::string::npos);
     EXPECT_NE(error_of({"parts.block.semi_lagrangian={reset_interval: 2.5}"}).find("reset_interval"),
               std::string::npos);
+    EXPECT_NE(error_of({"parts.block.semi_lagrangian={reset_interval: 5, separation_damage: 0.99}"})
+                  .find("expected reset_interval: 1 with separation_damage"),
+              std::string::npos);
+}
+
+// The critical step factor of the SNNI operator with the face-gradient term, on the free 8 mm
+// block at the start (the tables the reset mode builds are the every-step pass's operator):
+// alpha_crit = 2 / omega_max x c / min l0 (nodal_step_estimate.hpp) above the default alpha 1 at
+// c_s 0.25, 0.5 and 1 (the term stiffens the highest mode, so alpha_crit falls as c_s grows).
+TEST(SemiLagrangian, DefaultStepFactorIsBelowTheCriticalOne)
+{
+    for (const real_t cs : {0.25, 0.5, 1.0})
+    {
+        Model m = test::model_from(block_deck, {"parts.block.semi_lagrangian={reset_interval: 2}",
+                                                "parts.block.nodal_integration={scheme: snni, "
+                                                "stabilization_coefficient: " +
+                                                    std::to_string(cs) + "}"});
+        SemiLagrangianForceBlock& b = sl_block(m);
+        ASSERT_LT(b.add_forces(m.nodes, 1e-9, false).bad_element, 0); // builds the tables
+        NodalBlock& nb = *m.nodal_block(0);
+        const HighestFrequency hf = nodal_highest_frequency(nb, m.nodes.mass, 200, 1e-6);
+        std::printf("c_s %.2f: alpha_crit %.3f (default alpha %.3f), %d passes\n", cs, hf.alpha_crit, nb.dt_factor,
+                    hf.passes);
+        EXPECT_GT(hf.alpha_crit, nb.dt_factor) << "c_s " << cs; // measured 1.122, 1.095, 1.041
+    }
+}
+
+// Separation: a K&C bar (4 x 4 x 40 mm, 1 mm spacing) whose halves fly apart at 4 m/s each breaks
+// at its middle, where the two release waves meet first; with separation_damage 0.99 the failed
+// particles leave the kernels. Nothing acts from outside, so the momenta of the two pieces and
+// the free particles add to the initial to round-off of sum m |v|; once the crack has
+// opened nothing pulls across it: each piece keeps its momentum over the run's last 10 us.
+TEST(SemiLagrangian, AConcreteBarPulledApartSeparatesIntoTwoPieces)
+{
+    Model m = test::model_from(R"(
+title: K&C bar pulled apart
+time: {end: 40 us}
+parts:
+  bar:
+    generator: {type: box, size: [4 mm, 4 mm, 40 mm], element_size: 1 mm}
+    material: {model: kcc, rho: 2400 kg/m^3, fc: 45.6 MPa}
+    formulation: rkpm
+    kinematics: semi-lagrangian
+    semi_lagrangian: {separation_damage: 0.99}
+)");
+    const real_t v = 4.0, mid = 20e-3;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        m.nodes.v[3 * i + 2] = m.nodes.x0[3 * i + 2] > mid ? v : -v;
+    const real_t scale = test::momentum_scale(m.nodes);
+    const Vec3 p0 = test::momentum(m.nodes); // the lower half has one layer more
+    // the pieces: particles that started 3 mm or more from the middle
+    auto piece = [&](const NodeSet& n, bool top)
+    {
+        real_t p = 0.0;
+        for (index_t i = 0; i < n.size(); ++i)
+            if (top ? n.x0[3 * i + 2] > mid + 3e-3 : n.x0[3 * i + 2] < mid - 3e-3)
+                p += n.mass[i] * n.v[3 * i + 2];
+        return p;
+    };
+    real_t top_30 = 0.0, bottom_30 = 0.0, worst_total = 0.0;
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt,
+                                        [&](const Model& mm, real_t t, real_t, std::int64_t)
+                                        {
+                                            worst_total = std::max(worst_total, (test::momentum(mm.nodes) - p0).norm());
+                                            if (t <= 30e-6)
+                                                top_30 = piece(mm.nodes, true), bottom_30 = piece(mm.nodes, false);
+                                        });
+    ASSERT_EQ(s.status, "completed") << s.message;
+    const index_t free = sl_block(m).free_particles();
+    const real_t top = piece(m.nodes, true), bottom = piece(m.nodes, false);
+    real_t gap = kNoLimit; // the crack's opening: the nearest particles of the two sides along z
+    real_t z_below = -kNoLimit, z_above = kNoLimit;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (m.nodes.x0[3 * i + 2] < mid - 3e-3)
+            z_below = std::max(z_below, m.nodes.x[3 * i + 2]);
+        else if (m.nodes.x0[3 * i + 2] > mid + 3e-3)
+            z_above = std::min(z_above, m.nodes.x[3 * i + 2]);
+    gap = z_above - z_below - 6e-3;
+    std::printf("bar pulled apart: %d free particles; momentum %.2e of sum m|v|; pieces' momenta %.4e / %.4e N s, "
+                "changed over the last 10 us by %.2e / %.2e; crack opened by %.3f mm\n",
+                static_cast<int>(free), worst_total / scale, top, bottom, (top - top_30) / top,
+                (bottom - bottom_30) / bottom, gap * 1e3);
+    EXPECT_GT(free, 0);
+    EXPECT_LT(worst_total / scale, 1e-12);
+    EXPECT_GT(top, 0.0);
+    EXPECT_LT(bottom, 0.0);
+    EXPECT_LT(std::abs(top - top_30), 1e-3 * std::abs(top));
+    EXPECT_LT(std::abs(bottom - bottom_30), 1e-3 * std::abs(bottom));
+    EXPECT_GT(gap, 0.05e-3);
 }

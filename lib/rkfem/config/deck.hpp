@@ -111,6 +111,8 @@ struct PartSpec
     /// semi-Lagrangian parts: 1, tables rebuilt every step; N > 1, Lagrangian RK with a
     /// reference reset every N steps
     index_t reset_interval = 1;
+    /// semi-Lagrangian parts: the damage index at which a particle leaves the kernels (0: never)
+    real_t separation_damage = 0.0;
     HourglassSpec hourglass;
     BulkViscositySpec bulk_viscosity;
     NodalIntegrationSpec nodal;

@@ -129,7 +129,8 @@ void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
     if (!p.semi_lagrangian)
         s.fail("semi_lagrangian", "sets up semi-Lagrangian RK particles, and this part's kinematics is lagrangian",
                "expected kinematics: semi-lagrangian with a semi_lagrangian section");
-    Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"), {"neighbour_skin", "reset_interval"});
+    Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"),
+               {"neighbour_skin", "reset_interval", "separation_damage"});
     p.neighbour_skin = sl.quantity("neighbour_skin", dim::none, 0.3);
     if (!(p.neighbour_skin >= 0.0 && p.neighbour_skin <= 2.0))
         sl.fail("neighbour_skin", "is outside [0, 2]",
@@ -140,6 +141,16 @@ void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
                 "expected 1 (kernels rebuilt every step) or N > 1 (Lagrangian RK reset to the current configuration "
                 "every N steps)");
     p.reset_interval = static_cast<index_t>(every);
+    p.separation_damage = sl.quantity("separation_damage", dim::none, 0.0);
+    if (!(p.separation_damage >= 0.0 && p.separation_damage <= 1.0))
+        sl.fail("separation_damage", "is outside [0, 1]",
+                "expected the damage index (K&C D, J2 failure, CSCM d; 0..1) at which a particle separates, such "
+                "as 0.99 (0: never)");
+    if (p.separation_damage > 0.0 && p.reset_interval > 1)
+        sl.fail("separation_damage",
+                "separates particles from kernels rebuilt every step, and reset_interval is " +
+                    std::to_string(p.reset_interval),
+                "expected reset_interval: 1 with separation_damage");
 }
 
 /// regions: the RK volumes (box, cylinder or sphere selectors) of an FE part, into p.regions.

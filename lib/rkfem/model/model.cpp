@@ -379,6 +379,7 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     opt.rk = nb.rk->params();
     opt.skin = ps.neighbour_skin * a_max;
     opt.reset_interval = ps.reset_interval;
+    opt.separation_damage = ps.separation_damage;
     opt.stabilization_coefficient = ps.nodal.stabilization == "none" ? 0.0 : ps.nodal.stabilization_coefficient;
     part_nodal_.back() = static_cast<index_t>(blocks_.size());
     blocks_.push_back(

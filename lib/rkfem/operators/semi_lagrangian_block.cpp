@@ -31,205 +31,13 @@ Scratch& scratch()
     return s;
 }
 
-/// The RK functions at one face centre: row entries, values, gradients.
-struct FaceSample
-{
-    std::vector<index_t> k;
-    std::vector<real_t> psi;
-    std::vector<Vec3> grad;
-};
-
-/// Psi and grad Psi at a point from the kernels of its n covering particles (order 1: the 4 x 4
-/// moment matrix and its derivatives accumulated entry by entry, symmetric; the same algebra as
-/// rk_shape.cpp's solve_and_fill, which the plain pass calls). False where M is singular.
-bool linear_rk(std::size_t n, const real_t* phi, const Vec3* dphi, const Vec3* dx, real_t s, real_t* psi, Vec3* grad)
-{
-    if (n < 4)
-        return false;
-    using Mat4 = Eigen::Matrix<real_t, 4, 4>;
-    using Vec4 = Eigen::Matrix<real_t, 4, 1>;
-    const real_t inv_s = 1.0 / s;
-    // the upper triangles of M and of A_d = sum dphi_d H H^T, 10 entries each
-    real_t m[10] = {}, A[3][10] = {};
-    for (std::size_t e = 0; e < n; ++e)
-    {
-        const real_t h[4] = {1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s};
-        real_t hh[10];
-        int q = 0;
-        for (int a = 0; a < 4; ++a)
-            for (int b = a; b < 4; ++b)
-                hh[q++] = h[a] * h[b];
-        for (int t = 0; t < 10; ++t)
-        {
-            m[t] += phi[e] * hh[t];
-            A[0][t] += dphi[e][0] * hh[t];
-            A[1][t] += dphi[e][1] * hh[t];
-            A[2][t] += dphi[e][2] * hh[t];
-        }
-    }
-    auto full = [](const real_t* u)
-    {
-        Mat4 F;
-        int q = 0;
-        for (int a = 0; a < 4; ++a)
-            for (int b = a; b < 4; ++b)
-                F(a, b) = F(b, a) = u[q++];
-        return F;
-    };
-    const Mat4 M = full(m);
-    Eigen::LDLT<Mat4> ldlt(M);
-    const auto D = ldlt.vectorD();
-    const real_t dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
-        return false;
-    Vec4 e0 = Vec4::Zero();
-    e0[0] = 1.0;
-    const Vec4 b = ldlt.solve(e0);
-    Vec4 db[3];
-    for (int d = 0; d < 3; ++d)
-    {
-        // dM_d = A_d + (1 / s) (e_{d+1} M_0^T + M_0 e_{d+1}^T): the basis' own derivative
-        Mat4 dM = full(A[d]);
-        dM.row(d + 1) += inv_s * M.row(0);
-        dM.col(d + 1) += inv_s * M.col(0);
-        db[d] = -ldlt.solve(dM * b);
-    }
-    for (std::size_t e = 0; e < n; ++e)
-    {
-        const Vec4 h(1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s);
-        const real_t bH = b.dot(h);
-        psi[e] = bH * phi[e];
-        for (int d = 0; d < 3; ++d)
-            grad[e][d] = phi[e] * (db[d].dot(h) + inv_s * b[d + 1]) + dphi[e][d] * bH;
-    }
-    return true;
-}
-
-/// Per-thread scratch of the fast pass: the row entries that reach the cell's face centres and
-/// the functions at each centre (kept between steps).
-struct FastScratch
-{
-    std::vector<index_t> cand_k;
-    std::vector<Vec3> cand_dx; ///< the cell's centre minus the particle
-    std::vector<real_t> cand_a;
-    FaceSample face[6];
-    std::vector<real_t> phi;
-    std::vector<Vec3> dphi, dx;
-    RkSample sample;           // order 2
-    std::vector<index_t> slot; ///< per row entry: its place among those covering a face centre (-1: none)
-    index_t n_union = 0;
-
-    void reset(std::size_t n)
-    {
-        cand_k.clear();
-        cand_dx.clear();
-        cand_a.clear();
-        cand_k.reserve(n);
-    }
-    void add_candidate(index_t k, const Vec3& d, real_t a)
-    {
-        cand_k.push_back(k);
-        cand_dx.push_back(d);
-        cand_a.push_back(a);
-    }
-    /// Which candidates cover the face centre (the cell's centre + off): face[f].k only.
-    void face_cover(int f, const Vec3& off, const RkParams& rk)
-    {
-        FaceSample& fs = face[f];
-        fs.k.clear();
-        const bool box = rk.support == SupportShape::Box;
-        for (std::size_t c = 0; c < cand_k.size(); ++c)
-        {
-            const Vec3 d = cand_dx[c] + off;
-            const real_t a = cand_a[c];
-            if (box && (std::abs(d[0]) >= a || std::abs(d[1]) >= a || std::abs(d[2]) >= a))
-                continue;
-            real_t p = 0.0;
-            Vec3 dp;
-            if (kernel_3d(rk.kernel, rk.support, d, a, p, dp) && p > 0.0)
-                fs.k.push_back(cand_k[c]);
-        }
-    }
-    /// The functions at the face centre (the cell's centre + off) into face[f].
-    bool face_functions(int f, const Vec3& off, const RkParams& rk)
-    {
-        FaceSample& fs = face[f];
-        fs.k.clear();
-        phi.clear();
-        dphi.clear();
-        dx.clear();
-        real_t scale = kNoLimit;
-        const bool box = rk.support == SupportShape::Box;
-        for (std::size_t c = 0; c < cand_k.size(); ++c)
-        {
-            const Vec3 d = cand_dx[c] + off;
-            const real_t a = cand_a[c];
-            if (box && (std::abs(d[0]) >= a || std::abs(d[1]) >= a || std::abs(d[2]) >= a))
-                continue;
-            real_t p = 0.0;
-            Vec3 dp;
-            if (kernel_3d(rk.kernel, rk.support, d, a, p, dp) && p > 0.0)
-            {
-                fs.k.push_back(cand_k[c]);
-                phi.push_back(p);
-                dphi.push_back(dp);
-                dx.push_back(d);
-                scale = std::min(scale, a);
-            }
-        }
-        const std::size_t n = fs.k.size();
-        fs.psi.resize(n);
-        fs.grad.resize(n);
-        if (rk.order == 1)
-            return linear_rk(n, phi.data(), dphi.data(), dx.data(), scale, fs.psi.data(), fs.grad.data());
-        sample.clear();
-        sample.nodes.assign(fs.k.begin(), fs.k.end());
-        sample.phi = phi;
-        sample.dphi = dphi;
-        sample.dx = dx;
-        if (!rk_solve_sample(sample, scale, rk.order, true))
-            return false;
-        std::copy(sample.psi.begin(), sample.psi.end(), fs.psi.begin());
-        std::copy(sample.grad.begin(), sample.grad.end(), fs.grad.begin());
-        return true;
-    }
-};
-
-FastScratch& fast_scratch()
-{
-    thread_local FastScratch s;
-    return s;
-}
-
-/// sym and skew parts of L in Voigt order (d: xx yy zz xy yz zx; w: xy yz zx), as the other blocks
-void split(const Mat3& L, real_t d[6], real_t w[3])
-{
-    d[0] = L(0, 0), d[1] = L(1, 1), d[2] = L(2, 2);
-    d[3] = 0.5 * (L(0, 1) + L(1, 0)), d[4] = 0.5 * (L(1, 2) + L(2, 1)), d[5] = 0.5 * (L(2, 0) + L(0, 2));
-    w[0] = 0.5 * (L(0, 1) - L(1, 0)), w[1] = 0.5 * (L(1, 2) - L(2, 1)), w[2] = 0.5 * (L(2, 0) - L(0, 2));
-}
-
-real_t stress_power(const real_t s_old[6], const real_t s_new[6], const real_t d[6])
-{
-    real_t power = 0.0;
-    for (int k = 0; k < 6; ++k)
-        power += (k < 3 ? 0.5 : 1.0) * (s_old[k] + s_new[k]) * d[k];
-    return power;
-}
-
-/// sigma g for a Voigt stress
-Vec3 traction(const real_t s[6], const real_t g[3])
-{
-    return {s[0] * g[0] + s[3] * g[1] + s[5] * g[2], s[3] * g[0] + s[1] * g[1] + s[4] * g[2],
-            s[5] * g[0] + s[4] * g[1] + s[2] * g[2]};
-}
-
 /// A particle's smoothing cell: the parallelepiped about x + c with half-edge vectors e_i
 /// (cells[12 p ..]: c, e_1, e_2, e_3). Face f lies on edge f / 2, on its - side for even f: its
 /// centre x + c -+ e_i and its outward area vector -+ 4 e_j x e_k ((i, j, k) cyclic).
 struct Cell
 {
     Vec3 c, e[3];
+    Cell() = default;
     explicit Cell(const real_t* v)
         : c(v[0], v[1], v[2]), e{{v[3], v[4], v[5]}, {v[6], v[7], v[8]}, {v[9], v[10], v[11]}}
     {
@@ -293,10 +101,222 @@ Cell deform(const Cell& cell, const Mat3& F)
     return square_up(out);
 }
 
+/// The RK functions at one face centre: row entries, values, gradients.
+struct FaceSample
+{
+    std::vector<index_t> k;
+    std::vector<real_t> psi;
+    std::vector<Vec3> grad;
+};
+
+/// Psi and grad Psi at a point from the kernels of its n covering particles (order 1: the 4 x 4
+/// moment matrix and its derivatives accumulated entry by entry, symmetric; the same algebra as
+/// rk_shape.cpp's solve_and_fill, which the plain pass calls). False where M is singular.
+/// A face centre counts as covered where its moment matrix's pivot ratio is above this (the
+/// shape functions' own 1e-12 only guards the solve): at a crack face a centre half a spacing
+/// beyond the last layer of particles is reached by that layer and, with weight 4e-7, by the one
+/// behind it (a / h 1.51), a pivot ratio near 1e-7 whose functions are of the size of 10^3 and
+/// set the neighbours flying; interior and original surface centres have ratios above 1e-3.
+constexpr real_t kCoverPivot = 1e-6;
+
+bool linear_rk(std::size_t n, const real_t* phi, const Vec3* dphi, const Vec3* dx, real_t s, real_t* psi, Vec3* grad)
+{
+    if (n < 4)
+        return false;
+    using Mat4 = Eigen::Matrix<real_t, 4, 4>;
+    using Vec4 = Eigen::Matrix<real_t, 4, 1>;
+    const real_t inv_s = 1.0 / s;
+    // the upper triangles of M and of A_d = sum dphi_d H H^T, 10 entries each
+    real_t m[10] = {}, A[3][10] = {};
+    for (std::size_t e = 0; e < n; ++e)
+    {
+        const real_t h[4] = {1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s};
+        real_t hh[10];
+        int q = 0;
+        for (int a = 0; a < 4; ++a)
+            for (int b = a; b < 4; ++b)
+                hh[q++] = h[a] * h[b];
+        for (int t = 0; t < 10; ++t)
+        {
+            m[t] += phi[e] * hh[t];
+            A[0][t] += dphi[e][0] * hh[t];
+            A[1][t] += dphi[e][1] * hh[t];
+            A[2][t] += dphi[e][2] * hh[t];
+        }
+    }
+    auto full = [](const real_t* u)
+    {
+        Mat4 F;
+        int q = 0;
+        for (int a = 0; a < 4; ++a)
+            for (int b = a; b < 4; ++b)
+                F(a, b) = F(b, a) = u[q++];
+        return F;
+    };
+    const Mat4 M = full(m);
+    Eigen::LDLT<Mat4> ldlt(M);
+    const auto D = ldlt.vectorD();
+    const real_t dmax = D.cwiseAbs().maxCoeff();
+    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > kCoverPivot * dmax))
+        return false;
+    Vec4 e0 = Vec4::Zero();
+    e0[0] = 1.0;
+    const Vec4 b = ldlt.solve(e0);
+    Vec4 db[3];
+    for (int d = 0; d < 3; ++d)
+    {
+        // dM_d = A_d + (1 / s) (e_{d+1} M_0^T + M_0 e_{d+1}^T): the basis' own derivative
+        Mat4 dM = full(A[d]);
+        dM.row(d + 1) += inv_s * M.row(0);
+        dM.col(d + 1) += inv_s * M.col(0);
+        db[d] = -ldlt.solve(dM * b);
+    }
+    for (std::size_t e = 0; e < n; ++e)
+    {
+        const Vec4 h(1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s);
+        const real_t bH = b.dot(h);
+        psi[e] = bH * phi[e];
+        for (int d = 0; d < 3; ++d)
+            grad[e][d] = phi[e] * (db[d].dot(h) + inv_s * b[d + 1]) + dphi[e][d] * bH;
+    }
+    return true;
+}
+
+/// Per-thread scratch of the fast pass: the row entries that reach the cell's face centres and
+/// the functions at each centre (kept between steps).
+struct FastScratch
+{
+    std::vector<index_t> cand_k;
+    std::vector<Vec3> cand_dx; ///< the cell's centre minus the particle
+    std::vector<real_t> cand_a;
+    FaceSample face[6];
+    std::vector<real_t> phi;
+    std::vector<Vec3> dphi, dx;
+    RkSample sample;           // order 2
+    std::vector<index_t> slot; ///< per row entry: its place among those covering a face centre (-1: none)
+    Cell gcell;                ///< the reset tables' gradient cell
+    index_t n_union = 0;
+
+    void reset(std::size_t n)
+    {
+        cand_k.clear();
+        cand_dx.clear();
+        cand_a.clear();
+        cand_k.reserve(n);
+    }
+    void add_candidate(index_t k, const Vec3& d, real_t a)
+    {
+        cand_k.push_back(k);
+        cand_dx.push_back(d);
+        cand_a.push_back(a);
+    }
+    /// The functions at the face centre (the cell's centre + off) into face[f].
+    bool face_functions(int f, const Vec3& off, const RkParams& rk)
+    {
+        FaceSample& fs = face[f];
+        fs.k.clear();
+        phi.clear();
+        dphi.clear();
+        dx.clear();
+        real_t scale = kNoLimit;
+        const bool box = rk.support == SupportShape::Box;
+        for (std::size_t c = 0; c < cand_k.size(); ++c)
+        {
+            const Vec3 d = cand_dx[c] + off;
+            const real_t a = cand_a[c];
+            if (box && (std::abs(d[0]) >= a || std::abs(d[1]) >= a || std::abs(d[2]) >= a))
+                continue;
+            real_t p = 0.0;
+            Vec3 dp;
+            if (kernel_3d(rk.kernel, rk.support, d, a, p, dp) && p > 0.0)
+            {
+                fs.k.push_back(cand_k[c]);
+                phi.push_back(p);
+                dphi.push_back(dp);
+                dx.push_back(d);
+                scale = std::min(scale, a);
+            }
+        }
+        const std::size_t n = fs.k.size();
+        fs.psi.resize(n);
+        fs.grad.resize(n);
+        if (rk.order == 1)
+            return linear_rk(n, phi.data(), dphi.data(), dx.data(), scale, fs.psi.data(), fs.grad.data());
+        sample.clear();
+        sample.nodes.assign(fs.k.begin(), fs.k.end());
+        sample.phi = phi;
+        sample.dphi = dphi;
+        sample.dx = dx;
+        if (!rk_solve_sample(sample, scale, rk.order, true, kCoverPivot))
+            return false;
+        std::copy(sample.psi.begin(), sample.psi.end(), fs.psi.begin());
+        std::copy(sample.grad.begin(), sample.grad.end(), fs.grad.begin());
+        return true;
+    }
+};
+
+FastScratch& fast_scratch()
+{
+    thread_local FastScratch s;
+    return s;
+}
+
+/// A particle's cell with a side halved toward the particle (the side of face f).
+void halve(Cell& cell, int f)
+{
+    const int i = f / 2;
+    cell.e[i] *= 0.5;
+    cell.c -= (f % 2 == 0 ? -1.0 : 1.0) * cell.e[i];
+}
+
+/// The cell the smoothed gradient is taken on and the functions at its face centres (into
+/// sc.face): the particle's cell, or, where a face centre is not covered (kCoverPivot: a crack
+/// face, a free surface a cell reaches past), the cell halved on that side, toward the particle,
+/// up to four times in all. A half cell is a parallelepiped still, so linear fields stay exact;
+/// the integration weight stays the particle's volume. False: still uncovered (it has separated).
+bool gradient_cell(FastScratch& sc, const Cell& cell, const RkParams& rk, Cell& gcell)
+{
+    gcell = cell;
+    for (int attempt = 0; attempt <= 4; ++attempt)
+    {
+        int failed = -1;
+        for (int f = 0; f < 6 && failed < 0; ++f)
+            if (!sc.face_functions(f, gcell.c - cell.c + (f % 2 == 0 ? -1.0 : 1.0) * gcell.e[f / 2], rk))
+                failed = f;
+        if (failed < 0)
+            return true;
+        halve(gcell, failed);
+    }
+    return false;
+}
+
+/// sym and skew parts of L in Voigt order (d: xx yy zz xy yz zx; w: xy yz zx), as the other blocks
+void split(const Mat3& L, real_t d[6], real_t w[3])
+{
+    d[0] = L(0, 0), d[1] = L(1, 1), d[2] = L(2, 2);
+    d[3] = 0.5 * (L(0, 1) + L(1, 0)), d[4] = 0.5 * (L(1, 2) + L(2, 1)), d[5] = 0.5 * (L(2, 0) + L(0, 2));
+    w[0] = 0.5 * (L(0, 1) - L(1, 0)), w[1] = 0.5 * (L(1, 2) - L(2, 1)), w[2] = 0.5 * (L(2, 0) - L(0, 2));
+}
+
+real_t stress_power(const real_t s_old[6], const real_t s_new[6], const real_t d[6])
+{
+    real_t power = 0.0;
+    for (int k = 0; k < 6; ++k)
+        power += (k < 3 ? 0.5 : 1.0) * (s_old[k] + s_new[k]) * d[k];
+    return power;
+}
+
+/// sigma g for a Voigt stress
+Vec3 traction(const real_t s[6], const real_t g[3])
+{
+    return {s[0] * g[0] + s[3] * g[1] + s[5] * g[2], s[3] * g[0] + s[1] * g[1] + s[4] * g[2],
+            s[5] * g[0] + s[4] * g[1] + s[2] * g[2]};
+}
+
 /// Psi (and grad Psi) at point p from the row's particles that cover it; sample.nodes holds the
 /// row positions. False where the moment matrix is singular.
 bool evaluate_at(const Vec3& p, const index_t* row, index_t n, index_t begin, const std::vector<real_t>& x,
-                 const std::vector<real_t>& radius, const RkParams& rk, RkSample& sample)
+                 const std::vector<real_t>& radius, const RkParams& rk, RkSample& sample, const std::vector<char>& free)
 {
     sample.clear();
     real_t scale = kNoLimit;
@@ -304,6 +324,8 @@ bool evaluate_at(const Vec3& p, const index_t* row, index_t n, index_t begin, co
     for (index_t k = 0; k < n; ++k)
     {
         const index_t j = row[k];
+        if (free[static_cast<std::size_t>(j)])
+            continue;
         const std::size_t g = 3 * static_cast<std::size_t>(begin + j);
         const Vec3 dx(p[0] - x[g], p[1] - x[g + 1], p[2] - x[g + 2]);
         const real_t a = radius[static_cast<std::size_t>(j)];
@@ -320,7 +342,46 @@ bool evaluate_at(const Vec3& p, const index_t* row, index_t n, index_t begin, co
             scale = std::min(scale, a);
         }
     }
-    return rk_solve_sample(sample, scale, rk.order, true);
+    return rk_solve_sample(sample, scale, rk.order, true, kCoverPivot);
+}
+
+/// The plain twin of gradient_cell: on the same gradient cell, b_J (sc.b, 3 per row entry) and
+/// grad Psi_J at its face centres (sc.face, 18 per row entry, 0 where J does not cover the
+/// centre), from every particle of the row. False: still uncovered after four halvings.
+bool plain_gradient(const Vec3& xL, const Cell& cell, const index_t* row, index_t n, index_t begin,
+                    const std::vector<real_t>& x, const std::vector<real_t>& radius, const RkParams& rk,
+                    const std::vector<char>& free, Scratch& sc)
+{
+    Cell gcell = cell;
+    for (int attempt = 0; attempt <= 4; ++attempt)
+    {
+        sc.b.assign(3 * static_cast<std::size_t>(n), 0.0);
+        sc.face.assign(18 * static_cast<std::size_t>(n), 0.0);
+        const real_t inv_V = 1.0 / gcell.volume();
+        int failed = -1;
+        for (int f = 0; f < 6 && failed < 0; ++f)
+        {
+            if (!evaluate_at(gcell.centre(xL, f), row, n, begin, x, radius, rk, sc.sample, free))
+            {
+                failed = f;
+                break;
+            }
+            const Vec3 af = inv_V * gcell.area(f);
+            for (index_t e = 0; e < sc.sample.size(); ++e)
+            {
+                const std::size_t k = static_cast<std::size_t>(sc.sample.nodes[e]);
+                for (int d = 0; d < 3; ++d)
+                {
+                    sc.b[3 * k + d] += sc.sample.psi[e] * af[d];
+                    sc.face[18 * k + 3 * static_cast<std::size_t>(f) + d] = sc.sample.grad[e][d];
+                }
+            }
+        }
+        if (failed < 0)
+            return true;
+        halve(gcell, failed);
+    }
+    return false;
 }
 } // namespace
 
@@ -395,6 +456,7 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     }
     point_sums_.assign(4 * n, 0.0);
     bad_.assign(n, 0);
+    free_.assign(n, 0);
 }
 
 real_t SemiLagrangianForceBlock::radius(index_t p) const
@@ -556,6 +618,24 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
     point_sums_[4 * static_cast<std::size_t>(L) + 2] += dt * V / 6.0 * stress_power(sf_old, sf, df);
 }
 
+void SemiLagrangianForceBlock::separate_trial(index_t L)
+{
+    const std::size_t p = static_cast<std::size_t>(L);
+    std::fill_n(&state_.cells_trial[12 * p], 12, 0.0);
+    for (int k = 0; k < 6; ++k)
+        state_.stress_trial[k * state_.stress_stride + p] = 0.0;
+    const std::size_t ns = 6 * static_cast<std::size_t>(n_particles());
+    for (int k = 0; k < 6; ++k)
+        for (std::size_t f = 0; f < 6; ++f)
+            state_.stab_stress_trial[k * ns + 6 * p + f] = 0.0;
+    volume_trial_[p] = 0.0;
+    real_t* sums = &point_sums_[4 * p];
+    sums[0] = sums[1] = sums[2] = 0.0;
+    sums[3] = kNoLimit;
+    std::fill_n(&pair_force_[3 * static_cast<std::size_t>(offsets_[L])],
+                3 * static_cast<std::size_t>(offsets_[L + 1] - offsets_[L]), 0.0);
+}
+
 void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
 {
     const index_t np = n_particles();
@@ -569,30 +649,19 @@ void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
                      Scratch& sc = scratch();
                      const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
                      const index_t n = offsets_[L + 1] - offsets_[L];
-                     sc.b.assign(3 * static_cast<std::size_t>(n), 0.0);
-                     sc.face.assign(18 * static_cast<std::size_t>(n), 0.0);
                      const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
                      const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
                      const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-                     const real_t inv_V = 1.0 / cell.volume();
                      bad_[L] = 0;
-                     for (int f = 0; f < 6; ++f)
+                     if (free_[static_cast<std::size_t>(L)])
                      {
-                         if (!evaluate_at(cell.centre(xL, f), row, n, begin, x, radius_, opt_.rk, sc.sample))
-                         {
-                             bad_[L] = 1;
-                             return;
-                         }
-                         const Vec3 af = inv_V * cell.area(f);
-                         for (index_t e = 0; e < sc.sample.size(); ++e)
-                         {
-                             const std::size_t k = static_cast<std::size_t>(sc.sample.nodes[e]);
-                             for (int d = 0; d < 3; ++d)
-                             {
-                                 sc.b[3 * k + d] += sc.sample.psi[e] * af[d];
-                                 sc.face[18 * k + 3 * static_cast<std::size_t>(f) + d] = sc.sample.grad[e][d];
-                             }
-                         }
+                         separate_trial(L);
+                         return;
+                     }
+                     if (!plain_gradient(xL, cell, row, n, begin, x, radius_, opt_.rk, free_, sc))
+                     {
+                         separate_trial(L); // too few particles cover its cell: it has separated
+                         return;
                      }
                      auto velocity = [&](index_t k)
                      {
@@ -660,8 +729,12 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                      const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
                      const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
                      const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-                     const real_t V = cell.volume();
                      bad_[L] = 0;
+                     if (free_[static_cast<std::size_t>(L)])
+                     {
+                         separate_trial(L);
+                         return;
+                     }
                      // the row's particles that reach some face centre (the box of the centres, widened
                      // by each support), with their offsets from the cell's centre
                      const Vec3 xc = xL + cell.c;
@@ -674,20 +747,21 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                          const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
                          const Vec3 dx(xc[0] - x[g], xc[1] - x[g + 1], xc[2] - x[g + 2]);
                          const real_t a = radius_[static_cast<std::size_t>(row[k])];
-                         if (std::abs(dx[0]) < a + ext[0] && std::abs(dx[1]) < a + ext[1] &&
-                             std::abs(dx[2]) < a + ext[2])
+                         if (!free_[static_cast<std::size_t>(row[k])] && std::abs(dx[0]) < a + ext[0] &&
+                             std::abs(dx[1]) < a + ext[1] && std::abs(dx[2]) < a + ext[2])
                              sc.add_candidate(k, dx, a);
                      }
                      Vec3 vh[6];
                      Mat3 G[6];
+                     Cell gcell = cell;
+                     if (!gradient_cell(sc, cell, opt_.rk, gcell))
+                     {
+                         separate_trial(L); // too few particles cover its cell: it has separated
+                         return;
+                     }
+                     const real_t Vg = gcell.volume();
                      for (int f = 0; f < 6; ++f)
                      {
-                         const Vec3 off = (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
-                         if (!sc.face_functions(f, off, opt_.rk))
-                         {
-                             bad_[L] = 1;
-                             return;
-                         }
                          vh[f].setZero();
                          G[f].setZero();
                          const FaceSample& fs = sc.face[f];
@@ -699,11 +773,11 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                              G[f] += v * fs.grad[e].transpose();
                          }
                      }
-                     // L = (1 / V) sum_f v^h(x_f) (x) A_f
+                     // L = (1 / V) sum_f v^h(x_f) (x) A_f, on the gradient's cell
                      Mat3 Lg = Mat3::Zero();
                      for (int f = 0; f < 6; ++f)
-                         Lg += vh[f] * cell.area(f).transpose();
-                     Lg /= V;
+                         Lg += vh[f] * gcell.area(f).transpose();
+                     Lg /= Vg;
                      PointUpdate u;
                      if (!update_point(L, Lg, dt, u))
                      {
@@ -725,7 +799,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                      std::fill(pf, pf + 3 * static_cast<std::size_t>(n), 0.0);
                      for (int f = 0; f < 6; ++f)
                      {
-                         const Vec3 af = (u.V / V) * cell.area(f);
+                         const Vec3 af = (u.V / Vg) * gcell.area(f);
                          const real_t a[3] = {af[0], af[1], af[2]};
                          const Vec3 t = traction(sq, a);
                          const FaceSample& fs = sc.face[f];
@@ -752,6 +826,8 @@ ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, 
     const index_t np = n_particles();
     const index_t begin = state_.node_begin;
     update_neighbours(nodes.x);
+    for (std::size_t p = 0; p < free_.size(); ++p)
+        free_[p] = state_.jacobian[p] == 0.0; // a free particle's cell is empty
     if (opt_.plain)
         points_plain(nodes, dt);
     else
@@ -802,6 +878,20 @@ void SemiLagrangianForceBlock::commit()
     }
     state_.jacobian.swap(volume_trial_);
     volume_trial_ = state_.jacobian;
+    // separation: a particle whose material has failed past separation_damage leaves the kernels
+    if (opt_.separation_damage > 0.0 && state_.plastic.active())
+        for (index_t p = 0; p < n_particles(); ++p)
+        {
+            const std::size_t q = static_cast<std::size_t>(p);
+            if (state_.jacobian[q] > 0.0 && state_.plastic.damage(q) >= opt_.separation_damage)
+            {
+                std::fill_n(&state_.cells[12 * q], 12, 0.0);
+                std::fill_n(&state_.cells_trial[12 * q], 12, 0.0);
+                for (int k = 0; k < 6; ++k)
+                    state_.stress[k * state_.stress_stride + q] = 0.0;
+                state_.jacobian[q] = volume_trial_[q] = 0.0;
+            }
+        }
 }
 
 ForcePassResult SemiLagrangianForceBlock::reference_pass(NodeSet& nodes, real_t dt, bool add)
@@ -886,7 +976,7 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
     IntegrationOperator& stab = state_.stabilization;
     // per particle the row's particles that cover a face centre: counted, then filled
     std::vector<index_t> count(n + 1, 0);
-    auto faces = [&](index_t L, FastScratch& sc, bool solve)
+    auto faces = [&](index_t L, FastScratch& sc)
     {
         const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
         const index_t nr = offsets_[L + 1] - offsets_[L];
@@ -905,14 +995,8 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
             if (std::abs(dx[0]) < a + ext[0] && std::abs(dx[1]) < a + ext[1] && std::abs(dx[2]) < a + ext[2])
                 sc.add_candidate(k, dx, a);
         }
-        for (int f = 0; f < 6; ++f)
-        {
-            const Vec3 off = (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
-            if (!solve)
-                sc.face_cover(f, off, opt_.rk);
-            else if (!sc.face_functions(f, off, opt_.rk))
-                return false;
-        }
+        if (!gradient_cell(sc, cell, opt_.rk, sc.gcell))
+            return false;
         // the union, in row order: slot per row entry
         sc.slot.assign(static_cast<std::size_t>(nr), -1);
         index_t m = 0;
@@ -929,8 +1013,8 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
                  [&](index_t L)
                  {
                      FastScratch& sc = fast_scratch();
-                     faces(L, sc, false);
-                     count[static_cast<std::size_t>(L) + 1] = sc.n_union;
+                     bad_[L] = !faces(L, sc);
+                     count[static_cast<std::size_t>(L) + 1] = bad_[L] ? 0 : sc.n_union;
                  });
     pts.offsets.resize(n + 1);
     pts.offsets[0] = 0;
@@ -963,13 +1047,12 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
                              stab.position[18 * p + 3 * f + d] = pts.position[3 * p + d];
                      }
                      FastScratch& sc = fast_scratch();
-                     bad_[L] = !faces(L, sc, true);
-                     if (bad_[L])
+                     if (bad_[L] || !faces(L, sc))
                          return;
                      const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
                      const index_t nr = offsets_[L + 1] - offsets_[L];
                      const index_t k0 = pts.offsets[p];
-                     const Cell cell(&state_.cells[12 * p]);
+                     const Cell& cell = sc.gcell; // the gradient's cell
                      const real_t inv_V = 1.0 / cell.volume();
                      for (index_t k = 0; k < nr; ++k)
                          if (const index_t s = sc.slot[static_cast<std::size_t>(k)]; s >= 0)
@@ -1025,30 +1108,16 @@ bool SemiLagrangianForceBlock::smoothed_gradient(index_t p, const std::vector<re
     const index_t n = offsets_[p + 1] - offsets_[p];
     const std::size_t gp = 3 * static_cast<std::size_t>(state_.node_begin + p);
     const Vec3 xp(x[gp], x[gp + 1], x[gp + 2]);
-    const Cell cell(&state_.cells[12 * static_cast<std::size_t>(p)]);
     nodes.assign(row, row + n);
     for (index_t& j : nodes)
         j += state_.node_begin;
-    grad.assign(3 * static_cast<std::size_t>(n), 0.0);
+    Scratch sc;
+    if (!plain_gradient(xp, Cell(&state_.cells[12 * static_cast<std::size_t>(p)]), row, n, state_.node_begin, x,
+                        radius_, opt_.rk, free_, sc))
+        return false;
+    grad = sc.b;
     if (face_gradients)
-        face_gradients->assign(18 * static_cast<std::size_t>(n), 0.0);
-    RkSample sample;
-    for (int f = 0; f < 6; ++f)
-    {
-        if (!evaluate_at(cell.centre(xp, f), row, n, state_.node_begin, x, radius_, opt_.rk, sample))
-            return false;
-        const Vec3 af = cell.area(f) / cell.volume();
-        for (index_t e = 0; e < sample.size(); ++e)
-        {
-            const std::size_t k = static_cast<std::size_t>(sample.nodes[e]);
-            for (int d = 0; d < 3; ++d)
-            {
-                grad[3 * k + d] += sample.psi[e] * af[d];
-                if (face_gradients)
-                    (*face_gradients)[18 * k + 3 * static_cast<std::size_t>(f) + d] = sample.grad[e][d];
-            }
-        }
-    }
+        *face_gradients = sc.face;
     return true;
 }
 } // namespace rkfem

@@ -66,6 +66,13 @@ struct SemiLagrangianOptions
     /// resets the nodal blocks' pass (nodal_force.hpp) forms F = 1 + sum_J (u_J - u_J^reset)
     /// (x) b_J on them.
     index_t reset_interval = 1;
+    /// Separation (every-step tables only): a particle whose material's damage index (K&C D,
+    /// J2 failure, CSCM d: PlasticPoints::damage) reaches this value at a commit leaves the
+    /// kernels: no particle's functions include it, it integrates nothing, its stress and cell
+    /// are emptied, and it moves on with its mass and momentum (a fragment). 0: never. A particle
+    /// whose cell's face centres too few particles cover (a singular moment matrix: it has come
+    /// apart from the body) separates in the same way, whatever this value.
+    real_t separation_damage = 0.0;
 };
 
 class SemiLagrangianForceBlock final : public ForceBlock
@@ -95,6 +102,14 @@ class SemiLagrangianForceBlock final : public ForceBlock
     index_t n_particles() const { return state_.n_points(); }
     /// Times the neighbour lists were built, and their entries now.
     index_t rebuilds() const { return rebuilds_; }
+    /// Particles that have separated (their committed cells are empty).
+    index_t free_particles() const
+    {
+        index_t n = 0;
+        for (index_t p = 0; p < n_particles(); ++p)
+            n += state_.jacobian[p] == 0.0;
+        return n;
+    }
     std::size_t neighbour_entries() const { return ids_.size(); }
     const SemiLagrangianOptions& options() const { return opt_; }
     /// Runs the plain pass instead of the fast one (SemiLagrangianOptions::plain).
@@ -121,6 +136,8 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// Face f's stabilization stress (trial, into sf) from its velocity gradient Lf, and its work.
     void update_face(index_t L, int f, const Mat3& Lf, const real_t w[3], real_t V, real_t dt, real_t sf[6]);
     void points_plain(const NodeSet& nodes, real_t dt);
+    /// Particle L's trial state made free: empty cell, no stress, no forces, no step limit.
+    void separate_trial(index_t L);
     /// Reference resets: the tables of the configuration x0 + u^reset (NodalBlock::reference),
     /// and the reset itself (the cells moved by F, the reference taken from the nodes).
     void build_reference_tables(const NodeSet& nodes);
@@ -147,6 +164,7 @@ class SemiLagrangianForceBlock final : public ForceBlock
     index_t rebuilds_ = 0;
     std::vector<real_t> pair_force_; ///< per entry (L, J): the force of L's point on J [N]
     std::vector<real_t> point_sums_; ///< per particle: d_int, d_bv, d_stab, dt
-    std::vector<char> bad_;          ///< per particle: singular moment matrix or a bad volume
+    std::vector<char> bad_;          ///< per particle: a bad volume
+    std::vector<char> free_;         ///< per particle: separated (its committed cell is empty)
 };
 } // namespace rkfem

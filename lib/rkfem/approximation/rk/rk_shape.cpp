@@ -26,7 +26,8 @@ using rk_detail::basis;
 /// `others` (values only), the right-hand side is H(0) - sum_k w_k H(dy_k / s): the RK functions
 /// complete other functions' reproduction (RkShapeFunctions::evaluate_completing).
 template <int m, class OnSingular>
-void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singular, const RkOthers* others = nullptr)
+void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singular, const RkOthers* others = nullptr,
+                    real_t pivot = 1e-12)
 {
     using MatM = Eigen::Matrix<real_t, m, m>;
     using VecM = Eigen::Matrix<real_t, m, 1>;
@@ -70,7 +71,7 @@ void solve_and_fill(RkSample& out, real_t s, bool gradients, OnSingular&& singul
     Eigen::LDLT<MatM> ldlt(M);
     const auto D = ldlt.vectorD();
     const real_t dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
+    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > pivot * dmax))
     {
         singular("pivot ratio below 1e-12");
         return;
@@ -123,14 +124,14 @@ RkShapeFunctions::RkShapeFunctions(std::vector<real_t> x, std::vector<real_t> ra
     }
 }
 
-bool rk_solve_sample(RkSample& sample, real_t s, int order, bool gradients)
+bool rk_solve_sample(RkSample& sample, real_t s, int order, bool gradients, real_t pivot)
 {
     bool ok = sample.size() >= (order == 1 ? 4 : 10);
     auto singular = [&](const char*) { ok = false; };
     if (ok && order == 1)
-        solve_and_fill<4>(sample, s, gradients, singular);
+        solve_and_fill<4>(sample, s, gradients, singular, nullptr, pivot);
     else if (ok)
-        solve_and_fill<10>(sample, s, gradients, singular);
+        solve_and_fill<10>(sample, s, gradients, singular, nullptr, pivot);
     return ok;
 }
 

@@ -125,9 +125,10 @@ class RkShapeFunctions
 /// particles that cover it, which `sample` holds (phi, dphi and dx = x - x_k per entry; its
 /// `nodes` are the caller's labels, not read), with basis scale s (RkShapeFunctions' rule: the
 /// smallest covering support). Returns false, leaving psi and grad unset, where the moment
-/// matrix is singular (fewer entries than the basis, or a pivot ratio below 1e-12). For callers
-/// with their own neighbour search (the semi-Lagrangian block's moving particles).
-bool rk_solve_sample(RkSample& sample, real_t s, int order, bool gradients);
+/// matrix is singular (fewer entries than the basis, or a pivot ratio below `pivot`, the
+/// RkShapeFunctions' 1e-12 by default). For callers with their own neighbour search (the
+/// semi-Lagrangian block's moving particles).
+bool rk_solve_sample(RkSample& sample, real_t s, int order, bool gradients, real_t pivot = 1e-12);
 
 /// Drops the values psi_k < tau max |psi| of the functions at x (nodes, psi from evaluate) and
 /// corrects the rest, psi_k += |psi_k| H_k . c with H_k = (1, (x_k - x) / s), so that they
