@@ -17,6 +17,7 @@
 #include "rkfem/config/deck.hpp"
 #include "rkfem/core/allocator_tuning.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/operators/force_block.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 #include "rkfem/time/stepper.hpp"
 
@@ -132,6 +133,44 @@ void BM_CloudForcePass(benchmark::State& state)
     state.counters["shared"] = blk.point_stencils.empty() ? 0 : 1;
     omp_set_num_threads(saved);
 }
+/// The semi-Lagrangian force pass (operators/semi_lagrangian_block.hpp) on the column wave's
+/// lattice (studies/decks/column_wave_rkpm.yaml: 5,025 particles at 200 mm, 10,025 at 400 mm),
+/// with a deforming velocity field: mode 0 rebuilds the tables every pass (the default), mode 1
+/// resets the reference every 10 passes (semi_lagrangian.reset_interval: 10), mode 2 is the
+/// deck's Lagrangian block (SCNI + MSCNI) of the same part for comparison. The neighbour lists are built
+/// once before the loop (their skin holds them across the passes of a run).
+void BM_SemiLagrangianPass(benchmark::State& state)
+{
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(static_cast<int>(state.range(0)));
+    const int mode = static_cast<int>(state.range(2));
+    std::vector<std::string> sets = {"parts.column.generator.size=[4 mm, 4 mm, " + std::to_string(state.range(1)) +
+                                     " mm]"};
+    if (mode < 2)
+    {
+        sets.push_back("parts.column.kinematics=semi-lagrangian");
+        sets.push_back("parts.column.nodal_integration={scheme: snni}");
+        sets.push_back(std::string("parts.column.semi_lagrangian={reset_interval: ") + (mode == 1 ? "10" : "1") + "}");
+    }
+    Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_rkpm.yaml", sets));
+    NodeSet& nodes = m.nodes;
+    for (std::size_t i = 0; i < nodes.x0.size(); ++i)
+        nodes.v[i] = 1e-3 * std::sin(1e3 * nodes.x0[i] + static_cast<double>(i % 3));
+    ForceBlock& blk = m.block(0);
+    index_t passes = 0;
+    for (auto _ : state)
+    {
+        benchmark::DoNotOptimize(blk.add_forces(nodes, 1e-8, false));
+        if (mode == 1 && ++passes % 10 == 0)
+            for (int k = 0; k < 10; ++k)
+                blk.commit(); // the steps since the reset: the next pass resets
+        benchmark::ClobberMemory();
+    }
+    state.counters["ns_per_particle_step"] =
+        benchmark::Counter(static_cast<double>(nodes.size()) * 1e-9,
+                           benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    omp_set_num_threads(saved);
+}
 /// Set-up: Model::build of a seed deck as rkpm (deck read, mesh, RK functions, SCNI + NSNI,
 /// kinematic map, tables), the deck to the first step less the stepper's start. deck 0: the P1
 /// cylinder at 0.5 in (4,300 particles), 1: at 0.25 in (38,220), 2: column_wave_cloud.yaml
@@ -172,6 +211,12 @@ BENCHMARK(BM_CloudForcePass)
     ->ArgNames({"threads", "length", "support"})
     ->ArgsProduct({{1, 2}, {200, 20}, {151, 135}})
     ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+
+BENCHMARK(BM_SemiLagrangianPass)
+    ->ArgNames({"threads", "length", "mode"})
+    ->ArgsProduct({{1, 2}, {200, 400}, {0, 1, 2}})
+    ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
 // deck 0: P3 cantilever, 1: P1 cylinder (0.5 in); form 0: fem-1pt, 1: rkpm

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <sstream>
 
 #include <Eigen/Cholesky>
@@ -454,6 +456,7 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
         o.share_stencils = false; // rows of a moving cloud: nothing to share
         state_.set_options(o);
     }
+    cell_reach_.assign(n, 0.0);
     point_sums_.assign(4 * n, 0.0);
     bad_.assign(n, 0);
     free_.assign(n, 0);
@@ -464,25 +467,29 @@ real_t SemiLagrangianForceBlock::radius(index_t p) const
     return radius0_[p] * std::max(1.0, std::cbrt(volume(p) / v0_[p]));
 }
 
-real_t SemiLagrangianForceBlock::reach() const
+void SemiLagrangianForceBlock::extents()
 {
-    real_t a = 0.0, s = 0.0;
+    const bool box = opt_.rk.support == SupportShape::Box;
     for (index_t p = 0; p < n_particles(); ++p)
     {
-        a = std::max(a, radius_[p]);
+        radius_[p] = radius(p);
+        // how far the cell's face centres lie from the particle (along each axis for box kernels)
         const Cell cell(&state_.cells[12 * static_cast<std::size_t>(p)]);
-        s = std::max(s, cell.c.norm() + std::max({cell.e[0].norm(), cell.e[1].norm(), cell.e[2].norm()}));
+        real_t r = 0.0;
+        for (int f = 0; f < 6; ++f)
+        {
+            const Vec3 d = cell.c + (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
+            r = std::max(r, box ? d.cwiseAbs().maxCoeff() : d.norm());
+        }
+        cell_reach_[p] = r;
     }
-    return a + s;
 }
 
 void SemiLagrangianForceBlock::update_neighbours(const std::vector<real_t>& x)
 {
     const index_t np = n_particles();
-    for (index_t p = 0; p < np; ++p)
-        radius_[p] = radius(p);
-    const real_t r = reach();
-    if (rebuilds_ > 0)
+    extents();
+    if (rebuilds_ > 0 && static_cast<index_t>(radius_built_.size()) == np)
     {
         const std::size_t b = 3 * static_cast<std::size_t>(state_.node_begin);
         const real_t d2 = -parallel_reduce_min("rkfem::semi_lagrangian::displacement", np,
@@ -496,7 +503,15 @@ void SemiLagrangianForceBlock::update_neighbours(const std::vector<real_t>& x)
                                                    }
                                                    return -s;
                                                });
-        if (2.0 * std::sqrt(d2) + std::max(0.0, r - reach_built_) <= opt_.skin)
+        // a pair (L, J) is needed where |x_L - x_J| < a_J + r_L (r: the cell's reach); the lists
+        // hold the pairs within max(a_J + r_L, a_L + r_J) + skin at the build
+        real_t da = 0.0, dr = 0.0;
+        for (index_t p = 0; p < np; ++p)
+        {
+            da = std::max(da, radius_[p] - radius_built_[p]);
+            dr = std::max(dr, cell_reach_[p] - reach_built_[p]);
+        }
+        if (2.0 * std::sqrt(d2) + da + dr <= opt_.skin)
             return;
     }
     build_neighbours(x);
@@ -507,11 +522,16 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
     const index_t np = n_particles();
     const std::size_t b = 3 * static_cast<std::size_t>(state_.node_begin);
     x_built_.assign(x.begin() + static_cast<std::ptrdiff_t>(b), x.begin() + static_cast<std::ptrdiff_t>(b + 3 * np));
-    reach_built_ = reach();
-    const real_t R = reach_built_ + opt_.skin;
+    radius_built_ = radius_;
+    reach_built_ = cell_reach_;
+    const real_t skin = opt_.skin;
+    real_t a_max = 0.0, r_max = 0.0;
+    for (index_t p = 0; p < np; ++p)
+        a_max = std::max(a_max, radius_[p]), r_max = std::max(r_max, cell_reach_[p]);
+    const real_t R = a_max + r_max + skin;
     const bool box = opt_.rk.support == SupportShape::Box;
-    // a box of half-width R lies inside the sphere of radius sqrt(3) R: bins of that size
-    const CellList cells(x_built_, box ? std::sqrt(3.0) * R : R);
+    // the cell list's 27 bins about a particle hold every particle within R along each axis
+    const CellList cells(x_built_, R);
     auto within = [&](index_t i, index_t j)
     {
         real_t s = 0.0, m = 0.0;
@@ -521,7 +541,8 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
             s += u * u;
             m = std::max(m, std::abs(u));
         }
-        return box ? m < R : s < R * R;
+        const real_t r = std::max(radius_[j] + cell_reach_[i], radius_[i] + cell_reach_[j]) + skin;
+        return box ? m < r : s < r * r;
     };
     offsets_.assign(static_cast<std::size_t>(np) + 1, 0);
     parallel_for("rkfem::semi_lagrangian::count", np,
@@ -562,6 +583,14 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
                  });
     pair_force_.resize(3 * ids_.size());
     ++rebuilds_;
+    if (std::getenv("RKFEM_SL_DEBUG"))
+    {
+        real_t amin = kNoLimit, amax = 0;
+        for (real_t a : radius_)
+            amin = std::min(amin, a), amax = std::max(amax, a);
+        std::fprintf(stderr, "SL lists: %d particles, %zu entries (%.1f each), R %.4g, a %.4g..%.4g\n", (int)np,
+                     ids_.size(), double(ids_.size()) / np, R, amin, amax);
+    }
 }
 
 bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt, PointUpdate& u)
@@ -1101,8 +1130,7 @@ PointFault SemiLagrangianForceBlock::fault(index_t bad, const NodeSet&) const
 bool SemiLagrangianForceBlock::smoothed_gradient(index_t p, const std::vector<real_t>& x, std::vector<index_t>& nodes,
                                                  std::vector<real_t>& grad, std::vector<real_t>* face_gradients)
 {
-    for (index_t q = 0; q < n_particles(); ++q)
-        radius_[q] = radius(q);
+    extents();
     build_neighbours(x);
     const index_t* row = &ids_[static_cast<std::size_t>(offsets_[p])];
     const index_t n = offsets_[p + 1] - offsets_[p];

@@ -34,9 +34,10 @@
 /// linear field v_J = v(x_J) is the exact RK interpolant; otherwise the interpolant at x_J differs
 /// from v_J by O(h^2).
 ///
-/// Neighbours: a list per particle of every particle within reach + skin (box support: along
-/// each axis; sphere: distance), reach = the largest support plus the farthest face centre of a cell, rebuilt
-/// when twice the largest displacement since the build plus the reach's growth passes the skin.
+/// Neighbours: a list per particle L of every particle J within max(a_J + r_L, a_L + r_J) + skin
+/// (box support: along each axis; sphere: distance; r: the farthest face centre of the cell),
+/// rebuilt when twice the largest displacement since the build plus the largest growth of a
+/// support and of a reach passes the skin.
 /// Forces are summed per particle over its list in a fixed order (ascending particles), so the
 /// result does not depend on the thread count. The state (stress, face stresses, volume ratio,
 /// material history) lives in a NodalBlock (one stress point per particle), which output,
@@ -147,7 +148,8 @@ class SemiLagrangianForceBlock final : public ForceBlock
     void points_fast(const NodeSet& nodes, real_t dt);
     void update_neighbours(const std::vector<real_t>& x);
     void build_neighbours(const std::vector<real_t>& x);
-    real_t reach() const;
+    /// The supports and the cells' reaches (radius_, cell_reach_) from the committed state.
+    void extents();
     NodalBlock state_;
     std::vector<real_t> radius0_, radius_;
     std::vector<real_t> v0_;           ///< the particles' volumes at the start [m^3]
@@ -160,7 +162,8 @@ class SemiLagrangianForceBlock final : public ForceBlock
     std::vector<index_t> offsets_{0}, ids_;
     std::vector<index_t> transpose_; ///< per entry (L, J): the entry (J, L) of J's row
     std::vector<real_t> x_built_;    ///< positions at the build (3 per particle)
-    real_t reach_built_ = 0.0;       ///< reach at the build [m]
+    std::vector<real_t> cell_reach_; ///< per particle: its farthest face centre (along an axis for box kernels) [m]
+    std::vector<real_t> radius_built_, reach_built_; ///< supports and reaches at the build [m]
     index_t rebuilds_ = 0;
     std::vector<real_t> pair_force_; ///< per entry (L, J): the force of L's point on J [N]
     std::vector<real_t> point_sums_; ///< per particle: d_int, d_bv, d_stab, dt
