@@ -229,6 +229,13 @@ TEST(SemiLagrangian, UniaxialStrainWavePlateauMatchesTheory)
     check_wave({});
 }
 
+// Lagrangian RK integrated by SNNI (kinematics: lagrangian, scheme snni: the tables of the
+// start, never reset): the same plateau
+TEST(SemiLagrangian, LagrangianSnniGivesTheSameWavePlateau)
+{
+    check_wave({"parts.column.kinematics=lagrangian", "parts.column.nodal_integration={scheme: snni}"});
+}
+
 // Lagrangian RK reset to the current configuration every 10 steps: the same plateau
 TEST(SemiLagrangian, ReferenceResetsGiveTheSameWavePlateau)
 {
@@ -410,6 +417,10 @@ TEST(SemiLagrangian, DeckErrorsNameTheKey)
                   .find("parts.block.semi_lagrangian"),
               std::string::npos);
     EXPECT_NE(error_of({"parts.block.semi_lagrangian={neighbour_skin: -1}"}).find("neighbour_skin"), std::string::npos);
+    EXPECT_NE(error_of({"parts.block.formulation=fem-nodal", "parts.block.kinematics=lagrangian",
+                        "parts.block.nodal_integration={scheme: snni}"})
+                  .find("expected scheme: scni, sd-scni or dni on a fem-nodal part"),
+              std::string::npos);
     EXPECT_NE(error_of({"parts.block.semi_lagrangian={reset_interval: 2.5}"}).find("reset_interval"),
               std::string::npos);
     EXPECT_NE(error_of({"parts.block.semi_lagrangian={reset_interval: 5, separation_damage: 0.99}"})

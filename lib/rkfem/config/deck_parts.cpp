@@ -79,22 +79,25 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
                    {"scheme", "stabilization", "stabilization_coefficient", "dt_factor", "facet_points"});
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni", "snni"}, p.semi_lagrangian ? "snni" : "scni");
-        if ((p.nodal.scheme == "snni") != p.semi_lagrangian)
+        if (p.semi_lagrangian && p.nodal.scheme != "snni")
             ni.fail("scheme",
-                    p.semi_lagrangian ? "semi-Lagrangian particles are integrated on cubes about their current "
-                                        "positions (SNNI); " +
-                                            p.nodal.scheme + " needs cells of the reference configuration"
-                                      : "snni integrates semi-Lagrangian particles",
-                    p.semi_lagrangian ? "expected scheme: snni with kinematics: semi-lagrangian"
-                                      : "expected scheme: scni, sd-scni or dni (or kinematics: semi-lagrangian)");
+                    "semi-Lagrangian particles are integrated on cells about their current positions (SNNI); " +
+                        p.nodal.scheme + " needs cells of the reference configuration",
+                    "expected scheme: snni with kinematics: semi-lagrangian");
+        if (p.nodal.scheme == "snni" && (p.formulation != Formulation::Rkpm || s.has("regions")))
+            ni.fail("scheme", "snni integrates RK particles of an rkpm part on their own cells",
+                    "expected scheme: scni, sd-scni or dni on a " + f +
+                        (s.has("regions") ? " part with regions" : " part"));
+        const bool snni = p.nodal.scheme == "snni";
         p.nodal.stabilization = ni.choice("stabilization", {"mscni", "nsni", "face-gradient", "none"},
-                                          p.nodal.scheme == "scni" || p.semi_lagrangian ? default_stab : "none");
-        if ((p.nodal.stabilization == "face-gradient") != (p.semi_lagrangian && p.nodal.stabilization != "none"))
+                                          snni                       ? "face-gradient"
+                                          : p.nodal.scheme == "scni" ? default_stab
+                                                                     : "none");
+        if ((p.nodal.stabilization == "face-gradient") != (snni && p.nodal.stabilization != "none"))
             ni.fail("stabilization",
-                    p.semi_lagrangian ? "semi-Lagrangian particles are stabilized by face-gradient (or none)"
-                                      : "face-gradient stabilizes semi-Lagrangian particles (scheme snni)",
-                    p.semi_lagrangian ? "expected stabilization: face-gradient or none"
-                                      : "expected stabilization: mscni, nsni or none");
+                    snni ? "SNNI is stabilized by face-gradient (or none)" : "face-gradient stabilizes scheme snni",
+                    snni ? "expected stabilization: face-gradient or none"
+                         : "expected stabilization: mscni, nsni or none");
         if (p.nodal.stabilization != "none" && p.nodal.scheme != "scni" && p.nodal.scheme != "snni")
             ni.fail("stabilization", p.nodal.stabilization + " stabilizes scheme scni only",
                     "expected stabilization: none with scheme " + p.nodal.scheme);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <sstream>
 
@@ -289,7 +290,7 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
 void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset,
                              const HexBlock& blk)
 {
-    if (ps.semi_lagrangian)
+    if (ps.semi_lagrangian || ps.nodal.scheme == "snni")
     {
         build_semi_lagrangian_part(ps, ip, mesh, offset);
         return;
@@ -378,7 +379,8 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     SemiLagrangianOptions opt;
     opt.rk = nb.rk->params();
     opt.skin = ps.neighbour_skin * a_max;
-    opt.reset_interval = ps.reset_interval;
+    // Lagrangian SNNI: the tables of the start, never reset
+    opt.reset_interval = ps.semi_lagrangian ? ps.reset_interval : std::numeric_limits<index_t>::max();
     opt.separation_damage = ps.separation_damage;
     opt.stabilization_coefficient = ps.nodal.stabilization == "none" ? 0.0 : ps.nodal.stabilization_coefficient;
     part_nodal_.back() = static_cast<index_t>(blocks_.size());

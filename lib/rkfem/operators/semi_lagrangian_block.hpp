@@ -65,7 +65,8 @@ struct SemiLagrangianOptions
     /// kernel): at a reset the SNNI tables (b_J per particle, grad Psi_J(x_f) - b_J per face) are
     /// built in the current configuration, the cells moved by F since the last reset, and between
     /// resets the nodal blocks' pass (nodal_force.hpp) forms F = 1 + sum_J (u_J - u_J^reset)
-    /// (x) b_J on them.
+    /// (x) b_J on them. The largest index_t never resets: Lagrangian RK integrated by SNNI
+    /// (`kinematics: lagrangian` with `nodal_integration.scheme: snni`).
     index_t reset_interval = 1;
     /// Separation (every-step tables only): a particle whose material's damage index (K&C D,
     /// J2 failure, CSCM d: PlasticPoints::damage) reaches this value at a commit leaves the
