@@ -593,7 +593,7 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
     }
 }
 
-bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt, PointUpdate& u)
+bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt, real_t closing, PointUpdate& u)
 {
     const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
     const NodalBlock& blk = state_;
@@ -624,7 +624,9 @@ bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt
     sums[0] = dt * u.V * stress_power(s_old, u.sig, d);
     sums[1] = -dt * u.V * u.q * trd;
     sums[2] = 0.0;
-    sums[3] = element_dt(c, len, trd, q1, q2);
+    // the digest's 7.2: moving particles step at l / (c + the largest speed of a covering
+    // particle relative to this one), with the bulk viscosity's term as elements have it
+    sums[3] = element_dt(c + closing, len, trd, q1, q2);
     return true;
 }
 
@@ -698,10 +700,20 @@ void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
                          return Vec3(vel[g], vel[g + 1], vel[g + 2]);
                      };
                      Mat3 Lg = Mat3::Zero();
+                     real_t closing = 0.0;
+                     const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
                      for (index_t k = 0; k < n; ++k)
-                         Lg += velocity(k) * Vec3(sc.b[3 * k], sc.b[3 * k + 1], sc.b[3 * k + 2]).transpose();
+                     {
+                         const Vec3 bk(sc.b[3 * k], sc.b[3 * k + 1], sc.b[3 * k + 2]);
+                         Lg += velocity(k) * bk.transpose();
+                         bool covers = bk.squaredNorm() > 0.0;
+                         for (int q = 0; q < 18 && !covers; ++q)
+                             covers = sc.face[18 * k + q] != 0.0;
+                         if (covers)
+                             closing = std::max(closing, (velocity(k) - vL).norm());
+                     }
                      PointUpdate u;
-                     if (!update_point(L, Lg, dt, u))
+                     if (!update_point(L, Lg, dt, closing, u))
                      {
                          bad_[L] = 1;
                          return;
@@ -782,6 +794,8 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                      }
                      Vec3 vh[6];
                      Mat3 G[6];
+                     real_t closing = 0.0;
+                     const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
                      Cell gcell = cell;
                      if (!gradient_cell(sc, cell, opt_.rk, gcell))
                      {
@@ -800,6 +814,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                              const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
                              vh[f] += fs.psi[e] * v;
                              G[f] += v * fs.grad[e].transpose();
+                             closing = std::max(closing, (v - vL).norm());
                          }
                      }
                      // L = (1 / V) sum_f v^h(x_f) (x) A_f, on the gradient's cell
@@ -808,7 +823,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                          Lg += vh[f] * gcell.area(f).transpose();
                      Lg /= Vg;
                      PointUpdate u;
-                     if (!update_point(L, Lg, dt, u))
+                     if (!update_point(L, Lg, dt, closing, u))
                      {
                          bad_[L] = 1;
                          return;

@@ -134,7 +134,8 @@ class SemiLagrangianForceBlock final : public ForceBlock
         real_t q = 0.0; ///< bulk viscosity [Pa]
         real_t V = 0.0; ///< volume after the step [m^3]
     };
-    bool update_point(index_t L, const Mat3& Lg, real_t dt, PointUpdate& u);
+    /// `closing`: the largest speed of a covering particle relative to L (the step's velocity term).
+    bool update_point(index_t L, const Mat3& Lg, real_t dt, real_t closing, PointUpdate& u);
     /// Face f's stabilization stress (trial, into sf) from its velocity gradient Lf, and its work.
     void update_face(index_t L, int f, const Mat3& Lf, const real_t w[3], real_t V, real_t dt, real_t sf[6]);
     void points_plain(const NodeSet& nodes, real_t dt);
