@@ -128,24 +128,23 @@ bool linear_rk(std::size_t n, const real_t* phi, const Vec3* dphi, const Vec3* d
     using Mat4 = Eigen::Matrix<real_t, 4, 4>;
     using Vec4 = Eigen::Matrix<real_t, 4, 1>;
     const real_t inv_s = 1.0 / s;
-    // the upper triangles of M and of A_d = sum dphi_d H H^T, 10 entries each
-    real_t m[10] = {}, A[3][10] = {};
+    // the upper triangles of M and of A_d = sum dphi_d H H^T, 10 entries each (m: acc[0..9],
+    // A_d: acc[10 (d + 1) ..]), summed over the entries in vector lanes
+    real_t acc[40] = {};
+    const real_t* y = dx[0].data();
+    const real_t* g = dphi[0].data();
+    RKFEM_SIMD(reduction(+ : acc[:40]))
     for (std::size_t e = 0; e < n; ++e)
     {
-        const real_t h[4] = {1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s};
-        real_t hh[10];
-        int q = 0;
-        for (int a = 0; a < 4; ++a)
-            for (int b = a; b < 4; ++b)
-                hh[q++] = h[a] * h[b];
-        for (int t = 0; t < 10; ++t)
-        {
-            m[t] += phi[e] * hh[t];
-            A[0][t] += dphi[e][0] * hh[t];
-            A[1][t] += dphi[e][1] * hh[t];
-            A[2][t] += dphi[e][2] * hh[t];
-        }
+        const real_t y0 = y[3 * e] * inv_s, y1 = y[3 * e + 1] * inv_s, y2 = y[3 * e + 2] * inv_s;
+        const real_t hh[10] = {1.0, y0, y1, y2, y0 * y0, y0 * y1, y0 * y2, y1 * y1, y1 * y2, y2 * y2};
+        const real_t w[4] = {phi[e], g[3 * e], g[3 * e + 1], g[3 * e + 2]};
+        for (int d = 0; d < 4; ++d)
+            for (int t = 0; t < 10; ++t)
+                acc[10 * d + t] += w[d] * hh[t];
     }
+    const real_t* m = acc;
+    const real_t* A[3] = {acc + 10, acc + 20, acc + 30};
     auto full = [](const real_t* u)
     {
         Mat4 F;
@@ -173,13 +172,24 @@ bool linear_rk(std::size_t n, const real_t* phi, const Vec3* dphi, const Vec3* d
         dM.col(d + 1) += inv_s * M.col(0);
         db[d] = -ldlt.solve(dM * b);
     }
+    // psi = phi b.H, grad_d = phi (db_d.H + b_{d+1} / s) + dphi_d b.H, entry by entry in vector lanes
+    const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
+    real_t dc[3][4];
+    for (int d = 0; d < 3; ++d)
+    {
+        dc[d][0] = db[d][0] + inv_s * b[d + 1];
+        for (int k = 1; k < 4; ++k)
+            dc[d][k] = db[d][k] * inv_s;
+    }
+    real_t* gr = grad[0].data();
+    RKFEM_SIMD()
     for (std::size_t e = 0; e < n; ++e)
     {
-        const Vec4 h(1.0, dx[e][0] * inv_s, dx[e][1] * inv_s, dx[e][2] * inv_s);
-        const real_t bH = b.dot(h);
+        const real_t x0 = y[3 * e], x1 = y[3 * e + 1], x2 = y[3 * e + 2];
+        const real_t bH = c0 + c1 * x0 + c2 * x1 + c3 * x2;
         psi[e] = bH * phi[e];
         for (int d = 0; d < 3; ++d)
-            grad[e][d] = phi[e] * (db[d].dot(h) + inv_s * b[d + 1]) + dphi[e][d] * bH;
+            gr[3 * e + d] = phi[e] * (dc[d][0] + dc[d][1] * x0 + dc[d][2] * x1 + dc[d][3] * x2) + g[3 * e + d] * bH;
     }
     return true;
 }
