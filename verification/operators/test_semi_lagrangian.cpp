@@ -515,3 +515,49 @@ parts:
     EXPECT_LT(std::abs(bottom - bottom_30), 1e-3 * std::abs(bottom));
     EXPECT_GT(gap, 0.05e-3);
 }
+
+// Large shear: a 4 mm J2 steel block (sigma_y 200 MPa), its bottom held, its top driven along x
+// at 20 m/s for 200 us (engineering shear strain 1; the wave crosses it in 0.7 us, so nearly
+// quasi-static). Every particle keeps a positive volume, the energy ledger closes within 1 %, and
+// tables rebuilt every step and every 10 steps (reference resets) give the top's reaction along x
+// within 2 % of each other at the end (6,963 and 6,922 N; balance 6e-5 both). Not yet strain 3, the issue's figure:
+// both stop at a strain of 1.38 (277 us) with the ledger 17-32 % out, about where the cells' 4:1 rule squares them up
+// (a sheared box reaches 4:1 at 1.5); with the rule at 8:1 they go on to 1.52 (6 % out).
+TEST(SemiLagrangian, ABlockShearedToStrainOneKeepsPositiveVolumes)
+{
+    auto run = [](const std::string& reset)
+    {
+        Model m = test::model_from(R"(
+title: sheared block
+time: {end: 200 us}
+parts:
+  block:
+    generator: {type: box, size: [4 mm, 4 mm, 4 mm], element_size: 1 mm}
+    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 200 MPa, etan: 1 GPa}
+    formulation: rkpm
+    kinematics: semi-lagrangian
+node_sets:
+  bottom: {select: {type: named, name: bottom}}
+  top: {select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: bottom, fixed: [x, y, z]}
+  - {node_set: top, fixed: [y, z]}
+  - {node_set: top, velocity: {x: 20 m/s}}
+)",
+                                   {"parts.block.semi_lagrangian={reset_interval: " + reset + "}"});
+        const test::RunWithBalance r = test::run_with_balance(m, 5e-6);
+        EXPECT_EQ(r.summary.status, "completed") << r.summary.message;
+        real_t least = kNoLimit;
+        for (real_t j : m.nodal_block(0)->jacobian)
+            least = std::min(least, j);
+        const real_t reaction = m.reaction(2)[0]; // the driven top's
+        std::printf("sheared block (reset_interval %s): %d steps, smallest V / V_ref %.3f, balance error %.2e, top's "
+                    "reaction along x %.2f N\n",
+                    reset.c_str(), static_cast<int>(r.summary.steps), least, r.balance, reaction);
+        EXPECT_GT(least, 0.0);
+        EXPECT_LT(r.balance, 0.01);
+        return reaction;
+    };
+    const real_t every = run("1"), ten = run("10");
+    EXPECT_NEAR(ten / every, 1.0, 0.02);
+}
