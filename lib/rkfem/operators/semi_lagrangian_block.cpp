@@ -13,6 +13,7 @@
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/kernels/rate_form.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 
 namespace rkfem
@@ -300,22 +301,6 @@ bool gradient_cell(FastScratch& sc, const Cell& cell, const RkParams& rk, Cell& 
         halve(gcell, failed);
     }
     return false;
-}
-
-/// sym and skew parts of L in Voigt order (d: xx yy zz xy yz zx; w: xy yz zx), as the other blocks
-void split(const Mat3& L, real_t d[6], real_t w[3])
-{
-    d[0] = L(0, 0), d[1] = L(1, 1), d[2] = L(2, 2);
-    d[3] = 0.5 * (L(0, 1) + L(1, 0)), d[4] = 0.5 * (L(1, 2) + L(2, 1)), d[5] = 0.5 * (L(2, 0) + L(0, 2));
-    w[0] = 0.5 * (L(0, 1) - L(1, 0)), w[1] = 0.5 * (L(1, 2) - L(2, 1)), w[2] = 0.5 * (L(2, 0) - L(0, 2));
-}
-
-real_t stress_power(const real_t s_old[6], const real_t s_new[6], const real_t d[6])
-{
-    real_t power = 0.0;
-    for (int k = 0; k < 6; ++k)
-        power += (k < 3 ? 0.5 : 1.0) * (s_old[k] + s_new[k]) * d[k];
-    return power;
 }
 
 /// sigma g for a Voigt stress
@@ -610,7 +595,7 @@ bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt
     const ElasticParams mat = blk.material;
     const std::size_t p = static_cast<std::size_t>(L);
     real_t d[6], s_old[6];
-    split(Lg, d, u.w);
+    split_rate(Lg, d, u.w);
     for (int k = 0; k < 6; ++k)
         s_old[k] = u.sig[k] = blk.stress[k * blk.stress_stride + p];
     const real_t trd = d[0] + d[1] + d[2];
@@ -647,7 +632,7 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
     smat.lambda *= opt_.stabilization_coefficient;
     smat.mu *= opt_.stabilization_coefficient;
     real_t df[6], unused[3], sf_old[6];
-    split(Lf, df, unused);
+    split_rate(Lf, df, unused);
     // component-major, sub-point 6 L + f, as the nodal blocks' stabilization stresses
     const std::size_t ns = 6 * static_cast<std::size_t>(n_particles());
     const std::size_t at = 6 * static_cast<std::size_t>(L) + static_cast<std::size_t>(f);

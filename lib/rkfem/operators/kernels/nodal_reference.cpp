@@ -5,6 +5,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/kernels/rate_form.hpp"
 
 namespace rkfem
 {
@@ -44,21 +45,6 @@ Mat3 tensor(const real_t s[6])
     return S;
 }
 
-/// sym and skew parts of L in Voigt order (d: xx yy zz xy yz zx; w: xy yz zx)
-void split(const Mat3& L, real_t d[6], real_t w[3])
-{
-    d[0] = L(0, 0), d[1] = L(1, 1), d[2] = L(2, 2);
-    d[3] = 0.5 * (L(0, 1) + L(1, 0)), d[4] = 0.5 * (L(1, 2) + L(2, 1)), d[5] = 0.5 * (L(2, 0) + L(0, 2));
-    w[0] = 0.5 * (L(0, 1) - L(1, 0)), w[1] = 0.5 * (L(1, 2) - L(2, 1)), w[2] = 0.5 * (L(2, 0) - L(0, 2));
-}
-
-real_t stress_power(const real_t s_old[6], const real_t s_new[6], const real_t d[6])
-{
-    real_t power = 0.0;
-    for (int k = 0; k < 6; ++k)
-        power += (k < 3 ? 0.5 : 1.0) * (s_old[k] + s_new[k]) * d[k];
-    return power;
-}
 } // namespace
 
 NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt, PlasticPoints* history)
@@ -83,7 +69,7 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
         const real_t J = F.determinant();
         const Mat3 Fi = F.inverse();
         real_t d[6], w[3], s_old[6];
-        split(Fd * Fi, d, w);
+        split_rate(Fd * Fi, d, w);
         real_t* s = &out.stress[6 * static_cast<std::size_t>(p)];
         for (int k = 0; k < 6; ++k)
             s_old[k] = s[k] = blk.stress[k * blk.stress_stride + static_cast<std::size_t>(p)];
@@ -132,7 +118,7 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
         const index_t P = st.parent[s];
         real_t d[6], w_unused[3], s_old[6];
         const StencilView sv = stab_view(s);
-        split(stencil_sum(sv, nodes.v, false) * finv[P], d, w_unused);
+        split_rate(stencil_sum(sv, nodes.v, false) * finv[P], d, w_unused);
         const real_t w[3] = {spin[P][0], spin[P][1], spin[P][2]};
         real_t* sg = &out.stab_stress[6 * static_cast<std::size_t>(s)];
         for (int k = 0; k < 6; ++k)
