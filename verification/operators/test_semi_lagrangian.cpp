@@ -326,15 +326,8 @@ TEST(SemiLagrangian, ResultsDoNotDependOnThreadCount)
 {
     auto run = [](int threads)
     {
-        const int saved = omp_get_max_threads();
-        omp_set_num_threads(threads);
-        Model m = test::model_from(block_deck, {"time.end=3 us"});
-        test::deforming_column_velocity(m.nodes);
-        RunOptions opt;
-        opt.progress = false;
-        run_simulation(m, opt);
-        omp_set_num_threads(saved);
-        return m.nodes.u;
+        return test::displacements_on_threads(block_deck, {"time.end=3 us"}, threads,
+                                              [](Model& m) { test::deforming_column_velocity(m.nodes); });
     };
     const auto u1 = run(1), u2 = run(2);
     ASSERT_EQ(u1.size(), u2.size());

@@ -197,18 +197,7 @@ TEST(UniaxialWave, NodalIntegratedFemMatchesTheory)
 
 TEST(UniaxialWave, ResultsDoNotDependOnThreadCount)
 {
-    auto run = [](int threads)
-    {
-        const int saved = omp_get_max_threads();
-        omp_set_num_threads(threads);
-        Model m = test::model_from(deck);
-        RunOptions opt;
-        opt.progress = false;
-        run_simulation(m, opt);
-        omp_set_num_threads(saved);
-        return m.nodes.u;
-    };
-    const auto u1 = run(1), u2 = run(2);
+    const auto u1 = test::displacements_on_threads(deck, {}, 1), u2 = test::displacements_on_threads(deck, {}, 2);
     ASSERT_EQ(u1.size(), u2.size());
     for (std::size_t i = 0; i < u1.size(); ++i)
         ASSERT_EQ(u1[i], u2[i]) << "dof " << i; // bitwise: deterministic assembly

@@ -85,8 +85,6 @@ void NeighbourList::build(const std::vector<real_t>& x)
     const index_t n = static_cast<index_t>(x.size() / 3);
     const real_t r = radius_ + skin_, r2 = r * r;
     const CellList cells(x, r);
-    // count, then fill: each point's candidates come in the cell list's fixed order, sorted after
-    std::vector<index_t> count(static_cast<std::size_t>(n) + 1, 0);
     auto within = [&](index_t i, index_t j)
     {
         real_t s = 0.0;
@@ -97,31 +95,7 @@ void NeighbourList::build(const std::vector<real_t>& x)
         }
         return s < r2;
     };
-    parallel_for("rkfem::neighbours::count", n,
-                 [&](index_t i)
-                 {
-                     const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-                     index_t c = 0;
-                     cells.for_each_candidate(p, [&](index_t j) { c += within(i, j); });
-                     count[i + 1] = c;
-                 });
-    offsets_.assign(count.begin(), count.end());
-    for (index_t i = 0; i < n; ++i)
-        offsets_[i + 1] += offsets_[i];
-    ids_.resize(static_cast<std::size_t>(offsets_[n]));
-    parallel_for("rkfem::neighbours::fill", n,
-                 [&](index_t i)
-                 {
-                     const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-                     index_t k = offsets_[i];
-                     cells.for_each_candidate(p,
-                                              [&](index_t j)
-                                              {
-                                                  if (within(i, j))
-                                                      ids_[k++] = j;
-                                              });
-                     std::sort(ids_.begin() + offsets_[i], ids_.begin() + offsets_[i + 1]);
-                 });
+    build_neighbour_rows(cells, x, n, within, offsets_, ids_);
     x_built_ = x;
     ++rebuilds_;
 }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
@@ -97,6 +98,41 @@ class CellList
     int dims_[3] = {0, 0, 0};
     std::vector<index_t> offsets_, ids_;
 };
+
+/// Neighbour rows over the n points of `x` (n x 3) that a cell list of them holds: row i is every
+/// j among the 27 bins about x_i with within(i, j), ascending (ids[offsets[i] .. offsets[i + 1]));
+/// counted, then filled, in parallel. The bins must be at least the largest reach `within` takes.
+template <class Within>
+void build_neighbour_rows(const CellList& cells, const std::vector<real_t>& x, index_t n, Within&& within,
+                          std::vector<index_t>& offsets, std::vector<index_t>& ids)
+{
+    offsets.assign(static_cast<std::size_t>(n) + 1, 0);
+    parallel_for("rkfem::neighbours::count", n,
+                 [&](index_t i)
+                 {
+                     const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                     index_t c = 0;
+                     cells.for_each_candidate(p, [&](index_t j) { c += within(i, j); });
+                     offsets[static_cast<std::size_t>(i) + 1] = c;
+                 });
+    for (index_t i = 0; i < n; ++i)
+        offsets[i + 1] += offsets[i];
+    ids.resize(static_cast<std::size_t>(offsets[n]));
+    // each point's candidates come in the cell list's fixed order, sorted after
+    parallel_for("rkfem::neighbours::fill", n,
+                 [&](index_t i)
+                 {
+                     const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+                     index_t k = offsets[i];
+                     cells.for_each_candidate(p,
+                                              [&](index_t j)
+                                              {
+                                                  if (within(i, j))
+                                                      ids[k++] = j;
+                                              });
+                     std::sort(ids.begin() + offsets[i], ids.begin() + offsets[i + 1]);
+                 });
+}
 
 /// Neighbour lists with a skin (Verlet lists) for clouds that move: the pairs within
 /// radius + skin of the positions at the last build stay a superset of the pairs within `radius`

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <sstream>
 
 #include <Eigen/Cholesky>
@@ -210,18 +208,33 @@ struct FastScratch
     Cell gcell;                ///< the reset tables' gradient cell
     index_t n_union = 0;
 
-    void reset(std::size_t n)
+    /// The row's particles (not free ones, where `free` is given) that reach some face centre of
+    /// the cell about xL (the box of the centres, widened by each support), with their offsets
+    /// from the cell's centre; the face functions take their points from these.
+    void collect(const Cell& cell, const Vec3& xL, const index_t* row, index_t n, index_t begin,
+                 const std::vector<real_t>& x, const std::vector<real_t>& radius, const std::vector<char>* free)
     {
         cand_k.clear();
         cand_dx.clear();
         cand_a.clear();
-        cand_k.reserve(n);
-    }
-    void add_candidate(index_t k, const Vec3& d, real_t a)
-    {
-        cand_k.push_back(k);
-        cand_dx.push_back(d);
-        cand_a.push_back(a);
+        const Vec3 xc = xL + cell.c;
+        Vec3 ext = Vec3::Zero();
+        for (int i = 0; i < 3; ++i)
+            ext = ext.cwiseMax(cell.e[i].cwiseAbs());
+        for (index_t k = 0; k < n; ++k)
+        {
+            const std::size_t j = static_cast<std::size_t>(row[k]);
+            const std::size_t g = 3 * (static_cast<std::size_t>(begin) + j);
+            const Vec3 dx(xc[0] - x[g], xc[1] - x[g + 1], xc[2] - x[g + 2]);
+            const real_t a = radius[j];
+            if ((free == nullptr || !(*free)[j]) && std::abs(dx[0]) < a + ext[0] && std::abs(dx[1]) < a + ext[1] &&
+                std::abs(dx[2]) < a + ext[2])
+            {
+                cand_k.push_back(k);
+                cand_dx.push_back(dx);
+                cand_a.push_back(a);
+            }
+        }
     }
     /// The functions at the face centre (the cell's centre + off) into face[f].
     bool face_functions(int f, const Vec3& off, const RkParams& rk)
@@ -539,31 +552,7 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
         const real_t r = std::max(radius_[j] + cell_reach_[i], radius_[i] + cell_reach_[j]) + skin;
         return box ? m < r : s < r * r;
     };
-    offsets_.assign(static_cast<std::size_t>(np) + 1, 0);
-    parallel_for("rkfem::semi_lagrangian::count", np,
-                 [&](index_t i)
-                 {
-                     const Vec3 p(x_built_[3 * i], x_built_[3 * i + 1], x_built_[3 * i + 2]);
-                     index_t c = 0;
-                     cells.for_each_candidate(p, [&](index_t j) { c += within(i, j); });
-                     offsets_[i + 1] = c;
-                 });
-    for (index_t i = 0; i < np; ++i)
-        offsets_[i + 1] += offsets_[i];
-    ids_.resize(static_cast<std::size_t>(offsets_[np]));
-    parallel_for("rkfem::semi_lagrangian::fill", np,
-                 [&](index_t i)
-                 {
-                     const Vec3 p(x_built_[3 * i], x_built_[3 * i + 1], x_built_[3 * i + 2]);
-                     index_t q = offsets_[i];
-                     cells.for_each_candidate(p,
-                                              [&](index_t j)
-                                              {
-                                                  if (within(i, j))
-                                                      ids_[q++] = j;
-                                              });
-                     std::sort(ids_.begin() + offsets_[i], ids_.begin() + offsets_[i + 1]);
-                 });
+    build_neighbour_rows(cells, x_built_, np, within, offsets_, ids_);
     // the lists are symmetric (one reach for all): (L, J)'s twin is L's place in J's row
     transpose_.resize(ids_.size());
     parallel_for("rkfem::semi_lagrangian::transpose", np,
@@ -578,14 +567,6 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
                  });
     pair_force_.resize(3 * ids_.size());
     ++rebuilds_;
-    if (std::getenv("RKFEM_SL_DEBUG"))
-    {
-        real_t amin = kNoLimit, amax = 0;
-        for (real_t a : radius_)
-            amin = std::min(amin, a), amax = std::max(amax, a);
-        std::fprintf(stderr, "SL lists: %d particles, %zu entries (%.1f each), R %.4g, a %.4g..%.4g\n", (int)np,
-                     ids_.size(), double(ids_.size()) / np, R, amin, amax);
-    }
 }
 
 bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt, real_t closing, PointUpdate& u)
@@ -771,22 +752,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                          separate_trial(L);
                          return;
                      }
-                     // the row's particles that reach some face centre (the box of the centres, widened
-                     // by each support), with their offsets from the cell's centre
-                     const Vec3 xc = xL + cell.c;
-                     Vec3 ext = Vec3::Zero();
-                     for (int i = 0; i < 3; ++i)
-                         ext = ext.cwiseMax(cell.e[i].cwiseAbs());
-                     sc.reset(static_cast<std::size_t>(n));
-                     for (index_t k = 0; k < n; ++k)
-                     {
-                         const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
-                         const Vec3 dx(xc[0] - x[g], xc[1] - x[g + 1], xc[2] - x[g + 2]);
-                         const real_t a = radius_[static_cast<std::size_t>(row[k])];
-                         if (!free_[static_cast<std::size_t>(row[k])] && std::abs(dx[0]) < a + ext[0] &&
-                             std::abs(dx[1]) < a + ext[1] && std::abs(dx[2]) < a + ext[2])
-                             sc.add_candidate(k, dx, a);
-                     }
+                     sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
                      Vec3 vh[6];
                      Mat3 G[6];
                      real_t closing = 0.0;
@@ -1006,7 +972,6 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
         state_.points.weight[p] = ref[3 * n + p];
         state_.length0[p] = ref[4 * n + p];
         state_.jacobian[p] = 1.0;
-        radius_[p] = radius(static_cast<index_t>(p));
         for (int d = 0; d < 3; ++d)
             state_.points.position[3 * p + d] = xr[b + 3 * p + d];
     }
@@ -1021,19 +986,7 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
         const index_t nr = offsets_[L + 1] - offsets_[L];
         const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
         const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-        const Vec3 xc = Vec3(xr[gL], xr[gL + 1], xr[gL + 2]) + cell.c;
-        Vec3 ext = Vec3::Zero();
-        for (int i = 0; i < 3; ++i)
-            ext = ext.cwiseMax(cell.e[i].cwiseAbs());
-        sc.reset(static_cast<std::size_t>(nr));
-        for (index_t k = 0; k < nr; ++k)
-        {
-            const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
-            const Vec3 dx(xc[0] - xr[g], xc[1] - xr[g + 1], xc[2] - xr[g + 2]);
-            const real_t a = radius_[static_cast<std::size_t>(row[k])];
-            if (std::abs(dx[0]) < a + ext[0] && std::abs(dx[1]) < a + ext[1] && std::abs(dx[2]) < a + ext[2])
-                sc.add_candidate(k, dx, a);
-        }
+        sc.collect(cell, Vec3(xr[gL], xr[gL + 1], xr[gL + 2]), row, nr, begin, xr, radius_, nullptr);
         if (!gradient_cell(sc, cell, opt_.rk, sc.gcell))
             return false;
         // the union, in row order: slot per row entry
