@@ -202,6 +202,14 @@ TEST(Checkpoint, SemiLagrangianParticlesRestartWithTheSameBits)
                               "4 us");
 }
 
+// Kernel contact between two semi-Lagrangian RK bars, restarted while they are in contact: its
+// pairs are found again at the restart's positions and summed in particle order, so only the
+// step bound of the last evaluation is state (and its counts, for the histories)
+TEST(Checkpoint, KernelContactRestartsWithTheSameBits)
+{
+    expect_restarts_reproduce("kernel_contact", deck_path("rk_bars_kernel_contact.yaml"), "--set time.end=9us", "3 us");
+}
+
 // A projectile into an eroding K&C block: penalty contact (search lists, spring offsets, the soft
 // penalty's step) and elements eroding throughout; the checkpoint at 40 us falls on a step whose
 // erosion restarted the stepper, so ARKODE's first evaluation after the restart is a real one.

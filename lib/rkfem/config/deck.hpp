@@ -205,11 +205,13 @@ struct ContactSpec
     {
         SurfaceToSurface,
         SingleSurface,
-        RigidWall
+        RigidWall,
+        Kernel ///< semi-Lagrangian RK bodies sharing normal velocities (contact/kernel_contact.hpp)
     };
     Kind kind = Kind::SurfaceToSurface;
     /// Part or face-set names: surface-to-surface two (each a part's boundary or a face set),
-    /// single-surface and rigid-wall any number (their union; empty: every part)
+    /// single-surface and rigid-wall any number (their union; empty: every part); kernel two
+    /// semi-Lagrangian RK parts
     std::vector<std::string> surfaces;
     bool soft = true;             ///< stiffness: soft (max of segment and soft, SOFT = 1) | segment
     bool mortar = false;          ///< formulation: node-to-segment | mortar (surface-to-surface)

@@ -8,29 +8,32 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
     // the type decides the keys; read it first from a plain mapping
     if (!n.IsMap())
         throw DeckError(locate(ctx, n, p), n.IsNull() ? "is empty" : "is not a mapping",
-                        "expected {type: surface-to-surface | single-surface | rigid-wall, ...}");
-    const std::vector<std::string> common{"type", "surfaces", "friction", "damping"};
+                        "expected {type: surface-to-surface | single-surface | rigid-wall | kernel, ...}");
+    const std::vector<std::string> common{"type", "surfaces", "friction"};
     std::vector<std::string> keys = common;
     const YAML::Node type_node = n["type"];
     const std::string type = type_node.IsScalar() ? type_node.Scalar() : "";
-    if (type != "surface-to-surface" && type != "single-surface" && type != "rigid-wall")
+    if (type != "surface-to-surface" && type != "single-surface" && type != "rigid-wall" && type != "kernel")
     {
-        const std::string expected = "expected one of surface-to-surface | single-surface | rigid-wall";
+        const std::string expected = "expected one of surface-to-surface | single-surface | rigid-wall | kernel";
         if (!type_node.IsDefined() || type_node.IsNull())
             throw DeckError({locate(ctx, n, p).where, p + ".type"}, "missing required key", expected);
         throw DeckError(locate(ctx, type_node, p + ".type"),
                         type_node.IsScalar() ? "'" + type + "' is not a valid choice" : "is not a name", expected);
     }
     if (type == "rigid-wall")
-        keys.insert(keys.end(), {"point", "normal", "velocity", "penalty_scale"});
+        keys.insert(keys.end(), {"damping", "point", "normal", "velocity", "penalty_scale"});
+    else if (type == "kernel")
+        keys.insert(keys.end(), {"thickness"});
     else
-        keys.insert(keys.end(),
-                    {"formulation", "stiffness", "penalty_scale", "soft_scale", "thickness", "max_penetration"});
+        keys.insert(keys.end(), {"damping", "formulation", "stiffness", "penalty_scale", "soft_scale", "thickness",
+                                 "max_penetration"});
     Section s(ctx, n, p, keys);
     ContactSpec c;
-    const std::string t = s.choice("type", {"surface-to-surface", "single-surface", "rigid-wall"}, "");
+    const std::string t = s.choice("type", {"surface-to-surface", "single-surface", "rigid-wall", "kernel"}, "");
     c.kind = t == "surface-to-surface" ? ContactSpec::Kind::SurfaceToSurface
              : t == "single-surface"   ? ContactSpec::Kind::SingleSurface
+             : t == "kernel"           ? ContactSpec::Kind::Kernel
                                        : ContactSpec::Kind::RigidWall;
     if (s.has("surfaces"))
     {
@@ -45,6 +48,10 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
             c.surfaces.push_back(list[i].Scalar());
         }
     }
+    if (c.kind == ContactSpec::Kind::Kernel && c.surfaces.size() != 2)
+        s.fail("surfaces", c.surfaces.empty() ? "missing required key" : "does not name two parts",
+               "expected surfaces: [A, B], two semi-Lagrangian RK parts (a body's separated particles against "
+               "the body are not in contact yet)");
     if (c.kind == ContactSpec::Kind::SurfaceToSurface && c.surfaces.size() != 2)
         s.fail("surfaces", c.surfaces.empty() ? "missing required key" : "does not name two surfaces",
                "expected surfaces: [A, B], two part or face-set names");
@@ -73,6 +80,14 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
                    "expected a penalty scale factor above 0 and at most " + std::to_string(hi).substr(0, 4));
         return v;
     };
+    if (c.kind == ContactSpec::Kind::Kernel)
+    {
+        c.thickness = s.quantity("thickness", dim::length, 0.0);
+        if (!(c.thickness >= 0.0))
+            s.fail("thickness", "is negative", "expected a contact thickness >= 0");
+        c.loc = s.loc();
+        return c;
+    }
     if (c.kind == ContactSpec::Kind::RigidWall)
     {
         c.point = s.vec3("point", dim::length);

@@ -442,6 +442,7 @@ void write_contacts(std::ostringstream& os, const std::vector<ContactSpec>& cont
             os << "  - {type: "
                << (c.kind == ContactSpec::Kind::SurfaceToSurface ? "surface-to-surface"
                    : c.kind == ContactSpec::Kind::SingleSurface  ? "single-surface"
+                   : c.kind == ContactSpec::Kind::Kernel         ? "kernel"
                                                                  : "rigid-wall");
             if (!c.surfaces.empty())
             {
@@ -449,6 +450,12 @@ void write_contacts(std::ostringstream& os, const std::vector<ContactSpec>& cont
                 for (std::size_t k = 0; k < c.surfaces.size(); ++k)
                     os << (k ? ", " : "") << scalar(c.surfaces[k]);
                 os << "]";
+            }
+            if (c.kind == ContactSpec::Kind::Kernel)
+            {
+                os << ", thickness: " << c.thickness << ", friction: {static: " << c.mu_static
+                   << ", dynamic: " << c.mu_dynamic << ", decay: " << c.decay << "}}\n";
+                continue;
             }
             if (c.kind == ContactSpec::Kind::RigidWall)
                 os << ", point: " << vec(c.point) << ", normal: " << vec(c.normal) << ", velocity: " << vec(c.velocity)

@@ -51,6 +51,7 @@ struct ContactClock
 {
     real_t t = 0.0;
     real_t dt_critical = 0.0;
+    real_t dt = 0.0; ///< the step that led to t (0 at the start)
 };
 
 /// Coulomb friction, LS-DYNA's FS, FD and DC: mu = mu_d + (mu_s - mu_d) exp(-decay |v_t|). Stick is

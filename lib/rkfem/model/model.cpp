@@ -341,9 +341,35 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     for (index_t i = 0; i < nb.rk->size(); ++i)
         a_max = std::max(a_max, radius[i] = nb.rk->radius(i));
     // mesh parts: each node's cell is the box of its dual cell (the node and the centroids of its
-    // elements), scaled to the node's volume; the boxes of a box mesh tile it. Clouds: cubes.
+    // elements), scaled to the node's volume; the boxes of a box mesh tile it. Clouds: the cube of
+    // the particle's volume, moved inside the body where it stuck out of one of the body's planes
+    // (a particle on a face: its cube ends at the face, as a mesh node's box does; kernel contact
+    // then meets the body where its surface is)
     std::vector<real_t> cells;
-    if (ps.generator.type != GeneratorSpec::Type::Cloud)
+    if (ps.generator.type == GeneratorSpec::Type::Cloud)
+    {
+        const std::vector<HalfSpace> body = cloud_body(ps.generator, mesh.n_nodes());
+        const std::size_t n = static_cast<std::size_t>(mesh.n_nodes());
+        cells.assign(12 * n, 0.0);
+        for (std::size_t i = 0; i < n; ++i)
+        {
+            const real_t half = 0.5 * std::cbrt(nb.points.weight[i]);
+            Vec3 c = Vec3::Zero();
+            for (const HalfSpace& h : body)
+            {
+                const real_t out =
+                    h.normal.dot(mesh.node(static_cast<index_t>(i)) + c) + half * h.normal.cwiseAbs().sum() - h.offset;
+                if (out > 0.0)
+                    c -= out * h.normal;
+            }
+            for (int d = 0; d < 3; ++d)
+            {
+                cells[12 * i + d] = c[d];
+                cells[12 * i + 3 + 4 * d] = half;
+            }
+        }
+    }
+    else
     {
         const std::size_t n = static_cast<std::size_t>(mesh.n_nodes());
         std::vector<real_t> lo(mesh.x), hi(mesh.x);

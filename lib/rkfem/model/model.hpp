@@ -29,6 +29,7 @@
 namespace rkfem
 {
 class StateArchive;
+class SemiLagrangianForceBlock;
 struct PartInfo
 {
     std::string name;
@@ -353,6 +354,7 @@ class Model final : public ExplicitOperator
     std::vector<std::shared_ptr<RkVelocityConstraint>> rk_constraints_;
     void build_rk_constraints();
     real_t dt_critical_ = 0.0; ///< the elements' critical step at the last force evaluation
+    real_t dt_last_ = 0.0;     ///< the step of the last force evaluation (0: the start)
     std::vector<ContactSurface> contact_surfaces(const ContactSpec& c) const;
     void build_contacts();
     /// Refuses (DeckError at the contact) a part whose surface nodes start inside a contacted
@@ -360,6 +362,8 @@ class Model final : public ExplicitOperator
     void check_initial_overlaps() const;
     /// After erosion: every contact's surfaces again from the remaining elements.
     void refresh_contact_surfaces();
+    /// A kernel contact's bodies: the blocks of the semi-Lagrangian parts it names (DeckError else).
+    std::vector<const SemiLagrangianForceBlock*> kernel_contact_bodies(const ContactSpec& c) const;
     /// The dofs any load can put a force on (ascending): f_ext is zero everywhere else, so the
     /// load pass zeroes and the external work sums only these. f_ext_prev_ is per loaded dof.
     std::vector<index_t> loaded_dofs_;

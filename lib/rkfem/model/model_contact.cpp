@@ -7,11 +7,13 @@
 #include <limits>
 #include <sstream>
 
+#include "rkfem/contact/kernel_contact.hpp"
 #include "rkfem/contact/mortar.hpp"
 #include "rkfem/contact/node_to_segment.hpp"
 #include "rkfem/contact/rigid_wall.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/discretization/cell_list.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 
 namespace rkfem
 {
@@ -98,7 +100,7 @@ void Model::check_initial_overlaps() const
     for (std::size_t k = 0; k < deck_.contacts.size(); ++k)
     {
         const ContactSpec& c = deck_.contacts[k];
-        if (c.kind == ContactSpec::Kind::RigidWall)
+        if (c.kind == ContactSpec::Kind::RigidWall || c.kind == ContactSpec::Kind::Kernel)
             continue;
         // the parts on each side (a face set stands for the parts its faces lie on)
         auto parts_of = [&](const std::vector<std::string>& names)
@@ -242,6 +244,34 @@ void Model::check_initial_overlaps() const
     }
 }
 
+std::vector<const SemiLagrangianForceBlock*> Model::kernel_contact_bodies(const ContactSpec& c) const
+{
+    std::vector<const SemiLagrangianForceBlock*> out;
+    for (const std::string& name : c.surfaces)
+    {
+        const auto part = std::find_if(parts.begin(), parts.end(), [&](const PartInfo& p) { return p.name == name; });
+        if (part == parts.end())
+            throw DeckError({c.loc.where, c.loc.path + ".surfaces"}, "'" + name + "' is not a part",
+                            "expected the names of semi-Lagrangian RK parts (kernel contact acts between particles)");
+        const index_t ip = static_cast<index_t>(part - parts.begin());
+        const SemiLagrangianForceBlock* found = nullptr;
+        for (const PlannedBlock& pb : blocks_)
+            if (pb.part == ip)
+                if (const auto* sl = dynamic_cast<const SemiLagrangianForceBlock*>(pb.block.get()))
+                    found = sl;
+        if (found == nullptr)
+            throw DeckError({c.loc.where, c.loc.path + ".surfaces"},
+                            "part '" + name + "' is not a semi-Lagrangian RK part",
+                            "expected parts with formulation: rkpm and kinematics: semi-lagrangian (or "
+                            "nodal_integration.scheme: snni); other parts meet through surface contact");
+        out.push_back(found);
+    }
+    if (out.size() == 2 && out[0] == out[1])
+        throw DeckError({c.loc.where, c.loc.path + ".surfaces"}, "names the same part twice",
+                        "expected two different semi-Lagrangian RK parts");
+    return out;
+}
+
 void Model::build_contacts()
 {
     contacts.clear();
@@ -251,6 +281,18 @@ void Model::build_contacts()
         friction.mu_static = c.mu_static;
         friction.mu_dynamic = c.mu_dynamic;
         friction.decay = c.decay;
+        if (c.kind == ContactSpec::Kind::Kernel)
+        {
+            if (deck_.time.stepper != StepperKind::CentralDifference)
+                throw DeckError({c.loc.where, c.loc.path + ".type"},
+                                "kernel contact shares velocities over a central-difference step",
+                                "expected time.stepper: central-difference with kernel contact");
+            KernelContactParameters p;
+            p.thickness = c.thickness;
+            p.friction = friction;
+            contacts.push_back(std::make_unique<KernelContact>(kernel_contact_bodies(c), p));
+            continue;
+        }
         if (c.kind == ContactSpec::Kind::RigidWall)
         {
             RigidWallParameters p;
@@ -281,6 +323,11 @@ void Model::build_contacts()
 void Model::refresh_contact_surfaces()
 {
     for (std::size_t k = 0; k < contacts.size() && k < deck_.contacts.size(); ++k)
-        contacts[k]->set_surfaces(contact_surfaces(deck_.contacts[k]));
+    {
+        if (deck_.contacts[k].kind == ContactSpec::Kind::Kernel)
+            static_cast<KernelContact&>(*contacts[k]).set_bodies(kernel_contact_bodies(deck_.contacts[k]));
+        else
+            contacts[k]->set_surfaces(contact_surfaces(deck_.contacts[k]));
+    }
 }
 } // namespace rkfem

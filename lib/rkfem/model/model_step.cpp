@@ -81,6 +81,7 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
         book(r, part.element_offset + pb.block->part_element(r.dt_element), static_cast<std::size_t>(pb.part));
     }
     dt_critical_ = rep.dt_stable;
+    dt_last_ = dt;
     // penalty contact bounds the step too (dt_element still names the element with the smallest)
     for (const auto& c : contacts)
         rep.dt_stable = std::min(rep.dt_stable, c->stable_step());
@@ -94,7 +95,7 @@ void Model::external_forces(real_t t)
         return;
     contact.clear();
     const PhysicalNodes physical_nodes(nodes, kinematics);
-    const ContactClock clock{t, dt_critical_};
+    const ContactClock clock{t, dt_critical_, dt_last_};
     for (auto& c : contacts)
         c->add_forces(physical_nodes, clock, contact);
 }

@@ -61,45 +61,36 @@ struct Cell
     }
 };
 
-/// A cell stretched past kCellAspect (the ratio of its largest principal half-width to its
-/// smallest) becomes the cube of its volume about the particle.
-constexpr real_t kCellAspect = 4.0;
-/// A cell stretched past kCellAspect becomes the cube of its volume about the particle.
-Cell square_up(Cell out)
+/// The longest half-edge of the parallelepiped cell c (12 values: centre offset, e_1..3).
+real_t half_width(const real_t* c)
 {
-    Mat3 E;
-    E << out.e[0], out.e[1], out.e[2];
-    const Eigen::SelfAdjointEigenSolver<Mat3> eig(E.transpose() * E, Eigen::EigenvaluesOnly);
-    const Vec3 lam = eig.eigenvalues();
-    const real_t V = out.volume();
-    if (V > 0.0 && lam[2] > kCellAspect * kCellAspect * lam[0])
-    {
-        const real_t half = 0.5 * std::cbrt(V);
-        out.c.setZero();
-        out.e[0] = Vec3(half, 0, 0), out.e[1] = Vec3(0, half, 0), out.e[2] = Vec3(0, 0, half);
-    }
-    return out;
+    real_t w2 = 0.0;
+    for (int k = 1; k <= 3; ++k)
+        w2 = std::max(w2, c[3 * k] * c[3 * k] + c[3 * k + 1] * c[3 * k + 1] + c[3 * k + 2] * c[3 * k + 2]);
+    return std::sqrt(w2);
 }
 
 /// The cell moved by the velocity gradient over dt, as material lines move in a linear field
-/// (e <- e + dt L e, c <- c + dt L c), squared up past kCellAspect.
+/// (e <- e + dt L e, c <- c + dt L c). No cell is ever squared up: a cell made the cube of its
+/// volume past 4:1 (an earlier rule) loses the stretch the supports follow, and a block sheared
+/// past strain 1.5 or a Taylor bar's foot then blew up.
 Cell advance(const Cell& cell, const Mat3& L, real_t dt)
 {
     Cell out = cell;
     out.c += dt * (L * cell.c);
     for (int k = 0; k < 3; ++k)
         out.e[k] += dt * (L * cell.e[k]);
-    return square_up(out);
+    return out;
 }
 
-/// The cell mapped by a deformation gradient F (reference resets), with advance's aspect rule.
+/// The cell mapped by a deformation gradient F (reference resets).
 Cell deform(const Cell& cell, const Mat3& F)
 {
     Cell out = cell;
     out.c = F * cell.c;
     for (int k = 0; k < 3; ++k)
         out.e[k] = F * cell.e[k];
-    return square_up(out);
+    return out;
 }
 
 /// The RK functions at one face centre: row entries, values, gradients.
@@ -449,6 +440,9 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     }
     volume_trial_ = state_.jacobian;
     v0_ = state_.points.weight;
+    width0_.resize(n);
+    for (std::size_t p = 0; p < n; ++p)
+        width0_[p] = half_width(&state_.cells[12 * p]);
     radius_ = radius0_;
     if (resets())
     {
@@ -470,9 +464,41 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     free_.assign(n, 0);
 }
 
+Vec3 SemiLagrangianForceBlock::outward_normal(index_t p, const std::vector<real_t>& x) const
+{
+    if (offsets_.size() != static_cast<std::size_t>(n_particles()) + 1 || radius_.empty() || state_.jacobian[p] == 0.0)
+        return Vec3::Zero();
+    const index_t nb = state_.node_begin;
+    auto at = [&](index_t q) { return Vec3(x[3 * (nb + q)], x[3 * (nb + q) + 1], x[3 * (nb + q) + 2]); };
+    const Vec3 xp = at(p);
+    Vec3 g = Vec3::Zero();
+    real_t scale = 0.0; // the sum of |V_J grad phi_J|: the gradient's size where it cancels
+    for (index_t e = offsets_[p]; e < offsets_[p + 1]; ++e)
+    {
+        const index_t j = ids_[e];
+        if (state_.jacobian[j] == 0.0)
+            continue;
+        real_t phi = 0.0;
+        Vec3 dphi;
+        if (kernel_3d(opt_.rk.kernel, opt_.rk.support, xp - at(j), radius_[j], phi, dphi))
+        {
+            g += volume(j) * dphi;
+            scale += volume(j) * dphi.norm();
+        }
+    }
+    const real_t a = g.norm();
+    return a > 1e-8 * scale ? Vec3(-g / a) : Vec3::Zero();
+}
+
 real_t SemiLagrangianForceBlock::radius(index_t p) const
 {
-    return radius0_[p] * std::max(1.0, std::cbrt(volume(p) / v0_[p]));
+    // the kernel follows the cell's volume and its longest stretch: where the material spreads
+    // (a Taylor bar's foot spreads its particles apart around the rim while their volumes stay)
+    // the support keeps reaching the neighbours across the stretch
+    real_t s = std::max(1.0, std::cbrt(volume(p) / v0_[p]));
+    if (state_.jacobian[p] > 0.0)
+        s = std::max(s, half_width(&state_.cells[12 * static_cast<std::size_t>(p)]) / width0_[p]);
+    return radius0_[p] * s;
 }
 
 void SemiLagrangianForceBlock::extents()

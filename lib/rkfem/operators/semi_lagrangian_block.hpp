@@ -7,14 +7,18 @@
 /// box of the node's dual cell, so the cells of a box mesh tile it; cubes of the particles'
 /// volumes on clouds), and per step
 ///   Psi_J and grad Psi_J at the cell's six face centres x_f = x_L + c_L -+ e_i (the kernel
-///     phi(x - x_J) with support a_J = a0_J max(1, (V_J / V0_J)^(1/3)): it follows the particle's
-///     volume and never falls below its start),
+///     phi(x - x_J) with support a_J = a0_J max(1, (V_J / V0_J)^(1/3), w_J / w0_J), w the cell's
+///     longest half-edge: it follows the particle's volume and its longest stretch,
+///     and never falls below its start. Volume alone let a Taylor bar's foot blow up at 9 us: the
+///     rim's particles spread apart around the hoop at constant volume until the kernels no
+///     longer reached across),
 ///   b_J = (1 / V_L) sum_f Psi_J(x_f) A_f  (the smoothed gradient; A_f = -+ 4 e_j x e_k, the
 ///     face's outward area vector),
 ///   L_L = sum_J v_J (x) b_J,  D, W = sym, skew L;  sigma_L by the rate-form material (the one
 ///     every block uses: Jaumann rotation, then the constitutive update),
 ///   the cell moved as material lines move in the linear field L (e_i += dt L e_i, c_L += dt L
-///     c_L), V_L = 8 det(e_1, e_2, e_3); a cell stretched past 4:1 becomes the cube of its volume,
+///     c_L), V_L = 8 det(e_1, e_2, e_3) (never squared up: the cell is the material's, as an
+///     element is),
 ///   f_J += V_L (sigma_L - q 1) b_J.
 /// One face-centre point per face integrates linear fields exactly on a parallelepiped, so b_J
 /// reproduces them (sum_J x_J (x) b_J = 1) whatever the cell's shape; where cells tile the body
@@ -99,11 +103,17 @@ class SemiLagrangianForceBlock final : public ForceBlock
 
     /// Current volume of particle p (committed) [m^3].
     real_t volume(index_t p) const { return state_.points.weight[p] * state_.jacobian[p]; }
-    /// Current support radius of particle p (committed volume) [m].
+    /// Current support radius of particle p (committed cell) [m].
     real_t radius(index_t p) const;
     index_t n_particles() const { return state_.n_points(); }
     /// Times the neighbour lists were built, and their entries now.
     index_t rebuilds() const { return rebuilds_; }
+    /// The body's outward normal at particle p in positions x (global, 3 per node): -grad rho / |grad
+    /// rho| at x_p, rho(x) = sum_J V_J phi_aJ(x - x_J) the kernel sum over the particles of p's
+    /// neighbour list that have not separated (the un-normalized density of the digest's kernel
+    /// contact, section 3.6; sum_J Psi_J is 1 everywhere). Zero where the gradient vanishes to
+    /// round-off (inside a uniform body), for a separated particle, and before the lists exist.
+    Vec3 outward_normal(index_t p, const std::vector<real_t>& x) const;
     /// Particles that have separated (their committed cells are empty).
     index_t free_particles() const
     {
@@ -155,6 +165,7 @@ class SemiLagrangianForceBlock final : public ForceBlock
     NodalBlock state_;
     std::vector<real_t> radius0_, radius_;
     std::vector<real_t> v0_;           ///< the particles' volumes at the start [m^3]
+    std::vector<real_t> width0_;       ///< the cells' longest half-edges at the start [m]
     std::vector<real_t> u_rel_;        ///< reference resets: u - u^reset (3 per node up to node_end)
     bool tables_built_ = false;        ///< reference resets: the tables match NodalBlock::reference
     bool reset_due_ = false;           ///< reference resets: the next pass resets first
