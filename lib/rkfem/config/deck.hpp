@@ -113,6 +113,9 @@ struct PartSpec
     index_t reset_interval = 1;
     /// semi-Lagrangian parts: the damage index at which a particle leaves the kernels (0: never)
     real_t separation_damage = 0.0;
+    /// semi-Lagrangian parts rebuilt every step: the face-gradient terms' loads scaled by the share
+    /// of the step the material took elastically (SemiLagrangianOptions::plastic_scaling)
+    bool sl_plastic_scaling = false;
     HourglassSpec hourglass;
     BulkViscositySpec bulk_viscosity;
     NodalIntegrationSpec nodal;

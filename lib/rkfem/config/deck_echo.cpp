@@ -321,7 +321,8 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
        << "\n";
     if (p.semi_lagrangian)
         os << "    kinematics: semi-lagrangian\n    semi_lagrangian: {neighbour_skin: " << p.neighbour_skin
-           << ", reset_interval: " << p.reset_interval << ", separation_damage: " << p.separation_damage << "}\n";
+           << ", reset_interval: " << p.reset_interval << ", separation_damage: " << p.separation_damage
+           << ", plastic_scaling: " << (p.sl_plastic_scaling ? "true" : "false") << "}\n";
     if (is_nodal(p.formulation) || p.coupled())
         os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
            << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient

@@ -133,7 +133,7 @@ void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
         s.fail("semi_lagrangian", "sets up semi-Lagrangian RK particles, and this part's kinematics is lagrangian",
                "expected kinematics: semi-lagrangian with a semi_lagrangian section");
     Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"),
-               {"neighbour_skin", "reset_interval", "separation_damage"});
+               {"neighbour_skin", "reset_interval", "separation_damage", "plastic_scaling"});
     p.neighbour_skin = sl.quantity("neighbour_skin", dim::none, 0.3);
     if (!(p.neighbour_skin >= 0.0 && p.neighbour_skin <= 2.0))
         sl.fail("neighbour_skin", "is outside [0, 2]",
@@ -154,6 +154,12 @@ void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
                 "separates particles from kernels rebuilt every step, and reset_interval is " +
                     std::to_string(p.reset_interval),
                 "expected reset_interval: 1 with separation_damage");
+    p.sl_plastic_scaling = sl.choice("plastic_scaling", {"true", "false"}, "false") == "true";
+    if (p.sl_plastic_scaling && p.reset_interval > 1)
+        sl.fail("plastic_scaling",
+                "scales the face terms of tables rebuilt every step, and reset_interval is " +
+                    std::to_string(p.reset_interval) + " (between resets the nodal blocks' stabilization is unscaled)",
+                "expected reset_interval: 1 with plastic_scaling: true");
 }
 
 /// regions: the RK volumes (box, cylinder or sphere selectors) of an FE part, into p.regions.

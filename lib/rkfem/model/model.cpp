@@ -408,6 +408,7 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     // Lagrangian SNNI: the tables of the start, never reset
     opt.reset_interval = ps.semi_lagrangian ? ps.reset_interval : std::numeric_limits<index_t>::max();
     opt.separation_damage = ps.separation_damage;
+    opt.plastic_scaling = ps.sl_plastic_scaling && opt.reset_interval == 1;
     opt.stabilization_coefficient = ps.nodal.stabilization == "none" ? 0.0 : ps.nodal.stabilization_coefficient;
     part_nodal_.back() = static_cast<index_t>(blocks_.size());
     blocks_.push_back(

@@ -11,6 +11,7 @@
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/operators/kernels/rate_form.hpp"
 #include "rkfem/operators/nodal_force.hpp"
 
@@ -615,7 +616,11 @@ bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt
     if (!blk.plastic.active())
         elastic_update(mat, d, u.w, dt, u.sig);
     else
+    {
         state_.plastic.update(p, d, u.w, dt, u.sig);
+        if (opt_.plastic_scaling)
+            u.share = assumed_strain_tangent_share<real_t>(s_old, u.sig, d, u.w, mat.mu, dt);
+    }
     for (int k = 0; k < 6; ++k)
         state_.stress_trial[k * blk.stress_stride + p] = u.sig[k];
     u.V = blk.points.weight[L] * ratio;
@@ -632,7 +637,7 @@ bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt
     return true;
 }
 
-void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, const real_t w[3], real_t V, real_t dt,
+void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, const PointUpdate& u, real_t dt,
                                            real_t sf[6])
 {
     ElasticParams smat = state_.material;
@@ -645,10 +650,20 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
     const std::size_t at = 6 * static_cast<std::size_t>(L) + static_cast<std::size_t>(f);
     for (int k = 0; k < 6; ++k)
         sf_old[k] = sf[k] = state_.stab_stress[k * ns + at];
-    elastic_update(smat, df, w, dt, sf);
+    elastic_update(smat, df, u.w, dt, sf);
+    if (u.share < 1.0)
+    {
+        // the old stress turned with the particle (no strain), and the increment's load scaled
+        real_t turned[6];
+        const real_t none[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+        std::copy_n(sf_old, 6, turned);
+        elastic_update(smat, none, u.w, dt, turned);
+        for (int k = 0; k < 6; ++k)
+            sf[k] = scaled_hourglass_update(turned[k], sf[k] - turned[k], u.share);
+    }
     for (int k = 0; k < 6; ++k)
         state_.stab_stress_trial[k * ns + at] = sf[k];
-    point_sums_[4 * static_cast<std::size_t>(L) + 2] += dt * V / 6.0 * stress_power(sf_old, sf, df);
+    point_sums_[4 * static_cast<std::size_t>(L) + 2] += dt * u.V / 6.0 * stress_power(sf_old, sf, df);
 }
 
 void SemiLagrangianForceBlock::separate_trial(index_t L)
@@ -743,7 +758,7 @@ void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
                          for (index_t k = 0; k < n; ++k)
                              Lf += velocity(k) * g(k).transpose();
                          real_t sf[6];
-                         update_face(L, f, Lf, u.w, u.V, dt, sf);
+                         update_face(L, f, Lf, u, dt, sf);
                          for (index_t k = 0; k < n; ++k)
                          {
                              const Vec3 gk = g(k);
@@ -822,7 +837,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                      if (stabilized)
                          for (int f = 0; f < 6; ++f)
                          {
-                             update_face(L, f, G[f] - Lg, u.w, u.V, dt, sf[f]);
+                             update_face(L, f, G[f] - Lg, u, dt, sf[f]);
                              for (int k = 0; k < 6; ++k)
                                  sq[k] -= sf[f][k] / 6.0;
                          }
