@@ -233,6 +233,20 @@ inline Model model_from(const std::string& deck_text, const std::vector<std::str
     return Model::build(parse_deck(deck_text, "test.yaml", overrides));
 }
 
+/// The DeckError message of building the model of a deck with overrides (empty: it built).
+inline std::string model_error(const std::string& deck_text, const std::vector<std::string>& overrides)
+{
+    try
+    {
+        model_from(deck_text, overrides);
+    }
+    catch (const DeckError& e)
+    {
+        return e.what();
+    }
+    return "";
+}
+
 /// Momentum of the unknowns, sum_I m_I v_I.
 inline Vec3 momentum(const NodeSet& nodes)
 {

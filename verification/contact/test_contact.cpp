@@ -441,18 +441,7 @@ TEST(KernelContact, ResultsDoNotDependOnThreadCount)
 
 TEST(KernelContact, DeckErrorsNameTheKey)
 {
-    auto error_of = [](const std::vector<std::string>& overrides)
-    {
-        try
-        {
-            test::model_from(bars_deck, overrides);
-        }
-        catch (const DeckError& e)
-        {
-            return std::string(e.what());
-        }
-        return std::string();
-    };
+    auto error_of = [](const std::vector<std::string>& overrides) { return test::model_error(bars_deck, overrides); };
     const std::vector<std::string> sl{"parts.a.formulation=rkpm",
                                       "parts.a.kinematics=semi-lagrangian",
                                       "parts.b.formulation=rkpm",

@@ -389,18 +389,7 @@ boundary_conditions:
 
 TEST(SemiLagrangian, DeckErrorsNameTheKey)
 {
-    auto error_of = [](const std::vector<std::string>& overrides)
-    {
-        try
-        {
-            test::model_from(block_deck, overrides);
-        }
-        catch (const DeckError& e)
-        {
-            return std::string(e.what());
-        }
-        return std::string();
-    };
+    auto error_of = [](const std::vector<std::string>& overrides) { return test::model_error(block_deck, overrides); };
     EXPECT_NE(error_of({"parts.block.formulation=fem-1pt"}).find("parts.block.kinematics"), std::string::npos);
     EXPECT_NE(error_of({"parts.block.nodal_integration={scheme: scni}"}).find("expected scheme: snni"),
               std::string::npos);

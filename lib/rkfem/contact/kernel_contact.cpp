@@ -46,20 +46,6 @@ void KernelContact::set_bodies(std::vector<const SemiLagrangianForceBlock*> bodi
     built_ = false;
 }
 
-real_t KernelContact::extent(index_t i, const Vec3& n) const
-{
-    const real_t* c = &cell_[12 * static_cast<std::size_t>(i)];
-    real_t h = c[0] * n[0] + c[1] * n[1] + c[2] * n[2];
-    for (int a = 1; a <= 3; ++a)
-        h += std::abs(c[3 * a] * n[0] + c[3 * a + 1] * n[1] + c[3 * a + 2] * n[2]);
-    return h;
-}
-
-bool KernelContact::may_pair(index_t i, index_t j) const
-{
-    return body_[i] != body_[j];
-}
-
 void KernelContact::gather(const PhysicalNodes& nodes, const ContactClock& clock, const ContactChannel& channel)
 {
     const NodeSet& ns = nodes.nodes();
@@ -136,7 +122,7 @@ void KernelContact::update_candidates()
         cells, x_, n,
         [&](index_t i, index_t j)
         {
-            if (j <= i || !may_pair(i, j))
+            if (j <= i || body_[i] == body_[j])
                 return false;
             const std::size_t i3 = 3 * static_cast<std::size_t>(i), j3 = 3 * static_cast<std::size_t>(j);
             const real_t dx = x_[j3] - x_[i3], dy = x_[j3 + 1] - x_[i3 + 1], dz = x_[j3 + 2] - x_[i3 + 2];
@@ -187,9 +173,6 @@ void KernelContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
                                 for (index_t e = offsets_[k]; e < offsets_[k + 1]; ++e)
                                 {
                                     const index_t j = ids_[e];
-                                    w_[static_cast<std::size_t>(e)] = 0.0;
-                                    if (!may_pair(k, j))
-                                        continue;
                                     const std::size_t j3 = 3 * static_cast<std::size_t>(j);
                                     const Vec3 r = Vec3(x_[j3], x_[j3 + 1], x_[j3 + 2]) - xk;
                                     const real_t d = r.norm();

@@ -82,8 +82,6 @@ class KernelContact final : public ContactAlgorithm
     /// Candidate lists (pairs within both reaches, thickness and skin), rebuilt when the motion
     /// since the build passes the skin.
     void update_candidates();
-    bool may_pair(index_t i, index_t j) const;
-    real_t extent(index_t i, const Vec3& n) const;
     /// The pair's normal from k into j's body: unit(n_k - n_j) of the bodies' outward normals,
     /// the line between them where both vanish.
     Vec3 pair_normal(index_t k, index_t j) const;
@@ -100,7 +98,7 @@ class KernelContact final : public ContactAlgorithm
     std::vector<real_t> cell_;      ///< 12 per particle: c, e1, e2, e3 (NodalBlock::cells; a cube for separated ones)
     std::vector<real_t> size_;      ///< l = V^(1/3)
     std::vector<real_t> reach_;     ///< bound on the cell's extent in any direction
-    std::vector<index_t> offsets_{0}, ids_; ///< candidates: per particle, the partners j > k it may meet
+    std::vector<index_t> offsets_{0}, ids_; ///< candidates: per particle, the other body's partners j > k it may meet
     std::vector<real_t> x_built_;           ///< positions at the last build
     real_t reach_built_ = 0.0, skin_ = 0.0;
     bool built_ = false;

@@ -45,6 +45,14 @@ struct Cell
     {
     }
     real_t volume() const { return 8.0 * e[0].dot(e[1].cross(e[2])); }
+    /// The longest half-edge (0 for a separated particle's empty cell).
+    real_t longest_half_edge() const
+    {
+        real_t w2 = 0.0;
+        for (const Vec3& k : e)
+            w2 = std::max(w2, k[0] * k[0] + k[1] * k[1] + k[2] * k[2]);
+        return std::sqrt(w2);
+    }
     Vec3 centre(const Vec3& x, int f) const { return x + c + (f % 2 == 0 ? -1.0 : 1.0) * e[f / 2]; }
     Vec3 area(int f) const
     {
@@ -61,15 +69,6 @@ struct Cell
         }
     }
 };
-
-/// The longest half-edge of the parallelepiped cell c (12 values: centre offset, e_1..3).
-real_t half_width(const real_t* c)
-{
-    real_t w2 = 0.0;
-    for (int k = 1; k <= 3; ++k)
-        w2 = std::max(w2, c[3 * k] * c[3 * k] + c[3 * k + 1] * c[3 * k + 1] + c[3 * k + 2] * c[3 * k + 2]);
-    return std::sqrt(w2);
-}
 
 /// The cell moved by the velocity gradient over dt, as material lines move in a linear field
 /// (e <- e + dt L e, c <- c + dt L c). No cell is ever squared up: a cell made the cube of its
@@ -448,7 +447,7 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     v0_ = state_.points.weight;
     width0_.resize(n);
     for (std::size_t p = 0; p < n; ++p)
-        width0_[p] = half_width(&state_.cells[12 * p]);
+        width0_[p] = Cell(&state_.cells[12 * p]).longest_half_edge();
     radius_ = radius0_;
     if (resets())
     {
@@ -501,10 +500,8 @@ real_t SemiLagrangianForceBlock::radius(index_t p) const
     // the kernel follows the cell's volume and its longest stretch: where the material spreads
     // (a Taylor bar's foot spreads its particles apart around the rim while their volumes stay)
     // the support keeps reaching the neighbours across the stretch
-    real_t s = std::max(1.0, std::cbrt(volume(p) / v0_[p]));
-    if (state_.jacobian[p] > 0.0)
-        s = std::max(s, half_width(&state_.cells[12 * static_cast<std::size_t>(p)]) / width0_[p]);
-    return radius0_[p] * s;
+    const real_t stretch = Cell(&state_.cells[12 * static_cast<std::size_t>(p)]).longest_half_edge() / width0_[p];
+    return radius0_[p] * std::max({1.0, std::cbrt(volume(p) / v0_[p]), stretch});
 }
 
 void SemiLagrangianForceBlock::extents()
