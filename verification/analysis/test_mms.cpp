@@ -49,6 +49,12 @@ TEST(ManufacturedSolution, SmokeSweepRates)
     check("mms_smoke.yaml", out_dir("convergence_smoke"));
 }
 
+// SNNI on the semi-Lagrangian block's cells with its face-gradient term, and SD-SNNI (issue #48)
+TEST(ManufacturedSolution, SnniSmokeSweepRates)
+{
+    check("mms_snni_smoke.yaml", "convergence_snni_smoke");
+}
+
 namespace
 {
 /// read_sweep's error for a sweep file with `body` ("" when it reads).
@@ -83,6 +89,16 @@ TEST(ConvergenceSweepInput, BadCasesNameTheKeyAndLine)
     EXPECT_NE(solver.find("cases.0.solver: 'gmres' is not a valid choice; expected one of auto | direct | pcg"),
               std::string::npos)
         << solver;
+    const std::string fe = sweep_error(head + "  - {formulation: fem-nodal, scheme: snni}\n");
+    EXPECT_NE(fe.find(":4: cases.0.scheme: snni integrates RK particles on their own (semi-Lagrangian) cells; "
+                      "expected formulation rkpm with scheme snni"),
+              std::string::npos)
+        << fe;
+    const std::string sd = sweep_error(head + "  - {scheme: sd-snni, stabilization: 1}\n");
+    EXPECT_NE(sd.find(":4: cases.0.stabilization: stabilizes scheme scni (MSCNI) or snni (the face-gradient term) "
+                      "only; expected no stabilization with scheme sd-snni"),
+              std::string::npos)
+        << sd;
 }
 
 TEST(ConvergenceSweepInput, EverySweepInStudiesReads)
@@ -96,5 +112,5 @@ TEST(ConvergenceSweepInput, EverySweepInStudiesReads)
             EXPECT_FALSE(s.cases.empty()) << e.path();
             ++n;
         }
-    EXPECT_GE(n, 3);
+    EXPECT_GE(n, 4);
 }

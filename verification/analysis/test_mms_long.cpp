@@ -9,6 +9,11 @@
 //   the boundary (its low-energy surface modes; Puso, Chen, Zywicz & Elmer 2008). The Dirichlet
 //   sweep holds the same plain SCNI cases and asserts them.
 // DNI is the negative control in both (recorded).
+// The semi-Lagrangian block's SNNI tables (issue #48; on the dual cells' boxes, which tile the
+// cube): SNNI with the face-gradient term asserted in both sweeps; SD-SNNI asserted with u = 0 on
+// the boundary, its L2 rate recorded with tractions (1.80 at a/h 1.51, 1.87 at 1.25, still
+// rising: the surface modes plain SCNI shows there); plain SNNI recorded in both (it has the
+// sawtooth zero-energy mode in dynamics; statically it converges at L2 2.1-2.9).
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -36,6 +41,11 @@ bool plain_scni(const MmsCase& c)
     return c.scheme == "scni" && c.stabilization == 0;
 }
 
+bool plain_snni(const MmsCase& c)
+{
+    return c.scheme == "snni" && c.stabilization == 0;
+}
+
 std::vector<std::vector<MmsResult>> run(const char* file, const char* out, ConvergenceSweep& s)
 {
     s = read_sweep(std::string(RKFEM_SOURCE_DIR) + "/studies/sweeps/" + file);
@@ -54,7 +64,7 @@ TEST(ManufacturedSolution, DirichletSweepRates)
         std::printf("%-28s a/h %.2f finest rates: L2 %.3f  H1 %.3f\n", s.cases[c].label().c_str(),
                     s.cases[c].rk.normalized_support, r.l2, r.h1);
         ASSERT_EQ(s.cases[c].boundary, MmsBoundary::Dirichlet) << s.cases[c].label();
-        if (s.cases[c].scheme == "dni")
+        if (s.cases[c].scheme == "dni" || plain_snni(s.cases[c]))
             continue;
         EXPECT_GE(r.l2, 1.8) << s.cases[c].label() << " a/h " << s.cases[c].rk.normalized_support;
         EXPECT_GE(r.h1, 0.85) << s.cases[c].label() << " a/h " << s.cases[c].rk.normalized_support;
@@ -68,11 +78,12 @@ TEST(ManufacturedSolution, TractionSweepRates)
     for (std::size_t c = 0; c < s.cases.size(); ++c)
     {
         const Rates r = finest_rates(results[c]);
-        const bool dni = s.cases[c].scheme == "dni", l2_recorded = dni || plain_scni(s.cases[c]);
+        const bool recorded = s.cases[c].scheme == "dni" || plain_snni(s.cases[c]);
+        const bool l2_recorded = recorded || plain_scni(s.cases[c]) || s.cases[c].scheme == "sd-snni";
         std::printf("%-28s a/h %.2f finest rates: L2 %.3f%s  H1 %.3f\n", s.cases[c].label().c_str(),
                     s.cases[c].rk.normalized_support, r.l2, l2_recorded ? " (recorded)" : "", r.h1);
         ASSERT_EQ(s.cases[c].boundary, MmsBoundary::Traction) << s.cases[c].label();
-        if (dni)
+        if (recorded)
             continue;
         if (!l2_recorded)
         {

@@ -126,13 +126,21 @@ ConvergenceSweep read_sweep_checked(const std::string& path)
         mc.formulation = text(path, c, "formulation", p, {"rkpm", "fem-nodal"}, "rkpm") == "rkpm"
                              ? Formulation::Rkpm
                              : Formulation::FemNodal;
-        mc.scheme = text(path, c, "scheme", p, {"scni", "sd-scni", "dni"}, "scni");
+        mc.scheme = text(path, c, "scheme", p, {"scni", "sd-scni", "dni", "snni", "sd-snni"}, "scni");
+        if (mc.formulation == Formulation::FemNodal && (mc.scheme == "snni" || mc.scheme == "sd-snni"))
+            throw DeckError(at(path, c["scheme"], p + ".scheme"),
+                            mc.scheme + " integrates RK particles on their own (semi-Lagrangian) cells",
+                            "expected formulation rkpm with scheme " + mc.scheme);
         if (mc.formulation == Formulation::FemNodal && mc.scheme == "dni")
             throw DeckError(
                 at(path, c["scheme"], p + ".scheme"),
                 "direct nodal integration of trilinear FE functions is undefined (their gradient jumps at nodes)",
                 "expected scheme scni or sd-scni with formulation fem-nodal");
         mc.stabilization = number(path, c, "stabilization", p, 0.0);
+        if (c["stabilization"] && mc.scheme != "scni" && mc.scheme != "snni")
+            throw DeckError(at(path, c["stabilization"], p + ".stabilization"),
+                            "stabilizes scheme scni (MSCNI) or snni (the face-gradient term) only",
+                            "expected no stabilization with scheme " + mc.scheme);
         if (!(mc.stabilization >= 0))
             throw DeckError(at(path, c["stabilization"], p + ".stabilization"), "is negative",
                             "expected the MSCNI coefficient c_s >= 0 (0: none, 1: the RKPM2D default)");

@@ -8,9 +8,12 @@
 ///   title: ...
 ///   resolutions: [8, 16]          # elements per side of the unit cube
 ///   cases:
-///     - {formulation: rkpm, scheme: scni, stabilization: 1, normalized_support: 1.25,
+///     - {formulation: rkpm, scheme: scni | sd-scni | dni | snni | sd-snni, stabilization: 1,
+///        normalized_support: 1.25,
 ///        support: box, kernel: cubic-bspline, boundary: traction | dirichlet,
 ///        solver: auto | direct | pcg}
+/// stabilization: c_s of MSCNI (scni) or of the face-gradient term (snni); snni and sd-snni are the
+/// semi-Lagrangian block's SNNI tables on its cells (manufactured_solution.hpp).
 #include <string>
 #include <vector>
 

@@ -6,11 +6,14 @@
 
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
+#include "rkfem/config/deck.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/integration/hex_gauss.hpp"
 #include "rkfem/integration/nodal/nodal_integration.hpp"
+#include "rkfem/model/model.hpp"
 #include "rkfem/operators/linear_static.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 
 namespace rkfem
 {
@@ -114,6 +117,39 @@ template <class F> void for_each_gauss_point(const HexMesh& mesh, int ng, F&& f)
                 }
     }
 }
+/// SNNI's tables on the cube's nodes, from the semi-Lagrangian block itself (its cells: the boxes
+/// of the nodes' dual cells, which tile the cube; operators/semi_lagrangian_block.hpp,
+/// snni_operators): the points, and the face-gradient term's sub-points (snni) or the sub-cells'
+/// (sd-snni). The block's particles are the mesh's nodes in the same order (checked).
+void snni_tables(const MmsCase& c, const HexMesh& mesh, IntegrationOperator& op, IntegrationOperator& stab)
+{
+    const char* kernel = c.rk.kernel == KernelType::QuinticBSpline ? "quintic-bspline"
+                         : c.rk.kernel == KernelType::Gaussian     ? "gaussian"
+                                                                   : "cubic-bspline";
+    std::ostringstream deck;
+    deck.precision(17);
+    deck << "title: manufactured solution, " << c.scheme << "\ntime: {end: 1 s}\nparts:\n  cube:\n"
+         << "    generator: {type: box, size: [1 m, 1 m, 1 m], divisions: [" << c.n << ", " << c.n << ", " << c.n
+         << "]}\n    material: {model: elastic, rho: 1 kg/m^3, E: " << c.E << " Pa, nu: " << c.nu << "}\n"
+         << "    formulation: rkpm\n    kinematics: semi-lagrangian\n"
+         << "    rk: {order: " << c.rk.order << ", kernel: " << kernel
+         << ", support: " << (c.rk.support == SupportShape::Sphere ? "sphere" : "box")
+         << ", normalized_support: " << c.rk.normalized_support << "}\n";
+    Model m = Model::build(parse_deck(deck.str(), "manufactured_solution.yaml"));
+    SemiLagrangianForceBlock* sl = nullptr;
+    for (index_t k = 0; k < m.n_blocks() && !sl; ++k)
+        sl = dynamic_cast<SemiLagrangianForceBlock*>(&m.block(k));
+    RKFEM_REQUIRE(sl && m.nodes.size() == mesh.n_nodes(),
+                  "manufactured solution: the " << c.scheme
+                                                << " model has no semi-Lagrangian block of the mesh's nodes");
+    for (std::size_t k = 0; k < mesh.x.size(); ++k)
+        RKFEM_REQUIRE(std::abs(m.nodes.x[k] - mesh.x[k]) < 1e-12,
+                      "manufactured solution: the " << c.scheme << " model's particles are not the mesh's nodes");
+    const auto sub = c.scheme == "sd-snni" ? SemiLagrangianForceBlock::SubPoints::SubCells
+                                           : SemiLagrangianForceBlock::SubPoints::FaceCentres;
+    RKFEM_REQUIRE(sl->snni_operators(m.nodes.x, sub, op, stab),
+                  "manufactured solution: a smoothing cell's face centre is not covered");
+}
 } // namespace
 
 std::string MmsCase::label() const
@@ -122,6 +158,8 @@ std::string MmsCase::label() const
     s += scheme;
     if (scheme == "scni" && stabilization > 0)
         s += "+mscni";
+    if (scheme == "snni" && stabilization > 0)
+        s += "+face-gradient";
     if (boundary == MmsBoundary::Dirichlet)
         s += " dirichlet";
     return s;
@@ -131,7 +169,7 @@ std::string MmsCase::table_name() const
 {
     std::ostringstream s;
     s << label();
-    if (scheme == "scni" && stabilization > 0 && stabilization != 1)
+    if ((scheme == "scni" || scheme == "snni") && stabilization > 0 && stabilization != 1)
         s << " cs" << stabilization;
     if (formulation == Formulation::Rkpm)
     {
@@ -169,13 +207,23 @@ MmsResult solve_mms(const MmsCase& c)
     const bool is_rk = c.formulation == Formulation::Rkpm;
     const ShapeEvaluator& shapes = is_rk ? static_cast<const ShapeEvaluator&>(rks) : fes;
 
-    const NodalScheme scheme = c.scheme == "dni"       ? NodalScheme::Dni
-                               : c.scheme == "sd-scni" ? NodalScheme::SdScni
-                                                       : NodalScheme::Scni;
-    const IntegrationOperator op = build_nodal(scheme, mesh, shapes);
-    const bool stabilized = scheme == NodalScheme::Scni && c.stabilization > 0;
-    const IntegrationOperator stab =
-        stabilized ? build_mscni_stabilization(op, build_sd_scni(mesh, shapes)) : IntegrationOperator{};
+    const bool snni = c.scheme == "snni" || c.scheme == "sd-snni";
+    RKFEM_REQUIRE(!snni || is_rk, "manufactured solution: scheme " << c.scheme << " needs formulation rkpm");
+    IntegrationOperator op, stab;
+    // SD-SNNI: the sub-cells' term at c_s = 1 (with it the stiffness is SD-SNNI's)
+    const real_t c_stab = c.scheme == "sd-snni" ? 1.0 : c.stabilization;
+    if (snni)
+        snni_tables(c, mesh, op, stab);
+    else
+    {
+        const NodalScheme scheme = c.scheme == "dni"       ? NodalScheme::Dni
+                                   : c.scheme == "sd-scni" ? NodalScheme::SdScni
+                                                           : NodalScheme::Scni;
+        op = build_nodal(scheme, mesh, shapes);
+        if (scheme == NodalScheme::Scni && c.stabilization > 0)
+            stab = build_mscni_stabilization(op, build_sd_scni(mesh, shapes));
+    }
+    const bool stabilized = c_stab > 0 && stab.n_points() > 0;
 
     // loads: body force with 3^3 Gauss points per element, exact traction on the boundary facets
     std::vector<real_t> f(3 * static_cast<std::size_t>(nn), 0.0);
@@ -242,7 +290,7 @@ MmsResult solve_mms(const MmsCase& c)
     {
         std::vector<StiffnessTerm> terms{{&op, 1.0}};
         if (stabilized)
-            terms.push_back({&stab, c.stabilization});
+            terms.push_back({&stab, c_stab});
         const MatrixFreeStiffness K(terms, mat, nn);
         const SparseMatrix fe = assemble_stiffness(build_hex_gauss(mesh, 2), mat, nn);
         PcgResult pr = solve_static_pcg(K, f, pinned, fe, c.pcg_rtol, c.pcg_max_iterations, &C);
@@ -253,7 +301,7 @@ MmsResult solve_mms(const MmsCase& c)
     {
         SparseMatrix K = assemble_stiffness(op, mat, nn);
         if (stabilized)
-            K += assemble_stiffness(stab, mat, nn, c.stabilization);
+            K += assemble_stiffness(stab, mat, nn, c_stab);
         if (n_rows > 0)
             d = solve_static_constrained(K, f, C, std::vector<real_t>(static_cast<std::size_t>(n_rows), 0.0));
         else

@@ -34,8 +34,11 @@ enum class MmsBoundary
 struct MmsCase
 {
     Formulation formulation = Formulation::Rkpm; ///< rkpm or fem-nodal
-    std::string scheme = "scni";                 ///< dni | scni | sd-scni
-    real_t stabilization = 0.0;                  ///< MSCNI c_s (scheme scni), 0: none
+    /// dni | scni | sd-scni, or (rkpm) snni | sd-snni: the semi-Lagrangian block's SNNI tables on
+    /// its cells at the start (the boxes of the nodes' dual cells; SemiLagrangianForceBlock::
+    /// snni_operators), sd-snni with its eight sub-cells
+    std::string scheme = "scni";
+    real_t stabilization = 0.0; ///< c_s of MSCNI (scheme scni) or of the face-gradient term (snni), 0: none
     RkParams rk;
     int n = 8; ///< elements per side, h = 1/n
     real_t E = 1.0, nu = 0.3;

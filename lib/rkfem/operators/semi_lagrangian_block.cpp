@@ -1154,4 +1154,106 @@ bool SemiLagrangianForceBlock::smoothed_gradient(index_t p, const std::vector<re
         *face_gradients = sc.face;
     return true;
 }
+
+bool SemiLagrangianForceBlock::snni_operators(const std::vector<real_t>& x, SubPoints sub, IntegrationOperator& points,
+                                              IntegrationOperator& stabilization)
+{
+    extents();
+    const bool sub_cells = sub == SubPoints::SubCells;
+    if (sub_cells)
+    {
+        // the sub-cells' face centres reach past the cell's own ones on sheared cells: the
+        // lists take the reach of the cell's corners
+        const bool box = opt_.rk.support == SupportShape::Box;
+        for (index_t p = 0; p < n_particles(); ++p)
+        {
+            const Cell cell(&state_.cells[12 * static_cast<std::size_t>(p)]);
+            for (int q = 0; q < 8; ++q)
+            {
+                Vec3 d = cell.c;
+                for (int i = 0; i < 3; ++i)
+                    d += ((q >> i) & 1 ? 1.0 : -1.0) * cell.e[i];
+                cell_reach_[p] = std::max(cell_reach_[p], box ? d.cwiseAbs().maxCoeff() : d.norm());
+            }
+        }
+    }
+    build_neighbours(x);
+    points = IntegrationOperator{};
+    stabilization = IntegrationOperator{};
+    const index_t begin = state_.node_begin;
+    Scratch sc;
+    std::vector<real_t> b, bs;
+    auto add_row = [](IntegrationOperator& op, real_t w, const Vec3& at, index_t owner, index_t parent,
+                      const index_t* row, index_t n, index_t begin_, auto&& g)
+    {
+        op.weight.push_back(w);
+        for (int d = 0; d < 3; ++d)
+            op.position.push_back(at[d]);
+        op.owner.push_back(owner);
+        if (parent >= 0)
+            op.parent.push_back(parent);
+        for (index_t k = 0; k < n; ++k)
+        {
+            const Vec3 gk = g(k);
+            if (gk.squaredNorm() == 0.0)
+                continue;
+            op.nodes.push_back(begin_ + row[k]);
+            for (int d = 0; d < 3; ++d)
+                op.grad.push_back(gk[d]);
+        }
+        op.offsets.push_back(op.n_entries());
+    };
+    for (index_t L = 0; L < n_particles(); ++L)
+    {
+        const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+        const index_t n = offsets_[L + 1] - offsets_[L];
+        const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+        const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
+        const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+        const real_t V = cell.volume();
+        const std::size_t n3 = 3 * static_cast<std::size_t>(n);
+        b.assign(n3, 0.0);
+        if (!sub_cells)
+        {
+            if (!plain_gradient(xL, cell, row, n, begin, x, radius_, opt_.rk, free_, sc))
+                return false;
+            b = sc.b;
+        }
+        else
+        {
+            bs.assign(8 * n3, 0.0);
+            for (int s = 0; s < 8; ++s)
+            {
+                Cell part = cell;
+                for (int i = 0; i < 3; ++i)
+                {
+                    part.e[i] = 0.5 * cell.e[i];
+                    part.c += ((s >> i) & 1 ? 1.0 : -1.0) * part.e[i];
+                }
+                if (!plain_gradient(xL, part, row, n, begin, x, radius_, opt_.rk, free_, sc))
+                    return false;
+                std::copy(sc.b.begin(), sc.b.end(), bs.begin() + static_cast<std::ptrdiff_t>(s * n3));
+                for (std::size_t k = 0; k < n3; ++k)
+                    b[k] += 0.125 * sc.b[k];
+            }
+        }
+        auto at = [](const std::vector<real_t>& v, std::size_t o) { return Vec3(v[o], v[o + 1], v[o + 2]); };
+        add_row(points, V, xL, begin + L, -1, row, n, begin, [&](index_t k) { return at(b, 3 * k); });
+        for (int q = 0; q < (sub_cells ? 8 : 6); ++q)
+        {
+            if (sub_cells)
+            {
+                Vec3 c = cell.c;
+                for (int i = 0; i < 3; ++i)
+                    c += ((q >> i) & 1 ? 0.5 : -0.5) * cell.e[i];
+                add_row(stabilization, V / 8.0, xL + c, begin + L, L, row, n, begin,
+                        [&](index_t k) { return Vec3(at(bs, q * n3 + 3 * k) - at(b, 3 * k)); });
+            }
+            else
+                add_row(stabilization, V / 6.0, cell.centre(xL, q), begin + L, L, row, n, begin,
+                        [&](index_t k) { return Vec3(at(sc.face, 18 * k + 3 * q) - at(b, 3 * k)); });
+        }
+    }
+    return true;
+}
 } // namespace rkfem

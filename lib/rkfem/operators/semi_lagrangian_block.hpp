@@ -42,6 +42,11 @@
 /// (6.61 mm at 53 us, on its way to the literature's 7.05) went unstable at 53 us as its rim
 /// flattened: where the material flows the scaled terms no longer hold the modes SNNI misses.
 ///
+/// SD-SNNI (each cell's eight sub-cells, snni_operators) is built as static tables only (the
+/// manufactured-solution sweeps, studies/sweeps: SNNI with the face-gradient term converges at L2
+/// 2.06, H1 1.22 with tractions on the whole boundary at a/h 1.51, SD-SNNI at 1.80, 1.01); the
+/// dynamic passes integrate SNNI with the face-gradient term.
+///
 /// The unknowns of the particles are their velocities (the first-order shortcut of the digest,
 /// section 3.1): the particle moves with v_J, and the kinematic map takes them as physical values
 /// (identity rows), so boundary conditions, loads, contact and output read them directly. For a
@@ -146,6 +151,26 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// moment matrix at a face centre. For tests and probes (allocates; rebuilds the lists).
     bool smoothed_gradient(index_t p, const std::vector<real_t>& x, std::vector<index_t>& nodes,
                            std::vector<real_t>& grad, std::vector<real_t>* face_gradients = nullptr);
+
+    /// The block's SNNI tables in positions x as integration operators, for static solves (the
+    /// manufactured-solution sweep) and tests; global node ids, built by the plain pass's algebra
+    /// (plain_gradient) on the committed cells. `points`: one per particle L, weight V_L, rows
+    /// b_J; `stabilization`: its sub-points (parent L), by `sub`:
+    /// - FaceCentres (SNNI with the block's face-gradient term): six per particle at the face
+    ///   centres x_f, weight V_L / 6, rows grad Psi_J(x_f) - b_J;
+    /// - SubCells (SD-SNNI): the cell's eight half-size parallelepipeds s, each its own SNNI cell
+    ///   (b^s_J from its six face centres), weight V_L / 8, rows b^s_J - b_J, where the points'
+    ///   rows are then the sub-cells' mean b_J = (1 / 8) sum_s b^s_J (SNNI on the cell with four
+    ///   points per face: the sub-cells' shared faces cancel). With c_s = 1 the two terms'
+    ///   stiffness is sum_s V_s B_s^T C B_s, SD-SNNI's, exactly (sum_s V_s (b^s - b) = 0).
+    /// False where a cell's face centre is not covered (a singular moment matrix).
+    enum class SubPoints
+    {
+        FaceCentres,
+        SubCells,
+    };
+    bool snni_operators(const std::vector<real_t>& x, SubPoints sub, IntegrationOperator& points,
+                        IntegrationOperator& stabilization);
 
   private:
     /// A particle's material update from its velocity gradient (trial stress, cell and volume, its
