@@ -433,8 +433,11 @@ TEST(SemiLagrangian, ResultsDoNotDependOnThreadCount)
 
 // The fast pass (RK functions face by face from the particles that reach the cell, L from the
 // face velocities, forces scattered per face) against the plain one (the algebra as written, over
-// each particle's whole row): a K&C block struck at 30 m/s, 46 steps, the same displacements and
-// stresses to round-off.
+// each particle's whole row): a K&C block struck at 30 m/s, 44 steps, the same displacements and
+// stresses to round-off. The softening material amplifies the passes' round-off differences
+// about 20 times every 10 steps (at the default c_s 0.1: stresses within 6e-11 of their largest
+// after 10 steps, 1.5e-9 after 23, 1.7e-8 after 44; displacements within 1e-11), so the face terms
+// are checked at c_s 1, where they weigh most (4.7e-9 after 44 steps).
 TEST(SemiLagrangian, FastPassMatchesThePlainOne)
 {
     auto run = [](bool plain)
@@ -448,6 +451,7 @@ parts:
     material: {model: kcc, rho: 2400 kg/m^3, fc: 45.6 MPa}
     formulation: rkpm
     kinematics: semi-lagrangian
+    nodal_integration: {scheme: snni, stabilization_coefficient: 1}
 node_sets:
   struck: {select: {type: named, name: bottom}}
 boundary_conditions:
@@ -512,10 +516,11 @@ TEST(SemiLagrangian, DeckErrorsNameTheKey)
 // The critical step factor of the SNNI operator with the face-gradient term, on the free 8 mm
 // block at the start (the tables the reset mode builds are the every-step pass's operator):
 // alpha_crit = 2 / omega_max x c / min l0 (nodal_step_estimate.hpp) above the default alpha 1 at
-// c_s 0.25, 0.5 and 1 (the term stiffens the highest mode, so alpha_crit falls as c_s grows).
+// c_s 0.1 (the default), 0.25, 0.5 and 1 (the term stiffens the highest mode, so alpha_crit
+// falls as c_s grows).
 TEST(SemiLagrangian, DefaultStepFactorIsBelowTheCriticalOne)
 {
-    for (const real_t cs : {0.25, 0.5, 1.0})
+    for (const real_t cs : {0.1, 0.25, 0.5, 1.0})
     {
         Model m = test::model_from(block_deck, {"parts.block.semi_lagrangian={reset_interval: 2}",
                                                 "parts.block.nodal_integration={scheme: snni, "
@@ -527,7 +532,7 @@ TEST(SemiLagrangian, DefaultStepFactorIsBelowTheCriticalOne)
         const HighestFrequency hf = nodal_highest_frequency(nb, m.nodes.mass, 200, 1e-6);
         std::printf("c_s %.2f: alpha_crit %.3f (default alpha %.3f), %d passes\n", cs, hf.alpha_crit, nb.dt_factor,
                     hf.passes);
-        EXPECT_GT(hf.alpha_crit, nb.dt_factor) << "c_s " << cs; // measured 1.122, 1.095, 1.041
+        EXPECT_GT(hf.alpha_crit, nb.dt_factor) << "c_s " << cs; // measured 1.138, 1.122, 1.095, 1.041
     }
 }
 
@@ -600,19 +605,23 @@ parts:
 // Large shear: a 4 mm J2 steel block (sigma_y 200 MPa), its bottom held, its top driven along x
 // at 20 m/s for 600 us (engineering shear strain 3, the issue's figure; the wave crosses it in
 // 0.7 us, so nearly quasi-static). Every particle keeps a positive volume and the energy ledger
-// closes within 1 %. Tables rebuilt every step and every 10 steps (reference resets), both with
-// the face terms unscaled (the reset mode's are the nodal blocks'), give the top's reaction
-// along x within 1 % of each other at the end (13,070 and 13,037 N; balance 5.7e-4 and 4.5e-4).
-// With the face terms' plastic scaling (semi_lagrangian.plastic_scaling: true) the reaction falls to that of
-// the 1-point FE block with viscous hourglass control, within 5 % (7,139 N against 7,172; the
-// fully integrated hex, which locks, 9,789 N): the unscaled elastic face terms resist the flow.
+// closes within 1 %. With the face terms at c_s 1, tables rebuilt every step and every 10 steps
+// (reference resets), both with the face terms unscaled (the reset mode's are the nodal blocks'),
+// give the top's reaction along x within 1 % of each other at the end (13,070 and 13,037 N;
+// balance 5.7e-4 and 4.5e-4). With their plastic scaling (semi_lagrangian.plastic_scaling:
+// true) the reaction falls to that of the 1-point FE block with viscous hourglass control,
+// within 5 % (7,139 N against 7,172; the fully integrated hex, which locks, 9,789 N): the
+// unscaled elastic face terms resist the flow. At the default c_s 0.1 (kFaceGradientCoefficient)
+// the unscaled reactions come down to 9,019 N every step and 8,157 N with resets every 10 steps:
+// the weaker term leaves the two table modes' low-energy modes freer, and they part by 10 %
+// (asserted within 12 %: recorded as found, not a band either should be held to).
 // Strain 3 needed the supports to follow the cells' stretch and the cells never to be squared up:
 // with supports following the volume only and cells squared to cubes past 4:1, both stopped at a
 // strain of 1.38 with the ledger 17-32 % out; with the stretch and squaring at 4:1 to 32:1, at
 // 2.0-2.9.
 TEST(SemiLagrangian, ABlockShearedToStrainThreeKeepsPositiveVolumes)
 {
-    auto run = [](const std::string& reset, const std::string& scaling)
+    auto run = [](const std::string& reset, const std::string& scaling, const std::string& cs)
     {
         Model m = test::model_from(
             R"(
@@ -632,22 +641,27 @@ boundary_conditions:
   - {node_set: top, fixed: [y, z]}
   - {node_set: top, velocity: {x: 20 m/s}}
 )",
-            {"parts.block.semi_lagrangian={reset_interval: " + reset + ", plastic_scaling: " + scaling + "}"});
+            {"parts.block.semi_lagrangian={reset_interval: " + reset + ", plastic_scaling: " + scaling + "}",
+             "parts.block.nodal_integration={scheme: snni, stabilization_coefficient: " + cs + "}"});
         const test::RunWithBalance r = test::run_with_balance(m, 5e-6);
         EXPECT_EQ(r.summary.status, "completed") << r.summary.message;
         real_t least = kNoLimit;
         for (real_t j : m.nodal_block(0)->jacobian)
             least = std::min(least, j);
         const real_t reaction = m.reaction(2)[0]; // the driven top's
-        std::printf("sheared block (reset_interval %s, plastic_scaling %s): %d steps, smallest V / V_ref %.3f, balance "
-                    "error %.2e, top's reaction along x %.2f N\n",
-                    reset.c_str(), scaling.c_str(), static_cast<int>(r.summary.steps), least, r.balance, reaction);
+        std::printf("sheared block (reset_interval %s, plastic_scaling %s, c_s %s): %d steps, smallest V / V_ref %.3f, "
+                    "balance error %.2e, top's reaction along x %.2f N\n",
+                    reset.c_str(), scaling.c_str(), cs.c_str(), static_cast<int>(r.summary.steps), least, r.balance,
+                    reaction);
         EXPECT_GT(least, 0.0);
         EXPECT_LT(r.balance, 0.01);
         return reaction;
     };
-    const real_t every = run("1", "false"), ten = run("10", "false");
+    const real_t every = run("1", "false", "1"), ten = run("10", "false", "1");
     EXPECT_NEAR(ten / every, 1.0, 0.01);
-    const real_t scaled = run("1", "true");
+    const real_t scaled = run("1", "true", "1");
     EXPECT_NEAR(scaled / 7172.0, 1.0, 0.05); // the 1-point FE block's (viscous hourglass, QM 0.1)
+    const real_t every_default = run("1", "false", "0.1"), ten_default = run("10", "false", "0.1");
+    EXPECT_LT(every_default, every);
+    EXPECT_NEAR(ten_default / every_default, 1.0, 0.12);
 }

@@ -69,7 +69,10 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
                                      : p.formulation == Formulation::Rkpm && !s.has("regions") ? "nsni"
                                                                                                : "mscni";
     p.nodal.stabilization = default_stab;
-    p.nodal.stabilization_coefficient = default_stab == "nsni" ? kNsniCoefficient : 1.0;
+    auto default_coefficient = [](const std::string& stab) {
+        return stab == "nsni" ? kNsniCoefficient : stab == "face-gradient" ? kFaceGradientCoefficient : 1.0;
+    };
+    p.nodal.stabilization_coefficient = default_coefficient(default_stab);
     if (p.semi_lagrangian)
         p.nodal.scheme = "snni";
     if (s.has("nodal_integration"))
@@ -105,8 +108,8 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
             ni.fail("stabilization", "nsni needs the second derivatives of RK shape functions",
                     "expected stabilization: mscni or none on a " + f +
                         (s.has("regions") ? " part with regions" : " part"));
-        p.nodal.stabilization_coefficient = ni.quantity("stabilization_coefficient", dim::none,
-                                                        p.nodal.stabilization == "nsni" ? kNsniCoefficient : 1.0);
+        p.nodal.stabilization_coefficient =
+            ni.quantity("stabilization_coefficient", dim::none, default_coefficient(p.nodal.stabilization));
         if (!(p.nodal.stabilization_coefficient >= 0.0))
             ni.fail("stabilization_coefficient", "is negative", "expected c_s >= 0 (1 is the RKPM2D default)");
         p.nodal.dt_factor = ni.quantity("dt_factor", dim::none, 0.0);

@@ -41,6 +41,8 @@
 /// the 1-point FE's 7.2 kN, which the scaled terms meet), but scaled, the Taylor bar's foot
 /// (6.61 mm at 53 us, on its way to the literature's 7.05) went unstable at 53 us as its rim
 /// flattened: where the material flows the scaled terms no longer hold the modes SNNI misses.
+/// So the deck's default c_s is small instead (kFaceGradientCoefficient, 0.1: the Taylor bar
+/// within 3.1 % of the literature's length and foot).
 ///
 /// SD-SNNI (each cell's eight sub-cells, snni_operators) is built as static tables only (the
 /// manufactured-solution sweeps, studies/sweeps: SNNI with the face-gradient term converges at L2
@@ -72,7 +74,8 @@ struct SemiLagrangianOptions
 {
     RkParams rk;
     real_t skin = 0.0; ///< neighbour list skin [m]
-    /// c_s of the face-gradient stabilization (0: plain SNNI)
+    /// c_s of the face-gradient stabilization (0: plain SNNI; the deck's default is
+    /// kFaceGradientCoefficient)
     real_t stabilization_coefficient = 1.0;
     /// The plain pass (points_plain: the algebra as written above, over each particle's whole
     /// neighbour row) instead of the fast one (points_fast: the RK functions of each face centre
