@@ -138,6 +138,24 @@ TEST(NodalTimeStep, DefaultFactorIsBelowTheCriticalValueOnClouds)
                             jitter, seed, a, fx.blk.dt_factor);
                 EXPECT_LT(fx.blk.dt_factor, a) << scheme << " + " << stab << ", jitter " << jitter << ", seed " << seed;
             }
+    // the cloud defaults of jittered lattices (kCloudNormalizedSupport, kCloudFacetPoints), which
+    // the set-up takes as calibrated (no highest-frequency estimate)
+    for (const auto& [scheme, stab] : {std::pair<const char*, const char*>{"scni", "nsni"}, {"scni", "mscni"}})
+        for (const real_t jitter : {0.2, 0.25, 0.45})
+            for (const int seed : {1, 2, 3})
+            {
+                PartSpec pc = part(Formulation::Rkpm, scheme, stab);
+                pc.rk.normalized_support = kCloudNormalizedSupport;
+                pc.nodal.facet_points = kCloudFacetPoints;
+                const Fixture fx = cloud_fixture(pc, jitter, seed);
+                const real_t a = critical_dt_factor(fx);
+                std::printf("cloud defaults (a/h %.2f, %s), %s + %s, jitter %.2f, seed %d: alpha_crit %.3f; default "
+                            "alpha %.3f\n",
+                            kCloudNormalizedSupport, kCloudFacetPoints, scheme, stab, jitter, seed, a,
+                            fx.blk.dt_factor);
+                EXPECT_LT(fx.blk.dt_factor, a)
+                    << "cloud defaults, " << scheme << " + " << stab << ", jitter " << jitter << ", seed " << seed;
+            }
     // uniformly random points (an imported cloud with no lattice behind it)
     for (const int seed : {1, 2})
     {

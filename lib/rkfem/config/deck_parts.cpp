@@ -57,6 +57,13 @@ ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::s
     return c;
 }
 
+/// A cloud that takes the cloud defaults of its support and facet points (kCloudNormalizedSupport):
+/// a points file, or a lattice jittered by at least kCloudJitterForSmallSupport.
+bool cloud_defaults(const GeneratorSpec& g)
+{
+    return g.type == GeneratorSpec::Type::Cloud && (!g.points_file.empty() || g.jitter >= kCloudJitterForSmallSupport);
+}
+
 /// nodal_integration: scheme, stabilization (its default from the formulation and regions), its coefficient,
 /// dt_factor and facet_points, into p.nodal; noted as ignored where the formulation does not use it.
 void read_nodal_integration(const Context& ctx, const Section& s, const std::string& f, PartSpec& p)
@@ -73,6 +80,7 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         return stab == "nsni" ? kNsniCoefficient : stab == "face-gradient" ? kFaceGradientCoefficient : 1.0;
     };
     p.nodal.stabilization_coefficient = default_coefficient(default_stab);
+    p.nodal.facet_points = cloud_defaults(p.generator) ? kCloudFacetPoints : "triangles";
     if (p.semi_lagrangian)
         p.nodal.scheme = "snni";
     if (s.has("nodal_integration"))
@@ -115,7 +123,7 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         p.nodal.dt_factor = ni.quantity("dt_factor", dim::none, 0.0);
         if (!(p.nodal.dt_factor >= 0.0 && p.nodal.dt_factor <= 2.0))
             ni.fail("dt_factor", "is outside [0, 2]", "expected alpha in (0, 2], or 0 for the calibrated default");
-        p.nodal.facet_points = ni.choice("facet_points", {"triangles", "faces"}, "triangles");
+        p.nodal.facet_points = ni.choice("facet_points", {"triangles", "faces"}, p.nodal.facet_points);
         if (p.nodal.facet_points == "faces" && p.generator.type != GeneratorSpec::Type::Cloud)
             ni.fail("facet_points", "faces chooses the points on a cloud's Voronoi faces, and this part is a mesh",
                     "expected facet_points: triangles (or none) on a mesh part; its nodal cells' facets take 2 x 2 "
@@ -204,7 +212,7 @@ void read_rk(const Context& ctx, const Section& s, const std::string& f, PartSpe
     p.rk.order = order == "1" ? 1 : 2;
     p.rk.kernel = r.choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline");
     p.rk.support = r.choice("support", {"box", "sphere"}, "box");
-    p.rk.normalized_support = r.quantity("normalized_support", dim::none, 1.51);
+    p.rk.normalized_support = r.quantity("normalized_support", dim::none, p.rk.normalized_support);
     p.rk.drop_tolerance = r.quantity("drop_tolerance", dim::none, p.rk.order == 1 ? 1e-5 : 0.0);
     if (!(p.rk.drop_tolerance >= 0.0 && p.rk.drop_tolerance <= 1e-2))
         r.fail("drop_tolerance", "is outside [0, 0.01]",
@@ -258,6 +266,9 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     p.name = name;
     p.loc = s.loc();
     p.generator = read_generator(s);
+    // the cloud defaults (nodal_integration_spec.hpp), on jittered clouds and points files
+    if (cloud_defaults(p.generator))
+        p.rk.normalized_support = kCloudNormalizedSupport;
     p.material = read_material(s);
     const std::string f = s.choice("formulation", {"fem-1pt", "fem-2x2x2", "fem-nodal", "rkpm"}, "fem-1pt");
     p.formulation = f == "fem-1pt"     ? Formulation::Fem1pt

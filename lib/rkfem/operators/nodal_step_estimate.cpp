@@ -117,7 +117,8 @@ HighestFrequency nodal_highest_frequency(NodalBlock& blk, const std::vector<real
     return out;
 }
 
-bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& nodal, const RkSpec& rk)
+bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& nodal, const RkSpec& rk,
+                           bool jittered_cloud)
 {
     const RkSpec defaults;
     const bool coefficient =
@@ -126,6 +127,7 @@ bool nodal_step_calibrated(Formulation formulation, const NodalIntegrationSpec& 
         return coefficient && nodal.scheme != "dni";
     return formulation == Formulation::Rkpm && coefficient && nodal.scheme != "dni" && rk.order == defaults.order &&
            rk.kernel == defaults.kernel && rk.support == defaults.support &&
-           rk.normalized_support == defaults.normalized_support;
+           (rk.normalized_support == defaults.normalized_support ||
+            (jittered_cloud && rk.normalized_support == kCloudNormalizedSupport));
 }
 } // namespace rkfem

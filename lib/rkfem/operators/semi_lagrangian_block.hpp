@@ -41,8 +41,8 @@
 /// the 1-point FE's 7.2 kN, which the scaled terms meet), but scaled, the Taylor bar's foot
 /// (6.61 mm at 53 us, on its way to the literature's 7.05) went unstable at 53 us as its rim
 /// flattened: where the material flows the scaled terms no longer hold the modes SNNI misses.
-/// So the deck's default c_s is small instead (kFaceGradientCoefficient, 0.1: the Taylor bar
-/// within 3.1 % of the literature's length and foot).
+/// A small c_s (0.1) puts the Taylor bar within 3.1 % of the literature's length and foot, but
+/// lets an FSP through concrete (kFaceGradientCoefficient says more): the default stays 1.
 ///
 /// SD-SNNI (each cell's eight sub-cells, snni_operators) is built as static tables only (the
 /// manufactured-solution sweeps, studies/sweeps: SNNI with the face-gradient term converges at L2
