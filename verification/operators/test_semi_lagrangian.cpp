@@ -39,6 +39,23 @@ SemiLagrangianForceBlock& sl_block(Model& m)
     throw std::runtime_error("no semi-Lagrangian block");
 }
 
+/// The largest sum_L V_L b_J(x_L) (ic, 3 per particle) at the particles whose supports stay clear
+/// of the block's surface (2 spacings in), relative to a gradient's size times a cell's volume, h^2.
+real_t interior_constraint(const Model& m, const std::vector<real_t>& ic, real_t h)
+{
+    real_t worst = 0.0;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+    {
+        bool deep = true;
+        for (int d = 0; d < 3; ++d)
+            deep = deep && m.nodes.x0[3 * i + d] > 2.9e-3 && m.nodes.x0[3 * i + d] < 5.1e-3;
+        if (deep)
+            for (int d = 0; d < 3; ++d)
+                worst = std::max(worst, std::abs(ic[3 * static_cast<std::size_t>(i) + d]) / (h * h));
+    }
+    return worst;
+}
+
 /// Positions moved by a jitter of up to `jitter` spacings per axis (interior particles only).
 void jitter_positions(Model& m, real_t h, real_t jitter, real_t lo, real_t hi)
 {
@@ -90,18 +107,7 @@ TEST(SemiLagrangian, SnniReproducesLinearFieldsAndLosesTheIntegrationConstraintO
             worst_linear = std::max(worst_linear, h * sum.cwiseAbs().maxCoeff());
         }
         EXPECT_LT(worst_linear, 1e-11) << "jitter " << jitter;
-        // the constraint at particles whose supports stay clear of the surface (2 spacings in),
-        // relative to a gradient's size times a cell's volume, h^2
-        real_t worst_ic = 0.0;
-        for (index_t i = 0; i < np; ++i)
-        {
-            bool deep = true;
-            for (int d = 0; d < 3; ++d)
-                deep = deep && m.nodes.x0[3 * i + d] > 2.9e-3 && m.nodes.x0[3 * i + d] < 5.1e-3;
-            if (deep)
-                for (int d = 0; d < 3; ++d)
-                    worst_ic = std::max(worst_ic, std::abs(ic[3 * static_cast<std::size_t>(i) + d]) / (h * h));
-        }
+        const real_t worst_ic = interior_constraint(m, ic, h);
         std::printf("jitter %.1f: linear reproduction %.2e, integration constraint at interior particles %.2e h^2\n",
                     jitter, worst_linear, worst_ic);
         if (jitter == 0.0)
@@ -180,16 +186,7 @@ TEST(SemiLagrangian, SdSnniSubCellsReproduceLinearFieldsAndSeeTheSawtooth)
             if (interior)
                 least_sawtooth = std::min(least_sawtooth, largest);
         }
-        real_t worst_ic = 0.0;
-        for (index_t i = 0; i < np; ++i)
-        {
-            bool deep = true;
-            for (int d = 0; d < 3; ++d)
-                deep = deep && m.nodes.x0[3 * i + d] > 2.9e-3 && m.nodes.x0[3 * i + d] < 5.1e-3;
-            if (deep)
-                for (int d = 0; d < 3; ++d)
-                    worst_ic = std::max(worst_ic, std::abs(ic[3 * static_cast<std::size_t>(i) + d]) / (h * h));
-        }
+        const real_t worst_ic = interior_constraint(m, ic, h);
         std::printf("SD-SNNI, jitter %.1f: sub-cells' linear reproduction %.2e, their mean's departure from the "
                     "points' row %.2e / h, integration constraint at interior particles %.2e h^2, sawtooth |D_s| h "
                     "at least %.3f\n",
