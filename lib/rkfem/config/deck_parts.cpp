@@ -57,13 +57,6 @@ ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::s
     return c;
 }
 
-/// A cloud that takes the cloud defaults of its support and facet points (kCloudNormalizedSupport):
-/// a points file, or a lattice jittered by at least kCloudJitterForSmallSupport.
-bool cloud_defaults(const GeneratorSpec& g)
-{
-    return g.type == GeneratorSpec::Type::Cloud && (!g.points_file.empty() || g.jitter >= kCloudJitterForSmallSupport);
-}
-
 /// nodal_integration: scheme, stabilization (its default from the formulation and regions), its coefficient,
 /// dt_factor and facet_points, into p.nodal; noted as ignored where the formulation does not use it.
 void read_nodal_integration(const Context& ctx, const Section& s, const std::string& f, PartSpec& p)
@@ -80,7 +73,7 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         return stab == "nsni" ? kNsniCoefficient : stab == "face-gradient" ? kFaceGradientCoefficient : 1.0;
     };
     p.nodal.stabilization_coefficient = default_coefficient(default_stab);
-    p.nodal.facet_points = cloud_defaults(p.generator) ? kCloudFacetPoints : "triangles";
+    p.nodal.facet_points = takes_cloud_defaults(p.generator) ? kCloudFacetPoints : "triangles";
     if (p.semi_lagrangian)
         p.nodal.scheme = "snni";
     if (s.has("nodal_integration"))
@@ -267,7 +260,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
     p.loc = s.loc();
     p.generator = read_generator(s);
     // the cloud defaults (nodal_integration_spec.hpp), on jittered clouds and points files
-    if (cloud_defaults(p.generator))
+    if (takes_cloud_defaults(p.generator))
         p.rk.normalized_support = kCloudNormalizedSupport;
     p.material = read_material(s);
     const std::string f = s.choice("formulation", {"fem-1pt", "fem-2x2x2", "fem-nodal", "rkpm"}, "fem-1pt");

@@ -300,9 +300,7 @@ void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& 
                                                                     : build_nodal_block(ps, mesh, offset);
     nb.part = static_cast<index_t>(ip);
     add_nodal_mass(nb, nodes);
-    const bool jittered_cloud = ps.generator.type == GeneratorSpec::Type::Cloud && ps.generator.points_file.empty() &&
-                                ps.generator.jitter >= kCloudJitterForSmallSupport;
-    if (!ps.coupled() && !nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk, jittered_cloud))
+    if (!ps.coupled() && !nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk, jittered_lattice_cloud(ps.generator)))
         measure_step_factor(ps, nb, *this);
     // RK regions of coupled parts and those a conversion makes are not measured
     if ((ps.coupled() || ps.conversion.active()) && !nodal_step_calibrated(Formulation::Rkpm, ps.nodal, ps.rk) &&

@@ -83,6 +83,18 @@ Cell advance(const Cell& cell, const Mat3& L, real_t dt)
     return out;
 }
 
+/// Sub-cell s (0..7, bit i: the + side of e_i) of a cell: the half-size parallelepiped at that corner.
+Cell sub_cell(const Cell& cell, int s)
+{
+    Cell part = cell;
+    for (int i = 0; i < 3; ++i)
+    {
+        part.e[i] = 0.5 * cell.e[i];
+        part.c += ((s >> i) & 1 ? 1.0 : -1.0) * part.e[i];
+    }
+    return part;
+}
+
 /// The cell mapped by a deformation gradient F (reference resets).
 Cell deform(const Cell& cell, const Mat3& F)
 {
@@ -1224,13 +1236,7 @@ bool SemiLagrangianForceBlock::snni_operators(const std::vector<real_t>& x, SubP
             bs.assign(8 * n3, 0.0);
             for (int s = 0; s < 8; ++s)
             {
-                Cell part = cell;
-                for (int i = 0; i < 3; ++i)
-                {
-                    part.e[i] = 0.5 * cell.e[i];
-                    part.c += ((s >> i) & 1 ? 1.0 : -1.0) * part.e[i];
-                }
-                if (!plain_gradient(xL, part, row, n, begin, x, radius_, opt_.rk, free_, sc))
+                if (!plain_gradient(xL, sub_cell(cell, s), row, n, begin, x, radius_, opt_.rk, free_, sc))
                     return false;
                 std::copy(sc.b.begin(), sc.b.end(), bs.begin() + static_cast<std::ptrdiff_t>(s * n3));
                 for (std::size_t k = 0; k < n3; ++k)
@@ -1242,13 +1248,8 @@ bool SemiLagrangianForceBlock::snni_operators(const std::vector<real_t>& x, SubP
         for (int q = 0; q < (sub_cells ? 8 : 6); ++q)
         {
             if (sub_cells)
-            {
-                Vec3 c = cell.c;
-                for (int i = 0; i < 3; ++i)
-                    c += ((q >> i) & 1 ? 0.5 : -0.5) * cell.e[i];
-                add_row(stabilization, V / 8.0, xL + c, begin + L, L, row, n, begin,
+                add_row(stabilization, V / 8.0, xL + sub_cell(cell, q).c, begin + L, L, row, n, begin,
                         [&](index_t k) { return Vec3(at(bs, q * n3 + 3 * k) - at(b, 3 * k)); });
-            }
             else
                 add_row(stabilization, V / 6.0, cell.centre(xL, q), begin + L, L, row, n, begin,
                         [&](index_t k) { return Vec3(at(sc.face, 18 * k + 3 * q) - at(b, 3 * k)); });

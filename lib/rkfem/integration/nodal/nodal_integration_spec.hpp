@@ -4,6 +4,7 @@
 #include <string>
 
 #include "rkfem/core/types.hpp"
+#include "rkfem/discretization/generator_spec.hpp"
 
 namespace rkfem
 {
@@ -42,6 +43,20 @@ inline constexpr real_t kFaceGradientCoefficient = 1.0;
 inline constexpr real_t kCloudNormalizedSupport = 1.35;
 inline constexpr real_t kCloudJitterForSmallSupport = 0.2;
 inline constexpr const char* kCloudFacetPoints = "faces";
+
+/// A lattice cloud jittered by at least kCloudJitterForSmallSupport: where the clouds' defaults
+/// are calibrated for the step (operators/nodal_step_estimate.hpp, nodal_step_calibrated).
+inline bool jittered_lattice_cloud(const GeneratorSpec& g)
+{
+    return g.type == GeneratorSpec::Type::Cloud && g.points_file.empty() && g.jitter >= kCloudJitterForSmallSupport;
+}
+
+/// A cloud that takes the clouds' defaults (kCloudNormalizedSupport, kCloudFacetPoints): a
+/// jittered lattice or a points file.
+inline bool takes_cloud_defaults(const GeneratorSpec& g)
+{
+    return jittered_lattice_cloud(g) || (g.type == GeneratorSpec::Type::Cloud && !g.points_file.empty());
+}
 
 /// Nodal integration of `fem-nodal` and `rkpm` parts.
 struct NodalIntegrationSpec
