@@ -15,6 +15,7 @@
 #include "../support.hpp"
 #include "rkfem/contact/contact_surface.hpp"
 #include "rkfem/contact/mortar.hpp"
+#include "rkfem/contact/node_to_segment.hpp"
 #include "rkfem/contact/segment_buckets.hpp"
 #include "rkfem/run/simulation.hpp"
 
@@ -854,6 +855,206 @@ TEST(Projectile, FlatNosedFspIsStoppedByTheConcretePanelNotPassedThrough)
     EXPECT_LT(p / p0, 0.9); // ...having given the panel more than 10% of its momentum
     EXPECT_LT(face, -1e-3); // the struck face moved with the nose
     EXPECT_LT(worst_balance, 0.02);
+}
+
+namespace
+{
+/// A particle (a sphere of radius r, contact_surface.hpp's particles) against one free square
+/// segment of side 10 mm in z = 0 (normal +z), by hand-stepped central difference; what the
+/// contact did: where it first pushed, along which direction, and the momenta and energies after.
+struct SphereRun
+{
+    real_t first_gap = -1.0; ///< the distance from the particle to the segment at the first force [m]
+    Vec3 first_dir = Vec3::Zero();
+    Vec3 first_offset = Vec3::Zero(); ///< the particle minus the segment's closest point then
+    Vec3 p_before = Vec3::Zero(), p_after = Vec3::Zero();
+    real_t ke_before = 0.0, ke_after = 0.0;
+    int contact_steps = 0;
+};
+
+SphereRun sphere_on_segment(const Vec3& x_particle, const Vec3& v_particle, real_t radius)
+{
+    const real_t h = 5e-3, m_particle = 1e-3, m_corner = 0.25;
+    NodeSet nodes;
+    nodes.resize(5);
+    const real_t corners[4][2] = {{-h, -h}, {h, -h}, {h, h}, {-h, h}};
+    for (int a = 0; a < 4; ++a)
+    {
+        nodes.x0[3 * a] = corners[a][0];
+        nodes.x0[3 * a + 1] = corners[a][1];
+        nodes.mass[a] = m_corner;
+    }
+    for (int d = 0; d < 3; ++d)
+    {
+        nodes.x0[12 + d] = x_particle[d];
+        nodes.v[12 + d] = v_particle[d];
+    }
+    nodes.mass[4] = m_particle;
+    nodes.x = nodes.x0;
+    ContactSurface segment, particle;
+    segment.add({{0, 1, 2, 3}}, {}, {}, nodes.x0, 1e9); // depth: the square's side
+    segment.finish();
+    particle.particles = {4};
+    particle.particle_radius = {radius};
+    ContactParameters p;
+    p.soft = false;
+    p.penalty_scale = 1.0; // k = K (2 r)^2 / 10 mm
+    NodeToSegmentContact contact({segment, particle}, p);
+    KinematicMap map;
+    map.reset(5);
+    ContactChannel channel;
+    channel.resize(5);
+    SphereRun r;
+    auto momentum = [&]
+    {
+        Vec3 q = Vec3::Zero();
+        for (int i = 0; i < 5; ++i)
+            q += nodes.mass[i] * Vec3(nodes.v[3 * i], nodes.v[3 * i + 1], nodes.v[3 * i + 2]);
+        return q;
+    };
+    auto kinetic = [&]
+    {
+        real_t e = 0.0;
+        for (int i = 0; i < 5; ++i)
+            e += 0.5 * nodes.mass[i] * Vec3(nodes.v[3 * i], nodes.v[3 * i + 1], nodes.v[3 * i + 2]).squaredNorm();
+        return e;
+    };
+    r.p_before = momentum();
+    r.ke_before = kinetic();
+    const real_t dt = 2e-7; // k / m of the particle about 4e10 / s^2 at r = 2 mm: omega dt 0.04
+    ContactClock clock;
+    clock.dt_critical = dt;
+    for (int step = 0; step < 12000; ++step) // 2.4 ms: in and out
+    {
+        channel.clear();
+        clock.t = step * dt;
+        contact.add_forces(PhysicalNodes(nodes, map), clock, channel);
+        const Vec3 f(channel.force(12), channel.force(13), channel.force(14));
+        if (f.norm() > 0.0)
+        {
+            ++r.contact_steps;
+            if (r.first_gap < 0.0)
+            {
+                const Vec3 xp(nodes.x[12], nodes.x[13], nodes.x[14]);
+                const Vec3 closest(std::clamp(xp[0], -h, h), std::clamp(xp[1], -h, h), 0.0);
+                r.first_offset = xp - closest;
+                r.first_gap = r.first_offset.norm();
+                r.first_dir = f / f.norm();
+            }
+        }
+        for (std::size_t j = 0; j < 15; ++j)
+        {
+            nodes.v[j] += dt * channel.force(j) / nodes.mass[j / 3];
+            nodes.x[j] += dt * nodes.v[j];
+        }
+        channel.commit();
+    }
+    r.p_after = momentum();
+    r.ke_after = kinetic();
+    return r;
+}
+} // namespace
+
+// Particles as spheres in node-to-segment contact (contact_surface.hpp: the particles of a
+// semi-Lagrangian RK part behind its surface, which an FSP meets once it has pushed the surface
+// in; issue #48). A sphere falling on the segment's face is first pushed when its centre is one
+// radius above the face (within one step of approach, 1 m/s x 0.2 us), straight up; one that
+// passes the segment's edge is pushed along the line from the edge to its centre, not along the
+// face's normal; momentum is conserved to round-off and the penalty spring gives the energy back
+// (central difference on a linear spring: within 0.1 %). A point slave on the edge's path
+// (radius 0, the slaves before) is never touched: its centre projects outside the segment.
+TEST(ParticleContact, ASphereMeetsAFaceAtItsRadiusAndAnEdgeAlongTheLineToIt)
+{
+    const real_t r = 2e-3;
+    const SphereRun face = sphere_on_segment({1e-3, 0.5e-3, 3e-3}, {0.0, 0.0, -1.0}, r);
+    std::printf("sphere on the face: first force at %.4f mm (radius %.1f mm), direction (%.2e, %.2e, %.6f), "
+                "%d steps in contact, momentum change %.1e, kinetic energy after / before %.5f\n",
+                1e3 * face.first_gap, 1e3 * r, face.first_dir[0], face.first_dir[1], face.first_dir[2],
+                face.contact_steps, (face.p_after - face.p_before).norm(), face.ke_after / face.ke_before);
+    EXPECT_NEAR(face.first_gap, r, 1.0 * 2e-7 + 1e-12);
+    EXPECT_LT(face.first_gap, r);
+    EXPECT_NEAR(face.first_dir[2], 1.0, 1e-12);
+    EXPECT_GT(face.contact_steps, 50);
+    EXPECT_LT((face.p_after - face.p_before).norm(), 1e-14);
+    EXPECT_NEAR(face.ke_after / face.ke_before, 1.0, 1e-3);
+
+    const Vec3 dir = Vec3(-1.0, 0.0, -1.0).normalized();
+    const SphereRun edge = sphere_on_segment({8e-3, 0.0, 3e-3}, dir, r);
+    const Vec3 expected = edge.first_offset.normalized();
+    std::printf("sphere past the edge: first force at %.4f mm from the edge, direction (%.4f, %.4f, %.4f), "
+                "line to the edge (%.4f, %.4f, %.4f), momentum change %.1e, kinetic energy after / before %.5f\n",
+                1e3 * edge.first_gap, edge.first_dir[0], edge.first_dir[1], edge.first_dir[2], expected[0], expected[1],
+                expected[2], (edge.p_after - edge.p_before).norm(), edge.ke_after / edge.ke_before);
+    EXPECT_NEAR(edge.first_gap, r, 2e-7 + 1e-12);
+    EXPECT_GT(edge.first_offset[0], 0.0); // the centre projects outside the segment
+    EXPECT_NEAR((edge.first_dir - expected).norm(), 0.0, 1e-9);
+    EXPECT_GT(edge.first_dir[0], 0.1); // not the face's normal
+    EXPECT_LT((edge.p_after - edge.p_before).norm(), 1e-14);
+    EXPECT_NEAR(edge.ke_after / edge.ke_before, 1.0, 1e-3);
+
+    const SphereRun point = sphere_on_segment({8e-3, 0.0, 3e-3}, dir, 0.0);
+    EXPECT_EQ(point.contact_steps, 0);
+}
+
+// A sphere rolled at a constant height across the shared edge of two coplanar segments (the
+// faceted nose of an FSP under a particle larger than its faces): its penetration is its centre's
+// distance to the surface, the same over either segment, so the force stays k (r - height) all the
+// way. Taking the smallest penetration over the segments (a node's rule: the face it has just
+// crossed) read the neighbour's edge instead, jumped at every crossing and held the jumps as
+// offsets: a particle of P6's 1/2 in target struck by the FSP kept a third of its depth.
+TEST(ParticleContact, ASphereRolledAcrossTwoSegmentsKeepsItsForce)
+{
+    const real_t h = 5e-3, r = 4e-3, height = 3e-3;
+    NodeSet nodes;
+    nodes.resize(7);
+    const real_t xy[6][2] = {{-h, -h}, {0.0, -h}, {h, -h}, {h, h}, {0.0, h}, {-h, h}};
+    for (int a = 0; a < 6; ++a)
+    {
+        nodes.x0[3 * a] = xy[a][0];
+        nodes.x0[3 * a + 1] = xy[a][1];
+        nodes.mass[a] = 1.0;
+    }
+    nodes.mass[6] = 1e-3;
+    nodes.x0[3 * 6] = -0.8 * h;
+    nodes.x0[3 * 6 + 2] = height;
+    nodes.x = nodes.x0;
+    ContactSurface segments, particle;
+    segments.add({{0, 1, 4, 5}, {1, 2, 3, 4}}, {}, {}, nodes.x0, 1e9);
+    segments.finish();
+    particle.particles = {6};
+    particle.particle_radius = {r};
+    ContactParameters p;
+    p.soft = false;
+    NodeToSegmentContact contact({segments, particle}, p);
+    KinematicMap map;
+    map.reset(7);
+    ContactChannel channel;
+    channel.resize(7);
+    ContactClock clock;
+    clock.dt_critical = 1e-7;
+    const real_t k = p.penalty_scale * 1e9 * (2 * r) * (2 * r) / std::sqrt(h * 2 * h); // depth: sqrt(area)
+    real_t worst = 0.0;
+    const real_t dt = clock.dt_critical;
+    for (int step = 0; step <= 180; ++step)
+    {
+        // 20 steps down from a gap (at a speed that explains the depth's growth), then across the
+        // edge x = 0
+        const int down = std::min(step, 20), across = std::max(step - 20, 0);
+        nodes.x[3 * 6] = -0.8 * h + 1.6 * h * across / 160.0;
+        nodes.x[3 * 6 + 2] = r + 0.5e-3 - (r + 0.5e-3 - height) * down / 20.0;
+        nodes.v[3 * 6] = step > 20 ? 1.6 * h / 160.0 / dt : 0.0;
+        nodes.v[3 * 6 + 2] = step <= 20 ? -(r + 0.5e-3 - height) / 20.0 / dt : 0.0;
+        channel.clear();
+        clock.t = step * clock.dt_critical;
+        contact.add_forces(PhysicalNodes(nodes, map), clock, channel);
+        const Vec3 f(channel.force(18), channel.force(19), channel.force(20));
+        if (step >= 20)
+            worst = std::max(worst, (f - Vec3(0.0, 0.0, k * (r - height))).norm());
+        channel.commit();
+    }
+    std::printf("sphere rolled across two segments: largest departure from k (r - height) %.2e of it\n",
+                worst / (k * (r - height)));
+    EXPECT_LT(worst, 1e-9 * k * (r - height));
 }
 
 TEST(Friction, CoulombForceOpposesSlidingWithMuTimesTheNormalForce)

@@ -18,8 +18,23 @@ struct ContactSurface
     std::vector<real_t> depth;        ///< per segment: V / A of the element behind it (reference) [m]
     std::vector<index_t> nodes;       ///< the segments' distinct nodes, ascending
     real_t area = 0.0;                ///< the segments' total area (reference) [m^2]
+    /// Particles that take part as slaves only, each a sphere about its centre (node-to-segment
+    /// contact): the particles of a semi-Lagrangian RK part that are not nodes of its segments.
+    /// Its segments (the generating mesh's boundary faces) are the body's surface at the start;
+    /// once an FSP has pushed them in, the particles behind them are what it meets, and a point
+    /// slave would let it pass between them (at 1/2 in the FSP's 16.6 mm nose fits between four
+    /// particles 12.7 mm apart). Not in `nodes`; ascending.
+    std::vector<index_t> particles;
+    std::vector<real_t> particle_radius; ///< per particle: its sphere's radius [m]
 
     index_t n_segments() const { return static_cast<index_t>(segments.size()); }
+    /// Slaves: the segments' nodes, then the particles.
+    index_t n_slaves() const { return static_cast<index_t>(nodes.size() + particles.size()); }
+    index_t slave(index_t k) const
+    {
+        const std::size_t kk = static_cast<std::size_t>(k);
+        return kk < nodes.size() ? nodes[kk] : particles[kk - nodes.size()];
+    }
     /// Appends segments: faces of elements of a hex connectivity (owner[f]: the element of face
     /// f, an index into conn / 8; empty: depth from the face alone, its square root of area),
     /// bulk modulus K for all of them. x0: reference coordinates of every node (3 n).

@@ -22,7 +22,8 @@ void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
         const ContactSurface& slave = surfaces_[static_cast<std::size_t>(passes_[ip].slave)];
         for (std::size_t k = 0; k < passes_[ip].hits.size(); ++k)
             if (passes_[ip].hits[k].segment >= 0)
-                before_[ip].push_back({slave.nodes[k], passes_[ip].last_penetration[k], passes_[ip].offset[k]});
+                before_[ip].push_back(
+                    {slave.slave(static_cast<index_t>(k)), passes_[ip].last_penetration[k], passes_[ip].offset[k]});
     }
     surfaces_ = std::move(surfaces);
     passes_.clear();
@@ -40,11 +41,14 @@ void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
         add_pass(1, 0);
     }
     all_nodes_.clear();
-    real_t size = 0.0, deepest = 0.0;
+    real_t size = 0.0, deepest = 0.0, sphere = 0.0;
     index_t n_seg = 0;
     for (const ContactSurface& s : surfaces_)
     {
         all_nodes_.insert(all_nodes_.end(), s.nodes.begin(), s.nodes.end());
+        all_nodes_.insert(all_nodes_.end(), s.particles.begin(), s.particles.end());
+        for (real_t r : s.particle_radius)
+            sphere = std::max(sphere, r);
         for (index_t k = 0; k < s.n_segments(); ++k)
             deepest = std::max(deepest, s.depth[k]);
         size += s.area;
@@ -82,7 +86,7 @@ void NodeToSegmentContact::set_surfaces(std::vector<ContactSurface> surfaces)
     }
     // the search margin: a quarter of the mean segment's edge (size: the total area)
     margin_ = n_seg > 0 ? 0.25 * std::sqrt(size / static_cast<real_t>(n_seg)) : 0.0;
-    reach_ = margin_ + p_.max_penetration * deepest + p_.thickness;
+    reach_ = margin_ + p_.max_penetration * deepest + p_.thickness + sphere;
     s_.searched = false;
     fresh_ = true;
     s_.active = 0;
@@ -115,13 +119,14 @@ void NodeToSegmentContact::search(const PhysicalNodes& nodes)
             }
         }
         pass.buckets.build(lo_, hi_, reach_);
-        const index_t n_slave = static_cast<index_t>(slave.nodes.size());
+        // a body's particles do not meet its own segments (they lie behind them)
+        const bool self = pass.slave == pass.master;
+        const index_t n_slave = self ? static_cast<index_t>(slave.nodes.size()) : slave.n_slaves();
         pass.offsets.assign(static_cast<std::size_t>(n_slave) + 1, 0);
         pass.candidates.clear();
-        const bool self = pass.slave == pass.master;
         for (index_t k = 0; k < n_slave; ++k)
         {
-            const index_t i = slave.nodes[k];
+            const index_t i = slave.slave(k);
             pass.buckets.for_candidates(nodes.x(i),
                                         [&](index_t s)
                                         {
@@ -171,7 +176,8 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
 {
     const ContactSurface& master = surfaces_[static_cast<std::size_t>(pass.master)];
     const ContactSurface& slave = surfaces_[static_cast<std::size_t>(pass.slave)];
-    const index_t n_slave = static_cast<index_t>(slave.nodes.size());
+    const index_t n_slave = static_cast<index_t>(pass.hits.size());
+    const index_t n_nodes = static_cast<index_t>(slave.nodes.size());
     const bool soft = p_.soft && s_.dt0 > 0.0 && s_.dt0 < kNoLimit;
     parallel_for(
         "rkfem::contact_node_to_segment", n_slave,
@@ -179,9 +185,14 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
         {
             Hit& h = pass.hits[static_cast<std::size_t>(k)];
             h.segment = -1;
-            const index_t i = slave.nodes[k];
+            const index_t i = slave.slave(k);
             const Vec3 xs = nodes.x(i);
-            const Vec3& ns = node_normal_[static_cast<std::size_t>(pass.slave)][static_cast<std::size_t>(k)];
+            // a particle (k past the segments' nodes) is a sphere: it meets a segment's face, or
+            // where its centre projects outside the segment, its edge, along the line between them
+            const bool particle = k >= n_nodes;
+            const real_t radius = particle ? slave.particle_radius[static_cast<std::size_t>(k - n_nodes)] : 0.0;
+            const Vec3 ns = particle ? Vec3::Zero()
+                                     : node_normal_[static_cast<std::size_t>(pass.slave)][static_cast<std::size_t>(k)];
             real_t best = kNoLimit;
             SegmentPoint at;
             for (index_t c = pass.offsets[k]; c < pass.offsets[k + 1]; ++c)
@@ -190,17 +201,30 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
                 const Quad& q = master.segments[s];
                 const Vec3 corners[4] = {nodes.x(q[0]), nodes.x(q[1]), nodes.x(q[2]), nodes.x(q[3])};
                 // the node must lie within the deepest reach of the segment's box
-                const real_t reach = p_.max_penetration * master.depth[s] + p_.thickness;
+                const real_t reach = p_.max_penetration * master.depth[s] + p_.thickness + radius;
                 const Vec3 lo = corners[0].cwiseMin(corners[1]).cwiseMin(corners[2].cwiseMin(corners[3]));
                 const Vec3 hi = corners[0].cwiseMax(corners[1]).cwiseMax(corners[2].cwiseMax(corners[3]));
                 if ((xs.array() < lo.array() - reach).any() || (xs.array() > hi.array() + reach).any())
                     continue;
-                const SegmentPoint sp = project_on_segment(corners, xs);
-                if (!sp.inside || !(sp.normal.dot(ns) < 0.0))
+                SegmentPoint sp = project_on_segment(corners, xs);
+                real_t gap = (xs - sp.x).dot(sp.normal);
+                if (particle && !sp.inside)
+                {
+                    const Vec3 d = xs - sp.x;
+                    const real_t dist = d.norm();
+                    if (!(gap > 0.0) || !(dist > 0.0))
+                        continue; // behind the segment's plane: another segment's
+                    sp.normal = d / dist;
+                    gap = dist;
+                }
+                else if (!sp.inside || !(particle || sp.normal.dot(ns) < 0.0))
                     continue;
-                const real_t gap = (xs - sp.x).dot(sp.normal);
-                const real_t pen = p_.thickness - gap;
-                if (!(pen > 0.0) || pen > reach || pen >= best)
+                const real_t pen = p_.thickness + radius - gap;
+                // a node: the smallest penetration (the face it has just crossed); a sphere: the
+                // largest (its centre's distance to the surface, continuous as it rolls over the
+                // segments; the smallest jumped from segment to segment of an FSP's mushrooming
+                // nose, and the jumps, held as offsets, left the spring a third of its depth)
+                if (!(pen > 0.0) || pen > reach || (particle ? h.segment >= 0 && pen <= best : pen >= best))
                     continue;
                 best = pen;
                 h.segment = s;
@@ -253,9 +277,10 @@ void NodeToSegmentContact::evaluate(Pass& pass, const PhysicalNodes& nodes) cons
             const real_t m_star = m_s * m_m / (m_s + m_m);
             // the slave node's area that faces the segment
             const std::size_t ss = static_cast<std::size_t>(pass.slave);
-            real_t area = 0.0;
-            for (index_t j = node_segment_offsets_[ss][k]; j < node_segment_offsets_[ss][k + 1]; ++j)
-                area += 0.25 * std::max(0.0, -segment_area_[ss][node_segments_[ss][j]].dot(at.normal));
+            real_t area = particle ? 4.0 * radius * radius : 0.0; // a particle: its cube's face
+            if (!particle)
+                for (index_t j = node_segment_offsets_[ss][k]; j < node_segment_offsets_[ss][k + 1]; ++j)
+                    area += 0.25 * std::max(0.0, -segment_area_[ss][node_segments_[ss][j]].dot(at.normal));
             real_t k_pen = p_.penalty_scale * master.bulk_modulus[h.segment] * area / master.depth[h.segment];
             if (soft)
                 k_pen = std::max(k_pen, p_.soft_scale * m_star / (s_.dt0 * s_.dt0));
@@ -291,8 +316,9 @@ void NodeToSegmentContact::add_forces(const PhysicalNodes& nodes, const ContactC
             const Hit& h = pass.hits[k];
             if (h.segment < 0)
                 continue;
-            channel.add(slave.nodes[k], h.f);
-            node_k_[static_cast<std::size_t>(slave.nodes[k])] += h.k;
+            const index_t i = slave.slave(static_cast<index_t>(k));
+            channel.add(i, h.f);
+            node_k_[static_cast<std::size_t>(i)] += h.k;
             const Quad& q = master.segments[h.segment];
             for (int a = 0; a < 4; ++a)
             {

@@ -16,11 +16,18 @@
 ///     the other part that it slides along), and whose penetration p = thickness - g is positive
 ///     and smallest, provided it is below max_penetration times the depth of the element behind
 ///     the segment (deeper: the node has passed through and is released);
+///   - a particle slave (ContactSurface::particles: a semi-Lagrangian RK part's particles behind its
+///     surface) is a sphere of radius r about its centre: p = thickness + r - g where its centre
+///     projects into the segment; where it projects outside, the sphere meets the segment's
+///     closest point, along the line d from there to the centre (n = d / |d|, p = thickness + r -
+///     |d|, centre on the segment's outer side); no normal test (a particle has no surface), and a
+///     body's particles never meet its own segments (single-surface passes skip them);
 ///   - normal force f_n = k p on s along n, and -N_a f on the segment's nodes, with the stiffness
 ///       segment:  k = penalty_scale K A_s / h   (LS-DYNA's SLSFAC K A^2 / V, with A_s the slave
 ///                 node's tributary area facing the segment, sum over its slave segments f of
 ///                 max(0, -a_f . n) / 4 with a_f the area vector: a uniform pressure then gives a
-///                 uniform penetration, and a node on an edge counts only its face that touches);
+///                 uniform penetration, and a node on an edge counts only its face that touches;
+///                 a particle: (2 r)^2, its cube's face);
 ///       soft:     k = max(segment, soft_scale m* / dt0^2)  (LS-DYNA SOFT = 1), m* = m_s m_m / (m_s
 ///                 + m_m), m_m = sum N_a m_a, dt0 the first critical step the contact sees;
 ///   - optionally a dashpot on the closing speed, f_n = max(0, k p + c v_n), c = 2 zeta sqrt(k m*)
