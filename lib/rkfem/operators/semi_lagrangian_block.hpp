@@ -41,8 +41,12 @@
 /// the 1-point FE's 7.2 kN, which the scaled terms meet), but scaled, the Taylor bar's foot
 /// (6.61 mm at 53 us, on its way to the literature's 7.05) went unstable at 53 us as its rim
 /// flattened: where the material flows the scaled terms no longer hold the modes SNNI misses.
-/// A small c_s (0.1) puts the Taylor bar within 3.1 % of the literature's length and foot, but
-/// lets an FSP through concrete (kFaceGradientCoefficient says more): the default stays 1.
+/// A small c_s (0.1) puts the Taylor bar within 3.1 % of the literature's length and foot: the
+/// default stays 1 (kFaceGradientCoefficient says more). In concrete struck by an FSP the elastic
+/// face stresses store the crushed region's energy and give it back: P6 case 2.1 at 1/2 in throws
+/// the FSP out at 145 m/s by 60 us unscaled, and at 54 m/s scaled (apparent 0.85 in, actual
+/// 2.00 in against KC-FEMFRE's 1.05 / 1.93; studies/tables/table3_p6.yaml), so concrete
+/// penetration runs set plastic_scaling.
 ///
 /// SD-SNNI (each cell's eight sub-cells, snni_operators) is built as static tables only (the
 /// manufactured-solution sweeps, studies/sweeps: SNNI with the face-gradient term converges at L2

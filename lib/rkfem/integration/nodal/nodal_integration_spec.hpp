@@ -19,11 +19,11 @@ inline constexpr real_t kNsniCoefficient = 0.25;
 /// (studies/tables/taylor_bar.yaml) ends 20.44 mm long with a 5.00 mm foot at c_s 1, 21.64 / 6.11
 /// at 0.25, 22.11 / 6.83 at 0.1 (the literature's 21.45 / 7.05), and goes unstable at 60 us with
 /// no term; c_s 1 with the loads scaled by the material's elastic share, floored at 0.1 or 0.2,
-/// gave 6.61 and 6.49 mm (at 0.05 unstable). But in concrete it holds the FSP: P6's
-/// semi-Lagrangian target at 1/2 in (case 2.1) at c_s 0.1 let the FSP through to 2.64 in at
-/// 100 us, still moving in at 476 m/s (c_s 1: 1.82 in at 125 us, 28 m/s in; KC-FEMFRE 1.05 in),
-/// and elastic bars on a jittered cloud keep 4.1 % of the speed in the striker at 0.1 against
-/// 2.7 % at 1. So the default stays 1 and metal-forming runs set 0.1.
+/// gave 6.61 and 6.49 mm (at 0.05 unstable). Elastic bars on a jittered cloud keep 4.1 % of the
+/// speed in the striker at 0.1 against 2.7 % at 1. So the default stays 1 and metal-forming runs
+/// set 0.1. (P6's case 2.1 at c_s 0.1 let the FSP through, 2.64 in at 100 us, only while the
+/// particles behind the target's surface took no part in contact; since they do: nose 0.99 in,
+/// apparent 1.50 in, out at 87 m/s; concrete runs take plastic_scaling, semi_lagrangian_block.hpp.)
 inline constexpr real_t kFaceGradientCoefficient = 1.0;
 
 /// Cloud parts' defaults (issue #48's decision; studies/tables/cloud_quadrature.yaml, the jittered
