@@ -364,6 +364,8 @@ class Model final : public ExplicitOperator
     void refresh_contact_surfaces();
     /// A kernel contact's bodies: the blocks of the semi-Lagrangian parts it names (DeckError else).
     std::vector<const SemiLagrangianForceBlock*> kernel_contact_bodies(const ContactSpec& c) const;
+    /// The semi-Lagrangian RK block of a part (null: it has none).
+    const SemiLagrangianForceBlock* semi_lagrangian_block(index_t part) const;
     /// The dofs any load can put a force on (ascending): f_ext is zero everywhere else, so the
     /// load pass zeroes and the external work sums only these. f_ext_prev_ is per loaded dof.
     std::vector<index_t> loaded_dofs_;

@@ -32,22 +32,21 @@ ContactSurface Model::contact_surface(const std::vector<std::string>& names, con
         s.add(faces, owner, blk.conn, nodes.x0, blk.material.bulk_modulus());
         // a semi-Lagrangian RK part's other particles: spheres of half their cube's side (the
         // volume at the start; a box mesh's interior particles then touch where their dual cells do)
-        for (const PlannedBlock& pb : blocks_)
-            if (const auto* sl = dynamic_cast<const SemiLagrangianForceBlock*>(pb.block.get()); sl && pb.part == ip)
-            {
-                std::vector<char> on_face(static_cast<std::size_t>(sl->n_particles()), 0);
-                const index_t begin = sl->nodal_points()->node_begin;
-                for (const Quad& q : faces)
-                    for (index_t n : q)
-                        if (n >= begin && n < begin + sl->n_particles())
-                            on_face[static_cast<std::size_t>(n - begin)] = 1;
-                for (index_t p = 0; p < sl->n_particles(); ++p)
-                    if (!on_face[static_cast<std::size_t>(p)])
-                    {
-                        s.particles.push_back(begin + p);
-                        s.particle_radius.push_back(0.5 * std::cbrt(sl->nodal_points()->points.weight[p]));
-                    }
-            }
+        if (const SemiLagrangianForceBlock* sl = semi_lagrangian_block(ip))
+        {
+            std::vector<char> on_face(static_cast<std::size_t>(sl->n_particles()), 0);
+            const index_t begin = sl->nodal_points()->node_begin;
+            for (const Quad& q : faces)
+                for (index_t n : q)
+                    if (n >= begin && n < begin + sl->n_particles())
+                        on_face[static_cast<std::size_t>(n - begin)] = 1;
+            for (index_t p = 0; p < sl->n_particles(); ++p)
+                if (!on_face[static_cast<std::size_t>(p)])
+                {
+                    s.particles.push_back(begin + p);
+                    s.particle_radius.push_back(0.5 * std::cbrt(sl->nodal_points()->points.weight[p]));
+                }
+        }
     };
     if (names.empty())
         for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
@@ -262,6 +261,16 @@ void Model::check_initial_overlaps() const
     }
 }
 
+const SemiLagrangianForceBlock* Model::semi_lagrangian_block(index_t part) const
+{
+    const SemiLagrangianForceBlock* found = nullptr;
+    for (const PlannedBlock& pb : blocks_)
+        if (pb.part == part)
+            if (const auto* sl = dynamic_cast<const SemiLagrangianForceBlock*>(pb.block.get()))
+                found = sl;
+    return found;
+}
+
 std::vector<const SemiLagrangianForceBlock*> Model::kernel_contact_bodies(const ContactSpec& c) const
 {
     std::vector<const SemiLagrangianForceBlock*> out;
@@ -272,11 +281,7 @@ std::vector<const SemiLagrangianForceBlock*> Model::kernel_contact_bodies(const 
             throw DeckError({c.loc.where, c.loc.path + ".surfaces"}, "'" + name + "' is not a part",
                             "expected the names of semi-Lagrangian RK parts (kernel contact acts between particles)");
         const index_t ip = static_cast<index_t>(part - parts.begin());
-        const SemiLagrangianForceBlock* found = nullptr;
-        for (const PlannedBlock& pb : blocks_)
-            if (pb.part == ip)
-                if (const auto* sl = dynamic_cast<const SemiLagrangianForceBlock*>(pb.block.get()))
-                    found = sl;
+        const SemiLagrangianForceBlock* found = semi_lagrangian_block(ip);
         if (found == nullptr)
             throw DeckError({c.loc.where, c.loc.path + ".surfaces"},
                             "part '" + name + "' is not a semi-Lagrangian RK part",
