@@ -214,7 +214,7 @@ struct ContactSpec
     Kind kind = Kind::SurfaceToSurface;
     /// Part or face-set names: surface-to-surface two (each a part's boundary or a face set),
     /// single-surface and rigid-wall any number (their union; empty: every part); kernel two
-    /// semi-Lagrangian RK parts
+    /// semi-Lagrangian RK parts, or one (its separated particles against it and each other)
     std::vector<std::string> surfaces;
     bool soft = true;             ///< stiffness: soft (max of segment and soft, SOFT = 1) | segment
     bool mortar = false;          ///< formulation: node-to-segment | mortar (surface-to-surface)

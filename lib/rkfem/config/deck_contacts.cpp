@@ -48,10 +48,10 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
             c.surfaces.push_back(list[i].Scalar());
         }
     }
-    if (c.kind == ContactSpec::Kind::Kernel && c.surfaces.size() != 2)
-        s.fail("surfaces", c.surfaces.empty() ? "missing required key" : "does not name two parts",
-               "expected surfaces: [A, B], two semi-Lagrangian RK parts (a body's separated particles against "
-               "the body are not in contact yet)");
+    if (c.kind == ContactSpec::Kind::Kernel && (c.surfaces.empty() || c.surfaces.size() > 2))
+        s.fail("surfaces", c.surfaces.empty() ? "missing required key" : "names more than two parts",
+               "expected surfaces: [A, B], two semi-Lagrangian RK parts, or [A], one part's separated particles "
+               "against the part and each other (self-contact)");
     if (c.kind == ContactSpec::Kind::SurfaceToSurface && c.surfaces.size() != 2)
         s.fail("surfaces", c.surfaces.empty() ? "missing required key" : "does not name two surfaces",
                "expected surfaces: [A, B], two part or face-set names");

@@ -19,7 +19,7 @@ KernelContact::KernelContact(std::vector<const SemiLagrangianForceBlock*> bodies
 
 void KernelContact::set_bodies(std::vector<const SemiLagrangianForceBlock*> bodies)
 {
-    RKFEM_REQUIRE(bodies.size() == 2, "kernel contact: two bodies");
+    RKFEM_REQUIRE(bodies.size() == 1 || bodies.size() == 2, "kernel contact: one body (self-contact) or two");
     bodies_ = std::move(bodies);
     node_.clear();
     body_.clear();
@@ -42,6 +42,7 @@ void KernelContact::set_bodies(std::vector<const SemiLagrangianForceBlock*> bodi
     wsum_.assign(n, 0.0);
     normal_.assign(3 * n, 0.0);
     near_.assign(n, 0);
+    separated_.assign(n, 0);
     dp_.assign(3 * n, 0.0);
     built_ = false;
 }
@@ -70,6 +71,7 @@ void KernelContact::gather(const PhysicalNodes& nodes, const ContactClock& clock
                          }
                          real_t* c = &cell_[12 * static_cast<std::size_t>(k)];
                          const bool separated = s.jacobian[p] == 0.0;
+                         separated_[k] = separated;
                          real_t reach = 0.0;
                          if (separated)
                          {
@@ -99,7 +101,11 @@ void KernelContact::update_candidates()
 {
     const index_t n = static_cast<index_t>(node_.size());
     const real_t reach = n > 0 ? *std::max_element(reach_.begin(), reach_.end()) : 0.0;
-    if (built_)
+    const bool self = bodies_.size() == 1;
+    // self-contact: the pairs with a separated particle, so the lists go stale when one separates
+    const index_t n_separated =
+        self ? static_cast<index_t>(std::count(separated_.begin(), separated_.end(), char{1})) : 0;
+    if (built_ && n_separated == separated_built_)
     {
         // two particles approach by at most twice the largest motion since the build, and the
         // cells' reaches grow by at most reach - reach_built_ each
@@ -122,7 +128,7 @@ void KernelContact::update_candidates()
         cells, x_, n,
         [&](index_t i, index_t j)
         {
-            if (j <= i || body_[i] == body_[j])
+            if (j <= i || (self ? !(separated_[i] || separated_[j]) : body_[i] == body_[j]))
                 return false;
             const std::size_t i3 = 3 * static_cast<std::size_t>(i), j3 = 3 * static_cast<std::size_t>(j);
             const real_t dx = x_[j3] - x_[i3], dy = x_[j3 + 1] - x_[i3 + 1], dz = x_[j3 + 2] - x_[i3 + 2];
@@ -134,6 +140,7 @@ void KernelContact::update_candidates()
         for (index_t e = offsets_[k]; e < offsets_[k + 1]; ++e)
             near_[k] = near_[ids_[e]] = 1;
     x_built_ = x_;
+    separated_built_ = n_separated;
     built_ = true;
     ++rebuilds_;
 }
@@ -177,12 +184,13 @@ void KernelContact::add_forces(const PhysicalNodes& nodes, const ContactClock& c
                                     const Vec3 r = Vec3(x_[j3], x_[j3 + 1], x_[j3 + 2]) - xk;
                                     const real_t d = r.norm();
                                     w_[static_cast<std::size_t>(e)] = overlap(k, j);
-                                    if (d > 0.0 && d < reach_[k] + reach_[j] + p_.thickness)
-                                    {
-                                        const real_t closing = (vk - Vec3(v_[j3], v_[j3 + 1], v_[j3 + 2])).dot(r) / d;
-                                        if (closing > 0.0)
-                                            bound = std::min(bound, 0.5 * std::min(size_[k], size_[j]) / closing);
-                                    }
+                                    // a closing pair may not come from apart to deeper than half a
+                                    // cell in one step
+                                    const real_t apart = std::max(0.0, d - reach_[k] - reach_[j] - p_.thickness);
+                                    const real_t closing =
+                                        d > 0.0 ? (vk - Vec3(v_[j3], v_[j3 + 1], v_[j3 + 2])).dot(r) / d : 0.0;
+                                    if (closing > 0.0)
+                                        bound = std::min(bound, (apart + 0.5 * std::min(size_[k], size_[j])) / closing);
                                 }
                                 return bound;
                             });

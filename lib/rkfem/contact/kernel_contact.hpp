@@ -36,12 +36,19 @@
 ///   - Coulomb friction on the settled tangential relative velocity v_t: an impulse of at most
 ///     mu P and at most the one that stops the sliding (mu_IJ |v_t|);
 ///   - the impulses become forces P / dt in the contact channel.
+/// Self-contact (one body, `surfaces: [A]`): a body's separated particles (fragments, ejecta,
+/// crushed material that has left the kernels: SemiLagrangianOptions::separation_damage) meet
+/// the body and each other by the same rule, pairs with at least one separated particle (two
+/// intact particles interact through their kernels). Without it a fragment passes through the
+/// body, and separated material under a penetrator carries no load.
 /// Only the first touch of each pair is inelastic (its two shares meet at their common
-/// velocity), and equal and opposite impulses conserve linear momentum exactly. The time step: dt <= 0.5 min(l_I, l_J)
-/// / s over the pairs within reach of contact that close at speed s along their line (the digest's 0.5 a / |v_A - v_B|,
-/// with the cell size l = V^(1/3) for a). The pairs are searched in lists with a skin (rebuilt when the motion since
-/// the build exceeds it); the result depends only on which pairs meet, summed in particle order, so the bits do not
-/// depend on the lists, the thread count or a restart.
+/// velocity), and equal and opposite impulses conserve linear momentum exactly. The time step: dt <= (g + 0.5 min(l_I,
+/// l_J)) / s over the candidate pairs that close at speed s along their line, g the distance still between their
+/// reaches (0 within reach: the digest's 0.5 a / |v_A - v_B|, with the cell size l = V^(1/3) for a), so no pair comes
+/// from apart to deeper than half a cell in one step; the model takes it for the step after the evaluation that found
+/// it (ExplicitOperator::contact_step). The pairs are searched in lists with a skin (rebuilt when the motion since the
+/// build exceeds it); the result depends only on which pairs meet, summed in particle order, so the bits do not depend
+/// on the lists, the thread count or a restart.
 #include <vector>
 
 #include "rkfem/contact/contact_algorithm.hpp"
@@ -60,7 +67,7 @@ struct KernelContactParameters
 class KernelContact final : public ContactAlgorithm
 {
   public:
-    /// The two bodies. Their blocks hold the particles' cells, volumes and kernels.
+    /// The two bodies, or one (self-contact). Their blocks hold the particles' cells, volumes and kernels.
     KernelContact(std::vector<const SemiLagrangianForceBlock*> bodies, const KernelContactParameters& p);
     /// The blocks again, after an event rebuilt them (the same particles).
     void set_bodies(std::vector<const SemiLagrangianForceBlock*> bodies);
@@ -98,8 +105,10 @@ class KernelContact final : public ContactAlgorithm
     std::vector<real_t> cell_;      ///< 12 per particle: c, e1, e2, e3 (NodalBlock::cells; a cube for separated ones)
     std::vector<real_t> size_;      ///< l = V^(1/3)
     std::vector<real_t> reach_;     ///< bound on the cell's extent in any direction
-    std::vector<index_t> offsets_{0}, ids_; ///< candidates: per particle, the other body's partners j > k it may meet
-    std::vector<real_t> x_built_;           ///< positions at the last build
+    /// candidates: per particle, the partners j > k it may meet (the other body's; self-contact: where one has
+    /// separated)
+    std::vector<index_t> offsets_{0}, ids_;
+    std::vector<real_t> x_built_; ///< positions at the last build
     real_t reach_built_ = 0.0, skin_ = 0.0;
     bool built_ = false;
     // per candidate entry: the pair's overlap weight (0: not in contact)
@@ -112,7 +121,9 @@ class KernelContact final : public ContactAlgorithm
     static constexpr int kMaxIterations = 50;
     static constexpr real_t kTolerance = 1e-3; ///< of the largest impulse: the impulses have settled
     int iterations_ = 0;
-    std::vector<char> near_; ///< per particle: in a candidate pair
+    std::vector<char> near_;      ///< per particle: in a candidate pair
+    std::vector<char> separated_; ///< per particle: separated (its cell empty)
+    index_t separated_built_ = 0; ///< self-contact: separated particles at the last build
     real_t dt_bound_ = kNoLimit;
     Vec3 resultant_ = Vec3::Zero();
     index_t active_ = 0, n_pairs_ = 0, rebuilds_ = 0;

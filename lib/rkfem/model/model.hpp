@@ -155,6 +155,7 @@ class Model final : public ExplicitOperator
     ForceReport internal_forces(real_t t, real_t dt, std::int64_t step) override;
     /// Loads at t into f_ext; contact algorithms into the contact channel.
     void external_forces(real_t t) override;
+    real_t contact_step() const override;
     /// a = (f_ext + f_contact - f_int) / m - c v; zero on constrained dofs.
     void accelerations() override;
     /// Throws InstabilityError naming the first node (and its part), t and the step when a

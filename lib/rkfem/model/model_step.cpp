@@ -82,10 +82,16 @@ ForceReport Model::internal_forces(real_t t, real_t dt, std::int64_t step)
     }
     dt_critical_ = rep.dt_stable;
     dt_last_ = dt;
-    // penalty contact bounds the step too (dt_element still names the element with the smallest)
-    for (const auto& c : contacts)
-        rep.dt_stable = std::min(rep.dt_stable, c->stable_step());
     return rep;
+}
+
+real_t Model::contact_step() const
+{
+    // contact bounds the step too (dt_element still names the element with the smallest)
+    real_t dt = kNoLimit;
+    for (const auto& c : contacts)
+        dt = std::min(dt, c->stable_step());
+    return dt;
 }
 
 void Model::external_forces(real_t t)

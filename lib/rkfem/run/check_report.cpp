@@ -247,7 +247,8 @@ std::string check_report(Model& model)
     for (const std::string& note : model.setup_notes)
         os << "# note: " << note << "\n";
     // the stable step at t = 0 and what sets it
-    const ForceReport rep = model.internal_forces(0.0, 0.0, 0);
+    ForceReport rep = model.internal_forces(0.0, 0.0, 0);
+    rep.dt_stable = std::min(rep.dt_stable, model.contact_step());
     const real_t scale = model.deck().time.dt_scale;
     char line[256];
     std::snprintf(line, sizeof line, "# time step: %.6g s stable, x time.dt_scale %.3g = %.6g s", rep.dt_stable, scale,

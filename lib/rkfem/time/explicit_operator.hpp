@@ -10,6 +10,7 @@
 /// checks. After an accepted step: commit, then energies. A discretization change is an event
 /// between steps; the stepper is then started again (its initialize()) and the energy ledger
 /// continues (Energies::start records the origin once).
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -51,6 +52,9 @@ class ExplicitOperator
     virtual ForceReport internal_forces(real_t t, real_t dt, std::int64_t step) = 0;
     /// f_ext (loads at t, fixed dofs) and the contact channel (changing dofs).
     virtual void external_forces(real_t t) = 0;
+    /// The step the contact found stable in the last external_forces [s] (kernel contact's
+    /// closing pairs, penalty springs).
+    virtual real_t contact_step() const { return kNoLimit; }
     /// a = (f_ext + f_contact - f_int) / m - c v; zero on constrained dofs.
     virtual void accelerations() = 0;
     /// Throws InstabilityError naming where and when the state is not finite.
@@ -67,8 +71,11 @@ class ExplicitOperator
     ForceReport compute_forces(real_t t, real_t dt, std::int64_t step)
     {
         refresh(t);
-        const ForceReport r = internal_forces(t, dt, step);
+        ForceReport r = internal_forces(t, dt, step);
         external_forces(t);
+        // the contact's bound from this evaluation, not the last one: pairs that formed in it
+        // (fragments that separated at the last commit) bound the next step already
+        r.dt_stable = std::min(r.dt_stable, contact_step());
         return r;
     }
 };
