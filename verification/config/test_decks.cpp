@@ -1328,7 +1328,8 @@ TEST(Decks, OverridesThatDoNotFitTheDeckGetALine)
         {"boundary_conditions.0.x.y=1", "--set boundary_conditions.0.x.y=1: "},
         {"title.x=1", "'title' is a value, not a section; expected a path through mappings and lists"},
         {"time.end=", "--set time.end=: time.end: has no value after '='; expected a value"},
-        {"parts.col.generator.size.5=1", "index 5 is past the end; expected 0..2"},
+        {"parts.col.generator.size.5=1", "index 5 is past the end; expected 0..2, or 3 to append an entry"},
+        {"boundary_conditions.2.fixed=all", "index 2 is past the end; expected 0..0"},
     };
     for (const auto& [o, expect] : cases)
     {
@@ -1337,6 +1338,16 @@ TEST(Decks, OverridesThatDoNotFitTheDeckGetALine)
         EXPECT_NE(r.output.find(expect), std::string::npos) << o << ": " << r.output;
         EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     }
+    // the list's size as the last key appends an entry (the check prints the resolved deck); not
+    // as a key on the way to one
+    const Result appended = run(
+        "check " + f + " --set 'boundary_conditions.1={node_set: end, fixed: [x]}' --set 'boundary_conditions.2.x=1'");
+    EXPECT_EQ(appended.code, 2) << appended.output;
+    const Result append = run("check " + f + " --set 'boundary_conditions.1={node_set: end, fixed: [x]}'");
+    EXPECT_EQ(append.code, 0) << append.output;
+    EXPECT_NE(append.output.find("  - {node_set: end, velocity: {z: 10}}\n  - {node_set: end, fixed: [x]}\n"),
+              std::string::npos)
+        << append.output;
     const Result scalar = run("check " + write_deck("scalar_deck.yaml", "5\n") + " --set a.b=1");
     EXPECT_EQ(scalar.code, 2) << scalar.output;
     EXPECT_NE(scalar.output.find("the deck is a value, not a section"), std::string::npos) << scalar.output;

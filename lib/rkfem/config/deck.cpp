@@ -85,14 +85,17 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
         throw DeckError({"--set " + text, path}, "value is not valid YAML (" + e.msg + ")", "");
     }
     // Walk with fresh handles (yaml-cpp nodes are references into the tree).
-    auto list_index = [&](const YAML::Node& list, const std::string& k)
+    // the last key may be the list's size: the value is appended (a contact, a condition)
+    auto list_index = [&](const YAML::Node& list, const std::string& k, bool may_append)
     {
-        const std::string range = list.size() ? "0.." + std::to_string(list.size() - 1) : "none (the list is empty)";
+        std::string range = list.size() ? "0.." + std::to_string(list.size() - 1) : "none (the list is empty)";
+        if (may_append)
+            range += ", or " + std::to_string(list.size()) + " to append an entry";
         std::size_t idx = 0;
         if (k.empty() || k.find_first_not_of("0123456789") != std::string::npos || k.size() > 9)
             throw DeckError({"--set " + text, path}, "'" + k + "' indexes a list", "expected an index " + range);
         idx = std::stoul(k);
-        if (idx >= list.size())
+        if (idx > list.size() || (idx == list.size() && !may_append))
             throw DeckError({"--set " + text, path}, "index " + k + " is past the end", "expected " + range);
         return idx;
     };
@@ -103,7 +106,7 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
         YAML::Node cur = chain.back();
         const std::string& k = keys[i];
         if (cur.IsSequence())
-            chain.push_back(cur[list_index(cur, k)]);
+            chain.push_back(cur[list_index(cur, k, false)]);
         else if (cur.IsMap() || cur.IsNull() || !cur.IsDefined())
         {
             if (!cur[k].IsDefined() || cur[k].IsNull())
@@ -116,7 +119,13 @@ void apply_override(YAML::Node root, const std::string& text, Context& ctx)
     }
     YAML::Node last = chain.back();
     if (last.IsSequence())
-        last[list_index(last, keys.back())] = value_node;
+    {
+        const std::size_t idx = list_index(last, keys.back(), true);
+        if (idx == last.size())
+            last.push_back(value_node);
+        else
+            last[idx] = value_node;
+    }
     else if (last.IsMap() || last.IsNull() || !last.IsDefined())
         last[keys.back()] = value_node;
     else
