@@ -556,7 +556,7 @@ TEST(KernelSelfContact, SeparatedParticlesMeetAtTheirCommonVelocity)
         RunOptions opt;
         opt.progress = false;
         const RunSummary s = run_simulation(m, opt,
-                                            [&](const Model& mm, real_t t, real_t dt, std::int64_t step)
+                                            [&](const Model& mm, real_t, real_t, std::int64_t step)
                                             {
                                                 if (step != 1)
                                                     return;

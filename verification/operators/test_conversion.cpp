@@ -10,9 +10,12 @@
 //     with central difference and ARKODE.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <tuple>
+#include <utility>
 
 #include "../support.hpp"
 #include "rkfem/run/simulation.hpp"
@@ -406,4 +409,168 @@ TEST(ConversionLoads, PressureOnConvertedFacesKeepsItsResultantAndMoment)
     EXPECT_LT((M_fe - M_exact).norm(), 1e-12 * M_exact.norm());
     EXPECT_LT((F_rk - F_exact).norm(), 1e-12 * F_exact.norm());
     EXPECT_LT((M_rk - M_exact).norm(), 1e-12 * M_exact.norm());
+}
+
+namespace
+{
+/// A 3 x 3 x 1 mm fem-nodal block one element thick (1 mm elements), its bottom held and its top
+/// driven at `velocity`, so every node is prescribed and each element deforms exactly as the
+/// top's motion says (simple shear or uniaxial stretch), with the trigger `criterion`.
+std::string driven_block(const std::string& velocity, const std::string& criterion)
+{
+    return R"(
+time: {end: 200 us}
+parts:
+  b:
+    generator: {type: box, size: [3 mm, 3 mm, 1 mm], divisions: [3, 3, 1]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-nodal
+    conversion: )" +
+           criterion + R"(
+node_sets:
+  bottom: {part: b, select: {type: named, name: bottom}}
+  top: {part: b, select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: bottom, fixed: all}
+  - {node_set: top, velocity: )" +
+           velocity + R"(}
+)";
+}
+} // namespace
+
+// Distortion triggers (issue #49): a block sheared at 10 m/s over its 1 mm height has every
+// corner's scaled Jacobian at 1 / sqrt(1 + gamma^2), gamma = v t / H, so `scaled_jacobian: 0.5`
+// fires at gamma = sqrt(3), t = 173.2 us; stretched along its height at 10 m/s its elements' edges
+// are 1 + v t / H against 1 mm, so `aspect_ratio: 2` fires at t = 100 us. Each converts all nine
+// elements in one event, at the first step end at or past that time, and none before.
+TEST(ConversionTriggers, DistortionFiresAtTheStatedMeasureAndNotBefore)
+{
+    struct Case
+    {
+        const char* name;
+        std::string velocity, criterion;
+        real_t t_fire;
+    };
+    for (const Case& k : {Case{"shear, scaled_jacobian 0.5", "{x: 10 m/s, y: 0, z: 0}", "{scaled_jacobian: 0.5}",
+                               std::sqrt(3.0) * 1e-3 / 10.0},
+                          Case{"stretch, aspect_ratio 2", "{x: 0, y: 0, z: 10 m/s}", "{aspect_ratio: 2}", 1e-3 / 10.0}})
+    {
+        Model m = test::model_from(driven_block(k.velocity, k.criterion));
+        real_t t_event = -1.0, t_before = -1.0, dt_event = 0.0;
+        index_t converted = 0;
+        RunOptions opt;
+        opt.progress = false;
+        const RunSummary s = run_simulation(m, opt,
+                                            [&](const Model& mm, real_t t, real_t dt, std::int64_t)
+                                            {
+                                                if (mm.converted_elements() > 0 && t_event < 0.0)
+                                                {
+                                                    t_event = t;
+                                                    dt_event = dt;
+                                                    converted = mm.converted_elements();
+                                                }
+                                                else if (mm.converted_elements() == 0)
+                                                    t_before = t;
+                                            });
+        ASSERT_EQ(s.status, "completed") << k.name << ": " << s.message;
+        std::printf("%s: converted %d elements at %.4f us (theory: the first step end at or past %.4f us; the "
+                    "last step end before it %.4f us, step %.4f us)\n",
+                    k.name, static_cast<int>(converted), 1e6 * t_event, 1e6 * k.t_fire, 1e6 * t_before, 1e6 * dt_event);
+        EXPECT_EQ(converted, 9) << k.name;
+        EXPECT_GE(t_event, k.t_fire * (1.0 - 1e-9)) << k.name;
+        EXPECT_LT(t_before, k.t_fire) << k.name;
+        EXPECT_LE(t_event - t_before, dt_event * (1.0 + 1e-9)) << k.name; // the step that crossed it
+        EXPECT_EQ(m.converted_elements(), 9) << k.name;
+    }
+}
+
+// The buffer and the cap (issue #49): a 4 x 4 x 4 fem-nodal J2 box whose two opposite corner nodes
+// carry a plastic strain of 1 (their elements' mean 1/8 passes effective_plastic_strain 0.1; no
+// other element holds either node). With `buffer: 1` each triggered element brings the 7
+// elements that share a node with it: 16 in one event; `buffer: 2` the two 3 x 3 x 3 blocks,
+// which share the box's middle 2 x 2 x 2: 46;
+// `max_per_event: 8` with buffer 1 converts the two triggered elements first and then the
+// buffer's in element order, 8 in all, and the capped ones wait for a trigger that no longer
+// holds (both corners are RK): 8 at the end. `max_per_event: 1` without a buffer converts one
+// corner per event: 1 after the first step, 2 after the second.
+TEST(ConversionTriggers, BufferLayersAndTheCapPerEvent)
+{
+    auto run = [](const std::string& extra, int steps)
+    {
+        Model m = test::model_from(R"(
+time: {end: 1 s}
+parts:
+  b:
+    generator: {type: box, size: [4 mm, 4 mm, 4 mm], divisions: [4, 4, 4]}
+    material: {model: j2, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3, sigy: 500 MPa, etan: 1 GPa}
+    formulation: fem-nodal
+    bulk_viscosity: {linear: 0, quadratic: 0}
+    conversion: {effective_plastic_strain: 0.1)" +
+                                   extra + R"(}
+)");
+        NodalBlock& nb = *m.nodal_block(0);
+        for (index_t i = 0; i < m.nodes.size(); ++i)
+        {
+            const real_t x = m.nodes.x0[3 * i], y = m.nodes.x0[3 * i + 1], z = m.nodes.x0[3 * i + 2];
+            const bool origin = x < 1e-6 && y < 1e-6 && z < 1e-6;
+            const bool far = x > 4e-3 - 1e-6 && y > 4e-3 - 1e-6 && z > 4e-3 - 1e-6;
+            if (origin || far)
+                for (index_t k = nb.owner_offsets[i - nb.node_begin]; k < nb.owner_offsets[i - nb.node_begin + 1]; ++k)
+                {
+                    const std::size_t p = static_cast<std::size_t>(nb.owner_points[k]);
+                    nb.plastic.eps_p[p] = nb.plastic.eps_p_trial[p] = 1.0;
+                }
+        }
+        std::vector<index_t> counts;
+        CentralDifference cd;
+        StepReport r = cd.initialize(m, 0.0);
+        real_t t = 0.0;
+        for (int k = 1; k <= steps; ++k)
+        {
+            const real_t dt = next_time_step(m.deck().time, t, r.dt_stable);
+            r = cd.step(m, t, dt, k);
+            t = r.t;
+            if (m.apply_events(t, k))
+                r.dt_stable = m.restart_after_event(cd, t, dt);
+            counts.push_back(m.converted_elements());
+        }
+        return std::make_pair(counts, m.rk_elements(0));
+    };
+    const auto [none, rk0] = run("", 2);
+    const auto [one, rk1] = run(", buffer: 1", 2);
+    const auto [two, rk2] = run(", buffer: 2", 2);
+    const auto [capped, rkc] = run(", buffer: 1, max_per_event: 8", 3);
+    const auto [single, rks] = run(", max_per_event: 1", 3);
+    std::printf("conversions after each step: no buffer %d, buffer 1 %d, buffer 2 %d, buffer 1 capped at 8: %d %d "
+                "%d, capped at 1: %d %d %d\n",
+                static_cast<int>(none[0]), static_cast<int>(one[0]), static_cast<int>(two[0]),
+                static_cast<int>(capped[0]), static_cast<int>(capped[1]), static_cast<int>(capped[2]),
+                static_cast<int>(single[0]), static_cast<int>(single[1]), static_cast<int>(single[2]));
+    EXPECT_EQ(none, (std::vector<index_t>{2, 2}));
+    EXPECT_EQ(one, (std::vector<index_t>{16, 16}));
+    EXPECT_EQ(two, (std::vector<index_t>{46, 46}));
+    EXPECT_EQ(capped, (std::vector<index_t>{8, 8, 8}));
+    EXPECT_EQ(single, (std::vector<index_t>{1, 2, 2}));
+    // the capped event's elements: the corners 0 and 63, then 0's buffer in element order (1, 4,
+    // 5, 16, 17, 20; the box numbers elements x fastest)
+    std::vector<index_t> in;
+    for (std::size_t e = 0; e < rkc.size(); ++e)
+        if (rkc[e])
+            in.push_back(static_cast<index_t>(e));
+    EXPECT_EQ(in, (std::vector<index_t>{0, 1, 4, 5, 16, 17, 20, 63}));
+    EXPECT_EQ(std::count(rk1.begin(), rk1.end(), char{1}), 16);
+}
+
+TEST(ConversionTriggers, DeckErrorsNameTheKey)
+{
+    auto error_of = [](const std::string& conversion)
+    { return test::model_error(driven_block("{x: 10 m/s}", conversion), {}); };
+    EXPECT_NE(error_of("{scaled_jacobian: 1.2}").find("parts.b.conversion.scaled_jacobian"), std::string::npos);
+    EXPECT_NE(error_of("{aspect_ratio: 0.5}").find("parts.b.conversion.aspect_ratio: is not above 1"),
+              std::string::npos);
+    EXPECT_NE(error_of("{aspect_ratio: 2, buffer: -1}").find("parts.b.conversion.buffer"), std::string::npos);
+    EXPECT_NE(error_of("{aspect_ratio: 2, max_per_event: -3}").find("parts.b.conversion.max_per_event"),
+              std::string::npos);
+    EXPECT_NE(error_of("{buffer: 1}").find("has no criterion"), std::string::npos);
+    EXPECT_EQ(error_of("{aspect_ratio: 2, scaled_jacobian: 0.3, buffer: 1, max_per_event: 100}"), "");
 }

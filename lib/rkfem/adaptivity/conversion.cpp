@@ -2,6 +2,8 @@
 // between steps. The state stays where it is integrated (at the nodes), so an event rebuilds
 // tables only.
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <string>
 
 #include "rkfem/core/error.hpp"
@@ -133,6 +135,46 @@ index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
     set_rk_elements(part, rk);
     converted_elements_ += added;
     return added;
+}
+
+void Model::buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<char>& convert) const
+{
+    if (c.buffer == 0 && c.max_per_event == 0)
+        return;
+    const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(part)];
+    const std::vector<index_t>& conn = meshes[static_cast<std::size_t>(part)].conn;
+    const PartInfo& info = parts[static_cast<std::size_t>(part)];
+    const std::size_t ne = convert.size();
+    // the buffer: layer by layer, the elements (not RK yet) sharing a node with those flagged
+    // (1: triggered, 2: buffer)
+    std::vector<char> marked;
+    for (int layer = 0; layer < c.buffer; ++layer)
+    {
+        marked.assign(static_cast<std::size_t>(info.node_end - info.node_begin), 0);
+        for (std::size_t e = 0; e < ne; ++e)
+            if (convert[e])
+                for (int a = 0; a < 8; ++a)
+                    marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)] = 1;
+        for (std::size_t e = 0; e < ne; ++e)
+            if (!convert[e] && !rk[e])
+                for (int a = 0; a < 8; ++a)
+                    if (marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)])
+                    {
+                        convert[e] = 2;
+                        break;
+                    }
+    }
+    // the cap: the triggered ones first, then the buffer's, each in element order
+    std::int64_t left = c.max_per_event > 0 ? c.max_per_event : std::numeric_limits<std::int64_t>::max();
+    for (const char kind : {char{1}, char{2}})
+        for (std::size_t e = 0; e < ne; ++e)
+            if (convert[e] == kind)
+            {
+                if (left > 0)
+                    --left;
+                else
+                    convert[e] = 0;
+            }
 }
 
 int Model::element_zone(index_t block, index_t e) const

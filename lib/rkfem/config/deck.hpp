@@ -4,6 +4,7 @@
 /// every value is SI from then on. Each spec remembers the deck line it came from so that errors
 /// found later (empty node set, inverted element) still name the line.
 #include <array>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -68,12 +69,27 @@ struct ElementCriteria
     real_t principal_strain = 0.0;  ///< largest principal logarithmic strain ln(lambda_max) (MXEPS)
     real_t volumetric_strain = 0.0; ///< V / V0 - 1, tension (VOLEPS)
     real_t time_step = 0.0;         ///< element step (V / A_max) / c below this [s] (DTMIN)
+    /// the element's smallest scaled corner Jacobian, det(e1, e2, e3) / (|e1| |e2| |e3|) of the
+    /// three edges at each corner, at or below this (1 for a box, 1 / sqrt(1 + gamma^2) sheared
+    /// by gamma; 0: off)
+    real_t scaled_jacobian = 0.0;
+    real_t aspect_ratio = 0.0; ///< the longest of the 12 edges over the shortest at or above this (0: off)
     /// conversion only: the criteria are checked at the first step end at or past each multiple
     /// of this time [s] (0: after every step), so that elements convert in fewer, larger events
     real_t interval = 0.0;
+    /// conversion only: layers of elements sharing a node with the triggered ones that convert
+    /// with them (a buffer, so the RK region leads the distortion)
+    int buffer = 0;
+    /// conversion only: at most this many elements per event (0: no cap), the triggered ones
+    /// first, then the buffer's, each in element order; the rest wait for the next check
+    std::int64_t max_per_event = 0;
     bool active() const { return plastic_strain > 0 || damage > 0 || geometric(); }
     /// a criterion on the element's shape (a pass over its nodes per step)
-    bool geometric() const { return principal_strain > 0 || volumetric_strain > 0 || time_step > 0; }
+    bool geometric() const
+    {
+        return principal_strain > 0 || volumetric_strain > 0 || time_step > 0 || scaled_jacobian > 0 ||
+               aspect_ratio > 0;
+    }
 };
 
 /// Geometric predicate or generator name selecting nodes (or faces whose 4 nodes all match).

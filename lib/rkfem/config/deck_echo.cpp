@@ -363,9 +363,11 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
         {
             os << "    " << key << ": {effective_plastic_strain: " << c->plastic_strain << ", damage: " << c->damage
                << ", principal_strain: " << c->principal_strain << ", volumetric_strain: " << c->volumetric_strain
-               << ", time_step: " << c->time_step;
+               << ", time_step: " << c->time_step << ", scaled_jacobian: " << c->scaled_jacobian
+               << ", aspect_ratio: " << c->aspect_ratio;
             if (c == &p.conversion)
-                os << ", interval: " << c->interval;
+                os << ", interval: " << c->interval << ", buffer: " << c->buffer
+                   << ", max_per_event: " << c->max_per_event;
             os << "}\n";
         }
 }

@@ -23,10 +23,11 @@ void ignore(PartSpec& p, const Section& s, const std::string& key, const std::st
 /// The element criteria under `key` (erosion, conversion): at least one set, none negative.
 ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::string& key, const PartSpec& p)
 {
-    std::vector<std::string> keys = {"effective_plastic_strain", "damage", "principal_strain", "volumetric_strain",
-                                     "time_step"};
+    std::vector<std::string> keys = {
+        "effective_plastic_strain", "damage",      "principal_strain", "volumetric_strain", "time_step",
+        "scaled_jacobian",          "aspect_ratio"};
     if (key == "conversion")
-        keys.push_back("interval");
+        keys.insert(keys.end(), {"interval", "buffer", "max_per_event"});
     Section e(ctx, s.node(key), s.path(key), keys);
     ElementCriteria c;
     if (key == "conversion")
@@ -34,26 +35,42 @@ ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::s
         c.interval = e.quantity("interval", dim::time, 0.0);
         if (!(c.interval >= 0.0 && std::isfinite(c.interval)))
             e.fail("interval", "is negative or not finite", "expected a time >= 0 (0: check after every step)");
+        const std::int64_t layers = e.integer("buffer", 0);
+        if (layers < 0 || layers > 8)
+            e.fail("buffer", "is outside 0-8", "expected the layers of neighbouring elements to convert with them");
+        c.buffer = static_cast<int>(layers);
+        c.max_per_event = e.integer("max_per_event", 0);
+        if (c.max_per_event < 0)
+            e.fail("max_per_event", "is negative", "expected a number of elements >= 1 (0: no cap)");
     }
     c.plastic_strain = e.quantity("effective_plastic_strain", dim::none, 0.0);
     c.damage = e.quantity("damage", dim::none, 0.0);
     c.principal_strain = e.quantity("principal_strain", dim::none, 0.0);
     c.volumetric_strain = e.quantity("volumetric_strain", dim::none, 0.0);
     c.time_step = e.quantity("time_step", dim::time, 0.0);
+    c.scaled_jacobian = e.quantity("scaled_jacobian", dim::none, 0.0);
+    if (!(c.scaled_jacobian >= 0.0 && c.scaled_jacobian < 1.0))
+        e.fail("scaled_jacobian", "is outside [0, 1)",
+               "expected the smallest scaled corner Jacobian at which an element counts as distorted (1: a box; "
+               "0: off)");
+    c.aspect_ratio = e.quantity("aspect_ratio", dim::none, 0.0);
+    if (!(c.aspect_ratio == 0.0 || (c.aspect_ratio > 1.0 && std::isfinite(c.aspect_ratio))))
+        e.fail("aspect_ratio", "is not above 1", "expected the longest over the shortest edge, above 1 (0: off)");
     for (const char* k : {"principal_strain", "volumetric_strain", "time_step"})
         if (e.has(k) && !(e.quantity(k, k == std::string("time_step") ? dim::time : dim::none) >= 0.0))
             e.fail(k, "is negative", "expected a value > 0 (0: off)");
     if (p.material.model == "elastic" && (c.plastic_strain > 0 || c.damage > 0))
         s.fail(key, "effective_plastic_strain and damage need a material with history",
                "expected material model j2, kcc or cscm, or the criteria principal_strain, volumetric_strain, "
-               "time_step");
+               "time_step, scaled_jacobian, aspect_ratio");
     if (!(c.plastic_strain >= 0.0 && std::isfinite(c.plastic_strain)))
         e.fail("effective_plastic_strain", "is negative or not finite", "expected a strain > 0 (0: off)");
     if (!(c.damage >= 0.0 && c.damage <= 1.0))
         e.fail("damage", "is outside [0, 1]", "expected a damage index in (0, 1] (0: off)");
     if (!c.active())
         s.fail(key, "has no criterion",
-               "expected effective_plastic_strain, damage, principal_strain, volumetric_strain or time_step > 0");
+               "expected effective_plastic_strain, damage, principal_strain, volumetric_strain, time_step, "
+               "scaled_jacobian or aspect_ratio > 0");
     return c;
 }
 

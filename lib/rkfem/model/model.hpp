@@ -245,6 +245,7 @@ class Model final : public ExplicitOperator
     struct ElementShape
     {
         real_t principal_strain = 0.0, volumetric_strain = 0.0, time_step = 0.0;
+        real_t scaled_jacobian = 1.0, aspect_ratio = 1.0; ///< ElementCriteria's measures
     };
     ElementShape element_shape(index_t block, index_t e) const;
     /// element_shape's time_step alone (the same value): the step budget's scan over every
@@ -336,6 +337,9 @@ class Model final : public ExplicitOperator
     /// A coupled part's tables, map and the conditions' and loads' use of it rebuilt for a new
     /// set of RK elements; the points' state carries over.
     void set_rk_elements(index_t part, const std::vector<char>& rk);
+    /// Conversion's buffer layers and cap per event (ElementCriteria::buffer, max_per_event) on
+    /// the triggered elements' flags (nonzero: convert).
+    void buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<char>& convert) const;
     /// The part's mesh in the reference configuration, local node numbering.
     HexMesh part_mesh(index_t part) const;
     std::vector<ErodedElements> eroded_; ///< per block

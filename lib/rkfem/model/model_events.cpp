@@ -106,6 +106,40 @@ class ShapeMeasures
     }
     /// the element's step as the kernels take it: V over its largest face area, over the wave speed
     real_t time_step() { return area_time_step(x_, volume(), c_); }
+    /// the smallest over the corners of det(e1, e2, e3) / (|e1| |e2| |e3|), e_k the corner's three
+    /// edges in the element's right-handed order (Verdict's hex scaled Jacobian, without its centre
+    /// term): 1 for a box, 1 / sqrt(1 + gamma^2) for a box sheared by gamma, <= 0 inverted
+    real_t scaled_jacobian() const
+    {
+        // corner I's neighbours along the element's local xi, eta, zeta
+        static constexpr int kEdges[8][3] = {{1, 3, 4}, {2, 0, 5}, {3, 1, 6}, {0, 2, 7},
+                                             {7, 5, 0}, {4, 6, 1}, {5, 7, 2}, {6, 4, 3}};
+        real_t least = 1.0;
+        for (int I = 0; I < 8; ++I)
+        {
+            Vec3 e[3];
+            for (int k = 0; k < 3; ++k)
+                e[k] = Vec3(x_[kEdges[I][k]][0] - x_[I][0], x_[kEdges[I][k]][1] - x_[I][1],
+                            x_[kEdges[I][k]][2] - x_[I][2]);
+            const real_t lengths = e[0].norm() * e[1].norm() * e[2].norm();
+            least = std::min(least, lengths > 0.0 ? e[0].dot(e[1].cross(e[2])) / lengths : 0.0);
+        }
+        return least;
+    }
+    /// the longest of the 12 edges over the shortest
+    real_t aspect_ratio() const
+    {
+        static constexpr int kEdge[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                             {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+        real_t lo = kNoLimit, hi = 0.0;
+        for (const auto& [a, b] : kEdge)
+        {
+            const real_t l = std::hypot(x_[a][0] - x_[b][0], x_[a][1] - x_[b][1], x_[a][2] - x_[b][2]);
+            lo = std::min(lo, l);
+            hi = std::max(hi, l);
+        }
+        return lo > 0.0 ? hi / lo : kNoLimit;
+    }
 
   private:
     void reference()
@@ -138,6 +172,8 @@ Model::ElementShape Model::element_shape(index_t block, index_t e) const
     g.principal_strain = m.principal_strain();
     g.volumetric_strain = m.volumetric_strain();
     g.time_step = m.time_step();
+    g.scaled_jacobian = m.scaled_jacobian();
+    g.aspect_ratio = m.aspect_ratio();
     return g;
 }
 
@@ -156,7 +192,9 @@ bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
     ShapeMeasures g(*this, b, e); // only the measures the criteria name
     return (c.principal_strain > 0 && g.principal_strain() >= c.principal_strain) ||
            (c.volumetric_strain > 0 && g.volumetric_strain() >= c.volumetric_strain) ||
-           (c.time_step > 0 && g.time_step() < c.time_step);
+           (c.time_step > 0 && g.time_step() < c.time_step) ||
+           (c.scaled_jacobian > 0 && g.scaled_jacobian() <= c.scaled_jacobian) ||
+           (c.aspect_ratio > 0 && g.aspect_ratio() >= c.aspect_ratio);
 }
 
 bool Model::apply_events(real_t t, std::int64_t step)
@@ -192,7 +230,10 @@ bool Model::apply_events(real_t t, std::int64_t step)
                                                   return true;
                                               });
             if (any)
+            {
                 refresh_motion(); // the motion of the step, before the model changes
+                buffer_and_cap(b, ps.conversion, convert);
+            }
             try
             {
                 if (any && convert_elements(b, convert) > 0)
