@@ -344,6 +344,24 @@ TEST(HexMesh, TheWorstCornerIsTheSmallestScaledJacobian)
     const Vec3 a(-0.2, 0.8, 0.8), b(0.8, -0.2, 0.8), d(0.8, 0.8, -0.2);
     EXPECT_NEAR(c.scaled_jacobian, -a.dot(b.cross(d)) / (a.norm() * b.norm() * d.norm()), 1e-14);
     EXPECT_LT(c.scaled_jacobian, 0.0);
+    // the per-element measures the conversion and erosion triggers read: the same smallest corner,
+    // and the cube's edges all 1
+    real_t x[8][3];
+    for (int i = 0; i < 8; ++i)
+        for (int k = 0; k < 3; ++k)
+            x[i][k] = sheared.x[3 * i + k];
+    EXPECT_EQ(smallest_scaled_jacobian(x, sheared.conn.data()), worst_corner(sheared).scaled_jacobian);
+    EXPECT_NEAR(edge_aspect_ratio(x, sheared.conn.data()), 1.0 / std::cos(theta), 1e-14); // slanted edges
+    // a wedge written as a hex (0 1 3 3 4 5 7 7: the cube's half below its diagonal 1-3): the
+    // collapsed corners are skipped, so its worst is the 45-degree corner, sin 45; the edge between
+    // the repeated nodes is left out, so its edges run from 1 to the diagonal's sqrt 2
+    const index_t wedge[8] = {0, 1, 3, 3, 4, 5, 7, 7};
+    real_t w[8][3];
+    for (int i = 0; i < 8; ++i)
+        for (int k = 0; k < 3; ++k)
+            w[i][k] = m.x[3 * static_cast<std::size_t>(wedge[i]) + k];
+    EXPECT_NEAR(smallest_scaled_jacobian(w, wedge), std::sqrt(0.5), 1e-15);
+    EXPECT_NEAR(edge_aspect_ratio(w, wedge), std::sqrt(2.0), 1e-15);
 }
 
 TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)

@@ -25,35 +25,71 @@ real_t largest_face_area(const real_t (&x)[8][3])
     return area;
 }
 
+real_t corner_scaled_jacobian(const real_t (&x)[8][3], const index_t* c, int a)
+{
+    // a corner of a degenerate solid (a wedge or tetrahedron written as a hex) where an edge
+    // collapses has no Jacobian of its own: its other corners are checked
+    for (int k = 0; k < 3; ++k)
+        if (c[kCornerEdges[a][k]] == c[a])
+            return kNoLimit;
+    const Vec3 xa(x[a][0], x[a][1], x[a][2]);
+    Vec3 edge[3];
+    real_t length = 1.0;
+    for (int k = 0; k < 3; ++k)
+    {
+        const int b = kCornerEdges[a][k];
+        edge[k] = Vec3(x[b][0], x[b][1], x[b][2]) - xa;
+        length *= edge[k].norm();
+    }
+    // d x / d xi along an edge from a corner at xi = s runs against s: the product of
+    // the three edge directions carries -s_xi s_eta s_zeta
+    const real_t triple = -kCornerEdges[a][3] * edge[0].dot(edge[1].cross(edge[2]));
+    return length > 0.0 ? triple / length : 0.0;
+}
+
+real_t smallest_scaled_jacobian(const real_t (&x)[8][3], const index_t* c)
+{
+    real_t least = kNoLimit;
+    for (int a = 0; a < 8; ++a)
+        least = std::min(least, corner_scaled_jacobian(x, c, a));
+    return least;
+}
+
+real_t edge_aspect_ratio(const real_t (&x)[8][3], const index_t* c)
+{
+    static constexpr int kEdge[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                         {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+    real_t lo = kNoLimit, hi = 0.0;
+    for (const auto& [a, b] : kEdge)
+    {
+        if (c[a] == c[b])
+            continue;
+        const real_t l = std::hypot(x[a][0] - x[b][0], x[a][1] - x[b][1], x[a][2] - x[b][2]);
+        lo = std::min(lo, l);
+        hi = std::max(hi, l);
+    }
+    return lo > 0.0 && lo < kNoLimit ? hi / lo : kNoLimit;
+}
+
 HexCorner worst_corner(const HexMesh& m)
 {
     HexCorner worst;
     for (index_t e = 0; e < m.n_elements(); ++e)
+    {
+        const index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
+        real_t x[8][3];
+        for (int a = 0; a < 8; ++a)
+            for (int d = 0; d < 3; ++d)
+                x[a][d] = m.x[3 * static_cast<std::size_t>(c[a]) + d];
         for (int a = 0; a < 8; ++a)
         {
-            const index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
-            // a corner of a degenerate solid (a wedge or tetrahedron written as a hex) where an
-            // edge collapses has no Jacobian of its own: its other corners are checked
-            bool collapsed = false;
-            for (int k = 0; k < 3; ++k)
-                collapsed = collapsed || c[kCornerEdges[a][k]] == c[a];
-            if (collapsed)
+            const real_t scaled = corner_scaled_jacobian(x, c, a);
+            if (scaled == kNoLimit)
                 continue;
-            const Vec3 xa = m.node(c[a]);
-            Vec3 edge[3];
-            real_t length = 1.0;
-            for (int k = 0; k < 3; ++k)
-            {
-                edge[k] = m.node(c[kCornerEdges[a][k]]) - xa;
-                length *= edge[k].norm();
-            }
-            // d x / d xi along an edge from a corner at xi = s runs against s: the product of
-            // the three edge directions carries -s_xi s_eta s_zeta
-            const real_t triple = -kCornerEdges[a][3] * edge[0].dot(edge[1].cross(edge[2]));
-            const real_t scaled = length > 0.0 ? triple / length : 0.0;
             if (worst.element < 0 || !(scaled >= worst.scaled_jacobian))
                 worst = {e, a, scaled};
         }
+    }
     return worst;
 }
 

@@ -75,6 +75,15 @@ struct HexCorner
     real_t scaled_jacobian = 1.0;
 };
 HexCorner worst_corner(const HexMesh& m);
+/// worst_corner's measure at corner a of one hex, corners x[8][3] and node ids c[8]; kNoLimit
+/// where an edge at the corner collapses (a degenerate solid's corner, skipped).
+real_t corner_scaled_jacobian(const real_t (&x)[8][3], const index_t* c, int a);
+/// The smallest over a hex's corners (its collapsed corners skipped): 1 for a box, 1 / sqrt(1 +
+/// gamma^2) for a box sheared by gamma, <= 0 inverted.
+real_t smallest_scaled_jacobian(const real_t (&x)[8][3], const index_t* c);
+/// The longest of a hex's 12 edges over the shortest, the edges between repeated nodes (a
+/// degenerate solid's) left out.
+real_t edge_aspect_ratio(const real_t (&x)[8][3], const index_t* c);
 /// The largest of a hex's six face areas (each |(x2 - x0) x (x3 - x1)| / 2), corners x[8][3]: the
 /// A_max of the element step V / A_max / c.
 real_t largest_face_area(const real_t (&x)[8][3]);
