@@ -18,6 +18,7 @@
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/operators/hex_block.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 #include "rkfem/run/simulation.hpp"
 
 namespace rkfem::test
@@ -254,6 +255,15 @@ inline Vec3 momentum(const NodeSet& nodes)
     for (index_t i = 0; i < nodes.size(); ++i)
         p += nodes.mass[i] * Vec3(nodes.v[3 * i], nodes.v[3 * i + 1], nodes.v[3 * i + 2]);
     return p;
+}
+
+/// The model's (first) semi-Lagrangian RK block.
+inline SemiLagrangianForceBlock& sl_block(Model& m)
+{
+    for (index_t k = 0; k < m.n_blocks(); ++k)
+        if (auto* b = dynamic_cast<SemiLagrangianForceBlock*>(&m.block(k)))
+            return *b;
+    throw std::runtime_error("no semi-Lagrangian block");
 }
 
 /// sum_I m_I |v_I|: the scale momentum errors are measured against.

@@ -507,18 +507,10 @@ std::string fragments_deck(const char* size, const char* end, bool self_contact)
     return d;
 }
 
-SemiLagrangianForceBlock& only_sl_block(Model& m)
-{
-    for (index_t k = 0; k < m.n_blocks(); ++k)
-        if (auto* b = dynamic_cast<SemiLagrangianForceBlock*>(&m.block(k)))
-            return *b;
-    throw std::runtime_error("no semi-Lagrangian block");
-}
-
 /// Fails the material of particle p (node p of a one-part model): it separates at the first commit.
 void fail_particle(Model& m, index_t p)
 {
-    PlasticPoints& h = only_sl_block(m).nodal_points()->plastic;
+    PlasticPoints& h = test::sl_block(m).nodal_points()->plastic;
     h.failed[static_cast<std::size_t>(p)] = h.failed_trial[static_cast<std::size_t>(p)] = 1.0;
 }
 } // namespace
@@ -571,7 +563,7 @@ TEST(KernelSelfContact, SeparatedParticlesMeetAtTheirCommonVelocity)
                                                 }
                                             });
         ASSERT_EQ(s.status, "completed") << s.message;
-        EXPECT_EQ(only_sl_block(m).free_particles(), 8);
+        EXPECT_EQ(test::sl_block(m).free_particles(), 8);
         real_t worst = 0.0;
         for (index_t i = 0; i < 8; ++i)
             worst = std::max(worst, std::abs(m.nodes.v[3 * i] - (self ? common[i] : first[i])));
@@ -648,10 +640,10 @@ TEST(KernelSelfContact, AFailedLayerStopsOnItsBody)
         std::printf("a failed layer driven into its body, %s: %d free particles, the inner nine's closest approach "
                     "to the layer below %.3f mm, momentum drift %.1e of sum m|v|, contact energy %.4f J of the "
                     "layer's %.4f J (least %.1e), largest balance error before the last step %.1e, at the end %.1e\n",
-                    self ? "self-contact" : "no contact", static_cast<int>(only_sl_block(m).free_particles()),
+                    self ? "self-contact" : "no contact", static_cast<int>(test::sl_block(m).free_particles()),
                     closest * 1e3, drift / scale, m.energy.contact, layer_kinetic, least_contact, balance,
                     last_balance);
-        EXPECT_EQ(only_sl_block(m).free_particles(), 25);
+        EXPECT_EQ(test::sl_block(m).free_particles(), 25);
         EXPECT_LT(drift, 1e-12 * scale);
         if (self)
         {

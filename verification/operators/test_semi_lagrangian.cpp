@@ -31,14 +31,6 @@ parts:
     bulk_viscosity: {linear: 0, quadratic: 0}
 )";
 
-SemiLagrangianForceBlock& sl_block(Model& m)
-{
-    for (index_t k = 0; k < m.n_blocks(); ++k)
-        if (auto* b = dynamic_cast<SemiLagrangianForceBlock*>(&m.block(k)))
-            return *b;
-    throw std::runtime_error("no semi-Lagrangian block");
-}
-
 /// The largest sum_L V_L b_J(x_L) (ic, 3 per particle) at the particles whose supports stay clear
 /// of the block's surface (2 spacings in), relative to a gradient's size times a cell's volume, h^2.
 real_t interior_constraint(const Model& m, const std::vector<real_t>& ic, real_t h)
@@ -81,7 +73,7 @@ TEST(SemiLagrangian, SnniReproducesLinearFieldsAndLosesTheIntegrationConstraintO
     for (real_t jitter : {0.0, 0.2})
     {
         Model m = test::model_from(block_deck);
-        SemiLagrangianForceBlock& b = sl_block(m);
+        SemiLagrangianForceBlock& b = test::sl_block(m);
         const real_t h = 1e-3;
         jitter_positions(m, h, jitter, 0.0, 8e-3);
         const index_t np = b.n_particles();
@@ -128,7 +120,7 @@ TEST(SemiLagrangian, SdSnniSubCellsReproduceLinearFieldsAndSeeTheSawtooth)
     for (real_t jitter : {0.0, 0.2})
     {
         Model m = test::model_from(block_deck);
-        SemiLagrangianForceBlock& b = sl_block(m);
+        SemiLagrangianForceBlock& b = test::sl_block(m);
         const real_t h = 1e-3;
         jitter_positions(m, h, jitter, 0.0, 8e-3);
         IntegrationOperator pts, sub;
@@ -218,7 +210,7 @@ TEST(SemiLagrangian, FaceGradientStabilizationSeesTheSawtoothThatSnniMisses)
             parity += static_cast<int>(std::lround(m.nodes.x0[3 * i + d] / h));
         m.nodes.v[3 * i] = parity % 2 ? 1.0 : -1.0;
     }
-    SemiLagrangianForceBlock& b = sl_block(m);
+    SemiLagrangianForceBlock& b = test::sl_block(m);
     real_t worst_snni = 0.0, least_face = kNoLimit;
     std::vector<index_t> nodes;
     std::vector<real_t> grad, faces;
@@ -310,7 +302,7 @@ boundary_conditions:
     }
     std::printf("semi-Lagrangian wave: 10 mm slabs' plateau within %.2e, lateral within %.2e (single particles "
                 "within %.2e), balance error %.2e, %d rebuilds\n",
-                worst, worst_lateral, worst_particle, r.balance, sl_block(m).rebuilds());
+                worst, worst_lateral, worst_particle, r.balance, test::sl_block(m).rebuilds());
     EXPECT_LT(worst, 0.02);
     EXPECT_LT(worst_lateral, 0.02);
     EXPECT_LT(r.balance, 0.01);
@@ -390,7 +382,7 @@ void check_spin(std::vector<std::string> overrides, real_t angular_tolerance)
     std::printf("spinning block, %d steps: linear momentum %.2e, angular %.2e (relative), largest stress %.3e Pa "
                 "(rho omega^2 R^2 = %.3e Pa), %d rebuilds\n",
                 static_cast<int>(s.steps), worst_p / pscale, worst_L / lscale, worst_stress, centripetal,
-                sl_block(m).rebuilds());
+                test::sl_block(m).rebuilds());
     EXPECT_LT(worst_p / pscale, 1e-10);
     EXPECT_LT(worst_L / lscale, angular_tolerance);
     EXPECT_LT(worst_stress, 10.0 * centripetal);
@@ -454,7 +446,7 @@ node_sets:
 boundary_conditions:
   - {node_set: struck, velocity: {z: 30 m/s}}
 )");
-        sl_block(m).set_plain(plain);
+        test::sl_block(m).set_plain(plain);
         RunOptions opt;
         opt.progress = false;
         const RunSummary s = run_simulation(m, opt);
@@ -523,7 +515,7 @@ TEST(SemiLagrangian, DefaultStepFactorIsBelowTheCriticalOne)
                                                 "parts.block.nodal_integration={scheme: snni, "
                                                 "stabilization_coefficient: " +
                                                     std::to_string(cs) + "}"});
-        SemiLagrangianForceBlock& b = sl_block(m);
+        SemiLagrangianForceBlock& b = test::sl_block(m);
         ASSERT_LT(b.add_forces(m.nodes, 1e-9, false).bad_element, 0); // builds the tables
         NodalBlock& nb = *m.nodal_block(0);
         const HighestFrequency hf = nodal_highest_frequency(nb, m.nodes.mass, 200, 1e-6);
@@ -576,7 +568,7 @@ parts:
                                                 top_30 = piece(mm.nodes, true), bottom_30 = piece(mm.nodes, false);
                                         });
     ASSERT_EQ(s.status, "completed") << s.message;
-    const index_t free = sl_block(m).free_particles();
+    const index_t free = test::sl_block(m).free_particles();
     const real_t top = piece(m.nodes, true), bottom = piece(m.nodes, false);
     real_t gap = kNoLimit; // the crack's opening: the nearest particles of the two sides along z
     real_t z_below = -kNoLimit, z_above = kNoLimit;

@@ -245,7 +245,6 @@ class Model final : public ExplicitOperator
     struct ElementShape
     {
         real_t principal_strain = 0.0, volumetric_strain = 0.0, time_step = 0.0;
-        real_t scaled_jacobian = 1.0, aspect_ratio = 1.0; ///< ElementCriteria's measures
     };
     ElementShape element_shape(index_t block, index_t e) const;
     /// element_shape's time_step alone (the same value): the step budget's scan over every

@@ -144,8 +144,6 @@ Model::ElementShape Model::element_shape(index_t block, index_t e) const
     g.principal_strain = m.principal_strain();
     g.volumetric_strain = m.volumetric_strain();
     g.time_step = m.time_step();
-    g.scaled_jacobian = m.scaled_jacobian();
-    g.aspect_ratio = m.aspect_ratio();
     return g;
 }
 
