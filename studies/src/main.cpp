@@ -29,6 +29,7 @@
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/config/deck.hpp"
+#include "rkfem/config/keyword_deck.hpp"
 #include "rkfem/core/allocator_tuning.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/file_output.hpp"
@@ -39,6 +40,7 @@
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/core/units.hpp"
 #include "rkfem/io/checkpoint.hpp"
+#include "rkfem/io/keyword_export.hpp"
 #include "rkfem/io/results_writer.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/run/check_report.hpp"
@@ -86,12 +88,14 @@ template <class Body> int run_guarded(Body&& body)
 int usage()
 {
     std::fprintf(stderr,
-                 "usage: rkfem check DECK [--set key.path=value ...]\n"
+                 "usage: rkfem check DECK [--set key.path=value ...]  (DECK: YAML, or MODEL.k --units SYSTEM)\n"
                  "       rkfem run DECK --out DIR [--set key.path=value ...] [--quiet] [--checkpoint-interval T]\n"
                  "       rkfem restart DIR [--until T] [--from FILE] [--quiet] [--checkpoint-interval T]\n"
                  "       rkfem convergence SWEEP --out DIR [--quiet]\n"
                  "       rkfem material-point DECK --out DIR [--quiet]\n"
-                 "       rkfem study STUDY --out DIR [--only CASE[,CASE...]] [--quiet]\n");
+                 "       rkfem study STUDY --out DIR [--only CASE[,CASE...]] [--quiet]\n"
+                 "       rkfem import MODEL.k --units SYSTEM [--allow-unsupported] > deck.yaml\n"
+                 "       rkfem export DECK [--set key.path=value ...] > MODEL.k\n");
     return 2;
 }
 } // namespace
@@ -121,6 +125,19 @@ int help(const std::string& command)
          "Manufactured-solution convergence sweep: DIR/convergence.csv and convergence.h5."},
         {"material-point", "rkfem material-point DECK --out DIR [--quiet]",
          "One material along a strain path: DIR/stress_strain.csv and stress_strain.h5."},
+        {"import", "rkfem import MODEL.k --units SYSTEM [--allow-unsupported] > deck.yaml",
+         "Translates an LS-DYNA keyword deck (and the files it *INCLUDEs) into an rkfem deck on standard output,\n"
+         "every value in SI with its unit; the mesh stays in MODEL.k (generator type keyword, named as typed, so\n"
+         "write the deck in the current folder). SYSTEM names the model's consistent units: m-s-kg-N,\n"
+         "mm-ms-kg-kN, mm-s-t-N, mm-ms-g-N, cm-us-g-Mbar, in-s-lbf-s2/in-lbf, ft-s-slug-lbf. A keyword outside the\n"
+         "supported subset (README, 'LS-DYNA keyword decks') is refused by name and line; --allow-unsupported\n"
+         "lists and skips those instead. What maps approximately is said on standard error and in the deck.\n"
+         "check and run take MODEL.k --units SYSTEM in place of a deck (run writes DIR/imported.yaml)."},
+        {"export", "rkfem export DECK [--set key.path=value ...] > MODEL.k",
+         "Writes DECK's model as an LS-DYNA keyword deck on standard output (m-s-kg-N, 17 digits: *NODE,\n"
+         "*ELEMENT_SOLID, sets, parts, materials, conditions, loads, contacts), which\n"
+         "'rkfem run MODEL.k --units m-s-kg-N' runs as DECK's run. What has no keyword form is refused by its deck\n"
+         "key; rkfem settings that change nothing LS-DYNA computes are listed as comments."},
         {"study", "rkfem study STUDY --out DIR [--only CASE[,CASE...]] [--quiet]",
          "Runs a study's cases (a base deck with overrides, or their own decks) into DIR/cases/NAME, extracts its\n"
          "metrics and writes DIR/table.csv, DIR/table.md (ours beside the published values) and DIR/study.h5.\n"
@@ -207,6 +224,8 @@ struct Args
     bool quiet = false;
     std::vector<std::string> only;                // study: case names
     std::string checkpoint_interval, until, from; // times with units, as typed; a checkpoint file
+    std::string units;                            // keyword decks: the unit system
+    bool allow_unsupported = false;
     int checkpoint_keep = 1;
     double checkpoint_seconds = 0.0, until_seconds = 0.0; // the times, parsed
 };
@@ -215,8 +234,8 @@ struct Args
 /// an option a subcommand does not take refused with one line).
 int parse_args(int argc, char** argv, Args& a)
 {
-    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
-           checkpoint_seconds, until_seconds] = a;
+    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, units,
+           allow_unsupported, checkpoint_keep, checkpoint_seconds, until_seconds] = a;
     command = argv[1];
     deck_path = argv[2];
     const bool runs = command == "run" || command == "restart";
@@ -252,6 +271,10 @@ int parse_args(int argc, char** argv, Args& a)
             quiet = true;
         else if (arg == "--only" && i + 1 < argc && command_takes_only(argv[1]))
             only.emplace_back(argv[++i]);
+        else if (arg == "--units" && i + 1 < argc && (command == "import" || command == "check" || command == "run"))
+            units = argv[++i];
+        else if (arg == "--allow-unsupported" && (command == "import" || command == "check" || command == "run"))
+            allow_unsupported = true;
         else
         {
             std::fprintf(stderr, "rkfem: unknown argument '%s'\n", arg.c_str());
@@ -259,8 +282,37 @@ int parse_args(int argc, char** argv, Args& a)
         }
     }
     if (command != "check" && command != "run" && command != "convergence" && command != "material-point" &&
-        command != "study" && command != "restart")
+        command != "study" && command != "restart" && command != "import" && command != "export")
         return usage();
+    // keyword decks: a unit system, and only for them
+    const bool keyword = rkfem::is_keyword_deck(deck_path);
+    if (command == "import" && !keyword)
+    {
+        std::fprintf(stderr, "rkfem: import %s: expected an LS-DYNA keyword deck (.k, .key, .dyn or .kw)\n",
+                     deck_path.c_str());
+        return 2;
+    }
+    if ((command == "import" || command == "check" || command == "run") && keyword != !units.empty())
+    {
+        std::fprintf(
+            stderr,
+            keyword ? "rkfem: %s is an LS-DYNA keyword deck: --units SYSTEM names its consistent units (m-s-kg-N, "
+                      "mm-ms-kg-kN, mm-s-t-N, mm-ms-g-N, cm-us-g-Mbar, in-s-lbf-s2/in-lbf, ft-s-slug-lbf)\n"
+                    : "rkfem: --units is for LS-DYNA keyword decks (.k, .key, .dyn, .kw); %s is a YAML deck, whose "
+                      "values carry their units\n",
+            deck_path.c_str());
+        return 2;
+    }
+    if (allow_unsupported && !keyword)
+    {
+        std::fprintf(stderr, "rkfem: --allow-unsupported is for LS-DYNA keyword decks\n");
+        return 2;
+    }
+    if (command == "import" && (!overrides.empty() || !out_dir.empty()))
+    {
+        std::fprintf(stderr, "rkfem: import writes the deck on standard output and takes no --set or --out\n");
+        return 2;
+    }
     // a time typed on the command line, with its unit
     auto parse_time = [](const char* option, const std::string& text, double& value)
     {
@@ -305,7 +357,12 @@ int parse_args(int argc, char** argv, Args& a)
         return 2;
     }
     // the others write a directory (restart's is DIR itself)
-    if (out_dir.empty() && command != "check" && command != "restart")
+    if (!out_dir.empty() && command == "export")
+    {
+        std::fprintf(stderr, "rkfem: export writes the keyword deck on standard output and takes no --out\n");
+        return 2;
+    }
+    if (out_dir.empty() && command != "check" && command != "restart" && command != "import" && command != "export")
     {
         std::fprintf(stderr, "rkfem: %s needs --out DIR\n", command.c_str());
         return 2;
@@ -379,6 +436,37 @@ int study_command(const Args& a)
     return rc != 0 ? rc : incomplete > 0 ? 4 : 0;
 }
 
+/// An LS-DYNA keyword deck as rkfem deck text, its generators naming the model as `mesh_file`; what maps
+/// approximately and what was skipped on standard error. Throws DeckError.
+std::string import_keyword(const Args& a, const std::string& mesh_file)
+{
+    rkfem::KeywordUnits units;
+    try
+    {
+        units = rkfem::keyword_units(a.units);
+    }
+    catch (const rkfem::Error& e)
+    {
+        throw rkfem::DeckError({"--units", a.units}, std::string(e.what()).substr(0, std::string(e.what()).find("; ")),
+                               std::string(e.what()).substr(std::string(e.what()).find("; ") + 2));
+    }
+    const rkfem::KeywordImport im = rkfem::import_keyword_deck(a.deck_path, units, a.allow_unsupported, mesh_file);
+    if (!a.quiet)
+    {
+        for (const std::string& n : im.notes)
+            std::fprintf(stderr, "rkfem: import: note: %s\n", n.c_str());
+        for (const std::string& k : im.skipped)
+            std::fprintf(stderr, "rkfem: import: skipped (unsupported): %s\n", k.c_str());
+    }
+    return im.yaml;
+}
+
+/// rkfem import MODEL.k --units SYSTEM: the deck on standard output
+int import_command(const Args& a)
+{
+    return run_guarded([&] { std::fputs(import_keyword(a, a.deck_path).c_str(), stdout); });
+}
+
 /// rkfem convergence SWEEP --out DIR
 int convergence_command(const Args& a)
 {
@@ -389,8 +477,8 @@ int convergence_command(const Args& a)
 /// (--until T becomes one more override). -1, or the exit code with the message printed.
 int read_restart(Args& a, rkfem::StateArchive& checkpoint, std::string& deck_text)
 {
-    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
-           checkpoint_seconds, until_seconds] = a;
+    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, units,
+           allow_unsupported, checkpoint_keep, checkpoint_seconds, until_seconds] = a;
     out_dir = deck_path; // restart DIR
     try
     {
@@ -597,10 +685,12 @@ int run_exit_code(const Args& a, const rkfem::RunSummary& s)
 /// checkpoint), checked, then run.
 int model_command(Args a)
 {
-    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, checkpoint_keep,
-           checkpoint_seconds, until_seconds] = a;
+    auto& [command, deck_path, overrides, out_dir, quiet, only, checkpoint_interval, until, from, units,
+           allow_unsupported, checkpoint_keep, checkpoint_seconds, until_seconds] = a;
     if (command == "run" || command == "restart")
         rkfem::install_interrupt_handlers();
+    // an LS-DYNA keyword deck runs as the deck it imports to (named after it, so that errors say where)
+    const bool keyword = command != "restart" && rkfem::is_keyword_deck(deck_path);
     try
     {
         const auto setup_start = std::chrono::steady_clock::now();
@@ -612,6 +702,8 @@ int model_command(Args a)
             if (const int rc = read_restart(a, checkpoint, deck_text); rc >= 0)
                 return rc;
         }
+        else if (keyword)
+            deck_text = import_keyword(a, std::filesystem::path(deck_path).filename().string());
         else if (command == "run" && checkpoint_seconds > 0)
             deck_text = rkfem::read_deck_text(deck_path, "expected a deck file");
         if (!quiet)
@@ -626,7 +718,8 @@ int model_command(Args a)
             deck_dir.empty() ? deck_name
                              : (std::filesystem::path(deck_dir) / std::filesystem::path(deck_name).filename()).string();
         const rkfem::Deck deck = command == "restart" ? rkfem::parse_deck(deck_text, parse_name, overrides)
-                                                      : rkfem::read_deck(deck_path, overrides);
+                                 : keyword ? rkfem::parse_deck(deck_text, deck_path + " (imported)", overrides)
+                                           : rkfem::read_deck(deck_path, overrides);
         if (command == "restart" && checkpoint.has("run.data_files"))
         {
             if (const int rc = check_data_files(checkpoint, deck, out_dir); rc >= 0)
@@ -644,8 +737,15 @@ int model_command(Args a)
             print_check(deck, model);
             return 0;
         }
+        if (command == "export")
+        {
+            std::fputs(rkfem::export_keyword_deck(model).c_str(), stdout);
+            return 0;
+        }
         if (const int rc = prepare_output(a, checkpoint); rc >= 0)
             return rc;
+        if (keyword)
+            rkfem::write_file_whole(out_dir + "/imported.yaml", deck_text);
         print_setup_notes(a, deck, model);
         rkfem::RunOptions opt = run_options(a, deck, checkpoint, deck_name, deck_dir, deck_text);
         opt.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
@@ -696,5 +796,7 @@ int main(int argc, char** argv)
         return study_command(a);
     if (a.command == "convergence")
         return convergence_command(a);
+    if (a.command == "import")
+        return import_command(a);
     return model_command(a);
 }

@@ -60,3 +60,24 @@ TEST(SetupProgress, NothingBeforeTheDelayNorWithoutASink)
     const HexMesh mesh = test::distorted_box(3, 0.01, 0.2);
     build_nodal_block(test::steel_nodal_part(Formulation::Rkpm, "scni", "nsni"), mesh, 0); // must not crash
 }
+
+TEST(SetupProgress, CountsOutsideAPhaseSayNothing)
+{
+    // a builder that counts items with no phase open (the clock's start unset) printed
+    // "set-up: , 1366.3 s", the time since the clock's epoch; now it is silent
+    std::vector<Line> lines;
+    setup_progress::install([&](const std::string& s, bool last) { lines.push_back({s, last}); }, 0.0, 0.0);
+    for (int i = 0; i < 64; ++i)
+        setup_progress::advance();
+    {
+        const setup_progress::Phase p("counted", 32);
+        for (int i = 0; i < 32; ++i)
+            setup_progress::advance();
+    }
+    for (int i = 0; i < 64; ++i)
+        setup_progress::advance(); // after the phase closed
+    setup_progress::install({});
+    ASSERT_FALSE(lines.empty());
+    for (const Line& l : lines)
+        EXPECT_NE(l.text.find("set-up: counted"), std::string::npos) << l.text;
+}

@@ -402,6 +402,11 @@ TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)
            "k_twin.k:12", "element 2 has the same eight nodes as element 1 (line 11)");
     expect(keyword_error("k_none.k", nodes), "k_none.k", "has no *ELEMENT_SOLID elements");
     expect(keyword_error("k_short.k", nodes + "*ELEMENT_SOLID\n1,1,1,2,3,4\n"), "k_short.k:11", "fewer than 8 nodes");
-    expect(keyword_error("k_include.k", "*INCLUDE\nmesh.k\n"), "k_include.k:1", "*INCLUDE is not followed");
+    // *INCLUDE is followed in place, relative to the including file's folder: the nodes in one file and the
+    // solids in another make one mesh; a missing file and a cycle are named at the *INCLUDE's card
+    expect(keyword_error("k_inc_nodes.k", nodes), "k_inc_nodes.k", "has no *ELEMENT_SOLID elements");
+    EXPECT_EQ(keyword_error("k_inc_main.k", "*INCLUDE\nk_inc_nodes.k\n*ELEMENT_SOLID\n1,1,1,2,3,4,5,6,7,8\n"), "");
+    expect(keyword_error("k_include.k", "*INCLUDE\nk_absent.k\n"), "k_include.k:2", "k_absent.k cannot be opened");
+    expect(keyword_error("k_cycle.k", "*INCLUDE\nk_cycle.k\n"), "k_cycle.k:2", "include cycle");
     EXPECT_NE(keyword_error("k_absent_dir/none.k", "").find("cannot be opened"), std::string::npos);
 }

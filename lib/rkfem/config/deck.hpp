@@ -102,6 +102,8 @@ struct SelectorSpec
         Box,      ///< min <= x <= max (componentwise, with tolerance)
         Cylinder, ///< | distance to axis - radius | <= tolerance
         Sphere,   ///< |x - point| <= radius
+        Ids,      ///< nodes whose keyword-file NID is in `ids` (keyword meshes; faces: all four nodes)
+        Segments, ///< faces whose four NIDs are one of `segments`, in any order (keyword meshes)
     };
     Type type = Type::Named;
     std::string name;
@@ -110,7 +112,9 @@ struct SelectorSpec
     Vec3 min = Vec3::Zero();
     Vec3 max = Vec3::Zero();
     real_t radius = 0.0;
-    real_t tolerance = -1.0; ///< < 0: 1e-6 of the part's bounding-box diagonal
+    real_t tolerance = -1.0;                        ///< < 0: 1e-6 of the part's bounding-box diagonal
+    std::vector<long long> ids;                     ///< Ids: NIDs, sorted, each once
+    std::vector<std::array<long long, 4>> segments; ///< Segments: each sorted; the list sorted
 };
 
 struct PartSpec

@@ -87,7 +87,7 @@ void read_components(const Section& s, const std::string& key, Dimension d, std:
 
 SelectorSpec read_selector(const Section& parent)
 {
-    parent.require("select", "a mapping with type: named | plane | box | cylinder | sphere");
+    parent.require("select", "a mapping with type: named | plane | box | cylinder | sphere | ids | segments");
     const YAML::Node n = parent.node("select");
     const std::string p = parent.path("select");
     const std::string type = n.IsMap() && n["type"].IsDefined() ? n["type"].Scalar() : "";
@@ -137,10 +137,57 @@ SelectorSpec read_selector(const Section& parent)
         sel.point = s.vec3("point", dim::length);
         sel.radius = s.positive("radius", dim::length);
     }
+    else if (type == "ids" || type == "segments")
+    {
+        Section s(ctx, n, p, {"type", type});
+        sel.type = type == "ids" ? SelectorSpec::Type::Ids : SelectorSpec::Type::Segments;
+        const YAML::Node list = s.node(type);
+        const std::string expected = type == "ids" ? "expected ids: [NID, ...], the keyword file's node numbers"
+                                                   : "expected segments: [[N1, N2, N3, N4], ...], the keyword file's "
+                                                     "node numbers of boundary faces";
+        if (!list.IsSequence() || list.size() == 0)
+            s.fail(type, "is not a non-empty list", expected);
+        auto nid = [&](const YAML::Node& v, const std::string& vp)
+        {
+            long long id = 0;
+            std::size_t used = 0;
+            try
+            {
+                id = v.IsScalar() ? std::stoll(v.Scalar(), &used) : 0;
+            }
+            catch (const std::exception&)
+            {
+                used = 0;
+            }
+            if (!v.IsScalar() || used != v.Scalar().size())
+                throw DeckError(locate(ctx, v, vp), "is not a node number", expected);
+            return id;
+        };
+        for (std::size_t i = 0; i < list.size(); ++i)
+        {
+            const std::string ip = s.path(type) + "." + std::to_string(i);
+            if (sel.type == SelectorSpec::Type::Ids)
+            {
+                sel.ids.push_back(nid(list[i], ip));
+                continue;
+            }
+            if (!list[i].IsSequence() || list[i].size() != 4)
+                throw DeckError(locate(ctx, list[i], ip), "is not a list of 4 node numbers", expected);
+            std::array<long long, 4> seg{};
+            for (std::size_t k = 0; k < 4; ++k)
+                seg[k] = nid(list[i][k], ip + "." + std::to_string(k));
+            std::sort(seg.begin(), seg.end());
+            sel.segments.push_back(seg);
+        }
+        std::sort(sel.ids.begin(), sel.ids.end());
+        sel.ids.erase(std::unique(sel.ids.begin(), sel.ids.end()), sel.ids.end());
+        std::sort(sel.segments.begin(), sel.segments.end());
+        sel.segments.erase(std::unique(sel.segments.begin(), sel.segments.end()), sel.segments.end());
+    }
     else
         throw DeckError(locate(ctx, n.IsMap() && n["type"].IsDefined() ? n["type"] : n, p + ".type"),
                         type.empty() ? "missing selector type" : "unknown selector '" + type + "'",
-                        "expected type: named | plane | box | cylinder | sphere");
+                        "expected type: named | plane | box | cylinder | sphere | ids | segments");
     return sel;
 }
 

@@ -90,6 +90,10 @@ const char* selector_name(SelectorSpec::Type t)
         return "cylinder";
     case SelectorSpec::Type::Sphere:
         return "sphere";
+    case SelectorSpec::Type::Ids:
+        return "ids";
+    case SelectorSpec::Type::Segments:
+        return "segments";
     }
     return "?";
 }
@@ -114,6 +118,25 @@ void selector(std::ostringstream& os, const SelectorSpec& sel)
     case SelectorSpec::Type::Sphere:
         os << ", point: " << vec(sel.point) << ", radius: " << sel.radius;
         break;
+    case SelectorSpec::Type::Ids:
+    {
+        os << ", ids: [";
+        for (std::size_t i = 0; i < sel.ids.size(); ++i)
+            os << (i ? ", " : "") << sel.ids[i];
+        os << "]";
+        break;
+    }
+    case SelectorSpec::Type::Segments:
+    {
+        os << ", segments: [";
+        for (std::size_t i = 0; i < sel.segments.size(); ++i)
+        {
+            const auto& g = sel.segments[i];
+            os << (i ? ", " : "") << "[" << g[0] << ", " << g[1] << ", " << g[2] << ", " << g[3] << "]";
+        }
+        os << "]";
+        break;
+    }
     }
     if (sel.tolerance >= 0)
         os << ", tolerance: " << sel.tolerance;

@@ -21,7 +21,8 @@ struct State
     std::string name;
     std::int64_t total = 0;
     std::atomic<std::int64_t> count{0};
-    bool shown = false; ///< a line of this phase went out
+    bool shown = false;  ///< a line of this phase went out
+    bool active = false; ///< a phase is open: counts outside one (a builder called without it) say nothing
     std::mutex print;
 };
 
@@ -68,6 +69,7 @@ void phase(const std::string& name, std::int64_t total)
     s.total = total;
     s.count.store(0, std::memory_order_relaxed);
     s.shown = false;
+    s.active = true;
     if (!s.sink)
         return;
     const Clock::time_point now = Clock::now();
@@ -86,7 +88,7 @@ void advance(std::int64_t n)
     State& s = state();
     const std::int64_t c = s.count.fetch_add(n, std::memory_order_relaxed) + n;
     // the clock is read by the master thread only, every 16th count
-    if (!s.sink || omp_get_thread_num() != 0 || (c & 15) != 0)
+    if (!s.sink || !s.active || omp_get_thread_num() != 0 || (c & 15) != 0)
         return;
     const Clock::time_point now = Clock::now();
     if (seconds(s.start, now) < s.delay || seconds(s.last, now) < s.interval)
@@ -101,5 +103,6 @@ void done()
     if (s.sink && s.shown)
         report(s, Clock::now(), true);
     s.shown = false;
+    s.active = false;
 }
 } // namespace rkfem::setup_progress

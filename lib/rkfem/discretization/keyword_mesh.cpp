@@ -12,57 +12,24 @@
 #include <vector>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/io/keyword_file.hpp"
 
 namespace rkfem
 {
 namespace
 {
-std::string trim(const std::string& s)
-{
-    const auto a = s.find_first_not_of(" \t\r");
-    if (a == std::string::npos)
-        return "";
-    const auto b = s.find_last_not_of(" \t\r");
-    return s.substr(a, b - a + 1);
-}
-
-/// The fields of a card: comma-separated (free format) or fixed columns of the given widths.
-std::vector<std::string> fields(const std::string& line, const std::vector<int>& widths)
-{
-    std::vector<std::string> out;
-    if (line.find(',') != std::string::npos)
-    {
-        std::size_t a = 0;
-        for (;;)
-        {
-            const std::size_t b = line.find(',', a);
-            out.push_back(trim(line.substr(a, b == std::string::npos ? std::string::npos : b - a)));
-            if (b == std::string::npos)
-                break;
-            a = b + 1;
-        }
-        return out;
-    }
-    std::size_t at = 0;
-    for (int w : widths)
-    {
-        if (at >= line.size())
-            break;
-        out.push_back(trim(line.substr(at, static_cast<std::size_t>(w))));
-        at += static_cast<std::size_t>(w);
-    }
-    return out;
-}
-
 struct Reader
 {
     const GeneratorSpec& g;
     SourceLocation where;
     int line = 0;
+    std::string file; // the file `line` is in (the mesh file or one it includes)
 
     [[noreturn]] void fail(const std::string& problem, const std::string& expected) const
     {
-        throw DeckError(where, g.mesh_file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + problem,
+        throw DeckError(where,
+                        (file.empty() ? g.mesh_file : file) + (line > 0 ? ":" + std::to_string(line) : std::string()) +
+                            ": " + problem,
                         expected);
     }
     long long integer(const std::string& f, const char* what) const
@@ -99,6 +66,7 @@ struct Solid
     long long nodes[8];
     int line;
     long long eid;
+    const std::string* file; // the file of its card
 };
 
 /// What the *NODE and *ELEMENT_SOLID cards hold: every node in the file's order, the solids asked for.
@@ -124,7 +92,7 @@ struct PendingSolid
 void read_node_card(Reader& rd, const GeneratorSpec& g, const std::string& text, KeywordCards& cards)
 {
     auto& [x, node_ids, node_of, node_line, element_line, solids] = cards;
-    const std::vector<std::string> f = fields(text, {8, 16, 16, 16});
+    const std::vector<std::string> f = keyword_fields(text, {8, 16, 16, 16});
     if (f.size() < 2)
         rd.fail("a *NODE card has no coordinates", "expected NID, X, Y, Z");
     const long long nid = rd.integer(f[0], "NID");
@@ -145,7 +113,7 @@ void read_node_card(Reader& rd, const GeneratorSpec& g, const std::string& text,
 void read_solid_card(Reader& rd, const GeneratorSpec& g, const std::string& text, PendingSolid& p, KeywordCards& cards)
 {
     auto& [pending, pending_take, pend] = p;
-    const std::vector<std::string> f = fields(text, std::vector<int>(10, 8));
+    const std::vector<std::string> f = keyword_fields(text, std::vector<int>(10, 8));
     std::size_t first = 0; // where the node ids start in f
     if (!pending)
     {
@@ -189,47 +157,33 @@ void read_solid_card(Reader& rd, const GeneratorSpec& g, const std::string& text
     cards.solids.push_back(pend);
 }
 
-/// The keyword file's cards up to *END: its nodes and the solids of the PIDs asked for (no *INCLUDE).
-KeywordCards read_cards(Reader& rd, const GeneratorSpec& g, std::ifstream& in)
+/// The keyword file's cards (and those of the files it includes, in place): its nodes and the solids of the
+/// PIDs asked for.
+KeywordCards read_cards(Reader& rd, const GeneratorSpec& g, const std::vector<KeywordBlock>& blocks)
 {
     KeywordCards cards;
-    enum class Block
+    for (const KeywordBlock& b : blocks)
     {
-        None,
-        Node,
-        Solid
-    } block = Block::None;
-    PendingSolid p;
-    std::string text;
-    while (std::getline(in, text))
-    {
-        ++rd.line;
-        if (!text.empty() && text.back() == '\r')
-            text.pop_back();
-        if (text.empty() || text[0] == '$')
+        const bool node = b.keyword == "*NODE", solid = b.keyword == "*ELEMENT_SOLID";
+        if (!node && !solid)
             continue;
-        if (text[0] == '*')
+        rd.file = b.file;
+        PendingSolid p;
+        for (const KeywordCard& c : b.cards)
         {
-            if (p.pending)
-                rd.fail("a solid's node card is missing before '" + trim(text) + "'", "expected N1..N8 after EID, PID");
-            std::string kw = trim(text);
-            std::transform(kw.begin(), kw.end(), kw.begin(), [](unsigned char c) { return std::toupper(c); });
-            if (kw == "*END")
-                break;
-            if (kw.rfind("*INCLUDE", 0) == 0)
-                rd.fail("*INCLUDE is not followed", "expected one file with the *NODE and *ELEMENT_SOLID cards");
-            block = kw == "*NODE" ? Block::Node : kw == "*ELEMENT_SOLID" ? Block::Solid : Block::None;
-            continue;
+            rd.line = c.line;
+            if (node)
+                read_node_card(rd, g, c.text, cards);
+            else
+            {
+                read_solid_card(rd, g, c.text, p, cards);
+                if (!cards.solids.empty() && cards.solids.back().line == c.line)
+                    cards.solids.back().file = &b.file;
+            }
         }
-        if (trim(text).empty())
-            continue;
-        if (block == Block::Node)
-            read_node_card(rd, g, text, cards);
-        else if (block == Block::Solid)
-            read_solid_card(rd, g, text, p, cards);
+        if (p.pending)
+            rd.fail("the last solid's node card is missing", "expected N1..N8 after EID, PID");
     }
-    if (p.pending)
-        rd.fail("the last solid's node card is missing", "expected N1..N8 after EID, PID");
     return cards;
 }
 
@@ -246,6 +200,7 @@ std::vector<index_t> keep_used_nodes(Reader& rd, const KeywordCards& cards, HexM
             if (it == node_of.end())
             {
                 rd.line = s.line;
+                rd.file = s.file ? *s.file : std::string();
                 rd.fail("element " + std::to_string(s.eid) + " names node " + std::to_string(nid) +
                             ", which no *NODE card defines",
                         "expected every node of a solid in *NODE");
@@ -272,6 +227,7 @@ void add_solids(Reader& rd, const KeywordCards& cards, const std::vector<index_t
     for (const Solid& s : solids)
     {
         rd.line = s.line;
+        rd.file = s.file ? *s.file : std::string();
         // a wedge, pyramid or tetrahedron written as a hex repeats nodes (LS-DYNA runs them as
         // degenerate hexes, as the Gauss-point FE parts here do); fewer than 4 distinct nodes is no solid
         if (const int distinct = distinct_nodes(s.nodes); distinct < 4)
@@ -300,6 +256,7 @@ void check_corners(Reader& rd, const std::vector<Solid>& solids, const HexMesh& 
     {
         const Solid& s = solids[static_cast<std::size_t>(c.element)];
         rd.line = s.line;
+        rd.file = s.file ? *s.file : std::string();
         std::ostringstream what;
         what.precision(3);
         what << "element " << s.eid << " is " << (c.scaled_jacobian < 0.0 ? "inverted" : "degenerate")
@@ -312,12 +269,23 @@ void check_corners(Reader& rd, const std::vector<Solid>& solids, const HexMesh& 
 
 HexMesh read_keyword_mesh(const GeneratorSpec& g)
 {
-    Reader rd{g, {g.loc.where, g.loc.path + ".file"}};
-    std::ifstream in(g.mesh_file);
-    if (!in)
-        rd.fail("cannot be opened", "expected an LS-DYNA keyword file with *NODE and *ELEMENT_SOLID");
-    const KeywordCards cards = read_cards(rd, g, in);
+    Reader rd{g, {g.loc.where, g.loc.path + ".file"}, 0, {}};
+    std::vector<KeywordBlock> blocks;
+    try
+    {
+        blocks = read_keyword_blocks(g.mesh_file);
+    }
+    catch (const Error& e)
+    {
+        // "FILE[:LINE]: problem; expected ..." from the block reader
+        const std::string what = e.what();
+        const auto k = what.find("; expected ");
+        throw DeckError(rd.where, what.substr(0, k),
+                        k == std::string::npos ? "expected a readable keyword file" : what.substr(k + 2));
+    }
+    const KeywordCards cards = read_cards(rd, g, blocks);
     rd.line = 0;
+    rd.file.clear();
     if (cards.solids.empty())
         rd.fail(g.mesh_pids.empty() ? "has no *ELEMENT_SOLID elements" : "has no solids with the PIDs asked for",
                 "expected 8-node solids" + std::string(g.mesh_pids.empty() ? "" : " of the parts named by pid"));

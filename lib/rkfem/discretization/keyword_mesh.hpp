@@ -12,7 +12,7 @@
 ///     or EID, PID on one card and the nodes on the next (the two-card format of LS-DYNA R10 and
 ///     later; its fields 9-10 must be 0). Only solids whose PID is among `pid` (empty: all).
 ///   - Lines starting with $ are comments; cards of other keywords are skipped; *END ends the file.
-///     *INCLUDE is not followed (an error says so).
+///     *INCLUDE is followed, relative to the including file (io/keyword_file.hpp).
 /// Checked, with the file's line in the message (DeckError naming generator.file): a field that
 /// is not a number, a node defined twice, an element naming a node the file does not define,
 /// repeated nodes in an element (degenerate prisms and tetrahedra are not taken: 1-point hexes

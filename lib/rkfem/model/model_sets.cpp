@@ -26,8 +26,41 @@ bool matches(const SelectorSpec& s, const Vec3& p, real_t tol)
     case SelectorSpec::Type::Sphere:
         return (p - s.point).norm() <= s.radius;
     case SelectorSpec::Type::Named:
+    case SelectorSpec::Type::Ids:
+    case SelectorSpec::Type::Segments:
         return false;
     }
+    return false;
+}
+
+bool by_file_ids(const SelectorSpec& s)
+{
+    return s.type == SelectorSpec::Type::Ids || s.type == SelectorSpec::Type::Segments;
+}
+
+/// The NIDs an ids or segments selector names, sorted (segments: their nodes).
+std::vector<long long> selected_ids(const SelectorSpec& s)
+{
+    if (s.type == SelectorSpec::Type::Ids)
+        return s.ids;
+    std::vector<long long> ids;
+    for (const auto& seg : s.segments)
+        ids.insert(ids.end(), seg.begin(), seg.end());
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    return ids;
+}
+
+/// A part an ids or segments selector may look at: one from a keyword file (its nodes carry NIDs). Parts
+/// without are skipped when the set names no part, refused when it names this one.
+bool has_file_ids(const PartInfo& pi, const SetSpec& s)
+{
+    if (!pi.node_ids.empty())
+        return true;
+    if (!s.part.empty())
+        throw DeckError({s.loc.where, s.loc.path + ".select.type"},
+                        "part '" + pi.name + "' has no node numbers of a keyword file",
+                        "expected ids and segments on parts whose generator is type keyword");
     return false;
 }
 
@@ -92,6 +125,16 @@ void Model::build_node_sets()
                     for (index_t n : pi.faces[f])
                         ids.push_back(n);
             }
+            else if (by_file_ids(s.select))
+            {
+                if (!has_file_ids(pi, s))
+                    continue;
+                const std::vector<long long> wanted = selected_ids(s.select);
+                for (index_t i = pi.node_begin; i < pi.node_end; ++i)
+                    if (std::binary_search(wanted.begin(), wanted.end(),
+                                           pi.node_ids[static_cast<std::size_t>(i - pi.node_begin)]))
+                        ids.push_back(i);
+            }
             else
             {
                 const real_t tol =
@@ -123,6 +166,10 @@ void Model::build_face_sets()
             const PartInfo& pi = parts[ip];
             if (is_cloud(ip))
             {
+                if (by_file_ids(s.select))
+                    throw DeckError({s.loc.where, s.loc.path + ".select.type"},
+                                    "cloud part '" + pi.name + "' has no node numbers of a keyword file",
+                                    "expected ids and segments on parts whose generator is type keyword");
                 // the boundary facet points of the Voronoi cells: by the box face they lie on
                 // (named) or by the selector applied to the point
                 static const std::map<std::string, Vec3> normals = {{"xmin", -Vec3::UnitX()},   {"xmax", Vec3::UnitX()},
@@ -165,6 +212,27 @@ void Model::build_face_sets()
                 }
                 for (index_t f : it->second)
                     faces.push_back(pi.faces[f]);
+            }
+            else if (by_file_ids(s.select))
+            {
+                if (!has_file_ids(pi, s))
+                    continue;
+                auto nid = [&](index_t n) { return pi.node_ids[static_cast<std::size_t>(n - pi.node_begin)]; };
+                for (const auto& f : pi.faces)
+                {
+                    std::array<long long, 4> key{nid(f[0]), nid(f[1]), nid(f[2]), nid(f[3])};
+                    bool take = true;
+                    if (s.select.type == SelectorSpec::Type::Ids)
+                        for (long long k : key)
+                            take = take && std::binary_search(s.select.ids.begin(), s.select.ids.end(), k);
+                    else
+                    {
+                        std::sort(key.begin(), key.end());
+                        take = std::binary_search(s.select.segments.begin(), s.select.segments.end(), key);
+                    }
+                    if (take)
+                        faces.push_back(f);
+                }
             }
             else
             {
