@@ -2,15 +2,18 @@
 // Jacobians everywhere (no degenerate elements in the cylinder core), named sets on the right faces.
 #include <gtest/gtest.h>
 
+#include "../support.hpp"
 #include "rkfem/approximation/fem/hex8_basis.hpp"
 #include "rkfem/approximation/fem/hex8_volume_gradient.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/discretization/gmsh_mesh.hpp"
 #include "rkfem/discretization/keyword_mesh.hpp"
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 using namespace rkfem;
@@ -409,4 +412,211 @@ TEST(KeywordMesh, MistakesAreNamedWithTheFilesLine)
     expect(keyword_error("k_include.k", "*INCLUDE\nk_absent.k\n"), "k_include.k:2", "k_absent.k cannot be opened");
     expect(keyword_error("k_cycle.k", "*INCLUDE\nk_cycle.k\n"), "k_cycle.k:2", "include cycle");
     EXPECT_NE(keyword_error("k_absent_dir/none.k", "").find("cannot be opened"), std::string::npos);
+}
+
+namespace
+{
+GeneratorSpec gmsh(const std::string& path, std::vector<std::string> groups = {})
+{
+    GeneratorSpec g;
+    g.type = GeneratorSpec::Type::Gmsh;
+    g.mesh_file = path;
+    g.mesh_groups = std::move(groups);
+    g.loc = {"deck.yaml:5", "parts.a.generator"};
+    return g;
+}
+
+/// A mesh as a Gmsh file (MSH 4.1 or 2.2, 17 digits): its hexes in one volume (physical 1
+/// "block"), the faces of `face_group` as quadrangles of a surface (physical 2 "bottom"), its first
+/// node as a point (physical 3 "corner"); node and element tags from 1 in the mesh's order.
+std::string write_msh(const std::string& name, const HexMesh& m, const std::vector<index_t>& face_group, bool v41)
+{
+    std::ostringstream o;
+    char buf[160];
+    o << "$MeshFormat\n" << (v41 ? "4.1" : "2.2") << " 0 8\n$EndMeshFormat\n";
+    o << "$PhysicalNames\n3\n0 3 \"corner\"\n2 2 \"bottom\"\n3 1 \"block\"\n$EndPhysicalNames\n";
+    const index_t n = m.n_nodes(), ne = m.n_elements(), nf = static_cast<index_t>(face_group.size());
+    auto xyz = [&](index_t i)
+    {
+        std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g", m.x[3 * i], m.x[3 * i + 1], m.x[3 * i + 2]);
+        return std::string(buf);
+    };
+    if (v41)
+    {
+        o << "$Entities\n1 0 1 1\n1 " << xyz(0) << " 1 3\n1 0 0 0 1 1 1 1 2 0\n1 0 0 0 1 1 1 1 1 0\n$EndEntities\n";
+        o << "$Nodes\n1 " << n << " 1 " << n << "\n3 1 0 " << n << "\n";
+        for (index_t i = 0; i < n; ++i)
+            o << i + 1 << "\n";
+        for (index_t i = 0; i < n; ++i)
+            o << xyz(i) << "\n";
+        o << "$EndNodes\n$Elements\n3 " << 1 + nf + ne << " 1 " << 1 + nf + ne << "\n0 1 15 1\n1 1\n2 1 3 " << nf
+          << "\n";
+        for (index_t k = 0; k < nf; ++k)
+        {
+            const Quad& q = m.faces[static_cast<std::size_t>(face_group[static_cast<std::size_t>(k)])];
+            o << k + 2 << " " << q[0] + 1 << " " << q[1] + 1 << " " << q[2] + 1 << " " << q[3] + 1 << "\n";
+        }
+        o << "3 1 5 " << ne << "\n";
+        for (index_t e = 0; e < ne; ++e)
+        {
+            o << e + 2 + nf;
+            for (int a = 0; a < 8; ++a)
+                o << " " << m.conn[8 * static_cast<std::size_t>(e) + a] + 1;
+            o << "\n";
+        }
+        o << "$EndElements\n";
+    }
+    else
+    {
+        o << "$Nodes\n" << n << "\n";
+        for (index_t i = 0; i < n; ++i)
+            o << i + 1 << " " << xyz(i) << "\n";
+        o << "$EndNodes\n$Elements\n" << 1 + nf + ne << "\n1 15 2 3 1 1\n";
+        for (index_t k = 0; k < nf; ++k)
+        {
+            const Quad& q = m.faces[static_cast<std::size_t>(face_group[static_cast<std::size_t>(k)])];
+            o << k + 2 << " 3 2 2 1 " << q[0] + 1 << " " << q[1] + 1 << " " << q[2] + 1 << " " << q[3] + 1 << "\n";
+        }
+        for (index_t e = 0; e < ne; ++e)
+        {
+            o << e + 2 + nf << " 5 2 1 1";
+            for (int a = 0; a < 8; ++a)
+                o << " " << m.conn[8 * static_cast<std::size_t>(e) + a] + 1;
+            o << "\n";
+        }
+        o << "$EndElements\n";
+    }
+    return write_file(name, o.str());
+}
+
+std::string gmsh_error(const std::string& name, const std::string& text, std::vector<std::string> groups = {})
+{
+    try
+    {
+        read_gmsh_mesh(gmsh(write_file(name, text), std::move(groups)));
+    }
+    catch (const DeckError& e)
+    {
+        return e.what();
+    }
+    return "";
+}
+} // namespace
+
+TEST(GmshMesh, ReadsTheBoxGeneratorsMeshBackToTheBitInBothFormats)
+{
+    // the box generator's mesh written as MSH 4.1 and 2.2: read back, the same coordinates,
+    // connectivity and boundary faces bit for bit; the surface group is the bottom's faces, the
+    // point group the first node, and the file's numbers are kept
+    const HexMesh box = generate_box(Vec3(0.1, -0.2, 0.3), Vec3(0.4, 0.25, 1.0 / 3.0), {4, 3, 5});
+    std::vector<index_t> bottom = box.named_faces.at("bottom");
+    std::sort(bottom.begin(), bottom.end());
+    for (bool v41 : {true, false})
+    {
+        const HexMesh m =
+            read_gmsh_mesh(gmsh(write_msh(v41 ? "rkfem_box41.msh" : "rkfem_box22.msh", box, bottom, v41)));
+        EXPECT_EQ(m.x, box.x);
+        EXPECT_EQ(m.conn, box.conn);
+        EXPECT_EQ(m.faces, box.faces);
+        EXPECT_EQ(m.named_faces.at("bottom"), bottom);
+        EXPECT_EQ(m.named_nodes.at("corner"), std::vector<index_t>{0});
+        EXPECT_EQ(m.node_ids.back(), box.n_nodes());
+        EXPECT_EQ(m.element_ids.front(), 2 + static_cast<long long>(bottom.size()));
+    }
+    // a physical group asked for by name and by tag; one that is not there is named
+    const std::string path = write_msh("rkfem_box_groups.msh", box, bottom, true);
+    EXPECT_EQ(read_gmsh_mesh(gmsh(path, {"block"})).conn, box.conn);
+    EXPECT_EQ(read_gmsh_mesh(gmsh(path, {"1"})).conn, box.conn);
+    try
+    {
+        read_gmsh_mesh(gmsh(path, {"slab"}));
+        ADD_FAILURE() << "no group 'slab'";
+    }
+    catch (const DeckError& e)
+    {
+        EXPECT_NE(std::string(e.what()).find("no volume physical group is named or tagged 'slab'"), std::string::npos);
+        EXPECT_NE(std::string(e.what()).find("block"), std::string::npos);
+    }
+}
+
+TEST(GmshMesh, TetrahedraPrismsAndPyramidsAreDegenerateHexes)
+{
+    // one tetrahedron, one prism and one pyramid (MSH 2.2), each becomes the hex LS-DYNA writes for
+    // it (N1 N2 N3 N3 N4 N4 N4 N4; N1 N2 N3 N3 N4 N5 N6 N6; N1 N2 N3 N4 N5 N5 N5 N5)
+    const std::string text = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n14\n"
+                             "1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"                    // tetrahedron
+                             "5 2 0 0\n6 3 0 0\n7 2 1 0\n8 2 0 1\n9 3 0 1\n10 2 1 1\n" // prism
+                             "11 4 0 0\n12 5 0 0\n13 5 1 0\n14 4 1 0\n"                // pyramid base
+                             "$EndNodes\n$Elements\n4\n1 4 2 1 1 1 2 3 4\n2 6 2 1 1 5 6 7 8 9 10\n"
+                             "3 7 2 1 1 11 12 13 14 4\n4 2 2 7 2 1 3 2\n$EndElements\n";
+    // (the pyramid's apex is node 4, shared with the tetrahedron: one mesh)
+    const HexMesh m = read_gmsh_mesh(gmsh(write_file("rkfem_degenerate.msh", text)));
+    ASSERT_EQ(m.n_elements(), 3);
+    const std::vector<index_t> tet(m.conn.begin(), m.conn.begin() + 8);
+    EXPECT_EQ(tet, (std::vector<index_t>{0, 1, 2, 2, 3, 3, 3, 3}));
+    const std::vector<index_t> prism(m.conn.begin() + 8, m.conn.begin() + 16);
+    EXPECT_EQ(prism, (std::vector<index_t>{4, 5, 6, 6, 7, 8, 9, 9}));
+    const std::vector<index_t> pyramid(m.conn.begin() + 16, m.conn.end());
+    EXPECT_EQ(pyramid, (std::vector<index_t>{10, 11, 12, 13, 3, 3, 3, 3}));
+    // boundary faces: 4 of the tetrahedron, 5 of the prism, 5 of the pyramid, less the faces the
+    // tetrahedron and pyramid do not share (they share only a node): 14; the triangle group is the
+    // tetrahedron's base
+    EXPECT_EQ(m.faces.size(), 14u);
+    ASSERT_EQ(m.named_faces.at("7").size(), 1u);
+    const Quad& base = m.faces[static_cast<std::size_t>(m.named_faces.at("7")[0])];
+    std::set<index_t> nodes(base.begin(), base.end());
+    EXPECT_EQ(nodes, (std::set<index_t>{0, 1, 2}));
+}
+
+TEST(GmshMesh, MistakesAreNamedWithTheFilesLine)
+{
+    auto expect = [](const std::string& msg, const std::string& a, const std::string& b)
+    {
+        EXPECT_NE(msg.find(a), std::string::npos) << msg;
+        EXPECT_NE(msg.find(b), std::string::npos) << msg;
+        EXPECT_NE(msg.find("parts.a.generator.file"), std::string::npos) << msg;
+    };
+    const std::string head = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n";
+    const std::string nodes = "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n";
+    EXPECT_EQ(gmsh_error("g_good.msh", head + nodes + "$Elements\n1\n1 4 2 1 1 1 2 3 4\n$EndElements\n"), "");
+    expect(gmsh_error("g_binary.msh", "$MeshFormat\n4.1 1 8\n$EndMeshFormat\n"), "g_binary.msh:2",
+           "is a binary MSH file");
+    expect(gmsh_error("g_v3.msh", "$MeshFormat\n3.0 0 8\n$EndMeshFormat\n"), "g_v3.msh:2", "is MSH version 3.0");
+    expect(gmsh_error("g_tet10.msh", head + nodes + "$Elements\n1\n1 11 2 1 1 1 2 3 4 1 2 3 4 1 2\n$EndElements\n"),
+           "g_tet10.msh:13", "element 1 is of type 11");
+    expect(gmsh_error("g_node.msh", head + nodes + "$Elements\n1\n1 4 2 1 1 1 2 3 9\n$EndElements\n"), "g_node.msh:13",
+           "names node 9, which $Nodes does not define");
+    expect(gmsh_error("g_number.msh", head + "$Nodes\n1\n1 0 zero 0\n$EndNodes\n"), "g_number.msh:6",
+           "coordinate 'zero' is not a number");
+    expect(gmsh_error("g_inverted.msh", head + nodes + "$Elements\n1\n1 4 2 1 1 1 3 2 4\n$EndElements\n"),
+           "g_inverted.msh:13", "element 1 is inverted");
+    expect(gmsh_error("g_short.msh", head + "$Nodes\n2\n1 0 0 0\n$EndNodes\n"), "g_short.msh:7",
+           "a node number '$EndNodes' is not an integer");
+    expect(gmsh_error("g_surface.msh", head + nodes + "$Elements\n1\n1 2 2 1 1 1 2 3\n$EndElements\n"), "g_surface.msh",
+           "has no volume elements");
+}
+
+TEST(GmshMesh, ADeckOnAGmshMeshRunsAsTheGeneratorsDeck)
+{
+    // the column of column_wave.yaml's kind, once from the box generator and once from the same
+    // mesh in a Gmsh file with the bottom as a physical surface: the same displacements bit for bit
+    const HexMesh box = generate_box(Vec3::Zero(), Vec3(2e-3, 2e-3, 10e-3), {2, 2, 10});
+    std::vector<index_t> bottom = box.named_faces.at("bottom");
+    std::sort(bottom.begin(), bottom.end());
+    const std::string path = write_msh("rkfem_column.msh", box, bottom, true);
+    const std::string rest = "    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}\n"
+                             "node_sets:\n  driven: {part: column, select: {type: named, name: bottom}}\n"
+                             "boundary_conditions:\n  - {node_set: driven, velocity: {z: 10 m/s}}\n";
+    const std::string a = "time: {end: 2 us}\nparts:\n  column:\n    generator: {type: box, origin: [0, 0, 0], "
+                          "size: [2 mm, 2 mm, 10 mm], divisions: [2, 2, 10]}\n" +
+                          rest;
+    const std::string b = "time: {end: 2 us}\nparts:\n  column:\n    generator: {type: gmsh, file: \"" + path +
+                          "\", physical: block}\n" + rest;
+    const std::vector<real_t> ua = test::displacements_on_threads(a, {}, 1);
+    const std::vector<real_t> ub = test::displacements_on_threads(b, {}, 1);
+    EXPECT_EQ(ua, ub);
+    real_t top = 0.0;
+    for (std::size_t i = 2; i < ua.size(); i += 3)
+        top = std::max(top, ua[i]);
+    EXPECT_GT(top, 0.0); // the wave has moved the driven end
 }

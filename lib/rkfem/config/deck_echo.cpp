@@ -225,6 +225,16 @@ void write_generator(std::ostringstream& os, const GeneratorSpec& g)
         else
             os << ", points: " << scalar(g.points_file) << ", points_unit: " << g.points_unit_name;
         break;
+    case GeneratorSpec::Type::Gmsh:
+        os << "type: gmsh, file: " << scalar(g.mesh_file) << ", unit: " << g.mesh_unit_name;
+        if (!g.mesh_groups.empty())
+        {
+            os << ", physical: [";
+            for (std::size_t i = 0; i < g.mesh_groups.size(); ++i)
+                os << (i ? ", " : "") << scalar(g.mesh_groups[i]);
+            os << "]";
+        }
+        break;
     case GeneratorSpec::Type::Keyword:
         os << "type: keyword, file: " << scalar(g.mesh_file) << ", unit: " << g.mesh_unit_name;
         if (!g.mesh_pids.empty())

@@ -197,11 +197,40 @@ void read_keyword_generator(const Section& part, const YAML::Node& gn, const std
         read_pids(s, g);
     g.loc = s.loc();
 }
+/// A Gmsh generator: an MSH file, its length unit and the volume physical groups to take.
+void read_gmsh_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
+{
+    Section s(part.ctx(), gn, gp, {"type", "file", "unit", "physical"});
+    g.type = GeneratorSpec::Type::Gmsh;
+    s.require("file", "the path of a Gmsh mesh (.msh, ASCII 4.1 or 2.2)");
+    g.mesh_file = data_file(s, "file");
+    read_length_unit(s, "unit", g.mesh_unit, g.mesh_unit_name);
+    if (s.has("physical"))
+    {
+        const YAML::Node pn = s.node("physical");
+        std::vector<YAML::Node> items;
+        if (pn.IsSequence())
+            for (std::size_t i = 0; i < pn.size(); ++i)
+                items.push_back(pn[i]);
+        else
+            items.push_back(pn);
+        for (const YAML::Node& it : items)
+        {
+            if (!it.IsScalar() || it.Scalar().empty())
+                s.fail("physical", "is not a name or a list of names",
+                       "expected the volume physical groups to take, by name or tag");
+            g.mesh_groups.push_back(it.Scalar());
+        }
+        if (g.mesh_groups.empty())
+            s.fail("physical", "is an empty list", "expected the volume physical groups to take, by name or tag");
+    }
+    g.loc = s.loc();
+}
 } // namespace
 
 GeneratorSpec read_generator(const Section& part)
 {
-    part.require("generator", "a mapping with type: box | cylinder | projectile | cloud | keyword");
+    part.require("generator", "a mapping with type: box | cylinder | projectile | cloud | keyword | gmsh");
     const YAML::Node gn = part.node("generator");
     const std::string gp = part.path("generator");
     std::string type;
@@ -216,12 +245,14 @@ GeneratorSpec read_generator(const Section& part)
         read_cloud_generator(part, gn, gp, g);
     else if (type == "keyword")
         read_keyword_generator(part, gn, gp, g);
+    else if (type == "gmsh")
+        read_gmsh_generator(part, gn, gp, g);
     else
     {
         const SourceLocation loc = gn.IsMap() && gn["type"].IsDefined() ? locate(part.ctx(), gn["type"], gp + ".type")
                                                                         : locate(part.ctx(), gn, gp + ".type");
         throw DeckError(loc, type.empty() ? "missing generator type" : "unknown generator '" + type + "'",
-                        "expected type: box | cylinder | projectile | cloud | keyword");
+                        "expected type: box | cylinder | projectile | cloud | keyword | gmsh");
     }
     return g;
 }

@@ -20,6 +20,7 @@ struct GeneratorSpec
         Projectile,
         Cloud,   ///< particles not from a mesh: a jittered lattice or imported points in a box or cylinder body
         Keyword, ///< *NODE and *ELEMENT_SOLID of an LS-DYNA keyword file (discretization/keyword_mesh.hpp)
+        Gmsh,    ///< a Gmsh MSH file's volume elements (discretization/gmsh_mesh.hpp)
     };
     Type type = Type::Box;
     // box
@@ -54,6 +55,7 @@ struct GeneratorSpec
     real_t mesh_unit = 1.0;
     std::string mesh_unit_name = "m"; ///< as the deck wrote it
     std::vector<long long> mesh_pids;
+    std::vector<std::string> mesh_groups; ///< gmsh: the volume physical groups taken, by name or tag (empty: all)
     SourceLocation loc;
 };
 } // namespace rkfem

@@ -1,4 +1,5 @@
 #include "rkfem/discretization/generators.hpp"
+#include "rkfem/discretization/gmsh_mesh.hpp"
 #include "rkfem/discretization/keyword_mesh.hpp"
 
 #include <algorithm>
@@ -490,6 +491,8 @@ HexMesh generate(const GeneratorSpec& g)
         return generate_cloud(g);
     case GeneratorSpec::Type::Keyword:
         return read_keyword_mesh(g);
+    case GeneratorSpec::Type::Gmsh:
+        return read_gmsh_mesh(g);
     case GeneratorSpec::Type::Projectile:
     {
         Vec3 base = g.origin;
