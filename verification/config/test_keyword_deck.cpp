@@ -13,6 +13,7 @@
 #include "rkfem/config/keyword_deck.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/io/keyword_export.hpp"
+#include "rkfem/model/material_from_deck.hpp"
 
 namespace rkfem::test
 {
@@ -258,6 +259,85 @@ TEST(KeywordDeck, WhatCannotBeTranslatedIsNamedWithItsLine)
     const std::string shared = base + "*ELEMENT_SOLID\n100,2,1,2,5,4,10,11,14,13\n*PART\nother\n2,1,1\n";
     expect(import_error("kw_shared.k", shared), "*ELEMENT_SOLID N", "belongs to solids of parts");
     EXPECT_THROW(keyword_units("furlong-fortnight"), Error);
+}
+
+TEST(KeywordDeck, UserSetKccParametersComeThroughAsWritten)
+{
+    // the K&C set generated for f'c 45.6 MPa written as a user-set MAT_072R3 (A0 > 0) with its
+    // EOS_TABULATED_COMPACTION, in m-s-kg-N: every parameter, the damage table and the EOS come back
+    // bit for bit; f'c is the maximum surface's uniaxial strength, delta sigma(f'c / 3) = f'c to
+    // round-off, which for the generated set is 45.6055 MPa (the set is scaled from the reference
+    // concrete's fit, which passes 1.2e-4 above its own f'c); E from the EOS's bulk modulus as
+    // LS-DYNA takes it
+    const KccModel g = KccModel::from_fc(45.6e6, 2300.0, 0.19);
+    const KccParameters& k = g.surfaces;
+    auto v = [](double x) { return in_units(x, keyword_units("m-s-kg-N"), 0, 0, 0); };
+    std::ostringstream c;
+    c << taylor_cards(keyword_units("m-s-kg-N")).substr(0, taylor_cards(keyword_units("m-s-kg-N")).find("*PART"))
+      << "*PART\nconcrete\n1,1,1,8,1\n*SECTION_SOLID\n1,1\n*HOURGLASS\n1,3,0.1\n"
+      << "*MAT_CONCRETE_DAMAGE_REL3\n1,2300,0.19\n"
+      << v(k.ft) << "," << v(k.a0) << "," << v(k.a1) << "," << v(k.a2) << "," << v(k.b1) << "," << v(k.omega) << ","
+      << v(k.a1f) << "\n0,0,0,0,0,0,0,13\n";
+    ASSERT_GE(k.eta_table.size(), 13u);
+    for (int i = 0; i < 8; ++i)
+        c << (i ? "," : "") << v(k.eta_table[i].first);
+    c << "\n";
+    for (int i = 8; i < 13; ++i)
+        c << v(k.eta_table[i].first) << ",";
+    c << v(k.b3) << "," << v(k.a0y) << "," << v(k.a1y) << "\n";
+    for (int i = 0; i < 8; ++i)
+        c << (i ? "," : "") << v(k.eta_table[i].second);
+    c << "\n";
+    for (int i = 8; i < 13; ++i)
+        c << v(k.eta_table[i].second) << ",";
+    c << v(k.b2) << "," << v(k.a2f) << "," << v(k.a2y) << "\n";
+    c << "*EOS_TABULATED_COMPACTION\n8,0,0,1\n";
+    auto row = [&](const std::array<real_t, 10>& a, int from)
+    {
+        for (int i = from; i < from + 5; ++i)
+            c << (i > from ? "," : "") << v(a[i]);
+        c << "\n";
+    };
+    row(g.eos_strain, 0);
+    row(g.eos_strain, 5);
+    row(g.eos_pressure, 0);
+    row(g.eos_pressure, 5);
+    c << "0,0,0,0,0\n0,0,0,0,0\n";
+    row(g.eos_unload, 0);
+    row(g.eos_unload, 5);
+    c << "*CONTROL_TERMINATION\n1e-6,0\n";
+    const KeywordUnits u = keyword_units("m-s-kg-N");
+    std::vector<std::string> notes;
+    const Deck d = imported(keyword_file("kw_kcc_user.k", u, c.str()), u, &notes);
+    const MaterialSpec& m = d.parts[0].material;
+    EXPECT_EQ(m.model, "kcc");
+    const KccModel r = kcc_model(m);
+    const KccParameters& q = r.surfaces;
+    EXPECT_LT(rel(q.max_surface(m.fc / 3.0), m.fc), 1e-14);
+    EXPECT_LT(rel(m.fc, 45.6e6), 2e-4);
+    EXPECT_GT(rel(m.fc, 45.6e6), 1e-4);
+    for (auto [a, b] : {std::pair{q.a0, k.a0},
+                        {q.a1, k.a1},
+                        {q.a2, k.a2},
+                        {q.a0y, k.a0y},
+                        {q.a1y, k.a1y},
+                        {q.a2y, k.a2y},
+                        {q.a1f, k.a1f},
+                        {q.a2f, k.a2f},
+                        {q.b1, k.b1},
+                        {q.b2, k.b2},
+                        {q.b3, k.b3},
+                        {q.omega, k.omega},
+                        {q.ft, k.ft}})
+        EXPECT_EQ(a, b);
+    for (int i = 0; i < 13; ++i)
+        EXPECT_EQ(q.eta_table[static_cast<std::size_t>(i)], k.eta_table[static_cast<std::size_t>(i)]);
+    EXPECT_EQ(r.eos_strain, g.eos_strain);
+    EXPECT_EQ(r.eos_pressure, g.eos_pressure);
+    EXPECT_EQ(r.eos_unload, g.eos_unload);
+    EXPECT_LT(rel(m.E, 3.0 * g.eos_unload[0] * (1.0 - 2.0 * 0.19)), 1e-14);
+    ASSERT_FALSE(notes.empty());
+    EXPECT_NE(notes.back().find("user-set K&C: f'c"), std::string::npos) << notes.back();
 }
 
 /// The displacements after a deck's first 20 steps.

@@ -176,7 +176,7 @@ class Importer
     std::vector<KeywordBlock> blocks_;
     std::string title_;
     std::vector<PartCard> parts_;
-    std::map<long long, Cards> sections_, materials_, eos_, hourglass_, erosion_;
+    std::map<long long, Cards> sections_, materials_, eos_, eos8_, hourglass_, erosion_;
     std::map<long long, std::string> material_kw_; // MID -> base keyword
     std::map<long long, Curve> curves_;
     std::map<long long, std::vector<long long>> node_sets_, part_sets_;
@@ -235,7 +235,8 @@ class Importer
     std::string j2_from_piecewise(const Cards& c, const PartCard& p);
     std::string j2_from_johnson_cook(const Cards& c, const PartCard& p);
     std::string eos(const PartCard& p, const Cards& at);
-    std::string concrete(const std::string& base, const Cards& c);
+    std::string concrete(const std::string& base, const Cards& c, const PartCard& p);
+    std::string kcc_user_set(const Cards& c, const PartCard& p, double rho, double pr);
     std::string erosion(long long mid);
     void hourglass(const PartCard& p, const std::string& formulation, std::ostringstream& os);
     std::string formulation(const PartCard& p);
@@ -295,6 +296,8 @@ void Importer::file(const KeywordBlock& b)
         by_id(erosion_, "MID");
     else if (base == "*EOS_GRUNEISEN")
         by_id(eos_, "EOSID");
+    else if (base == "*EOS_TABULATED_COMPACTION")
+        by_id(eos8_, "EOSID");
     else if (base == "*HOURGLASS")
         by_id(hourglass_, "HGID");
     else if (base == "*DEFINE_CURVE")
@@ -400,9 +403,11 @@ void Importer::read_id_list(const Cards& c, std::map<long long, std::vector<long
                 const long long a = c.integer(i, k, 0, "BBEG"), b = c.integer(i, k + 1, 0, "BEND");
                 if (a == 0 && b == 0)
                     continue;
-                if (b < a || b - a > 100000000)
-                    c.fail(i, "BEND", "the range " + std::to_string(a) + "-" + std::to_string(b) + " is empty",
-                           "expected BBEG <= BEND");
+                if (b < a || b - a > 10000000)
+                    c.fail(i, "BEND",
+                           "the range " + std::to_string(a) + "-" + std::to_string(b) +
+                               (b < a ? " is empty" : " holds more than 10^7 nodes"),
+                           "expected BBEG <= BEND, a range of a mesh's nodes");
                 for (long long n = a; n <= b; ++n)
                     ids.push_back(n);
             }
@@ -827,17 +832,104 @@ std::string Importer::j2_from_johnson_cook(const Cards& c, const PartCard& p)
     return os.str();
 }
 
-std::string Importer::concrete(const std::string& base, const Cards& c)
+/// MAT_072R3 with A0 > 0: every parameter the user's. f'c (which rkfem's K&C needs for its rate law
+/// and defaults) is the uniaxial strength of the maximum surface, f'c = a0 + (f'c / 3) / (a1 + a2 f'c
+/// / 3); E from the EOS's first unloading bulk modulus and PR, K (1 - 2 nu) 3, as LS-DYNA takes it.
+std::string Importer::kcc_user_set(const Cards& c, const PartCard& p, double rho, double pr)
+{
+    const double ft = c.number(1, 0, 0.0, "FT"), a0 = c.number(1, 1, 0.0, "A0"), a1 = c.number(1, 2, 0.0, "A1"),
+                 a2 = c.number(1, 3, 0.0, "A2"), b1 = c.number(1, 4, 0.0, "B1"), omega = c.number(1, 5, 0.0, "OMEGA"),
+                 a1f = c.number(1, 6, 0.0, "A1F"), b3 = c.number(4, 5, 0.0, "B3"), a0y = c.number(4, 6, 0.0, "A0Y"),
+                 a1y = c.number(4, 7, 0.0, "A1Y"), b2 = c.number(6, 5, 0.0, "B2"), a2f = c.number(6, 6, 0.0, "A2F"),
+                 a2y = c.number(6, 7, 0.0, "A2Y");
+    if (!(a1 > 0.0) || a2 < 0.0)
+        c.fail(1, "A1", "the maximum surface a0 + p / (a1 + a2 p) has a1 <= 0 or a2 < 0",
+               "expected a0 > 0, a1 > 0, a2 >= 0 (user-set K&C)");
+    // f'c on the maximum surface in uniaxial compression (p = f'c / 3): a contraction from 3 a0
+    const double s = scale(kStress);
+    double fc = 3.0 * a0;
+    for (int it = 0; it < 500; ++it)
+    {
+        const double next = a0 + (fc / 3.0) / (a1 + a2 * fc / 3.0);
+        if (std::abs(next - fc) <= 1e-15 * next)
+            break;
+        fc = next;
+    }
+    std::ostringstream os;
+    os << "{model: kcc, rho: " << q(rho, kDensity) << ", fc: " << q(fc, kStress);
+    if (pr != 0.0)
+        os << ", nu: " << num(pr);
+    const Dim inverse_stress{-1, 1, 2, ""};
+    os << ", a0: " << q(a0, kStress) << ", a1: " << num(a1) << ", a2: " << q(a2, inverse_stress)
+       << ", a0y: " << q(a0y, kStress) << ", a1y: " << num(a1y) << ", a2y: " << q(a2y, inverse_stress)
+       << ", a1f: " << num(a1f) << ", a2f: " << q(a2f, inverse_stress) << ", b1: " << num(b1) << ", b2: " << num(b2)
+       << ", b3: " << num(b3) << ", omega: " << num(omega) << ", ft: " << q(ft, kStress);
+    // the damage table: 13 (lambda, eta) pairs, NPTS of them if given
+    const long long npts = c.integer(2, 7, 13, "NPTS");
+    if (npts < 3 || npts > 13)
+        c.fail(2, "NPTS", "NPTS " + std::to_string(npts) + " is outside 3-13", "expected 3 to 13 table points");
+    os << ", eta: [";
+    for (long long i = 0; i < npts; ++i)
+    {
+        const std::size_t card = i < 8 ? 3 : 4, k = static_cast<std::size_t>(i < 8 ? i : i - 8);
+        const double lambda = c.number(card, k, 0.0, "LAMBDA"), eta = c.number(card + 2, k, 0.0, "ETA");
+        os << (i ? ", " : "") << "[" << num(lambda) << ", " << num(eta) << "]";
+    }
+    os << "]";
+    // the EOS: *EOS_TABULATED_COMPACTION (10 ln(V/V0), pressures and unloading bulk moduli, 16 columns)
+    const auto it = eos8_.find(p.eosid);
+    if (it == eos8_.end())
+        c.fail(0, "MID", "part " + std::to_string(p.pid) + " of user-set K&C has no *EOS_TABULATED_COMPACTION",
+               "expected the part's EOSID to name one (LS-DYNA's EOS_8, which MAT_072R3 needs)");
+    const Cards& e = it->second;
+    const std::vector<int> w(5, 16);
+    auto row = [&](std::size_t first_card, const char* name, const Dim& d, bool as_number)
+    {
+        std::string out = "[";
+        for (std::size_t i = 0; i < 10; ++i)
+        {
+            const double v = e.number(first_card + i / 5, i % 5, 0.0, name, w);
+            out += (i ? ", " : "") + (as_number ? num(v) : q(v, d));
+        }
+        return out + "]";
+    };
+    const double k1 = e.number(7, 0, 0.0, "K1", w);
+    os << ", eos: {strain: " << row(1, "EV", kNone, true) << ", pressure: " << row(3, "C", kStress, false)
+       << ", unload_bulk: " << row(7, "K", kStress, false) << "}";
+    if (k1 > 0.0)
+        os << ", E: " << num(rounded(3.0 * k1 * s * (1.0 - 2.0 * pr)));
+    os << ", fracture_energy: 0";
+    if (const long long lcrate = c.integer(2, 5, 0, "LCRATE"); lcrate == 0)
+        os << ", rate_effects: false";
+    else if (lcrate == -1)
+        os << ", rate_effects: true";
+    else
+    {
+        const Curve& cv = curve(lcrate, c, 2, "LCRATE");
+        os << ", rate_effects: {curve: [";
+        for (std::size_t i = 0; i < cv.x.size(); ++i)
+            os << (i ? ", " : "") << "[" << num(scale(kRate) == 1.0 ? cv.x[i] : rounded(cv.x[i] * scale(kRate))) << ", "
+               << num(cv.y[i]) << "]";
+        os << "]}";
+    }
+    os << "}";
+    note(c.where(1), "user-set K&C: f'c " + q(fc, kStress) + " from the maximum surface in uniaxial compression, E " +
+                         "from the EOS's first unloading bulk modulus, b2 as given (fracture_energy 0: no crack-band "
+                         "scaling)");
+    return os.str();
+}
+
+std::string Importer::concrete(const std::string& base, const Cards& c, const PartCard& p)
 {
     std::ostringstream os;
     const double rho = c.number(0, 1, 0.0, "RO");
     if (base == "*MAT_CONCRETE_DAMAGE_REL3")
     {
         const double pr = c.number(0, 2, 0.0, "PR"), a0 = c.number(1, 1, 0.0, "A0");
-        if (!(a0 < 0.0))
-            c.fail(1, "A0", "user-set K&C parameters (A0 >= 0) are not imported yet",
-                   "expected A0 = -f'c (the parameters generated from the compressive strength); user-set sets go in "
-                   "the deck's kcc material (a0, a1, ..., eta, eos)");
+        if (a0 > 0.0)
+            return kcc_user_set(c, p, rho, pr);
+        if (a0 == 0.0)
+            c.fail(1, "A0", "A0 is 0", "expected A0 = -f'c (generated parameters) or the user's a0 > 0");
         os << "{model: kcc, rho: " << q(rho, kDensity) << ", fc: " << q(-a0, kStress);
         if (pr != 0.0)
             os << ", nu: " << num(pr);
@@ -958,10 +1050,10 @@ std::string Importer::material(const PartCard& p, std::string& extra)
         return j2_from_piecewise(c, p);
     if (base == "*MAT_JOHNSON_COOK")
         return j2_from_johnson_cook(c, p);
-    if (p.eosid != 0)
+    if (p.eosid != 0 && !(base == "*MAT_CONCRETE_DAMAGE_REL3" && c.number(1, 1, 0.0, "A0") > 0.0))
         note(p.where, "EOSID " + std::to_string(p.eosid) + " is not read: the concrete models generate their own EOS");
     extra = "";
-    return concrete(base, c);
+    return concrete(base, c, p);
 }
 
 void Importer::hourglass(const PartCard& p, const std::string& formulation, std::ostringstream& os)
