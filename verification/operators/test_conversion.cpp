@@ -574,3 +574,188 @@ TEST(ConversionTriggers, DeckErrorsNameTheKey)
     EXPECT_NE(error_of("{buffer: 1}").find("has no criterion"), std::string::npos);
     EXPECT_EQ(error_of("{aspect_ratio: 2, scaled_jacobian: 0.3, buffer: 1, max_per_event: 100}"), "");
 }
+
+// RK back to FE (issue #49, seed Table 1 feature 4 "in both directions"): the same tables-only
+// event the other way. A box under a linear velocity field converts its upper half after step 3
+// and reverts all of it after step 6: every point's stress stays that of the run that never
+// converts, to round-off, and at the end no particle is left (every element FE again, the
+// kinematic map the identity). A free column converted and reverted keeps the momentum of its
+// unknowns exactly (the state moves with no interpolation).
+TEST(ConversionReversion, ABoxConvertedAndBackKeepsItsUniformStress)
+{
+    const real_t A[3][3] = {{1.0, 0.3, -0.2}, {0.1, -0.5, 0.4}, {0.25, 0.2, 0.7}}; // 1/s
+    const real_t dt = 1e-8;
+    Model plain = test::model_from(box), conv = test::model_from(box);
+    for (int step = 1; step <= 9; ++step)
+    {
+        if (step == 4)
+        {
+            ASSERT_EQ(conv.convert_elements(0, elements_above(conv, 3e-3)), 48);
+        }
+        if (step == 7)
+        {
+            ASSERT_EQ(conv.revert_elements(0, std::vector<char>(96, 1)), 48);
+            EXPECT_EQ(conv.revert_elements(0, std::vector<char>(96, 1)), 0); // nothing left to revert
+        }
+        for (Model* m : {&plain, &conv})
+        {
+            test::linear_velocity_step(m->nodes, A, dt);
+            m->compute_forces(step * dt, dt, step);
+            m->commit();
+        }
+    }
+    EXPECT_EQ(conv.reverted_elements(), 48);
+    const NodalBlock &p = *plain.nodal_block(0), &c = *conv.nodal_block(0);
+    real_t smax = 0.0, ds = 0.0, df = 0.0, fmax = 0.0;
+    for (int k = 0; k < 6; ++k)
+        for (index_t q = 0; q < p.n_points(); ++q)
+        {
+            const std::size_t j = k * p.stress_stride + q;
+            smax = std::max(smax, std::abs(p.stress[j]));
+            ds = std::max(ds, std::abs(p.stress[j] - c.stress[j]));
+        }
+    for (std::size_t j = 0; j < plain.nodes.f_int.size(); ++j)
+    {
+        fmax = std::max(fmax, std::abs(plain.nodes.f_int[j]));
+        df = std::max(df, std::abs(plain.nodes.f_int[j] - conv.nodes.f_int[j]));
+    }
+    index_t particles = 0, zones[3] = {0, 0, 0};
+    for (index_t i = 0; i < conv.nodes.size(); ++i)
+        particles += conv.carries_coefficients(i);
+    for (index_t e = 0; e < conv.meshes[0].n_elements(); ++e)
+        ++zones[conv.element_zone(0, e)];
+    std::printf("converted after step 3, reverted after step 6: stress change %.2e of the largest, internal forces "
+                "%.2e of the largest, %d particles left\n",
+                ds / smax, df / fmax, static_cast<int>(particles));
+    EXPECT_LT(ds / smax, 1e-12);
+    EXPECT_LT(df / fmax, 1e-12);
+    EXPECT_EQ(particles, 0);
+    EXPECT_EQ(zones[0], 96);
+}
+
+TEST(ConversionReversion, AFreeColumnKeepsItsMomentumThroughBothEvents)
+{
+    const char* deck = R"(
+time: {end: 1 s}
+parts:
+  column:
+    generator: {type: box, size: [3 mm, 3 mm, 40 mm], divisions: [3, 3, 40]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-nodal
+    conversion: {principal_strain: 10}
+)";
+    Model m = test::model_from(deck);
+    test::deforming_column_velocity(m.nodes);
+    const Vec3 p0 = test::momentum(m.nodes);
+    const real_t mv = test::momentum_scale(m.nodes);
+    CentralDifference cd;
+    const TimeSpec ts = m.deck().time;
+    StepReport r = cd.initialize(m, 0.0);
+    real_t t = 0.0, err = 0.0, jump = 0.0;
+    for (int k = 1; k <= 300; ++k)
+    {
+        const real_t dt = next_time_step(ts, t, r.dt_stable);
+        r = cd.step(m, t, dt, k);
+        t = r.t;
+        if (k == 100 || k == 200)
+        {
+            const Vec3 before = test::momentum(m.nodes);
+            if (k == 100)
+            {
+                EXPECT_EQ(m.convert_elements(0, elements_above(m, 20e-3)), 3 * 3 * 20);
+            }
+            else
+            {
+                EXPECT_EQ(m.revert_elements(0, elements_above(m, 30e-3)), 3 * 3 * 10);
+            }
+            jump = std::max(jump, (test::momentum(m.nodes) - before).norm());
+            const std::vector<real_t> a = m.nodes.a;
+            r = cd.initialize(m, t);
+            m.energy.book_event(m.nodes, a, dt);
+        }
+        err = std::max(err, (test::momentum(m.nodes) - p0).norm() / mv);
+    }
+    std::printf("free column, converted at step 100, its top quarter reverted at 200: momentum jump at the events "
+                "%.2e, |p - p0| / sum m|v| %.2e over 300 steps\n",
+                jump, err);
+    EXPECT_EQ(jump, 0.0);
+    EXPECT_LT(err, 1e-12);
+    EXPECT_EQ(m.reverted_elements(), 90);
+}
+
+// By the deck (conversion.revert): the block of the distortion trigger test sheared at 10 m/s
+// until 200 us (gamma = 2) and back at -10 m/s: it converts at gamma = sqrt 3 (scaled Jacobian
+// 0.5) and reverts when the scaled Jacobian 1 / sqrt(1 + gamma^2) is back at 0.7, gamma =
+// sqrt(1 / 0.49 - 1) = 1.0202: at the first step end where the top's displacement says so, all
+// nine elements at once, none before (about t = 200 + (2 - 1.0202) / 1e4 s = 297.98 us; the
+// central difference takes the reversal at 200 us within one step, so gamma, not t, is the measure).
+TEST(ConversionReversion, ARevertMeasureFiresAtItsValueAndNotBefore)
+{
+    const std::string deck = R"(
+time: {end: 320 us}
+parts:
+  b:
+    generator: {type: box, size: [3 mm, 3 mm, 1 mm], divisions: [3, 3, 1]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-nodal
+    conversion: {scaled_jacobian: 0.5, revert: {scaled_jacobian: 0.7}}
+node_sets:
+  bottom: {part: b, select: {type: named, name: bottom}}
+  top: {part: b, select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: bottom, fixed: all}
+  - {node_set: top, velocity: {x: {curve: [[0, 10], [200 us, 10], [200.0001 us, -10], [1 ms, -10]]}, y: 0, z: 0}}
+)";
+    Model m = test::model_from(deck);
+    index_t top = 0; // a node of the top face: its x displacement over the height is gamma
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (m.nodes.x0[3 * i + 2] > 0.999e-3)
+            top = i;
+    real_t t_convert = -1.0, t_revert = -1.0, t_before = -1.0, g_revert = 0.0, g_before = 0.0;
+    RunOptions opt;
+    opt.progress = false;
+    const RunSummary s = run_simulation(m, opt,
+                                        [&](const Model& mm, real_t t, real_t, std::int64_t)
+                                        {
+                                            const real_t gamma = mm.physical(mm.nodes.u, top)[0] / 1e-3;
+                                            if (mm.converted_elements() > 0 && t_convert < 0.0)
+                                                t_convert = t;
+                                            if (mm.reverted_elements() > 0 && t_revert < 0.0)
+                                            {
+                                                t_revert = t;
+                                                g_revert = gamma;
+                                            }
+                                            else if (mm.reverted_elements() == 0)
+                                            {
+                                                t_before = t;
+                                                g_before = gamma;
+                                            }
+                                        });
+    ASSERT_EQ(s.status, "completed") << s.message;
+    const real_t gamma_back = std::sqrt(1.0 / 0.49 - 1.0);
+    std::printf("sheared and back: converted at %.4f us (theory 173.2051), reverted %d elements at %.4f us with gamma "
+                "%.5f, the step before at %.4f us with gamma %.5f (theory: gamma %.5f, about %.2f us)\n",
+                1e6 * t_convert, static_cast<int>(m.reverted_elements()), 1e6 * t_revert, g_revert, 1e6 * t_before,
+                g_before, gamma_back, 1e6 * (200e-6 + (2.0 - gamma_back) * 1e-4));
+    EXPECT_NEAR(t_convert, std::sqrt(3.0) * 1e-4, 1e-6);
+    EXPECT_EQ(m.reverted_elements(), 9);
+    EXPECT_LE(g_revert, gamma_back);
+    EXPECT_GT(g_before, gamma_back);
+    for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)
+        EXPECT_EQ(m.element_zone(0, e), 0);
+}
+
+TEST(ConversionReversion, DeckErrorsNameTheKey)
+{
+    auto err = [](const std::string& conversion)
+    { return test::model_error(driven_block("{x: 10 m/s, y: 0, z: 0}", conversion), {}); };
+    EXPECT_NE(err("{scaled_jacobian: 0.5, revert: {scaled_jacobian: 0.4}}")
+                  .find("parts.b.conversion.revert.scaled_jacobian: is not above the conversion's"),
+              std::string::npos);
+    EXPECT_NE(err("{aspect_ratio: 2, revert: {aspect_ratio: 2.5}}")
+                  .find("parts.b.conversion.revert.aspect_ratio: is below 1 or not below the conversion's"),
+              std::string::npos);
+    EXPECT_NE(err("{scaled_jacobian: 0.5, revert: {}}").find("parts.b.conversion.revert"), std::string::npos);
+    EXPECT_NE(err("{scaled_jacobian: 0.5, revert: {speed: 1}}").find("unknown key 'speed'"), std::string::npos);
+    EXPECT_EQ(err("{scaled_jacobian: 0.5, buffer: 1, revert: {scaled_jacobian: 0.7, aspect_ratio: 1.5}}"), "");
+}

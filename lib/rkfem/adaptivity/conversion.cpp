@@ -1,12 +1,14 @@
 // Evolutionary coupling (seed Table 1, feature 4): elements of a fem-nodal part turn into RK
 // between steps. The state stays where it is integrated (at the nodes), so an event rebuilds
 // tables only.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <string>
 
 #include "rkfem/core/error.hpp"
+#include "rkfem/core/parallel.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/model/nodal_block_build.hpp"
 
@@ -34,7 +36,9 @@ void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
     ChangedRows changed;
     try
     {
-        if (rebuild_whole_part_)
+        // every element FE again (all reverted): the block a converting part starts with, built whole
+        const bool all_fe = std::find(rk.begin(), rk.end(), char{1}) == rk.end();
+        if (rebuild_whole_part_ || all_fe)
         {
             // the plain way: the whole block again, the state handed over point for point
             NodalBlock fresh = build_coupled_block(ps, mesh, begin, &rk);
@@ -135,6 +139,75 @@ index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
     set_rk_elements(part, rk);
     converted_elements_ += added;
     return added;
+}
+
+index_t Model::revert_elements(index_t part, const std::vector<char>& revert)
+{
+    RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), "revert_elements: no part " << part);
+    const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
+    RKFEM_REQUIRE(ps.coupled() && ps.formulation == Formulation::FemNodal,
+                  "revert_elements: part '" << ps.name << "' is not a fem-nodal part with regions or conversion");
+    std::vector<char> rk = rk_elements_[static_cast<std::size_t>(part)];
+    RKFEM_REQUIRE(revert.size() == rk.size(), "revert_elements: " << revert.size() << " flags for " << rk.size()
+                                                                  << " elements of part '" << ps.name << "'");
+    index_t back = 0;
+    for (std::size_t e = 0; e < rk.size(); ++e)
+        if (revert[e] && rk[e])
+        {
+            rk[e] = 0;
+            ++back;
+        }
+    if (back == 0)
+        return 0;
+    set_rk_elements(part, rk);
+    reverted_elements_ += back;
+    return back;
+}
+
+void Model::reversion_flags(index_t part, std::vector<char>& revert) const
+{
+    const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
+    const ElementCriteria& c = ps.conversion;
+    const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(part)];
+    const std::vector<index_t>& conn = meshes[static_cast<std::size_t>(part)].conn;
+    const PartInfo& info = parts[static_cast<std::size_t>(part)];
+    const std::size_t ne = rk.size();
+    // elements RK by a region of the deck stay RK
+    const std::vector<char> region =
+        ps.regions.empty() ? std::vector<char>(ne, 0) : rk_region_elements(ps, part_mesh(part));
+    // benign: RK, by a conversion, meeting none of its criteria and every revert measure
+    revert.assign(ne, 0);
+    parallel_for_any("rkfem::reversion_criteria", static_cast<index_t>(ne),
+                     [&](index_t e)
+                     {
+                         if (!rk[e] || region[e] || meets(c, part, e) || !benign(c.revert, part, e))
+                             return false;
+                         revert[e] = 1;
+                         return true;
+                     });
+    // kept: the RK elements that are not benign, and the buffer's layers of node neighbours around them
+    std::vector<char> keep(ne, 0);
+    for (std::size_t e = 0; e < ne; ++e)
+        keep[e] = rk[e] && !revert[e];
+    std::vector<char> marked;
+    for (int layer = 0; layer < c.buffer; ++layer)
+    {
+        marked.assign(static_cast<std::size_t>(info.node_end - info.node_begin), 0);
+        for (std::size_t e = 0; e < ne; ++e)
+            if (keep[e])
+                for (int a = 0; a < 8; ++a)
+                    marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)] = 1;
+        for (std::size_t e = 0; e < ne; ++e)
+            if (revert[e] && !keep[e])
+                for (int a = 0; a < 8; ++a)
+                    if (marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)])
+                    {
+                        keep[e] = 1;
+                        break;
+                    }
+    }
+    for (std::size_t e = 0; e < ne; ++e)
+        revert[e] = revert[e] && !keep[e];
 }
 
 void Model::buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<char>& convert) const

@@ -83,6 +83,19 @@ struct ElementCriteria
     /// conversion only: at most this many elements per event (0: no cap), the triggered ones
     /// first, then the buffer's, each in element order; the rest wait for the next check
     std::int64_t max_per_event = 0;
+    /// conversion only: RK elements return to FE (seed Table 1 feature 4, both directions) where
+    /// every measure given is benign at a check: the smallest scaled corner Jacobian at or above
+    /// `scaled_jacobian`, the aspect ratio at or below `aspect_ratio`, the damage at or below
+    /// `damage`, the effective plastic strain at or below `plastic_strain` (negative: not checked),
+    /// and no element within `buffer` layers of node neighbours still needs RK
+    struct Reversion
+    {
+        real_t scaled_jacobian = 0.0;
+        real_t aspect_ratio = 0.0;
+        real_t damage = -1.0;
+        real_t plastic_strain = -1.0;
+        bool active() const { return scaled_jacobian > 0 || aspect_ratio > 0 || damage >= 0 || plastic_strain >= 0; }
+    } revert;
     bool active() const { return plastic_strain > 0 || damage > 0 || geometric(); }
     /// a criterion on the element's shape (a pass over its nodes per step)
     bool geometric() const

@@ -399,8 +399,35 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
                << ", time_step: " << c->time_step << ", scaled_jacobian: " << c->scaled_jacobian
                << ", aspect_ratio: " << c->aspect_ratio;
             if (c == &p.conversion)
+            {
                 os << ", interval: " << c->interval << ", buffer: " << c->buffer
                    << ", max_per_event: " << c->max_per_event;
+                const ElementCriteria::Reversion& r = c->revert;
+                if (r.active())
+                {
+                    // the measures given only (the others off, which their keys cannot say)
+                    std::string sep;
+                    os << ", revert: {";
+                    if (r.scaled_jacobian > 0)
+                    {
+                        os << "scaled_jacobian: " << r.scaled_jacobian;
+                        sep = ", ";
+                    }
+                    if (r.aspect_ratio > 0)
+                    {
+                        os << sep << "aspect_ratio: " << r.aspect_ratio;
+                        sep = ", ";
+                    }
+                    if (r.damage >= 0)
+                    {
+                        os << sep << "damage: " << r.damage;
+                        sep = ", ";
+                    }
+                    if (r.plastic_strain >= 0)
+                        os << sep << "effective_plastic_strain: " << r.plastic_strain;
+                    os << "}";
+                }
+            }
             os << "}\n";
         }
 }

@@ -20,6 +20,36 @@ void ignore(PartSpec& p, const Section& s, const std::string& key, const std::st
                         " does not use it; ignored");
 }
 
+/// conversion.revert: when RK elements return to FE, each measure on the benign side of the
+/// conversion's own (so that an element does not go back and forth between checks).
+void read_reversion(const Context& ctx, const Section& e, ElementCriteria& c)
+{
+    Section r(ctx, e.node("revert"), e.path("revert"),
+              {"scaled_jacobian", "aspect_ratio", "damage", "effective_plastic_strain"});
+    ElementCriteria::Reversion& v = c.revert;
+    v.scaled_jacobian = r.quantity("scaled_jacobian", dim::none, 0.0);
+    if (r.has("scaled_jacobian") && !(v.scaled_jacobian > c.scaled_jacobian && v.scaled_jacobian <= 1.0))
+        r.fail("scaled_jacobian", "is not above the conversion's scaled_jacobian and at most 1",
+               "expected the smallest scaled corner Jacobian at or above which an element is benign again, above "
+               "the conversion's (hysteresis)");
+    v.aspect_ratio = r.quantity("aspect_ratio", dim::none, 0.0);
+    if (r.has("aspect_ratio") && !(v.aspect_ratio >= 1.0 && (c.aspect_ratio == 0.0 || v.aspect_ratio < c.aspect_ratio)))
+        r.fail("aspect_ratio", "is below 1 or not below the conversion's aspect_ratio",
+               "expected the edge ratio at or below which an element is benign again");
+    v.damage = r.has("damage") ? r.quantity("damage", dim::none) : -1.0;
+    if (r.has("damage") && !(v.damage >= 0.0 && (c.damage == 0.0 || v.damage < c.damage)))
+        r.fail("damage", "is negative or not below the conversion's damage",
+               "expected the damage index at or below which an element is benign again");
+    v.plastic_strain = r.has("effective_plastic_strain") ? r.quantity("effective_plastic_strain", dim::none) : -1.0;
+    if (r.has("effective_plastic_strain") &&
+        !(v.plastic_strain >= 0.0 && (c.plastic_strain == 0.0 || v.plastic_strain < c.plastic_strain)))
+        r.fail("effective_plastic_strain", "is negative or not below the conversion's",
+               "expected the effective plastic strain at or below which an element is benign again");
+    if (!v.active())
+        e.fail("revert", "has no measure",
+               "expected scaled_jacobian, aspect_ratio, damage or effective_plastic_strain");
+}
+
 /// The element criteria under `key` (erosion, conversion): at least one set, none negative.
 ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::string& key, const PartSpec& p)
 {
@@ -27,7 +57,7 @@ ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::s
         "effective_plastic_strain", "damage",      "principal_strain", "volumetric_strain", "time_step",
         "scaled_jacobian",          "aspect_ratio"};
     if (key == "conversion")
-        keys.insert(keys.end(), {"interval", "buffer", "max_per_event"});
+        keys.insert(keys.end(), {"interval", "buffer", "max_per_event", "revert"});
     Section e(ctx, s.node(key), s.path(key), keys);
     ElementCriteria c;
     if (key == "conversion")
@@ -67,6 +97,8 @@ ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::s
         e.fail("effective_plastic_strain", "is negative or not finite", "expected a strain > 0 (0: off)");
     if (!(c.damage >= 0.0 && c.damage <= 1.0))
         e.fail("damage", "is outside [0, 1]", "expected a damage index in (0, 1] (0: off)");
+    if (key == "conversion" && e.has("revert"))
+        read_reversion(ctx, e, c);
     if (!c.active())
         s.fail(key, "has no criterion",
                "expected effective_plastic_strain, damage, principal_strain, volumetric_strain, time_step, "

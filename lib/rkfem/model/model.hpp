@@ -279,6 +279,12 @@ class Model final : public ExplicitOperator
     /// other parts.
     const std::vector<char>& rk_elements(index_t part) const { return rk_elements_[static_cast<std::size_t>(part)]; }
     index_t converted_elements() const { return converted_elements_; }
+    /// RK elements of a coupled fem-nodal part back to FE (flags per element of the part): the
+    /// state stays at the nodes, so the event rebuilds tables only. Returns how many went back.
+    index_t revert_elements(index_t part, const std::vector<char>& revert);
+    index_t reverted_elements() const { return reverted_elements_; }
+    /// Is RK element e of part b benign by the conversion's revert measures?
+    bool benign(const ElementCriteria::Reversion& r, index_t b, index_t e) const;
     /// Conversion events rebuild the whole part (true) or only the points where the
     /// approximation changed (false, the default); the same operators either way.
     void set_rebuild_whole_part(bool whole) { rebuild_whole_part_ = whole; }
@@ -328,6 +334,7 @@ class Model final : public ExplicitOperator
     int topology_version_ = 0;
     index_t eroded_elements_ = 0;
     index_t converted_elements_ = 0;
+    index_t reverted_elements_ = 0;
     std::vector<std::vector<char>> rk_elements_; ///< per part (coupled parts; empty otherwise)
     /// Conversion rebuilds the whole part's block (the plain path the incremental update is
     /// held to) instead of the points where the approximation changed.
@@ -339,6 +346,10 @@ class Model final : public ExplicitOperator
     /// Conversion's buffer layers and cap per event (ElementCriteria::buffer, max_per_event) on
     /// the triggered elements' flags (nonzero: convert).
     void buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<char>& convert) const;
+    /// RK elements of a converting part that go back to FE now: by a conversion (not a region),
+    /// meeting none of its criteria and all its revert measures, and no element within the
+    /// buffer's layers that stays RK
+    void reversion_flags(index_t part, std::vector<char>& revert) const;
     /// The part's mesh in the reference configuration, local node numbering.
     HexMesh part_mesh(index_t part) const;
     std::vector<ErodedElements> eroded_; ///< per block

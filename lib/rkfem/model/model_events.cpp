@@ -167,6 +167,18 @@ bool Model::meets(const ElementCriteria& c, index_t b, index_t e) const
            (c.aspect_ratio > 0 && g.aspect_ratio() >= c.aspect_ratio);
 }
 
+bool Model::benign(const ElementCriteria::Reversion& r, index_t b, index_t e) const
+{
+    if ((r.plastic_strain >= 0 && element_history(b, e, History::PlasticStrain) > r.plastic_strain) ||
+        (r.damage >= 0 && element_history(b, e, History::Damage) > r.damage))
+        return false;
+    if (r.scaled_jacobian <= 0 && r.aspect_ratio <= 0)
+        return true;
+    const ShapeMeasures g(*this, b, e);
+    return !(r.scaled_jacobian > 0 && g.scaled_jacobian() < r.scaled_jacobian) &&
+           !(r.aspect_ratio > 0 && g.aspect_ratio() > r.aspect_ratio);
+}
+
 bool Model::apply_events(real_t t, std::int64_t step)
 {
     bool changed = false;
@@ -208,6 +220,19 @@ bool Model::apply_events(real_t t, std::int64_t step)
             {
                 if (any && convert_elements(b, convert) > 0)
                     changed = true;
+                // and back: RK elements whose region has become benign (the same check times)
+                if (ps.conversion.revert.active())
+                {
+                    std::vector<char>& revert = event_flags_;
+                    reversion_flags(b, revert);
+                    if (std::find(revert.begin(), revert.end(), char{1}) != revert.end())
+                    {
+                        if (!any)
+                            refresh_motion();
+                        if (revert_elements(b, revert) > 0)
+                            changed = true;
+                    }
+                }
             }
             catch (const InstabilityError&)
             {

@@ -117,6 +117,7 @@ void Model::save_state(StateArchive& a) const
     a.put_value("topology_version", topology_version_);
     a.put_value("eroded_elements", eroded_elements_);
     a.put_value("converted_elements", converted_elements_);
+    a.put_value("reverted_elements", reverted_elements_);
     a.put("next_conversion_check", next_conversion_check_);
     for (std::size_t p = 0; p < rk_elements_.size(); ++p)
         if (!rk_elements_[p].empty())
@@ -211,6 +212,7 @@ void Model::load_state(const StateArchive& a)
     topology_version_ = a.value<int>("topology_version");
     eroded_elements_ = a.value<index_t>("eroded_elements");
     converted_elements_ = a.value<index_t>("converted_elements");
+    reverted_elements_ = a.has("reverted_elements") ? a.value<index_t>("reverted_elements") : 0;
     a.get("next_conversion_check", next_conversion_check_);
     eroded_.assign(static_cast<std::size_t>(a.value<index_t>("eroded_blocks")), ErodedElements{});
     for (std::size_t b = 0; b < eroded_.size(); ++b)
