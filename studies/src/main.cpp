@@ -130,7 +130,7 @@ int help(const std::string& command)
          "every value in SI with its unit; the mesh stays in MODEL.k (generator type keyword, named as typed, so\n"
          "write the deck in the current folder). SYSTEM names the model's consistent units: m-s-kg-N,\n"
          "mm-ms-kg-kN, mm-s-t-N, mm-ms-g-N, cm-us-g-Mbar, in-s-lbf-s2/in-lbf, ft-s-slug-lbf. A keyword outside the\n"
-         "supported subset (README, 'LS-DYNA keyword decks') is refused by name and line; --allow-unsupported\n"
+         "supported subset (docs/user/keyword-decks.md) is refused by name and line; --allow-unsupported\n"
          "lists and skips those instead. What maps approximately is said on standard error and in the deck.\n"
          "check and run take MODEL.k --units SYSTEM in place of a deck (run writes DIR/imported.yaml)."},
         {"export", "rkfem export DECK [--set key.path=value ...] > MODEL.k",
@@ -154,7 +154,7 @@ int help(const std::string& command)
     std::printf("usage:\n");
     for (const Entry& e : entries)
         std::printf("  %s\n      %s\n", e.line, e.what);
-    std::printf("\nrkfem SUBCOMMAND --help describes one subcommand; README.md describes the decks.\n");
+    std::printf("\nrkfem SUBCOMMAND --help describes one subcommand; docs/ (the manual, scripts/docs builds it) describes the decks.\n");
     return 0;
 }
 

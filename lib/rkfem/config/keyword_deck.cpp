@@ -340,7 +340,7 @@ void Importer::file(const KeywordBlock& b)
     else
         throw DeckError(
             {b.where(), b.keyword}, "is not supported",
-            "expected the keywords README.md lists under 'LS-DYNA keyword decks' (--allow-unsupported lists "
+            "expected the keywords docs/user/keyword-decks.md lists (--allow-unsupported lists "
             "and skips the others)");
 }
 
@@ -501,7 +501,7 @@ void Importer::read_controls(const std::string& base, const Cards& c)
     else
         throw DeckError(
             {c.block().where(), c.block().keyword}, "is not supported",
-            "expected the keywords README.md lists under 'LS-DYNA keyword decks' (--allow-unsupported lists "
+            "expected the keywords docs/user/keyword-decks.md lists (--allow-unsupported lists "
             "and skips the others)");
 }
 
@@ -940,7 +940,7 @@ std::string Importer::concrete(const std::string& base, const Cards& c, const Pa
         {
             os << ", rate_effects: true";
             note(c.where(2), "LCRATE -1 (LS-DYNA's built-in rate curve) is run with rkfem's default rate law "
-                             "(CEB-FIP compression, Malvar-Ross tension, capped; README 'rate_effects')");
+                             "(CEB-FIP compression, Malvar-Ross tension, capped; docs/user/decks.md, rate_effects)");
         }
         else
         {

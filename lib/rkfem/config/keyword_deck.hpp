@@ -7,7 +7,7 @@
 /// `{type: keyword, file, unit, pid}`; node and segment sets become `ids` and `segments`
 /// selectors on the file's numbers.
 ///
-/// The subset (README, "LS-DYNA keyword decks", says what each maps to and what is dropped):
+/// The subset (docs/user/keyword-decks.md says what each maps to and what is dropped):
 /// *KEYWORD, *TITLE, *NODE, *ELEMENT_SOLID, *PART, *SECTION_SOLID, *MAT_ELASTIC,
 /// *MAT_PLASTIC_KINEMATIC, *MAT_PIECEWISE_LINEAR_PLASTICITY, *MAT_JOHNSON_COOK,
 /// *MAT_CONCRETE_DAMAGE_REL3 (generated from f'c, or user-set with *EOS_TABULATED_COMPACTION),

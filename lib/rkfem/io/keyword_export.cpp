@@ -60,8 +60,8 @@ class Exporter
     [[noreturn]] void refuse(const SourceLocation& loc, const std::string& key, const std::string& what) const
     {
         throw DeckError({loc.where, key}, what + " has no LS-DYNA keyword form here",
-                        "expected a deck of meshed FE or RK parts with the settings README.md lists under 'LS-DYNA "
-                        "keyword decks' (export)");
+                        "expected a deck of meshed FE or RK parts with the settings docs/user/keyword-decks.md "
+                        "lists (export)");
     }
     long long curve(const TimeFunction& f, const SourceLocation& loc, const std::string& key);
     long long node_set(const std::string& name);
