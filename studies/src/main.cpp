@@ -154,7 +154,8 @@ int help(const std::string& command)
     std::printf("usage:\n");
     for (const Entry& e : entries)
         std::printf("  %s\n      %s\n", e.line, e.what);
-    std::printf("\nrkfem SUBCOMMAND --help describes one subcommand; docs/ (the manual, scripts/docs builds it) describes the decks.\n");
+    std::printf("\nrkfem SUBCOMMAND --help describes one subcommand; docs/ (the manual, scripts/docs builds it) "
+                "describes the decks.\n");
     return 0;
 }
 

@@ -338,10 +338,9 @@ void Importer::file(const KeywordBlock& b)
     else if (allow_)
         out_.skipped.push_back(b.keyword + " (" + b.where() + ")");
     else
-        throw DeckError(
-            {b.where(), b.keyword}, "is not supported",
-            "expected the keywords docs/user/keyword-decks.md lists (--allow-unsupported lists "
-            "and skips the others)");
+        throw DeckError({b.where(), b.keyword}, "is not supported",
+                        "expected the keywords docs/user/keyword-decks.md lists (--allow-unsupported lists "
+                        "and skips the others)");
 }
 
 void Importer::read_part(const Cards& c)
@@ -499,10 +498,9 @@ void Importer::read_controls(const std::string& base, const Cards& c)
     else if (allow_)
         out_.skipped.push_back(c.block().keyword + " (" + c.block().where() + ")");
     else
-        throw DeckError(
-            {c.block().where(), c.block().keyword}, "is not supported",
-            "expected the keywords docs/user/keyword-decks.md lists (--allow-unsupported lists "
-            "and skips the others)");
+        throw DeckError({c.block().where(), c.block().keyword}, "is not supported",
+                        "expected the keywords docs/user/keyword-decks.md lists (--allow-unsupported lists "
+                        "and skips the others)");
 }
 
 /// The solids' PIDs and nodes, so that sets can be checked against parts and parts that share nodes refused.
