@@ -363,7 +363,8 @@ TEST(KeywordDeck, ExampleDecksRoundTripThroughKeywordsToTheBit)
                                                         {"fsp_impact", "parts.panel.erosion"},
                                                         {"p4_fsp_uhpc", "parts.panel.material"},
                                                         {"p5_blast_slab", "parts.slab.formulation"},
-                                                        {"rk_bars_kernel_contact", "parts.a.generator"}};
+                                                        {"rk_bars_kernel_contact", "parts.a.generator"},
+                                                        {"shear_and_back_reversion", "parts.b.formulation"}};
     const std::vector<std::string> steps = {"time.max_steps=20"};
     int same = 0;
     for (const auto& entry : std::filesystem::directory_iterator(std::string(RKFEM_SOURCE_DIR) + "/studies/decks"))

@@ -38,6 +38,16 @@ std::vector<char> elements_above(const Model& m, real_t z)
     }
     return flags;
 }
+/// A free 3 x 3 x 40 mm fem-nodal column that converts only when a test says so.
+const char* free_column = R"(
+time: {end: 1 s}
+parts:
+  column:
+    generator: {type: box, size: [3 mm, 3 mm, 40 mm], divisions: [3, 3, 40]}
+    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
+    formulation: fem-nodal
+    conversion: {principal_strain: 10}
+)";
 /// A 4 x 4 x 6 mm fem-nodal box that converts only when a test says so.
 const char* box = R"(
 time: {end: 1 s}
@@ -141,18 +151,9 @@ TEST(ConversionDynamics, FreeColumnConservesMomentumAndEnergyThroughConversions)
     // in three events (the stepper started again after each, as the run loop does). Momentum
     // of the unknowns stays what it was; the energy ledger balances as well as in the run that
     // never converts
-    const char* deck = R"(
-time: {end: 1 s}
-parts:
-  column:
-    generator: {type: box, size: [3 mm, 3 mm, 40 mm], divisions: [3, 3, 40]}
-    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
-    formulation: fem-nodal
-    conversion: {principal_strain: 10}
-)";
     auto run = [&](bool convert, real_t& momentum_error, real_t& energy_error)
     {
-        Model m = test::model_from(deck);
+        Model m = test::model_from(free_column);
         test::deforming_column_velocity(m.nodes);
         auto momentum = [&] { return test::momentum(m.nodes); };
         const Vec3 p0 = momentum();
@@ -635,16 +636,7 @@ TEST(ConversionReversion, ABoxConvertedAndBackKeepsItsUniformStress)
 
 TEST(ConversionReversion, AFreeColumnKeepsItsMomentumThroughBothEvents)
 {
-    const char* deck = R"(
-time: {end: 1 s}
-parts:
-  column:
-    generator: {type: box, size: [3 mm, 3 mm, 40 mm], divisions: [3, 3, 40]}
-    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
-    formulation: fem-nodal
-    conversion: {principal_strain: 10}
-)";
-    Model m = test::model_from(deck);
+    Model m = test::model_from(free_column);
     test::deforming_column_velocity(m.nodes);
     const Vec3 p0 = test::momentum(m.nodes);
     const real_t mv = test::momentum_scale(m.nodes);
@@ -683,7 +675,8 @@ parts:
     EXPECT_EQ(m.reverted_elements(), 90);
 }
 
-// By the deck (conversion.revert): the block of the distortion trigger test sheared at 10 m/s
+// By the deck (conversion.revert, studies/decks/shear_and_back_reversion.yaml): the block of the
+// distortion trigger test sheared at 10 m/s
 // until 200 us (gamma = 2) and back at -10 m/s: it converts at gamma = sqrt 3 (scaled Jacobian
 // 0.5) and reverts when the scaled Jacobian 1 / sqrt(1 + gamma^2) is back at 0.7, gamma =
 // sqrt(1 / 0.49 - 1) = 1.0202: at the first step end where the top's displacement says so, all
@@ -691,22 +684,7 @@ parts:
 // central difference takes the reversal at 200 us within one step, so gamma, not t, is the measure).
 TEST(ConversionReversion, ARevertMeasureFiresAtItsValueAndNotBefore)
 {
-    const std::string deck = R"(
-time: {end: 320 us}
-parts:
-  b:
-    generator: {type: box, size: [3 mm, 3 mm, 1 mm], divisions: [3, 3, 1]}
-    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
-    formulation: fem-nodal
-    conversion: {scaled_jacobian: 0.5, revert: {scaled_jacobian: 0.7}}
-node_sets:
-  bottom: {part: b, select: {type: named, name: bottom}}
-  top: {part: b, select: {type: named, name: top}}
-boundary_conditions:
-  - {node_set: bottom, fixed: all}
-  - {node_set: top, velocity: {x: {curve: [[0, 10], [200 us, 10], [200.0001 us, -10], [1 ms, -10]]}, y: 0, z: 0}}
-)";
-    Model m = test::model_from(deck);
+    Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/shear_and_back_reversion.yaml"));
     index_t top = 0; // a node of the top face: its x displacement over the height is gamma
     for (index_t i = 0; i < m.nodes.size(); ++i)
         if (m.nodes.x0[3 * i + 2] > 0.999e-3)

@@ -172,23 +172,7 @@ TEST(Checkpoint, ConvertingConcreteBarRestartsWithTheSameBits)
 // from checkpoints before the conversion, while it is RK and after the reversion give the same bits
 TEST(Checkpoint, ConversionAndReversionRestartWithTheSameBits)
 {
-    const fs::path deck = fs::temp_directory_path() / "rkfem_ckpt_reversion.yaml";
-    std::ofstream(deck) << R"(
-time: {end: 320 us, output_interval: 40 us}
-parts:
-  b:
-    generator: {type: box, size: [3 mm, 3 mm, 1 mm], divisions: [3, 3, 1]}
-    material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
-    formulation: fem-nodal
-    conversion: {scaled_jacobian: 0.5, revert: {scaled_jacobian: 0.7}}
-node_sets:
-  bottom: {part: b, select: {type: named, name: bottom}}
-  top: {part: b, select: {type: named, name: top}}
-boundary_conditions:
-  - {node_set: bottom, fixed: all}
-  - {node_set: top, velocity: {x: {curve: [[0, 10], [200 us, 10], [200.0001 us, -10], [1 ms, -10]]}, y: 0, z: 0}}
-)";
-    expect_restarts_reproduce("reversion", deck.string(), "", "60 us");
+    expect_restarts_reproduce("reversion", deck_path("shear_and_back_reversion.yaml"), "", "60 us");
 }
 
 TEST(Checkpoint, RkParticlesOnAMeshAndOnACloudRestartWithTheSameBits)

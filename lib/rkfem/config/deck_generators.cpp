@@ -158,17 +158,23 @@ void read_cloud_generator(const Section& part, const YAML::Node& gn, const std::
     g.loc = s.loc();
 }
 
+/// A key that takes one value or a list of them: the values.
+std::vector<YAML::Node> one_or_list(const Section& s, const char* key)
+{
+    const YAML::Node n = s.node(key);
+    std::vector<YAML::Node> items;
+    if (n.IsSequence())
+        for (std::size_t i = 0; i < n.size(); ++i)
+            items.push_back(n[i]);
+    else
+        items.push_back(n);
+    return items;
+}
+
 /// pid of a keyword mesh: an integer or a list of integers, into g.mesh_pids.
 void read_pids(const Section& s, GeneratorSpec& g)
 {
-    const YAML::Node pn = s.node("pid");
-    std::vector<YAML::Node> items;
-    if (pn.IsSequence())
-        for (std::size_t i = 0; i < pn.size(); ++i)
-            items.push_back(pn[i]);
-    else
-        items.push_back(pn);
-    for (const YAML::Node& it : items)
+    for (const YAML::Node& it : one_or_list(s, "pid"))
     {
         long long v = 0;
         try
@@ -207,14 +213,7 @@ void read_gmsh_generator(const Section& part, const YAML::Node& gn, const std::s
     read_length_unit(s, "unit", g.mesh_unit, g.mesh_unit_name);
     if (s.has("physical"))
     {
-        const YAML::Node pn = s.node("physical");
-        std::vector<YAML::Node> items;
-        if (pn.IsSequence())
-            for (std::size_t i = 0; i < pn.size(); ++i)
-                items.push_back(pn[i]);
-        else
-            items.push_back(pn);
-        for (const YAML::Node& it : items)
+        for (const YAML::Node& it : one_or_list(s, "physical"))
         {
             if (!it.IsScalar() || it.Scalar().empty())
                 s.fail("physical", "is not a name or a list of names",

@@ -144,14 +144,9 @@ long long Exporter::curve(const TimeFunction& f, const SourceLocation& loc, cons
     return lcid;
 }
 
-long long Exporter::node_set(const std::string& name)
+/// A node list's cards: the NIDs (model index + 1), eight to a card.
+void write_node_ids(std::ostream& os, const std::vector<index_t>& ids)
 {
-    if (const auto it = node_set_id_.find(name); it != node_set_id_.end())
-        return it->second;
-    const long long sid = next_set_++;
-    node_set_id_[name] = sid;
-    os_ << "*SET_NODE_LIST_TITLE\n" << name << "\n" << card({id(sid)});
-    const std::vector<index_t>& ids = m_.node_sets.at(name);
     for (std::size_t i = 0; i < ids.size(); i += 8)
     {
         std::string line;
@@ -161,8 +156,18 @@ long long Exporter::node_set(const std::string& name)
                 line += ',';
             line += id(ids[k] + 1);
         }
-        os_ << line << "\n";
+        os << line << "\n";
     }
+}
+
+long long Exporter::node_set(const std::string& name)
+{
+    if (const auto it = node_set_id_.find(name); it != node_set_id_.end())
+        return it->second;
+    const long long sid = next_set_++;
+    node_set_id_[name] = sid;
+    os_ << "*SET_NODE_LIST_TITLE\n" << name << "\n" << card({id(sid)});
+    write_node_ids(os_, m_.node_sets.at(name));
     return sid;
 }
 
@@ -425,17 +430,7 @@ void Exporter::contacts()
                         ids.push_back(n);
             const long long sid = next_set_++;
             os_ << "*SET_NODE_LIST\n" << card({id(sid)});
-            for (std::size_t i = 0; i < ids.size(); i += 8)
-            {
-                std::string line;
-                for (std::size_t k = i; k < std::min(ids.size(), i + 8); ++k)
-                {
-                    if (k > i)
-                        line += ',';
-                    line += id(ids[k] + 1);
-                }
-                os_ << line << "\n";
-            }
+            write_node_ids(os_, ids);
             const Vec3 h = c.point + c.normal;
             os_ << "*RIGIDWALL_PLANAR\n"
                 << card({id(sid)})
