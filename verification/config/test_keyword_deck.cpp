@@ -222,6 +222,67 @@ TEST(KeywordDeck, SetsConditionsAndLoadsLandWhereTheFileSays)
     EXPECT_FALSE(d.loads[0].total);
 }
 
+TEST(KeywordDeck, WhatPublishedDecksWriteIsRead)
+{
+    // what the public decks tried write (ansys/pydyna's Taylor bar, LSTC's projectile example):
+    // a part with a blank heading card, a node set by a box (*SET_NODE_GENERAL, *DEFINE_BOX), a
+    // coordinate system that is the global frame named by ICID, *RIGIDWALL_PLANAR_ID, a contact whose
+    // second and third cards are blank lines (defaults) before its option card (SOFT 1)
+    const KeywordUnits u = keyword_units("mm-ms-kg-kN");
+    std::string cards = taylor_cards(u);
+    cards.replace(cards.find("*PART\ncopper bar\n"), 17, "*PART\n\n");
+    cards.replace(cards.find("*RIGIDWALL_PLANAR\n"), 18, "*RIGIDWALL_PLANAR_ID\n1,floor\n");
+    cards.replace(cards.find("*INITIAL_VELOCITY_GENERATION\n1,2,0,0,0,-227\n"), 43,
+                  "*INITIAL_VELOCITY_GENERATION\n1,2,0,0,0,-227,0,5\n");
+    cards += "*DEFINE_COORDINATE_SYSTEM\n5,0,0,0,1,0,0,0\n0,1,0\n"
+             "*SET_NODE_GENERAL\n1\nBOX,3\n*DEFINE_BOX\n3,-10,10,-10,10,0,0.15\n"
+             "*BOUNDARY_SPC_SET\n1,0,1,1,0\n"
+             "*PART\n\n2,1,1,0,1\n*ELEMENT_SOLID\n"; // a second part, for the contact
+    const std::string path = keyword_file("kw_published.k", u, cards);
+    // the second part: one solid above the bar, on nodes of its own
+    std::string k;
+    {
+        std::ifstream in(path);
+        std::stringstream t;
+        t << in.rdbuf();
+        k = t.str();
+    }
+    k.erase(k.rfind("*END"));
+    k += "1001,2,1001,1002,1003,1004,1005,1006,1007,1008\n*NODE\n1001,-1,-1,14\n1002,1,-1,14\n1003,1,1,14\n"
+         "1004,-1,1,14\n1005,-1,-1,16\n1006,1,-1,16\n1007,1,1,16\n1008,-1,1,16\n"
+         "*CONTACT_AUTOMATIC_SURFACE_TO_SURFACE\n1,2,3,3\n\n\n1,0.2\n*END\n";
+    std::ofstream(path) << k;
+    const KeywordImport im = import_keyword_deck(path, u, false, path);
+    const Deck d = parse_deck(im.yaml, "imported.yaml");
+    ASSERT_EQ(d.parts.size(), 2u);
+    EXPECT_EQ(d.parts[0].name, "part_1"); // no heading: named by its PID
+    EXPECT_EQ(d.parts[0].initial_velocity, Vec3(0, 0, -227));
+    ASSERT_EQ(d.contacts.size(), 2u);
+    EXPECT_EQ(d.contacts[0].kind, ContactSpec::Kind::SurfaceToSurface);
+    EXPECT_TRUE(d.contacts[0].soft);
+    EXPECT_EQ(d.contacts[0].soft_scale, 0.2);
+    EXPECT_EQ(d.contacts[0].mu_static, 0.0);
+    EXPECT_EQ(d.contacts[1].kind, ContactSpec::Kind::RigidWall);
+    Model m = Model::build(d);
+    ASSERT_EQ(m.node_sets.at("nset_1").size(), 9u); // the box holds the bar's bottom layer
+    for (index_t n : m.node_sets.at("nset_1"))
+        EXPECT_DOUBLE_EQ(m.nodes.x0[3 * n + 2], 0.1e-3);
+    // a frame that is not the global one is refused where a field names it
+    std::string rotated = k;
+    rotated.replace(rotated.find("5,0,0,0,1,0,0,0\n0,1,0\n"), 22, "5,0,0,0,0,1,0,0\n1,0,0\n");
+    std::ofstream(path) << rotated;
+    try
+    {
+        import_keyword_deck(path, u, false, path);
+        ADD_FAILURE() << "a rotated frame was taken";
+    }
+    catch (const DeckError& e)
+    {
+        EXPECT_NE(std::string(e.what()).find("ICID: coordinate system 5 is not the global frame"), std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(KeywordDeck, WhatCannotBeTranslatedIsNamedWithItsLine)
 {
     const KeywordUnits u = keyword_units("mm-ms-kg-kN");

@@ -77,7 +77,7 @@ Keyword normalize(const std::string& kw)
         k.base.resize(k.base.size() - 6);
         k.skip = 1;
     }
-    if (k.base.rfind("*CONTACT_", 0) == 0 && ends_with(k.base, "_ID"))
+    if ((k.base.rfind("*CONTACT_", 0) == 0 || k.base.rfind("*RIGIDWALL_", 0) == 0) && ends_with(k.base, "_ID"))
     {
         k.base.resize(k.base.size() - 3);
         k.skip = 1;
@@ -106,6 +106,8 @@ class Cards
 
     std::size_t size() const { return b_.cards.size() > skip_ ? b_.cards.size() - skip_ : 0; }
     bool has(std::size_t card) const { return card < size(); }
+    /// a blank card: every field default (rows of repeated cards skip it)
+    bool blank(std::size_t card) const { return !has(card) || b_.cards[skip_ + card].blank(); }
     std::vector<std::string> fields(std::size_t card, const std::vector<int>& widths = std::vector<int>(8, 10)) const
     {
         return has(card) ? keyword_fields(b_.cards[skip_ + card].text, widths) : std::vector<std::string>{};
@@ -187,6 +189,12 @@ class Importer
     std::vector<std::string> contact_kw_;
     std::map<long long, std::vector<long long>> part_nodes_; // PID -> its solids' NIDs, sorted
     std::map<long long, std::vector<long long>> tc_nodes_;   // *NODE's TC code (1-7) -> its NIDs
+    std::map<long long, std::array<double, 3>> node_x_;      // NID -> coordinates (model units), for boxes
+    std::map<long long, std::array<double, 6>> boxes_;       // *DEFINE_BOX: BOXID -> xmn xmx ymn ymx zmn zmx
+    std::map<long long, bool> global_frames_;                // *DEFINE_COORDINATE_SYSTEM: CID -> is the global frame
+    std::vector<Cards> general_sets_;                        // *SET_NODE_GENERAL, resolved once all is read
+    void resolve_general_sets();
+    void check_frame(const Cards& c, std::size_t card, std::size_t k, const char* field) const;
     // controls
     double end_ = -1.0, tssfac_ = 0.0, d3plot_ = 0.0, glstat_ = 0.0, dtmin_ = 0.0, slsfac_ = 0.0;
     long long endcyc_ = 0, ihq_ = 0;
@@ -271,14 +279,46 @@ void Importer::file(const KeywordBlock& b)
         const std::vector<int> w{8, 16, 16, 16, 8, 8};
         for (std::size_t i = 0; i < c.size(); ++i)
         {
+            if (c.blank(i))
+                continue;
             const double tc = c.number(i, 4, 0.0, "TC", w);
             if (tc != 0.0 && (tc != std::floor(tc) || tc < 0.0 || tc > 7.0))
                 c.fail(i, "TC", "TC " + num(tc) + " is not a constraint code",
                        "expected 0-7 (0 free, 1 x, 2 y, 3 z, "
                        "4 x y, 5 y z, 6 z x, 7 all)");
+            const long long nid = c.integer(i, 0, 0, "NID", w);
             if (tc != 0.0)
-                tc_nodes_[static_cast<long long>(tc)].push_back(c.integer(i, 0, 0, "NID", w));
+                tc_nodes_[static_cast<long long>(tc)].push_back(nid);
+            node_x_[nid] = {c.number(i, 1, 0.0, "X", w), c.number(i, 2, 0.0, "Y", w), c.number(i, 3, 0.0, "Z", w)};
         }
+        return;
+    }
+    if (base == "*DEFINE_BOX")
+    {
+        std::array<double, 6> b{};
+        const char* names[6] = {"XMN", "XMX", "YMN", "YMX", "ZMN", "ZMX"};
+        for (std::size_t k = 0; k < 6; ++k)
+            b[k] = c.number(0, k + 1, 0.0, names[k]);
+        if (!boxes_.emplace(c.integer(0, 0, 0, "BOXID"), b).second)
+            c.fail(0, "BOXID", "box " + std::to_string(c.integer(0, 0, 0, "BOXID")) + " is defined again",
+                   "expected each BOXID once");
+        return;
+    }
+    if (base == "*DEFINE_COORDINATE_SYSTEM")
+    {
+        // accepted where it is the global frame (origin 0, x axis along x, the xy plane through y), which
+        // decks name for no other reason than that a field wants a CID; a rotated frame is refused where used
+        const double o[3] = {c.number(0, 1, 0.0, "XO"), c.number(0, 2, 0.0, "YO"), c.number(0, 3, 0.0, "ZO")};
+        const double l[3] = {c.number(0, 4, 0.0, "XL"), c.number(0, 5, 0.0, "YL"), c.number(0, 6, 0.0, "ZL")};
+        const double p[3] = {c.number(1, 0, 0.0, "XP"), c.number(1, 1, 0.0, "YP"), c.number(1, 2, 0.0, "ZP")};
+        const bool global = o[0] == 0 && o[1] == 0 && o[2] == 0 && l[0] > 0 && l[1] == 0 && l[2] == 0 && p[1] > 0 &&
+                            p[2] == 0 && c.integer(0, 7, 0, "CIDL") == 0;
+        global_frames_[c.integer(0, 0, 0, "CID")] = global;
+        return;
+    }
+    if (base == "*SET_NODE_GENERAL")
+    {
+        general_sets_.push_back(c);
         return;
     }
     if (base == "*KEYWORD" || base == "*ELEMENT_SOLID")
@@ -343,6 +383,79 @@ void Importer::file(const KeywordBlock& b)
                         "and skips the others)");
 }
 
+/// A CID field: 0, or a *DEFINE_COORDINATE_SYSTEM that is the global frame.
+void Importer::check_frame(const Cards& c, std::size_t card, std::size_t k, const char* field) const
+{
+    const long long cid = c.integer(card, k, 0, field);
+    if (cid == 0)
+        return;
+    const auto it = global_frames_.find(cid);
+    if (it == global_frames_.end())
+        c.fail(card, field, "coordinate system " + std::to_string(cid) + " is not defined",
+               "expected 0 or the CID of a *DEFINE_COORDINATE_SYSTEM");
+    if (!it->second)
+        c.fail(card, field, "coordinate system " + std::to_string(cid) + " is not the global frame",
+               "expected 0 or a system whose axes are the global ones (local frames are not supported)");
+}
+
+/// *SET_NODE_GENERAL: the union of its cards' options, ALL (every node), NODE (NIDs), PART (the
+/// parts' solids' nodes) and BOX (the nodes inside *DEFINE_BOXes); the others refused by name.
+void Importer::resolve_general_sets()
+{
+    for (const Cards& c : general_sets_)
+    {
+        const long long sid = c.integer(0, 0, 0, "SID");
+        std::vector<long long> ids;
+        for (std::size_t i = 1; i < c.size(); ++i)
+        {
+            if (c.blank(i))
+                continue;
+            const std::vector<std::string> f = c.fields(i);
+            std::string option = f.empty() ? "" : f[0];
+            std::transform(option.begin(), option.end(), option.begin(),
+                           [](unsigned char ch) { return std::toupper(ch); });
+            for (std::size_t k = 1; k < f.size(); ++k)
+            {
+                const long long e = c.integer(i, k, 0, "E");
+                if (e == 0)
+                    continue;
+                if (option == "NODE")
+                    ids.push_back(e);
+                else if (option == "PART")
+                {
+                    part(e, c, i, "E");
+                    const auto it = part_nodes_.find(e);
+                    if (it != part_nodes_.end())
+                        ids.insert(ids.end(), it->second.begin(), it->second.end());
+                }
+                else if (option == "BOX")
+                {
+                    const auto b = boxes_.find(e);
+                    if (b == boxes_.end())
+                        c.fail(i, "E", "box " + std::to_string(e) + " is not defined",
+                               "expected a *DEFINE_BOX's BOXID");
+                    const auto& x = b->second;
+                    for (const auto& [nid, p] : node_x_)
+                        if (p[0] >= x[0] && p[0] <= x[1] && p[1] >= x[2] && p[1] <= x[3] && p[2] >= x[4] &&
+                            p[2] <= x[5])
+                            ids.push_back(nid);
+                }
+            }
+            if (option == "ALL")
+                for (const auto& [nid, p] : node_x_)
+                    ids.push_back(nid);
+            else if (option != "NODE" && option != "PART" && option != "BOX")
+                c.fail(i, "OPTION", "option '" + option + "' is not supported", "expected ALL, NODE, PART or BOX");
+        }
+        std::sort(ids.begin(), ids.end());
+        ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+        if (ids.empty())
+            c.fail(0, "SID", "set " + std::to_string(sid) + " selects no node", "expected options that select nodes");
+        if (!node_sets_.emplace(sid, ids).second)
+            c.fail(0, "SID", "node set " + std::to_string(sid) + " is defined again", "expected each SID once");
+    }
+}
+
 void Importer::read_part(const Cards& c)
 {
     PartCard p;
@@ -373,6 +486,8 @@ void Importer::read_curve(const Cards& c)
     cv.where = c.where(0);
     for (std::size_t i = 1; i < c.size(); ++i)
     {
+        if (c.blank(i))
+            continue;
         const std::vector<int> w{20, 20};
         const double a = c.number(i, 0, 0.0, "A", w), o = c.number(i, 1, 0.0, "O", w);
         // LS-DYNA: the offsets apply first, then the scales
@@ -395,6 +510,8 @@ void Importer::read_id_list(const Cards& c, std::map<long long, std::vector<long
     for (std::size_t i = 1; i < c.size(); ++i)
     {
         const std::vector<std::string> f = c.fields(i);
+        if (c.blank(i))
+            continue;
         if (generate)
         {
             for (std::size_t k = 0; k + 1 < f.size(); k += 2)
@@ -431,6 +548,8 @@ void Importer::read_segments(const Cards& c)
     std::vector<std::array<long long, 4>> segs;
     for (std::size_t i = 1; i < c.size(); ++i)
     {
+        if (c.blank(i))
+            continue;
         std::array<long long, 4> s{};
         for (std::size_t k = 0; k < 4; ++k)
             s[k] = c.integer(i, k, 0, "N");
@@ -515,6 +634,8 @@ void Importer::read_solids()
         const std::vector<int> w(10, 8);
         for (std::size_t i = 0; i < c.size(); ++i)
         {
+            if (c.blank(i))
+                continue;
             const std::vector<std::string> f = c.fields(i, w);
             const long long pid = c.integer(i, 1, 0, "PID", w);
             std::size_t first = 2;
@@ -1116,8 +1237,7 @@ void Importer::initial_velocities()
     {
         if (c.number(0, 2, 0.0, "OMEGA") != 0.0)
             c.fail(0, "OMEGA", "an initial rotation is not supported", "expected OMEGA 0");
-        if (c.integer(0, 7, 0, "ICID") != 0)
-            c.fail(0, "ICID", "a local coordinate system is not supported", "expected ICID 0");
+        check_frame(c, 0, 7, "ICID");
         const long long id = c.integer(0, 0, 0, "ID"), styp = c.integer(0, 1, 2, "STYP");
         std::vector<long long> pids;
         if (styp == 2)
@@ -1186,7 +1306,8 @@ void Importer::boundary_conditions(std::ostringstream& os)
     };
     for (const Cards& c : spc_sets_)
         for (std::size_t i = 0; i < c.size(); ++i)
-            fixed(c, i, 2, node_set_name(c.integer(i, 0, 0, "NSID"), c, i, "NSID"));
+            if (!c.blank(i))
+                fixed(c, i, 2, node_set_name(c.integer(i, 0, 0, "NSID"), c, i, "NSID"));
     static const char* tc_axes[8] = {"", "x", "y", "z", "x, y", "y, z", "z, x", "x, y, z"};
     for (auto& [tc, nids] : tc_nodes_)
     {
@@ -1198,6 +1319,8 @@ void Importer::boundary_conditions(std::ostringstream& os)
     for (const Cards& c : spc_nodes_)
         for (std::size_t i = 0; i < c.size(); ++i)
         {
+            if (c.blank(i))
+                continue;
             const long long nid = c.integer(i, 0, 0, "NID");
             const std::string name = "spc_node_" + std::to_string(nid);
             extra_node_sets_.push_back({name, {nid}});
@@ -1223,10 +1346,13 @@ void Importer::boundary_conditions(std::ostringstream& os)
     };
     for (const Cards& c : motions_)
         for (std::size_t i = 0; i < c.size(); ++i)
-            motion(c, i, node_set_name(c.integer(i, 0, 0, "NSID"), c, i, "NSID"));
+            if (!c.blank(i))
+                motion(c, i, node_set_name(c.integer(i, 0, 0, "NSID"), c, i, "NSID"));
     for (const Cards& c : motion_nodes_)
         for (std::size_t i = 0; i < c.size(); ++i)
         {
+            if (c.blank(i))
+                continue;
             const long long nid = c.integer(i, 0, 0, "NID");
             const std::string name = "motion_node_" + std::to_string(nid);
             extra_node_sets_.push_back({name, {nid}});
@@ -1245,6 +1371,8 @@ void Importer::loads(std::ostringstream& os)
     for (const Cards& c : node_loads_)
         for (std::size_t i = 0; i < c.size(); ++i)
         {
+            if (c.blank(i))
+                continue;
             const std::string set = node_set_name(c.integer(i, 0, 0, "NSID"), c, i, "NSID");
             const long long dof = c.integer(i, 1, 0, "DOF");
             if (dof < 1 || dof > 3)
@@ -1259,6 +1387,8 @@ void Importer::loads(std::ostringstream& os)
     for (const Cards& c : segment_loads_)
         for (std::size_t i = 0; i < c.size(); ++i)
         {
+            if (c.blank(i))
+                continue;
             const std::string set = segment_set_name(c.integer(i, 0, 0, "SSID"), c, i, "SSID");
             const double sf = c.number(i, 2, 1.0, "SF"), at = c.number(i, 3, 0.0, "AT");
             const Curve& cv = curve(c.integer(i, 1, 0, "LCID"), c, i, "LCID");
@@ -1567,6 +1697,7 @@ KeywordImport Importer::run(const std::string& path)
         file(b);
     read_carried(path);
     read_solids();
+    resolve_general_sets();
     name_parts();
     std::ostringstream body;
     emit(body);

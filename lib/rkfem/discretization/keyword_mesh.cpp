@@ -171,6 +171,8 @@ KeywordCards read_cards(Reader& rd, const GeneratorSpec& g, const std::vector<Ke
         PendingSolid p;
         for (const KeywordCard& c : b.cards)
         {
+            if (c.blank())
+                continue;
             rd.line = c.line;
             if (node)
                 read_node_card(rd, g, c.text, cards);

@@ -51,7 +51,7 @@ void read_file(const std::string& path, const std::string& included_at, std::vec
         ++line;
         if (!text.empty() && text.back() == '\r')
             text.pop_back();
-        if (text.empty() || text[0] == '$')
+        if (!text.empty() && text[0] == '$')
             continue;
         if (text[0] == '*')
         {
@@ -73,7 +73,13 @@ void read_file(const std::string& path, const std::string& included_at, std::vec
             continue;
         }
         if (trim(text).empty())
+        {
+            // a blank card is a card (all its fields default: a part's empty heading, a contact's
+            // default second card); before any keyword, or where a file name is due, it is nothing
+            if (!out.empty() && !in_include)
+                out.back().cards.push_back({"", line});
             continue;
+        }
         if (in_include)
         {
             in_include = false;
@@ -107,9 +113,14 @@ std::vector<KeywordBlock> read_keyword_blocks(const std::string& path)
     std::vector<KeywordBlock> out;
     std::vector<std::string> open;
     read_file(path, "", open, out);
-    // the empty markers after includes, with no cards, are dropped
+    // the markers after includes, holding no card or only blank ones, are dropped
     out.erase(std::remove_if(out.begin(), out.end(),
-                             [](const KeywordBlock& b) { return b.keyword == "*INCLUDE" && b.cards.empty(); }),
+                             [](const KeywordBlock& b)
+                             {
+                                 return b.keyword == "*INCLUDE" &&
+                                        std::all_of(b.cards.begin(), b.cards.end(),
+                                                    [](const KeywordCard& c) { return c.blank(); });
+                             }),
               out.end());
     return out;
 }

@@ -7,7 +7,9 @@
 /// upper-cased, options and all: `*CONTACT_AUTOMATIC_SURFACE_TO_SURFACE_ID`; what follows it on
 /// the line, "*KEYWORD 100m" or "*ELEMENT_SOLID (ten nodes format)", is not read) and holds the
 /// lines up to the next keyword.
-/// Lines starting with '$' are comments; blank lines are dropped; `*END` ends a file.
+/// Lines starting with '$' are comments; a blank line inside a block is a card whose fields all
+/// default (LS-DYNA reads it so: an empty part heading, a default contact card), and readers of
+/// repeated rows skip it; `*END` ends a file.
 /// `*INCLUDE` is followed where it stands: its next card names a file, relative to the folder of
 /// the file that includes it (LS-DYNA's default search), read in place; a file that includes
 /// itself, directly or not, is an error. Every card remembers its file and line.
@@ -20,6 +22,7 @@ struct KeywordCard
 {
     std::string text; ///< the line, without its line end
     int line = 0;     ///< 1-based line in `file`
+    bool blank() const { return text.find_first_not_of(" \t\r") == std::string::npos; }
 };
 
 struct KeywordBlock
