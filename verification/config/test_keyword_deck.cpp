@@ -459,6 +459,24 @@ TEST(KeywordDeck, ExampleDecksRoundTripThroughKeywordsToTheBit)
               11); // bar_erosion, cantilever, column_wave(_rkpm), concrete_bar_cscm/kcc, p1, p2, p3, p6, taylor_bar
 }
 
+TEST(KeywordDeck, AnImportedDeckExportsAndImportsBackToTheBit)
+{
+    // keywords in, keywords out, keywords in: the Taylor bar written in mm-ms-kg-kN, imported, its
+    // model exported (m-s-kg-N, 17 digits) and imported again runs its first 20 steps bit for bit
+    const KeywordUnits u = keyword_units("mm-ms-kg-kN");
+    const std::string path = keyword_file("kw_in_out_in.k", u, taylor_cards(u));
+    const std::vector<std::string> steps = {"time.max_steps=20"};
+    const Deck first = parse_deck(import_keyword_deck(path, u, false, path).yaml, path + " (imported)", steps);
+    const std::string again = (std::filesystem::temp_directory_path() / "kw_in_out_in_again.k").string();
+    std::ofstream(again) << export_keyword_deck(Model::build(first));
+    const Deck second = parse_deck(import_keyword_deck(again, keyword_units("m-s-kg-N"), false, again).yaml,
+                                   again + " (imported)", steps);
+    EXPECT_EQ(second.parts[0].material.rho, first.parts[0].material.rho);
+    EXPECT_EQ(second.parts[0].material.sigy, first.parts[0].material.sigy);
+    EXPECT_EQ(second.time.end, first.time.end);
+    EXPECT_EQ(first_steps(first), first_steps(second));
+}
+
 TEST(KeywordDeck, TheDriverImportsChecksAndRunsAKeywordDeck)
 {
     const KeywordUnits u = keyword_units("mm-ms-kg-kN");
