@@ -226,7 +226,8 @@ TEST(KeywordDeck, WhatPublishedDecksWriteIsRead)
 {
     // what the public decks tried write (ansys/pydyna's Taylor bar, LSTC's projectile example):
     // a part with a blank heading card, a node set by a box (*SET_NODE_GENERAL, *DEFINE_BOX), a
-    // coordinate system that is the global frame named by ICID, *RIGIDWALL_PLANAR_ID, a contact whose
+    // coordinate system that is the global frame named by ICID, *CONSTRAINED_GLOBAL symmetry planes
+    // (the SHPB decks of constantinoval/pythonScripts), *RIGIDWALL_PLANAR_ID, a contact whose
     // second and third cards are blank lines (defaults) before its option card (SOFT 1)
     const KeywordUnits u = keyword_units("mm-ms-kg-kN");
     std::string cards = taylor_cards(u);
@@ -237,7 +238,8 @@ TEST(KeywordDeck, WhatPublishedDecksWriteIsRead)
     cards += "*DEFINE_COORDINATE_SYSTEM\n5,0,0,0,1,0,0,0\n0,1,0\n"
              "*SET_NODE_GENERAL\n1\nBOX,3\n*DEFINE_BOX\n3,-10,10,-10,10,0,0.15\n"
              "*BOUNDARY_SPC_SET\n1,0,1,1,0\n"
-             "*PART\n\n2,1,1,0,1\n*ELEMENT_SOLID\n"; // a second part, for the contact
+             "*CONSTRAINED_GLOBAL\n1,0,1,0,0,0\n3,0,3,0,0,0.1\n" // symmetry planes x = 0 and z = 0.1 mm
+             "*PART\n\n2,1,1,0,1\n*ELEMENT_SOLID\n";             // a second part, for the contact
     const std::string path = keyword_file("kw_published.k", u, cards);
     // the second part: one solid above the bar, on nodes of its own
     std::string k;
@@ -265,6 +267,12 @@ TEST(KeywordDeck, WhatPublishedDecksWriteIsRead)
     EXPECT_EQ(d.contacts[1].kind, ContactSpec::Kind::RigidWall);
     Model m = Model::build(d);
     ASSERT_EQ(m.node_sets.at("nset_1").size(), 9u); // the box holds the bar's bottom layer
+    // the symmetry planes: the bar's 27 nodes at x = 0 held in x, its 9 at z = 0.1 mm in z
+    ASSERT_EQ(m.node_sets.at("constrained_global_1").size(), 27u);
+    ASSERT_EQ(m.node_sets.at("constrained_global_2").size(), 9u);
+    ASSERT_EQ(d.boundary_conditions.size(), 3u);
+    EXPECT_EQ(d.boundary_conditions[1].active, (std::array<bool, 3>{true, false, false}));
+    EXPECT_EQ(d.boundary_conditions[2].active, (std::array<bool, 3>{false, false, true}));
     for (index_t n : m.node_sets.at("nset_1"))
         EXPECT_DOUBLE_EQ(m.nodes.x0[3 * n + 2], 0.1e-3);
     // a frame that is not the global one is refused where a field names it

@@ -193,6 +193,8 @@ class Importer
     std::map<long long, std::array<double, 6>> boxes_;       // *DEFINE_BOX: BOXID -> xmn xmx ymn ymx zmn zmx
     std::map<long long, bool> global_frames_;                // *DEFINE_COORDINATE_SYSTEM: CID -> is the global frame
     std::vector<Cards> general_sets_;                        // *SET_NODE_GENERAL, resolved once all is read
+    std::vector<Cards> global_constraints_;                  // *CONSTRAINED_GLOBAL
+    std::vector<std::string> plane_sets_;                    // their node sets (plane selectors), as deck lines
     void resolve_general_sets();
     void check_frame(const Cards& c, std::size_t card, std::size_t k, const char* field) const;
     // controls
@@ -319,6 +321,11 @@ void Importer::file(const KeywordBlock& b)
     if (base == "*SET_NODE_GENERAL")
     {
         general_sets_.push_back(c);
+        return;
+    }
+    if (base == "*CONSTRAINED_GLOBAL")
+    {
+        global_constraints_.push_back(c);
         return;
     }
     if (base == "*KEYWORD" || base == "*ELEMENT_SOLID")
@@ -1309,6 +1316,31 @@ void Importer::boundary_conditions(std::ostringstream& os)
             if (!c.blank(i))
                 fixed(c, i, 2, node_set_name(c.integer(i, 0, 0, "NSID"), c, i, "NSID"));
     static const char* tc_axes[8] = {"", "x", "y", "z", "x, y", "y, z", "z, x", "x, y, z"};
+    // *CONSTRAINED_GLOBAL: the nodes on a plane normal to an axis (symmetry planes), by TC's code
+    for (const Cards& c : global_constraints_)
+        for (std::size_t i = 0; i < c.size(); ++i)
+        {
+            if (c.blank(i))
+                continue;
+            const long long tc = c.integer(i, 0, 0, "TC"), dir = c.integer(i, 2, 0, "DIR");
+            if (tc < 0 || tc > 7)
+                c.fail(i, "TC", "TC " + std::to_string(tc) + " is not a constraint code",
+                       "expected 0-7 (as *NODE's TC)");
+            if (dir < 1 || dir > 3)
+                c.fail(i, "DIR", "DIR " + std::to_string(dir) + " is not an axis", "expected 1, 2 or 3 (x, y, z)");
+            if (c.integer(i, 1, 0, "RC") != 0)
+                note(c.where(i), "RC (rotational constraints) does not apply to solids' nodes");
+            if (tc == 0)
+                continue;
+            const double p[3] = {c.number(i, 3, 0.0, "X"), c.number(i, 4, 0.0, "Y"), c.number(i, 5, 0.0, "Z")};
+            const double tol = c.number(i, 6, 0.0, "TOL");
+            const std::string name = "constrained_global_" + std::to_string(i + 1);
+            std::string normal = dir == 1 ? "[1, 0, 0]" : dir == 2 ? "[0, 1, 0]" : "[0, 0, 1]";
+            plane_sets_.push_back("  " + name + ": {select: {type: plane, point: [" + q(p[0], kLength) + ", " +
+                                  q(p[1], kLength) + ", " + q(p[2], kLength) + "], normal: " + normal +
+                                  (tol > 0.0 ? ", tolerance: " + q(tol, kLength) : std::string()) + "}}");
+            lines.push_back("  - {node_set: " + name + ", fixed: [" + tc_axes[tc] + "]}");
+        }
     for (auto& [tc, nids] : tc_nodes_)
     {
         std::sort(nids.begin(), nids.end());
@@ -1639,9 +1671,11 @@ void Importer::emit(std::ostringstream& os)
     boundary_conditions(rest);
     loads(rest);
     contacts(rest);
-    if (!used_node_sets_.empty() || !extra_node_sets_.empty())
+    if (!used_node_sets_.empty() || !extra_node_sets_.empty() || !plane_sets_.empty())
     {
         os << "node_sets:\n";
+        for (const std::string& l : plane_sets_)
+            os << l << "\n";
         for (long long sid : used_node_sets_)
         {
             os << "  nset_" << sid << ": {select: {type: ids, ids: [";
