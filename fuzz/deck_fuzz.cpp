@@ -56,10 +56,6 @@ int keyword_input(const std::string& text)
     {
         check_message(e.what());
     }
-    catch (const rkfem::Error& e)
-    {
-        check_message(e.what());
-    }
     return 0;
 }
 

@@ -441,17 +441,8 @@ int study_command(const Args& a)
 /// approximately and what was skipped on standard error. Throws DeckError.
 std::string import_keyword(const Args& a, const std::string& mesh_file)
 {
-    rkfem::KeywordUnits units;
-    try
-    {
-        units = rkfem::keyword_units(a.units);
-    }
-    catch (const rkfem::Error& e)
-    {
-        throw rkfem::DeckError({"--units", a.units}, std::string(e.what()).substr(0, std::string(e.what()).find("; ")),
-                               std::string(e.what()).substr(std::string(e.what()).find("; ") + 2));
-    }
-    const rkfem::KeywordImport im = rkfem::import_keyword_deck(a.deck_path, units, a.allow_unsupported, mesh_file);
+    const rkfem::KeywordImport im =
+        rkfem::import_keyword_deck(a.deck_path, rkfem::keyword_units(a.units), a.allow_unsupported, mesh_file);
     if (!a.quiet)
     {
         for (const std::string& n : im.notes)

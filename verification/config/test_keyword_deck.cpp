@@ -327,7 +327,7 @@ TEST(KeywordDeck, WhatCannotBeTranslatedIsNamedWithItsLine)
     // two parts on one node: rkfem parts are separate meshes
     const std::string shared = base + "*ELEMENT_SOLID\n100,2,1,2,5,4,10,11,14,13\n*PART\nother\n2,1,1\n";
     expect(import_error("kw_shared.k", shared), "*ELEMENT_SOLID N", "belongs to solids of parts");
-    EXPECT_THROW(keyword_units("furlong-fortnight"), Error);
+    EXPECT_THROW(keyword_units("furlong-fortnight"), DeckError);
 }
 
 TEST(KeywordDeck, UserSetKccParametersComeThroughAsWritten)

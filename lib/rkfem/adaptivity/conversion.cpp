@@ -118,51 +118,65 @@ void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
     plan_assembly();
 }
 
-index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
+index_t Model::flip_elements(index_t part, const std::vector<char>& flags, bool to_rk, const char* caller)
 {
-    RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), "convert_elements: no part " << part);
+    RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), caller << ": no part " << part);
     const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
     RKFEM_REQUIRE(ps.coupled() && ps.formulation == Formulation::FemNodal,
-                  "convert_elements: part '" << ps.name << "' is not a fem-nodal part with regions or conversion");
+                  caller << ": part '" << ps.name << "' is not a fem-nodal part with regions or conversion");
     std::vector<char> rk = rk_elements_[static_cast<std::size_t>(part)];
-    RKFEM_REQUIRE(convert.size() == rk.size(), "convert_elements: " << convert.size() << " flags for " << rk.size()
-                                                                    << " elements of part '" << ps.name << "'");
-    index_t added = 0;
+    RKFEM_REQUIRE(flags.size() == rk.size(), caller << ": " << flags.size() << " flags for " << rk.size()
+                                                    << " elements of part '" << ps.name << "'");
+    index_t changed = 0;
     for (std::size_t e = 0; e < rk.size(); ++e)
-        if (convert[e] && !rk[e])
+        if (flags[e] && bool(rk[e]) != to_rk)
         {
-            rk[e] = 1;
-            ++added;
+            rk[e] = to_rk ? 1 : 0;
+            ++changed;
         }
-    if (added == 0)
-        return 0;
-    set_rk_elements(part, rk);
+    if (changed > 0)
+        set_rk_elements(part, rk);
+    return changed;
+}
+
+index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
+{
+    const index_t added = flip_elements(part, convert, true, "convert_elements");
     converted_elements_ += added;
     return added;
 }
 
 index_t Model::revert_elements(index_t part, const std::vector<char>& revert)
 {
-    RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), "revert_elements: no part " << part);
-    const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
-    RKFEM_REQUIRE(ps.coupled() && ps.formulation == Formulation::FemNodal,
-                  "revert_elements: part '" << ps.name << "' is not a fem-nodal part with regions or conversion");
-    std::vector<char> rk = rk_elements_[static_cast<std::size_t>(part)];
-    RKFEM_REQUIRE(revert.size() == rk.size(), "revert_elements: " << revert.size() << " flags for " << rk.size()
-                                                                  << " elements of part '" << ps.name << "'");
-    index_t back = 0;
-    for (std::size_t e = 0; e < rk.size(); ++e)
-        if (revert[e] && rk[e])
-        {
-            rk[e] = 0;
-            ++back;
-        }
-    if (back == 0)
-        return 0;
-    set_rk_elements(part, rk);
+    const index_t back = flip_elements(part, revert, false, "revert_elements");
     reverted_elements_ += back;
     return back;
 }
+
+namespace
+{
+/// One layer of node neighbours: each element for which `take(e)` says yes and that shares a node with an
+/// element of `from` (flags per element of the part) is handed to `mark(e)`; `marked` is scratch.
+template <class Take, class Mark>
+void node_neighbour_layer(const std::vector<index_t>& conn, index_t node_begin, index_t n_nodes,
+                          const std::vector<char>& from, std::vector<char>& marked, Take&& take, Mark&& mark)
+{
+    const std::size_t ne = from.size();
+    marked.assign(static_cast<std::size_t>(n_nodes), 0);
+    for (std::size_t e = 0; e < ne; ++e)
+        if (from[e])
+            for (int a = 0; a < 8; ++a)
+                marked[static_cast<std::size_t>(conn[8 * e + a] - node_begin)] = 1;
+    for (std::size_t e = 0; e < ne; ++e)
+        if (take(e))
+            for (int a = 0; a < 8; ++a)
+                if (marked[static_cast<std::size_t>(conn[8 * e + a] - node_begin)])
+                {
+                    mark(e);
+                    break;
+                }
+}
+} // namespace
 
 void Model::reversion_flags(index_t part, std::vector<char>& revert) const
 {
@@ -173,14 +187,14 @@ void Model::reversion_flags(index_t part, std::vector<char>& revert) const
     const PartInfo& info = parts[static_cast<std::size_t>(part)];
     const std::size_t ne = rk.size();
     // elements RK by a region of the deck stay RK
-    const std::vector<char> region =
-        ps.regions.empty() ? std::vector<char>(ne, 0) : rk_region_elements(ps, part_mesh(part));
+    const std::vector<char>& region = region_elements_[static_cast<std::size_t>(part)];
     // benign: RK, by a conversion, meeting none of its criteria and every revert measure
     revert.assign(ne, 0);
     parallel_for_any("rkfem::reversion_criteria", static_cast<index_t>(ne),
                      [&](index_t e)
                      {
-                         if (!rk[e] || region[e] || meets(c, part, e) || !benign(c.revert, part, e))
+                         if (!rk[e] || (!region.empty() && region[e]) || meets(c, part, e) ||
+                             !benign(c.revert, part, e))
                              return false;
                          revert[e] = 1;
                          return true;
@@ -191,21 +205,9 @@ void Model::reversion_flags(index_t part, std::vector<char>& revert) const
         keep[e] = rk[e] && !revert[e];
     std::vector<char> marked;
     for (int layer = 0; layer < c.buffer; ++layer)
-    {
-        marked.assign(static_cast<std::size_t>(info.node_end - info.node_begin), 0);
-        for (std::size_t e = 0; e < ne; ++e)
-            if (keep[e])
-                for (int a = 0; a < 8; ++a)
-                    marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)] = 1;
-        for (std::size_t e = 0; e < ne; ++e)
-            if (revert[e] && !keep[e])
-                for (int a = 0; a < 8; ++a)
-                    if (marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)])
-                    {
-                        keep[e] = 1;
-                        break;
-                    }
-    }
+        node_neighbour_layer(
+            conn, info.node_begin, info.node_end - info.node_begin, keep, marked,
+            [&](std::size_t e) { return revert[e] && !keep[e]; }, [&](std::size_t e) { keep[e] = 1; });
     for (std::size_t e = 0; e < ne; ++e)
         revert[e] = revert[e] && !keep[e];
 }
@@ -222,21 +224,9 @@ void Model::buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<c
     // (1: triggered, 2: buffer)
     std::vector<char> marked;
     for (int layer = 0; layer < c.buffer; ++layer)
-    {
-        marked.assign(static_cast<std::size_t>(info.node_end - info.node_begin), 0);
-        for (std::size_t e = 0; e < ne; ++e)
-            if (convert[e])
-                for (int a = 0; a < 8; ++a)
-                    marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)] = 1;
-        for (std::size_t e = 0; e < ne; ++e)
-            if (!convert[e] && !rk[e])
-                for (int a = 0; a < 8; ++a)
-                    if (marked[static_cast<std::size_t>(conn[8 * e + a] - info.node_begin)])
-                    {
-                        convert[e] = 2;
-                        break;
-                    }
-    }
+        node_neighbour_layer(
+            conn, info.node_begin, info.node_end - info.node_begin, convert, marked,
+            [&](std::size_t e) { return !convert[e] && !rk[e]; }, [&](std::size_t e) { convert[e] = 2; });
     // the cap: the triggered ones first, then the buffer's, each in element order
     std::int64_t left = c.max_per_event > 0 ? c.max_per_event : std::numeric_limits<std::int64_t>::max();
     for (const char kind : {char{1}, char{2}})

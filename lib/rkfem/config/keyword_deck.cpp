@@ -183,7 +183,6 @@ class Importer
     std::map<long long, Curve> curves_;
     std::map<long long, std::vector<long long>> node_sets_, part_sets_;
     std::map<long long, std::vector<std::array<long long, 4>>> segment_sets_;
-    std::map<long long, std::string> node_set_where_, part_set_where_, segment_set_where_; // SID -> FILE:LINE
     std::vector<Cards> spc_sets_, spc_nodes_, motions_, motion_nodes_, node_loads_, segment_loads_, contacts_, walls_,
         velocity_gens_, velocities_;
     std::vector<std::string> contact_kw_;
@@ -216,19 +215,23 @@ class Importer
     {
         return std::pow(u_.mass, d.m) * std::pow(u_.length, d.l) * std::pow(u_.time, d.t);
     }
+    /// a value in model units in SI: as written where the system is SI (every digit), else rounded
+    double si(double v, const Dim& d) const
+    {
+        const double sc = scale(d);
+        return sc == 1.0 ? v : rounded(v * sc);
+    }
     /// a value in model units as deck text: SI with its unit
     std::string q(double v, const Dim& d) const
     {
-        const double sc = scale(d);
-        const std::string n = num(sc == 1.0 ? v : rounded(v * sc)); // SI input: as written, every digit
+        const std::string n = num(si(v, d));
         return d.unit[0] ? n + " " + d.unit : n;
     }
     void note(const std::string& where, const std::string& what) { out_.notes.push_back(where + ": " + what); }
     void file(const KeywordBlock& b);
     void read_part(const Cards& c);
     void read_curve(const Cards& c);
-    void read_id_list(const Cards& c, std::map<long long, std::vector<long long>>& sets,
-                      std::map<long long, std::string>& where, bool generate);
+    void read_id_list(const Cards& c, std::map<long long, std::vector<long long>>& sets, bool generate);
     void read_segments(const Cards& c);
     void read_controls(const std::string& base, const Cards& c);
     void read_solids();
@@ -240,13 +243,14 @@ class Importer
     std::vector<long long> whole_parts(const std::vector<long long>& nids, const Cards& c, std::size_t card,
                                        const char* field) const;
     std::string time_function(const Curve& cv, double sf, double shift, const Dim& d) const;
-    std::string material(const PartCard& p, std::string& formulation_note);
+    std::string material(const PartCard& p);
     std::string j2_from_plastic_kinematic(const Cards& c, const PartCard& p);
     std::string j2_from_piecewise(const Cards& c, const PartCard& p);
     std::string j2_from_johnson_cook(const Cards& c, const PartCard& p);
     std::string eos(const PartCard& p, const Cards& at);
     std::string concrete(const std::string& base, const Cards& c, const PartCard& p);
     std::string kcc_user_set(const Cards& c, const PartCard& p, double rho, double pr);
+    std::string rate_effects(const Cards& c);
     std::string erosion(long long mid);
     void hourglass(const PartCard& p, const std::string& formulation, std::ostringstream& os);
     std::string formulation(const PartCard& p);
@@ -350,9 +354,9 @@ void Importer::file(const KeywordBlock& b)
     else if (base == "*DEFINE_CURVE")
         read_curve(c);
     else if (base == "*SET_NODE_LIST" || base == "*SET_NODE_LIST_GENERATE")
-        read_id_list(c, node_sets_, node_set_where_, base == "*SET_NODE_LIST_GENERATE");
+        read_id_list(c, node_sets_, base == "*SET_NODE_LIST_GENERATE");
     else if (base == "*SET_PART_LIST")
-        read_id_list(c, part_sets_, part_set_where_, false);
+        read_id_list(c, part_sets_, false);
     else if (base == "*SET_SEGMENT")
         read_segments(c);
     else if (base == "*BOUNDARY_SPC_SET")
@@ -509,8 +513,7 @@ void Importer::read_curve(const Cards& c)
         c.fail(0, "LCID", "curve " + std::to_string(id) + " is defined again", "expected each LCID once");
 }
 
-void Importer::read_id_list(const Cards& c, std::map<long long, std::vector<long long>>& sets,
-                            std::map<long long, std::string>& where, bool generate)
+void Importer::read_id_list(const Cards& c, std::map<long long, std::vector<long long>>& sets, bool generate)
 {
     const long long sid = c.integer(0, 0, 0, "SID");
     std::vector<long long> ids;
@@ -546,7 +549,6 @@ void Importer::read_id_list(const Cards& c, std::map<long long, std::vector<long
         c.fail(0, "SID", "set " + std::to_string(sid) + " is empty", "expected at least one ID");
     if (!sets.emplace(sid, ids).second)
         c.fail(0, "SID", "set " + std::to_string(sid) + " is defined again", "expected each SID once per set kind");
-    where[sid] = c.where(0);
 }
 
 void Importer::read_segments(const Cards& c)
@@ -571,7 +573,6 @@ void Importer::read_segments(const Cards& c)
         c.fail(0, "SID", "segment set " + std::to_string(sid) + " is empty", "expected at least one segment");
     if (!segment_sets_.emplace(sid, segs).second)
         c.fail(0, "SID", "segment set " + std::to_string(sid) + " is defined again", "expected each SID once");
-    segment_set_where_[sid] = c.where(0);
 }
 
 void Importer::read_controls(const std::string& base, const Cards& c)
@@ -772,9 +773,7 @@ std::string Importer::time_function(const Curve& cv, double sf, double shift, co
     os << "{curve: [";
     for (std::size_t i = 0; i < cv.x.size(); ++i)
     {
-        const double t = (cv.x[i] + shift) * u_.time, y = cv.y[i] * scale(d);
-        os << (i ? ", " : "") << "[" << num(u_.time == 1.0 ? t : rounded(t)) << ", "
-           << num(scale(d) == 1.0 ? y : rounded(y)) << "]";
+        os << (i ? ", " : "") << "[" << num(si(cv.x[i] + shift, kTime)) << ", " << num(si(cv.y[i], d)) << "]";
     }
     os << "]";
     if (sf != 1.0)
@@ -972,7 +971,6 @@ std::string Importer::kcc_user_set(const Cards& c, const PartCard& p, double rho
         c.fail(1, "A1", "the maximum surface a0 + p / (a1 + a2 p) has a1 <= 0 or a2 < 0",
                "expected a0 > 0, a1 > 0, a2 >= 0 (user-set K&C)");
     // f'c on the maximum surface in uniaxial compression (p = f'c / 3): a contraction from 3 a0
-    const double s = scale(kStress);
     double fc = 3.0 * a0;
     for (int it = 0; it < 500; ++it)
     {
@@ -1023,26 +1021,32 @@ std::string Importer::kcc_user_set(const Cards& c, const PartCard& p, double rho
     os << ", eos: {strain: " << row(1, "EV", kNone, true) << ", pressure: " << row(3, "C", kStress, false)
        << ", unload_bulk: " << row(7, "K", kStress, false) << "}";
     if (k1 > 0.0)
-        os << ", E: " << num(rounded(3.0 * k1 * s * (1.0 - 2.0 * pr)));
+        os << ", E: " << num(si(3.0 * k1 * (1.0 - 2.0 * pr), kStress));
     os << ", fracture_energy: 0";
-    if (const long long lcrate = c.integer(2, 5, 0, "LCRATE"); lcrate == 0)
-        os << ", rate_effects: false";
-    else if (lcrate == -1)
-        os << ", rate_effects: true";
-    else
-    {
-        const Curve& cv = curve(lcrate, c, 2, "LCRATE");
-        os << ", rate_effects: {curve: [";
-        for (std::size_t i = 0; i < cv.x.size(); ++i)
-            os << (i ? ", " : "") << "[" << num(scale(kRate) == 1.0 ? cv.x[i] : rounded(cv.x[i] * scale(kRate))) << ", "
-               << num(cv.y[i]) << "]";
-        os << "]}";
-    }
-    os << "}";
+    os << rate_effects(c) << "}";
     note(c.where(1), "user-set K&C: f'c " + q(fc, kStress) + " from the maximum surface in uniaxial compression, E " +
                          "from the EOS's first unloading bulk modulus, b2 as given (fracture_energy 0: no crack-band "
                          "scaling)");
     return os.str();
+}
+
+/// MAT_072R3's LCRATE as the kcc material's rate_effects: 0 none, -1 rkfem's default law, else the curve.
+std::string Importer::rate_effects(const Cards& c)
+{
+    const long long lcrate = c.integer(2, 5, 0, "LCRATE");
+    if (lcrate == 0)
+        return ", rate_effects: false";
+    if (lcrate == -1)
+    {
+        note(c.where(2), "LCRATE -1 (LS-DYNA's built-in rate curve) is run with rkfem's default rate law "
+                         "(CEB-FIP compression, Malvar-Ross tension, capped; docs/user/decks.md, rate_effects)");
+        return ", rate_effects: true";
+    }
+    const Curve& cv = curve(lcrate, c, 2, "LCRATE");
+    std::string out = ", rate_effects: {curve: [";
+    for (std::size_t i = 0; i < cv.x.size(); ++i)
+        out += (i ? ", [" : "[") + num(si(cv.x[i], kRate)) + ", " + num(cv.y[i]) + "]";
+    return out + "]}";
 }
 
 std::string Importer::concrete(const std::string& base, const Cards& c, const PartCard& p)
@@ -1059,24 +1063,7 @@ std::string Importer::concrete(const std::string& base, const Cards& c, const Pa
         os << "{model: kcc, rho: " << q(rho, kDensity) << ", fc: " << q(-a0, kStress);
         if (pr != 0.0)
             os << ", nu: " << num(pr);
-        const long long lcrate = c.integer(2, 5, 0, "LCRATE");
-        if (lcrate == 0)
-            os << ", rate_effects: false";
-        else if (lcrate == -1)
-        {
-            os << ", rate_effects: true";
-            note(c.where(2), "LCRATE -1 (LS-DYNA's built-in rate curve) is run with rkfem's default rate law "
-                             "(CEB-FIP compression, Malvar-Ross tension, capped; docs/user/decks.md, rate_effects)");
-        }
-        else
-        {
-            const Curve& cv = curve(lcrate, c, 2, "LCRATE");
-            os << ", rate_effects: {curve: [";
-            for (std::size_t i = 0; i < cv.x.size(); ++i)
-                os << (i ? ", " : "") << "[" << num(scale(kRate) == 1.0 ? cv.x[i] : rounded(cv.x[i] * scale(kRate)))
-                   << ", " << num(cv.y[i]) << "]";
-            os << "]}";
-        }
+        os << rate_effects(c);
         if (c.number(2, 6, 0.0, "LOCWIDTH") != 0.0)
             note(c.where(2), "LOCWIDTH is not read: rkfem's K&C scales softening by the element size (crack band) with "
                              "fracture_energy");
@@ -1150,7 +1137,7 @@ std::string Importer::erosion(long long mid)
     return sep.empty() ? "" : os.str();
 }
 
-std::string Importer::material(const PartCard& p, std::string& extra)
+std::string Importer::material(const PartCard& p)
 {
     const auto it = materials_.find(p.mid);
     if (it == materials_.end())
@@ -1178,7 +1165,6 @@ std::string Importer::material(const PartCard& p, std::string& extra)
         return j2_from_johnson_cook(c, p);
     if (p.eosid != 0 && !(base == "*MAT_CONCRETE_DAMAGE_REL3" && c.number(1, 1, 0.0, "A0") > 0.0))
         note(p.where, "EOSID " + std::to_string(p.eosid) + " is not read: the concrete models generate their own EOS");
-    extra = "";
     return concrete(base, c, p);
 }
 
@@ -1642,8 +1628,7 @@ void Importer::emit(std::ostringstream& os)
             throw DeckError({p.where, "*PART PID"}, "part " + std::to_string(p.pid) + " has no *ELEMENT_SOLID solids",
                             "expected 8-node solids of each part (shells, beams and others are not supported)");
         std::string f = formulation(p);
-        std::string extra;
-        const std::string mat = material(p, extra);
+        const std::string mat = material(p);
         os << "  " << p.name << ":\n";
         os << "    generator: {type: keyword, file: \"" << mesh_file_ << "\", unit: " << u_.length_unit
            << ", pid: " << p.pid << "}\n";
@@ -1712,21 +1697,7 @@ void Importer::emit(std::ostringstream& os)
 
 KeywordImport Importer::run(const std::string& path)
 {
-    try
-    {
-        blocks_ = read_keyword_blocks(path);
-    }
-    catch (const DeckError&)
-    {
-        throw;
-    }
-    catch (const Error& e)
-    {
-        const std::string what = e.what();
-        const auto k = what.find("; expected ");
-        throw DeckError({path, "(keyword file)"}, what.substr(0, k),
-                        k == std::string::npos ? "expected a readable keyword file" : what.substr(k + 2));
-    }
+    blocks_ = read_keyword_blocks(path, {path, "(keyword file)"});
     for (const KeywordBlock& b : blocks_)
         file(b);
     read_carried(path);
@@ -1766,7 +1737,7 @@ KeywordUnits keyword_units(const std::string& name)
             return u;
         names += (names.empty() ? "" : ", ") + u.name;
     }
-    throw Error("--units " + name + " is not a known unit system; expected one of " + names);
+    throw DeckError({"--units", name}, "--units " + name + " is not a known unit system", "expected one of " + names);
 }
 
 bool is_keyword_deck(const std::string& path)

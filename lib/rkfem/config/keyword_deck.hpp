@@ -36,7 +36,7 @@ struct KeywordUnits
 };
 
 /// The named systems (m-s-kg-N, mm-ms-kg-kN, mm-s-t-N, mm-ms-g-N, cm-us-g-Mbar, in-s-lbf-s2/in-lbf,
-/// ft-s-slug-lbf). Throws rkfem::Error listing them for another name.
+/// ft-s-slug-lbf). Throws DeckError (at `--units`) listing them for another name.
 KeywordUnits keyword_units(const std::string& name);
 
 struct KeywordImport

@@ -272,19 +272,7 @@ void check_corners(Reader& rd, const std::vector<Solid>& solids, const HexMesh& 
 HexMesh read_keyword_mesh(const GeneratorSpec& g)
 {
     Reader rd{g, {g.loc.where, g.loc.path + ".file"}, 0, {}};
-    std::vector<KeywordBlock> blocks;
-    try
-    {
-        blocks = read_keyword_blocks(g.mesh_file);
-    }
-    catch (const Error& e)
-    {
-        // "FILE[:LINE]: problem; expected ..." from the block reader
-        const std::string what = e.what();
-        const auto k = what.find("; expected ");
-        throw DeckError(rd.where, what.substr(0, k),
-                        k == std::string::npos ? "expected a readable keyword file" : what.substr(k + 2));
-    }
+    const std::vector<KeywordBlock> blocks = read_keyword_blocks(g.mesh_file, rd.where);
     const KeywordCards cards = read_cards(rd, g, blocks);
     rd.line = 0;
     rd.file.clear();

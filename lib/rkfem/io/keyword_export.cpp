@@ -107,11 +107,13 @@ std::string Exporter::carried() const
     const TimeSpec def;
     const TimeSpec& t = d_.time;
     const YAML::Node time = r["time"];
-    for (const char* key : {"stepper", "dt_max", "energy_error_limit", "mass_damping"})
-        if ((std::string(key) == "stepper" && t.stepper != def.stepper) ||
-            (std::string(key) == "dt_max" && t.dt_max != def.dt_max) ||
-            (std::string(key) == "energy_error_limit" && t.energy_error_limit != def.energy_error_limit) ||
-            (std::string(key) == "mass_damping" && t.mass_damping != def.mass_damping))
+    const std::pair<const char*, bool> differs[] = {
+        {"stepper", t.stepper != def.stepper},
+        {"dt_max", t.dt_max != def.dt_max},
+        {"energy_error_limit", t.energy_error_limit != def.energy_error_limit},
+        {"mass_damping", t.mass_damping != def.mass_damping}};
+    for (const auto& [key, changed] : differs)
+        if (changed)
             os << "$rkfem: time." << key << ": " << flow(time[key]) << "\n";
     if (t.stepper == StepperKind::ArkodeErk)
         os << "$rkfem: time.erk_table: " << flow(time["erk_table"]) << "\n";

@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "rkfem/core/error.hpp"
+#include "rkfem/core/input_error.hpp"
 
 namespace rkfem
 {
@@ -28,19 +28,20 @@ std::string upper(std::string s)
 }
 
 /// Reads `path`'s blocks into `out`, following *INCLUDE; `open` holds the files being read (a cycle's check).
-void read_file(const std::string& path, const std::string& included_at, std::vector<std::string>& open,
-               std::vector<KeywordBlock>& out)
+/// Errors are the caller's (`at`: the deck key or file that asked for the file).
+void read_file(const std::string& path, const std::string& included_at, const SourceLocation& at,
+               std::vector<std::string>& open, std::vector<KeywordBlock>& out)
 {
     std::error_code ec;
     const std::string canonical = std::filesystem::weakly_canonical(path, ec).string();
     if (std::find(open.begin(), open.end(), canonical) != open.end())
-        throw Error(included_at + ": *INCLUDE " + path +
-                    " includes a file that is already being read (an include cycle); expected each file included once "
-                    "along a chain");
+        throw DeckError(
+            at, included_at + ": *INCLUDE " + path + " includes a file that is already being read (an include cycle)",
+            "expected each file included once along a chain");
     std::ifstream in(path);
     if (!in)
-        throw Error((included_at.empty() ? std::string() : included_at + ": ") + path +
-                    " cannot be opened; expected a readable LS-DYNA keyword file");
+        throw DeckError(at, (included_at.empty() ? std::string() : included_at + ": ") + path + " cannot be opened",
+                        "expected a readable LS-DYNA keyword file");
     open.push_back(canonical);
     std::string text;
     int line = 0;
@@ -56,8 +57,8 @@ void read_file(const std::string& path, const std::string& included_at, std::vec
         if (text[0] == '*')
         {
             if (in_include)
-                throw Error(path + ":" + std::to_string(include_line) +
-                            ": *INCLUDE names no file; expected the file's name on the next card");
+                throw DeckError(at, path + ":" + std::to_string(include_line) + ": *INCLUDE names no file",
+                                "expected the file's name on the next card");
             // the keyword is the line's first word ("*ELEMENT_SOLID (ten nodes format)", "*KEYWORD 100m")
             std::string kw = upper(trim(text));
             kw = kw.substr(0, kw.find_first_of(" \t"));
@@ -86,7 +87,7 @@ void read_file(const std::string& path, const std::string& included_at, std::vec
             std::filesystem::path inc(trim(text));
             if (inc.is_relative())
                 inc = std::filesystem::path(path).parent_path() / inc;
-            read_file(inc.string(), path + ":" + std::to_string(line), open, out);
+            read_file(inc.string(), path + ":" + std::to_string(line), at, open, out);
             // cards after an include's file belong to no block until the next keyword
             out.push_back({"*INCLUDE", path, line, {}});
             continue;
@@ -96,8 +97,8 @@ void read_file(const std::string& path, const std::string& included_at, std::vec
         out.back().cards.push_back({text, line});
     }
     if (in_include)
-        throw Error(path + ":" + std::to_string(include_line) +
-                    ": *INCLUDE names no file; expected the file's name on the next card");
+        throw DeckError(at, path + ":" + std::to_string(include_line) + ": *INCLUDE names no file",
+                        "expected the file's name on the next card");
     open.pop_back();
 }
 } // namespace
@@ -108,11 +109,11 @@ std::string KeywordBlock::where(int i) const
     return file + ":" + std::to_string(l);
 }
 
-std::vector<KeywordBlock> read_keyword_blocks(const std::string& path)
+std::vector<KeywordBlock> read_keyword_blocks(const std::string& path, const SourceLocation& at)
 {
     std::vector<KeywordBlock> out;
     std::vector<std::string> open;
-    read_file(path, "", open, out);
+    read_file(path, "", at, open, out);
     // the markers after includes, holding no card or only blank ones, are dropped
     out.erase(std::remove_if(out.begin(), out.end(),
                              [](const KeywordBlock& b)

@@ -265,6 +265,7 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
     part_nodal_.push_back(-1);
     part_fe_side_.push_back(-1);
     rk_elements_.push_back(ps.coupled() ? rk_region_elements(ps, mesh) : std::vector<char>{});
+    region_elements_.push_back(ps.regions.empty() ? std::vector<char>{} : rk_elements_.back());
     if (is_nodal(ps.formulation) || ps.coupled())
         build_nodal_part(ps, ip, mesh, offset, blk);
     for (index_t e = 0; e < blk.n_elements(); ++e)

@@ -336,6 +336,9 @@ class Model final : public ExplicitOperator
     index_t converted_elements_ = 0;
     index_t reverted_elements_ = 0;
     std::vector<std::vector<char>> rk_elements_; ///< per part (coupled parts; empty otherwise)
+    /// per part: the elements the deck's regions make RK (parts with regions; empty otherwise): they
+    /// never revert
+    std::vector<std::vector<char>> region_elements_;
     /// Conversion rebuilds the whole part's block (the plain path the incremental update is
     /// held to) instead of the points where the approximation changed.
     bool rebuild_whole_part_ = false;
@@ -346,6 +349,9 @@ class Model final : public ExplicitOperator
     /// Conversion's buffer layers and cap per event (ElementCriteria::buffer, max_per_event) on
     /// the triggered elements' flags (nonzero: convert).
     void buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<char>& convert) const;
+    /// convert_elements and revert_elements: the flagged elements RK (to_rk) or FE, the tables rebuilt;
+    /// how many changed
+    index_t flip_elements(index_t part, const std::vector<char>& flags, bool to_rk, const char* caller);
     /// RK elements of a converting part that go back to FE now: by a conversion (not a region),
     /// meeting none of its criteria and all its revert measures, and no element within the
     /// buffer's layers that stays RK
