@@ -9,3 +9,5 @@ myst_heading_anchors = 3
 html_theme = "alabaster"
 html_theme_options = {"page_width": "1100px", "sidebar_width": "260px"}
 html_show_sourcelink = False
+# Theory pages write equations as $...$ and $$...$$ (MyST's dollarmath; amsmath for aligned blocks).
+myst_enable_extensions = ["dollarmath", "amsmath"]

@@ -29,6 +29,7 @@
 #include "rkfem/analysis/convergence_study.hpp"
 #include "rkfem/analysis/material_point.hpp"
 #include "rkfem/config/deck.hpp"
+#include "rkfem/config/deck_schema.hpp"
 #include "rkfem/config/keyword_deck.hpp"
 #include "rkfem/core/allocator_tuning.hpp"
 #include "rkfem/core/error.hpp"
@@ -138,6 +139,13 @@ int help(const std::string& command)
          "*ELEMENT_SOLID, sets, parts, materials, conditions, loads, contacts), which\n"
          "'rkfem run MODEL.k --units m-s-kg-N' runs as DECK's run. What has no keyword form is refused by its deck\n"
          "key; rkfem settings that change nothing LS-DYNA computes are listed as comments."},
+        {"schema", "rkfem schema [deck | material-point | study] [--markdown] > deck.schema.json",
+         "Writes the JSON Schema (draft-07) of a run deck (or of a material-point deck or a study file) on\n"
+         "standard output,"
+         "generated from the key table the deck reader reads by, with every key's kind, unit, default and\n"
+         "description; editors with a YAML language server validate and complete decks with it (a first line\n"
+         "'# yaml-language-server: $schema=deck.schema.json'). --markdown writes the manual's deck reference\n"
+         "(all three)."},
         {"study", "rkfem study STUDY --out DIR [--only CASE[,CASE...]] [--quiet]",
          "Runs a study's cases (a base deck with overrides, or their own decks) into DIR/cases/NAME, extracts its\n"
          "metrics and writes DIR/table.csv, DIR/table.md (ours beside the published values) and DIR/study.h5.\n"
@@ -766,6 +774,31 @@ int model_command(Args a)
     }
 }
 
+/// `rkfem schema [deck | material-point | study] [--markdown]`: the deck's JSON Schema or its Markdown reference.
+int schema_command(int argc, char** argv)
+{
+    std::string root = "deck";
+    bool markdown = false;
+    for (int i = 2; i < argc; ++i)
+    {
+        const std::string arg = argv[i];
+        if (arg == "--markdown")
+            markdown = true;
+        else if (arg == "deck" || arg == "material-point" || arg == "study")
+            root = arg;
+        else
+        {
+            std::fprintf(stderr,
+                         "rkfem: schema: unknown argument '%s'; expected deck, material-point, study or --markdown\n",
+                         arg.c_str());
+            return 2;
+        }
+    }
+    const std::string text = markdown ? rkfem::deck_reference_markdown() : rkfem::deck_json_schema(root);
+    std::fwrite(text.data(), 1, text.size(), stdout);
+    return std::fflush(stdout) == 0 ? 0 : 1;
+}
+
 int main(int argc, char** argv)
 {
     rkfem::tune_allocator(argv); // glibc's malloc for the set-up's rows (re-executes once; core/allocator_tuning.hpp)
@@ -777,6 +810,8 @@ int main(int argc, char** argv)
     for (int i = 1; i < argc; ++i)
         if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h")
             return help(i > 1 ? argv[1] : "");
+    if (argc >= 2 && std::string(argv[1]) == "schema")
+        return schema_command(argc, argv);
     if (argc < 3)
         return usage();
     Args a;

@@ -139,7 +139,7 @@ void read_output(const Context& ctx, const YAML::Node& root, OutputSpec& out)
 {
     if (root["output"].IsDefined() && !root["output"].IsNull())
     {
-        Section o(ctx, root["output"], "output", {"precision", "compression"});
+        Section o(ctx, root["output"], "output", "output");
         out.single = o.choice("precision", {"single", "double"}, "single") == "single";
         const std::int64_t level = o.integer("compression", 0);
         if (level < 0 || level > 9)
@@ -259,7 +259,7 @@ void read_impact(const Context& ctx, const Section& top, Deck& deck)
 {
     if (top.has("impact"))
     {
-        Section s(ctx, top.node("impact"), "impact", {"target", "projectile", "point", "direction", "damage"});
+        Section s(ctx, top.node("impact"), "impact", "impact");
         ImpactSpec& im = deck.impact;
         im.active = true;
         im.target = s.text("target");
@@ -301,7 +301,7 @@ void read_probes(const Context& ctx, const YAML::Node& root, const Section& top,
         for (const auto& kv : probes)
         {
             const std::string name = kv.first.as<std::string>();
-            Section s(ctx, kv.second, "probes." + name, {"point", "part"});
+            Section s(ctx, kv.second, "probes." + name, "probe");
             ProbeSpec pr;
             pr.name = name;
             pr.point = s.vec3("point", dim::length);
@@ -324,7 +324,7 @@ void read_section_planes(const Context& ctx, const YAML::Node& root, const Secti
         for (const auto& kv : sections)
         {
             const std::string name = kv.first.as<std::string>();
-            Section s(ctx, kv.second, "sections." + name, {"point", "normal", "part", "tolerance"});
+            Section s(ctx, kv.second, "sections." + name, "section-plane");
             SectionSpec sc;
             sc.name = name;
             sc.point = s.vec3("point", dim::length);
@@ -346,9 +346,7 @@ Deck build(const YAML::Node& root, Context& ctx)
 {
     if (!root.IsMap())
         throw DeckError({ctx.name, ""}, "is not a YAML mapping", "expected top-level keys title, time, parts, ...");
-    Section top(ctx, root, "",
-                {"title", "time", "output", "parts", "node_sets", "face_sets", "boundary_conditions", "loads", "probes",
-                 "sections", "contacts", "impact"});
+    Section top(ctx, root, "", "deck");
     Deck deck;
     deck.path = ctx.name;
     deck.title = top.text("title", "");
@@ -453,13 +451,13 @@ MaterialPointDeck read_material_point_deck(const std::string& path)
     const YAML::Node root = load_document(ss.str(), path);
     if (!root.IsMap())
         throw DeckError({path, ""}, "is not a YAML mapping", "expected top-level keys title, material, path");
-    Section top(ctx, root, "", {"title", "material", "path"});
+    Section top(ctx, root, "", "material-point");
     MaterialPointDeck d;
     d.path = path;
     d.title = top.text("title", "");
     d.material = read_material(top);
     top.require("path", "a mapping with type, strain, rate, steps");
-    Section p(ctx, top.node("path"), "path", {"type", "strain", "rate", "confinement", "angle", "length", "steps"});
+    Section p(ctx, top.node("path"), "path", "path");
     MaterialPathSpec& lp = d.load_path;
     lp.type = p.choice("type",
                        {"uniaxial-stress", "uniaxial-strain", "hydrostatic", "pure-shear", "triaxial", "rotation"}, "");

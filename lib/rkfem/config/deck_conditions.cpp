@@ -12,7 +12,7 @@ TimeFunction read_time_function(const Section& parent, const YAML::Node& n, cons
 {
     if (n.IsScalar())
         return TimeFunction::constant(parent.quantity_of(n, p, d));
-    Section s(parent.ctx(), n, p, {"value", "curve", "triangular", "scale"});
+    Section s(parent.ctx(), n, p, "time-function");
     TimeFunction f;
     int kinds = 0;
     if (s.has("value"))
@@ -44,7 +44,7 @@ TimeFunction read_time_function(const Section& parent, const YAML::Node& n, cons
     if (s.has("triangular"))
     {
         ++kinds;
-        Section t(s.ctx(), s.node("triangular"), s.path("triangular"), {"peak", "duration", "start"});
+        Section t(s.ctx(), s.node("triangular"), s.path("triangular"), "triangular");
         f.kind = TimeFunction::Kind::Triangular;
         f.peak = t.quantity("peak", d);
         f.duration = t.positive("duration", dim::time);
@@ -71,7 +71,7 @@ int component_index(const std::string& c)
 void read_components(const Section& s, const std::string& key, Dimension d, std::array<bool, 3>& active,
                      std::array<TimeFunction, 3>& value)
 {
-    Section c(s.ctx(), s.node(key), s.path(key), {"x", "y", "z"});
+    Section c(s.ctx(), s.node(key), s.path(key), "components");
     bool any = false;
     for (const char* comp : {"x", "y", "z"})
         if (c.has(comp))
@@ -95,13 +95,13 @@ SelectorSpec read_selector(const Section& parent)
     const Context& ctx = parent.ctx();
     if (type == "named")
     {
-        Section s(ctx, n, p, {"type", "name"});
+        Section s(ctx, n, p, "selector.named");
         sel.type = SelectorSpec::Type::Named;
         sel.name = s.text("name");
     }
     else if (type == "plane")
     {
-        Section s(ctx, n, p, {"type", "point", "normal", "tolerance"});
+        Section s(ctx, n, p, "selector.plane");
         sel.type = SelectorSpec::Type::Plane;
         sel.point = s.vec3("point", dim::length);
         sel.normal = s.vec3("normal", dim::none);
@@ -112,7 +112,7 @@ SelectorSpec read_selector(const Section& parent)
     }
     else if (type == "box")
     {
-        Section s(ctx, n, p, {"type", "min", "max", "tolerance"});
+        Section s(ctx, n, p, "selector.box");
         sel.type = SelectorSpec::Type::Box;
         sel.min = s.vec3("min", dim::length);
         sel.max = s.vec3("max", dim::length);
@@ -120,7 +120,7 @@ SelectorSpec read_selector(const Section& parent)
     }
     else if (type == "cylinder")
     {
-        Section s(ctx, n, p, {"type", "point", "axis", "radius", "tolerance"});
+        Section s(ctx, n, p, "selector.cylinder");
         sel.type = SelectorSpec::Type::Cylinder;
         sel.point = s.vec3("point", dim::length);
         sel.normal = s.vec3("axis", dim::none);
@@ -132,14 +132,14 @@ SelectorSpec read_selector(const Section& parent)
     }
     else if (type == "sphere")
     {
-        Section s(ctx, n, p, {"type", "point", "radius"});
+        Section s(ctx, n, p, "selector.sphere");
         sel.type = SelectorSpec::Type::Sphere;
         sel.point = s.vec3("point", dim::length);
         sel.radius = s.positive("radius", dim::length);
     }
     else if (type == "ids" || type == "segments")
     {
-        Section s(ctx, n, p, {"type", type});
+        Section s(ctx, n, p, "selector." + type);
         sel.type = type == "ids" ? SelectorSpec::Type::Ids : SelectorSpec::Type::Segments;
         const YAML::Node list = s.node(type);
         const std::string expected = type == "ids" ? "expected ids: [NID, ...], the keyword file's node numbers"
@@ -203,7 +203,7 @@ std::vector<SetSpec> read_sets(const Context& ctx, const YAML::Node& root, const
     for (const auto& kv : n)
     {
         const std::string name = kv.first.as<std::string>();
-        Section s(ctx, kv.second, key + "." + name, {"part", "select"});
+        Section s(ctx, kv.second, key + "." + name, "set");
         SetSpec set;
         set.name = name;
         set.part = s.text("part", "");
@@ -216,7 +216,7 @@ std::vector<SetSpec> read_sets(const Context& ctx, const YAML::Node& root, const
 
 BoundarySpec read_boundary(const Context& ctx, const YAML::Node& n, const std::string& p)
 {
-    Section s(ctx, n, p, {"node_set", "fixed", "velocity", "displacement"});
+    Section s(ctx, n, p, "boundary");
     BoundarySpec b;
     b.loc = s.loc();
     b.node_set = s.text("node_set");
@@ -266,7 +266,7 @@ LoadSpec read_load(const Context& ctx, const YAML::Node& n, const std::string& p
     LoadSpec l;
     if (type == "nodal_force")
     {
-        Section s(ctx, n, p, {"type", "node_set", "force", "total"});
+        Section s(ctx, n, p, "load.nodal_force");
         l.kind = LoadSpec::Kind::NodalForce;
         l.set = s.text("node_set");
         s.require("force", "a mapping of components x, y, z to forces");
@@ -276,7 +276,7 @@ LoadSpec read_load(const Context& ctx, const YAML::Node& n, const std::string& p
     }
     else if (type == "pressure")
     {
-        Section s(ctx, n, p, {"type", "face_set", "pressure"});
+        Section s(ctx, n, p, "load.pressure");
         l.kind = LoadSpec::Kind::Pressure;
         l.set = s.text("face_set");
         s.require("pressure", "a pressure, curve or triangular pulse");
@@ -295,9 +295,7 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
     if (!root["time"].IsDefined())
         throw DeckError({ctx.name, "time"}, "missing required key",
                         "expected a mapping with at least end: (e.g. end: 26 us)");
-    Section s(ctx, root["time"], "time",
-              {"end", "output_interval", "history_interval", "dt_scale", "dt_max", "max_steps", "stepper", "erk_table",
-               "energy_error_limit", "dt_min_fraction", "mass_damping"});
+    Section s(ctx, root["time"], "time", "time");
     TimeSpec t;
     t.end = s.positive("end", dim::time);
     t.output_interval = s.quantity("output_interval", dim::time, 0.0);

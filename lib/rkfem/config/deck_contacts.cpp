@@ -9,8 +9,6 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
     if (!n.IsMap())
         throw DeckError(locate(ctx, n, p), n.IsNull() ? "is empty" : "is not a mapping",
                         "expected {type: surface-to-surface | single-surface | rigid-wall | kernel, ...}");
-    const std::vector<std::string> common{"type", "surfaces", "friction"};
-    std::vector<std::string> keys = common;
     const YAML::Node type_node = n["type"];
     const std::string type = type_node.IsScalar() ? type_node.Scalar() : "";
     if (type != "surface-to-surface" && type != "single-surface" && type != "rigid-wall" && type != "kernel")
@@ -21,14 +19,7 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
         throw DeckError(locate(ctx, type_node, p + ".type"),
                         type_node.IsScalar() ? "'" + type + "' is not a valid choice" : "is not a name", expected);
     }
-    if (type == "rigid-wall")
-        keys.insert(keys.end(), {"damping", "point", "normal", "velocity", "penalty_scale"});
-    else if (type == "kernel")
-        keys.insert(keys.end(), {"thickness"});
-    else
-        keys.insert(keys.end(), {"damping", "formulation", "stiffness", "penalty_scale", "soft_scale", "thickness",
-                                 "max_penetration"});
-    Section s(ctx, n, p, keys);
+    Section s(ctx, n, p, "contact." + type);
     ContactSpec c;
     const std::string t = s.choice("type", {"surface-to-surface", "single-surface", "rigid-wall", "kernel"}, "");
     c.kind = t == "surface-to-surface" ? ContactSpec::Kind::SurfaceToSurface
@@ -57,7 +48,7 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
                "expected surfaces: [A, B], two part or face-set names");
     if (s.has("friction"))
     {
-        Section f(ctx, s.node("friction"), s.path("friction"), {"static", "dynamic", "decay"});
+        Section f(ctx, s.node("friction"), s.path("friction"), "friction");
         c.mu_static = f.quantity("static", dim::none, 0.0);
         c.mu_dynamic = f.quantity("dynamic", dim::none, c.mu_static);
         c.decay = f.quantity("decay", Dimension{0, -1, 1}, 0.0);
@@ -68,10 +59,6 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
         if (!(c.decay >= 0.0))
             f.fail("decay", "is negative", "expected an exponential decay coefficient >= 0 s/m");
     }
-    // LS-DYNA's VDC is in percent of critical: `damping: 20 %` reads as 0.2
-    c.damping = s.quantity("damping", dim::none, 0.0);
-    if (!(c.damping >= 0.0 && c.damping <= 1.0))
-        s.fail("damping", "is outside [0, 1]", "expected a fraction of critical damping, e.g. 0.2 or 20 %");
     auto scale = [&](const char* key, real_t fallback, real_t hi)
     {
         const real_t v = s.quantity(key, dim::none, fallback);
@@ -88,6 +75,10 @@ ContactSpec read_contact(const Context& ctx, const YAML::Node& n, const std::str
         c.loc = s.loc();
         return c;
     }
+    // LS-DYNA's VDC is in percent of critical: `damping: 20 %` reads as 0.2
+    c.damping = s.quantity("damping", dim::none, 0.0);
+    if (!(c.damping >= 0.0 && c.damping <= 1.0))
+        s.fail("damping", "is outside [0, 1]", "expected a fraction of critical damping, e.g. 0.2 or 20 %");
     if (c.kind == ContactSpec::Kind::RigidWall)
     {
         c.point = s.vec3("point", dim::length);

@@ -73,7 +73,7 @@ void read_divisions(const Section& s, GeneratorSpec& g)
 /// A box generator: origin, size, and divisions or element_size.
 void read_box_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
 {
-    Section s(part.ctx(), gn, gp, {"type", "origin", "size", "element_size", "divisions"});
+    Section s(part.ctx(), gn, gp, "generator.box");
     g.type = GeneratorSpec::Type::Box;
     read_box(s, g);
     if (s.has("divisions"))
@@ -89,10 +89,7 @@ void read_cylinder_generator(const Section& part, const YAML::Node& gn, const st
                              GeneratorSpec& g)
 {
     const bool cyl = type == "cylinder";
-    Section s(
-        part.ctx(), gn, gp,
-        cyl ? std::vector<std::string>{"type", "origin", "radius", "height", "element_size", "core", "inner_radius"}
-            : std::vector<std::string>{"type", "origin", "radius", "length", "element_size", "direction"});
+    Section s(part.ctx(), gn, gp, cyl ? "generator.cylinder" : "generator.projectile");
     g.type = cyl ? GeneratorSpec::Type::Cylinder : GeneratorSpec::Type::Projectile;
     g.origin = s.vec3("origin", dim::length, Vec3::Zero());
     g.radius = s.positive("radius", dim::length);
@@ -118,9 +115,7 @@ void read_cylinder_generator(const Section& part, const YAML::Node& gn, const st
 /// A cloud generator: its box or cylinder body, and a jittered lattice (spacing, jitter, seed) or a points file.
 void read_cloud_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
 {
-    Section s(
-        part.ctx(), gn, gp,
-        {"type", "body", "origin", "size", "radius", "height", "spacing", "jitter", "seed", "points", "points_unit"});
+    Section s(part.ctx(), gn, gp, "generator.cloud");
     g.type = GeneratorSpec::Type::Cloud;
     g.body = s.choice("body", {"box", "cylinder"}, "box") == "box" ? GeneratorSpec::Body::Box
                                                                    : GeneratorSpec::Body::Cylinder;
@@ -194,7 +189,7 @@ void read_pids(const Section& s, GeneratorSpec& g)
 /// A keyword generator: an LS-DYNA keyword file, its length unit and the PIDs to take.
 void read_keyword_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
 {
-    Section s(part.ctx(), gn, gp, {"type", "file", "unit", "pid"});
+    Section s(part.ctx(), gn, gp, "generator.keyword");
     g.type = GeneratorSpec::Type::Keyword;
     s.require("file", "the path of an LS-DYNA keyword file (*NODE, *ELEMENT_SOLID)");
     g.mesh_file = data_file(s, "file");
@@ -206,7 +201,7 @@ void read_keyword_generator(const Section& part, const YAML::Node& gn, const std
 /// A Gmsh generator: an MSH file, its length unit and the volume physical groups to take.
 void read_gmsh_generator(const Section& part, const YAML::Node& gn, const std::string& gp, GeneratorSpec& g)
 {
-    Section s(part.ctx(), gn, gp, {"type", "file", "unit", "physical"});
+    Section s(part.ctx(), gn, gp, "generator.gmsh");
     g.type = GeneratorSpec::Type::Gmsh;
     s.require("file", "the path of a Gmsh mesh (.msh, ASCII 4.1 or 2.2)");
     g.mesh_file = data_file(s, "file");

@@ -27,7 +27,7 @@ void read_rate_effects(const Section& s, MaterialSpec& m)
     }
     if (!kcc)
         s.fail("rate_effects", "is a mapping", "expected true or false (cscm's rate law is its own)");
-    Section r(s.ctx(), rn, s.path("rate_effects"), {"law", "curve", "compression_cap", "tension_cap"});
+    Section r(s.ctx(), rn, s.path("rate_effects"), "rate_effects");
     RateLaw law;
     law.fc = m.fc;
     if (r.has("curve") == r.has("law"))
@@ -140,7 +140,7 @@ void read_kcc_eta(const Section& s, MaterialSpec& m)
 /// eos of a kcc material: the EOS_8 table (strain, pressure, unload_bulk), into m.kcc_eos_*.
 void read_kcc_eos(const Section& s, MaterialSpec& m)
 {
-    Section e(s.ctx(), s.node("eos"), s.path("eos"), {"strain", "pressure", "unload_bulk"});
+    Section e(s.ctx(), s.node("eos"), s.path("eos"), "kcc-eos");
     auto list = [&](const char* key, Dimension dm, std::vector<real_t>& out)
     {
         e.require(key, "a list of 10 values");
@@ -200,15 +200,7 @@ MaterialSpec read_concrete(const Section& part, const YAML::Node& mn, const std:
 {
     MaterialSpec m;
     const auto& override_keys = concrete_override_keys(model);
-    std::vector<std::string> keys = {"model", "rho", "fc", "E", "nu", "rate_effects", "fracture_energy"};
-    for (const auto& k : override_keys)
-        keys.push_back(k.first);
-    if (model == "kcc")
-    {
-        keys.push_back("eta");
-        keys.push_back("eos");
-    }
-    Section s(part.ctx(), mn, part.path("material"), keys);
+    Section s(part.ctx(), mn, part.path("material"), "material." + model);
     m.model = model;
     m.rho = s.quantity("rho", dim::density);
     if (!(m.rho > 0))
@@ -228,9 +220,9 @@ MaterialSpec read_concrete(const Section& part, const YAML::Node& mn, const std:
     if (cscm && (m.fc < 20e6 || m.fc > 58e6))
         s.fail("fc", "is outside the range of Murray's fits",
                "expected 20 MPa <= fc <= 58 MPa for the generated CSCM parameters");
-    if (s.has("eta"))
+    if (!cscm && s.has("eta"))
         read_kcc_eta(s, m);
-    if (s.has("eos"))
+    if (!cscm && s.has("eos"))
         read_kcc_eos(s, m);
     read_overrides(s, model, override_keys, m);
     read_rate_effects(s, m);
@@ -269,12 +261,12 @@ void read_eos(const Section& s, MaterialSpec& m)
     const std::string t = en.IsMap() && en["type"].IsDefined() ? en["type"].Scalar() : "";
     if (t == "linear")
     {
-        Section e(s.ctx(), en, s.path("eos"), {"type"});
+        Section e(s.ctx(), en, s.path("eos"), "eos.linear");
         m.eos_type = t;
     }
     else if (t == "gruneisen")
     {
-        Section e(s.ctx(), en, s.path("eos"), {"type", "c0", "s", "gamma0", "a"});
+        Section e(s.ctx(), en, s.path("eos"), "eos.gruneisen");
         m.eos_type = t;
         m.eos_c0 = e.positive("c0", dim::velocity);
         m.eos_s = e.quantity("s", dim::none);
@@ -311,7 +303,7 @@ void read_j2(const Section& s, MaterialSpec& m)
     }
     if (s.has("cowper_symonds"))
     {
-        Section cs(s.ctx(), s.node("cowper_symonds"), s.path("cowper_symonds"), {"C", "P"});
+        Section cs(s.ctx(), s.node("cowper_symonds"), s.path("cowper_symonds"), "cowper_symonds");
         m.cs_c = cs.quantity("C", Dimension{0, 0, -1});
         m.cs_p = cs.quantity("P", dim::none);
         if (!(m.cs_c > 0 && m.cs_p > 0))
@@ -328,10 +320,7 @@ void read_j2(const Section& s, MaterialSpec& m)
 MaterialSpec read_elastic_or_j2(const Section& part, const YAML::Node& mn, const std::string& model)
 {
     MaterialSpec m;
-    Section s(part.ctx(), mn, part.path("material"),
-              model == "elastic" ? std::vector<std::string>{"model", "rho", "E", "nu"}
-                                 : std::vector<std::string>{"model", "rho", "E", "nu", "sigy", "etan", "curve",
-                                                            "cowper_symonds", "fail", "eos"});
+    Section s(part.ctx(), mn, part.path("material"), "material." + model);
     m.model = model;
     m.rho = s.quantity("rho", dim::density);
     if (!(m.rho > 0))

@@ -24,8 +24,7 @@ void ignore(PartSpec& p, const Section& s, const std::string& key, const std::st
 /// conversion's own (so that an element does not go back and forth between checks).
 void read_reversion(const Context& ctx, const Section& e, ElementCriteria& c)
 {
-    Section r(ctx, e.node("revert"), e.path("revert"),
-              {"scaled_jacobian", "aspect_ratio", "damage", "effective_plastic_strain"});
+    Section r(ctx, e.node("revert"), e.path("revert"), "revert");
     ElementCriteria::Reversion& v = c.revert;
     v.scaled_jacobian = r.quantity("scaled_jacobian", dim::none, 0.0);
     if (r.has("scaled_jacobian") && !(v.scaled_jacobian > c.scaled_jacobian && v.scaled_jacobian <= 1.0))
@@ -53,12 +52,7 @@ void read_reversion(const Context& ctx, const Section& e, ElementCriteria& c)
 /// The element criteria under `key` (erosion, conversion): at least one set, none negative.
 ElementCriteria read_criteria(const Context& ctx, const Section& s, const std::string& key, const PartSpec& p)
 {
-    std::vector<std::string> keys = {
-        "effective_plastic_strain", "damage",      "principal_strain", "volumetric_strain", "time_step",
-        "scaled_jacobian",          "aspect_ratio"};
-    if (key == "conversion")
-        keys.insert(keys.end(), {"interval", "buffer", "max_per_event", "revert"});
-    Section e(ctx, s.node(key), s.path(key), keys);
+    Section e(ctx, s.node(key), s.path(key), "criteria." + key);
     ElementCriteria c;
     if (key == "conversion")
     {
@@ -129,8 +123,7 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
     {
         if (!is_nodal(p.formulation) && !s.has("regions"))
             ignore(p, s, "nodal_integration", f); // read (and checked) below, then not used
-        Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"),
-                   {"scheme", "stabilization", "stabilization_coefficient", "dt_factor", "facet_points"});
+        Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"), "nodal_integration");
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni", "snni"}, p.semi_lagrangian ? "snni" : "scni");
         if (p.semi_lagrangian && p.nodal.scheme != "snni")
             ni.fail("scheme",
@@ -185,8 +178,7 @@ void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
     if (!p.semi_lagrangian)
         s.fail("semi_lagrangian", "sets up semi-Lagrangian RK particles, and this part's kinematics is lagrangian",
                "expected kinematics: semi-lagrangian with a semi_lagrangian section");
-    Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"),
-               {"neighbour_skin", "reset_interval", "separation_damage", "plastic_scaling"});
+    Section sl(ctx, s.node("semi_lagrangian"), s.path("semi_lagrangian"), "semi_lagrangian");
     p.neighbour_skin = sl.quantity("neighbour_skin", dim::none, 0.3);
     if (!(p.neighbour_skin >= 0.0 && p.neighbour_skin <= 2.0))
         sl.fail("neighbour_skin", "is outside [0, 2]",
@@ -231,7 +223,7 @@ void read_regions(const Context& ctx, const Section& s, PartSpec& p)
                "expected regions: [{select: {type: box | cylinder | sphere, ...}}]");
     for (std::size_t i = 0; i < rn.size(); ++i)
     {
-        Section r(ctx, rn[i], s.path("regions") + "." + std::to_string(i), {"formulation", "select"});
+        Section r(ctx, rn[i], s.path("regions") + "." + std::to_string(i), "region");
         r.choice("formulation", {"rkpm"}, "rkpm");
         SelectorSpec sel = read_selector(r);
         if (sel.type != SelectorSpec::Type::Box && sel.type != SelectorSpec::Type::Cylinder &&
@@ -247,8 +239,7 @@ void read_rk(const Context& ctx, const Section& s, const std::string& f, PartSpe
 {
     if (p.formulation != Formulation::Rkpm && !p.coupled())
         ignore(p, s, "rk", f);
-    Section r(ctx, s.node("rk"), s.path("rk"),
-              {"order", "kernel", "support", "normalized_support", "drop_tolerance", "share_translates"});
+    Section r(ctx, s.node("rk"), s.path("rk"), "rk");
     p.rk.loc = r.loc();
     const std::string order = r.choice("order", {"1", "2"}, "1");
     p.rk.order = order == "1" ? 1 : 2;
@@ -278,7 +269,7 @@ void read_hourglass(const Context& ctx, const Section& s, const std::string& f, 
 {
     if (p.formulation != Formulation::Fem1pt)
         ignore(p, s, "hourglass", f);
-    Section h(ctx, s.node("hourglass"), s.path("hourglass"), {"type", "coefficient", "plastic_scaling"});
+    Section h(ctx, s.node("hourglass"), s.path("hourglass"), "hourglass");
     const std::string t =
         h.choice("type", {"viscous", "stiffness", "assumed-strain", "none", "viscous-plain"}, "viscous");
     p.hourglass.type = t == "viscous"          ? HourglassType::Viscous
@@ -301,9 +292,7 @@ void read_hourglass(const Context& ctx, const Section& s, const std::string& f, 
 
 PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& path)
 {
-    Section s(ctx, n, path,
-              {"generator", "material", "formulation", "hourglass", "bulk_viscosity", "nodal_integration", "rk",
-               "initial_velocity", "regions", "transition", "erosion", "conversion", "kinematics", "semi_lagrangian"});
+    Section s(ctx, n, path, "part");
     PartSpec p;
     p.name = name;
     p.loc = s.loc();
@@ -355,7 +344,7 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         p.hourglass.type = HourglassType::None;
     if (s.has("bulk_viscosity"))
     {
-        Section b(ctx, s.node("bulk_viscosity"), s.path("bulk_viscosity"), {"linear", "quadratic"});
+        Section b(ctx, s.node("bulk_viscosity"), s.path("bulk_viscosity"), "bulk_viscosity");
         p.bulk_viscosity.linear = b.quantity("linear", dim::none, 0.06);
         p.bulk_viscosity.quadratic = b.quantity("quadratic", dim::none, 1.5);
         if (p.bulk_viscosity.linear < 0 || p.bulk_viscosity.quadratic < 0)

@@ -8,13 +8,16 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <initializer_list>
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
 #include <yaml-cpp/yaml.h>
 
 #include "rkfem/config/deck.hpp"
+#include "rkfem/config/deck_schema.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/units.hpp"
 
@@ -65,13 +68,16 @@ inline void reject_repeated_keys(const Context& ctx, const YAML::Node& map, cons
     }
 }
 
-/// A YAML mapping with a fixed set of allowed keys. Unknown keys are rejected at construction
-/// (with the closest allowed key suggested).
+/// A YAML mapping read as one section of the key table (deck_schema.hpp): the table's keys are
+/// the allowed ones, and unknown keys are rejected at construction (with the closest allowed key
+/// suggested). Each read checks the table's entry for the key (its kind, dimension, choices and
+/// constant default) and throws std::logic_error where they differ: a reader that reads a key
+/// otherwise than the table (and so the schema and the manual) says is a bug the suite finds.
 class Section
 {
   public:
-    Section(const Context& ctx, const YAML::Node& node, std::string path, std::vector<std::string> allowed)
-        : ctx_(ctx), node_(node), path_(std::move(path)), allowed_(std::move(allowed))
+    Section(const Context& ctx, const YAML::Node& node, std::string path, std::string_view id)
+        : ctx_(ctx), node_(node), path_(std::move(path)), doc_(&deck_section(id)), allowed_(deck_section_keys(id))
     {
         if (!node_.IsMap())
             throw DeckError(locate(ctx_, node_, path_), node_.IsNull() ? "is empty" : "is not a mapping",
@@ -101,8 +107,24 @@ class Section
         }
     }
 
-    bool has(const std::string& key) const { return node_[key].IsDefined() && !node_[key].IsNull(); }
-    YAML::Node node(const std::string& key) const { return node_[key]; }
+    bool has(const std::string& key) const
+    {
+        doc(key);
+        return node_[key].IsDefined() && !node_[key].IsNull();
+    }
+    YAML::Node node(const std::string& key) const
+    {
+        doc(key);
+        return node_[key];
+    }
+    /// The table's entry for key; throws std::logic_error for a key the section's table lacks.
+    const KeyDoc& doc(const std::string& key) const
+    {
+        if (const KeyDoc* k = doc_->find(key))
+            return *k;
+        throw std::logic_error("deck reader: section '" + doc_->id + "' reads key '" + key +
+                               "', which the key table (deck_keys.cpp) does not list");
+    }
     const YAML::Node& self() const { return node_; }
     std::string path(const std::string& key) const { return child_path(path_, key); }
     const std::string& path() const { return path_; }
@@ -134,11 +156,19 @@ class Section
 
     real_t quantity(const std::string& key, Dimension d) const
     {
+        check(key, {KeyKind::Quantity, KeyKind::QuantityOr}, d);
         require(key, describe(d));
         return quantity_of(node_[key], path(key), d);
     }
     real_t quantity(const std::string& key, Dimension d, real_t fallback) const
     {
+        const KeyDoc& k = check(key, {KeyKind::Quantity, KeyKind::QuantityOr}, d);
+        if (!k.dflt.empty() && !k.dim_from_use)
+        {
+            const real_t v = parse_quantity(k.dflt, d).value_si;
+            if (!(std::abs(v - fallback) <= 1e-12 * std::abs(v)))
+                mismatch(k, "default " + std::to_string(fallback));
+        }
         return has(key) ? quantity(key, d) : fallback;
     }
 
@@ -177,6 +207,9 @@ class Section
 
     long long integer(const std::string& key, long long fallback) const
     {
+        const KeyDoc& k = check(key, {KeyKind::Integer}, dim::none);
+        if (!k.dflt.empty() && k.dflt != std::to_string(fallback))
+            mismatch(k, "default " + std::to_string(fallback));
         if (!has(key))
             return fallback;
         const std::string t = scalar_text(key, "an integer");
@@ -196,17 +229,31 @@ class Section
 
     std::string text(const std::string& key) const
     {
+        check(key, {KeyKind::Text}, dim::none);
         require(key, "a name");
         return scalar_text(key, "a name");
     }
     std::string text(const std::string& key, const std::string& fallback) const
     {
+        const KeyDoc& k = check(key, {KeyKind::Text}, dim::none);
+        if (!k.dflt.empty() && k.dflt != fallback)
+            mismatch(k, "default '" + fallback + "'");
         return has(key) ? scalar_text(key, "a name") : fallback;
     }
 
     std::string choice(const std::string& key, const std::vector<std::string>& options,
                        const std::string& fallback) const
     {
+        const KeyDoc& k = check(key, {KeyKind::Choice, KeyKind::Boolean, KeyKind::BooleanOr}, dim::none);
+        // a variant's discriminator lists its own value; the reader dispatches on all of them
+        const bool discriminator = k.choices.size() == 1 && k.required;
+        for (const auto& c : k.choices)
+            if (std::find(options.begin(), options.end(), c) == options.end())
+                mismatch(k, "choices " + join(options));
+        if (!discriminator && options.size() != k.choices.size())
+            mismatch(k, "choices " + join(options));
+        if (!k.dflt.empty() && k.dflt != fallback)
+            mismatch(k, "default '" + fallback + "'");
         if (!has(key) && !fallback.empty())
             return fallback;
         require(key, "one of " + join(options, " | "));
@@ -218,6 +265,7 @@ class Section
 
     Vec3 vec3(const std::string& key, Dimension d) const
     {
+        check(key, {KeyKind::Vec3}, d);
         require(key, "a list of 3 values, " + describe(d));
         const YAML::Node n = node_[key];
         if (!n.IsSequence() || n.size() != 3)
@@ -233,9 +281,26 @@ class Section
     }
 
   private:
+    /// The entry for key, checked to be of one of kinds and of dimension d.
+    const KeyDoc& check(const std::string& key, std::initializer_list<KeyKind> kinds, Dimension d) const
+    {
+        const KeyDoc& k = doc(key);
+        if (std::find(kinds.begin(), kinds.end(), k.kind) == kinds.end())
+            mismatch(k, "another kind of value");
+        if (!k.dim_from_use && !(k.dim == d))
+            mismatch(k, describe(d));
+        return k;
+    }
+    [[noreturn]] void mismatch(const KeyDoc& k, const std::string& read) const
+    {
+        throw std::logic_error("deck reader: key '" + k.name + "' of section '" + doc_->id + "' is read as " + read +
+                               ", which its entry in the key table (deck_keys.cpp) does not say");
+    }
+
     const Context& ctx_;
     YAML::Node node_;
     std::string path_;
+    const SectionDoc* doc_;
     std::vector<std::string> allowed_;
 };
 

@@ -66,8 +66,7 @@ bool valid_name(const std::string& n)
 
 StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML::Node& n, const std::string& p)
 {
-    const Section s(ctx, n, p,
-                    {"kind", "column", "response", "key", "time", "from", "to", "fraction", "scale", "unit"});
+    const Section s(ctx, n, p, "study-metric");
     StudyMetric m;
     m.name = name;
     m.loc = s.loc();
@@ -144,7 +143,7 @@ StudyMetric read_metric(const Context& ctx, const std::string& name, const YAML:
 StudyCase read_case(const Context& ctx, const YAML::Node& n, const std::string& p, const std::string& base_deck,
                     const std::vector<StudyMetric>& metrics, const fs::path& dir)
 {
-    const Section s(ctx, n, p, {"name", "set", "deck", "published"});
+    const Section s(ctx, n, p, "study-case");
     StudyCase c;
     c.loc = s.loc();
     c.name = s.text("name");
@@ -203,7 +202,7 @@ StudyCase read_case(const Context& ctx, const YAML::Node& n, const std::string& 
                 throw DeckError(deck_detail::locate(ctx, kv.first, mp), "'" + mname + "' is not a metric of this study",
                                 "expected one of " + names);
             }
-            const Section v(ctx, kv.second, mp, {"value", "source"});
+            const Section v(ctx, kv.second, mp, "study-published");
             StudyPublished pv;
             pv.text = v.scalar_text("value", "a value");
             pv.source = v.text("source");
@@ -242,7 +241,7 @@ Study read_study(const std::string& path)
     {
         Study st;
         st.path = path;
-        const Section s(ctx, root, "", {"title", "deck", "metrics", "cases", "table_rows"});
+        const Section s(ctx, root, "", "study");
         st.title = s.text("title", fs::path(path).stem().string());
         st.rows_are_metrics = s.choice("table_rows", {"cases", "metrics"}, "cases") == "metrics";
         const fs::path dir = fs::path(path).parent_path();
