@@ -80,6 +80,52 @@ inline HexMesh split_into_wedges(const HexMesh& m)
     return w;
 }
 
+/// Each hex of m split into the six tetrahedra about its diagonal from node 0 to node 6 (Kuhn's
+/// split, conforming on a structured box), written as degenerate hexes in the form Gmsh meshes
+/// take here (gmsh_mesh.cpp: N1 N2 N3 N3 N4 N4 N4 N4), each right-handed; boundary faces rebuilt.
+inline HexMesh split_into_tets(const HexMesh& m)
+{
+    static constexpr int kuhn[6][4] = {{0, 1, 2, 6}, {0, 1, 5, 6}, {0, 3, 2, 6},
+                                       {0, 3, 7, 6}, {0, 4, 5, 6}, {0, 4, 7, 6}};
+    HexMesh t = m;
+    t.conn.clear();
+    for (index_t e = 0; e < m.n_elements(); ++e)
+    {
+        const index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
+        for (const auto& k : kuhn)
+        {
+            index_t a = c[k[0]], b = c[k[1]], d = c[k[2]], top = c[k[3]];
+            if ((m.node(b) - m.node(a)).cross(m.node(d) - m.node(a)).dot(m.node(top) - m.node(a)) < 0.0)
+                std::swap(b, d);
+            t.conn.insert(t.conn.end(), {a, b, d, d, top, top, top, top});
+        }
+    }
+    t.faces = extract_boundary_faces(t.conn);
+    return t;
+}
+
+/// Each hex of m split into the six pyramids on its faces with their apex at a new node at the
+/// hex's centre, written as LS-DYNA writes pyramids (N1 N2 N3 N4 N5 N5 N5 N5), each right-handed;
+/// boundary faces rebuilt (the hexes' own).
+inline HexMesh split_into_pyramids(const HexMesh& m)
+{
+    HexMesh p = m;
+    p.conn.clear();
+    for (index_t e = 0; e < m.n_elements(); ++e)
+    {
+        const index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
+        Vec3 centre = Vec3::Zero();
+        for (int a = 0; a < 8; ++a)
+            centre += m.node(c[a]) / 8.0;
+        const index_t apex = p.n_nodes();
+        p.x.insert(p.x.end(), {centre[0], centre[1], centre[2]});
+        for (const auto& f : hex_faces) // outward: the base is written inward, towards the apex
+            p.conn.insert(p.conn.end(), {c[f[3]], c[f[2]], c[f[1]], c[f[0]], apex, apex, apex, apex});
+    }
+    p.faces = extract_boundary_faces(p.conn);
+    return p;
+}
+
 /// Writes nodes (x: 3 per node) and 8-node solids (conn: 8 per element, 0-based; pid per element,
 /// empty: all 1) as an LS-DYNA keyword file in the temp folder (NIDs and EIDs from 1, comma
 /// fields with 17 digits, so the mesh reads back bit for bit); an element whose volume comes out

@@ -568,6 +568,32 @@ TEST(GmshMesh, TetrahedraPrismsAndPyramidsAreDegenerateHexes)
     EXPECT_EQ(nodes, (std::set<index_t>{0, 1, 2}));
 }
 
+// Tetrahedra written as hexes repeat a node, and two tetrahedra write the triangle they share with
+// different nodes repeated (a b d d in one, a b b d in the other): the faces are matched by their
+// distinct nodes, so a box of Kuhn tetrahedra (six per cube, 3 x 3 x 3 cubes) has exactly the box's
+// surface as its boundary: 2 triangles per boundary square (108), total area 6 L^2, every face on
+// the surface. Matched by all four nodes (as before 2026-12-07), 216 faces: 108 of them inside.
+TEST(GmshMesh, TetrahedraShareTheirTrianglesWhicheverNodeTheyRepeat)
+{
+    const real_t L = 0.3;
+    const HexMesh m = test::split_into_tets(generate_box(Vec3::Zero(), Vec3::Constant(L), {3, 3, 3}));
+    ASSERT_EQ(m.n_elements(), 6 * 27);
+    EXPECT_EQ(m.faces.size(), 108u);
+    real_t area = 0.0;
+    Vec3 sum = Vec3::Zero();
+    for (const Quad& q : m.faces)
+    {
+        const Vec3 n = quad_normal(m.x, q);
+        area += n.norm();
+        sum += n;
+        const Vec3 c = 0.25 * (m.node(q[0]) + m.node(q[1]) + m.node(q[2]) + m.node(q[3]));
+        const real_t to_surface = std::min({c.minCoeff(), L - c.maxCoeff()});
+        EXPECT_LT(to_surface, 1e-12) << "a boundary face inside the box at " << c.transpose();
+    }
+    EXPECT_NEAR(area, 6 * L * L, 1e-12);
+    EXPECT_LT(sum.norm(), 1e-12);
+}
+
 TEST(GmshMesh, MistakesAreNamedWithTheFilesLine)
 {
     auto expect = [](const std::string& msg, const std::string& a, const std::string& b)

@@ -107,6 +107,9 @@ std::vector<index_t> earlier_twin_faces(const std::vector<index_t>& conn)
                 k[j] = conn[8 * static_cast<std::size_t>(e) + static_cast<std::size_t>(hex_faces[f][j])];
             std::sort(k.begin(), k.end());
             nn = std::max(nn, k[3] + 1);
+            // a degenerate solid's face is keyed by its distinct nodes: a triangle that one
+            // tetrahedron writes a b d d and its neighbour a b b d is one face
+            std::fill(std::unique(k.begin(), k.end()), k.end(), index_t(-1));
         }
     // a face's twins have its smallest node: faces bucketed by it (a counting sort, a dozen
     // faces per node, each bucket in face order) are compared within their bucket only (a sort
@@ -137,6 +140,75 @@ std::vector<index_t> earlier_twin_faces(const std::vector<index_t>& conn)
             }
         }
     return twin;
+}
+
+bool has_degenerate_solids(const HexMesh& m)
+{
+    for (index_t e = 0; e < m.n_elements(); ++e)
+        if (distinct_nodes(m.conn.data() + 8 * static_cast<std::size_t>(e)) < 8)
+            return true;
+    return false;
+}
+
+index_t canonical_tetrahedra(HexMesh& m)
+{
+    index_t changed = 0;
+    for (index_t e = 0; e < m.n_elements(); ++e)
+    {
+        index_t* c = m.conn.data() + 8 * static_cast<std::size_t>(e);
+        if (distinct_nodes(c) != 4)
+            continue;
+        std::array<index_t, 8> sorted;
+        std::copy(c, c + 8, sorted.begin());
+        std::sort(sorted.begin(), sorted.end());
+        index_t v[4];
+        std::copy(sorted.begin(), std::unique(sorted.begin(), sorted.end()), v);
+        index_t a = v[0], b = v[1];
+        const index_t cc = v[2], d = v[3];
+        if ((m.node(b) - m.node(a)).cross(m.node(cc) - m.node(a)).dot(m.node(d) - m.node(a)) < 0.0)
+            std::swap(a, b);
+        const std::array<index_t, 8> canonical{a, b, cc, cc, d, d, d, d};
+        if (!std::equal(canonical.begin(), canonical.end(), c))
+        {
+            std::copy(canonical.begin(), canonical.end(), c);
+            ++changed;
+        }
+    }
+    return changed;
+}
+
+std::array<index_t, 4> unmatched_triangle(const HexMesh& m)
+{
+    const std::vector<index_t> twin = earlier_twin_faces(m.conn);
+    // the node a face of 3 distinct nodes repeats (-1 for any other face)
+    auto repeated = [&](std::size_t face)
+    {
+        const index_t* c = m.conn.data() + 8 * (face / 6);
+        const auto& f = hex_faces[face % 6];
+        index_t r = -1;
+        int distinct = 0;
+        for (int j = 0; j < 4; ++j)
+        {
+            bool seen = false;
+            for (int k = 0; k < j; ++k)
+                if (c[f[k]] == c[f[j]])
+                {
+                    seen = true;
+                    r = c[f[j]];
+                }
+            distinct += !seen;
+        }
+        return distinct == 3 ? r : index_t(-1);
+    };
+    for (std::size_t j = 0; j < twin.size(); ++j)
+        if (twin[j] >= 0)
+        {
+            const std::size_t i = static_cast<std::size_t>(twin[j]);
+            if (const index_t r = repeated(j); r >= 0 && r != repeated(i))
+                return {static_cast<index_t>(i / 6), static_cast<index_t>(i % 6), static_cast<index_t>(j / 6),
+                        static_cast<index_t>(j % 6)};
+        }
+    return {-1, -1, -1, -1};
 }
 
 std::vector<Quad> extract_boundary_faces(const std::vector<index_t>& conn, std::vector<index_t>* owner)

@@ -50,7 +50,9 @@ inline constexpr std::array<std::array<int, 4>, 6> hex_faces{{
 }};
 
 /// Per element face 6 e + f (local faces hex_faces): the first earlier face in that order with
-/// the same four nodes, or -1 (a face of a conforming mesh has at most one twin).
+/// the same nodes, or -1 (a face of a conforming mesh has at most one twin). A degenerate solid's
+/// face is compared by its distinct nodes (a triangle written a b d d is the a b b d of the
+/// tetrahedron across it).
 std::vector<index_t> earlier_twin_faces(const std::vector<index_t>& conn);
 
 /// Finds faces that belong to one element only. Order: by element, then by local face. With
@@ -103,6 +105,21 @@ template <class Id> int distinct_nodes(const Id* c)
 }
 /// At or below this scaled Jacobian a corner is degenerate (a solid refused at set-up)
 inline constexpr real_t kDegenerateScaledJacobian = 1e-6;
+
+/// Whether any solid of m repeats a node (a wedge, pyramid or tetrahedron written as a hex).
+bool has_degenerate_solids(const HexMesh& m);
+
+/// Writes every tetrahedron (a solid of 4 distinct nodes, in any degenerate form) as a b c c d d d d
+/// with its nodes in the mesh's order (d the last, c the one before, a and b right-handed), so
+/// that each triangle repeats its last node whichever of its two tetrahedra writes it: the nodal
+/// cells are images of the solids' natural octants, and a shared triangle's facets meet only
+/// when both sides divide it alike. Returns the number of solids rewritten.
+index_t canonical_tetrahedra(HexMesh& m);
+
+/// A triangle (a face of 3 distinct nodes) that its two solids write with different nodes
+/// repeated, as (element, local face, element across, its local face); all -1 when there is
+/// none. Such a triangle's facets do not meet, and the nodal cells on it are not closed.
+std::array<index_t, 4> unmatched_triangle(const HexMesh& m);
 
 /// Merges nodes closer than `tol` and renumbers `conn`; returns the number of nodes kept.
 index_t merge_coincident_nodes(std::vector<real_t>& x, std::vector<index_t>& conn, real_t tol);

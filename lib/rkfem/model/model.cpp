@@ -139,8 +139,10 @@ void measure_step_factor(const PartSpec& ps, NodalBlock& nb, Model& m)
 }
 /// A generated mesh whose corners are not all convex (a generator's parameters out of reach)
 /// is refused; nodes of a part that share a position (an unmerged keyword mesh: its pieces are
-/// not connected there) are noted. Keyword meshes check their corners as they are read.
-void check_mesh(const PartSpec& ps, const HexMesh& mesh, std::vector<std::string>& notes)
+/// not connected there) are noted. Keyword meshes check their corners as they are read. A nodal
+/// or RK part's tetrahedra are rewritten so that their nodal cells close (canonical_tetrahedra),
+/// and a triangle whose two solids still divide it differently is refused.
+void check_mesh(const PartSpec& ps, HexMesh& mesh, std::vector<std::string>& notes)
 {
     const bool read_from_file = !mesh.element_ids.empty(); // its corners were checked with the file's lines
     if (const HexCorner c = read_from_file ? HexCorner{} : worst_corner(mesh);
@@ -155,15 +157,32 @@ void check_mesh(const PartSpec& ps, const HexMesh& mesh, std::vector<std::string
                         "expected a generator that makes valid (convex, positive-volume) hexahedra");
     }
     // degenerate solids (a node repeated) run as 1-point or 2x2x2 hexes; the nodal and RK
-    // formulations build their cells and supports from hexahedra
-    if (is_nodal(ps.formulation) || ps.coupled())
+    // formulations build their cells from the images of the solids' natural octants, which close
+    // on a triangle when both its solids repeat the same node of it: tetrahedra are written so
+    // (canonical_tetrahedra), and a triangle that still is not (a prism's or a pyramid's against
+    // another solid's) is refused
+    if (ps.coupled())
         for (index_t e = 0; e < mesh.n_elements(); ++e)
             if (const int n = distinct_nodes(mesh.conn.data() + 8 * static_cast<std::size_t>(e)); n < 8)
                 throw DeckError({ps.loc.where, ps.loc.path + ".formulation"},
                                 "element " + std::to_string(mesh.element_label(e)) + " of the mesh has " +
                                     std::to_string(n) + " distinct nodes (a wedge, pyramid or tetrahedron)",
-                                "expected fem-1pt or fem-2x2x2 for a mesh with degenerate solids (the nodal and RK "
-                                "formulations build their cells from hexahedra)");
+                                "expected a part without regions or conversion for a mesh with degenerate solids "
+                                "(FE-RK coupling and conversion are verified on hexahedra only)");
+    if (is_nodal(ps.formulation))
+    {
+        if (const index_t n = canonical_tetrahedra(mesh); n > 0)
+            notes.push_back(ps.name + ": " + std::to_string(n) +
+                            " tetrahedra rewritten as a b c c d d d d in node order for the nodal cells");
+        if (const std::array<index_t, 4> t = unmatched_triangle(mesh); t[0] >= 0)
+            throw DeckError({ps.loc.where, ps.loc.path + ".formulation"},
+                            "elements " + std::to_string(mesh.element_label(t[0])) + " and " +
+                                std::to_string(mesh.element_label(t[2])) +
+                                " write the triangle they share with different nodes repeated, so the nodal cells "
+                                "on it do not close",
+                            "expected fem-1pt or fem-2x2x2 for this mesh, or one whose prisms and pyramids repeat "
+                            "the same node on each shared triangle (tetrahedra are rewritten so)");
+    }
     // exact repeats of a position (pre-processors write the same digits for an unmerged node)
     const index_t n = mesh.n_nodes();
     std::vector<index_t> order(static_cast<std::size_t>(n));
@@ -301,7 +320,11 @@ void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& 
                                                                     : build_nodal_block(ps, mesh, offset);
     nb.part = static_cast<index_t>(ip);
     add_nodal_mass(nb, nodes);
-    if (!ps.coupled() && !nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk, jittered_lattice_cloud(ps.generator)))
+    // the default factors are calibrated on hexahedra and clouds: a mesh with degenerate solids
+    // has its critical factor measured (fem-nodal MSCNI on tetrahedra went unstable at the
+    // hexahedra's default)
+    if (!ps.coupled() && (has_degenerate_solids(mesh) || !nodal_step_calibrated(ps.formulation, ps.nodal, ps.rk,
+                                                                                jittered_lattice_cloud(ps.generator))))
         measure_step_factor(ps, nb, *this);
     // RK regions of coupled parts and those a conversion makes are not measured
     if ((ps.coupled() || ps.conversion.active()) && !nodal_step_calibrated(Formulation::Rkpm, ps.nodal, ps.rk) &&

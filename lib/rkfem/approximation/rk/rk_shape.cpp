@@ -422,6 +422,8 @@ std::vector<real_t> nodal_spacing(const HexMesh& mesh, bool longest)
         for (const auto& ed : edges)
         {
             const index_t i = mesh.conn[8 * e + ed[0]], j = mesh.conn[8 * e + ed[1]];
+            if (i == j)
+                continue; // a degenerate solid's collapsed edge is no edge
             const real_t len = (mesh.node(i) - mesh.node(j)).norm();
             h[i] = longest ? std::max(h[i], len) : std::min(h[i], len);
             h[j] = longest ? std::max(h[j], len) : std::min(h[j], len);
