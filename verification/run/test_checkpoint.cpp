@@ -549,25 +549,30 @@ TEST(Checkpoint, AChangedByteInACheckpointIsRefused)
     }
 }
 
-// The data files a deck reads (keyword meshes, point files) are hashed into the checkpoint and
-// resolved from the deck's folder as the run found it: a restart from another working folder
-// finds them (it could not), and one whose mesh file changed since the run is refused, exit 2
-// with one line naming the file (a mesh whose coordinates moved restarted silently with other
-// results).
+// The data files a deck reads (keyword meshes and the files they *INCLUDE, point files) are hashed
+// into the checkpoint and resolved from the deck's folder as the run found it: a restart from
+// another working folder finds them (it could not), and one whose mesh file or included file
+// changed since the run is refused, exit 2 with one line naming the file (a mesh whose coordinates
+// moved restarted silently with other results; until 2026-12-07 so did one whose included nodes
+// moved).
 TEST(Checkpoint, ARestartReadsTheDataFilesTheRunReadOrRefuses)
 {
     const fs::path d = fs::temp_directory_path() / "rkfem_ckpt_kmesh";
     fs::remove_all(d);
     fs::create_directories(d / "model");
-    auto write_mesh = [&](double dz)
+    auto write_mesh = [&](double dz, const char* comment = "")
     {
-        std::ofstream k(d / "model" / "mesh.k");
-        k << "*KEYWORD\n*NODE\n";
+        // the nodes in a file the mesh includes
+        std::ofstream nodes(d / "model" / "nodes.k");
+        nodes << "*KEYWORD\n*NODE\n";
         int id = 1;
         for (int z = 0; z < 3; ++z)
             for (int y = 0; y < 3; ++y)
                 for (int x = 0; x < 3; ++x)
-                    k << id++ << "," << x << "," << y << "," << z + (z == 2 ? dz : 0.0) << "\n";
+                    nodes << id++ << "," << x << "," << y << "," << z + (z == 2 ? dz : 0.0) << "\n";
+        nodes << "*END\n";
+        std::ofstream k(d / "model" / "mesh.k");
+        k << "*KEYWORD\n" << comment << "*INCLUDE\nnodes.k\n";
         k << "*ELEMENT_SOLID\n";
         int e = 1;
         auto n = [](int x, int y, int z) { return 1 + x + 3 * y + 9 * z; };
@@ -598,14 +603,21 @@ loads:
                                             "--checkpoint-keep 5 2>&1");
     ASSERT_EQ(r.code, 0) << r.output;
     fs::copy(d / "out", d / "out2");
+    fs::copy(d / "out", d / "out3");
     const Result a = rkfem::test::run_shell("cd / && " + std::string(RKFEM_EXE) + " restart " + (d / "out").string() +
                                             " --from " + (d / "out" / "checkpoint.2.h5").string() + " --quiet 2>&1");
     EXPECT_EQ(a.code, 0) << a.output;
-    write_mesh(0.01); // the top nodes 1 % higher
+    write_mesh(0.01); // the top nodes 1 % higher, in the included file
     const Result b = run("restart " + (d / "out2").string() + " --from " + (d / "out2" / "checkpoint.2.h5").string());
     EXPECT_EQ(b.code, 2) << b.output;
-    EXPECT_NE(b.output.find("the data file " + (d / "model" / "mesh.k").string() + " is not the one the run read"),
+    EXPECT_NE(b.output.find("the data file " + (d / "model" / "nodes.k").string() + " is not the one the run read"),
               std::string::npos)
         << b.output;
     EXPECT_EQ(std::count(b.output.begin(), b.output.end(), '\n'), 1) << b.output;
+    write_mesh(0.0, "$ a comment\n"); // the nodes as they were, the including file changed
+    const Result c = run("restart " + (d / "out3").string() + " --from " + (d / "out3" / "checkpoint.2.h5").string());
+    EXPECT_EQ(c.code, 2) << c.output;
+    EXPECT_NE(c.output.find("the data file " + (d / "model" / "mesh.k").string() + " is not the one the run read"),
+              std::string::npos)
+        << c.output;
 }

@@ -15,6 +15,7 @@
 
 #include "rkfem/core/file_output.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/io/keyword_file.hpp"
 #include "rkfem/run/simulation.hpp"
 
 namespace rkfem
@@ -102,20 +103,40 @@ std::string resolved_deck_hash(const Deck& deck)
 std::string data_file_hashes(const Deck& deck)
 {
     std::string out;
+    auto hash_file = [&](const std::string& f)
+    {
+        const std::string path = std::filesystem::absolute(f).lexically_normal().string();
+        std::ifstream in(f, std::ios::binary);
+        if (!in)
+        {
+            out += path + "\tmissing\n";
+            return;
+        }
+        const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+        out += path + "\t" + hex16(fnv1a(bytes.data(), bytes.size())) + "\n";
+    };
     for (const PartSpec& p : deck.parts)
         for (const std::string* f : {&p.generator.mesh_file, &p.generator.points_file})
         {
             if (f->empty())
                 continue;
-            const std::string path = std::filesystem::absolute(*f).lexically_normal().string();
-            std::ifstream in(*f, std::ios::binary);
-            if (!in)
-            {
-                out += path + "\tmissing\n";
+            hash_file(*f);
+            if (f != &p.generator.mesh_file || p.generator.type != GeneratorSpec::Type::Keyword)
                 continue;
+            // and the files a keyword mesh *INCLUDEs, in reading order, each once
+            std::vector<std::string> included;
+            try
+            {
+                for (const KeywordBlock& b : read_keyword_blocks(*f, p.generator.loc))
+                    if (b.file != *f && std::find(included.begin(), included.end(), b.file) == included.end())
+                        included.push_back(b.file);
             }
-            const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-            out += path + "\t" + hex16(fnv1a(bytes.data(), bytes.size())) + "\n";
+            catch (const DeckError&)
+            {
+                out += std::filesystem::absolute(*f).lexically_normal().string() + "\tan include unreadable\n";
+            }
+            for (const std::string& g : included)
+                hash_file(g);
         }
     return out;
 }
