@@ -330,6 +330,7 @@ Deck read_deck(const std::string& path, const std::vector<std::string>& override
 /// Same, from text (`name` is used in messages).
 Deck parse_deck(const std::string& text, const std::string& name, const std::vector<std::string>& overrides = {});
 
-/// The resolved deck in SI, as YAML (what `rkfem check` prints).
-std::string to_yaml(const Deck& deck);
+/// The resolved deck in SI, as YAML (what `rkfem check` prints), values to `digits` significant
+/// digits (17: read back, the same doubles; the keyword export's $rkfem lines).
+std::string to_yaml(const Deck& deck, int digits = 10);
 } // namespace rkfem

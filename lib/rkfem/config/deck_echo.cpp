@@ -8,6 +8,10 @@ namespace rkfem
 {
 namespace
 {
+/// Significant digits of the echoed values (to_yaml's digits; 10 by default, 17 to read back the same
+/// doubles)
+thread_local int echo_digits = 10;
+
 /// A string as a YAML scalar that reads back as the same string: plain when it is a simple name
 /// (letters, digits, _ . - / not starting with a digit, - or .) and `quoted` is false; otherwise
 /// double-quoted, with backslash, quote and control characters escaped.
@@ -48,7 +52,7 @@ std::string scalar(const std::string& s, bool quoted = false)
 std::string vec(const Vec3& v)
 {
     std::ostringstream os;
-    os.precision(10);
+    os.precision(echo_digits);
     os << "[" << v[0] << ", " << v[1] << ", " << v[2] << "]";
     return os.str();
 }
@@ -56,7 +60,7 @@ std::string vec(const Vec3& v)
 std::string fn(const TimeFunction& f)
 {
     std::ostringstream os;
-    os.precision(10);
+    os.precision(echo_digits);
     switch (f.kind)
     {
     case TimeFunction::Kind::Constant:
@@ -574,10 +578,16 @@ void write_sections(std::ostringstream& os, const std::vector<SectionSpec>& sect
 }
 } // namespace
 
-std::string to_yaml(const Deck& d)
+std::string to_yaml(const Deck& d, int digits)
 {
+    struct Digits
+    {
+        int saved = echo_digits;
+        ~Digits() { echo_digits = saved; }
+    } restore;
+    echo_digits = digits;
     std::ostringstream os;
-    os.precision(10);
+    os.precision(echo_digits);
     write_header(os, d);
     os << "parts:\n";
     for (const auto& p : d.parts)

@@ -1624,22 +1624,38 @@ void Importer::emit(std::ostringstream& os)
     os << "parts:\n";
     for (const PartCard& p : parts_)
     {
-        if (!part_nodes_.count(p.pid))
+        // a key rkfem's export carried whole ($rkfem line) stands for what the cards say of it
+        std::set<std::string> carried;
+        if (const auto it = carried_part_.find(p.name); it != carried_part_.end())
+            for (const std::string& l : it->second)
+                carried.insert(l.substr(0, l.find(':')));
+        if (!part_nodes_.count(p.pid) && !carried.count("generator"))
             throw DeckError({p.where, "*PART PID"}, "part " + std::to_string(p.pid) + " has no *ELEMENT_SOLID solids",
                             "expected 8-node solids of each part (shells, beams and others are not supported)");
         std::string f = formulation(p);
         const std::string mat = material(p);
         os << "  " << p.name << ":\n";
-        os << "    generator: {type: keyword, file: \"" << mesh_file_ << "\", unit: " << u_.length_unit
-           << ", pid: " << p.pid << "}\n";
-        os << "    material: " << mat << "\n";
-        os << "    formulation: " << (f == "rkpm-sl" ? "rkpm" : f) << "\n";
-        if (f == "rkpm-sl")
+        if (!carried.count("generator"))
+            os << "    generator: {type: keyword, file: \"" << mesh_file_ << "\", unit: " << u_.length_unit
+               << ", pid: " << p.pid << "}\n";
+        if (!carried.count("material"))
+            os << "    material: " << mat << "\n";
+        if (!carried.count("formulation"))
+            os << "    formulation: " << (f == "rkpm-sl" ? "rkpm" : f) << "\n";
+        if (f == "rkpm-sl" && !carried.count("kinematics"))
             os << "    kinematics: semi-lagrangian\n";
-        hourglass(p, f, os);
-        if (const std::string e = erosion(p.mid); !e.empty())
+        {
+            std::ostringstream hg;
+            hourglass(p, f, hg);
+            std::istringstream lines(hg.str());
+            for (std::string l; std::getline(lines, l);)
+                if (!carried.count(l.substr(l.find_first_not_of(' '), l.find(':') - l.find_first_not_of(' '))))
+                    os << l << "\n";
+        }
+        if (const std::string e = erosion(p.mid); !e.empty() && !carried.count("erosion"))
             os << "    erosion: " << e << "\n";
-        if (const auto it = part_velocity_.find(p.pid); it != part_velocity_.end())
+        if (const auto it = part_velocity_.find(p.pid);
+            it != part_velocity_.end() && !carried.count("initial_velocity"))
             os << "    initial_velocity: [" << it->second[0] << ", " << it->second[1] << ", " << it->second[2] << "]\n";
         if (const auto it = carried_part_.find(p.name); it != carried_part_.end())
         {
@@ -1656,6 +1672,24 @@ void Importer::emit(std::ostringstream& os)
     boundary_conditions(rest);
     loads(rest);
     contacts(rest);
+    // the sets, conditions, loads and contacts rkfem's export carried whole ($rkfem lines, where one
+    // of them had no keyword form) stand for what the cards say of them
+    const bool carried_conditions = std::any_of(carried_top_.begin(), carried_top_.end(),
+                                                [](const std::string& l)
+                                                {
+                                                    const std::string k = l.substr(0, l.find(':'));
+                                                    return k == "node_sets" || k == "face_sets" ||
+                                                           k == "boundary_conditions" || k == "loads" ||
+                                                           k == "contacts";
+                                                });
+    if (carried_conditions)
+    {
+        used_node_sets_.clear();
+        extra_node_sets_.clear();
+        plane_sets_.clear();
+        used_segment_sets_.clear();
+        rest.str("");
+    }
     if (!used_node_sets_.empty() || !extra_node_sets_.empty() || !plane_sets_.empty())
     {
         os << "node_sets:\n";
