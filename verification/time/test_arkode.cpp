@@ -17,8 +17,10 @@
 #include <complex>
 #include <cstdio>
 #include <functional>
+#include <map>
 
 #include "../support.hpp"
+#include "rkfem/config/erk_table_names.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/time/arkode_stepper.hpp"
 #include "rkfem/time/central_difference.hpp"
@@ -370,6 +372,55 @@ TEST(ArkodeEnergy, UndampedOscillatorOverAThousandPeriods)
                     table, n * wh / (2 * M_PI), r.energy_ratio, predicted, std::pow(r2, static_cast<real_t>(steps)));
         // the measured ratio follows the stability function (log within 2 %)
         EXPECT_NEAR(std::log(r.energy_ratio), std::log(predicted), 0.02 * std::abs(std::log(predicted))) << table;
+    }
+}
+
+// An ERK table keeps an undamped mode of frequency omega bounded where omega dt is within its
+// stability interval on the imaginary axis: RK4 2 sqrt 2, every 3-stage third-order table (SSPRK3,
+// Bogacki-Shampine) sqrt 3, forward Euler and Heun-Euler none. The stable step estimates are the
+// central difference's (interval 2), so arkode-erk steps at min(1, Y / 2) of them: at the default
+// dt_scale 0.9 the central difference's step puts the highest mode at omega dt = 1.8, past sqrt 3
+// (|R| > 1: it grew, slowly, before 2026-12-07), and a table with no interval is refused.
+TEST(ArkodeEnergy, ErkStepsWithinItsTablesImaginaryStabilityInterval)
+{
+    const std::map<std::string, real_t> theory = {{"RK4", 2.0 * std::sqrt(2.0)},
+                                                  {"SSPRK3", std::sqrt(3.0)},
+                                                  {"ARKODE_BOGACKI_SHAMPINE_4_2_3", std::sqrt(3.0)},
+                                                  {"ARKODE_HEUN_EULER_2_1_2", 0.0},
+                                                  {"FORWARD_EULER", 0.0}};
+    for (const auto& [table, y] : theory)
+    {
+        const real_t limit = erk_imaginary_stability_limit(table);
+        std::printf("%-30s imaginary stability interval %.6f (theory %.6f)\n", table.c_str(), limit, y);
+        EXPECT_NEAR(limit, y, 1e-6) << table;
+        if (y > 0.0)
+        {
+            // the step the driver takes: 0.9 of min(1, Y / 2) of the central difference's 2 / omega
+            EXPECT_LE(stability_modulus(table, 0.9 * 2.0 * std::min(1.0, 0.5 * limit)), 1.0 + 1e-14) << table;
+            EXPECT_GT(stability_modulus(table, limit + 1e-3), 1.0) << table;
+        }
+    }
+    EXPECT_GT(stability_modulus("ARKODE_BOGACKI_SHAMPINE_4_2_3", 1.8), 1.0); // the central difference's step
+    // the built-in tables: 12 with an interval, 5 refused (2026-12-07: Cash-Karp 0.020, Fehlberg
+    // 6-4-5 0.015, Sayfy-Aburub 0.009, ARK548L2SAb 0.015, Heun-Euler 0)
+    int usable = 0;
+    for (const std::string& name : erk_table_names())
+    {
+        const real_t y = erk_imaginary_stability_limit(name);
+        std::printf("%-30s %.4f%s\n", name.c_str(), y, y < kMinErkImaginaryInterval ? " (refused)" : "");
+        usable += y >= kMinErkImaginaryInterval;
+    }
+    EXPECT_EQ(usable, 12);
+    try
+    {
+        test::model_from(oscillator_deck, {"time.stepper=arkode-erk", "time.erk_table=ARKODE_HEUN_EULER_2_1_2"});
+        ADD_FAILURE() << "Heun-Euler was taken";
+    }
+    catch (const DeckError& e)
+    {
+        EXPECT_NE(std::string(e.what()).find("ARKODE_HEUN_EULER_2_1_2 has no stability interval on the imaginary axis"),
+                  std::string::npos)
+            << e.what();
     }
 }
 

@@ -5,6 +5,7 @@
 
 #include "rkfem/config/erk_table_names.hpp"
 #include "rkfem/core/error.hpp"
+#include "rkfem/time/arkode_stepper.hpp"
 
 namespace rkfem::deck_detail
 {
@@ -320,6 +321,17 @@ TimeSpec read_time(const Context& ctx, const YAML::Node& root)
         if (t.stepper != StepperKind::ArkodeErk)
             s.fail("erk_table", "is only used by stepper arkode-erk", "remove it or set stepper: arkode-erk");
         t.erk_table = s.choice("erk_table", erk_table_names(), "ARKODE_BOGACKI_SHAMPINE_4_2_3");
+    }
+    if (t.stepper == StepperKind::ArkodeErk && erk_imaginary_stability_limit(t.erk_table) < kMinErkImaginaryInterval)
+    {
+        std::string stable;
+        for (const std::string& name : erk_table_names())
+            if (erk_imaginary_stability_limit(name) >= kMinErkImaginaryInterval)
+                stable += (stable.empty() ? "" : ", ") + name;
+        s.fail(s.has("erk_table") ? "erk_table" : "stepper",
+               t.erk_table + " has no stability interval on the imaginary axis (|R(i y)| > 1 from y = 0 on): a "
+                             "solid's undamped waves grow at any step",
+               "expected a table with one: " + stable);
     }
     t.energy_error_limit = s.quantity("energy_error_limit", dim::none, 0.05);
     if (!(t.energy_error_limit > 0))

@@ -1,5 +1,7 @@
 #include "rkfem/time/arkode_stepper.hpp"
 
+#include <complex>
+
 #include <algorithm>
 #include <arkode/arkode_erkstep.h>
 #include <cmath>
@@ -104,6 +106,48 @@ void* make_erk_table(const std::string& name, int* stages, int* order)
 void free_erk_table(void* table)
 {
     ARKodeButcherTable_Free(static_cast<ARKodeButcherTable>(table));
+}
+
+real_t erk_imaginary_stability_limit(const std::string& name)
+{
+    // R(z) = sum_k g_k z^k with g_0 = 1, g_k = b^T A^(k-1) 1 (A strictly lower triangular: k <= s)
+    auto* B = static_cast<ARKodeButcherTable>(make_erk_table(name));
+    const int s = B->stages;
+    std::vector<real_t> g{1.0}, w(static_cast<std::size_t>(s), 1.0), next(w.size());
+    for (int k = 1; k <= s; ++k)
+    {
+        real_t gk = 0.0;
+        for (int i = 0; i < s; ++i)
+            gk += B->b[i] * w[static_cast<std::size_t>(i)];
+        g.push_back(gk);
+        for (int i = 0; i < s; ++i)
+        {
+            next[static_cast<std::size_t>(i)] = 0.0;
+            for (int j = 0; j < s; ++j)
+                next[static_cast<std::size_t>(i)] += B->A[i][j] * w[static_cast<std::size_t>(j)];
+        }
+        w.swap(next);
+    }
+    free_erk_table(B);
+    auto stable = [&](real_t y)
+    {
+        std::complex<real_t> r = 0.0, zk = 1.0;
+        for (const real_t gk : g)
+        {
+            r += gk * zk;
+            zk *= std::complex<real_t>(0.0, y);
+        }
+        return std::abs(r) <= 1.0 + 1e-14; // Heun-Euler: |R(i y)| = 1 + y^4 / 8 + ..., 1e-13 at y = 1e-3
+    };
+    // the first y past which |R(i y)| > 1, scanned by 1e-3 up to 10, then bisected
+    const real_t step = 1e-3;
+    real_t y = 0.0;
+    while (y + step <= 10.0 && stable(y + step))
+        y += step;
+    real_t lo = y, hi = y + step;
+    while (hi - lo > 1e-7)
+        (stable(0.5 * (lo + hi)) ? lo : hi) = 0.5 * (lo + hi);
+    return lo < step ? 0.0 : lo;
 }
 
 struct ArkodeStepper::Impl
@@ -337,6 +381,10 @@ struct ArkodeStepper::Impl
 ArkodeStepper::ArkodeStepper(Mode mode, const TimeSpec& ts, bool project_vector_ops, bool fsal_workaround)
     : mode_(mode), ts_(ts), project_ops_(project_vector_ops), fsal_workaround_(fsal_workaround)
 {
+    // the stable step estimates are the central difference's (2 / omega_max): an ERK table steps
+    // at its own interval's share of it (BS23 and SSPRK3 sqrt(3) / 2; RK4's 2.83 is held to 1)
+    if (mode_ == Mode::RungeKutta)
+        step_share_ = std::min<real_t>(1.0, 0.5 * erk_imaginary_stability_limit(ts_.erk_table));
 }
 
 ArkodeStepper::~ArkodeStepper() = default;
@@ -351,10 +399,11 @@ StepReport ArkodeStepper::initialize(ExplicitOperator& model, real_t t)
     NodeSet& n = model.state();
     im.n3 = 3 * n.size();
     // the same start as the hand-written central difference
-    const StepReport start = start_model(model, t);
+    StepReport start = start_model(model, t);
     im.h_prev = im.h_pending = 0.0;
     im.t_n = t;
     create(model, t, n.u.data(), n.v.data());
+    start.dt_stable *= step_share_;
     return start;
 }
 
@@ -508,7 +557,7 @@ StepReport ArkodeStepper::step(ExplicitOperator& model, real_t t, real_t dt, std
     StepReport r;
     r.t = tret;
     r.dt = dt;
-    r.dt_stable = im.force.dt_stable;
+    r.dt_stable = im.force.dt_stable * step_share_;
     r.dt_element = im.force.dt_element;
     return r;
 }
