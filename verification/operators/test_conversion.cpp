@@ -717,6 +717,17 @@ TEST(ConversionReversion, ARevertMeasureFiresAtItsValueAndNotBefore)
                 g_before, gamma_back, 1e6 * (200e-6 + (2.0 - gamma_back) * 1e-4));
     EXPECT_NEAR(t_convert, std::sqrt(3.0) * 1e-4, 1e-6);
     EXPECT_EQ(m.reverted_elements(), 9);
+    // the history's running totals of the events (history.csv, results.h5): the last row's are
+    // the model's (9 converted, 9 back)
+    const auto col = [&](const char* name)
+    {
+        const auto it = std::find(s.history_columns.begin(), s.history_columns.end(), name);
+        EXPECT_NE(it, s.history_columns.end()) << name;
+        return s.history[s.history.size() - s.history_columns.size() +
+                         static_cast<std::size_t>(it - s.history_columns.begin())];
+    };
+    EXPECT_EQ(col("converted_elements"), static_cast<real_t>(m.converted_elements()));
+    EXPECT_EQ(col("reverted_elements"), 9.0);
     EXPECT_LE(g_revert, gamma_back);
     EXPECT_GT(g_before, gamma_back);
     for (index_t e = 0; e < m.meshes[0].n_elements(); ++e)

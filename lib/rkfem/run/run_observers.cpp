@@ -90,6 +90,9 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
             const std::vector<char>& rk = m.rk_elements(p);
             rows.push_back(static_cast<real_t>(std::count(rk.begin(), rk.end(), 1)));
         }
+    if (std::any_of(m.deck().parts.begin(), m.deck().parts.end(), [](const PartSpec& p) { return p.converts(); }))
+        rows.insert(rows.end(),
+                    {static_cast<real_t>(m.converted_elements()), static_cast<real_t>(m.reverted_elements())});
     for (index_t n : m.probe_nodes)
     {
         const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);
@@ -130,6 +133,9 @@ std::vector<std::string> history_columns(const Model& m)
     for (const auto& p : m.deck().parts)
         if (p.converts())
             c.push_back("part_" + p.name + "_rk_elements"); // evolutionary coupling: the RK region's size
+    // and the events' running totals (summary.json's converted_elements and reverted_elements)
+    if (std::any_of(m.deck().parts.begin(), m.deck().parts.end(), [](const PartSpec& p) { return p.converts(); }))
+        c.insert(c.end(), {"converted_elements", "reverted_elements"});
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})
