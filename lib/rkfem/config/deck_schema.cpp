@@ -3,6 +3,8 @@
 /// reference (Markdown).
 #include "rkfem/config/deck_schema.hpp"
 
+#include "rkfem/io/json_text.hpp"
+
 #include <cstdio>
 #include <set>
 #include <sstream>
@@ -11,40 +13,12 @@ namespace rkfem
 {
 namespace
 {
-std::string json_string(std::string_view s)
-{
-    std::string out = "\"";
-    for (const char c : s)
-        switch (c)
-        {
-        case '"':
-            out += "\\\"";
-            break;
-        case '\\':
-            out += "\\\\";
-            break;
-        case '\n':
-            out += "\\n";
-            break;
-        default:
-            if (static_cast<unsigned char>(c) < 0x20)
-            {
-                char b[8];
-                std::snprintf(b, sizeof b, "\\u%04x", c);
-                out += b;
-            }
-            else
-                out += c;
-        }
-    return out + "\"";
-}
-
 /// {"k1": v1, ...} from raw JSON values.
 std::string object(const std::vector<std::pair<std::string, std::string>>& members)
 {
     std::string out = "{";
     for (std::size_t i = 0; i < members.size(); ++i)
-        out += (i ? ", " : "") + json_string(members[i].first) + ": " + members[i].second;
+        out += (i ? ", " : "") + json_quote(members[i].first) + ": " + members[i].second;
     return out + "}";
 }
 
@@ -99,13 +73,13 @@ std::string quantity_schema(Dimension d, bool from_use)
                                       : describe(d) + "; a bare number is SI";
     return object(
         {{"anyOf", array({object({{"type", "\"number\""}}),
-                          object({{"type", "\"string\""}, {"pattern", json_string(quantity_pattern(d, from_use))}})})},
-         {"description", json_string(what)}});
+                          object({{"type", "\"string\""}, {"pattern", json_quote(quantity_pattern(d, from_use))}})})},
+         {"description", json_quote(what)}});
 }
 
 std::string schema_ref(const std::string& id)
 {
-    return object({{"$ref", json_string("#/definitions/" + id)}});
+    return object({{"$ref", json_quote("#/definitions/" + id)}});
 }
 
 std::string integer_schema()
@@ -129,14 +103,14 @@ std::string sections_schema(const std::vector<std::string>& ids, const std::stri
     for (const auto& id : ids)
     {
         const std::string v = variant_value(id, discriminator);
-        values.push_back(json_string(v));
+        values.push_back(json_quote(v));
         cases.push_back(
-            object({{"if", object({{"properties", object({{discriminator, object({{"const", json_string(v)}})}})},
-                                   {"required", array({json_string(discriminator)})}})},
+            object({{"if", object({{"properties", object({{discriminator, object({{"const", json_quote(v)}})}})},
+                                   {"required", array({json_quote(discriminator)})}})},
                     {"then", schema_ref(id)}}));
     }
     return object({{"type", "\"object\""},
-                   {"required", array({json_string(discriminator)})},
+                   {"required", array({json_quote(discriminator)})},
                    {"properties", object({{discriminator, object({{"enum", array(values)}})}})},
                    {"allOf", array(cases)}});
 }
@@ -146,7 +120,7 @@ std::string enum_schema(const std::vector<std::string>& choices)
     std::vector<std::string> items;
     for (const auto& c : choices)
     {
-        items.push_back(json_string(c));
+        items.push_back(json_quote(c));
         if (is_number(c)) // YAML reads `order: 2` as a number
             items.push_back(c);
     }
@@ -199,7 +173,7 @@ std::string key_schema(const KeyDoc& k)
                        {"maxItems", std::to_string(k.count)},
                        {"items", q}});
     case KeyKind::QuantityOr:
-        return object({{"anyOf", array({q, object({{"const", json_string(k.word)}})})}});
+        return object({{"anyOf", array({q, object({{"const", json_quote(k.word)}})})}});
     case KeyKind::BooleanOr:
         return object({{"anyOf", array({object({{"type", "\"boolean\""}}), schema_ref(k.sections[0])})}});
     case KeyKind::Names:
@@ -248,7 +222,7 @@ std::string default_json(const KeyDoc& k)
         return k.dflt;
     if ((k.kind == KeyKind::Quantity || k.kind == KeyKind::Integer) && is_number(k.dflt))
         return k.dflt[0] == '.' ? "0" + k.dflt : k.dflt;
-    return json_string(k.dflt);
+    return json_quote(k.dflt);
 }
 
 std::string section_schema(const SectionDoc& s)
@@ -257,17 +231,17 @@ std::string section_schema(const SectionDoc& s)
     std::vector<std::string> req;
     for (const auto& k : s.keys)
     {
-        std::vector<std::pair<std::string, std::string>> p = {{"description", json_string(k.description)},
+        std::vector<std::pair<std::string, std::string>> p = {{"description", json_quote(k.description)},
                                                               {"allOf", array({key_schema(k)})}};
         if (const std::string d = default_json(k); !d.empty())
             p.emplace_back("default", d);
         props.emplace_back(k.name, object(p));
         if (k.required)
-            req.push_back(json_string(k.name));
+            req.push_back(json_quote(k.name));
     }
     std::vector<std::pair<std::string, std::string>> out = {{"type", "\"object\""},
-                                                            {"title", json_string(s.title)},
-                                                            {"description", json_string(s.description)},
+                                                            {"title", json_quote(s.title)},
+                                                            {"description", json_quote(s.description)},
                                                             {"properties", object(props)},
                                                             {"additionalProperties", "false"}};
     if (!req.empty())
@@ -388,9 +362,9 @@ std::string deck_json_schema(std::string_view root)
         defs.emplace_back(s->id, section_schema(*s));
     const SectionDoc& r = deck_section(root);
     return object({{"$schema", "\"http://json-schema.org/draft-07/schema#\""},
-                   {"title", json_string("rkfem: " + deck_section(root).title)},
-                   {"description", json_string(r.description + " Generated by `rkfem schema` from the reader's key "
-                                                               "table; quantities take a unit (bare numbers are SI).")},
+                   {"title", json_quote("rkfem: " + deck_section(root).title)},
+                   {"description", json_quote(r.description + " Generated by `rkfem schema` from the reader's key "
+                                                              "table; quantities take a unit (bare numbers are SI).")},
                    {"allOf", array({schema_ref(std::string(root))})},
                    {"definitions", object(defs)}}) +
            "\n";

@@ -15,6 +15,7 @@
 
 #include "rkfem/core/file_output.hpp"
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/io/json_text.hpp"
 #include "rkfem/io/keyword_file.hpp"
 #include "rkfem/run/simulation.hpp"
 
@@ -22,34 +23,6 @@ namespace rkfem
 {
 namespace
 {
-std::string quote(const std::string& s)
-{
-    std::string out = "\"";
-    for (char c : s)
-    {
-        switch (c)
-        {
-        case '"':
-            out += "\\\"";
-            break;
-        case '\\':
-            out += "\\\\";
-            break;
-        case '\n':
-            out += "\\n";
-            break;
-        case '\t':
-            out += "\\t";
-            break;
-        default:
-            if (static_cast<unsigned char>(c) < 0x20)
-                out += ' ';
-            else
-                out += c;
-        }
-    }
-    return out + "\"";
-}
 
 std::string num(double v)
 {
@@ -167,21 +140,21 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     std::ostringstream o; // written whole at the end (write_file_whole)
     const Energies& e = s.energy;
     o << "{\n";
-    o << "  \"deck\": " << quote(opt.deck_path) << ",\n";
-    o << "  \"title\": " << quote(model.deck().title) << ",\n";
+    o << "  \"deck\": " << json_quote(opt.deck_path) << ",\n";
+    o << "  \"title\": " << json_quote(model.deck().title) << ",\n";
     o << "  \"overrides\": [";
     for (std::size_t i = 0; i < opt.overrides.size(); ++i)
-        o << (i ? ", " : "") << quote(opt.overrides[i]);
+        o << (i ? ", " : "") << json_quote(opt.overrides[i]);
     o << "],\n";
-    o << "  \"resolved_deck_si\": " << quote(to_yaml(model.deck())) << ",\n";
-    o << "  \"deck_hash\": " << quote(resolved_deck_hash(model.deck())) << ",\n";
-    o << "  \"build\": " << quote(solver_build_id()) << ",\n";
-    o << "  \"status\": " << quote(s.status) << ",\n";
-    o << "  \"run_id\": " << quote(s.run_id) << ",\n";
-    o << "  \"message\": " << quote(s.message) << ",\n";
+    o << "  \"resolved_deck_si\": " << json_quote(to_yaml(model.deck())) << ",\n";
+    o << "  \"deck_hash\": " << json_quote(resolved_deck_hash(model.deck())) << ",\n";
+    o << "  \"build\": " << json_quote(solver_build_id()) << ",\n";
+    o << "  \"status\": " << json_quote(s.status) << ",\n";
+    o << "  \"run_id\": " << json_quote(s.run_id) << ",\n";
+    o << "  \"message\": " << json_quote(s.message) << ",\n";
     o << "  \"setup_notes\": [";
     for (std::size_t i = 0; i < model.setup_notes.size(); ++i)
-        o << (i ? ", " : "") << quote(model.setup_notes[i]);
+        o << (i ? ", " : "") << json_quote(model.setup_notes[i]);
     o << "],\n";
     o << "  \"nodes\": " << model.nodes.size() << ",\n";
     o << "  \"elements\": " << model.n_elements() << ",\n";
@@ -257,7 +230,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
             lo = lo.cwiseMin(x);
             hi = hi.cwiseMax(x);
         }
-        o << (ip ? ",\n" : "\n") << "    " << quote(part.name) << ": {";
+        o << (ip ? ",\n" : "\n") << "    " << json_quote(part.name) << ": {";
         const char* axis = "xyz";
         for (int d = 0; d < 3; ++d)
             o << (d ? ", " : "") << "\"" << axis[d] << "min\": " << num(lo[d]) << ", \"" << axis[d]
@@ -272,7 +245,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     const std::size_t first_probe_column = nc - 12 * probes.size(); // probes' 12 columns each come last
     for (std::size_t p = 0; p < probes.size(); ++p)
     {
-        o << (p ? ",\n" : "\n") << "    " << quote(probes[p].name) << ": {\"node\": " << model.probe_nodes[p];
+        o << (p ? ",\n" : "\n") << "    " << json_quote(probes[p].name) << ": {\"node\": " << model.probe_nodes[p];
         for (std::size_t q = 0; q < 12; ++q)
         {
             const std::size_t col = first_probe_column + 12 * p + q;
@@ -282,7 +255,7 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
                 lo = std::min(lo, s.history[r * nc + col]);
                 hi = std::max(hi, s.history[r * nc + col]);
             }
-            o << ", " << quote(s.history_columns[col].substr(probes[p].name.size() + 1))
+            o << ", " << json_quote(s.history_columns[col].substr(probes[p].name.size() + 1))
               << ": {\"min\": " << num(nr ? lo : 0) << ", \"max\": " << num(nr ? hi : 0) << "}";
         }
         o << "}";
