@@ -5,7 +5,7 @@
 
 #include "rkfem/config/erk_table_names.hpp"
 #include "rkfem/core/error.hpp"
-#include "rkfem/time/arkode_stepper.hpp"
+#include "rkfem/time/erk_tables.hpp"
 
 namespace rkfem::deck_detail
 {

@@ -29,6 +29,8 @@
 #include <string>
 #include <vector>
 
+#include "rkfem/time/erk_tables.hpp"
+
 #include "rkfem/time/stepper.hpp"
 
 namespace rkfem
@@ -81,21 +83,6 @@ class ArkodeStepper final : public TimeStepper
     long n_rhs_ = 0;
     friend struct Impl;
 };
-
-/// Builds the Butcher table for a name of config/erk_table_names.hpp; returns its stages and
-/// order through the pointers (for tests). The table is owned by the caller (ARKodeButcherTable).
-void* make_erk_table(const std::string& name, int* stages = nullptr, int* order = nullptr);
-void free_erk_table(void* table);
-
-/// The table's stability interval on the imaginary axis: the largest Y with |R(i y)| <= 1 for
-/// every y in [0, Y], R(z) = 1 + z b^T (I - z A)^-1 1 its stability polynomial (to 1e-6; 0 where
-/// |R(i y)| > 1 right from 0, as for forward Euler and Heun-Euler). An undamped mode of frequency
-/// omega stays bounded where omega dt <= Y; the central difference's interval is 2.
-real_t erk_imaginary_stability_limit(const std::string& name);
-/// Below this interval a table is refused for time.erk_table: |R(i y)| > 1 from y = 0 on (Heun-Euler;
-/// and Cash-Karp, Fehlberg 6-4-5, Sayfy-Aburub, ARK548L2SAb, whose |R(i y)| - 1 grows as a high
-/// power of y and passes 1e-14 by y = 0.02), so undamped waves grow at every step.
-inline constexpr real_t kMinErkImaginaryInterval = 0.1;
 
 /// The arkode-cd kick over n values, one pass: v(n) = v(n-1/2) + h_prev/2 a(n) into v_full,
 /// v(n+1/2) = v(n) + h/2 a(n) into du (u' of the right-hand side), and, unless dv is null (rkfem's
