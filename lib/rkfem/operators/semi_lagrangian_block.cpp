@@ -639,7 +639,7 @@ bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt
         state_.stress_trial[k * blk.stress_stride + p] = u.sig[k];
     u.V = blk.points.weight[L] * ratio;
     const real_t c = mat.wave_speed(), q1 = blk.bulk_viscosity.quadratic, q2 = blk.bulk_viscosity.linear;
-    const real_t len = blk.dt_factor * std::cbrt(ratio) * blk.length0[p];
+    const real_t len = std::cbrt(ratio) * blk.length0[p]; // q on the point's length, the step alpha times
     u.q = bulk_q(mat.rho / ratio, c, len, trd, q1, q2);
     real_t* sums = &point_sums_[4 * p];
     sums[0] = dt * u.V * stress_power(s_old, u.sig, d);
@@ -647,7 +647,7 @@ bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt
     sums[2] = 0.0;
     // the digest's 7.2: moving particles step at l / (c + the largest speed of a covering
     // particle relative to this one), with the bulk viscosity's term as elements have it
-    sums[3] = element_dt(c + closing, len, trd, q1, q2);
+    sums[3] = blk.dt_factor * element_dt(c + closing, len, trd, q1, q2);
     return true;
 }
 

@@ -388,8 +388,9 @@ template <PlasticPoints::Kind MK, bool FULL>
         far[l] = static_cast<real_t>(f);
         root[l] = f ? std::cbrt(Jl[l]) : 1.0;
     }
-    // bulk viscosity (LS-DYNA form) with l = alpha J^(1/3) l0, the length of the stable-step
-    // estimate, energies, V0 P = V0 J (sigma - q 1) F^-T
+    // bulk viscosity (LS-DYNA form) with l = J^(1/3) l0, the point's length (the stable step is
+    // alpha times the element form's on it: alpha calibrates the step, not the viscosity),
+    // energies, V0 P = V0 J (sigma - q 1) F^-T
     alignas(64) real_t P[9][W], e_int[W], e_bv[W], dtl[W];
     RKFEM_SIMD()
     for (int l = 0; l < W; ++l)
@@ -400,10 +401,10 @@ template <PlasticPoints::Kind MK, bool FULL>
         r -= (r * r * r - J) / (3.0 * r * r);
         r -= (r * r * r - J) / (3.0 * r * r);
         r += far[l] * (root[l] - r);
-        const real_t len = alpha * r * blk.length0[p];
+        const real_t len = r * blk.length0[p];
         const real_t trd = dl[0][l] + dl[1][l] + dl[2][l];
         const real_t q = bulk_q(mat.rho / J, c, len, trd, q1, q2);
-        dtl[l] = element_dt(c, len, trd, q1, q2);
+        dtl[l] = alpha * element_dt(c, len, trd, q1, q2);
         const real_t power = 0.5 * ((so[0][l] + sn[0][l]) * dl[0][l] + (so[1][l] + sn[1][l]) * dl[1][l] +
                                     (so[2][l] + sn[2][l]) * dl[2][l]) +
                              (so[3][l] + sn[3][l]) * dl[3][l] + (so[4][l] + sn[4][l]) * dl[4][l] +

@@ -77,10 +77,12 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
             elastic_update(mat, d, w, dt, s);
         else if (J > 0.0)
             history->update(static_cast<std::size_t>(p), d, w, dt, s);
-        const real_t len = blk.dt_factor * std::cbrt(J) * blk.length0[static_cast<std::size_t>(p)];
+        // q on the point's length; the step alpha times the element form's on it (alpha
+        // calibrates the step, not the viscosity)
+        const real_t len = std::cbrt(J) * blk.length0[static_cast<std::size_t>(p)];
         const real_t trd = d[0] + d[1] + d[2];
         const real_t q = bulk_q(mat.rho / J, c, len, trd, q1, q2);
-        out.dt_stable = std::min(out.dt_stable, element_dt(c, len, trd, q1, q2));
+        out.dt_stable = std::min(out.dt_stable, blk.dt_factor * element_dt(c, len, trd, q1, q2));
         const real_t VJ = op.weight[p] * J;
         out.d_internal += dt * VJ * stress_power(s_old, s, d);
         out.d_bulk_viscosity += -dt * VJ * q * trd;
