@@ -613,8 +613,8 @@ std::vector<SectionDoc> build_table()
         choice("formulation", {"node-to-segment", "mortar"}, "node-to-segment",
                "Node-to-segment penalty (two-pass) or mortar (surface-to-surface only)."),
         choice("stiffness", {"soft", "segment"}, "soft",
-               "Penalty stiffness from the nodes' mass and the step (soft, LS-DYNA's SOFT 1) or from the segment's "
-               "bulk modulus (segment)."),
+               "The penalty stiffness: the larger of the segment's (penalty_scale K A / depth) and the soft "
+               "constraint's (soft_scale m / dt0^2; LS-DYNA's SOFT 1), or the segment's alone (SOFT 0)."),
         quantity("penalty_scale", dim::none, "0.1", "The penalty scale factor, (0, 100]."),
         quantity("soft_scale", dim::none, "0.1", "The soft constraint's scale factor, (0, 0.8]."),
         quantity("thickness", dim::length, "0", "The contact thickness."),
