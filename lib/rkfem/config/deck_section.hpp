@@ -77,20 +77,21 @@ class Section
 {
   public:
     Section(const Context& ctx, const YAML::Node& node, std::string path, std::string_view id)
-        : ctx_(ctx), node_(node), path_(std::move(path)), doc_(&deck_section(id)), allowed_(deck_section_keys(id))
+        : ctx_(ctx), node_(node), path_(std::move(path)), doc_(&deck_section(id))
     {
         if (!node_.IsMap())
             throw DeckError(locate(ctx_, node_, path_), node_.IsNull() ? "is empty" : "is not a mapping",
-                            "expected keys: " + join(allowed_));
+                            "expected keys: " + join(deck_section_keys(id)));
         reject_repeated_keys(ctx_, node_, path_);
         for (const auto& kv : node_)
         {
             const std::string key = kv.first.as<std::string>();
-            if (std::find(allowed_.begin(), allowed_.end(), key) != allowed_.end())
+            if (doc_->find(key))
                 continue;
+            const std::vector<std::string> allowed = deck_section_keys(id);
             std::string best;
             std::size_t best_d = 1000;
-            for (const auto& a : allowed_)
+            for (const auto& a : allowed)
             {
                 const std::size_t d = edit_distance(key, a);
                 if (d < best_d)
@@ -102,8 +103,8 @@ class Section
             const std::string cp = child_path(path_, key);
             const bool close = best_d <= std::max<std::size_t>(2, key.size() / 3);
             throw DeckError(locate(ctx_, kv.first, cp), "unknown key '" + key + "'",
-                            close ? "did you mean '" + best + "'? (valid keys: " + join(allowed_) + ")"
-                                  : "valid keys: " + join(allowed_));
+                            close ? "did you mean '" + best + "'? (valid keys: " + join(allowed) + ")"
+                                  : "valid keys: " + join(allowed));
         }
     }
 
@@ -301,7 +302,6 @@ class Section
     YAML::Node node_;
     std::string path_;
     const SectionDoc* doc_;
-    std::vector<std::string> allowed_;
 };
 
 TimeFunction read_time_function(const Section& parent, const YAML::Node& n, const std::string& p, Dimension d);

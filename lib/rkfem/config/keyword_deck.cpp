@@ -252,7 +252,8 @@ class Importer
     std::string kcc_user_set(const Cards& c, const PartCard& p, double rho, double pr);
     std::string rate_effects(const Cards& c);
     std::string erosion(long long mid);
-    void hourglass(const PartCard& p, const std::string& formulation, std::ostringstream& os);
+    void hourglass(const PartCard& p, const std::string& formulation, const std::set<std::string>& carried,
+                   std::ostringstream& os);
     std::string formulation(const PartCard& p);
     void initial_velocities();
     std::string node_set_name(long long sid, const Cards& c, std::size_t card, const char* field);
@@ -1168,7 +1169,9 @@ std::string Importer::material(const PartCard& p)
     return concrete(base, c, p);
 }
 
-void Importer::hourglass(const PartCard& p, const std::string& formulation, std::ostringstream& os)
+/// The part's hourglass and bulk_viscosity lines, each unless the export carried it ($rkfem).
+void Importer::hourglass(const PartCard& p, const std::string& formulation, const std::set<std::string>& carried,
+                         std::ostringstream& os)
 {
     long long ihq = ihq_;
     double qm = qh_, q1 = q1_, q2 = q2_;
@@ -1191,7 +1194,7 @@ void Importer::hourglass(const PartCard& p, const std::string& formulation, std:
             h.fail(0, "IHQ", "IHQ " + std::to_string(ihq) + " is not supported",
                    "expected 1, 2, 3 (viscous), 4, 5 (stiffness) or 6 (assumed strain)");
     }
-    if (formulation == "fem-1pt")
+    if (formulation == "fem-1pt" && !carried.count("hourglass"))
     {
         // IHQ 0 and 1: LS-DYNA's standard viscous form on the raw base vectors (its default), which
         // rkfem has as viscous-plain; 2 and 3 the Flanagan-Belytschko viscous forms
@@ -1206,7 +1209,7 @@ void Importer::hourglass(const PartCard& p, const std::string& formulation, std:
         if (ihq == 4)
             note(p.where, "IHQ 4 is run as rkfem's stiffness form (Flanagan-Belytschko exact volume: LS-DYNA's IHQ 5)");
     }
-    if (q1 != 0.0 || q2 != 0.0)
+    if ((q1 != 0.0 || q2 != 0.0) && !carried.count("bulk_viscosity"))
         os << "    bulk_viscosity: {quadratic: " << num(q1 == 0.0 ? 1.5 : q1)
            << ", linear: " << num(q2 == 0.0 ? 0.06 : q2) << "}\n";
 }
@@ -1644,14 +1647,7 @@ void Importer::emit(std::ostringstream& os)
             os << "    formulation: " << (f == "rkpm-sl" ? "rkpm" : f) << "\n";
         if (f == "rkpm-sl" && !carried.count("kinematics"))
             os << "    kinematics: semi-lagrangian\n";
-        {
-            std::ostringstream hg;
-            hourglass(p, f, hg);
-            std::istringstream lines(hg.str());
-            for (std::string l; std::getline(lines, l);)
-                if (!carried.count(l.substr(l.find_first_not_of(' '), l.find(':') - l.find_first_not_of(' '))))
-                    os << l << "\n";
-        }
+        hourglass(p, f, carried, os);
         if (const std::string e = erosion(p.mid); !e.empty() && !carried.count("erosion"))
             os << "    erosion: " << e << "\n";
         if (const auto it = part_velocity_.find(p.pid);
@@ -1668,12 +1664,8 @@ void Importer::emit(std::ostringstream& os)
         if (!carried_used_.count(name))
             throw DeckError({blocks_.front().file, "$rkfem parts." + name}, "names no part of the deck",
                             "expected the name of a *PART (its heading, lower-cased)");
-    std::ostringstream rest;
-    boundary_conditions(rest);
-    loads(rest);
-    contacts(rest);
     // the sets, conditions, loads and contacts rkfem's export carried whole ($rkfem lines, where one
-    // of them had no keyword form) stand for what the cards say of them
+    // of them had no keyword form) stand for what the cards say of them: those are not translated
     const bool carried_conditions = std::any_of(carried_top_.begin(), carried_top_.end(),
                                                 [](const std::string& l)
                                                 {
@@ -1682,13 +1674,12 @@ void Importer::emit(std::ostringstream& os)
                                                            k == "boundary_conditions" || k == "loads" ||
                                                            k == "contacts";
                                                 });
-    if (carried_conditions)
+    std::ostringstream rest;
+    if (!carried_conditions)
     {
-        used_node_sets_.clear();
-        extra_node_sets_.clear();
-        plane_sets_.clear();
-        used_segment_sets_.clear();
-        rest.str("");
+        boundary_conditions(rest);
+        loads(rest);
+        contacts(rest);
     }
     if (!used_node_sets_.empty() || !extra_node_sets_.empty() || !plane_sets_.empty())
     {

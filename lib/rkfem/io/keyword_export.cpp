@@ -579,7 +579,10 @@ void Exporter::contacts()
 /// contacts is carried as $rkfem lines instead (the keywords keep what they can say, for LS-DYNA)
 template <class Write> void Exporter::group(Write write)
 {
-    const std::string before = os_.str();
+    // where the output stood (the text itself is copied back only when an item fails: the mesh
+    // cards before it may be hundreds of MB)
+    const std::streamoff before = os_.tellp();
+    const std::size_t notes = dropped_.size();
     const auto nodes = node_set_id_, segments = segment_set_id_;
     const long long sets = next_set_, curves = next_curve_;
     try
@@ -588,8 +591,11 @@ template <class Write> void Exporter::group(Write write)
     }
     catch (const DeckError& e)
     {
-        os_.str(before);
+        std::string kept = os_.str();
+        kept.resize(static_cast<std::size_t>(before));
+        os_.str(kept);
         os_.seekp(0, std::ios_base::end);
+        dropped_.resize(notes);
         node_set_id_ = nodes;
         segment_set_id_ = segments;
         next_set_ = sets;

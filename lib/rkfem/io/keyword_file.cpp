@@ -27,10 +27,11 @@ std::string upper(std::string s)
     return s;
 }
 
-/// Reads `path`'s blocks into `out`, following *INCLUDE; `open` holds the files being read (a cycle's check).
-/// Errors are the caller's (`at`: the deck key or file that asked for the file).
+/// Reads `path`'s blocks into `out`, following *INCLUDE; `open` holds the files being read (a cycle's check),
+/// `files` gets every file read, in reading order. Errors are the caller's (`at`: the deck key or file that
+/// asked for the file).
 void read_file(const std::string& path, const std::string& included_at, const SourceLocation& at,
-               std::vector<std::string>& open, std::vector<KeywordBlock>& out)
+               std::vector<std::string>& open, std::vector<std::string>& files, std::vector<KeywordBlock>& out)
 {
     std::error_code ec;
     const std::string canonical = std::filesystem::weakly_canonical(path, ec).string();
@@ -43,6 +44,7 @@ void read_file(const std::string& path, const std::string& included_at, const So
         throw DeckError(at, (included_at.empty() ? std::string() : included_at + ": ") + path + " cannot be opened",
                         "expected a readable LS-DYNA keyword file");
     open.push_back(canonical);
+    files.push_back(path);
     std::string text;
     int line = 0;
     bool in_include = false; // the last keyword was *INCLUDE and its file name is next
@@ -87,7 +89,7 @@ void read_file(const std::string& path, const std::string& included_at, const So
             std::filesystem::path inc(trim(text));
             if (inc.is_relative())
                 inc = std::filesystem::path(path).parent_path() / inc;
-            read_file(inc.string(), path + ":" + std::to_string(line), at, open, out);
+            read_file(inc.string(), path + ":" + std::to_string(line), at, open, files, out);
             // cards after an include's file belong to no block until the next keyword
             out.push_back({"*INCLUDE", path, line, {}});
             continue;
@@ -109,11 +111,14 @@ std::string KeywordBlock::where(int i) const
     return file + ":" + std::to_string(l);
 }
 
-std::vector<KeywordBlock> read_keyword_blocks(const std::string& path, const SourceLocation& at)
+std::vector<KeywordBlock> read_keyword_blocks(const std::string& path, const SourceLocation& at,
+                                              std::vector<std::string>* files)
 {
     std::vector<KeywordBlock> out;
-    std::vector<std::string> open;
-    read_file(path, "", at, open, out);
+    std::vector<std::string> open, read;
+    read_file(path, "", at, open, read, out);
+    if (files)
+        *files = std::move(read);
     // the markers after includes, holding no card or only blank ones, are dropped
     out.erase(std::remove_if(out.begin(), out.end(),
                              [](const KeywordBlock& b)

@@ -37,10 +37,12 @@ struct KeywordBlock
     std::string where(int i = -1) const;
 };
 
-/// Every block of `path` and the files it includes, in reading order. Throws DeckError at `at`
+/// Every block of `path` and the files it includes, in reading order; with `files`, the files
+/// read (`path` first, then each include as it is reached, as opened). Throws DeckError at `at`
 /// (the deck key or file that names `path`), naming the file and line, for a file that cannot be
 /// opened, an *INCLUDE without a file name, or an include cycle.
-std::vector<KeywordBlock> read_keyword_blocks(const std::string& path, const SourceLocation& at);
+std::vector<KeywordBlock> read_keyword_blocks(const std::string& path, const SourceLocation& at,
+                                              std::vector<std::string>* files = nullptr);
 
 /// The fields of a card: comma-separated (free format) or fixed columns of the given widths
 /// (LS-DYNA's standard format: 10 columns per field on most keywords, 8/16 on *NODE and

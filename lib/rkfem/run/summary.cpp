@@ -96,20 +96,18 @@ std::string data_file_hashes(const Deck& deck)
             hash_file(*f);
             if (f != &p.generator.mesh_file || p.generator.type != GeneratorSpec::Type::Keyword)
                 continue;
-            // and the files a keyword mesh *INCLUDEs, in reading order, each once
+            // and the files a keyword mesh *INCLUDEs, in reading order (the reader's own list)
             std::vector<std::string> included;
             try
             {
-                for (const KeywordBlock& b : read_keyword_blocks(*f, p.generator.loc))
-                    if (b.file != *f && std::find(included.begin(), included.end(), b.file) == included.end())
-                        included.push_back(b.file);
+                read_keyword_blocks(*f, p.generator.loc, &included);
             }
             catch (const DeckError&)
             {
                 out += std::filesystem::absolute(*f).lexically_normal().string() + "\tan include unreadable\n";
             }
-            for (const std::string& g : included)
-                hash_file(g);
+            for (std::size_t i = 1; i < included.size(); ++i) // [0] is the mesh file, hashed above
+                hash_file(included[i]);
         }
     return out;
 }
