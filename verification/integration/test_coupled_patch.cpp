@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <map>
 
 #include "nodal_common.hpp"
 #include "rkfem/approximation/coupling/coupled_shapes.hpp"
@@ -122,6 +123,66 @@ TEST(CoupledShapes, FeNodesKeepTheKroneckerProperty)
         }
     }
     EXPECT_GT(checked, 0);
+}
+
+TEST(CoupledShapes, FastPathMatchesItsPlainTwin)
+{
+    // values (one neighbour search per element and thread, focused on a box) against
+    // values_plain (a search per point): the same functions to round-off at points of every
+    // element kind, inside the focus box and outside it (which must fall back, not miss functions)
+    const HexMesh mesh = distorted_box(6, 1.0 / 6, 0.3);
+    for (Transition t : {Transition::Mixed, Transition::Ramp})
+    {
+        const CoupledShapes shapes(mesh, rk_below(mesh, 0.5), RkParams{}, t);
+        std::vector<index_t> nodes, plain_nodes;
+        std::vector<real_t> psi, plain_psi;
+        real_t worst[3] = {0, 0, 0};
+        int points[3] = {0, 0, 0};
+        for (index_t e = 0; e < mesh.n_elements(); ++e)
+        {
+            auto at = [&](const Vec3& xi)
+            {
+                real_t N[8];
+                const real_t z[3] = {xi[0], xi[1], xi[2]};
+                hex8_shape(z, N);
+                Vec3 x = Vec3::Zero();
+                for (int a = 0; a < 8; ++a)
+                    x += N[a] * mesh.node(mesh.conn[8 * e + a]);
+                return x;
+            };
+            // the focus: the box of the octant xi > 0; points in it, then the opposite corner
+            const Vec3 lo = at(Vec3(0, 0, 0)).cwiseMin(at(Vec3(1, 1, 1))) - Vec3::Constant(0.2 / 6);
+            const Vec3 hi = at(Vec3(0, 0, 0)).cwiseMax(at(Vec3(1, 1, 1))) + Vec3::Constant(0.2 / 6);
+            shapes.focus(e, lo, hi);
+            for (const Vec3& xi : {Vec3(0.5, 0.5, 0.5), Vec3(0.1, 0.9, 0.3), Vec3(1, 1, 1), Vec3(-0.9, -0.8, -1)})
+            {
+                const Vec3 x = at(xi);
+                shapes.values(e, xi, x, nodes, psi);
+                shapes.values_plain(e, xi, x, plain_nodes, plain_psi);
+                std::map<index_t, real_t> fast, plain;
+                for (std::size_t k = 0; k < nodes.size(); ++k)
+                    fast[nodes[k]] += psi[k];
+                for (std::size_t k = 0; k < plain_nodes.size(); ++k)
+                    plain[plain_nodes[k]] += plain_psi[k];
+                const int kind = static_cast<int>(shapes.kind(e));
+                ++points[kind];
+                EXPECT_EQ(fast.size(), plain.size()) << "element " << e;
+                for (const auto& [n, v] : plain)
+                {
+                    ASSERT_TRUE(fast.count(n)) << "element " << e << " misses function " << n;
+                    worst[kind] = std::max(worst[kind], std::abs(fast[n] - v));
+                }
+            }
+        }
+        std::printf("%s: fast against plain values, max difference: FE %.1e (%d points), interface %.1e (%d), "
+                    "RK %.1e (%d)\n",
+                    name(t), worst[0], points[0], worst[1], points[1], worst[2], points[2]);
+        for (int k = 0; k < 3; ++k)
+        {
+            EXPECT_GT(points[k], 0);
+            EXPECT_LT(worst[k], 1e-13);
+        }
+    }
 }
 
 class CoupledPatch : public ::testing::TestWithParam<bool>

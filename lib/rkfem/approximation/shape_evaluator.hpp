@@ -21,6 +21,10 @@ class ShapeEvaluator
                         std::vector<real_t>& psi) const = 0;
     /// Gradients at node i's position (direct nodal integration). Throws Error if undefined.
     virtual void gradients_at_node(index_t i, std::vector<index_t>& nodes, std::vector<Vec3>& grad) const = 0;
+    /// A hint: the next values() calls are at points of element e in the box [lo, hi] (an
+    /// evaluator may narrow its search to the functions that reach the box; a point outside it
+    /// is still answered right). By default nothing.
+    virtual void focus(index_t /*e*/, const Vec3& /*lo*/, const Vec3& /*hi*/) const {}
 };
 
 /// Trilinear hex functions: C0, so the value on a shared face is the same from either element.

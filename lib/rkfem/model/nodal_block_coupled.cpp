@@ -43,6 +43,10 @@ class SubMeshShapes final : public ShapeEvaluator
     {
         s_.gradients_at_node(i, nodes, grad);
     }
+    void focus(index_t e, const Vec3& lo, const Vec3& hi) const override
+    {
+        s_.focus(e_[static_cast<std::size_t>(e)], lo, hi);
+    }
 
   private:
     const CoupledShapes& s_;
@@ -201,32 +205,45 @@ namespace
 void splice_rows(IntegrationOperator& op, const std::vector<char>& replace, const IntegrationOperator& from,
                  const std::vector<index_t>& from_point)
 {
-    IntegrationOperator out;
-    out.weight = op.weight;
-    out.position = op.position;
-    out.owner = op.owner;
-    out.parent = op.parent;
-    out.offsets.reserve(op.offsets.size());
-    out.nodes.reserve(op.nodes.size());
-    out.grad.reserve(op.grad.size());
-    for (index_t p = 0; p < op.n_points(); ++p)
+    // the new offsets first, then each row copied whole (runs of kept rows in one copy)
+    const index_t np = op.n_points();
+    std::vector<index_t> offsets(static_cast<std::size_t>(np) + 1, 0);
+    for (index_t p = 0; p < np; ++p)
     {
-        const IntegrationOperator& src = replace[p] ? from : op;
-        const index_t q = replace[p] ? from_point[p] : p;
-        for (index_t k = src.offsets[q]; k < src.offsets[q + 1]; ++k)
-        {
-            out.nodes.push_back(src.nodes[k]);
-            out.grad.insert(out.grad.end(), {src.grad[3 * k], src.grad[3 * k + 1], src.grad[3 * k + 2]});
-        }
-        out.offsets.push_back(out.n_entries());
+        const index_t n = replace[p] ? from.offsets[from_point[p] + 1] - from.offsets[from_point[p]]
+                                     : op.offsets[p + 1] - op.offsets[p];
+        offsets[p + 1] = offsets[p] + n;
+    }
+    std::vector<index_t> nodes(static_cast<std::size_t>(offsets[np]));
+    std::vector<real_t> grad(3 * static_cast<std::size_t>(offsets[np]));
+    auto copy = [&](const IntegrationOperator& src, index_t begin, index_t end, index_t to)
+    {
+        std::copy(src.nodes.begin() + begin, src.nodes.begin() + end, nodes.begin() + to);
+        std::copy(src.grad.begin() + 3 * static_cast<std::ptrdiff_t>(begin),
+                  src.grad.begin() + 3 * static_cast<std::ptrdiff_t>(end),
+                  grad.begin() + 3 * static_cast<std::ptrdiff_t>(to));
+    };
+    for (index_t p = 0; p < np;)
+    {
         if (replace[p])
         {
-            out.weight[p] = from.weight[q];
+            const index_t q = from_point[p];
+            copy(from, from.offsets[q], from.offsets[q + 1], offsets[p]);
+            op.weight[p] = from.weight[q];
             for (int d = 0; d < 3; ++d)
-                out.position[3 * p + d] = from.position[3 * q + d];
+                op.position[3 * p + d] = from.position[3 * q + d];
+            ++p;
+            continue;
         }
+        index_t end = p + 1;
+        while (end < np && !replace[end])
+            ++end;
+        copy(op, op.offsets[p], op.offsets[end], offsets[p]);
+        p = end;
     }
-    op = std::move(out);
+    op.offsets = std::move(offsets);
+    op.nodes = std::move(nodes);
+    op.grad = std::move(grad);
 }
 } // namespace
 

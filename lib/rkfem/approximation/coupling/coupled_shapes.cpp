@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <omp.h>
+
 #include "rkfem/core/error.hpp"
 
 namespace rkfem
@@ -85,10 +87,105 @@ CoupledShapes::CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_el
             radius.push_back(radius_[i]);
         }
     rk_ = RkShapeFunctions(std::move(x), std::move(radius), params);
+    regions_.resize(static_cast<std::size_t>(omp_get_max_threads()));
+}
+
+CoupledShapes::Region* CoupledShapes::region(index_t e) const
+{
+    const std::size_t thread = static_cast<std::size_t>(omp_get_thread_num());
+    if (thread >= regions_.size())
+        return nullptr;
+    Region& r = regions_[thread];
+    if (!r.values)
+        r.values = std::make_unique<RkRegionValues>(rk_, 0.0);
+    if (r.element != e)
+    {
+        // the particles whose supports reach the element's box (a trilinear element lies in it)
+        const index_t* en = &mesh_.conn[8 * static_cast<std::size_t>(e)];
+        Vec3 lo = mesh_.node(en[0]), hi = lo;
+        for (int a = 1; a < 8; ++a)
+        {
+            lo = lo.cwiseMin(mesh_.node(en[a]));
+            hi = hi.cwiseMax(mesh_.node(en[a]));
+        }
+        r.values->gather(lo, hi);
+        r.element = e;
+        r.focused = false;
+    }
+    return &r;
+}
+
+bool CoupledShapes::fast(index_t e) const
+{
+    const Kind k = kind_[static_cast<std::size_t>(e)];
+    // interface elements of the mixed transition at order 1 (RkRegionValues completes order 1 only)
+    return k == Kind::Rk ||
+           (k == Kind::Interface && transition_ == Transition::Mixed && rk_.params().basis_size() == 4);
+}
+
+void CoupledShapes::focus(index_t e, const Vec3& lo, const Vec3& hi) const
+{
+    if (!fast(e))
+        return;
+    Region* r = region(e);
+    if (!r)
+        return;
+    r->values->focus(lo, hi);
+    r->focused = true;
+    r->lo = lo;
+    r->hi = hi;
 }
 
 void CoupledShapes::values(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
                            std::vector<real_t>& psi) const
+{
+    Region* r = fast(e) ? region(e) : nullptr;
+    if (!r)
+    {
+        values_plain(e, xi, x, nodes, psi);
+        return;
+    }
+    if (r->focused && !(((r->lo.array() <= x.array()) && (x.array() <= r->hi.array())).all()))
+    {
+        // outside the focus: the whole element's candidates again
+        r->element = -1;
+        r = region(e);
+    }
+    nodes.clear();
+    psi.clear();
+    if (kind_[static_cast<std::size_t>(e)] == Kind::Rk)
+        r->values->evaluate(x);
+    else
+    {
+        // the FE nodes' functions, and the particles' that complete them
+        thread_local RkOthers others;
+        others.clear();
+        const index_t* en = &mesh_.conn[8 * static_cast<std::size_t>(e)];
+        real_t N[8];
+        const real_t z[3] = {xi[0], xi[1], xi[2]};
+        hex8_shape(z, N);
+        for (int a = 0; a < 8; ++a)
+            if (particle_of_[en[a]] < 0)
+            {
+                nodes.push_back(en[a]);
+                psi.push_back(N[a]);
+                others.weight.push_back(N[a]);
+                others.dx.push_back(x - mesh_.node(en[a]));
+            }
+        r->values->evaluate_completing(x, others);
+    }
+    const std::vector<index_t>& ids = r->values->candidates();
+    const real_t *value = r->values->psi(), *kept = r->values->kept();
+    for (std::size_t k = 0; k < ids.size(); ++k)
+        if (kept[k] != 0.0)
+        {
+            nodes.push_back(particle_node_[static_cast<std::size_t>(ids[k])]);
+            psi.push_back(value[k]);
+        }
+}
+
+void CoupledShapes::values_plain(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
+                                 std::vector<real_t>& psi) const
 {
     thread_local RkSample s;
     thread_local RkOthers others;

@@ -21,8 +21,10 @@
 /// Particles of RK elements that share a node with an interface element get a support of at
 /// least kInterfaceSupport x their spacing, so that every point of an interface element is
 /// covered by particles out of one plane (M(x) regular there, as the mixed interpolation requires).
+#include <memory>
 #include <vector>
 
+#include "rkfem/approximation/rk/rk_region_values.hpp"
 #include "rkfem/approximation/shape_evaluator.hpp"
 
 namespace rkfem
@@ -49,9 +51,23 @@ class CoupledShapes final : public ShapeEvaluator
     /// Throws Error when no element is RK (every element may be: conversion can get there).
     CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_element, const RkParams& params,
                   Transition transition);
+    // the per-thread regions refer to this object's RK functions: not copied or moved
+    CoupledShapes(const CoupledShapes&) = delete;
+    CoupledShapes& operator=(const CoupledShapes&) = delete;
 
+    /// In RK elements (and interface elements of the mixed transition at order 1) the functions
+    /// come from the particles gathered once on the element's box
+    /// (RkRegionValues, one per thread, kept while the thread stays in the element): the
+    /// builders visit an element's facet points together, tens of them, so one neighbour search
+    /// serves them all. values_plain is the twin (a cell-list search per point); the two agree
+    /// to round-off (the moment sums run in another order).
     void values(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
                 std::vector<real_t>& psi) const override;
+    void values_plain(index_t e, const Vec3& xi, const Vec3& x, std::vector<index_t>& nodes,
+                      std::vector<real_t>& psi) const;
+    /// In RK elements: the thread's candidates narrowed to the particles that reach [lo, hi]
+    /// (RkRegionValues::focus), until a point outside it or another element.
+    void focus(index_t e, const Vec3& lo, const Vec3& hi) const override;
     /// Undefined on coupled parts (DNI is not offered there).
     void gradients_at_node(index_t i, std::vector<index_t>& nodes, std::vector<Vec3>& grad) const override;
 
@@ -73,6 +89,20 @@ class CoupledShapes final : public ShapeEvaluator
     std::vector<real_t> radius_;         ///< per node: support radius, 0 for FE nodes
     RkShapeFunctions rk_;
     Transition transition_;
+    /// per thread: the RK element whose particles `values` holds (-1: none yet)
+    struct Region
+    {
+        index_t element = -1;
+        std::unique_ptr<RkRegionValues> values;
+        bool focused = false; ///< candidates: those reaching [lo, hi], not the whole element's
+        Vec3 lo, hi;
+    };
+    mutable std::vector<Region> regions_;
+    /// The calling thread's region gathered on element e (an RK element), or nullptr where the
+    /// thread has none (more threads than at construction).
+    Region* region(index_t e) const;
+    /// Whether values() takes the fast path in element e (else values_plain).
+    bool fast(index_t e) const;
 };
 /// What the coupled shapes of an RK element set are made of, without building them: per element
 /// its kind, per node its support radius as a particle (0: an FE node). Two sets' approximations

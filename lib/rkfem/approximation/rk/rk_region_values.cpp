@@ -258,6 +258,42 @@ void RkRegionValues::values_linear(const Vec3& x)
     big_ = big;
 }
 
+void RkRegionValues::evaluate_completing(const Vec3& x, const RkOthers& others)
+{
+    RKFEM_REQUIRE(rk_.params().basis_size() == 4, "RkRegionValues::evaluate_completing: order 1 only");
+    (this->*windows_)(x);
+    // the basis scaled by the smallest covering radius (none covering: the twin's 1 / kNoLimit,
+    // to round-off 0)
+    const real_t inv_s = n_cover_ > 0.0 ? 1.0 / a_min_ : 0.0;
+    Eigen::Vector4d rhs(1.0, 0.0, 0.0, 0.0);
+    for (std::size_t k = 0; k < others.weight.size(); ++k)
+    {
+        const Vec3 d = others.dx[k] * inv_s;
+        rhs -= others.weight[k] * Eigen::Vector4d(1.0, d[0], d[1], d[2]);
+    }
+    const std::size_t n = ids_.size();
+    real_t* psi = psi_.data();
+    if (rhs.cwiseAbs().maxCoeff() < 1e-13)
+    {
+        std::fill(psi, psi + n, 0.0);
+        big_ = 0.0;
+        return;
+    }
+    const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
+    const Ldlt4 ldlt = factor_moments(rk_, x, n_cover_, M);
+    const Eigen::Vector4d b = ldlt.solve(rhs);
+    const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
+    const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi = phi_.data();
+    real_t big = 0.0;
+    RKFEM_SIMD(reduction(max : big))
+    for (std::size_t k = 0; k < n; ++k)
+    {
+        psi[k] = phi[k] * (c0 + c1 * dx[k] + c2 * dy[k] + c3 * dz[k]);
+        big = larger(big, std::abs(psi[k]));
+    }
+    big_ = big;
+}
+
 /// Order 2: the moment matrix over the covering candidates, one rank-1 update each.
 void RkRegionValues::values_quadratic(const Vec3& x)
 {

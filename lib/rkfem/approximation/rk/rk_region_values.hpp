@@ -50,6 +50,11 @@ class RkRegionValues
     const real_t* psi() const { return psi_.data(); }
     const real_t* kept() const { return kept_.data(); }
 
+    /// The functions at x that complete the others' reproduction (order 1 only): M b = H(0) -
+    /// sum_i w_i H(x - x_i), as RkShapeFunctions::evaluate_completing (its plain twin) computes
+    /// them; every value 0 where the others reproduce the basis by themselves. No drop.
+    void evaluate_completing(const Vec3& x, const RkOthers& others);
+
     /// Values and direct gradients at x (in the region's box), with no drop (as evaluate(x,
     /// true, ...) of the twin): psi()[k], gradient(i)[k] = d Psi_k / dx_i and kept()[k] (covers).
     void evaluate_gradients(const Vec3& x);

@@ -27,27 +27,26 @@ using namespace nodal_detail;
 
 IntegrationOperator build_mscni_stabilization(const IntegrationOperator& scni, const IntegrationOperator& sd)
 {
-    IntegrationOperator op;
-    op.weight = sd.weight;
-    op.position = sd.position;
-    op.owner = sd.owner;
-    op.parent = sd.owner; // SCNI point index = node index
-    for (index_t s = 0; s < sd.n_points(); ++s)
-    {
-        const index_t L = sd.owner[s];
-        Entries e;
-        for (index_t k = sd.offsets[s]; k < sd.offsets[s + 1]; ++k)
-            e.emplace_back(sd.nodes[k], sd.gradient(k));
-        for (index_t k = scni.offsets[L]; k < scni.offsets[L + 1]; ++k)
-            e.emplace_back(scni.nodes[k], -scni.gradient(k));
-        merge(e, 1.0);
-        for (const auto& [n, g] : e)
+    // sub-cell s: its own row minus its parent's, each node's terms in that order (sub-cells in
+    // parallel, each row summed as it comes)
+    IntegrationOperator op = assemble(
+        sd.n_points(),
+        [&](index_t s, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>&, std::vector<real_t>&)
         {
-            op.nodes.push_back(n);
-            op.grad.insert(op.grad.end(), {g[0], g[1], g[2]});
-        }
-        op.offsets.push_back(op.n_entries());
-    }
+            thread_local RowSum row;
+            row.clear();
+            const index_t L = sd.owner[s];
+            for (index_t k = sd.offsets[s]; k < sd.offsets[s + 1]; ++k)
+                row.add(sd.nodes[k], sd.gradient(k));
+            for (index_t k = scni.offsets[L]; k < scni.offsets[L + 1]; ++k)
+                row.add(scni.nodes[k], -scni.gradient(k));
+            row.take(out, 1.0);
+            w = sd.weight[s];
+            pos = Vec3(sd.position[3 * s], sd.position[3 * s + 1], sd.position[3 * s + 2]);
+            owner = L;
+        },
+        false);
+    op.parent = sd.owner; // SCNI point index = node index
     return op;
 }
 } // namespace rkfem

@@ -58,20 +58,35 @@ void element_coordinates(const HexMesh& mesh, index_t e, real_t xe[8][3])
             xe[I][d] = mesh.x[3 * static_cast<std::size_t>(mesh.conn[8 * e + I]) + d];
 }
 
-/// Adds sum_q Psi(x_q) n dA_q over the given facets of sub-hex `sh` in element e.
-void add_facets(const ShapeEvaluator& shapes, index_t e, const SubHex& sh, const bool use[6], Entries& out,
-                std::vector<index_t>& nodes, std::vector<real_t>& psi)
+void RowSum::take(Entries& out, real_t scale)
 {
-    for (int f = 0; f < 6; ++f)
+    for (const auto& [n, g] : e_)
+        slot_[static_cast<std::size_t>(n)] = -1;
+    std::sort(e_.begin(), e_.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    out.assign(e_.begin(), e_.end());
+    for (auto& [n, g] : out)
+        g *= scale;
+    e_.clear();
+}
+
+void add_facet_sum(const ShapeEvaluator& shapes, index_t e, const SubHex& sh, int f, RowSum& row,
+                   std::vector<index_t>& nodes, std::vector<real_t>& psi)
+{
+    const auto& points = sh.facets[f];
+    if (points.empty())
+        return;
+    Vec3 lo = points.front().x, hi = lo;
+    for (const FacetPoint& fp : points)
     {
-        if (!use[f])
-            continue;
-        for (const FacetPoint& fp : sh.facets[f])
-        {
-            shapes.values(e, fp.xi, fp.x, nodes, psi);
-            for (std::size_t k = 0; k < nodes.size(); ++k)
-                out.emplace_back(nodes[k], psi[k] * fp.nda);
-        }
+        lo = lo.cwiseMin(fp.x);
+        hi = hi.cwiseMax(fp.x);
+    }
+    shapes.focus(e, lo, hi);
+    for (const FacetPoint& fp : points)
+    {
+        shapes.values(e, fp.xi, fp.x, nodes, psi);
+        for (std::size_t k = 0; k < nodes.size(); ++k)
+            row.add(nodes[k], psi[k] * fp.nda);
     }
 }
 

@@ -69,6 +69,10 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
         [&](index_t i, Entries& out, real_t& w, Vec3& pos, index_t& owner, std::vector<index_t>& nodes,
             std::vector<real_t>& psi)
         {
+            // each facet's terms summed as they come (the node's row, and with sd the sub-cell's
+            // and the facet's own), never stored raw
+            thread_local RowSum row, sub, facet;
+            row.clear();
             real_t vol = 0.0;
             SubHex sh;
             real_t xe[8][3];
@@ -86,25 +90,31 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
                     use[f] = sh.element_face[f] < 0 || nb[6 * e + sh.element_face[f]] < 0;
                 if (!sd)
                 {
-                    add_facets(shapes, e, sh, use, out, nodes, psi);
+                    // facet by facet, as with the sub-cells (the same sums, bit for bit)
+                    for (int f = 0; f < 6; ++f)
+                        if (use[f])
+                        {
+                            facet.clear();
+                            add_facet_sum(shapes, e, sh, f, facet, nodes, psi);
+                            row.add(facet);
+                        }
                     continue;
                 }
                 // with the sub-cells: every facet evaluated once, the sub-cell's row
                 // from all six (as build_sd_scni), the node's from those it uses
                 const std::size_t s = static_cast<std::size_t>(slots[k]);
-                Entries& sub = sub_entries[s];
+                sub.clear();
                 for (int f = 0; f < 6; ++f)
                 {
-                    const std::size_t begin = sub.size();
-                    bool one[6] = {};
-                    one[f] = true;
-                    add_facets(shapes, e, sh, one, sub, nodes, psi);
+                    facet.clear();
+                    add_facet_sum(shapes, e, sh, f, facet, nodes, psi);
+                    sub.add(facet);
                     if (use[f])
-                        out.insert(out.end(), sub.begin() + static_cast<std::ptrdiff_t>(begin), sub.end());
+                        row.add(facet);
                 }
                 RKFEM_REQUIRE(sh.volume > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
                                                                     << " has non-positive volume " << sh.volume);
-                merge(sub, 1.0 / sh.volume);
+                sub.take(sub_entries[s], 1.0 / sh.volume);
                 sub_weight[s] = sh.volume;
                 const Vec3 c = sub_hex_centroid(xe, a);
                 for (int d = 0; d < 3; ++d)
@@ -112,7 +122,7 @@ void build_scni_sd(const HexMesh& mesh, const ShapeEvaluator& shapes, Integratio
                 sub_owner[s] = i;
             }
             RKFEM_REQUIRE(vol > 0.0, "SCNI: nodal cell of node " << i << " has non-positive volume " << vol);
-            merge(out, 1.0 / vol);
+            row.take(out, 1.0 / vol);
             w = vol;
             pos = mesh.node(i);
             owner = i;
@@ -171,12 +181,19 @@ IntegrationOperator build_sd_scni(const HexMesh& mesh, const ShapeEvaluator& sha
                         real_t xe[8][3];
                         element_coordinates(mesh, e, xe);
                         build_sub_hex(xe, a, sh);
-                        const bool use[6] = {true, true, true, true, true, true};
-                        add_facets(shapes, e, sh, use, out, nodes, psi);
+                        // facet by facet, as build_scni_sd sums its sub-cells (the same bits)
+                        thread_local RowSum sub, facet;
+                        sub.clear();
+                        for (int f = 0; f < 6; ++f)
+                        {
+                            facet.clear();
+                            add_facet_sum(shapes, e, sh, f, facet, nodes, psi);
+                            sub.add(facet);
+                        }
                         RKFEM_REQUIRE(sh.volume > 0.0, "SD-SCNI: sub-cell " << a << " of element " << e
                                                                             << " has non-positive volume "
                                                                             << sh.volume);
-                        merge(out, 1.0 / sh.volume);
+                        sub.take(out, 1.0 / sh.volume);
                         w = sh.volume;
                         pos = sub_hex_centroid(xe, a);
                         owner = mesh.conn[8 * e + a];
