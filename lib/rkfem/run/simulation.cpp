@@ -262,11 +262,14 @@ class RunLoop
             !defer_motion_ || step % kBalanceEvery == 0 || last || record_.due(t) || checkpoints_.due(t);
         if (check_due)
             model_.refresh_motion();
+        const auto event_start = std::chrono::steady_clock::now();
         const bool own = model_.apply_events(t, step);
         if ((opt_.events && opt_.events(model_, t, step)) || own)
         {
             loop_.dt_stable = model_.restart_after_event(*stepper_, t, dt);
             work_items_ = model_.n_work_items();
+            ++sum_.events;
+            sum_.event_seconds += std::chrono::duration<real_t>(std::chrono::steady_clock::now() - event_start).count();
         }
         const real_t err = check_due ? model_.energy.balance_error() : 0.0;
         sum_.max_balance_error = std::max(sum_.max_balance_error, err);

@@ -71,6 +71,11 @@ struct RunSummary
     real_t setup_seconds = 0.0;    ///< RunOptions::setup_seconds plus the stepper's first start
     real_t output_seconds = 0.0;   ///< history rows, field outputs, summary not included
     real_t stepping_seconds = 0.0; ///< wall - output - the stepper's first start
+    /// steps after which the discretization changed (conversion, reversion, erosion events that
+    /// rebuild tables) and the seconds those events took, the stepper's restart included (part
+    /// of stepping_seconds; this process's, not carried across a restart from a checkpoint)
+    std::int64_t events = 0;
+    real_t event_seconds = 0.0;
     /// stepping_seconds per (work item x step): FE elements of element-integrated blocks and
     /// stress points (particles, nodes) of nodal blocks, as they were at each step
     real_t ns_per_element_cycle = 0.0;

@@ -172,6 +172,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"setup_seconds\": " << num(s.setup_seconds) << ",\n";
     o << "  \"stepping_seconds\": " << num(s.stepping_seconds) << ",\n";
     o << "  \"output_seconds\": " << num(s.output_seconds) << ",\n";
+    o << "  \"events\": " << s.events << ",\n";
+    o << "  \"event_seconds\": " << num(s.event_seconds) << ",\n";
     o << "  \"work_items\": " << model.n_work_items() << ",\n";
     o << "  \"ns_per_element_cycle\": " << num(s.ns_per_element_cycle) << ",\n";
     o << "  \"seconds_per_step\": " << num(s.steps > 0 ? s.stepping_seconds / s.steps : 0.0) << ",\n";
