@@ -271,17 +271,19 @@ namespace
 struct NodalCompared
 {
     real_t force = 0.0, stress = 0.0, stab_stress = 0.0, energy = 0.0, dt = 0.0;
-    real_t history = 0.0;  ///< inelastic blocks: the trial plastic strain and damage, max relative difference
-    index_t inelastic = 0; ///< points whose plastic strain grew
+    real_t history = 0.0;   ///< inelastic blocks: the trial plastic strain and damage, max relative difference
+    index_t inelastic = 0;  ///< points whose plastic strain grew
+    real_t stab_work = 0.0; ///< the reference's stabilization work of the step
 };
 
 /// An rkpm block (SCNI + MSCNI) on a jittered (own stencils) or regular (shared stencils,
 /// whole-vector batches along rows) mesh, a random committed state and motion.
 NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, real_t bulk_linear,
                             real_t bulk_quadratic, const std::string& stab = "mscni",
-                            const std::string& model = "elastic")
+                            const std::string& model = "elastic", bool plastic_scaling = false)
 {
     PartSpec ps = test::steel_nodal_part(form, "scni", stab);
+    ps.nodal.plastic_scaling = plastic_scaling;
     if (model != "elastic")
         ps.material = test::block_material(model);
     ps.nodal.stabilization_coefficient = stab == "nsni" ? 0.25 : 1.0;
@@ -336,6 +338,7 @@ NodalCompared compare_nodal(Formulation form, real_t jitter, Assembly assembly, 
                 std::abs(fast.d_bulk_viscosity - ref.d_bulk_viscosity)) /
                (std::abs(ref.d_internal) + std::abs(ref.d_stabilization) + std::abs(ref.d_bulk_viscosity));
     c.dt = std::abs(fast.dt_stable - ref.dt_stable) / ref.dt_stable;
+    c.stab_work = ref.d_stabilization;
     EXPECT_EQ(blk.point_stencils.empty(), jitter > 0); // the shared-stencil path is exercised on the regular mesh
     return c;
 }
@@ -446,5 +449,32 @@ TEST(NodalReference, InelasticFastPassEqualsThePlainOne)
                 EXPECT_LT(c.stab_stress, 1e-12) << model;
                 EXPECT_LT(c.energy, bound) << model;
                 EXPECT_LT(c.history, bound) << model;
+            }
+}
+
+// The stabilization's plastic scaling (nodal_integration.plastic_scaling): the fast pass's shares
+// (in the points' batches, NSNI's sub-points in the same batch or the own pass's sub-cells) against
+// the plain twin's, to the bounds above; and the scaling changes the step's stabilization work
+// where points flow (at least 1e-3 of it), so the comparison is not of two unscaled passes.
+TEST(NodalReference, PlasticScalingOfTheStabilizationEqualsThePlainOne)
+{
+    for (const std::string model : {"j2", "kcc"})
+        for (const auto& [jitter, stab] : {std::pair<real_t, std::string>{0.25, "mscni"}, {0.0, "nsni"}})
+            for (Assembly a : {Assembly::Scatter, Assembly::Gather})
+            {
+                const NodalCompared c = compare_nodal(Formulation::Rkpm, jitter, a, 0.06, 1.5, stab, model, true);
+                const NodalCompared off = compare_nodal(Formulation::Rkpm, jitter, a, 0.06, 1.5, stab, model, false);
+                const real_t change = std::abs(c.stab_work - off.stab_work) / std::abs(off.stab_work);
+                std::printf("%-4s %s %s %s, scaled: %d points flow; max relative difference force %.1e, stress %.1e, "
+                            "sub-cell stress %.1e, energies %.1e; stabilization work %.3e J against %.3e unscaled\n",
+                            model.c_str(), jitter > 0 ? "jittered" : "regular ", stab.c_str(),
+                            a == Assembly::Scatter ? "scatter" : "gather ", static_cast<int>(c.inelastic), c.force,
+                            c.stress, c.stab_stress, c.energy, c.stab_work, off.stab_work);
+                EXPECT_GT(c.inelastic, 10) << model;
+                EXPECT_LT(c.force, 1e-12) << model;
+                EXPECT_LT(c.stress, 1e-12) << model;
+                EXPECT_LT(c.stab_stress, 1e-12) << model;
+                EXPECT_LT(c.energy, 1e-12) << model;
+                EXPECT_GT(change, 1e-3) << model << ": the scaling changed nothing";
             }
 }

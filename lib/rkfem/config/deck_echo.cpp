@@ -363,7 +363,8 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
     if (is_nodal(p.formulation) || p.coupled())
         os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
            << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
-           << ", dt_factor: " << p.nodal.dt_factor << ", facet_points: " << p.nodal.facet_points << "}\n";
+           << ", dt_factor: " << p.nodal.dt_factor << ", facet_points: " << p.nodal.facet_points
+           << ", plastic_scaling: " << (p.nodal.plastic_scaling ? "true" : "false") << "}\n";
     if (!p.regions.empty())
     {
         os << "    regions:\n";

@@ -435,6 +435,10 @@ std::vector<SectionDoc> build_table()
           quantity("stabilization_coefficient", dim::none, "",
                    "c_s (default 0.25 for nsni, 1 for mscni and face-gradient)."),
           quantity("dt_factor", dim::none, "0", "The stable-step factor alpha in (0, 2] (0: the calibrated default)."),
+          choice("plastic_scaling", {"true", "false"}, "false",
+                 "Materials with history: the stabilization's loads (mscni, nsni) take the share of the step "
+                 "the point's material took elastically, so flowing or softening material stores no elastic "
+                 "stabilization energy (as IHQ 6 scales its hourglass stiffness)."),
           choice("facet_points", {"triangles", "faces"}, "",
                  "Where the nodal cells' facets take their points (default: faces on clouds, triangles on meshes).")}});
     t.push_back({"rk",

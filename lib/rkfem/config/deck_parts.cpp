@@ -158,6 +158,10 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         p.nodal.dt_factor = ni.quantity("dt_factor", dim::none, 0.0);
         if (!(p.nodal.dt_factor >= 0.0 && p.nodal.dt_factor <= 2.0))
             ni.fail("dt_factor", "is outside [0, 2]", "expected alpha in (0, 2], or 0 for the calibrated default");
+        p.nodal.plastic_scaling = ni.choice("plastic_scaling", {"true", "false"}, "false") == "true";
+        if (p.nodal.plastic_scaling && snni)
+            ni.fail("plastic_scaling", "scales the stabilization of Lagrangian nodal integration (mscni, nsni)",
+                    "expected semi_lagrangian.plastic_scaling on a semi-Lagrangian part");
         p.nodal.facet_points = ni.choice("facet_points", {"triangles", "faces"}, p.nodal.facet_points);
         if (p.nodal.facet_points == "faces" && p.generator.type != GeneratorSpec::Type::Cloud)
             ni.fail("facet_points", "faces chooses the points on a cloud's Voronoi faces, and this part is a mesh",

@@ -59,6 +59,7 @@ NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset)
     nb.node_end = offset + n_nodes;
     nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);
     nb.bulk_viscosity = ps.bulk_viscosity;
+    nb.stab_plastic_scaling = ps.nodal.plastic_scaling;
     return nb;
 }
 

@@ -240,6 +240,13 @@ void splice_rows(IntegrationOperator& op, const std::vector<char>& replace, cons
     const std::size_t old_n = op.nodes.size(), new_n = static_cast<std::size_t>(offsets[np]);
     if (new_n > old_n)
     {
+        // room for the next events too (conversion grows the stencils event after event: grown
+        // to the size, the arrays were reallocated, their pages faulted in and copied every time)
+        if (new_n > op.nodes.capacity())
+        {
+            op.nodes.reserve(new_n + new_n / 4);
+            op.grad.reserve(3 * (new_n + new_n / 4));
+        }
         op.nodes.resize(new_n);
         op.grad.resize(3 * new_n);
     }

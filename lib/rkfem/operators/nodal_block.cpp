@@ -309,6 +309,7 @@ void size_step_scratch(NodalBlock& b, bool use_scatter)
     b.batch_sums.assign(4 * nb, 0.0);
     b.batch_idx.assign(2 * nb, -1);
     b.stab_energy.assign(own_stab_pass ? static_cast<std::size_t>(ns) : 0, 0.0);
+    b.stab_share.assign(b.stab_plastic_scaling && ns > 0 && b.plastic.active() ? static_cast<std::size_t>(np) : 0, 1.0);
 }
 } // namespace
 

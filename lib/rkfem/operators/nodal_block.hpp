@@ -74,11 +74,14 @@ struct NodalBlock
     ElasticParams material;
     PlasticPoints plastic;                  ///< J2 / K&C history per stress point (inactive for elastic blocks)
     real_t stabilization_coefficient = 0.0; ///< c_s (MSCNI), 0: none
-    BulkViscositySpec bulk_viscosity;       ///< q = rho l (Q1 l trD^2 - Q2 c trD) for trD < 0, l = J^(1/3) l0
-    real_t dt_factor = 1.0;                 ///< alpha in dt = alpha J^(1/3) l0 / c
-    std::vector<real_t> length0;            ///< per point: l0, the shortest mesh edge at the owner node [m]
-    IntegrationOperator points;             ///< stress points (global node ids)
-    IntegrationOperator stabilization;      ///< MSCNI sub-cells or NSNI sub-points (empty: none)
+    /// the stabilization's loads scaled by the parent point's elastic share (NodalIntegrationSpec::
+    /// plastic_scaling; inelastic materials only)
+    bool stab_plastic_scaling = false;
+    BulkViscositySpec bulk_viscosity;  ///< q = rho l (Q1 l trD^2 - Q2 c trD) for trD < 0, l = J^(1/3) l0
+    real_t dt_factor = 1.0;            ///< alpha in dt = alpha J^(1/3) l0 / c
+    std::vector<real_t> length0;       ///< per point: l0, the shortest mesh edge at the owner node [m]
+    IntegrationOperator points;        ///< stress points (global node ids)
+    IntegrationOperator stabilization; ///< MSCNI sub-cells or NSNI sub-points (empty: none)
     /// NSNI: the stabilization's sub-points come in threes, 3 p + i with parent p and the same
     /// nodes in the same order (build_nsni_stabilization); the force pass then forms a point's
     /// three in one pass over their nodes. initialize() checks the layout.
@@ -171,6 +174,9 @@ struct NodalBlock
         point_tensor;         ///< gather assembly: 9 x (n_points + n_stab), V0 P by columns ([9 p + 3 j + a] = P_aj)
     std::vector<real_t> finv; ///< 9 x n_points: F^-1 (row-major), for the stabilization's own pass (empty without one)
     std::vector<real_t> spin; ///< 3 x n_points: W of the point (the same)
+    /// n_points with stab_plastic_scaling on an inelastic block: the share of the step the point's
+    /// material took elastically (assumed_strain_tangent_share), which its sub-points' loads take
+    std::vector<real_t> stab_share;
     std::vector<real_t> batch_sums; ///< per batch of stress points x 4: d_int, d_bv, dt_min, NSNI's d_stab (nsni_batch)
     std::vector<index_t> batch_idx; ///< per batch x 2: the point of dt_min, the first bad point (-1: none)
     std::vector<real_t> stab_energy; ///< n_stab: stabilization work of each sub-cell (the own pass's; NSNI in the

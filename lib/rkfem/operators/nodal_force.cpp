@@ -88,6 +88,7 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
         real_t* __restrict energy = blk.stab_energy.data();
         const index_t* __restrict parent = st.parent.data();
         const real_t* __restrict weight = st.weight.data();
+        const real_t* __restrict share = blk.stab_share.empty() ? nullptr : blk.stab_share.data();
         auto sub_point = [=](index_t s, const real_t G[3][3], real_t P[9])
         {
             const index_t L = parent[s];
@@ -107,6 +108,8 @@ ForcePassResult nodal_internal_force(NodalBlock& blk, const NodeSet& nodes, real
             for (int k = 0; k < 6; ++k)
                 s_old[k] = sg[k] = s_in[k * sns + s];
             elastic_update(smat, d, w, dt, sg);
+            if (share)
+                scale_stabilization_load(hughes_winget(w[0], w[1], w[2], dt), s_old, share[L], sg);
             for (int k = 0; k < 6; ++k)
                 s_out[k * sns + s] = sg[k];
             real_t power = 0.0;

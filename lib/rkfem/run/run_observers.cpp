@@ -175,6 +175,7 @@ void LoopState::save(StateArchive& a, const RunSummary& sum) const
     a.put_value("run.dt_first", sum.dt_first);
     a.put_value("run.dt_min", sum.dt_min);
     a.put_value("run.max_balance_error", sum.max_balance_error);
+    a.put_value("run.events", sum.events);
 }
 
 void LoopState::load(const StateArchive& a, RunSummary& sum)
@@ -187,6 +188,8 @@ void LoopState::load(const StateArchive& a, RunSummary& sum)
     sum.dt_first = a.value<real_t>("run.dt_first");
     sum.dt_min = a.value<real_t>("run.dt_min");
     sum.max_balance_error = a.value<real_t>("run.max_balance_error");
+    // checkpoints written before 2026-12-07 have no event count
+    sum.events = a.has("run.events") ? a.value<std::int64_t>("run.events") : 0;
 }
 
 template <class Work> void RunRecord::clock(Work&& work)

@@ -72,8 +72,8 @@ struct RunSummary
     real_t output_seconds = 0.0;   ///< history rows, field outputs, summary not included
     real_t stepping_seconds = 0.0; ///< wall - output - the stepper's first start
     /// steps after which the discretization changed (conversion, reversion, erosion events that
-    /// rebuild tables) and the seconds those events took, the stepper's restart included (part
-    /// of stepping_seconds; this process's, not carried across a restart from a checkpoint)
+    /// rebuild tables; carried across a restart from a checkpoint) and the seconds those events
+    /// took, the stepper's restart included (part of stepping_seconds; this process's)
     std::int64_t events = 0;
     real_t event_seconds = 0.0;
     /// stepping_seconds per (work item x step): FE elements of element-integrated blocks and

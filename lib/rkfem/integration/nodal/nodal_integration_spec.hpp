@@ -71,5 +71,11 @@ struct NodalIntegrationSpec
     /// (`triangles`) or one per face at its centroid (`faces`: exact for linear fields too, a
     /// cheaper set-up; merge_face_points; measurements: docs/performance.md)
     std::string facet_points = "triangles";
+    /// Materials with history: the stabilization stresses' loads (MSCNI sub-cells, NSNI
+    /// sub-points) take the share of the step the parent point's material took elastically
+    /// (assumed_strain_tangent_share), so a point that flows or softens stores no elastic
+    /// stabilization energy its material cannot hold; unloads give back what was stored
+    /// (scaled_hourglass_update). LS-DYNA's IHQ 6 scales its hourglass stiffness the same way.
+    bool plastic_scaling = false;
 };
 } // namespace rkfem

@@ -39,6 +39,7 @@
 /// element's shape changes (assumed_strain_keep), so their spring energy never grows without work.
 #include "rkfem/core/simd.hpp"
 #include "rkfem/core/types.hpp"
+#include "rkfem/materials/objective_rate.hpp"
 
 namespace rkfem
 {
@@ -217,5 +218,19 @@ template <class T> RKFEM_LANE_INLINE T scaled_hourglass_update(T Q, T dQ, T r)
     const T crossing = simd::where_negative(full * Q, one); // and past zero
     const T unloaded = full - crossing * (one - r) * full;
     return (one - unloading) * simd::mul_add(r, dQ, Q) + unloading * unloaded;
+}
+
+/// A stabilization stress (nodal MSCNI sub-cell, NSNI sub-point, semi-Lagrangian face) after its
+/// elastic update `s` from `old` (rotated by the parent's R, then the elastic increment), with
+/// the increment's load taken at the parent material's elastic share r, component by component
+/// as scaled_hourglass_update takes a hourglass force's: the old stress turned with the parent
+/// is the stored force, the rest the increment.
+template <class T> RKFEM_LANE_INLINE void scale_stabilization_load(const Rotation<T>& R, const T old[6], T r, T s[6])
+{
+    T t0 = old[0], t1 = old[1], t2 = old[2], t3 = old[3], t4 = old[4], t5 = old[5];
+    rotate_stress(R, t0, t1, t2, t3, t4, t5);
+    const T turned[6] = {t0, t1, t2, t3, t4, t5};
+    for (int k = 0; k < 6; ++k)
+        s[k] = scaled_hourglass_update(turned[k], s[k] - turned[k], r);
 }
 } // namespace rkfem

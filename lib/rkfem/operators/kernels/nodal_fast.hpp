@@ -7,6 +7,7 @@
 /// which a newcomer reads first, is nodal_reference.cpp beside this file;
 /// verification/operators/test_reference_kernels.cpp holds the two to round-off.
 #include "rkfem/core/parallel.hpp"
+#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/operators/kernels/nodal_gather.hpp"
 
 namespace rkfem::nodal_kernels
@@ -120,6 +121,11 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
                     os[i][k][l] = s_in[k * sns + s];
                 ws[i][l] = weight[s];
             }
+    // plastic scaling: the lanes' points' elastic shares (computed in their batch, just before)
+    const bool scaling = !blk.stab_share.empty();
+    alignas(64) real_t shr[W];
+    for (int l = 0; l < W; ++l)
+        shr[l] = scaling ? blk.stab_share[static_cast<std::size_t>(p0 + (l < nl ? l : 0))] : 1.0;
     // the point's rotation of the step, for its three sub-points (elastic_update's from w)
     alignas(64) real_t R[9][W];
     RKFEM_SIMD()
@@ -146,6 +152,13 @@ void nsni_batch(NodalBlock& blk, const real_t* v, index_t p0, int nl, const bool
             real_t t0 = o0, t1 = o1, t2 = o2, t3 = o3, t4 = o4, t5 = o5;
             const Rotation<real_t> r{R[0][l], R[1][l], R[2][l], R[3][l], R[4][l], R[5][l], R[6][l], R[7][l], R[8][l]};
             elastic_update(smat, d0, d1, d2, d3, d4, d5, r, dt, t0, t1, t2, t3, t4, t5);
+            if (scaling)
+            {
+                const real_t old[6] = {o0, o1, o2, o3, o4, o5};
+                real_t t[6] = {t0, t1, t2, t3, t4, t5};
+                scale_stabilization_load(r, old, shr[l], t);
+                t0 = t[0], t1 = t[1], t2 = t[2], t3 = t[3], t4 = t[4], t5 = t[5];
+            }
             sn[i][0][l] = t0, sn[i][1][l] = t1, sn[i][2][l] = t2, sn[i][3][l] = t3, sn[i][4][l] = t4, sn[i][5][l] = t5;
             const real_t power = 0.5 * ((o0 + t0) * d0 + (o1 + t1) * d1 + (o2 + t2) * d2) + (o3 + t3) * d3 +
                                  (o4 + t4) * d4 + (o5 + t5) * d5;
@@ -441,6 +454,15 @@ template <PlasticPoints::Kind MK, bool FULL>
             dt_min = dtl[l];
             dt_point = static_cast<index_t>(p);
         }
+        if constexpr (PLASTIC)
+            if (!blk.stab_share.empty())
+            {
+                const real_t o[6] = {so[0][l], so[1][l], so[2][l], so[3][l], so[4][l], so[5][l]};
+                const real_t n[6] = {sn[0][l], sn[1][l], sn[2][l], sn[3][l], sn[4][l], sn[5][l]};
+                const real_t d[6] = {dl[0][l], dl[1][l], dl[2][l], dl[3][l], dl[4][l], dl[5][l]};
+                const real_t w[3] = {wl[0][l], wl[1][l], wl[2][l]};
+                blk.stab_share[p] = assumed_strain_tangent_share<real_t>(o, n, d, w, mat.mu, dt);
+            }
         if (stabilized)
         {
             real_t* fi = &blk.finv[9 * p];

@@ -5,6 +5,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/materials/elastic.hpp"
 #include "rkfem/operators/bulk_viscosity.hpp"
+#include "rkfem/operators/kernels/assumed_strain_hourglass.hpp"
 #include "rkfem/operators/kernels/rate_form.hpp"
 
 namespace rkfem
@@ -61,6 +62,9 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
     std::vector<Mat3> finv(static_cast<std::size_t>(np));
     std::vector<Vec3> spin(static_cast<std::size_t>(np));
     std::vector<real_t> jac(static_cast<std::size_t>(np));
+    // plastic scaling: the share of the step each point's material took elastically
+    const bool scaled = inelastic && blk.stab_plastic_scaling && ns > 0;
+    std::vector<real_t> share(scaled ? static_cast<std::size_t>(np) : 0, 1.0);
     out.stress.resize(6 * static_cast<std::size_t>(np));
     for (index_t p = 0; p < np; ++p)
     {
@@ -77,6 +81,8 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
             elastic_update(mat, d, w, dt, s);
         else if (J > 0.0)
             history->update(static_cast<std::size_t>(p), d, w, dt, s);
+        if (scaled)
+            share[p] = assumed_strain_tangent_share<real_t>(s_old, s, d, w, mat.mu, dt);
         // q on the point's length; the step alpha times the element form's on it (alpha
         // calibrates the step, not the viscosity)
         const real_t len = std::cbrt(J) * blk.length0[static_cast<std::size_t>(p)];
@@ -126,6 +132,8 @@ NodalPass nodal_reference(const NodalBlock& blk, const NodeSet& nodes, real_t dt
         for (int k = 0; k < 6; ++k)
             s_old[k] = sg[k] = blk.stab_stress[k * static_cast<std::size_t>(ns) + static_cast<std::size_t>(s)];
         elastic_update(smat, d, w, dt, sg);
+        if (scaled)
+            scale_stabilization_load(hughes_winget(w[0], w[1], w[2], dt), s_old, share[P], sg);
         const real_t VJ = st.weight[s] * jac[P];
         out.d_stabilization += dt * VJ * stress_power(s_old, sg, d);
         scatter(sv, VJ * tensor(sg) * finv[P].transpose(), out.f);
