@@ -90,6 +90,21 @@ CoupledShapes::CoupledShapes(const HexMesh& mesh, const std::vector<char>& rk_el
     regions_.resize(static_cast<std::size_t>(omp_get_max_threads()));
 }
 
+void CoupledShapes::fe_functions(index_t e, const real_t (&N)[8], const Vec3& x, std::vector<index_t>& nodes,
+                                 std::vector<real_t>& psi, RkOthers& others) const
+{
+    others.clear();
+    const index_t* en = &mesh_.conn[8 * static_cast<std::size_t>(e)];
+    for (int a = 0; a < 8; ++a)
+        if (particle_of_[en[a]] < 0)
+        {
+            nodes.push_back(en[a]);
+            psi.push_back(N[a]);
+            others.weight.push_back(N[a]);
+            others.dx.push_back(x - mesh_.node(en[a]));
+        }
+}
+
 CoupledShapes::Region* CoupledShapes::region(index_t e) const
 {
     const std::size_t thread = static_cast<std::size_t>(omp_get_thread_num());
@@ -159,19 +174,10 @@ void CoupledShapes::values(index_t e, const Vec3& xi, const Vec3& x, std::vector
     {
         // the FE nodes' functions, and the particles' that complete them
         thread_local RkOthers others;
-        others.clear();
-        const index_t* en = &mesh_.conn[8 * static_cast<std::size_t>(e)];
         real_t N[8];
         const real_t z[3] = {xi[0], xi[1], xi[2]};
         hex8_shape(z, N);
-        for (int a = 0; a < 8; ++a)
-            if (particle_of_[en[a]] < 0)
-            {
-                nodes.push_back(en[a]);
-                psi.push_back(N[a]);
-                others.weight.push_back(N[a]);
-                others.dx.push_back(x - mesh_.node(en[a]));
-            }
+        fe_functions(e, N, x, nodes, psi, others);
         r->values->evaluate_completing(x, others);
     }
     const std::vector<index_t>& ids = r->values->candidates();
@@ -235,15 +241,7 @@ void CoupledShapes::values_plain(index_t e, const Vec3& xi, const Vec3& x, std::
     }
     if (transition_ == Transition::Mixed)
     {
-        others.clear();
-        for (int a = 0; a < 8; ++a)
-            if (particle_of_[en[a]] < 0)
-            {
-                nodes.push_back(en[a]);
-                psi.push_back(N[a]);
-                others.weight.push_back(N[a]);
-                others.dx.push_back(x - mesh_.node(en[a]));
-            }
+        fe_functions(e, N, x, nodes, psi, others);
         rk_.evaluate_completing(x, others, s);
         add_distinct();
         return;

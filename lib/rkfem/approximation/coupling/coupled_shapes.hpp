@@ -103,6 +103,10 @@ class CoupledShapes final : public ShapeEvaluator
     Region* region(index_t e) const;
     /// Whether values() takes the fast path in element e (else values_plain).
     bool fast(index_t e) const;
+    /// Mixed transition in interface element e (trilinear functions N at x): the FE nodes'
+    /// functions appended to (nodes, psi), and as `others` the reproduction the RK functions complete.
+    void fe_functions(index_t e, const real_t (&N)[8], const Vec3& x, std::vector<index_t>& nodes,
+                      std::vector<real_t>& psi, RkOthers& others) const;
 };
 /// What the coupled shapes of an RK element set are made of, without building them: per element
 /// its kind, per node its support radius as a particle (0: an FE node). Two sets' approximations

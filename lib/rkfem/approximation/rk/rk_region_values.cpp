@@ -243,7 +243,12 @@ void RkRegionValues::values_linear(const Vec3& x)
     const real_t inv_s = 1.0 / a_min_;
     const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
     const Ldlt4 ldlt = factor_moments(rk_, x, n_cover_, M);
-    const Eigen::Vector4d b = ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
+    linear_values(ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0)), inv_s);
+}
+
+/// psi_k = phi_k (b_0 + b_i d_ik / s) over the candidates, and the largest |psi|.
+void RkRegionValues::linear_values(const Eigen::Vector4d& b, real_t inv_s)
+{
     const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
     const std::size_t n = ids_.size();
     const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi = phi_.data();
@@ -281,17 +286,7 @@ void RkRegionValues::evaluate_completing(const Vec3& x, const RkOthers& others)
     }
     const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
     const Ldlt4 ldlt = factor_moments(rk_, x, n_cover_, M);
-    const Eigen::Vector4d b = ldlt.solve(rhs);
-    const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
-    const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi = phi_.data();
-    real_t big = 0.0;
-    RKFEM_SIMD(reduction(max : big))
-    for (std::size_t k = 0; k < n; ++k)
-    {
-        psi[k] = phi[k] * (c0 + c1 * dx[k] + c2 * dy[k] + c3 * dz[k]);
-        big = larger(big, std::abs(psi[k]));
-    }
-    big_ = big;
+    linear_values(ldlt.solve(rhs), inv_s);
 }
 
 /// Order 2: the moment matrix over the covering candidates, one rank-1 update each.

@@ -94,6 +94,7 @@ class RkRegionValues
     void gradients_linear(const Vec3& x);
     void gradients_quadratic(const Vec3& x);
     void values_linear(const Vec3& x);
+    void linear_values(const Eigen::Vector4d& b, real_t inv_s);
     void values_quadratic(const Vec3& x);
     void drop(const Vec3& x);
 

@@ -27,28 +27,11 @@ namespace rkfem::nodal_detail
 /// every facet point's whole support); the sums are those of a stable sort and a sweep, bit for bit.
 void merge(Entries& e, real_t scale)
 {
-    thread_local std::vector<index_t> slot; // node -> its entry in `out`, -1: none yet
-    thread_local Entries out;
-    out.clear();
+    thread_local RowSum row;
+    row.clear();
     for (const auto& [n, g] : e)
-    {
-        if (static_cast<std::size_t>(n) >= slot.size())
-            slot.resize(static_cast<std::size_t>(n) + 1, -1);
-        index_t& k = slot[static_cast<std::size_t>(n)];
-        if (k < 0)
-        {
-            k = static_cast<index_t>(out.size());
-            out.emplace_back(n, g);
-        }
-        else
-            out[static_cast<std::size_t>(k)].second += g;
-    }
-    for (const auto& [n, g] : out)
-        slot[static_cast<std::size_t>(n)] = -1;
-    std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    e.assign(out.begin(), out.end());
-    for (auto& [n, g] : e)
-        g *= scale;
+        row.add(n, g);
+    row.take(e, scale);
 }
 
 void element_coordinates(const HexMesh& mesh, index_t e, real_t xe[8][3])
