@@ -450,7 +450,8 @@ std::vector<SectionDoc> build_table()
                   quantity("normalized_support", dim::none, "",
                            "a / h between 1 and 4, not an integer (default 1.51 on meshes, 1.35 on clouds)."),
                   quantity("drop_tolerance", dim::none, "",
-                           "Drop shape functions below this fraction (order 1; default 1e-5, 0 with order 2)."),
+                           "Drop shape functions below this fraction (order 1; default 1e-5, 0 with order 2; not used by "
+                           "the RK regions of coupled parts, which keep every function)."),
                   choice("share_translates", {"true", "false"}, "true",
                          "Share the tables of particles whose neighbourhoods are translates.")}});
     t.push_back({"region",
