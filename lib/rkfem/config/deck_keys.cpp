@@ -441,19 +441,20 @@ std::vector<SectionDoc> build_table()
                  "stabilization energy (as IHQ 6 scales its hourglass stiffness)."),
           choice("facet_points", {"triangles", "faces"}, "",
                  "Where the nodal cells' facets take their points (default: faces on clouds, triangles on meshes).")}});
-    t.push_back({"rk",
-                 "rk",
-                 "RK shape functions.",
-                 {choice("order", {"1", "2"}, "1", "The order of the reproduced basis."),
-                  choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline", "The kernel."),
-                  choice("support", {"box", "sphere"}, "box", "The kernel's support shape."),
-                  quantity("normalized_support", dim::none, "",
-                           "a / h between 1 and 4, not an integer (default 1.51 on meshes, 1.35 on clouds)."),
-                  quantity("drop_tolerance", dim::none, "",
-                           "Drop shape functions below this fraction (order 1; default 1e-5, 0 with order 2; not used by "
-                           "the RK regions of coupled parts, which keep every function)."),
-                  choice("share_translates", {"true", "false"}, "true",
-                         "Share the tables of particles whose neighbourhoods are translates.")}});
+    t.push_back(
+        {"rk",
+         "rk",
+         "RK shape functions.",
+         {choice("order", {"1", "2"}, "1", "The order of the reproduced basis."),
+          choice("kernel", {"cubic-bspline", "quintic-bspline", "gaussian"}, "cubic-bspline", "The kernel."),
+          choice("support", {"box", "sphere"}, "box", "The kernel's support shape."),
+          quantity("normalized_support", dim::none, "",
+                   "a / h between 1 and 4, not an integer (default 1.51 on meshes, 1.35 on clouds)."),
+          quantity("drop_tolerance", dim::none, "",
+                   "Drop shape functions below this fraction (order 1; default 1e-5, 0 with order 2; not used by "
+                   "the RK regions of coupled parts, which keep every function)."),
+          choice("share_translates", {"true", "false"}, "true",
+                 "Share the tables of particles whose neighbourhoods are translates.")}});
     t.push_back({"region",
                  "regions[i]",
                  "An RK region of an FE part.",
