@@ -39,6 +39,31 @@ const char* name(Transition t)
     return t == Transition::Mixed ? "mixed" : "ramp";
 }
 
+/// The point of element e at natural coordinates xi.
+Vec3 point_at(const HexMesh& mesh, index_t e, const Vec3& xi)
+{
+    real_t N[8];
+    const real_t z[3] = {xi[0], xi[1], xi[2]};
+    hex8_shape(z, N);
+    Vec3 x = Vec3::Zero();
+    for (int a = 0; a < 8; ++a)
+        x += N[a] * mesh.node(mesh.conn[8 * e + a]);
+    return x;
+}
+
+/// Prints `what`'s largest error per element kind (FE, interface, RK) and its point counts, and
+/// expects points of every kind, each error below `bound`.
+void expect_per_kind(Transition t, const char* what, const real_t (&err)[3], const int (&count)[3], real_t bound)
+{
+    std::printf("%s: %s, max error: FE %.1e (%d points), interface %.1e (%d), RK %.1e (%d)\n", name(t), what, err[0],
+                count[0], err[1], count[1], err[2], count[2]);
+    for (int k = 0; k < 3; ++k)
+    {
+        EXPECT_GT(count[k], 0);
+        EXPECT_LT(err[k], bound);
+    }
+}
+
 PatchResult coupled_patch(Transition t, int n, bool mscni, real_t jitter = 0.3)
 {
     const real_t size = 1.0;
@@ -69,12 +94,7 @@ TEST(CoupledShapes, ReproduceLinearFieldsInEveryElementKind)
             for (int q = 0; q < 8; ++q)
             {
                 const Vec3 xi(q & 1 ? g : -g, q & 2 ? g : -g, q & 4 ? g : -g);
-                real_t N[8];
-                const real_t z[3] = {xi[0], xi[1], xi[2]};
-                hex8_shape(z, N);
-                Vec3 x = Vec3::Zero();
-                for (int a = 0; a < 8; ++a)
-                    x += N[a] * mesh.node(mesh.conn[8 * e + a]);
+                const Vec3 x = point_at(mesh, e, xi);
                 shapes.values(e, xi, x, nodes, psi);
                 real_t s = 0.0;
                 Vec3 r = Vec3::Zero();
@@ -87,14 +107,7 @@ TEST(CoupledShapes, ReproduceLinearFieldsInEveryElementKind)
                 ++counts[kind];
                 err[kind] = std::max({err[kind], std::abs(s - 1.0), (r - x).norm() * 6.0});
             }
-        std::printf("%s: partition of unity and linear reproduction, max error: FE %.1e (%d points), interface "
-                    "%.1e (%d), RK %.1e (%d)\n",
-                    name(t), err[0], counts[0], err[1], counts[1], err[2], counts[2]);
-        for (int k = 0; k < 3; ++k)
-        {
-            EXPECT_GT(counts[k], 0);
-            EXPECT_LT(err[k], 1e-12);
-        }
+        expect_per_kind(t, "partition of unity and linear reproduction", err, counts, 1e-12);
     }
 }
 
@@ -140,16 +153,7 @@ TEST(CoupledShapes, FastPathMatchesItsPlainTwin)
         int points[3] = {0, 0, 0};
         for (index_t e = 0; e < mesh.n_elements(); ++e)
         {
-            auto at = [&](const Vec3& xi)
-            {
-                real_t N[8];
-                const real_t z[3] = {xi[0], xi[1], xi[2]};
-                hex8_shape(z, N);
-                Vec3 x = Vec3::Zero();
-                for (int a = 0; a < 8; ++a)
-                    x += N[a] * mesh.node(mesh.conn[8 * e + a]);
-                return x;
-            };
+            auto at = [&](const Vec3& xi) { return point_at(mesh, e, xi); };
             // the focus: the box of the octant xi > 0; points in it, then the opposite corner
             const Vec3 lo = at(Vec3(0, 0, 0)).cwiseMin(at(Vec3(1, 1, 1))) - Vec3::Constant(0.2 / 6);
             const Vec3 hi = at(Vec3(0, 0, 0)).cwiseMax(at(Vec3(1, 1, 1))) + Vec3::Constant(0.2 / 6);
@@ -174,14 +178,7 @@ TEST(CoupledShapes, FastPathMatchesItsPlainTwin)
                 }
             }
         }
-        std::printf("%s: fast against plain values, max difference: FE %.1e (%d points), interface %.1e (%d), "
-                    "RK %.1e (%d)\n",
-                    name(t), worst[0], points[0], worst[1], points[1], worst[2], points[2]);
-        for (int k = 0; k < 3; ++k)
-        {
-            EXPECT_GT(points[k], 0);
-            EXPECT_LT(worst[k], 1e-13);
-        }
+        expect_per_kind(t, "fast against plain values", worst, points, 1e-13);
     }
 }
 

@@ -250,27 +250,28 @@ void splice_rows(IntegrationOperator& op, const std::vector<char>& replace, cons
         op.nodes.resize(new_n);
         op.grad.resize(3 * new_n);
     }
-    auto move = [&](const Run& r)
+    // a run's entries (width 1 in nodes, 3 in grad) to their new place, copied from the end
+    // where they move right over themselves
+    auto shift = [](auto& v, std::ptrdiff_t width, const Run& r)
     {
-        std::copy_backward(op.nodes.begin() + r.begin, op.nodes.begin() + r.end,
-                           op.nodes.begin() + r.to + (r.end - r.begin));
-        std::copy_backward(op.grad.begin() + 3 * static_cast<std::ptrdiff_t>(r.begin),
-                           op.grad.begin() + 3 * static_cast<std::ptrdiff_t>(r.end),
-                           op.grad.begin() + 3 * static_cast<std::ptrdiff_t>(r.to + (r.end - r.begin)));
-    };
-    auto move_left = [&](const Run& r)
-    {
-        std::copy(op.nodes.begin() + r.begin, op.nodes.begin() + r.end, op.nodes.begin() + r.to);
-        std::copy(op.grad.begin() + 3 * static_cast<std::ptrdiff_t>(r.begin),
-                  op.grad.begin() + 3 * static_cast<std::ptrdiff_t>(r.end),
-                  op.grad.begin() + 3 * static_cast<std::ptrdiff_t>(r.to));
+        const auto first = v.begin() + width * r.begin, last = v.begin() + width * r.end, to = v.begin() + width * r.to;
+        if (r.to < r.begin)
+            std::copy(first, last, to);
+        else
+            std::copy_backward(first, last, to + (last - first));
     };
     for (const Run& r : runs)
         if (r.to < r.begin)
-            move_left(r);
+        {
+            shift(op.nodes, 1, r);
+            shift(op.grad, 3, r);
+        }
     for (auto it = runs.rbegin(); it != runs.rend(); ++it)
         if (it->to > it->begin)
-            move(*it);
+        {
+            shift(op.nodes, 1, *it);
+            shift(op.grad, 3, *it);
+        }
     if (new_n < old_n)
     {
         op.nodes.resize(new_n);

@@ -666,15 +666,7 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
         sf_old[k] = sf[k] = state_.stab_stress[k * ns + at];
     elastic_update(smat, df, u.w, dt, sf);
     if (u.share < 1.0)
-    {
-        // the old stress turned with the particle (no strain), and the increment's load scaled
-        real_t turned[6];
-        const real_t none[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-        std::copy_n(sf_old, 6, turned);
-        elastic_update(smat, none, u.w, dt, turned);
-        for (int k = 0; k < 6; ++k)
-            sf[k] = scaled_hourglass_update(turned[k], sf[k] - turned[k], u.share);
-    }
+        scale_stabilization_load(hughes_winget(u.w[0], u.w[1], u.w[2], dt), sf_old, u.share, sf);
     for (int k = 0; k < 6; ++k)
         state_.stab_stress_trial[k * ns + at] = sf[k];
     point_sums_[4 * static_cast<std::size_t>(L) + 2] += dt * u.V / 6.0 * stress_power(sf_old, sf, df);

@@ -56,8 +56,6 @@ void add_facet_sum(const ShapeEvaluator& shapes, index_t e, const SubHex& sh, in
                    std::vector<index_t>& nodes, std::vector<real_t>& psi)
 {
     const auto& points = sh.facets[f];
-    if (points.empty())
-        return;
     Vec3 lo = points.front().x, hi = lo;
     for (const FacetPoint& fp : points)
     {
