@@ -744,9 +744,19 @@ TEST(Decks, ErosionAndConversionMistakesNameTheKey)
                     ":8: parts.col.erosion.damage", "is outside [0, 1]");
     expect_rejected("erosion_none.yaml", replace(good, part, j2 + "    erosion: {damage: 0}\n"),
                     ":8: parts.col.erosion", "has no criterion");
-    // conversion: the same criteria, on nodal-integrated FE only
-    expect_rejected("conversion_1pt.yaml", replace(good, part, j2 + "    conversion: {damage: 0.5}\n"),
-                    ":8: parts.col.conversion", "expected formulation: fem-nodal on a part with conversion");
+    // conversion: the same criteria, on fem-nodal and fem-1pt parts, not beside erosion; a fem-1pt
+    // element's state is blended into the particles, which CSCM's has no rule for
+    expect_rejected("conversion_2x2x2.yaml",
+                    replace(good, part, j2 + "    formulation: fem-2x2x2\n    conversion: {damage: 0.5}\n"),
+                    ":9: parts.col.conversion", "expected formulation: fem-nodal or fem-1pt on a part with conversion");
+    expect_rejected("conversion_erosion.yaml",
+                    replace(good, part, j2 + "    conversion: {damage: 0.5}\n    erosion: {damage: 0.9}\n"),
+                    ":9: parts.col.erosion", "expected erosion or conversion on a part, not both");
+    expect_rejected(
+        "conversion_1pt_cscm.yaml",
+        replace(good, part,
+                "    material: {model: cscm, rho: 2400 kg/m^3, fc: 35 MPa}\n    conversion: {damage: 0.5}\n"),
+        ":8: parts.col.conversion", "expected formulation: fem-nodal for a converting CSCM part");
     expect_rejected("conversion_elastic.yaml",
                     replace(good, part, part + "    formulation: fem-nodal\n    conversion: {damage: 0.5}\n"),
                     ":9: parts.col.conversion", "expected material model j2, kcc or cscm");

@@ -168,6 +168,16 @@ TEST(Checkpoint, ConvertingConcreteBarRestartsWithTheSameBits)
                                   "5 us");
 }
 
+// The same bar as fem-1pt: the restart builds the FE side and nodal block of the saved RK
+// elements, whose state then loads as it was saved
+TEST(Checkpoint, ConvertingFem1ptBarRestartsWithTheSameBits)
+{
+    expect_restarts_reproduce("conversion_1pt", deck_path("concrete_bar_conversion.yaml"),
+                              "--set parts.bar.formulation=fem-1pt --set parts.bar.generator.element_size=5mm "
+                              "--set time.end=20us --set parts.bar.conversion.interval=3us",
+                              "5 us");
+}
+
 // RK back to FE: a block sheared and back converts at 173 us and reverts at 298 us; restarts
 // from checkpoints before the conversion, while it is RK and after the reversion give the same bits
 TEST(Checkpoint, ConversionAndReversionRestartWithTheSameBits)

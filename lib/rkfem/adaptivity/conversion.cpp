@@ -1,6 +1,6 @@
 // Evolutionary coupling (seed Table 1, feature 4): elements of a fem-nodal part turn into RK
 // between steps. The state stays where it is integrated (at the nodes), so an event rebuilds
-// tables only.
+// tables only. fem-1pt parts move their state too: conversion_fe_side.cpp.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -38,7 +38,29 @@ void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
     {
         // every element FE again (all reverted): the block a converting part starts with, built whole
         const bool all_fe = std::find(rk.begin(), rk.end(), char{1}) == rk.end();
-        if (rebuild_whole_part_ || all_fe)
+        // the whole block's rows of the kinematic map, moved out of it
+        auto take_rows = [&](NodalBlock& from)
+        {
+            for (index_t i = 0; i < n; ++i)
+            {
+                changed.node.push_back(i);
+                for (index_t k = from.interp_offsets[i]; k < from.interp_offsets[i + 1]; ++k)
+                {
+                    changed.columns.push_back(from.interp_nodes[k]);
+                    changed.values.push_back(from.interp_values[k]);
+                }
+                changed.offsets.push_back(static_cast<index_t>(changed.columns.size()));
+            }
+            std::vector<index_t>().swap(from.interp_offsets);
+            std::vector<index_t>().swap(from.interp_nodes);
+            std::vector<real_t>().swap(from.interp_values);
+        };
+        if (fe_side(part))
+        {
+            rebuild_fe_side_part(part, mesh, rk);
+            take_rows(nb);
+        }
+        else if (rebuild_whole_part_ || all_fe)
         {
             // the plain way: the whole block again, the state handed over point for point
             NodalBlock fresh = build_coupled_block(ps, mesh, begin, &rk);
@@ -61,19 +83,7 @@ void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
             fresh.stab_stress_trial = std::move(nb.stab_stress_trial);
             fresh.jacobian = std::move(nb.jacobian);
             fresh.plastic = std::move(nb.plastic);
-            for (index_t i = 0; i < n; ++i)
-            {
-                changed.node.push_back(i);
-                for (index_t k = fresh.interp_offsets[i]; k < fresh.interp_offsets[i + 1]; ++k)
-                {
-                    changed.columns.push_back(fresh.interp_nodes[k]);
-                    changed.values.push_back(fresh.interp_values[k]);
-                }
-                changed.offsets.push_back(static_cast<index_t>(changed.columns.size()));
-            }
-            std::vector<index_t>().swap(fresh.interp_offsets);
-            std::vector<index_t>().swap(fresh.interp_nodes);
-            std::vector<real_t>().swap(fresh.interp_values);
+            take_rows(fresh);
             nb = std::move(fresh);
         }
         else
@@ -122,8 +132,8 @@ index_t Model::flip_elements(index_t part, const std::vector<char>& flags, bool 
 {
     RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), caller << ": no part " << part);
     const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
-    RKFEM_REQUIRE(ps.coupled() && ps.formulation == Formulation::FemNodal,
-                  caller << ": part '" << ps.name << "' is not a fem-nodal part with regions or conversion");
+    RKFEM_REQUIRE(ps.coupled() && (ps.formulation == Formulation::FemNodal || ps.formulation == Formulation::Fem1pt),
+                  caller << ": part '" << ps.name << "' is not a fem-nodal or fem-1pt part with regions or conversion");
     std::vector<char> rk = rk_elements_[static_cast<std::size_t>(part)];
     RKFEM_REQUIRE(flags.size() == rk.size(), caller << ": " << flags.size() << " flags for " << rk.size()
                                                     << " elements of part '" << ps.name << "'");

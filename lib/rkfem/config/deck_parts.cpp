@@ -121,7 +121,7 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         p.nodal.scheme = "snni";
     if (s.has("nodal_integration"))
     {
-        if (!is_nodal(p.formulation) && !s.has("regions"))
+        if (!is_nodal(p.formulation) && !s.has("regions") && !s.has("conversion"))
             ignore(p, s, "nodal_integration", f); // read (and checked) below, then not used
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"), "nodal_integration");
         p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni", "snni"}, p.semi_lagrangian ? "snni" : "scni");
@@ -312,11 +312,17 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
                                        : Formulation::Rkpm;
     if (s.has("conversion"))
     {
-        // evolutionary coupling: state lives at the nodes on both sides, so conversion moves none
-        if (p.formulation != Formulation::FemNodal)
+        // evolutionary coupling: fem-nodal state lives at the nodes on both sides, so conversion
+        // moves none; a fem-1pt element's state goes to the particles that take its octants
+        // (PlasticPoints::blend_point), which CSCM's history has no mean for
+        if (p.formulation != Formulation::FemNodal && p.formulation != Formulation::Fem1pt)
+            s.fail("conversion", "turns elements of fem-nodal or fem-1pt parts into RK particles",
+                   "expected formulation: fem-nodal or fem-1pt on a part with conversion");
+        if (p.formulation == Formulation::Fem1pt && p.material.model == "cscm")
             s.fail("conversion",
-                   "turns elements of nodal-integrated FE into RK particles (the state stays at the nodes)",
-                   "expected formulation: fem-nodal on a part with conversion");
+                   "moves a fem-1pt element's state to the particles by volume-weighted means, which CSCM's "
+                   "history (thresholds set at first yield) has none of",
+                   "expected formulation: fem-nodal for a converting CSCM part, or material model elastic, j2 or kcc");
         p.conversion = read_criteria(ctx, s, "conversion", p);
     }
     read_kinematics(ctx, s, p);
@@ -360,6 +366,9 @@ PartSpec read_part(const Context& ctx, const std::string& name, const YAML::Node
         if (p.formulation != Formulation::Fem1pt && p.formulation != Formulation::Fem2x2x2)
             s.fail("erosion", "erodes elements of Gauss-point formulations only",
                    "expected formulation fem-1pt or fem-2x2x2 on a part with erosion");
+        if (s.has("conversion"))
+            s.fail("erosion", "deletes elements that a converting part turns into RK particles instead",
+                   "expected erosion or conversion on a part, not both");
         p.erosion = read_criteria(ctx, s, "erosion", p);
     }
     return p;

@@ -7,6 +7,7 @@
 /// per point; the branch on the kind is uniform over a block.
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <vector>
 
 #include "rkfem/core/parallel.hpp"
@@ -123,6 +124,68 @@ struct PlasticPoints
                        committed[to] = other[from];
                        trial[to] = other[from];
                    });
+    }
+    /// One share of the material a point takes over in blend_point: the committed history of point
+    /// `point` of `from` (a block of the same model), over `weight` (its volume).
+    struct Share
+    {
+        const PlasticPoints* from;
+        std::size_t point;
+        real_t weight;
+    };
+    /// Point `to` takes the history of the material its shares held (an event that hands a volume
+    /// from points of one kind to those of another: a fem-1pt element's octants to the particles
+    /// that take them, or back): each measure the volume-weighted mean of the shares', except the
+    /// damage measures (J2's failed flag, K&C's damage function lambda), which take the largest.
+    /// K&C's crack-band scale stays `to`'s own (it follows the point's length). Shares that are
+    /// all one point give its values as they are. Trial = committed. CSCM history (thresholds set
+    /// at first yield) has no such mean: refused (the deck refuses it first).
+    void blend_point(const Share* s, std::size_t n, std::size_t to)
+    {
+        if (kind == Kind::None || n == 0)
+            return;
+        if (kind == Kind::Cscm)
+            throw std::logic_error("PlasticPoints::blend_point: CSCM history is not blended");
+        bool one = true;
+        real_t total = 0.0;
+        for (std::size_t k = 0; k < n; ++k)
+        {
+            one = one && s[k].from == s[0].from && s[k].point == s[0].point;
+            total += s[k].weight;
+        }
+        auto mean = [&](auto get)
+        {
+            if (one)
+                return get(*s[0].from, s[0].point);
+            real_t m = 0.0;
+            for (std::size_t k = 0; k < n; ++k)
+                m += s[k].weight * get(*s[k].from, s[k].point);
+            return m / total;
+        };
+        auto largest = [&](auto get)
+        {
+            real_t m = get(*s[0].from, s[0].point);
+            for (std::size_t k = 1; k < n; ++k)
+                m = std::max(m, get(*s[k].from, s[k].point));
+            return m;
+        };
+        eps_p[to] = eps_p_trial[to] = mean([](const PlasticPoints& b, std::size_t p) { return b.eps_p[p]; });
+        failed[to] = failed_trial[to] = largest([](const PlasticPoints& b, std::size_t p) { return b.failed[p]; });
+        if (kind == Kind::Kcc)
+        {
+            KccState st = kcc_state[to];
+            st.lambda = largest([](const PlasticPoints& b, std::size_t p) { return b.kcc_state[p].lambda; });
+            st.ev = mean([](const PlasticPoints& b, std::size_t p) { return b.kcc_state[p].ev; });
+            st.ev_min = mean([](const PlasticPoints& b, std::size_t p) { return b.kcc_state[p].ev_min; });
+            st.ev_plastic = mean([](const PlasticPoints& b, std::size_t p) { return b.kcc_state[p].ev_plastic; });
+            st.eps_p = mean([](const PlasticPoints& b, std::size_t p) { return b.kcc_state[p].eps_p; });
+            kcc_state[to] = kcc_trial[to] = st;
+        }
+        if (!ev.empty())
+        {
+            ev[to] = ev_trial[to] = mean([](const PlasticPoints& b, std::size_t p) { return b.ev[p]; });
+            energy[to] = energy_trial[to] = mean([](const PlasticPoints& b, std::size_t p) { return b.energy[p]; });
+        }
     }
     /// Keeps the committed state of points from[0], from[1], ... as points 0, 1, ... (an event
     /// that removes or reorders points); trial state = committed.

@@ -336,7 +336,10 @@ void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& 
                               "unstable)");
     std::optional<FeSide> side;
     if (ps.coupled() && ps.formulation == Formulation::Fem1pt)
+    {
         side = build_fe_side(ps, mesh, blk, nb);
+        add_lumped_mass(side->block, nodes);
+    }
     part_nodal_.back() = static_cast<index_t>(blocks_.size());
     blocks_.push_back({std::make_unique<NodalForceBlock>(std::move(nb)), static_cast<index_t>(ip), false});
     if (side)
@@ -441,7 +444,7 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
 }
 
 /// The FE elements of a coupled part with a fem-1pt FE side: a 1-point block of their own (the
-/// part's block only holds the mesh for output).
+/// part's block only holds the mesh for output), fresh state, no mass added.
 FeSide Model::build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb)
 {
     FeSide side;
@@ -467,7 +470,6 @@ FeSide Model::build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBl
     for (index_t q = 0; q < fb.n_points(); ++q)
         h[q] = std::cbrt(fb.volume0[q]);
     fb.plastic.set_lengths(h);
-    add_lumped_mass(fb, nodes);
     return side;
 }
 

@@ -346,6 +346,11 @@ class Model final : public ExplicitOperator
     /// A coupled part's tables, map and the conditions' and loads' use of it rebuilt for a new
     /// set of RK elements; the points' state carries over.
     void set_rk_elements(index_t part, const std::vector<char>& rk);
+    /// set_rk_elements for a part with a fem-1pt FE side: its nodal block and side built again for
+    /// the RK elements rk (the block keeps its kinematic rows for the caller), each new point's
+    /// state blended from the material it takes over (adaptivity/conversion_fe_side.cpp), the
+    /// nodes' masses those of the new blocks with their momentum kept.
+    void rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::vector<char>& rk);
     /// Conversion's buffer layers and cap per event (ElementCriteria::buffer, max_per_event) on
     /// the triggered elements' flags (nonzero: convert).
     void buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<char>& convert) const;

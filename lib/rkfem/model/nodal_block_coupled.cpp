@@ -99,20 +99,23 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
     index_t n_rk = 0;
     for (char c : rk_elements)
         n_rk += c;
-    if (n_rk == 0 && ps.converts() && ps.formulation == Formulation::FemNodal)
+    if (n_rk == 0 && ps.converts())
     {
-        // no RK element yet: nodal-integrated FE on the same cells as a coupled block's
+        // no RK element yet: nodal-integrated FE on the same cells as a coupled block's; with a
+        // fem-1pt FE side, no point (every element is the side's)
         NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
         const FemShapes shapes(mesh);
-        if (ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0)
+        const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+        if (ps.formulation == Formulation::FemNodal && stabilized)
         {
             IntegrationOperator sd;
             build_scni_sd(mesh, shapes, nb.points, &sd);
             nb.stabilization = build_mscni_stabilization(nb.points, sd);
-            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         }
-        else
+        else if (ps.formulation == Formulation::FemNodal)
             nb.points = build_scni(mesh, shapes);
+        if (stabilized)
+            nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
         nb.particle.assign(static_cast<std::size_t>(mesh.n_nodes()), 0);
         nb.fe_element.assign(static_cast<std::size_t>(mesh.n_elements()), 1);
         // physical values: identity rows

@@ -1,5 +1,6 @@
 #include "rkfem/operators/force_block.hpp"
 
+#include <algorithm>
 #include <sstream>
 
 #include "rkfem/operators/nodal_force.hpp"
@@ -42,8 +43,9 @@ PointFault HexForceBlock::fault(index_t bad, const NodeSet& nodes) const
     return {false, bad, -1, bad_volume(element_volume(block_, nodes, bad))};
 }
 
-FeSideForceBlock::FeSideForceBlock(FeSide side) : side_(std::move(side))
+void FeSideForceBlock::reset(FeSide side)
 {
+    side_ = std::move(side);
     const HexBlock& block = side_.block;
     const std::vector<index_t>& local = side_.local;
     part_of_.assign(static_cast<std::size_t>(block.n_elements()), static_cast<index_t>(local.size()));
@@ -72,6 +74,13 @@ PointFault FeSideForceBlock::fault(index_t bad, const NodeSet& nodes) const
 
 ForcePassResult NodalForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)
 {
+    if (block_.n_points() == 0) // a converting fem-1pt part before its first event
+    {
+        if (!add)
+            std::fill(nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(block_.node_begin),
+                      nodes.f_int.begin() + 3 * static_cast<std::ptrdiff_t>(block_.node_end), 0.0);
+        return {};
+    }
     const ForcePassResult r = nodal_internal_force(block_, nodes, dt);
     if (r.bad_element < 0)
         assemble_nodal_forces(block_, nodes, add);

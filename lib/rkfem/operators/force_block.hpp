@@ -85,7 +85,9 @@ struct FeSide
 class FeSideForceBlock final : public ForceBlock
 {
   public:
-    explicit FeSideForceBlock(FeSide side);
+    explicit FeSideForceBlock(FeSide side) { reset(std::move(side)); }
+    /// A new side (a conversion event changed the part's FE elements).
+    void reset(FeSide side);
     ForcePassResult add_forces(NodeSet& nodes, real_t dt, bool add) override;
     void commit() override { side_.block.commit(); }
     index_t part_element(index_t block_element) const override;
