@@ -19,6 +19,7 @@
 #include "rkfem/model/model.hpp"
 #include "rkfem/operators/force_block.hpp"
 #include "rkfem/operators/nodal_force.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 #include "rkfem/time/stepper.hpp"
 
 using namespace rkfem;
@@ -137,7 +138,8 @@ void BM_CloudForcePass(benchmark::State& state)
 /// lattice (studies/decks/column_wave_rkpm.yaml: 5,025 particles at 200 mm, 10,025 at 400 mm),
 /// with a deforming velocity field: mode 0 rebuilds the tables every pass (the default), mode 1
 /// resets the reference every 10 passes (semi_lagrangian.reset_interval: 10), mode 2 is the
-/// deck's Lagrangian block (SCNI + MSCNI) of the same part for comparison. The neighbour lists are built
+/// deck's Lagrangian block (SCNI + MSCNI) of the same part for comparison, mode 3 is mode 0
+/// assembled by the per-pair gather instead of the chunked scatter. The neighbour lists are built
 /// once before the loop (their skin holds them across the passes of a run).
 void BM_SemiLagrangianPass(benchmark::State& state)
 {
@@ -146,7 +148,7 @@ void BM_SemiLagrangianPass(benchmark::State& state)
     const int mode = static_cast<int>(state.range(2));
     std::vector<std::string> sets = {"parts.column.generator.size=[4 mm, 4 mm, " + std::to_string(state.range(1)) +
                                      " mm]"};
-    if (mode < 2)
+    if (mode != 2)
     {
         sets.push_back("parts.column.kinematics=semi-lagrangian");
         sets.push_back("parts.column.nodal_integration={scheme: snni}");
@@ -157,6 +159,8 @@ void BM_SemiLagrangianPass(benchmark::State& state)
     for (std::size_t i = 0; i < nodes.x0.size(); ++i)
         nodes.v[i] = 1e-3 * std::sin(1e3 * nodes.x0[i] + static_cast<double>(i % 3));
     ForceBlock& blk = m.block(0);
+    if (mode == 3)
+        dynamic_cast<SemiLagrangianForceBlock&>(blk).set_assembly(Assembly::Gather);
     index_t passes = 0;
     for (auto _ : state)
     {
@@ -169,6 +173,12 @@ void BM_SemiLagrangianPass(benchmark::State& state)
     state.counters["ns_per_particle_step"] =
         benchmark::Counter(static_cast<double>(nodes.size()) * 1e-9,
                            benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    if (const auto* sl = dynamic_cast<const SemiLagrangianForceBlock*>(&blk))
+    {
+        state.counters["bytes_per_particle"] = static_cast<double>(sl->memory_bytes()) / sl->n_particles();
+        state.counters["scatter"] = sl->scatters() ? 1 : 0;
+        state.counters["entries"] = static_cast<double>(sl->neighbour_entries()) / sl->n_particles();
+    }
     omp_set_num_threads(saved);
 }
 /// Set-up: Model::build of a seed deck as rkpm (deck read, mesh, RK functions, SCNI + NSNI,
@@ -215,7 +225,7 @@ BENCHMARK(BM_CloudForcePass)
 
 BENCHMARK(BM_SemiLagrangianPass)
     ->ArgNames({"threads", "length", "mode"})
-    ->ArgsProduct({{1, 2}, {200, 400}, {0, 1, 2}})
+    ->ArgsProduct({{1, 2}, {200, 400}, {0, 1, 2, 3}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

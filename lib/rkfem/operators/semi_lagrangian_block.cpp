@@ -594,7 +594,48 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
         return box ? m < r : s < r * r;
     };
     build_neighbour_rows(cells, x_built_, np, within, offsets_, ids_);
-    // the lists are symmetric (one reach for all): (L, J)'s twin is L's place in J's row
+    plan_assembly();
+    ++rebuilds_;
+}
+
+void SemiLagrangianForceBlock::plan_assembly()
+{
+    const index_t np = n_particles(), begin = state_.node_begin;
+    // chunks of particles in order, about n / 16 (at least 256: a particle's pass costs some
+    // microseconds), doubled while they take over 3 buffers per node; the largest still scatters
+    // at up to 8 buffers per node with a chunk covering at most 3/4 of the block (nodal_block.cpp)
+    real_t worst = 0.0, spread = 0.0;
+    auto cut = [&](index_t size)
+    {
+        scatter_.clear();
+        scatter_.node_begin = begin;
+        scatter_.node_end = begin + np;
+        const std::size_t added = scatter_.add_chunks(np, size,
+                                                      [&](index_t first, index_t last, index_t& lo, index_t& hi)
+                                                      {
+                                                          for (index_t k = offsets_[first]; k < offsets_[last]; ++k)
+                                                          {
+                                                              lo = std::min(lo, begin + ids_[k]);
+                                                              hi = std::max(hi, begin + ids_[k] + 1);
+                                                          }
+                                                      });
+        worst = static_cast<real_t>(added) / (4.0 * static_cast<real_t>(std::max<index_t>(np, 1)));
+        spread = scatter_.chunks.empty() ? 0.0 : worst / static_cast<real_t>(scatter_.chunks.size());
+        return ChunkedScatter::local(added, np);
+    };
+    index_t size = ChunkedScatter::chunk_size(np, 1, 256);
+    const bool local = ChunkedScatter::cut_until_local(size, std::max<index_t>(2048, np / 4), cut);
+    const bool scatter = opt_.assembly == Assembly::Scatter ||
+                         (opt_.assembly == Assembly::Automatic && (local || (worst <= 8.0 && spread <= 0.75)));
+    if (np > 0 && scatter)
+    {
+        scatter_.finish();
+        std::vector<index_t>().swap(transpose_);
+        std::vector<real_t>().swap(pair_force_);
+        return;
+    }
+    scatter_.clear();
+    // the gather: the lists are symmetric (one reach for all), so (L, J)'s twin is L's place in J's row
     transpose_.resize(ids_.size());
     parallel_for("rkfem::semi_lagrangian::transpose", np,
                  [&](index_t i)
@@ -607,7 +648,60 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
                      }
                  });
     pair_force_.resize(3 * ids_.size());
-    ++rebuilds_;
+}
+
+template <class Point> void SemiLagrangianForceBlock::run_points(const char* label, Point&& point)
+{
+    const index_t begin = state_.node_begin;
+    if (!scatter_.empty())
+    {
+        scatter_.run_chunks(label, 0, static_cast<index_t>(scatter_.chunks.size()), 1,
+                            [&](index_t L, real_t* buf, index_t lo)
+                            {
+                                const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+                                point(L, [&](index_t k)
+                                      { return buf + 4 * static_cast<std::size_t>(begin + row[k] - lo); });
+                            });
+        return;
+    }
+    parallel_for(label, n_particles(),
+                 [&](index_t L)
+                 {
+                     real_t* pf = &pair_force_[3 * static_cast<std::size_t>(offsets_[L])];
+                     std::fill(pf, pf + 3 * static_cast<std::size_t>(offsets_[L + 1] - offsets_[L]), 0.0);
+                     point(L, [&](index_t k) { return pf + 3 * static_cast<std::size_t>(k); });
+                 });
+}
+
+std::size_t SemiLagrangianForceBlock::memory_bytes() const
+{
+    auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    const NodalBlock& b = state_;
+    std::size_t n = 0;
+    for (const std::vector<real_t>* v : {&b.stab_stress,   &b.stab_stress_trial,
+                                         &b.jacobian,      &b.cells,
+                                         &b.cells_trial,   &b.reference,
+                                         &b.length0,       &radius0_,
+                                         &radius_,         &v0_,
+                                         &width0_,         &u_rel_,
+                                         &volume_trial_,   &x_built_,
+                                         &cell_reach_,     &radius_built_,
+                                         &reach_built_,    &pair_force_,
+                                         &point_sums_,     &scatter_.buffer,
+                                         &b.points.weight, &b.points.position})
+        n += bytes(*v);
+    n += (b.stress.capacity() + b.stress_trial.capacity()) * sizeof(real_t);
+    for (const std::vector<index_t>* v : {&offsets_, &ids_, &transpose_, &b.points.owner, &b.points.offsets,
+                                          &b.points.nodes, &scatter_.node_chunk_offsets, &scatter_.node_chunks})
+        n += bytes(*v);
+    n += bytes(b.points.grad) + bytes(bad_) + bytes(free_);
+    b.plastic.each_array(
+        [&](const auto& committed, const auto& trial)
+        {
+            n += bytes(committed);
+            n += bytes(trial);
+        });
+    return n;
 }
 
 bool SemiLagrangianForceBlock::update_point(index_t L, const Mat3& Lg, real_t dt, real_t closing, PointUpdate& u)
@@ -686,189 +780,183 @@ void SemiLagrangianForceBlock::separate_trial(index_t L)
     real_t* sums = &point_sums_[4 * p];
     sums[0] = sums[1] = sums[2] = 0.0;
     sums[3] = kNoLimit;
-    std::fill_n(&pair_force_[3 * static_cast<std::size_t>(offsets_[L])],
-                3 * static_cast<std::size_t>(offsets_[L + 1] - offsets_[L]), 0.0);
 }
 
 void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
 {
-    const index_t np = n_particles();
     const bool stabilized = opt_.stabilization_coefficient > 0.0;
     const index_t begin = state_.node_begin;
     const std::vector<real_t>& x = nodes.x;
     const std::vector<real_t>& vel = nodes.v;
-    parallel_for("rkfem::semi_lagrangian::points_plain", np,
-                 [&](index_t L)
-                 {
-                     Scratch& sc = scratch();
-                     const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-                     const index_t n = offsets_[L + 1] - offsets_[L];
-                     const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-                     const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
-                     const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-                     bad_[L] = 0;
-                     if (free_[static_cast<std::size_t>(L)])
-                     {
-                         separate_trial(L);
-                         return;
-                     }
-                     if (!plain_gradient(xL, cell, row, n, begin, x, radius_, opt_.rk, free_, sc))
-                     {
-                         separate_trial(L); // too few particles cover its cell: it has separated
-                         return;
-                     }
-                     auto velocity = [&](index_t k)
-                     {
-                         const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
-                         return Vec3(vel[g], vel[g + 1], vel[g + 2]);
-                     };
-                     Mat3 Lg = Mat3::Zero();
-                     real_t closing = 0.0;
-                     const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
-                     for (index_t k = 0; k < n; ++k)
-                     {
-                         const Vec3 bk(sc.b[3 * k], sc.b[3 * k + 1], sc.b[3 * k + 2]);
-                         Lg += velocity(k) * bk.transpose();
-                         bool covers = bk.squaredNorm() > 0.0;
-                         for (int q = 0; q < 18 && !covers; ++q)
-                             covers = sc.face[18 * k + q] != 0.0;
-                         if (covers)
-                             closing = std::max(closing, (velocity(k) - vL).norm());
-                     }
-                     PointUpdate u;
-                     if (!update_point(L, Lg, dt, closing, u))
-                     {
-                         bad_[L] = 1;
-                         return;
-                     }
-                     const real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q,
-                                           u.sig[3],       u.sig[4],       u.sig[5]};
-                     real_t* pf = &pair_force_[3 * static_cast<std::size_t>(offsets_[L])];
-                     for (index_t k = 0; k < n; ++k)
-                     {
-                         const Vec3 t = u.V * traction(sq, &sc.b[3 * k]);
-                         for (int a = 0; a < 3; ++a)
-                             pf[3 * k + a] = t[a];
-                     }
-                     if (!stabilized)
-                         return;
-                     // the face centres' stabilization stresses, each from its gradient's departure from b
-                     for (int f = 0; f < 6; ++f)
-                     {
-                         auto g = [&](index_t k)
-                         {
-                             const real_t* gf = &sc.face[18 * k + 3 * static_cast<std::size_t>(f)];
-                             return Vec3(gf[0] - sc.b[3 * k], gf[1] - sc.b[3 * k + 1], gf[2] - sc.b[3 * k + 2]);
-                         };
-                         Mat3 Lf = Mat3::Zero();
-                         for (index_t k = 0; k < n; ++k)
-                             Lf += velocity(k) * g(k).transpose();
-                         real_t sf[6];
-                         update_face(L, f, Lf, u, dt, sf);
-                         for (index_t k = 0; k < n; ++k)
-                         {
-                             const Vec3 gk = g(k);
-                             const real_t gg[3] = {gk[0], gk[1], gk[2]};
-                             const Vec3 t = u.V / 6.0 * traction(sf, gg);
-                             for (int a = 0; a < 3; ++a)
-                                 pf[3 * k + a] += t[a];
-                         }
-                     }
-                 });
+    run_points("rkfem::semi_lagrangian::points_plain",
+               [&](index_t L, auto&& out)
+               {
+                   Scratch& sc = scratch();
+                   const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+                   const index_t n = offsets_[L + 1] - offsets_[L];
+                   const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+                   const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
+                   const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                   bad_[L] = 0;
+                   if (free_[static_cast<std::size_t>(L)])
+                   {
+                       separate_trial(L);
+                       return;
+                   }
+                   if (!plain_gradient(xL, cell, row, n, begin, x, radius_, opt_.rk, free_, sc))
+                   {
+                       separate_trial(L); // too few particles cover its cell: it has separated
+                       return;
+                   }
+                   auto velocity = [&](index_t k)
+                   {
+                       const std::size_t g = 3 * static_cast<std::size_t>(begin + row[k]);
+                       return Vec3(vel[g], vel[g + 1], vel[g + 2]);
+                   };
+                   Mat3 Lg = Mat3::Zero();
+                   real_t closing = 0.0;
+                   const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
+                   for (index_t k = 0; k < n; ++k)
+                   {
+                       const Vec3 bk(sc.b[3 * k], sc.b[3 * k + 1], sc.b[3 * k + 2]);
+                       Lg += velocity(k) * bk.transpose();
+                       bool covers = bk.squaredNorm() > 0.0;
+                       for (int q = 0; q < 18 && !covers; ++q)
+                           covers = sc.face[18 * k + q] != 0.0;
+                       if (covers)
+                           closing = std::max(closing, (velocity(k) - vL).norm());
+                   }
+                   PointUpdate u;
+                   if (!update_point(L, Lg, dt, closing, u))
+                   {
+                       bad_[L] = 1;
+                       return;
+                   }
+                   const real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
+                   for (index_t k = 0; k < n; ++k)
+                   {
+                       const Vec3 t = u.V * traction(sq, &sc.b[3 * k]);
+                       real_t* pf = out(k);
+                       for (int a = 0; a < 3; ++a)
+                           pf[a] += t[a];
+                   }
+                   if (!stabilized)
+                       return;
+                   // the face centres' stabilization stresses, each from its gradient's departure from b
+                   for (int f = 0; f < 6; ++f)
+                   {
+                       auto g = [&](index_t k)
+                       {
+                           const real_t* gf = &sc.face[18 * k + 3 * static_cast<std::size_t>(f)];
+                           return Vec3(gf[0] - sc.b[3 * k], gf[1] - sc.b[3 * k + 1], gf[2] - sc.b[3 * k + 2]);
+                       };
+                       Mat3 Lf = Mat3::Zero();
+                       for (index_t k = 0; k < n; ++k)
+                           Lf += velocity(k) * g(k).transpose();
+                       real_t sf[6];
+                       update_face(L, f, Lf, u, dt, sf);
+                       for (index_t k = 0; k < n; ++k)
+                       {
+                           const Vec3 gk = g(k);
+                           const real_t gg[3] = {gk[0], gk[1], gk[2]};
+                           const Vec3 t = u.V / 6.0 * traction(sf, gg);
+                           real_t* pf = out(k);
+                           for (int a = 0; a < 3; ++a)
+                               pf[a] += t[a];
+                       }
+                   }
+               });
 }
 
 void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
 {
-    const index_t np = n_particles();
     const bool stabilized = opt_.stabilization_coefficient > 0.0;
     const index_t begin = state_.node_begin;
     const std::vector<real_t>& x = nodes.x;
     const std::vector<real_t>& vel = nodes.v;
-    parallel_for("rkfem::semi_lagrangian::points", np,
-                 [&](index_t L)
-                 {
-                     FastScratch& sc = fast_scratch();
-                     const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-                     const index_t n = offsets_[L + 1] - offsets_[L];
-                     const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-                     const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
-                     const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-                     bad_[L] = 0;
-                     if (free_[static_cast<std::size_t>(L)])
-                     {
-                         separate_trial(L);
-                         return;
-                     }
-                     sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
-                     Vec3 vh[6];
-                     Mat3 G[6];
-                     real_t closing = 0.0;
-                     const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
-                     Cell gcell = cell;
-                     if (!gradient_cell(sc, cell, opt_.rk, gcell))
-                     {
-                         separate_trial(L); // too few particles cover its cell: it has separated
-                         return;
-                     }
-                     const real_t Vg = gcell.volume();
-                     for (int f = 0; f < 6; ++f)
-                     {
-                         vh[f].setZero();
-                         G[f].setZero();
-                         const FaceSample& fs = sc.face[f];
-                         for (std::size_t e = 0; e < fs.k.size(); ++e)
-                         {
-                             const std::size_t g = 3 * static_cast<std::size_t>(begin + row[fs.k[e]]);
-                             const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
-                             vh[f] += fs.psi[e] * v;
-                             G[f] += v * fs.grad[e].transpose();
-                             closing = std::max(closing, (v - vL).norm());
-                         }
-                     }
-                     // L = (1 / V) sum_f v^h(x_f) (x) A_f, on the gradient's cell
-                     Mat3 Lg = Mat3::Zero();
-                     for (int f = 0; f < 6; ++f)
-                         Lg += vh[f] * gcell.area(f).transpose();
-                     Lg /= Vg;
-                     PointUpdate u;
-                     if (!update_point(L, Lg, dt, closing, u))
-                     {
-                         bad_[L] = 1;
-                         return;
-                     }
-                     // f_J = V_n (sigma - q 1 - (1/6) sum_f sigma_f) b_J + (V_n / 6) sum_f sigma_f grad Psi_J(x_f),
-                     // with V_n b_J = (V_n / V) sum_f Psi_J(x_f) A_f: scattered face by face
-                     real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
-                     real_t sf[6][6] = {};
-                     if (stabilized)
-                         for (int f = 0; f < 6; ++f)
-                         {
-                             update_face(L, f, G[f] - Lg, u, dt, sf[f]);
-                             for (int k = 0; k < 6; ++k)
-                                 sq[k] -= sf[f][k] / 6.0;
-                         }
-                     real_t* pf = &pair_force_[3 * static_cast<std::size_t>(offsets_[L])];
-                     std::fill(pf, pf + 3 * static_cast<std::size_t>(n), 0.0);
-                     for (int f = 0; f < 6; ++f)
-                     {
-                         const Vec3 af = (u.V / Vg) * gcell.area(f);
-                         const real_t a[3] = {af[0], af[1], af[2]};
-                         const Vec3 t = traction(sq, a);
-                         const FaceSample& fs = sc.face[f];
-                         for (std::size_t e = 0; e < fs.k.size(); ++e)
-                         {
-                             Vec3 fe = fs.psi[e] * t;
-                             if (stabilized)
-                             {
-                                 const real_t gg[3] = {fs.grad[e][0], fs.grad[e][1], fs.grad[e][2]};
-                                 fe += (u.V / 6.0) * traction(sf[f], gg);
-                             }
-                             real_t* out = pf + 3 * static_cast<std::size_t>(fs.k[e]);
-                             for (int d = 0; d < 3; ++d)
-                                 out[d] += fe[d];
-                         }
-                     }
-                 });
+    run_points("rkfem::semi_lagrangian::points",
+               [&](index_t L, auto&& out)
+               {
+                   FastScratch& sc = fast_scratch();
+                   const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+                   const index_t n = offsets_[L + 1] - offsets_[L];
+                   const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+                   const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
+                   const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                   bad_[L] = 0;
+                   if (free_[static_cast<std::size_t>(L)])
+                   {
+                       separate_trial(L);
+                       return;
+                   }
+                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
+                   Vec3 vh[6];
+                   Mat3 G[6];
+                   real_t closing = 0.0;
+                   const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
+                   Cell gcell = cell;
+                   if (!gradient_cell(sc, cell, opt_.rk, gcell))
+                   {
+                       separate_trial(L); // too few particles cover its cell: it has separated
+                       return;
+                   }
+                   const real_t Vg = gcell.volume();
+                   for (int f = 0; f < 6; ++f)
+                   {
+                       vh[f].setZero();
+                       G[f].setZero();
+                       const FaceSample& fs = sc.face[f];
+                       for (std::size_t e = 0; e < fs.k.size(); ++e)
+                       {
+                           const std::size_t g = 3 * static_cast<std::size_t>(begin + row[fs.k[e]]);
+                           const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
+                           vh[f] += fs.psi[e] * v;
+                           G[f] += v * fs.grad[e].transpose();
+                           closing = std::max(closing, (v - vL).norm());
+                       }
+                   }
+                   // L = (1 / V) sum_f v^h(x_f) (x) A_f, on the gradient's cell
+                   Mat3 Lg = Mat3::Zero();
+                   for (int f = 0; f < 6; ++f)
+                       Lg += vh[f] * gcell.area(f).transpose();
+                   Lg /= Vg;
+                   PointUpdate u;
+                   if (!update_point(L, Lg, dt, closing, u))
+                   {
+                       bad_[L] = 1;
+                       return;
+                   }
+                   // f_J = V_n (sigma - q 1 - (1/6) sum_f sigma_f) b_J + (V_n / 6) sum_f sigma_f grad Psi_J(x_f),
+                   // with V_n b_J = (V_n / V) sum_f Psi_J(x_f) A_f: scattered face by face
+                   real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
+                   real_t sf[6][6] = {};
+                   if (stabilized)
+                       for (int f = 0; f < 6; ++f)
+                       {
+                           update_face(L, f, G[f] - Lg, u, dt, sf[f]);
+                           for (int k = 0; k < 6; ++k)
+                               sq[k] -= sf[f][k] / 6.0;
+                       }
+                   for (int f = 0; f < 6; ++f)
+                   {
+                       const Vec3 af = (u.V / Vg) * gcell.area(f);
+                       const real_t a[3] = {af[0], af[1], af[2]};
+                       const Vec3 t = traction(sq, a);
+                       const FaceSample& fs = sc.face[f];
+                       for (std::size_t e = 0; e < fs.k.size(); ++e)
+                       {
+                           Vec3 fe = fs.psi[e] * t;
+                           if (stabilized)
+                           {
+                               const real_t gg[3] = {fs.grad[e][0], fs.grad[e][1], fs.grad[e][2]};
+                               fe += (u.V / 6.0) * traction(sf[f], gg);
+                           }
+                           real_t* to = out(fs.k[e]);
+                           for (int d = 0; d < 3; ++d)
+                               to[d] += fe[d];
+                       }
+                   }
+               });
 }
 
 ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, bool add)
@@ -902,6 +990,11 @@ ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, 
             r.dt_stable = sums[3];
             r.dt_element = p;
         }
+    }
+    if (!scatter_.empty())
+    {
+        scatter_.reduce(nodes.f_int, add);
+        return r;
     }
     // each particle's force: the entries (L, J) of the rows its own row names, in its row's order
     parallel_for("rkfem::semi_lagrangian::gather", np,

@@ -63,14 +63,18 @@
 /// (box support: along each axis; sphere: distance; r: the farthest face centre of the cell),
 /// rebuilt when twice the largest displacement since the build plus the largest growth of a
 /// support and of a reach passes the skin.
-/// Forces are summed per particle over its list in a fixed order (ascending particles), so the
-/// result does not depend on the thread count. The state (stress, face stresses, volume ratio,
+/// Forces are assembled in a fixed order whatever the thread count and whenever the lists were
+/// built: by the chunked scatter (kernels/chunked_scatter.hpp; chunks of particles in order, each
+/// adding its particles' forces into a buffer over the nodes its rows reach, the buffers summed in
+/// chunk order), or, where the particles' order has no locality, summed per particle over its list
+/// in ascending order from per-pair forces. The state (stress, face stresses, volume ratio,
 /// material history) lives in a NodalBlock (one stress point per particle), which output,
 /// probes and checkpoints read as they read a Lagrangian block's.
 #include <vector>
 
 #include "rkfem/approximation/rk/rk_shape.hpp"
 #include "rkfem/operators/force_block.hpp"
+#include "rkfem/operators/kernels/chunked_scatter.hpp"
 
 namespace rkfem
 {
@@ -104,6 +108,9 @@ struct SemiLagrangianOptions
     /// Every-step tables on materials with history: the face stresses' loads take the share of
     /// the step the particle's material took elastically (see the file's note).
     bool plastic_scaling = false;
+    /// How forces are assembled (plan_assembly): Automatic takes the chunked scatter where the
+    /// particles' order is local enough; tests force either.
+    Assembly assembly = Assembly::Automatic;
 };
 
 class SemiLagrangianForceBlock final : public ForceBlock
@@ -148,9 +155,22 @@ class SemiLagrangianForceBlock final : public ForceBlock
         return n;
     }
     std::size_t neighbour_entries() const { return ids_.size(); }
+    /// Whether the forces are assembled by the chunked scatter (else the per-pair gather).
+    bool scatters() const { return !scatter_.empty(); }
+    /// The bytes the block holds now: its state (stress, face stresses, cells, history), tables,
+    /// neighbour lists and assembly buffers (vector capacities; for the speed issue's per-particle
+    /// memory figure).
+    std::size_t memory_bytes() const;
     const SemiLagrangianOptions& options() const { return opt_; }
     /// Runs the plain pass instead of the fast one (SemiLagrangianOptions::plain).
     void set_plain(bool plain) { opt_.plain = plain; }
+    /// Assembles by `a` from the next pass on (SemiLagrangianOptions::assembly).
+    void set_assembly(Assembly a)
+    {
+        opt_.assembly = a;
+        if (rebuilds_ > 0)
+            plan_assembly();
+    }
 
     /// The smoothed gradients b_J at particle p in the positions x (global node ids of the
     /// particles of its neighbour list, 3 per entry), from its committed cell, and the direct
@@ -208,6 +228,13 @@ class SemiLagrangianForceBlock final : public ForceBlock
     void points_fast(const NodeSet& nodes, real_t dt);
     void update_neighbours(const std::vector<real_t>& x);
     void build_neighbours(const std::vector<real_t>& x);
+    /// After a list build: the chunked scatter over the particles in order where their lists are
+    /// local enough (as the nodal blocks' rule, nodal_block.cpp), else the pair forces and the
+    /// lists' transpose for the gather.
+    void plan_assembly();
+    /// point(L, out) for every particle, where out(k) is where the force of L on the k-th
+    /// particle of its row adds (3 values): its chunk's buffer, or its zeroed pair-force entry.
+    template <class Point> void run_points(const char* label, Point&& point);
     /// The supports and the cells' reaches (radius_, cell_reach_) from the committed state.
     void extents();
     NodalBlock state_;
@@ -221,12 +248,13 @@ class SemiLagrangianForceBlock final : public ForceBlock
     SemiLagrangianOptions opt_;
     // neighbour lists (local particle numbers, ascending per row)
     std::vector<index_t> offsets_{0}, ids_;
-    std::vector<index_t> transpose_; ///< per entry (L, J): the entry (J, L) of J's row
+    std::vector<index_t> transpose_; ///< gather: per entry (L, J), the entry (J, L) of J's row
     std::vector<real_t> x_built_;    ///< positions at the build (3 per particle)
     std::vector<real_t> cell_reach_; ///< per particle: its farthest face centre (along an axis for box kernels) [m]
     std::vector<real_t> radius_built_, reach_built_; ///< supports and reaches at the build [m]
     index_t rebuilds_ = 0;
-    std::vector<real_t> pair_force_; ///< per entry (L, J): the force of L's point on J [N]
+    std::vector<real_t> pair_force_; ///< gather: per entry (L, J), the force of L's point on J [N]
+    ChunkedScatter scatter_;         ///< chunks of particles in order (empty: the gather)
     std::vector<real_t> point_sums_; ///< per particle: d_int, d_bv, d_stab, dt
     std::vector<char> bad_;          ///< per particle: a bad volume
     std::vector<char> free_;         ///< per particle: separated (its committed cell is empty)
