@@ -139,8 +139,8 @@ void BM_CloudForcePass(benchmark::State& state)
 /// with a deforming velocity field: mode 0 rebuilds the tables every pass (the default), mode 1
 /// resets the reference every 10 passes (semi_lagrangian.reset_interval: 10), mode 2 is the
 /// deck's Lagrangian block (SCNI + MSCNI) of the same part for comparison, mode 3 is mode 0
-/// assembled by the per-pair gather instead of the chunked scatter. The neighbour lists are built
-/// once before the loop (their skin holds them across the passes of a run).
+/// assembled by the per-pair gather instead of the chunked scatter, mode 4 is SD-SNNI (every step). The neighbour lists
+/// are built once before the loop (their skin holds them across the passes of a run).
 void BM_SemiLagrangianPass(benchmark::State& state)
 {
     const int saved = omp_get_max_threads();
@@ -151,7 +151,8 @@ void BM_SemiLagrangianPass(benchmark::State& state)
     if (mode != 2)
     {
         sets.push_back("parts.column.kinematics=semi-lagrangian");
-        sets.push_back("parts.column.nodal_integration={scheme: snni}");
+        sets.push_back(mode == 4 ? "parts.column.nodal_integration={scheme: sd-snni}"
+                                 : "parts.column.nodal_integration={scheme: snni}");
         sets.push_back(std::string("parts.column.semi_lagrangian={reset_interval: ") + (mode == 1 ? "10" : "1") + "}");
     }
     Model m = Model::build(read_deck(std::string(RKFEM_SOURCE_DIR) + "/studies/decks/column_wave_rkpm.yaml", sets));
@@ -225,7 +226,7 @@ BENCHMARK(BM_CloudForcePass)
 
 BENCHMARK(BM_SemiLagrangianPass)
     ->ArgNames({"threads", "length", "mode"})
-    ->ArgsProduct({{1, 2}, {200, 400}, {0, 1, 2, 3}})
+    ->ArgsProduct({{1, 2}, {200, 400}, {0, 1, 2, 3, 4}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

@@ -426,14 +426,15 @@ std::vector<SectionDoc> build_table()
         {"nodal_integration",
          "nodal_integration",
          "Nodal integration of fem-nodal and rkpm parts and of RK regions.",
-         {choice("scheme", {"scni", "sd-scni", "dni", "snni"}, "",
+         {choice("scheme", {"scni", "sd-scni", "dni", "snni", "sd-snni"}, "",
                  "Stabilized conforming (scni), its stress-point form (sd-scni), direct (dni), or stabilized "
-                 "non-conforming on current cells (snni, semi-Lagrangian parts; their default; scni otherwise)."),
-          choice("stabilization", {"mscni", "nsni", "face-gradient", "none"}, "",
+                 "non-conforming on current cells (snni, semi-Lagrangian parts; their default; scni otherwise), "
+                 "or on each cell's eight sub-cells (sd-snni, semi-Lagrangian parts rebuilt every step)."),
+          choice("stabilization", {"mscni", "nsni", "face-gradient", "sub-cells", "none"}, "",
                  "The stabilization (default: nsni on rkpm parts, mscni on fem-nodal and coupled parts, "
-                 "face-gradient on semi-Lagrangian parts; none for sd-scni and dni)."),
+                 "face-gradient for snni, sub-cells for sd-snni; none for sd-scni and dni)."),
           quantity("stabilization_coefficient", dim::none, "",
-                   "c_s (default 0.25 for nsni, 1 for mscni and face-gradient)."),
+                   "c_s (default 0.25 for nsni, 1 for mscni, face-gradient and sub-cells)."),
           quantity("dt_factor", dim::none, "0", "The stable-step factor alpha in (0, 2] (0: the calibrated default)."),
           choice("plastic_scaling", {"true", "false"}, "false",
                  "Materials with history: the stabilization's loads (mscni, nsni) take the share of the step "

@@ -124,27 +124,38 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         if (!is_nodal(p.formulation) && !s.has("regions") && !s.has("conversion"))
             ignore(p, s, "nodal_integration", f); // read (and checked) below, then not used
         Section ni(ctx, s.node("nodal_integration"), s.path("nodal_integration"), "nodal_integration");
-        p.nodal.scheme = ni.choice("scheme", {"scni", "sd-scni", "dni", "snni"}, p.semi_lagrangian ? "snni" : "scni");
-        if (p.semi_lagrangian && p.nodal.scheme != "snni")
+        p.nodal.scheme =
+            ni.choice("scheme", {"scni", "sd-scni", "dni", "snni", "sd-snni"}, p.semi_lagrangian ? "snni" : "scni");
+        const bool sd = p.nodal.scheme == "sd-snni";
+        if (p.semi_lagrangian && p.nodal.scheme != "snni" && !sd)
             ni.fail("scheme",
                     "semi-Lagrangian particles are integrated on cells about their current positions (SNNI); " +
                         p.nodal.scheme + " needs cells of the reference configuration",
-                    "expected scheme: snni with kinematics: semi-lagrangian");
-        if (p.nodal.scheme == "snni" && (p.formulation != Formulation::Rkpm || s.has("regions")))
-            ni.fail("scheme", "snni integrates RK particles of an rkpm part on their own cells",
+                    "expected scheme: snni or sd-snni with kinematics: semi-lagrangian");
+        if ((p.nodal.scheme == "snni" || sd) && (p.formulation != Formulation::Rkpm || s.has("regions")))
+            ni.fail("scheme", p.nodal.scheme + " integrates RK particles of an rkpm part on their own cells",
                     "expected scheme: scni, sd-scni or dni on a " + f +
                         (s.has("regions") ? " part with regions" : " part"));
+        if (sd && (!p.semi_lagrangian || p.reset_interval != 1))
+            ni.fail("scheme", "sd-snni integrates semi-Lagrangian particles on sub-cells rebuilt every step",
+                    "expected kinematics: semi-lagrangian with semi_lagrangian.reset_interval: 1 (or scheme: snni)");
         const bool snni = p.nodal.scheme == "snni";
-        p.nodal.stabilization = ni.choice("stabilization", {"mscni", "nsni", "face-gradient", "none"},
+        p.nodal.stabilization = ni.choice("stabilization", {"mscni", "nsni", "face-gradient", "sub-cells", "none"},
                                           snni                       ? "face-gradient"
+                                          : sd                       ? "sub-cells"
                                           : p.nodal.scheme == "scni" ? default_stab
                                                                      : "none");
         if ((p.nodal.stabilization == "face-gradient") != (snni && p.nodal.stabilization != "none"))
             ni.fail("stabilization",
                     snni ? "SNNI is stabilized by face-gradient (or none)" : "face-gradient stabilizes scheme snni",
                     snni ? "expected stabilization: face-gradient or none"
+                    : sd ? "expected stabilization: sub-cells or none"
                          : "expected stabilization: mscni, nsni or none");
-        if (p.nodal.stabilization != "none" && p.nodal.scheme != "scni" && p.nodal.scheme != "snni")
+        if ((p.nodal.stabilization == "sub-cells") != (sd && p.nodal.stabilization != "none"))
+            ni.fail("stabilization",
+                    sd ? "SD-SNNI is stabilized by its sub-cells (or none)" : "sub-cells stabilizes scheme sd-snni",
+                    sd ? "expected stabilization: sub-cells or none" : "expected stabilization: mscni, nsni or none");
+        if (p.nodal.stabilization != "none" && p.nodal.scheme != "scni" && p.nodal.scheme != "snni" && !sd)
             ni.fail("stabilization", p.nodal.stabilization + " stabilizes scheme scni only",
                     "expected stabilization: none with scheme " + p.nodal.scheme);
         if (p.nodal.stabilization == "nsni" && (p.formulation != Formulation::Rkpm || s.has("regions")))
@@ -159,7 +170,7 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
         if (!(p.nodal.dt_factor >= 0.0 && p.nodal.dt_factor <= 2.0))
             ni.fail("dt_factor", "is outside [0, 2]", "expected alpha in (0, 2], or 0 for the calibrated default");
         p.nodal.plastic_scaling = ni.choice("plastic_scaling", {"true", "false"}, "false") == "true";
-        if (p.nodal.plastic_scaling && snni)
+        if (p.nodal.plastic_scaling && (snni || sd))
             ni.fail("plastic_scaling", "scales the stabilization of Lagrangian nodal integration (mscni, nsni)",
                     "expected semi_lagrangian.plastic_scaling on a semi-Lagrangian part");
         p.nodal.facet_points = ni.choice("facet_points", {"triangles", "faces"}, p.nodal.facet_points);

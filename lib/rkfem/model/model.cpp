@@ -437,6 +437,7 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     opt.separation_damage = ps.separation_damage;
     opt.plastic_scaling = ps.sl_plastic_scaling && opt.reset_interval == 1;
     opt.stabilization_coefficient = ps.nodal.stabilization == "none" ? 0.0 : ps.nodal.stabilization_coefficient;
+    opt.sub_cells = ps.nodal.scheme == "sd-snni";
     part_nodal_.back() = static_cast<index_t>(blocks_.size());
     blocks_.push_back(
         {std::make_unique<SemiLagrangianForceBlock>(std::move(nb), std::move(radius), std::move(cells), opt),

@@ -201,6 +201,46 @@ bool linear_rk(std::size_t n, const real_t* phi, const Vec3* dphi, const Vec3* d
     return true;
 }
 
+/// linear_rk's values alone (SD-SNNI's points need no gradients): the same moment sums in the
+/// same order and the same solve, so the same Psi bit for bit, for a quarter of the sums and none
+/// of the derivative solves.
+bool linear_rk_values(std::size_t n, const real_t* phi, const Vec3* dx, real_t s, real_t* psi)
+{
+    if (n < 4)
+        return false;
+    using Mat4 = Eigen::Matrix<real_t, 4, 4>;
+    using Vec4 = Eigen::Matrix<real_t, 4, 1>;
+    const real_t inv_s = 1.0 / s;
+    real_t acc[10] = {};
+    const real_t* y = dx[0].data();
+    RKFEM_SIMD(reduction(+ : acc[:10]))
+    for (std::size_t e = 0; e < n; ++e)
+    {
+        const real_t y0 = y[3 * e] * inv_s, y1 = y[3 * e + 1] * inv_s, y2 = y[3 * e + 2] * inv_s;
+        const real_t hh[10] = {1.0, y0, y1, y2, y0 * y0, y0 * y1, y0 * y2, y1 * y1, y1 * y2, y2 * y2};
+        for (int t = 0; t < 10; ++t)
+            acc[t] += phi[e] * hh[t];
+    }
+    Mat4 M;
+    int q = 0;
+    for (int a = 0; a < 4; ++a)
+        for (int b = a; b < 4; ++b)
+            M(a, b) = M(b, a) = acc[q++];
+    Eigen::LDLT<Mat4> ldlt(M);
+    const auto D = ldlt.vectorD();
+    const real_t dmax = D.cwiseAbs().maxCoeff();
+    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > kCoverPivot * dmax))
+        return false;
+    Vec4 e0 = Vec4::Zero();
+    e0[0] = 1.0;
+    const Vec4 b = ldlt.solve(e0);
+    const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
+    RKFEM_SIMD()
+    for (std::size_t e = 0; e < n; ++e)
+        psi[e] = (c0 + c1 * y[3 * e] + c2 * y[3 * e + 1] + c3 * y[3 * e + 2]) * phi[e];
+    return true;
+}
+
 /// Per-thread scratch of the fast pass: the row entries that reach the cell's face centres and
 /// the functions at each centre (kept between steps).
 struct FastScratch
@@ -245,9 +285,11 @@ struct FastScratch
         }
     }
     /// The functions at the face centre (the cell's centre + off) into face[f].
-    bool face_functions(int f, const Vec3& off, const RkParams& rk)
+    bool face_functions(int f, const Vec3& off, const RkParams& rk) { return functions_at(face[f], off, rk); }
+    /// The functions at the cell's centre + off into fs (`gradients` false: Psi alone, fs.grad
+    /// left as it is, for linear RK; other orders form both).
+    bool functions_at(FaceSample& fs, const Vec3& off, const RkParams& rk, bool gradients = true)
     {
-        FaceSample& fs = face[f];
         fs.k.clear();
         phi.clear();
         dphi.clear();
@@ -273,6 +315,8 @@ struct FastScratch
         }
         const std::size_t n = fs.k.size();
         fs.psi.resize(n);
+        if (rk.order == 1 && !gradients)
+            return linear_rk_values(n, phi.data(), dx.data(), scale, fs.psi.data());
         fs.grad.resize(n);
         if (rk.order == 1)
             return linear_rk(n, phi.data(), dphi.data(), dx.data(), scale, fs.psi.data(), fs.grad.data());
@@ -293,6 +337,26 @@ FastScratch& fast_scratch()
 {
     thread_local FastScratch s;
     return s;
+}
+
+/// SD-SNNI's sample points: the face centres of a cell's eight half-size sub-cells, 36 distinct
+/// ones. In cell coordinates (x = x_L + c + sum_i xi_i e_i, xi in [-1, 1]^3) point q = 12 i + 4 a +
+/// 2 j + k lies at xi_i = a - 1 and +-1/2 (j, k: 0 for -1/2) on the two other axes, i + 1 and i + 2
+/// (mod 3): the 24 quarters of the cell's faces (a = 0, 2) and the 12 of its midplanes (a = 1).
+constexpr int kSubPoints = 36;
+Vec3 sub_point_offset(const Cell& cell, int q)
+{
+    const int i = q / 12, a = (q / 4) % 3, j = (q / 2) % 2, k = q % 2;
+    return cell.c + static_cast<real_t>(a - 1) * cell.e[i] + (j ? 0.5 : -0.5) * cell.e[(i + 1) % 3] +
+           (k ? 0.5 : -0.5) * cell.e[(i + 2) % 3];
+}
+/// Face f (0..5, as Cell::area's) of sub-cell s (bit i of s: the +1/2 half along axis i): its
+/// sample point q and its outward area vector (a quarter of the cell's face f area).
+int sub_face_point(int s, int f)
+{
+    const int i = f / 2, side = f % 2; // side 0: toward -e_i
+    const int a = ((s >> i) & 1) + side;
+    return 12 * i + 4 * a + 2 * ((s >> ((i + 1) % 3)) & 1) + ((s >> ((i + 2) % 3)) & 1);
 }
 
 /// A particle's cell with a side halved toward the particle (the side of face f).
@@ -436,7 +500,9 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     std::vector<index_t>().swap(state_.interp_nodes);
     std::vector<real_t>().swap(state_.interp_values);
     state_.stabilization_coefficient = opt_.stabilization_coefficient;
-    state_.stab_stress.assign(36 * n, 0.0);
+    RKFEM_REQUIRE(!(opt_.sub_cells && resets()),
+                  "semi-Lagrangian block: SD-SNNI's sub-cells are integrated with tables rebuilt every step");
+    state_.stab_stress.assign(6 * static_cast<std::size_t>(subs()) * n, 0.0);
     state_.stab_stress_trial = state_.stab_stress;
     // cells: given, or cubes of the particles' volumes about them
     if (cells.empty())
@@ -753,9 +819,10 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
     smat.mu *= opt_.stabilization_coefficient;
     real_t df[6], unused[3], sf_old[6];
     split_rate(Lf, df, unused);
-    // component-major, sub-point 6 L + f, as the nodal blocks' stabilization stresses
-    const std::size_t ns = 6 * static_cast<std::size_t>(n_particles());
-    const std::size_t at = 6 * static_cast<std::size_t>(L) + static_cast<std::size_t>(f);
+    // component-major, sub-point subs L + f, as the nodal blocks' stabilization stresses
+    const std::size_t m = static_cast<std::size_t>(subs());
+    const std::size_t ns = m * static_cast<std::size_t>(n_particles());
+    const std::size_t at = m * static_cast<std::size_t>(L) + static_cast<std::size_t>(f);
     for (int k = 0; k < 6; ++k)
         sf_old[k] = sf[k] = state_.stab_stress[k * ns + at];
     elastic_update(smat, df, u.w, dt, sf);
@@ -763,7 +830,8 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
         scale_stabilization_load(hughes_winget(u.w[0], u.w[1], u.w[2], dt), sf_old, u.share, sf);
     for (int k = 0; k < 6; ++k)
         state_.stab_stress_trial[k * ns + at] = sf[k];
-    point_sums_[4 * static_cast<std::size_t>(L) + 2] += dt * u.V / 6.0 * stress_power(sf_old, sf, df);
+    point_sums_[4 * static_cast<std::size_t>(L) + 2] +=
+        dt * u.V / static_cast<real_t>(m) * stress_power(sf_old, sf, df);
 }
 
 void SemiLagrangianForceBlock::separate_trial(index_t L)
@@ -772,10 +840,10 @@ void SemiLagrangianForceBlock::separate_trial(index_t L)
     std::fill_n(&state_.cells_trial[12 * p], 12, 0.0);
     for (int k = 0; k < 6; ++k)
         state_.stress_trial[k * state_.stress_stride + p] = 0.0;
-    const std::size_t ns = 6 * static_cast<std::size_t>(n_particles());
+    const std::size_t m = static_cast<std::size_t>(subs()), ns = m * static_cast<std::size_t>(n_particles());
     for (int k = 0; k < 6; ++k)
-        for (std::size_t f = 0; f < 6; ++f)
-            state_.stab_stress_trial[k * ns + 6 * p + f] = 0.0;
+        for (std::size_t f = 0; f < m; ++f)
+            state_.stab_stress_trial[k * ns + m * p + f] = 0.0;
     volume_trial_[p] = 0.0;
     real_t* sums = &point_sums_[4 * p];
     sums[0] = sums[1] = sums[2] = 0.0;
@@ -868,6 +936,127 @@ void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
                });
 }
 
+void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
+{
+    const bool stabilized = opt_.stabilization_coefficient > 0.0;
+    const index_t begin = state_.node_begin;
+    const std::vector<real_t>& x = nodes.x;
+    const std::vector<real_t>& vel = nodes.v;
+    run_points("rkfem::semi_lagrangian::points_sub_cells",
+               [&](index_t L, auto&& out)
+               {
+                   FastScratch& sc = fast_scratch();
+                   thread_local std::vector<FaceSample> at(kSubPoints);
+                   const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+                   const index_t n = offsets_[L + 1] - offsets_[L];
+                   const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
+                   const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
+                   const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                   bad_[L] = 0;
+                   if (free_[static_cast<std::size_t>(L)])
+                   {
+                       separate_trial(L);
+                       return;
+                   }
+                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
+                   // the functions at the 36 points; where one on the cell's surface is not covered, the
+                   // cell halved on that side, toward the particle (gradient_cell's rule), up to four times
+                   Cell gcell = cell;
+                   bool covered = false;
+                   for (int attempt = 0; attempt <= 4 && !covered; ++attempt)
+                   {
+                       int failed = -1;
+                       for (int q = 0; q < kSubPoints && failed < 0; ++q)
+                           if (!sc.functions_at(at[static_cast<std::size_t>(q)], sub_point_offset(gcell, q) - cell.c,
+                                                opt_.rk, false))
+                               failed = q;
+                       covered = failed < 0;
+                       const int a = (failed / 4) % 3;
+                       if (!covered && a == 1)
+                           break; // a midplane point: the cell's own middle is not covered
+                       if (!covered)
+                           halve(gcell, 2 * (failed / 12) + a / 2);
+                   }
+                   if (!covered)
+                   {
+                       separate_trial(L); // too few particles cover its cell: it has separated
+                       return;
+                   }
+                   // v^h at each point, the largest closing speed of a covering particle
+                   const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
+                   Vec3 vh[kSubPoints];
+                   real_t closing2 = 0.0;
+                   for (int q = 0; q < kSubPoints; ++q)
+                   {
+                       const FaceSample& fs = at[static_cast<std::size_t>(q)];
+                       vh[q].setZero();
+                       for (std::size_t e = 0; e < fs.k.size(); ++e)
+                       {
+                           const std::size_t g = 3 * static_cast<std::size_t>(begin + row[fs.k[e]]);
+                           const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
+                           vh[q] += fs.psi[e] * v;
+                           closing2 = std::max(closing2, (v - vL).squaredNorm());
+                       }
+                   }
+                   // each sub-cell's smoothed velocity gradient L_s = (1 / V_s) sum_f v^h(x_f) (x) A_f, and
+                   // the particle's, their mean (SNNI on the cell with four points per face)
+                   const real_t Vg = gcell.volume(), Vs = Vg / 8.0;
+                   Mat3 Ls[8];
+                   Mat3 Lg = Mat3::Zero();
+                   for (int sub = 0; sub < 8; ++sub)
+                   {
+                       Ls[sub].setZero();
+                       for (int f = 0; f < 6; ++f)
+                           Ls[sub] += vh[sub_face_point(sub, f)] * (0.25 * gcell.area(f)).transpose();
+                       Ls[sub] /= Vs;
+                       Lg += Ls[sub] / 8.0;
+                   }
+                   PointUpdate u;
+                   if (!update_point(L, Lg, dt, std::sqrt(closing2), u))
+                   {
+                       bad_[L] = 1;
+                       return;
+                   }
+                   // f_J = sum_s (V / 8) T_s b^s_J, T_s = sigma - q 1 - mean_s sigma_s + sigma_s, with
+                   // (V / 8) b^s_J = (V / V_g) sum_f Psi_J(x_f) A_f over the sub-cell's faces: a traction
+                   // per point, then scattered by its functions
+                   real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
+                   real_t ss[8][6] = {};
+                   if (stabilized)
+                       for (int sub = 0; sub < 8; ++sub)
+                       {
+                           update_face(L, sub, Ls[sub] - Lg, u, dt, ss[sub]);
+                           for (int k = 0; k < 6; ++k)
+                               sq[k] -= ss[sub][k] / 8.0;
+                       }
+                   Vec3 t[kSubPoints];
+                   for (auto& tq : t)
+                       tq.setZero();
+                   for (int sub = 0; sub < 8; ++sub)
+                   {
+                       real_t T[6];
+                       for (int k = 0; k < 6; ++k)
+                           T[k] = sq[k] + ss[sub][k];
+                       for (int f = 0; f < 6; ++f)
+                       {
+                           const Vec3 af = (0.25 * u.V / Vg) * gcell.area(f);
+                           const real_t a[3] = {af[0], af[1], af[2]};
+                           t[sub_face_point(sub, f)] += traction(T, a);
+                       }
+                   }
+                   for (int q = 0; q < kSubPoints; ++q)
+                   {
+                       const FaceSample& fs = at[static_cast<std::size_t>(q)];
+                       for (std::size_t e = 0; e < fs.k.size(); ++e)
+                       {
+                           real_t* to = out(fs.k[e]);
+                           for (int d = 0; d < 3; ++d)
+                               to[d] += fs.psi[e] * t[q][d];
+                       }
+                   }
+               });
+}
+
 void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
 {
     const bool stabilized = opt_.stabilization_coefficient > 0.0;
@@ -892,7 +1081,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                    sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
                    Vec3 vh[6];
                    Mat3 G[6];
-                   real_t closing = 0.0;
+                   real_t closing2 = 0.0; // the largest squared closing speed (one root at the end)
                    const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
                    Cell gcell = cell;
                    if (!gradient_cell(sc, cell, opt_.rk, gcell))
@@ -912,7 +1101,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                            const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
                            vh[f] += fs.psi[e] * v;
                            G[f] += v * fs.grad[e].transpose();
-                           closing = std::max(closing, (v - vL).norm());
+                           closing2 = std::max(closing2, (v - vL).squaredNorm());
                        }
                    }
                    // L = (1 / V) sum_f v^h(x_f) (x) A_f, on the gradient's cell
@@ -921,7 +1110,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                        Lg += vh[f] * gcell.area(f).transpose();
                    Lg /= Vg;
                    PointUpdate u;
-                   if (!update_point(L, Lg, dt, closing, u))
+                   if (!update_point(L, Lg, dt, std::sqrt(closing2), u))
                    {
                        bad_[L] = 1;
                        return;
@@ -968,7 +1157,9 @@ ForcePassResult SemiLagrangianForceBlock::add_forces(NodeSet& nodes, real_t dt, 
     update_neighbours(nodes.x);
     for (std::size_t p = 0; p < free_.size(); ++p)
         free_[p] = state_.jacobian[p] == 0.0; // a free particle's cell is empty
-    if (opt_.plain)
+    if (opt_.sub_cells)
+        points_sub_cells(nodes, dt);
+    else if (opt_.plain)
         points_plain(nodes, dt);
     else
         points_fast(nodes, dt);

@@ -48,10 +48,10 @@
 /// 2.00 in against KC-FEMFRE's 1.05 / 1.93; studies/tables/table3_p6.yaml), so concrete
 /// penetration runs set plastic_scaling.
 ///
-/// SD-SNNI (each cell's eight sub-cells, snni_operators) is built as static tables only (the
+/// SD-SNNI (each cell's eight sub-cells) is a dynamic pass too (SemiLagrangianOptions::sub_cells,
+/// points_sub_cells, tables rebuilt every step) and static tables (snni_operators; the
 /// manufactured-solution sweeps, studies/sweeps: SNNI with the face-gradient term converges at L2
-/// 2.06, H1 1.22 with tractions on the whole boundary at a/h 1.51, SD-SNNI at 1.80, 1.01); the
-/// dynamic passes integrate SNNI with the face-gradient term.
+/// 2.06, H1 1.22 with tractions on the whole boundary at a/h 1.51, SD-SNNI at 1.80, 1.01).
 ///
 /// The unknowns of the particles are their velocities (the first-order shortcut of the digest,
 /// section 3.1): the particle moves with v_J, and the kinematic map takes them as physical values
@@ -108,6 +108,14 @@ struct SemiLagrangianOptions
     /// Every-step tables on materials with history: the face stresses' loads take the share of
     /// the step the particle's material took elastically (see the file's note).
     bool plastic_scaling = false;
+    /// SD-SNNI (every-step tables only): each cell's eight half-size sub-cells, each an SNNI cell of
+    /// its own (its smoothed gradient b^s_J from its six face centres, 36 distinct points per
+    /// cell), the particle's stress from their mean gradient (SNNI on the cell with four points
+    /// per face) and a stabilization stress per sub-cell from its departure, sigma_s += dt c_s C :
+    /// sym(L_s - L), f_J += (V / 8) sum_s sigma_s (b^s_J - b_J): at c_s = 1 the stiffness of
+    /// SD-SNNI, sum_s V_s B_s^T C B_s (snni_operators' SubCells tables, statically), exactly. The
+    /// functions' values only are used.
+    bool sub_cells = false;
     /// How forces are assembled (plan_assembly): Automatic takes the chunked scatter where the
     /// particles' order is local enough; tests force either.
     Assembly assembly = Assembly::Automatic;
@@ -226,6 +234,10 @@ class SemiLagrangianForceBlock final : public ForceBlock
     ForcePassResult reference_pass(NodeSet& nodes, real_t dt, bool add);
     bool resets() const { return opt_.reset_interval > 1; }
     void points_fast(const NodeSet& nodes, real_t dt);
+    /// SD-SNNI's pass (SemiLagrangianOptions::sub_cells): written once, plainly (no fast twin).
+    void points_sub_cells(const NodeSet& nodes, real_t dt);
+    /// Stabilization sub-points per particle: 6 face centres, or SD-SNNI's 8 sub-cells.
+    int subs() const { return opt_.sub_cells ? 8 : 6; }
     void update_neighbours(const std::vector<real_t>& x);
     void build_neighbours(const std::vector<real_t>& x);
     /// After a list build: the chunked scatter over the particles in order where their lists are
