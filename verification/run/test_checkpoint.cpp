@@ -219,6 +219,11 @@ TEST(Checkpoint, SemiLagrangianParticlesRestartWithTheSameBits)
                               "--set time.end=3us --set time.stepper=central-difference" + for_part("column") +
                                   " --set 'parts.column.nodal_integration={scheme: sd-snni}'",
                               "1 us");
+    expect_restarts_reproduce("sl_sd_snni_reset", deck_path("column_wave_rkpm.yaml"),
+                              "--set time.end=3us --set time.stepper=central-difference" + for_part("column") +
+                                  " --set 'parts.column.nodal_integration={scheme: sd-snni}'"
+                                  " --set 'parts.column.semi_lagrangian={reset_interval: 4}'",
+                              "1 us");
     expect_restarts_reproduce("sl_kcc", deck_path("concrete_bar_kcc.yaml"),
                               "--set time.end=12us --set parts.bar.generator.size=[10mm,10mm,60mm]" + for_part("bar"),
                               "4 us");

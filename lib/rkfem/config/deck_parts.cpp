@@ -136,9 +136,6 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
             ni.fail("scheme", p.nodal.scheme + " integrates RK particles of an rkpm part on their own cells",
                     "expected scheme: scni, sd-scni or dni on a " + f +
                         (s.has("regions") ? " part with regions" : " part"));
-        if (sd && (!p.semi_lagrangian || p.reset_interval != 1))
-            ni.fail("scheme", "sd-snni integrates semi-Lagrangian particles on sub-cells rebuilt every step",
-                    "expected kinematics: semi-lagrangian with semi_lagrangian.reset_interval: 1 (or scheme: snni)");
         const bool snni = p.nodal.scheme == "snni";
         p.nodal.stabilization = ni.choice("stabilization", {"mscni", "nsni", "face-gradient", "sub-cells", "none"},
                                           snni                       ? "face-gradient"

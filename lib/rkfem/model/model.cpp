@@ -310,7 +310,7 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
 void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset,
                              const HexBlock& blk)
 {
-    if (ps.semi_lagrangian || ps.nodal.scheme == "snni")
+    if (ps.semi_lagrangian || ps.nodal.scheme == "snni" || ps.nodal.scheme == "sd-snni")
     {
         build_semi_lagrangian_part(ps, ip, mesh, offset);
         return;

@@ -500,8 +500,6 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     std::vector<index_t>().swap(state_.interp_nodes);
     std::vector<real_t>().swap(state_.interp_values);
     state_.stabilization_coefficient = opt_.stabilization_coefficient;
-    RKFEM_REQUIRE(!(opt_.sub_cells && resets()),
-                  "semi-Lagrangian block: SD-SNNI's sub-cells are integrated with tables rebuilt every step");
     state_.stab_stress.assign(6 * static_cast<std::size_t>(subs()) * n, 0.0);
     state_.stab_stress_trial = state_.stab_stress;
     // cells: given, or cubes of the particles' volumes about them
@@ -588,12 +586,22 @@ void SemiLagrangianForceBlock::extents()
     for (index_t p = 0; p < n_particles(); ++p)
     {
         radius_[p] = radius(p);
-        // how far the cell's face centres lie from the particle (along each axis for box kernels)
+        // how far the cell's face centres lie from the particle (along each axis for box kernels);
+        // SD-SNNI's sub-cell face centres lie on the cell's faces and midplanes, past the face
+        // centres on a sheared cell (or for sphere kernels): there, the farthest corner, which
+        // bounds every point of the cell
         const Cell cell(&state_.cells[12 * static_cast<std::size_t>(p)]);
         real_t r = 0.0;
         for (int f = 0; f < 6; ++f)
         {
             const Vec3 d = cell.c + (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
+            r = std::max(r, box ? d.cwiseAbs().maxCoeff() : d.norm());
+        }
+        for (int q = 0; q < (opt_.sub_cells ? 8 : 0); ++q)
+        {
+            Vec3 d = cell.c;
+            for (int i = 0; i < 3; ++i)
+                d += ((q >> i) & 1 ? 1.0 : -1.0) * cell.e[i];
             r = std::max(r, box ? d.cwiseAbs().maxCoeff() : d.norm());
         }
         cell_reach_[p] = r;
@@ -1306,6 +1314,23 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
         for (int d = 0; d < 3; ++d)
             state_.points.position[3 * p + d] = xr[b + 3 * p + d];
     }
+    if (opt_.sub_cells)
+    {
+        // SD-SNNI: the static sub-cell tables (snni_operators, the plain algebra; a reset is
+        // rare), weights the cells' volumes, the reference's
+        IntegrationOperator pts, stab;
+        bad_.assign(n, 0);
+        if (!snni_operators(xr, SubPoints::SubCells, pts, stab))
+        {
+            bad_[static_cast<std::size_t>(uncovered_)] = 1;
+            return;
+        }
+        state_.points = std::move(pts);
+        state_.stabilization = std::move(stab);
+        state_.build_tables();
+        tables_built_ = true;
+        return;
+    }
     update_neighbours(xr);
     IntegrationOperator& pts = state_.points;
     IntegrationOperator& stab = state_.stabilization;
@@ -1501,6 +1526,7 @@ bool SemiLagrangianForceBlock::snni_operators(const std::vector<real_t>& x, SubP
         const real_t V = cell.volume();
         const std::size_t n3 = 3 * static_cast<std::size_t>(n);
         b.assign(n3, 0.0);
+        uncovered_ = L;
         if (!sub_cells)
         {
             if (!plain_gradient(xL, cell, row, n, begin, x, radius_, opt_.rk, free_, sc))

@@ -108,13 +108,14 @@ struct SemiLagrangianOptions
     /// Every-step tables on materials with history: the face stresses' loads take the share of
     /// the step the particle's material took elastically (see the file's note).
     bool plastic_scaling = false;
-    /// SD-SNNI (every-step tables only): each cell's eight half-size sub-cells, each an SNNI cell of
+    /// SD-SNNI: each cell's eight half-size sub-cells, each an SNNI cell of
     /// its own (its smoothed gradient b^s_J from its six face centres, 36 distinct points per
     /// cell), the particle's stress from their mean gradient (SNNI on the cell with four points
     /// per face) and a stabilization stress per sub-cell from its departure, sigma_s += dt c_s C :
     /// sym(L_s - L), f_J += (V / 8) sum_s sigma_s (b^s_J - b_J): at c_s = 1 the stiffness of
     /// SD-SNNI, sum_s V_s B_s^T C B_s (snni_operators' SubCells tables, statically), exactly. The
-    /// functions' values only are used.
+    /// functions' values only are used. With reference resets (and Lagrangian SD-SNNI, never
+    /// reset) the reference's tables are those SubCells tables and the nodal blocks' pass runs on them.
     bool sub_cells = false;
     /// How forces are assembled (plan_assembly): Automatic takes the chunked scatter where the
     /// particles' order is local enough; tests force either.
@@ -265,6 +266,7 @@ class SemiLagrangianForceBlock final : public ForceBlock
     std::vector<real_t> cell_reach_; ///< per particle: its farthest face centre (along an axis for box kernels) [m]
     std::vector<real_t> radius_built_, reach_built_; ///< supports and reaches at the build [m]
     index_t rebuilds_ = 0;
+    index_t uncovered_ = -1;         ///< snni_operators: the particle it stopped at
     std::vector<real_t> pair_force_; ///< gather: per entry (L, J), the force of L's point on J [N]
     ChunkedScatter scatter_;         ///< chunks of particles in order (empty: the gather)
     std::vector<real_t> point_sums_; ///< per particle: d_int, d_bv, d_stab, dt
