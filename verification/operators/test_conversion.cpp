@@ -163,46 +163,50 @@ TEST(ConversionPatch, LinearFieldKeepsItsUniformStressThroughAConversion)
     }
 }
 
+namespace
+{
+/// The free column (free_column with `overrides`) with a deforming velocity field, 600 central
+/// difference steps; with `convert`, three events convert it from the top (at steps 150, 300 and
+/// 450, the stepper started again after each as the run loop does). The largest |p - p0| over
+/// sum m|v| and the largest balance error from step 50 on.
+std::pair<real_t, real_t> free_column_run(const std::vector<std::string>& overrides, bool convert)
+{
+    Model m = test::model_from(free_column, overrides);
+    test::deforming_column_velocity(m.nodes);
+    const Vec3 p0 = test::momentum(m.nodes);
+    const real_t mv = test::momentum_scale(m.nodes);
+    CentralDifference cd;
+    const TimeSpec ts = m.deck().time;
+    StepReport r = cd.initialize(m, 0.0);
+    real_t t = 0.0, momentum_error = 0.0, energy_error = 0.0;
+    for (int k = 1; k <= 600; ++k)
+    {
+        const real_t dt = next_time_step(ts, t, r.dt_stable);
+        r = cd.step(m, t, dt, k);
+        t = r.t;
+        if (convert && (k == 150 || k == 300 || k == 450))
+        {
+            m.refresh_motion();
+            const index_t n = m.convert_elements(0, elements_above(m, 40e-3 - (k / 150) * 8e-3));
+            EXPECT_EQ(n, 3 * 3 * 8) << "event at step " << k;
+            r.dt_stable = m.restart_after_event(cd, t, dt);
+        }
+        momentum_error = std::max(momentum_error, (test::momentum(m.nodes) - p0).norm() / mv);
+        if (k >= 50)
+            energy_error = std::max(energy_error, m.energy.balance_error());
+    }
+    EXPECT_EQ(m.converted_elements(), convert ? 3 * 3 * 24 : 0);
+    return {momentum_error, energy_error};
+}
+} // namespace
+
 TEST(ConversionDynamics, FreeColumnConservesMomentumAndEnergyThroughConversions)
 {
     // no conditions, no loads: a deforming velocity field; the column converts from the top
-    // in three events (the stepper started again after each, as the run loop does). Momentum
-    // of the unknowns stays what it was; the energy ledger balances as well as in the run that
-    // never converts
-    auto run = [&](bool convert, real_t& momentum_error, real_t& energy_error)
-    {
-        Model m = test::model_from(free_column);
-        test::deforming_column_velocity(m.nodes);
-        auto momentum = [&] { return test::momentum(m.nodes); };
-        const Vec3 p0 = momentum();
-        const real_t mv = test::momentum_scale(m.nodes);
-        CentralDifference cd;
-        const TimeSpec ts = m.deck().time;
-        StepReport r = cd.initialize(m, 0.0);
-        real_t t = 0.0;
-        momentum_error = energy_error = 0.0;
-        for (int k = 1; k <= 600; ++k)
-        {
-            const real_t dt = next_time_step(ts, t, r.dt_stable);
-            r = cd.step(m, t, dt, k);
-            t = r.t;
-            if (convert && (k == 150 || k == 300 || k == 450))
-            {
-                const index_t n = m.convert_elements(0, elements_above(m, 40e-3 - (k / 150) * 8e-3));
-                EXPECT_EQ(n, 3 * 3 * 8) << "event at step " << k;
-                const std::vector<real_t> a = m.nodes.a;
-                r = cd.initialize(m, t);
-                m.energy.book_event(m.nodes, a, dt);
-            }
-            momentum_error = std::max(momentum_error, (momentum() - p0).norm() / mv);
-            if (k >= 50)
-                energy_error = std::max(energy_error, m.energy.balance_error());
-        }
-        EXPECT_EQ(m.converted_elements(), convert ? 3 * 3 * 24 : 0);
-    };
-    real_t p_conv, e_conv, p_plain, e_plain;
-    run(true, p_conv, e_conv);
-    run(false, p_plain, e_plain);
+    // in three events. Momentum of the unknowns stays what it was; the energy ledger balances as
+    // well as in the run that never converts
+    const auto [p_conv, e_conv] = free_column_run({}, true);
+    const auto [p_plain, e_plain] = free_column_run({}, false);
     std::printf("free column, 600 steps, 3 conversions: |p - p0| / sum m|v| = %.2e, balance error %.2e "
                 "(never converted: %.2e, %.2e)\n",
                 p_conv, e_conv, p_plain, e_plain);
@@ -968,39 +972,9 @@ TEST(ConversionFem1pt, FreeColumnConservesMomentumAndEnergyThroughConversions)
     // under both discretizations' stable steps: the ledger's leapfrog correction of the kinetic
     // energy, -dt^2 / 8 sum m a.a, takes the step it is measured with, so the 5 % smaller stable
     // step of the first RK region alone moves the measured balance by 2.5e-4 (0.9 of that term)
-    auto run = [&](bool convert, real_t& momentum_error, real_t& energy_error)
-    {
-        Model m = test::model_from(free_column, {"parts.column.formulation=fem-1pt", "time.dt_max=0.12us"});
-        test::deforming_column_velocity(m.nodes);
-        const Vec3 p0 = test::momentum(m.nodes);
-        const real_t mv = test::momentum_scale(m.nodes);
-        CentralDifference cd;
-        const TimeSpec ts = m.deck().time;
-        StepReport r = cd.initialize(m, 0.0);
-        real_t t = 0.0;
-        momentum_error = energy_error = 0.0;
-        for (int k = 1; k <= 600; ++k)
-        {
-            const real_t dt = next_time_step(ts, t, r.dt_stable);
-            EXPECT_EQ(dt, 0.12e-6) << "step " << k;
-            r = cd.step(m, t, dt, k);
-            t = r.t;
-            if (convert && (k == 150 || k == 300 || k == 450))
-            {
-                m.refresh_motion();
-                const index_t n = m.convert_elements(0, elements_above(m, 40e-3 - (k / 150) * 8e-3));
-                EXPECT_EQ(n, 3 * 3 * 8) << "event at step " << k;
-                r.dt_stable = m.restart_after_event(cd, t, dt);
-            }
-            momentum_error = std::max(momentum_error, (test::momentum(m.nodes) - p0).norm() / mv);
-            if (k >= 50)
-                energy_error = std::max(energy_error, m.energy.balance_error());
-        }
-        EXPECT_EQ(m.converted_elements(), convert ? 3 * 3 * 24 : 0);
-    };
-    real_t p_conv, e_conv, p_plain, e_plain;
-    run(true, p_conv, e_conv);
-    run(false, p_plain, e_plain);
+    const std::vector<std::string> fem_1pt = {"parts.column.formulation=fem-1pt", "time.dt_max=0.12us"};
+    const auto [p_conv, e_conv] = free_column_run(fem_1pt, true);
+    const auto [p_plain, e_plain] = free_column_run(fem_1pt, false);
     std::printf("fem-1pt free column, 600 steps, 3 conversions: |p - p0| / sum m|v| = %.2e, balance error %.2e "
                 "(never converted: %.2e, %.2e)\n",
                 p_conv, e_conv, p_plain, e_plain);

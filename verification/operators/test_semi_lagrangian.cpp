@@ -62,6 +62,18 @@ void jitter_positions(Model& m, real_t h, real_t jitter, real_t lo, real_t hi)
             m.nodes.x[3 * i + d] = m.nodes.x0[3 * i + d] + (interior ? u(gen) : 0.0);
     }
 }
+
+/// The sawtooth v_x = (-1)^(i + j + k) on the lattice of spacing h (a zero-energy mode of plain SNNI).
+void sawtooth_velocity(Model& m, real_t h)
+{
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+    {
+        int parity = 0;
+        for (int d = 0; d < 3; ++d)
+            parity += static_cast<int>(std::lround(m.nodes.x0[3 * i + d] / h));
+        m.nodes.v[3 * i] = parity % 2 ? 1.0 : -1.0;
+    }
+}
 } // namespace
 
 // SNNI's smoothed gradient reproduces linear fields exactly (sum_J x_J (x) b_J = 1, sum_J b_J =
@@ -203,13 +215,7 @@ TEST(SemiLagrangian, FaceGradientStabilizationSeesTheSawtoothThatSnniMisses)
 {
     Model m = test::model_from(block_deck);
     const real_t h = 1e-3;
-    for (index_t i = 0; i < m.nodes.size(); ++i)
-    {
-        int parity = 0;
-        for (int d = 0; d < 3; ++d)
-            parity += static_cast<int>(std::lround(m.nodes.x0[3 * i + d] / h));
-        m.nodes.v[3 * i] = parity % 2 ? 1.0 : -1.0;
-    }
+    sawtooth_velocity(m, h);
     SemiLagrangianForceBlock& b = test::sl_block(m);
     real_t worst_snni = 0.0, least_face = kNoLimit;
     std::vector<index_t> nodes;
@@ -608,13 +614,7 @@ TEST(SemiLagrangian, SdSnniSubCellsSeeTheSawtooth)
         Model m = test::model_from(block_deck, {std::string("parts.block.nodal_integration={scheme: sd-snni, "
                                                             "stabilization: ") +
                                                 stab + "}"});
-        for (index_t i = 0; i < m.nodes.size(); ++i)
-        {
-            int parity = 0;
-            for (int d = 0; d < 3; ++d)
-                parity += static_cast<int>(std::lround(m.nodes.x0[3 * i + d] / h));
-            m.nodes.v[3 * i] = parity % 2 ? 1.0 : -1.0;
-        }
+        sawtooth_velocity(m, h);
         SemiLagrangianForceBlock& b = test::sl_block(m);
         const ForcePassResult r = b.add_forces(m.nodes, dt, false);
         ASSERT_LT(r.bad_element, 0);

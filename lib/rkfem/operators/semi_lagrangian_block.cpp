@@ -842,6 +842,30 @@ void SemiLagrangianForceBlock::update_face(index_t L, int f, const Mat3& Lf, con
         dt * u.V / static_cast<real_t>(m) * stress_power(sf_old, sf, df);
 }
 
+void SemiLagrangianForceBlock::stabilization_stresses(index_t L, const Mat3* departure, int m, const PointUpdate& u,
+                                                      real_t dt, real_t sq[6], real_t (*ss)[6])
+{
+    const real_t s[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
+    std::copy(s, s + 6, sq);
+    if (!(opt_.stabilization_coefficient > 0.0))
+        return;
+    for (int f = 0; f < m; ++f)
+    {
+        update_face(L, f, departure[f], u, dt, ss[f]);
+        for (int k = 0; k < 6; ++k)
+            sq[k] -= ss[f][k] / static_cast<real_t>(m);
+    }
+}
+
+bool SemiLagrangianForceBlock::separated_at_start(index_t L)
+{
+    bad_[L] = 0;
+    if (!free_[static_cast<std::size_t>(L)])
+        return false;
+    separate_trial(L);
+    return true;
+}
+
 void SemiLagrangianForceBlock::separate_trial(index_t L)
 {
     const std::size_t p = static_cast<std::size_t>(L);
@@ -873,12 +897,8 @@ void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
                    const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
                    const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
                    const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-                   bad_[L] = 0;
-                   if (free_[static_cast<std::size_t>(L)])
-                   {
-                       separate_trial(L);
+                   if (separated_at_start(L))
                        return;
-                   }
                    if (!plain_gradient(xL, cell, row, n, begin, x, radius_, opt_.rk, free_, sc))
                    {
                        separate_trial(L); // too few particles cover its cell: it has separated
@@ -946,7 +966,6 @@ void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
 
 void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
 {
-    const bool stabilized = opt_.stabilization_coefficient > 0.0;
     const index_t begin = state_.node_begin;
     const std::vector<real_t>& x = nodes.x;
     const std::vector<real_t>& vel = nodes.v;
@@ -960,12 +979,8 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                    const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
                    const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
                    const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-                   bad_[L] = 0;
-                   if (free_[static_cast<std::size_t>(L)])
-                   {
-                       separate_trial(L);
+                   if (separated_at_start(L))
                        return;
-                   }
                    sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
                    // the functions at the 36 points; where one on the cell's surface is not covered, the
                    // cell halved on that side, toward the particle (gradient_cell's rule), up to four times
@@ -1028,15 +1043,10 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                    // f_J = sum_s (V / 8) T_s b^s_J, T_s = sigma - q 1 - mean_s sigma_s + sigma_s, with
                    // (V / 8) b^s_J = (V / V_g) sum_f Psi_J(x_f) A_f over the sub-cell's faces: a traction
                    // per point, then scattered by its functions
-                   real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
-                   real_t ss[8][6] = {};
-                   if (stabilized)
-                       for (int sub = 0; sub < 8; ++sub)
-                       {
-                           update_face(L, sub, Ls[sub] - Lg, u, dt, ss[sub]);
-                           for (int k = 0; k < 6; ++k)
-                               sq[k] -= ss[sub][k] / 8.0;
-                       }
+                   for (Mat3& l : Ls)
+                       l -= Lg; // the departures
+                   real_t sq[6], ss[8][6] = {};
+                   stabilization_stresses(L, Ls, 8, u, dt, sq, ss);
                    Vec3 t[kSubPoints];
                    for (auto& tq : t)
                        tq.setZero();
@@ -1080,12 +1090,8 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                    const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
                    const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
                    const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-                   bad_[L] = 0;
-                   if (free_[static_cast<std::size_t>(L)])
-                   {
-                       separate_trial(L);
+                   if (separated_at_start(L))
                        return;
-                   }
                    sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
                    Vec3 vh[6];
                    Mat3 G[6];
@@ -1125,15 +1131,10 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                    }
                    // f_J = V_n (sigma - q 1 - (1/6) sum_f sigma_f) b_J + (V_n / 6) sum_f sigma_f grad Psi_J(x_f),
                    // with V_n b_J = (V_n / V) sum_f Psi_J(x_f) A_f: scattered face by face
-                   real_t sq[6] = {u.sig[0] - u.q, u.sig[1] - u.q, u.sig[2] - u.q, u.sig[3], u.sig[4], u.sig[5]};
-                   real_t sf[6][6] = {};
-                   if (stabilized)
-                       for (int f = 0; f < 6; ++f)
-                       {
-                           update_face(L, f, G[f] - Lg, u, dt, sf[f]);
-                           for (int k = 0; k < 6; ++k)
-                               sq[k] -= sf[f][k] / 6.0;
-                       }
+                   for (Mat3& g : G)
+                       g -= Lg; // the departures
+                   real_t sq[6], sf[6][6] = {};
+                   stabilization_stresses(L, G, 6, u, dt, sq, sf);
                    for (int f = 0; f < 6; ++f)
                    {
                        const Vec3 af = (u.V / Vg) * gcell.area(f);

@@ -226,6 +226,14 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// Face f's stabilization stress (trial, into sf) from its velocity gradient Lf, and its work.
     void update_face(index_t L, int f, const Mat3& Lf, const PointUpdate& u, real_t dt, real_t sf[6]);
     void points_plain(const NodeSet& nodes, real_t dt);
+    /// The m sub-points' stabilization stresses (each from its departure L_s - L, into ss; none
+    /// without a coefficient) and the particle's stress as the force terms take it, sigma - q 1
+    /// less their mean (into sq).
+    void stabilization_stresses(index_t L, const Mat3* departure, int m, const PointUpdate& u, real_t dt, real_t sq[6],
+                                real_t (*ss)[6]);
+    /// A pass's first look at particle L: false, or true with its trial state made free where it
+    /// has separated.
+    bool separated_at_start(index_t L);
     /// Particle L's trial state made free: empty cell, no stress, no forces, no step limit.
     void separate_trial(index_t L);
     /// Reference resets: the tables of the configuration x0 + u^reset (NodalBlock::reference),
