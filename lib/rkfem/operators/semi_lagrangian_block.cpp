@@ -4,6 +4,8 @@
 #include <cmath>
 #include <sstream>
 
+#include <omp.h>
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
@@ -1358,13 +1360,66 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
         sc.n_union = m;
         return true;
     };
-    parallel_for("rkfem::semi_lagrangian::count_tables", np,
-                 [&](index_t L)
-                 {
-                     FastScratch& sc = fast_scratch();
-                     bad_[L] = !faces(L, sc);
-                     count[static_cast<std::size_t>(L) + 1] = bad_[L] ? 0 : sc.n_union;
-                 });
+    // one pass over the particles (each particle's functions formed once): each thread's
+    // contiguous range into rows of its own, then joined in particle order, so the tables are
+    // the same whatever the thread count
+    struct Rows
+    {
+        std::vector<index_t> nodes;
+        std::vector<real_t> grad, stab_grad; ///< 3 per entry; 6 x 3 per entry (face-major per particle)
+    };
+    const int teams = omp_get_max_threads();
+    std::vector<Rows> rows(static_cast<std::size_t>(teams));
+    std::vector<index_t> first(static_cast<std::size_t>(teams) + 1, np);
+#pragma omp parallel num_threads(teams)
+    {
+        const int t = omp_get_thread_num(), nt = omp_get_num_threads();
+        const index_t lo = static_cast<index_t>(static_cast<std::int64_t>(np) * t / nt),
+                      hi = static_cast<index_t>(static_cast<std::int64_t>(np) * (t + 1) / nt);
+        first[static_cast<std::size_t>(t)] = lo;
+        Rows& out = rows[static_cast<std::size_t>(t)];
+        out.nodes.clear();
+        out.grad.clear();
+        out.stab_grad.clear();
+        FastScratch& sc = fast_scratch();
+        for (index_t L = lo; L < hi; ++L)
+        {
+            bad_[L] = !faces(L, sc);
+            count[static_cast<std::size_t>(L) + 1] = bad_[L] ? 0 : sc.n_union;
+            if (bad_[L])
+                continue;
+            const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
+            const index_t nr = offsets_[L + 1] - offsets_[L];
+            for (index_t k = 0; k < nr; ++k)
+                if (sc.slot[static_cast<std::size_t>(k)] >= 0) // slots ascend with k
+                    out.nodes.push_back(begin + row[k]);
+            const Cell& cell = sc.gcell; // the gradient's cell
+            const real_t inv_V = 1.0 / cell.volume();
+            const std::size_t g0 = out.grad.size(), m = 3 * static_cast<std::size_t>(sc.n_union);
+            out.grad.resize(g0 + m, 0.0);
+            real_t* bg = &out.grad[g0];
+            for (int f = 0; f < 6; ++f)
+            {
+                const Vec3 af = inv_V * cell.area(f);
+                const FaceSample& fs = sc.face[f];
+                for (std::size_t e = 0; e < fs.k.size(); ++e)
+                    for (int d = 0; d < 3; ++d)
+                        bg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.psi[e] * af[d];
+            }
+            for (int f = 0; f < 6; ++f)
+            {
+                const std::size_t s0 = out.stab_grad.size();
+                out.stab_grad.resize(s0 + m);
+                real_t* sg = &out.stab_grad[s0];
+                for (std::size_t q = 0; q < m; ++q)
+                    sg[q] = -out.grad[g0 + q];
+                const FaceSample& fs = sc.face[f];
+                for (std::size_t e = 0; e < fs.k.size(); ++e)
+                    for (int d = 0; d < 3; ++d)
+                        sg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.grad[e][d];
+            }
+        }
+    }
     pts.offsets.resize(n + 1);
     pts.offsets[0] = 0;
     for (std::size_t p = 0; p < n; ++p)
@@ -1383,52 +1438,38 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
             stab.offsets[6 * p + f + 1] = stab.offsets[6 * p + f] + count[p + 1];
     stab.nodes.resize(6 * entries);
     stab.grad.resize(18 * entries);
-    parallel_for("rkfem::semi_lagrangian::fill_tables", np,
-                 [&](index_t L)
+    parallel_for("rkfem::semi_lagrangian::join_tables", teams,
+                 [&](index_t t)
                  {
-                     const std::size_t p = static_cast<std::size_t>(L);
-                     for (std::size_t f = 0; f < 6; ++f)
+                     const Rows& r = rows[static_cast<std::size_t>(t)];
+                     std::size_t at = 0; // the team's entries so far
+                     for (index_t L = first[static_cast<std::size_t>(t)]; L < first[static_cast<std::size_t>(t) + 1];
+                          ++L)
                      {
-                         stab.weight[6 * p + f] = pts.weight[p] / 6.0;
-                         stab.owner[6 * p + f] = pts.owner[p];
-                         stab.parent[6 * p + f] = L;
-                         for (int d = 0; d < 3; ++d)
-                             stab.position[18 * p + 3 * f + d] = pts.position[3 * p + d];
-                     }
-                     FastScratch& sc = fast_scratch();
-                     if (bad_[L] || !faces(L, sc))
-                         return;
-                     const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-                     const index_t nr = offsets_[L + 1] - offsets_[L];
-                     const index_t k0 = pts.offsets[p];
-                     const Cell& cell = sc.gcell; // the gradient's cell
-                     const real_t inv_V = 1.0 / cell.volume();
-                     for (index_t k = 0; k < nr; ++k)
-                         if (const index_t s = sc.slot[static_cast<std::size_t>(k)]; s >= 0)
+                         const std::size_t p = static_cast<std::size_t>(L);
+                         for (std::size_t f = 0; f < 6; ++f)
                          {
-                             pts.nodes[static_cast<std::size_t>(k0 + s)] = begin + row[k];
-                             for (std::size_t f = 0; f < 6; ++f)
-                                 stab.nodes[static_cast<std::size_t>(stab.offsets[6 * p + f] + s)] = begin + row[k];
+                             stab.weight[6 * p + f] = pts.weight[p] / 6.0;
+                             stab.owner[6 * p + f] = pts.owner[p];
+                             stab.parent[6 * p + f] = L;
+                             for (int d = 0; d < 3; ++d)
+                                 stab.position[18 * p + 3 * f + d] = pts.position[3 * p + d];
                          }
-                     real_t* bg = &pts.grad[3 * static_cast<std::size_t>(k0)];
-                     std::fill(bg, bg + 3 * sc.n_union, 0.0);
-                     for (int f = 0; f < 6; ++f)
-                     {
-                         const Vec3 af = inv_V * cell.area(f);
-                         const FaceSample& fs = sc.face[f];
-                         for (std::size_t e = 0; e < fs.k.size(); ++e)
-                             for (int d = 0; d < 3; ++d)
-                                 bg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.psi[e] * af[d];
-                     }
-                     for (std::size_t f = 0; f < 6; ++f)
-                     {
-                         real_t* sg = &stab.grad[3 * static_cast<std::size_t>(stab.offsets[6 * p + f])];
-                         for (index_t s = 0; s < 3 * sc.n_union; ++s)
-                             sg[s] = -bg[s];
-                         const FaceSample& fs = sc.face[f];
-                         for (std::size_t e = 0; e < fs.k.size(); ++e)
-                             for (int d = 0; d < 3; ++d)
-                                 sg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.grad[e][d];
+                         const std::size_t m = static_cast<std::size_t>(count[p + 1]),
+                                           k0 = static_cast<std::size_t>(pts.offsets[p]);
+                         std::copy_n(r.nodes.begin() + static_cast<std::ptrdiff_t>(at), m,
+                                     pts.nodes.begin() + static_cast<std::ptrdiff_t>(k0));
+                         std::copy_n(r.grad.begin() + static_cast<std::ptrdiff_t>(3 * at), 3 * m,
+                                     pts.grad.begin() + static_cast<std::ptrdiff_t>(3 * k0));
+                         for (std::size_t f = 0; f < 6; ++f)
+                         {
+                             const std::size_t s0 = static_cast<std::size_t>(stab.offsets[6 * p + f]);
+                             std::copy_n(r.nodes.begin() + static_cast<std::ptrdiff_t>(at), m,
+                                         stab.nodes.begin() + static_cast<std::ptrdiff_t>(s0));
+                             std::copy_n(r.stab_grad.begin() + static_cast<std::ptrdiff_t>(3 * (6 * at + f * m)), 3 * m,
+                                         stab.grad.begin() + static_cast<std::ptrdiff_t>(3 * s0));
+                         }
+                         at += m;
                      }
                  });
     state_.build_tables();
