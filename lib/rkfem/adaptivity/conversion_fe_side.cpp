@@ -210,14 +210,16 @@ void Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::v
     add_nodal_mass(nb, before);
     add_lumped_mass(new_fb, after);
     add_nodal_mass(fresh, after);
+    for (index_t i = begin; i < begin + n; ++i) // every node checked before any changes
+        RKFEM_REQUIRE(nodes.mass[i] - before.mass[i] + after.mass[i] > 0.0,
+                      "fem-1pt conversion: node " << i << " of part '" << ps.name << "' would be left with mass "
+                                                  << nodes.mass[i] - before.mass[i] + after.mass[i] << " kg");
     real_t kinetic_change = 0.0;
     for (index_t i = begin; i < begin + n; ++i)
     {
         if (before.mass[i] == after.mass[i])
             continue;
         const real_t m_old = nodes.mass[i], m_new = m_old - before.mass[i] + after.mass[i];
-        RKFEM_REQUIRE(m_new > 0.0, "fem-1pt conversion: node " << i << " of part '" << ps.name << "' is left with mass "
-                                                               << m_new << " kg");
         for (int d = 0; d < 3; ++d)
         {
             real_t& v = nodes.v[3 * static_cast<std::size_t>(i) + d];

@@ -261,8 +261,11 @@ struct FastScratch
     /// The row's particles (not free ones, where `free` is given) that reach some face centre of
     /// the cell about xL (the box of the centres, widened by each support), with their offsets
     /// from the cell's centre; the face functions take their points from these.
+    /// `whole_cell`: the box of the whole cell (its corners; SD-SNNI's sub-cell face centres lie
+    /// at +-e_i +- e_j / 2 +- e_k / 2, past the face centres' box on a rotated or sheared cell).
     void collect(const Cell& cell, const Vec3& xL, const index_t* row, index_t n, index_t begin,
-                 const std::vector<real_t>& x, const std::vector<real_t>& radius, const std::vector<char>* free)
+                 const std::vector<real_t>& x, const std::vector<real_t>& radius, const std::vector<char>* free,
+                 bool whole_cell = false)
     {
         cand_k.clear();
         cand_dx.clear();
@@ -270,7 +273,7 @@ struct FastScratch
         const Vec3 xc = xL + cell.c;
         Vec3 ext = Vec3::Zero();
         for (int i = 0; i < 3; ++i)
-            ext = ext.cwiseMax(cell.e[i].cwiseAbs());
+            ext = whole_cell ? Vec3(ext + cell.e[i].cwiseAbs()) : Vec3(ext.cwiseMax(cell.e[i].cwiseAbs()));
         for (index_t k = 0; k < n; ++k)
         {
             const std::size_t j = static_cast<std::size_t>(row[k]);
@@ -983,7 +986,7 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                    const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
                    if (separated_at_start(L))
                        return;
-                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
+                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_, true);
                    // the functions at the 36 points; where one on the cell's surface is not covered, the
                    // cell halved on that side, toward the particle (gradient_cell's rule), up to four times
                    Cell gcell = cell;
