@@ -16,6 +16,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -165,11 +166,19 @@ TEST(ConversionPatch, LinearFieldKeepsItsUniformStressThroughAConversion)
 
 namespace
 {
-/// The free column (free_column with `overrides`) with a deforming velocity field, 600 central
-/// difference steps; with `convert`, three events convert it from the top (at steps 150, 300 and
-/// 450, the stepper started again after each as the run loop does). The largest |p - p0| over
-/// sum m|v| and the largest balance error from step 50 on.
-std::pair<real_t, real_t> free_column_run(const std::vector<std::string>& overrides, bool convert)
+/// What free_column_run measured: the largest |p - p0| over sum m|v|, the largest balance error
+/// from step 50 on, the largest change of momentum at an event, and the elements converted and
+/// reverted.
+struct FreeColumnRun
+{
+    real_t momentum_error = 0.0, energy_error = 0.0, jump = 0.0;
+    index_t converted = 0, reverted = 0;
+};
+/// The free column (free_column with `overrides`) with a deforming velocity field, `steps` central
+/// difference steps; at each step in `at`, `event(k, m)` converts or reverts elements, the stepper
+/// started again after it as the run loop does.
+FreeColumnRun free_column_run(const std::vector<std::string>& overrides, int steps, const std::vector<int>& at,
+                              const std::function<void(int, Model&)>& event)
 {
     Model m = test::model_from(free_column, overrides);
     test::deforming_column_velocity(m.nodes);
@@ -178,25 +187,42 @@ std::pair<real_t, real_t> free_column_run(const std::vector<std::string>& overri
     CentralDifference cd;
     const TimeSpec ts = m.deck().time;
     StepReport r = cd.initialize(m, 0.0);
-    real_t t = 0.0, momentum_error = 0.0, energy_error = 0.0;
-    for (int k = 1; k <= 600; ++k)
+    real_t t = 0.0;
+    FreeColumnRun out;
+    for (int k = 1; k <= steps; ++k)
     {
         const real_t dt = next_time_step(ts, t, r.dt_stable);
         r = cd.step(m, t, dt, k);
         t = r.t;
-        if (convert && (k == 150 || k == 300 || k == 450))
+        if (std::find(at.begin(), at.end(), k) != at.end())
         {
             m.refresh_motion();
-            const index_t n = m.convert_elements(0, elements_above(m, 40e-3 - (k / 150) * 8e-3));
-            EXPECT_EQ(n, 3 * 3 * 8) << "event at step " << k;
+            const Vec3 before = test::momentum(m.nodes);
+            event(k, m);
+            out.jump = std::max(out.jump, (test::momentum(m.nodes) - before).norm());
             r.dt_stable = m.restart_after_event(cd, t, dt);
         }
-        momentum_error = std::max(momentum_error, (test::momentum(m.nodes) - p0).norm() / mv);
+        out.momentum_error = std::max(out.momentum_error, (test::momentum(m.nodes) - p0).norm() / mv);
         if (k >= 50)
-            energy_error = std::max(energy_error, m.energy.balance_error());
+            out.energy_error = std::max(out.energy_error, m.energy.balance_error());
     }
-    EXPECT_EQ(m.converted_elements(), convert ? 3 * 3 * 24 : 0);
-    return {momentum_error, energy_error};
+    out.converted = m.converted_elements();
+    out.reverted = m.reverted_elements();
+    return out;
+}
+
+/// free_column_run converting the column from the top in three events (steps 150, 300, 450), or
+/// never: the largest momentum and balance errors
+std::pair<real_t, real_t> converting_column(const std::vector<std::string>& overrides, bool convert)
+{
+    const FreeColumnRun run =
+        free_column_run(overrides, 600, convert ? std::vector<int>{150, 300, 450} : std::vector<int>{},
+                        [](int k, Model& m) {
+                            EXPECT_EQ(m.convert_elements(0, elements_above(m, 40e-3 - (k / 150) * 8e-3)), 3 * 3 * 8)
+                                << "event at step " << k;
+                        });
+    EXPECT_EQ(run.converted, convert ? 3 * 3 * 24 : 0);
+    return {run.momentum_error, run.energy_error};
 }
 } // namespace
 
@@ -205,8 +231,8 @@ TEST(ConversionDynamics, FreeColumnConservesMomentumAndEnergyThroughConversions)
     // no conditions, no loads: a deforming velocity field; the column converts from the top
     // in three events. Momentum of the unknowns stays what it was; the energy ledger balances as
     // well as in the run that never converts
-    const auto [p_conv, e_conv] = free_column_run({}, true);
-    const auto [p_plain, e_plain] = free_column_run({}, false);
+    const auto [p_conv, e_conv] = converting_column({}, true);
+    const auto [p_plain, e_plain] = converting_column({}, false);
     std::printf("free column, 600 steps, 3 conversions: |p - p0| / sum m|v| = %.2e, balance error %.2e "
                 "(never converted: %.2e, %.2e)\n",
                 p_conv, e_conv, p_plain, e_plain);
@@ -658,43 +684,25 @@ TEST(ConversionReversion, ABoxConvertedAndBackKeepsItsUniformStress)
 
 TEST(ConversionReversion, AFreeColumnKeepsItsMomentumThroughBothEvents)
 {
-    Model m = test::model_from(free_column);
-    test::deforming_column_velocity(m.nodes);
-    const Vec3 p0 = test::momentum(m.nodes);
-    const real_t mv = test::momentum_scale(m.nodes);
-    CentralDifference cd;
-    const TimeSpec ts = m.deck().time;
-    StepReport r = cd.initialize(m, 0.0);
-    real_t t = 0.0, err = 0.0, jump = 0.0;
-    for (int k = 1; k <= 300; ++k)
-    {
-        const real_t dt = next_time_step(ts, t, r.dt_stable);
-        r = cd.step(m, t, dt, k);
-        t = r.t;
-        if (k == 100 || k == 200)
-        {
-            const Vec3 before = test::momentum(m.nodes);
-            if (k == 100)
-            {
-                EXPECT_EQ(m.convert_elements(0, elements_above(m, 20e-3)), 3 * 3 * 20);
-            }
-            else
-            {
-                EXPECT_EQ(m.revert_elements(0, elements_above(m, 30e-3)), 3 * 3 * 10);
-            }
-            jump = std::max(jump, (test::momentum(m.nodes) - before).norm());
-            const std::vector<real_t> a = m.nodes.a;
-            r = cd.initialize(m, t);
-            m.energy.book_event(m.nodes, a, dt);
-        }
-        err = std::max(err, (test::momentum(m.nodes) - p0).norm() / mv);
-    }
+    const FreeColumnRun run =
+        free_column_run({}, 300, {100, 200},
+                        [](int k, Model& m)
+                        {
+                            if (k == 100)
+                            {
+                                EXPECT_EQ(m.convert_elements(0, elements_above(m, 20e-3)), 3 * 3 * 20);
+                            }
+                            else
+                            {
+                                EXPECT_EQ(m.revert_elements(0, elements_above(m, 30e-3)), 3 * 3 * 10);
+                            }
+                        });
     std::printf("free column, converted at step 100, its top quarter reverted at 200: momentum jump at the events "
                 "%.2e, |p - p0| / sum m|v| %.2e over 300 steps\n",
-                jump, err);
-    EXPECT_EQ(jump, 0.0);
-    EXPECT_LT(err, 1e-12);
-    EXPECT_EQ(m.reverted_elements(), 90);
+                run.jump, run.momentum_error);
+    EXPECT_EQ(run.jump, 0.0);
+    EXPECT_LT(run.momentum_error, 1e-12);
+    EXPECT_EQ(run.reverted, 90);
 }
 
 // By the deck (conversion.revert, studies/decks/shear_and_back_reversion.yaml): the block of the
@@ -973,8 +981,8 @@ TEST(ConversionFem1pt, FreeColumnConservesMomentumAndEnergyThroughConversions)
     // energy, -dt^2 / 8 sum m a.a, takes the step it is measured with, so the 5 % smaller stable
     // step of the first RK region alone moves the measured balance by 2.5e-4 (0.9 of that term)
     const std::vector<std::string> fem_1pt = {"parts.column.formulation=fem-1pt", "time.dt_max=0.12us"};
-    const auto [p_conv, e_conv] = free_column_run(fem_1pt, true);
-    const auto [p_plain, e_plain] = free_column_run(fem_1pt, false);
+    const auto [p_conv, e_conv] = converting_column(fem_1pt, true);
+    const auto [p_plain, e_plain] = converting_column(fem_1pt, false);
     std::printf("fem-1pt free column, 600 steps, 3 conversions: |p - p0| / sum m|v| = %.2e, balance error %.2e "
                 "(never converted: %.2e, %.2e)\n",
                 p_conv, e_conv, p_plain, e_plain);

@@ -338,6 +338,24 @@ struct FastScratch
     }
 };
 
+/// Particle L as a pass takes it: its neighbour row and the row's length, the offset of its
+/// values in the node arrays (3 per node), its position in x and its committed cell.
+struct ParticleAt
+{
+    const index_t* row;
+    index_t n;
+    std::size_t g;
+    Vec3 x;
+    Cell cell;
+};
+ParticleAt particle_at(index_t L, index_t begin, const std::vector<index_t>& offsets, const std::vector<index_t>& ids,
+                       const std::vector<real_t>& x, const std::vector<real_t>& cells)
+{
+    const std::size_t g = 3 * static_cast<std::size_t>(begin + L);
+    return {&ids[static_cast<std::size_t>(offsets[L])], offsets[L + 1] - offsets[L], g, Vec3(x[g], x[g + 1], x[g + 2]),
+            Cell(&cells[12 * static_cast<std::size_t>(L)])};
+}
+
 FastScratch& fast_scratch()
 {
     thread_local FastScratch s;
@@ -897,11 +915,7 @@ void SemiLagrangianForceBlock::points_plain(const NodeSet& nodes, real_t dt)
                [&](index_t L, auto&& out)
                {
                    Scratch& sc = scratch();
-                   const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-                   const index_t n = offsets_[L + 1] - offsets_[L];
-                   const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-                   const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
-                   const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                   const auto [row, n, gL, xL, cell] = particle_at(L, begin, offsets_, ids_, x, state_.cells);
                    if (separated_at_start(L))
                        return;
                    if (!plain_gradient(xL, cell, row, n, begin, x, radius_, opt_.rk, free_, sc))
@@ -979,11 +993,7 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                {
                    FastScratch& sc = fast_scratch();
                    thread_local std::vector<FaceSample> at(kSubPoints);
-                   const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-                   const index_t n = offsets_[L + 1] - offsets_[L];
-                   const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-                   const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
-                   const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                   const auto [row, n, gL, xL, cell] = particle_at(L, begin, offsets_, ids_, x, state_.cells);
                    if (separated_at_start(L))
                        return;
                    sc.collect(cell, xL, row, n, begin, x, radius_, &free_, true);
@@ -1090,11 +1100,7 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                [&](index_t L, auto&& out)
                {
                    FastScratch& sc = fast_scratch();
-                   const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-                   const index_t n = offsets_[L + 1] - offsets_[L];
-                   const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-                   const Vec3 xL(x[gL], x[gL + 1], x[gL + 2]);
-                   const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
+                   const auto [row, n, gL, xL, cell] = particle_at(L, begin, offsets_, ids_, x, state_.cells);
                    if (separated_at_start(L))
                        return;
                    sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
@@ -1344,11 +1350,8 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
     std::vector<index_t> count(n + 1, 0);
     auto faces = [&](index_t L, FastScratch& sc)
     {
-        const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-        const index_t nr = offsets_[L + 1] - offsets_[L];
-        const Cell cell(&state_.cells[12 * static_cast<std::size_t>(L)]);
-        const std::size_t gL = 3 * static_cast<std::size_t>(begin + L);
-        sc.collect(cell, Vec3(xr[gL], xr[gL + 1], xr[gL + 2]), row, nr, begin, xr, radius_, nullptr);
+        const auto [row, nr, gL, xL, cell] = particle_at(L, begin, offsets_, ids_, xr, state_.cells);
+        sc.collect(cell, xL, row, nr, begin, xr, radius_, nullptr);
         if (!gradient_cell(sc, cell, opt_.rk, sc.gcell))
             return false;
         // the union, in row order: slot per row entry
