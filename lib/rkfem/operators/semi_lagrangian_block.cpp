@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include <omp.h>
@@ -9,6 +10,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include "rkfem/approximation/rk/rk_region_detail.hpp"
 #include "rkfem/core/parallel.hpp"
 #include "rkfem/discretization/cell_list.hpp"
 #include "rkfem/materials/elastic.hpp"
@@ -107,17 +109,6 @@ Cell deform(const Cell& cell, const Mat3& F)
     return out;
 }
 
-/// The RK functions at one face centre: row entries, values, gradients.
-struct FaceSample
-{
-    std::vector<index_t> k;
-    std::vector<real_t> psi;
-    std::vector<Vec3> grad;
-};
-
-/// Psi and grad Psi at a point from the kernels of its n covering particles (order 1: the 4 x 4
-/// moment matrix and its derivatives accumulated entry by entry, symmetric; the same algebra as
-/// rk_shape.cpp's solve_and_fill, which the plain pass calls). False where M is singular.
 /// A face centre counts as covered where its moment matrix's pivot ratio is above this (the
 /// shape functions' own 1e-12 only guards the solve): at a crack face a centre half a spacing
 /// beyond the last layer of particles is reached by that layer and, with weight 4e-7, by the one
@@ -130,210 +121,501 @@ struct FaceSample
 /// clouds, so 1e-3 leaves them a factor of 30.
 constexpr real_t kCoverPivot = 1e-3;
 
-bool linear_rk(std::size_t n, const real_t* phi, const Vec3* dphi, const Vec3* dx, real_t s, real_t* psi, Vec3* grad)
-{
-    if (n < 4)
-        return false;
-    using Mat4 = Eigen::Matrix<real_t, 4, 4>;
-    using Vec4 = Eigen::Matrix<real_t, 4, 1>;
-    const real_t inv_s = 1.0 / s;
-    // the upper triangles of M and of A_d = sum dphi_d H H^T, 10 entries each (m: acc[0..9],
-    // A_d: acc[10 (d + 1) ..]), summed over the entries in vector lanes
-    real_t acc[40] = {};
-    const real_t* y = dx[0].data();
-    const real_t* g = dphi[0].data();
-    RKFEM_SIMD(reduction(+ : acc[:40]))
-    for (std::size_t e = 0; e < n; ++e)
-    {
-        const real_t y0 = y[3 * e] * inv_s, y1 = y[3 * e + 1] * inv_s, y2 = y[3 * e + 2] * inv_s;
-        const real_t hh[10] = {1.0, y0, y1, y2, y0 * y0, y0 * y1, y0 * y2, y1 * y1, y1 * y2, y2 * y2};
-        const real_t w[4] = {phi[e], g[3 * e], g[3 * e + 1], g[3 * e + 2]};
-        for (int d = 0; d < 4; ++d)
-            for (int t = 0; t < 10; ++t)
-                acc[10 * d + t] += w[d] * hh[t];
-    }
-    const real_t* m = acc;
-    const real_t* A[3] = {acc + 10, acc + 20, acc + 30};
-    auto full = [](const real_t* u)
-    {
-        Mat4 F;
-        int q = 0;
-        for (int a = 0; a < 4; ++a)
-            for (int b = a; b < 4; ++b)
-                F(a, b) = F(b, a) = u[q++];
-        return F;
-    };
-    const Mat4 M = full(m);
-    Eigen::LDLT<Mat4> ldlt(M);
-    const auto D = ldlt.vectorD();
-    const real_t dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > kCoverPivot * dmax))
-        return false;
-    Vec4 e0 = Vec4::Zero();
-    e0[0] = 1.0;
-    const Vec4 b = ldlt.solve(e0);
-    Vec4 db[3];
-    for (int d = 0; d < 3; ++d)
-    {
-        // dM_d = A_d + (1 / s) (e_{d+1} M_0^T + M_0 e_{d+1}^T): the basis' own derivative
-        Mat4 dM = full(A[d]);
-        dM.row(d + 1) += inv_s * M.row(0);
-        dM.col(d + 1) += inv_s * M.col(0);
-        db[d] = -ldlt.solve(dM * b);
-    }
-    // psi = phi b.H, grad_d = phi (db_d.H + b_{d+1} / s) + dphi_d b.H, entry by entry in vector lanes
-    const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
-    real_t dc[3][4];
-    for (int d = 0; d < 3; ++d)
-    {
-        dc[d][0] = db[d][0] + inv_s * b[d + 1];
-        for (int k = 1; k < 4; ++k)
-            dc[d][k] = db[d][k] * inv_s;
-    }
-    real_t* gr = grad[0].data();
-    RKFEM_SIMD()
-    for (std::size_t e = 0; e < n; ++e)
-    {
-        const real_t x0 = y[3 * e], x1 = y[3 * e + 1], x2 = y[3 * e + 2];
-        const real_t bH = c0 + c1 * x0 + c2 * x1 + c3 * x2;
-        psi[e] = bH * phi[e];
-        for (int d = 0; d < 3; ++d)
-            gr[3 * e + d] = phi[e] * (dc[d][0] + dc[d][1] * x0 + dc[d][2] * x1 + dc[d][3] * x2) + g[3 * e + d] * bH;
-    }
-    return true;
-}
+/// SD-SNNI's sample points per cell (sub_point_offset), the most any pass samples.
+constexpr int kSubPoints = 36;
 
-/// linear_rk's values alone (SD-SNNI's points need no gradients): the same moment sums in the
-/// same order and the same solve, so the same Psi bit for bit, for a quarter of the sums and none
-/// of the derivative solves.
-bool linear_rk_values(std::size_t n, const real_t* phi, const Vec3* dx, real_t s, real_t* psi)
-{
-    if (n < 4)
-        return false;
-    using Mat4 = Eigen::Matrix<real_t, 4, 4>;
-    using Vec4 = Eigen::Matrix<real_t, 4, 1>;
-    const real_t inv_s = 1.0 / s;
-    real_t acc[10] = {};
-    const real_t* y = dx[0].data();
-    RKFEM_SIMD(reduction(+ : acc[:10]))
-    for (std::size_t e = 0; e < n; ++e)
-    {
-        const real_t y0 = y[3 * e] * inv_s, y1 = y[3 * e + 1] * inv_s, y2 = y[3 * e + 2] * inv_s;
-        const real_t hh[10] = {1.0, y0, y1, y2, y0 * y0, y0 * y1, y0 * y2, y1 * y1, y1 * y2, y2 * y2};
-        for (int t = 0; t < 10; ++t)
-            acc[t] += phi[e] * hh[t];
-    }
-    Mat4 M;
-    int q = 0;
-    for (int a = 0; a < 4; ++a)
-        for (int b = a; b < 4; ++b)
-            M(a, b) = M(b, a) = acc[q++];
-    Eigen::LDLT<Mat4> ldlt(M);
-    const auto D = ldlt.vectorD();
-    const real_t dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt.info() != Eigen::Success || !(D.minCoeff() > kCoverPivot * dmax))
-        return false;
-    Vec4 e0 = Vec4::Zero();
-    e0[0] = 1.0;
-    const Vec4 b = ldlt.solve(e0);
-    const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
-    RKFEM_SIMD()
-    for (std::size_t e = 0; e < n; ++e)
-        psi[e] = (c0 + c1 * y[3 * e] + c2 * y[3 * e + 1] + c3 * y[3 * e + 2]) * phi[e];
-    return true;
-}
-
-/// Per-thread scratch of the fast pass: the row entries that reach the cell's face centres and
-/// the functions at each centre (kept between steps).
+/// Per-thread scratch of the fast passes (kept between steps), in flat arrays. The candidates
+/// are the row's particles (not free ones, where `free` is given) whose supports reach the cell's
+/// sample points (collect). At each sample point q (a face centre, or one of SD-SNNI's 36
+/// points) the windows of every candidate are formed in one loop in vector lanes, the covering
+/// ones (about 36 of the 81 candidates of a face centre inside a body) packed, and the rest on
+/// the packed arrays: the moment sums (rk_region_detail's, as the set-up's region evaluator
+/// forms them), the 4 x 4 solve, the values (and gradients), and later the point's velocity and
+/// its forces. The plain twin is points_plain's evaluate_at (rk_solve_sample over the covering
+/// particles one by one): the same functions to round-off.
 struct FastScratch
 {
-    std::vector<index_t> cand_k;
-    std::vector<Vec3> cand_dx; ///< the cell's centre minus the particle
-    std::vector<real_t> cand_a;
-    FaceSample face[6];
-    std::vector<real_t> phi;
-    std::vector<Vec3> dphi, dx;
-    RkSample sample;           // order 2
-    std::vector<index_t> slot; ///< per row entry: its place among those covering a face centre (-1: none)
-    Cell gcell;                ///< the reset tables' gradient cell
-    index_t n_union = 0;
-
-    /// The row's particles (not free ones, where `free` is given) that reach some face centre of
-    /// the cell about xL (the box of the centres, widened by each support), with their offsets
-    /// from the cell's centre; the face functions take their points from these.
-    /// `whole_cell`: the box of the whole cell (its corners; SD-SNNI's sub-cell face centres lie
-    /// at +-e_i +- e_j / 2 +- e_k / 2, past the face centres' box on a rotated or sheared cell).
-    void collect(const Cell& cell, const Vec3& xL, const index_t* row, index_t n, index_t begin,
-                 const std::vector<real_t>& x, const std::vector<real_t>& radius, const std::vector<char>* free,
-                 bool whole_cell = false)
+    /// Which of the row's particles a cell's candidates are: those whose support covers one of
+    /// its six face centres (SNNI's points; in a body's interior 81 of the 125 of FaceBox),
+    /// those that reach the box of its face centres (the cells halved toward the particle,
+    /// gradient_cell, have their points in it), or the box of its corners (SD-SNNI's sub-cell
+    /// face centres lie past the face centres' box on a rotated or sheared cell).
+    enum class Reach
     {
-        cand_k.clear();
-        cand_dx.clear();
-        cand_a.clear();
+        FaceCentres,
+        FaceBox,
+        WholeCell,
+    };
+    // per candidate
+    std::vector<index_t> cand_k;    ///< its row entry (ascending)
+    std::vector<index_t> slot;      ///< its place among the covering ones (the reset tables)
+    std::vector<real_t> px, py, pz; ///< its position minus the cell's centre
+    std::vector<real_t> ca, cinv_a; ///< its support radius and its inverse
+    std::vector<real_t> vx, vy, vz; ///< its velocity (gather_velocities)
+    std::vector<real_t> cover;      ///< 1 where it covers a point since reset_cover
+    std::vector<real_t> fx, fy, fz; ///< the cell's force on it (forces)
+    // per sample point q, packed (the covering candidates), cap apart
+    std::vector<index_t> idx; ///< kSubPoints x cap: the covering candidates
+    std::vector<index_t> all; ///< 0, 1, ..., cap - 1 (every candidate)
+    bool listed = false;      ///< idx's rows 0..5 hold the face centres' candidates (collect, FaceCentres)
+    std::vector<real_t> psi;  ///< kSubPoints x cap: Psi
+    std::vector<real_t> grad; ///< 18 x cap: grad Psi at the six face centres (3 f + d)
+    std::size_t m[kSubPoints] = {};
+    // the last point, packed: x - x_k, the window and its gradient
+    std::vector<real_t> kd0, kd1, kd2, kphi, kq0, kq1, kq2;
+    std::size_t n = 0, cap = 0; ///< candidates; the arrays' room per point
+    // per row entry (collect): the offset from the cell's centre, the support, the points reached
+    std::vector<real_t> rx, ry, rz, ra;
+    std::vector<int> rbits;
+    std::size_t rcap = 0;
+    real_t n_cover = 0.0, a_min = 0.0; ///< the last point's covering count and least radius
+    RkSample sample;                   ///< orders above 1
+    Cell gcell;                        ///< the reset tables' gradient cell
+    struct Collected                   ///< the last collect's arguments (widen)
+    {
+        Cell cell;
+        Vec3 xL;
+        const index_t* row;
+        index_t nr, begin;
+        const std::vector<real_t>* x;
+        const std::vector<real_t>* radius;
+        const std::vector<char>* free;
+        SupportShape shape;
+    } at{};
+    Reach reach_ = Reach::FaceBox;
+
+    /// The candidates of the cell about xL by `reach`, in row order.
+    void collect(const Cell& cell, const Vec3& xL, const index_t* row, index_t nr, index_t begin,
+                 const std::vector<real_t>& x, const std::vector<real_t>& radius, const std::vector<char>* free,
+                 SupportShape shape, Reach reach)
+    {
+        at = {cell, xL, row, nr, begin, &x, &radius, free, shape};
+        reach_ = reach;
+        if (cap < static_cast<std::size_t>(nr))
+        {
+            cap = static_cast<std::size_t>(nr);
+            for (std::vector<real_t>* v : {&px, &py, &pz, &ca, &cinv_a, &vx, &vy, &vz, &cover, &fx, &fy, &fz, &kd0,
+                                           &kd1, &kd2, &kphi, &kq0, &kq1, &kq2})
+                v->resize(cap);
+            cand_k.resize(cap);
+            slot.resize(cap);
+            idx.resize(kSubPoints * cap);
+            all.resize(cap);
+            for (std::size_t c = 0; c < cap; ++c)
+                all[c] = static_cast<index_t>(c);
+            psi.resize(kSubPoints * cap);
+            grad.resize(18 * cap);
+        }
         const Vec3 xc = xL + cell.c;
         Vec3 ext = Vec3::Zero();
         for (int i = 0; i < 3; ++i)
-            ext = whole_cell ? Vec3(ext + cell.e[i].cwiseAbs()) : Vec3(ext.cwiseMax(cell.e[i].cwiseAbs()));
-        for (index_t k = 0; k < n; ++k)
+            ext =
+                reach == Reach::WholeCell ? Vec3(ext + cell.e[i].cwiseAbs()) : Vec3(ext.cwiseMax(cell.e[i].cwiseAbs()));
+        // in vector lanes over the row: each particle's offset from the cell's centre and the
+        // points it reaches (bit f: face centre f; bit 6: the box of the reach), then the
+        // candidates and each face's list in row order
+        if (rcap < static_cast<std::size_t>(nr))
+        {
+            rcap = static_cast<std::size_t>(nr);
+            for (std::vector<real_t>* v : {&rx, &ry, &rz, &ra})
+                v->resize(rcap);
+            rbits.resize(rcap);
+        }
+        const real_t c0 = xc[0], c1 = xc[1], c2 = xc[2], x0 = ext[0], x1 = ext[1], x2 = ext[2];
+        const real_t* xs = x.data();
+        const real_t* rad = radius.data();
+        real_t *qx = rx.data(), *qy = ry.data(), *qz = rz.data(), *qa = ra.data();
+        int* bits = rbits.data();
+        const std::size_t b3 = 3 * static_cast<std::size_t>(begin);
+        RKFEM_SIMD()
+        for (index_t k = 0; k < nr; ++k)
         {
             const std::size_t j = static_cast<std::size_t>(row[k]);
-            const std::size_t g = 3 * (static_cast<std::size_t>(begin) + j);
-            const Vec3 dx(xc[0] - x[g], xc[1] - x[g + 1], xc[2] - x[g + 2]);
-            const real_t a = radius[j];
-            if ((free == nullptr || !(*free)[j]) && std::abs(dx[0]) < a + ext[0] && std::abs(dx[1]) < a + ext[1] &&
-                std::abs(dx[2]) < a + ext[2])
+            const real_t p0 = xs[b3 + 3 * j] - c0, p1 = xs[b3 + 3 * j + 1] - c1, p2 = xs[b3 + 3 * j + 2] - c2;
+            const real_t a = rad[j];
+            qx[k] = p0;
+            qy[k] = p1;
+            qz[k] = p2;
+            qa[k] = a;
+            bits[k] = std::abs(p0) < a + x0 && std::abs(p1) < a + x1 && std::abs(p2) < a + x2 ? 64 : 0;
+        }
+        if (reach == Reach::FaceCentres)
+        {
+            // bit f: the support covers face centre f (x_L + c -+ e_i), as the windows' test
+            for (int f = 0; f < 6; ++f)
             {
-                cand_k.push_back(k);
-                cand_dx.push_back(dx);
-                cand_a.push_back(a);
+                const Vec3 e = (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
+                const real_t e0 = e[0], e1 = e[1], e2 = e[2];
+                const int bit = 1 << f;
+                if (shape == SupportShape::Box)
+                {
+                    RKFEM_SIMD()
+                    for (index_t k = 0; k < nr; ++k)
+                    {
+                        const real_t a = qa[k];
+                        const bool in =
+                            std::abs(qx[k] - e0) < a && std::abs(qy[k] - e1) < a && std::abs(qz[k] - e2) < a;
+                        bits[k] |= in ? bit : 0;
+                    }
+                }
+                else
+                {
+                    RKFEM_SIMD()
+                    for (index_t k = 0; k < nr; ++k)
+                    {
+                        const real_t d0 = qx[k] - e0, d1 = qy[k] - e1, d2 = qz[k] - e2, a = qa[k];
+                        bits[k] |= d0 * d0 + d1 * d1 + d2 * d2 < a * a ? bit : 0;
+                    }
+                }
+            }
+        }
+        std::size_t count = 0;
+        listed = reach == Reach::FaceCentres;
+        std::fill_n(m, 6, 0);
+        for (index_t k = 0; k < nr; ++k)
+        {
+            const int b = bits[k];
+            if (b < 64 || (listed && b == 64) || (free != nullptr && (*free)[static_cast<std::size_t>(row[k])]))
+                continue;
+            if (listed)
+                for (int f = 0; f < 6; ++f)
+                    if (b & (1 << f))
+                        idx[static_cast<std::size_t>(f) * cap + m[f]++] = static_cast<index_t>(count);
+            cand_k[count] = k;
+            px[count] = qx[k];
+            py[count] = qy[k];
+            pz[count] = qz[k];
+            ca[count] = qa[k];
+            cinv_a[count] = 1.0 / qa[k];
+            ++count;
+        }
+        n = count;
+    }
+    /// Where the candidates are those covering the face centres, those of the face centres' box
+    /// instead (for a cell halved toward the particle); false where they are already.
+    bool widen()
+    {
+        if (reach_ != Reach::FaceCentres)
+            return false;
+        const Collected c = at;
+        collect(c.cell, c.xL, c.row, c.nr, c.begin, *c.x, *c.radius, c.free, c.shape, Reach::FaceBox);
+        return true;
+    }
+    void reset_cover() { std::fill_n(cover.begin(), n, 0.0); }
+    /// The candidates' velocities, from the row.
+    void gather_velocities(const index_t* row, index_t begin, const std::vector<real_t>& v)
+    {
+        for (std::size_t c = 0; c < n; ++c)
+        {
+            const std::size_t g = 3 * static_cast<std::size_t>(begin + row[cand_k[c]]);
+            vx[c] = v[g];
+            vy[c] = v[g + 1];
+            vz[c] = v[g + 2];
+        }
+    }
+    /// The largest squared speed of a covering candidate relative to vL.
+    real_t closing2(const Vec3& vL) const
+    {
+        const real_t *ux = vx.data(), *uy = vy.data(), *uz = vz.data(), *cv = cover.data();
+        const real_t w0 = vL[0], w1 = vL[1], w2 = vL[2];
+        real_t big = 0.0;
+        RKFEM_SIMD(reduction(max : big))
+        for (std::size_t c = 0; c < n; ++c)
+        {
+            const real_t d0 = ux[c] - w0, d1 = uy[c] - w1, d2 = uz[c] - w2;
+            big = rk_region_detail::larger(big, cv[c] > 0.0 ? d0 * d0 + d1 * d1 + d2 * d2 : 0.0);
+        }
+        return big;
+    }
+    /// Point q's covering candidates and their values (m[q] of them).
+    const index_t* covering(int q) const { return &idx[static_cast<std::size_t>(q) * cap]; }
+    const real_t* values(int q) const { return &psi[static_cast<std::size_t>(q) * cap]; }
+    /// Face f's gradients, component d.
+    const real_t* gradients(int f, int d) const
+    {
+        return &grad[(3 * static_cast<std::size_t>(f) + static_cast<std::size_t>(d)) * cap];
+    }
+    /// v^h at point q: sum Psi_q v over its covering candidates.
+    Vec3 interpolate(int q) const
+    {
+        const index_t* id = covering(q);
+        const real_t* ps = values(q);
+        const real_t *ux = vx.data(), *uy = vy.data(), *uz = vz.data();
+        real_t a0 = 0.0, a1 = 0.0, a2 = 0.0;
+        RKFEM_SIMD(reduction(+ : a0, a1, a2))
+        for (std::size_t e = 0; e < m[q]; ++e)
+        {
+            const index_t c = id[e];
+            a0 += ps[e] * ux[c];
+            a1 += ps[e] * uy[c];
+            a2 += ps[e] * uz[c];
+        }
+        return {a0, a1, a2};
+    }
+    /// grad v^h at face centre f: sum v (x) grad Psi_f over its covering candidates.
+    Mat3 velocity_gradient(int f) const
+    {
+        const index_t* id = covering(f);
+        const real_t *g0 = gradients(f, 0), *g1 = gradients(f, 1), *g2 = gradients(f, 2);
+        const real_t *ux = vx.data(), *uy = vy.data(), *uz = vz.data();
+        real_t s00 = 0, s01 = 0, s02 = 0, s10 = 0, s11 = 0, s12 = 0, s20 = 0, s21 = 0, s22 = 0;
+        RKFEM_SIMD(reduction(+ : s00, s01, s02, s10, s11, s12, s20, s21, s22))
+        for (std::size_t e = 0; e < m[f]; ++e)
+        {
+            const index_t c = id[e];
+            const real_t v0 = ux[c], v1 = uy[c], v2 = uz[c];
+            s00 += v0 * g0[e];
+            s01 += v0 * g1[e];
+            s02 += v0 * g2[e];
+            s10 += v1 * g0[e];
+            s11 += v1 * g1[e];
+            s12 += v1 * g2[e];
+            s20 += v2 * g0[e];
+            s21 += v2 * g1[e];
+            s22 += v2 * g2[e];
+        }
+        Mat3 G;
+        G << s00, s01, s02, s10, s11, s12, s20, s21, s22;
+        return G;
+    }
+    /// The cell's force on each candidate into fx, fy, fz: sum_q Psi_q t_q over the first
+    /// `points` points, and sum_f S_f grad Psi_f over the six face centres where S (6 Voigt
+    /// stresses per face) is given. A point's covering candidates are distinct, so each point's
+    /// loop adds in vector lanes.
+    void forces(int points, const real_t (*t)[3], const real_t (*S)[6])
+    {
+        real_t *ox = fx.data(), *oy = fy.data(), *oz = fz.data();
+        std::fill_n(ox, n, 0.0);
+        std::fill_n(oy, n, 0.0);
+        std::fill_n(oz, n, 0.0);
+        for (int q = 0; q < points; ++q)
+        {
+            const index_t* id = covering(q);
+            const real_t* ps = values(q);
+            const real_t t0 = t[q][0], t1 = t[q][1], t2 = t[q][2];
+            const real_t* s = S == nullptr ? nullptr : S[q];
+            const real_t *g0 = gradients(q < 6 ? q : 0, 0), *g1 = gradients(q < 6 ? q : 0, 1),
+                         *g2 = gradients(q < 6 ? q : 0, 2);
+            if (s == nullptr)
+            {
+                RKFEM_SIMD()
+                for (std::size_t e = 0; e < m[q]; ++e)
+                {
+                    const index_t c = id[e];
+                    ox[c] += ps[e] * t0;
+                    oy[c] += ps[e] * t1;
+                    oz[c] += ps[e] * t2;
+                }
+                continue;
+            }
+            RKFEM_SIMD()
+            for (std::size_t e = 0; e < m[q]; ++e)
+            {
+                const index_t c = id[e];
+                ox[c] += ps[e] * t0 + s[0] * g0[e] + s[3] * g1[e] + s[5] * g2[e];
+                oy[c] += ps[e] * t1 + s[3] * g0[e] + s[1] * g1[e] + s[4] * g2[e];
+                oz[c] += ps[e] * t2 + s[5] * g0[e] + s[4] * g1[e] + s[2] * g2[e];
             }
         }
     }
-    /// The functions at the face centre (the cell's centre + off) into face[f].
-    bool face_functions(int f, const Vec3& off, const RkParams& rk) { return functions_at(face[f], off, rk); }
-    /// The functions at the cell's centre + off into fs (`gradients` false: Psi alone, fs.grad
-    /// left as it is, for linear RK; other orders form both).
-    bool functions_at(FaceSample& fs, const Vec3& off, const RkParams& rk, bool gradients = true)
+
+    /// The functions at the cell's centre + off into point q's packed rows (with `gradients`,
+    /// their gradients too: q a face, 0..5), its covering candidates marked in cover. False
+    /// where the moment matrix is singular (kCoverPivot).
+    bool functions_at(int q, const Vec3& off, const RkParams& rk, bool gradients)
     {
-        fs.k.clear();
-        phi.clear();
-        dphi.clear();
-        dx.clear();
-        real_t scale = kNoLimit;
-        const bool box = rk.support == SupportShape::Box;
-        for (std::size_t c = 0; c < cand_k.size(); ++c)
+        // the candidates to look at: the face's own (collect's lists, for the cell's face
+        // centres), or every one
+        const bool own = listed && q < 6;
+        const index_t* id = own ? &idx[static_cast<std::size_t>(q) * cap] : all.data();
+        const std::size_t len = own ? m[q] : n;
+        switch (rk.kernel)
         {
-            const Vec3 d = cand_dx[c] + off;
-            const real_t a = cand_a[c];
-            if (box && (std::abs(d[0]) >= a || std::abs(d[1]) >= a || std::abs(d[2]) >= a))
-                continue;
-            real_t p = 0.0;
-            Vec3 dp;
-            if (kernel_3d(rk.kernel, rk.support, d, a, p, dp) && p > 0.0)
+        case KernelType::CubicBSpline:
+            windows_of<KernelType::CubicBSpline>(off, id, len, rk.support, gradients);
+            break;
+        case KernelType::QuinticBSpline:
+            windows_of<KernelType::QuinticBSpline>(off, id, len, rk.support, gradients);
+            break;
+        case KernelType::Gaussian:
+            windows_of<KernelType::Gaussian>(off, id, len, rk.support, gradients);
+            break;
+        }
+        pack(q, id, len, gradients);
+        return rk.order == 1 ? solve_linear(q, gradients) : solve_other(q, rk.order, gradients);
+    }
+
+  private:
+    template <KernelType K>
+    void windows_of(const Vec3& off, const index_t* id, std::size_t len, SupportShape shape, bool gradients)
+    {
+        if (shape == SupportShape::Box)
+            gradients ? windows<K, SupportShape::Box, true>(off, id, len)
+                      : windows<K, SupportShape::Box, false>(off, id, len);
+        else
+            gradients ? windows<K, SupportShape::Sphere, true>(off, id, len)
+                      : windows<K, SupportShape::Sphere, false>(off, id, len);
+    }
+    /// The windows (and their gradients, G) at the cell's centre + off of the candidates id[e],
+    /// e < len, into the point's arrays (kd*, kphi, kq*: place e), the covering ones marked in
+    /// cover; the covering count and the least covering radius (RkRegionValues::slopes' windows).
+    template <KernelType K, SupportShape S, bool G> void windows(const Vec3& off, const index_t* id, std::size_t len)
+    {
+        using namespace rk_region_detail;
+        const real_t o0 = off[0], o1 = off[1], o2 = off[2];
+        const real_t *pxs = px.data(), *pys = py.data(), *pzs = pz.data(), *ia = cinv_a.data(), *ra = ca.data();
+        real_t *d0s = kd0.data(), *d1s = kd1.data(), *d2s = kd2.data(), *ph = kphi.data(), *cv = cover.data();
+        real_t *g0s = kq0.data(), *g1s = kq1.data(), *g2s = kq2.data();
+        real_t count = 0, least = std::numeric_limits<real_t>::infinity();
+        RKFEM_SIMD(reduction(+ : count) reduction(min : least))
+        for (std::size_t e = 0; e < len; ++e)
+        {
+            const index_t k = id[e];
+            const real_t d0 = o0 - pxs[k], d1 = o1 - pys[k], d2 = o2 - pzs[k];
+            const real_t inv_a = ia[k];
+            real_t w = 0.0, g0 = 0.0, g1 = 0.0, g2 = 0.0;
+            if constexpr (G)
+                window_gradient_at<K, S>(d0, d1, d2, inv_a, w, g0, g1, g2);
+            else
+                w = window_at<K, S>(d0, d1, d2, inv_a);
+            const bool covers = w > 0.0;
+            d0s[e] = d0;
+            d1s[e] = d1;
+            d2s[e] = d2;
+            ph[e] = covers ? w : 0.0;
+            if (covers)
+                cv[k] = 1.0;
+            count += covers ? 1.0 : 0.0;
+            least = std::min(least, covers ? ra[k] : std::numeric_limits<real_t>::infinity());
+            if constexpr (G)
             {
-                fs.k.push_back(cand_k[c]);
-                phi.push_back(p);
-                dphi.push_back(dp);
-                dx.push_back(d);
-                scale = std::min(scale, a);
+                g0s[e] = g0;
+                g1s[e] = g1;
+                g2s[e] = g2;
             }
         }
-        const std::size_t n = fs.k.size();
-        fs.psi.resize(n);
-        if (rk.order == 1 && !gradients)
-            return linear_rk_values(n, phi.data(), dx.data(), scale, fs.psi.data());
-        fs.grad.resize(n);
-        if (rk.order == 1)
-            return linear_rk(n, phi.data(), dphi.data(), dx.data(), scale, fs.psi.data(), fs.grad.data());
-        sample.clear();
-        sample.nodes.assign(fs.k.begin(), fs.k.end());
-        sample.phi = phi;
-        sample.dphi = dphi;
-        sample.dx = dx;
-        if (!rk_solve_sample(sample, scale, rk.order, true, kCoverPivot))
+        n_cover = count;
+        a_min = least;
+    }
+    /// Point q's covering candidates into its row of idx (m[q] of them) and its arrays packed
+    /// to them, in place: nothing to move where every candidate looked at covers (a face's own list).
+    void pack(int q, const index_t* id, std::size_t len, bool gradients)
+    {
+        index_t* out = &idx[static_cast<std::size_t>(q) * cap];
+        const std::size_t count = static_cast<std::size_t>(n_cover);
+        m[q] = count;
+        if (count == len)
+        {
+            if (out != id)
+                std::copy_n(id, len, out);
+            return;
+        }
+        std::size_t j = 0;
+        for (std::size_t e = 0; e < len; ++e)
+            if (kphi[e] > 0.0)
+            {
+                out[j] = id[e];
+                kd0[j] = kd0[e];
+                kd1[j] = kd1[e];
+                kd2[j] = kd2[e];
+                kphi[j] = kphi[e];
+                if (gradients)
+                {
+                    kq0[j] = kq0[e];
+                    kq1[j] = kq1[e];
+                    kq2[j] = kq2[e];
+                }
+                ++j;
+            }
+    }
+    /// sum w, sum w d_i, sum w d_i d_j over the packed point (rk_region_detail's order).
+    void moments(std::size_t count, const real_t* w, real_t out[10]) const
+    {
+        using namespace rk_region_detail;
+        const real_t *d0s = kd0.data(), *d1s = kd1.data(), *d2s = kd2.data();
+        real_t s0 = 0, s1 = 0, s2 = 0, s3 = 0, s11 = 0, s12 = 0, s13 = 0, s22 = 0, s23 = 0, s33 = 0;
+        RKFEM_SIMD(reduction(+ : s0, s1, s2, s3, s11, s12, s13, s22, s23, s33))
+        for (std::size_t k = 0; k < count; ++k)
+            add_moments(w[k], d0s[k], d1s[k], d2s[k], s0, s1, s2, s3, s11, s12, s13, s22, s23, s33);
+        const real_t s[10] = {s0, s1, s2, s3, s11, s12, s13, s22, s23, s33};
+        std::copy(s, s + 10, out);
+    }
+    /// Order 1 (RkRegionValues::gradients_linear's algebra): b = M^-1 e_0, db_i = -M^-1 dM_i b,
+    /// Psi_k = phi_k b.H_k, grad_i Psi_k = phi_k (db_i.H_k + b_{1+i} / s) + dphi_ki b.H_k.
+    bool solve_linear(int q, bool gradients)
+    {
+        using namespace rk_region_detail;
+        if (n_cover < 4.0)
             return false;
-        std::copy(sample.psi.begin(), sample.psi.end(), fs.psi.begin());
-        std::copy(sample.grad.begin(), sample.grad.end(), fs.grad.begin());
+        const std::size_t count = m[q];
+        const real_t inv_s = 1.0 / a_min;
+        real_t sums[10];
+        moments(count, kphi.data(), sums);
+        const Eigen::Matrix4d M = scaled_moments(sums, inv_s);
+        const Ldlt4 ldlt(M);
+        if (!ldlt.pivots_above(kCoverPivot))
+            return false;
+        const Eigen::Vector4d b = ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
+        const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
+        const real_t *d0 = kd0.data(), *d1 = kd1.data(), *d2 = kd2.data(), *ph = kphi.data();
+        real_t* ps = &psi[static_cast<std::size_t>(q) * cap];
+        if (!gradients)
+        {
+            RKFEM_SIMD()
+            for (std::size_t k = 0; k < count; ++k)
+                ps[k] = ph[k] * (c0 + c1 * d0[k] + c2 * d1[k] + c3 * d2[k]);
+            return true;
+        }
+        const Eigen::Vector4d m0 = M.col(0) * inv_s;
+        const real_t* slopes[3] = {kq0.data(), kq1.data(), kq2.data()};
+        real_t e[3][4];
+        for (int i = 0; i < 3; ++i)
+        {
+            real_t slope_sums[10];
+            moments(count, slopes[i], slope_sums);
+            Eigen::Matrix4d dM = scaled_moments(slope_sums, inv_s);
+            dM.row(1 + i) += m0.transpose();
+            dM.col(1 + i) += m0;
+            const Eigen::Vector4d db = -ldlt.solve(dM * b);
+            e[i][0] = db[0] + b[1 + i] * inv_s;
+            for (int j = 1; j < 4; ++j)
+                e[i][j] = db[j] * inv_s;
+        }
+        const real_t *r0 = slopes[0], *r1 = slopes[1], *r2 = slopes[2];
+        real_t *g0 = &grad[(3 * static_cast<std::size_t>(q)) * cap], *g1 = g0 + cap, *g2 = g1 + cap;
+        RKFEM_SIMD()
+        for (std::size_t k = 0; k < count; ++k)
+        {
+            const real_t bH = c0 + c1 * d0[k] + c2 * d1[k] + c3 * d2[k];
+            ps[k] = ph[k] * bH;
+            g0[k] = ph[k] * (e[0][0] + e[0][1] * d0[k] + e[0][2] * d1[k] + e[0][3] * d2[k]) + r0[k] * bH;
+            g1[k] = ph[k] * (e[1][0] + e[1][1] * d0[k] + e[1][2] * d1[k] + e[1][3] * d2[k]) + r1[k] * bH;
+            g2[k] = ph[k] * (e[2][0] + e[2][1] * d0[k] + e[2][2] * d1[k] + e[2][3] * d2[k]) + r2[k] * bH;
+        }
+        return true;
+    }
+    /// Other orders: the packed point through rk_solve_sample.
+    bool solve_other(int q, int order, bool gradients)
+    {
+        const std::size_t count = m[q];
+        sample.clear();
+        for (std::size_t e = 0; e < count; ++e)
+        {
+            sample.nodes.push_back(static_cast<index_t>(e));
+            sample.phi.push_back(kphi[e]);
+            sample.dphi.emplace_back(kq0[e], kq1[e], kq2[e]);
+            sample.dx.emplace_back(kd0[e], kd1[e], kd2[e]);
+        }
+        if (!rk_solve_sample(sample, a_min, order, gradients, kCoverPivot))
+            return false;
+        real_t* ps = &psi[static_cast<std::size_t>(q) * cap];
+        for (std::size_t e = 0; e < count; ++e)
+        {
+            ps[e] = sample.psi[e];
+            if (gradients)
+                for (int d = 0; d < 3; ++d)
+                    grad[(3 * static_cast<std::size_t>(q) + static_cast<std::size_t>(d)) * cap + e] = sample.grad[e][d];
+        }
         return true;
     }
 };
@@ -362,11 +644,24 @@ FastScratch& fast_scratch()
     return s;
 }
 
+/// The forces of sc.forces added where out(k) puts row entry k's (3 values), for the candidates
+/// that cover a point of the cell (the others get none).
+template <class Out> void scatter_forces(const FastScratch& sc, Out&& out)
+{
+    for (std::size_t c = 0; c < sc.n; ++c)
+        if (sc.cover[c] > 0.0)
+        {
+            real_t* to = out(sc.cand_k[c]);
+            to[0] += sc.fx[c];
+            to[1] += sc.fy[c];
+            to[2] += sc.fz[c];
+        }
+}
+
 /// SD-SNNI's sample points: the face centres of a cell's eight half-size sub-cells, 36 distinct
 /// ones. In cell coordinates (x = x_L + c + sum_i xi_i e_i, xi in [-1, 1]^3) point q = 12 i + 4 a +
 /// 2 j + k lies at xi_i = a - 1 and +-1/2 (j, k: 0 for -1/2) on the two other axes, i + 1 and i + 2
 /// (mod 3): the 24 quarters of the cell's faces (a = 0, 2) and the 12 of its midplanes (a = 1).
-constexpr int kSubPoints = 36;
 Vec3 sub_point_offset(const Cell& cell, int q)
 {
     const int i = q / 12, a = (q / 4) % 3, j = (q / 2) % 2, k = q % 2;
@@ -391,21 +686,24 @@ void halve(Cell& cell, int f)
 }
 
 /// The cell the smoothed gradient is taken on and the functions at its face centres (into
-/// sc.face): the particle's cell, or, where a face centre is not covered (kCoverPivot: a crack
-/// face, a free surface a cell reaches past), the cell halved on that side, toward the particle,
-/// up to four times in all. A half cell is a parallelepiped still, so linear fields stay exact;
-/// the integration weight stays the particle's volume. False: still uncovered (it has separated).
-bool gradient_cell(FastScratch& sc, const Cell& cell, const RkParams& rk, Cell& gcell)
+/// sc's rows 0..5, with their gradients where asked): the particle's cell, or, where a face
+/// centre is not covered (kCoverPivot: a crack face, a free surface a cell reaches past), the
+/// cell halved on that side, toward the particle, up to four times in all. A half cell is a
+/// parallelepiped still, so linear fields stay exact; the integration weight stays the
+/// particle's volume. False: still uncovered (it has separated).
+bool gradient_cell(FastScratch& sc, const Cell& cell, const RkParams& rk, bool gradients, Cell& gcell)
 {
     gcell = cell;
     for (int attempt = 0; attempt <= 4; ++attempt)
     {
+        sc.reset_cover();
         int failed = -1;
         for (int f = 0; f < 6 && failed < 0; ++f)
-            if (!sc.face_functions(f, gcell.c - cell.c + (f % 2 == 0 ? -1.0 : 1.0) * gcell.e[f / 2], rk))
+            if (!sc.functions_at(f, gcell.c - cell.c + (f % 2 == 0 ? -1.0 : 1.0) * gcell.e[f / 2], rk, gradients))
                 failed = f;
         if (failed < 0)
             return true;
+        sc.widen(); // the halved cell's points may reach particles that covered no face centre
         halve(gcell, failed);
     }
     return false;
@@ -992,21 +1290,21 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                [&](index_t L, auto&& out)
                {
                    FastScratch& sc = fast_scratch();
-                   thread_local std::vector<FaceSample> at(kSubPoints);
                    const auto [row, n, gL, xL, cell] = particle_at(L, begin, offsets_, ids_, x, state_.cells);
                    if (separated_at_start(L))
                        return;
-                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_, true);
+                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_, opt_.rk.support,
+                              FastScratch::Reach::WholeCell);
                    // the functions at the 36 points; where one on the cell's surface is not covered, the
                    // cell halved on that side, toward the particle (gradient_cell's rule), up to four times
                    Cell gcell = cell;
                    bool covered = false;
                    for (int attempt = 0; attempt <= 4 && !covered; ++attempt)
                    {
+                       sc.reset_cover();
                        int failed = -1;
                        for (int q = 0; q < kSubPoints && failed < 0; ++q)
-                           if (!sc.functions_at(at[static_cast<std::size_t>(q)], sub_point_offset(gcell, q) - cell.c,
-                                                opt_.rk, false))
+                           if (!sc.functions_at(q, sub_point_offset(gcell, q) - cell.c, opt_.rk, false))
                                failed = q;
                        covered = failed < 0;
                        const int a = (failed / 4) % 3;
@@ -1021,21 +1319,11 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                        return;
                    }
                    // v^h at each point, the largest closing speed of a covering particle
-                   const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
+                   sc.gather_velocities(row, begin, vel);
+                   const real_t closing2 = sc.closing2(Vec3(vel[gL], vel[gL + 1], vel[gL + 2]));
                    Vec3 vh[kSubPoints];
-                   real_t closing2 = 0.0;
                    for (int q = 0; q < kSubPoints; ++q)
-                   {
-                       const FaceSample& fs = at[static_cast<std::size_t>(q)];
-                       vh[q].setZero();
-                       for (std::size_t e = 0; e < fs.k.size(); ++e)
-                       {
-                           const std::size_t g = 3 * static_cast<std::size_t>(begin + row[fs.k[e]]);
-                           const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
-                           vh[q] += fs.psi[e] * v;
-                           closing2 = std::max(closing2, (v - vL).squaredNorm());
-                       }
-                   }
+                       vh[q] = sc.interpolate(q);
                    // each sub-cell's smoothed velocity gradient L_s = (1 / V_s) sum_f v^h(x_f) (x) A_f, and
                    // the particle's, their mean (SNNI on the cell with four points per face)
                    const real_t Vg = gcell.volume(), Vs = Vg / 8.0;
@@ -1062,9 +1350,7 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                        l -= Lg; // the departures
                    real_t sq[6], ss[8][6] = {};
                    stabilization_stresses(L, Ls, 8, u, dt, sq, ss);
-                   Vec3 t[kSubPoints];
-                   for (auto& tq : t)
-                       tq.setZero();
+                   real_t t[kSubPoints][3] = {};
                    for (int sub = 0; sub < 8; ++sub)
                    {
                        real_t T[6];
@@ -1074,19 +1360,13 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                        {
                            const Vec3 af = (0.25 * u.V / Vg) * gcell.area(f);
                            const real_t a[3] = {af[0], af[1], af[2]};
-                           t[sub_face_point(sub, f)] += traction(T, a);
-                       }
-                   }
-                   for (int q = 0; q < kSubPoints; ++q)
-                   {
-                       const FaceSample& fs = at[static_cast<std::size_t>(q)];
-                       for (std::size_t e = 0; e < fs.k.size(); ++e)
-                       {
-                           real_t* to = out(fs.k[e]);
+                           const Vec3 tf = traction(T, a);
                            for (int d = 0; d < 3; ++d)
-                               to[d] += fs.psi[e] * t[q][d];
+                               t[sub_face_point(sub, f)][d] += tf[d];
                        }
                    }
+                   sc.forces(kSubPoints, t, nullptr);
+                   scatter_forces(sc, out);
                });
 }
 
@@ -1103,36 +1383,26 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                    const auto [row, n, gL, xL, cell] = particle_at(L, begin, offsets_, ids_, x, state_.cells);
                    if (separated_at_start(L))
                        return;
-                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_);
-                   Vec3 vh[6];
-                   Mat3 G[6];
-                   real_t closing2 = 0.0; // the largest squared closing speed (one root at the end)
-                   const Vec3 vL(vel[gL], vel[gL + 1], vel[gL + 2]);
-                   Cell gcell = cell;
-                   if (!gradient_cell(sc, cell, opt_.rk, gcell))
+                   sc.collect(cell, xL, row, n, begin, x, radius_, &free_, opt_.rk.support,
+                              FastScratch::Reach::FaceCentres);
+                   // the functions' gradients at the face centres serve the face-gradient term only
+                   Cell gcell;
+                   if (!gradient_cell(sc, cell, opt_.rk, stabilized, gcell))
                    {
                        separate_trial(L); // too few particles cover its cell: it has separated
                        return;
                    }
+                   sc.gather_velocities(row, begin, vel);
+                   const real_t closing2 = sc.closing2(Vec3(vel[gL], vel[gL + 1], vel[gL + 2]));
                    const real_t Vg = gcell.volume();
-                   for (int f = 0; f < 6; ++f)
-                   {
-                       vh[f].setZero();
-                       G[f].setZero();
-                       const FaceSample& fs = sc.face[f];
-                       for (std::size_t e = 0; e < fs.k.size(); ++e)
-                       {
-                           const std::size_t g = 3 * static_cast<std::size_t>(begin + row[fs.k[e]]);
-                           const Vec3 v(vel[g], vel[g + 1], vel[g + 2]);
-                           vh[f] += fs.psi[e] * v;
-                           G[f] += v * fs.grad[e].transpose();
-                           closing2 = std::max(closing2, (v - vL).squaredNorm());
-                       }
-                   }
                    // L = (1 / V) sum_f v^h(x_f) (x) A_f, on the gradient's cell
+                   Mat3 G[6];
                    Mat3 Lg = Mat3::Zero();
                    for (int f = 0; f < 6; ++f)
-                       Lg += vh[f] * gcell.area(f).transpose();
+                   {
+                       Lg += sc.interpolate(f) * gcell.area(f).transpose();
+                       G[f] = stabilized ? sc.velocity_gradient(f) : Mat3::Zero();
+                   }
                    Lg /= Vg;
                    PointUpdate u;
                    if (!update_point(L, Lg, dt, std::sqrt(closing2), u))
@@ -1141,30 +1411,25 @@ void SemiLagrangianForceBlock::points_fast(const NodeSet& nodes, real_t dt)
                        return;
                    }
                    // f_J = V_n (sigma - q 1 - (1/6) sum_f sigma_f) b_J + (V_n / 6) sum_f sigma_f grad Psi_J(x_f),
-                   // with V_n b_J = (V_n / V) sum_f Psi_J(x_f) A_f: scattered face by face
+                   // with V_n b_J = (V_n / V) sum_f Psi_J(x_f) A_f: a traction per face centre, then
+                   // each candidate's force from its functions there
                    for (Mat3& g : G)
                        g -= Lg; // the departures
                    real_t sq[6], sf[6][6] = {};
                    stabilization_stresses(L, G, 6, u, dt, sq, sf);
+                   real_t t[6][3], S[6][6];
                    for (int f = 0; f < 6; ++f)
                    {
                        const Vec3 af = (u.V / Vg) * gcell.area(f);
                        const real_t a[3] = {af[0], af[1], af[2]};
-                       const Vec3 t = traction(sq, a);
-                       const FaceSample& fs = sc.face[f];
-                       for (std::size_t e = 0; e < fs.k.size(); ++e)
-                       {
-                           Vec3 fe = fs.psi[e] * t;
-                           if (stabilized)
-                           {
-                               const real_t gg[3] = {fs.grad[e][0], fs.grad[e][1], fs.grad[e][2]};
-                               fe += (u.V / 6.0) * traction(sf[f], gg);
-                           }
-                           real_t* to = out(fs.k[e]);
-                           for (int d = 0; d < 3; ++d)
-                               to[d] += fe[d];
-                       }
+                       const Vec3 tf = traction(sq, a);
+                       for (int d = 0; d < 3; ++d)
+                           t[f][d] = tf[d];
+                       for (int k = 0; k < 6; ++k)
+                           S[f][k] = (u.V / 6.0) * sf[f][k];
                    }
+                   sc.forces(6, t, stabilized ? S : nullptr);
+                   scatter_forces(sc, out);
                });
 }
 
@@ -1346,25 +1611,13 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
     update_neighbours(xr);
     IntegrationOperator& pts = state_.points;
     IntegrationOperator& stab = state_.stabilization;
-    // per particle the row's particles that cover a face centre: counted, then filled
+    // per particle the row's particles that cover a face centre (the candidates in sc.cover)
     std::vector<index_t> count(n + 1, 0);
     auto faces = [&](index_t L, FastScratch& sc)
     {
         const auto [row, nr, gL, xL, cell] = particle_at(L, begin, offsets_, ids_, xr, state_.cells);
-        sc.collect(cell, xL, row, nr, begin, xr, radius_, nullptr);
-        if (!gradient_cell(sc, cell, opt_.rk, sc.gcell))
-            return false;
-        // the union, in row order: slot per row entry
-        sc.slot.assign(static_cast<std::size_t>(nr), -1);
-        index_t m = 0;
-        for (int f = 0; f < 6; ++f)
-            for (index_t k : sc.face[f].k)
-                sc.slot[static_cast<std::size_t>(k)] = 0;
-        for (index_t k = 0; k < nr; ++k)
-            if (sc.slot[static_cast<std::size_t>(k)] == 0)
-                sc.slot[static_cast<std::size_t>(k)] = m++;
-        sc.n_union = m;
-        return true;
+        sc.collect(cell, xL, row, nr, begin, xr, radius_, nullptr, opt_.rk.support, FastScratch::Reach::FaceCentres);
+        return gradient_cell(sc, cell, opt_.rk, true, sc.gcell);
     };
     // one pass over the particles (each particle's functions formed once): each thread's
     // contiguous range into rows of its own, then joined in particle order, so the tables are
@@ -1391,38 +1644,44 @@ void SemiLagrangianForceBlock::build_reference_tables(const NodeSet& nodes)
         for (index_t L = lo; L < hi; ++L)
         {
             bad_[L] = !faces(L, sc);
-            count[static_cast<std::size_t>(L) + 1] = bad_[L] ? 0 : sc.n_union;
             if (bad_[L])
                 continue;
+            // the union of the faces' functions, in row order
             const index_t* row = &ids_[static_cast<std::size_t>(offsets_[L])];
-            const index_t nr = offsets_[L + 1] - offsets_[L];
-            for (index_t k = 0; k < nr; ++k)
-                if (sc.slot[static_cast<std::size_t>(k)] >= 0) // slots ascend with k
-                    out.nodes.push_back(begin + row[k]);
+            index_t m = 0;
+            for (std::size_t c = 0; c < sc.n; ++c)
+                if (sc.cover[c] > 0.0)
+                {
+                    out.nodes.push_back(begin + row[sc.cand_k[c]]);
+                    sc.slot[c] = m++;
+                }
+            count[static_cast<std::size_t>(L) + 1] = m;
             const Cell& cell = sc.gcell; // the gradient's cell
             const real_t inv_V = 1.0 / cell.volume();
-            const std::size_t g0 = out.grad.size(), m = 3 * static_cast<std::size_t>(sc.n_union);
-            out.grad.resize(g0 + m, 0.0);
+            const std::size_t g0 = out.grad.size(), mm = 3 * static_cast<std::size_t>(m);
+            out.grad.resize(g0 + mm, 0.0);
             real_t* bg = &out.grad[g0];
             for (int f = 0; f < 6; ++f)
             {
                 const Vec3 af = inv_V * cell.area(f);
-                const FaceSample& fs = sc.face[f];
-                for (std::size_t e = 0; e < fs.k.size(); ++e)
+                const index_t* id = sc.covering(f);
+                const real_t* ps = sc.values(f);
+                for (std::size_t e = 0; e < sc.m[f]; ++e)
                     for (int d = 0; d < 3; ++d)
-                        bg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.psi[e] * af[d];
+                        bg[3 * static_cast<std::size_t>(sc.slot[static_cast<std::size_t>(id[e])]) + d] += ps[e] * af[d];
             }
             for (int f = 0; f < 6; ++f)
             {
                 const std::size_t s0 = out.stab_grad.size();
-                out.stab_grad.resize(s0 + m);
+                out.stab_grad.resize(s0 + mm);
                 real_t* sg = &out.stab_grad[s0];
-                for (std::size_t q = 0; q < m; ++q)
+                for (std::size_t q = 0; q < mm; ++q)
                     sg[q] = -out.grad[g0 + q];
-                const FaceSample& fs = sc.face[f];
-                for (std::size_t e = 0; e < fs.k.size(); ++e)
+                const index_t* id = sc.covering(f);
+                for (std::size_t e = 0; e < sc.m[f]; ++e)
                     for (int d = 0; d < 3; ++d)
-                        sg[3 * sc.slot[static_cast<std::size_t>(fs.k[e])] + d] += fs.grad[e][d];
+                        sg[3 * static_cast<std::size_t>(sc.slot[static_cast<std::size_t>(id[e])]) + d] +=
+                            sc.gradients(f, d)[e];
             }
         }
     }

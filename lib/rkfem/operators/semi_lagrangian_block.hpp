@@ -86,9 +86,10 @@ struct SemiLagrangianOptions
     /// kFaceGradientCoefficient)
     real_t stabilization_coefficient = 1.0;
     /// The plain pass (points_plain: the algebra as written above, over each particle's whole
-    /// neighbour row) instead of the fast one (points_fast: the RK functions of each face centre
-    /// from the row's particles that reach the cell, L from the interpolated face velocities, the
-    /// forces scattered face by face); a test holds the fast one to the plain one.
+    /// neighbour row) instead of the fast one (points_fast: the row's particles that cover each
+    /// face centre listed once, the RK functions of each centre formed on flat arrays over its
+    /// list in vector lanes, L from the interpolated face velocities, each particle's force summed
+    /// over the six centres before it is added); a test holds the fast one to the plain one.
     bool plain = false;
     /// 1: the tables are rebuilt every step by the block's own pass. N > 1: Lagrangian RK with a
     /// reference reset every N steps (the digest's section 3.7, LS-DYNA SPG's pseudo-Lagrangian

@@ -58,6 +58,50 @@ template <KernelType K> inline void window_slope(real_t z, real_t& phi, real_t& 
         kernel_1d(K, z, phi, dphi);
 }
 
+/// The kernel of a particle at offset d = x - x_k with 1 / radius inv_a: its value (kernel_3d's,
+/// in the loops' branch-free form; 0 outside the support, and where the truncated Gaussian rounds
+/// to <= 0 at the edge the caller tests phi > 0).
+template <KernelType K, SupportShape S>
+RKFEM_LANE_INLINE real_t window_at(real_t d0, real_t d1, real_t d2, real_t inv_a)
+{
+    if constexpr (S == SupportShape::Box)
+        return window<K>(std::abs(d0) * inv_a) * window<K>(std::abs(d1) * inv_a) * window<K>(std::abs(d2) * inv_a);
+    else
+        return window<K>(std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) * inv_a);
+}
+
+/// window_at and its gradient d phi / dx (kernel_3d's product: phi = p0 p1 p2, grad = (q0 p1 p2,
+/// p0 q1 p2, p0 p1 q2) on a box; phi'(r / a) d / (a r) on a sphere).
+template <KernelType K, SupportShape S>
+RKFEM_LANE_INLINE void window_gradient_at(real_t d0, real_t d1, real_t d2, real_t inv_a, real_t& phi, real_t& g0,
+                                          real_t& g1, real_t& g2)
+{
+    if constexpr (S == SupportShape::Box)
+    {
+        real_t p0, p1, p2, q0, q1, q2;
+        window_slope<K>(std::abs(d0) * inv_a, p0, q0);
+        window_slope<K>(std::abs(d1) * inv_a, p1, q1);
+        window_slope<K>(std::abs(d2) * inv_a, p2, q2);
+        q0 *= d0 < 0 ? -inv_a : inv_a;
+        q1 *= d1 < 0 ? -inv_a : inv_a;
+        q2 *= d2 < 0 ? -inv_a : inv_a;
+        phi = p0 * p1 * p2;
+        g0 = q0 * p1 * p2;
+        g1 = p0 * q1 * p2;
+        g2 = p0 * p1 * q2;
+    }
+    else
+    {
+        const real_t r = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+        real_t q;
+        window_slope<K>(r * inv_a, phi, q);
+        const real_t f = r > 0.0 ? q * inv_a / r : 0.0; // phi'(0) = 0 for every kernel
+        g0 = f * d0;
+        g1 = f * d1;
+        g2 = f * d2;
+    }
+}
+
 /// The order-1 moment sums of one candidate with weight w at offset d: sum w, sum w d_i,
 /// sum w d_i d_j (i <= j), in scalars the candidate loops reduce over (inlined, so the loops
 /// still vectorize).
@@ -150,15 +194,17 @@ class Ldlt4
         }
     }
     /// evaluate's test: every pivot above 1e-12 of the largest in magnitude
-    bool pivots_ok() const
+    bool pivots_ok() const { return pivots_above(1e-12); }
+    /// Every pivot above `ratio` times the largest in magnitude (false on a NaN pivot).
+    bool pivots_above(real_t ratio) const
     {
-        real_t lo = D_[0], big = std::abs(D_[0]);
-        for (int k = 1; k < 4; ++k)
-        {
-            lo = std::min(lo, D_[k]);
-            big = std::max(big, std::abs(D_[k]));
-        }
-        return lo > 1e-12 * big;
+        real_t big = 0.0;
+        for (const real_t d : D_)
+            big = std::max(big, std::abs(d));
+        for (const real_t d : D_)
+            if (!(d > ratio * big))
+                return false;
+        return true;
     }
     RKFEM_SCALAR_CODE Eigen::Vector4d solve(const Eigen::Vector4d& b) const
     {
@@ -236,31 +282,7 @@ template <KernelType K, SupportShape S> void RkRegionValues::slopes(const Vec3& 
         const real_t d0 = x0 - px[k], d1 = x1 - py[k], d2 = x2 - pz[k];
         const real_t inv_a = ia[k];
         real_t phi, g0, g1, g2;
-        if constexpr (S == SupportShape::Box)
-        {
-            // kernel_3d's product: phi = p0 p1 p2, grad = (q0 p1 p2, p0 q1 p2, p0 p1 q2)
-            real_t p0, p1, p2, q0, q1, q2;
-            window_slope<K>(std::abs(d0) * inv_a, p0, q0);
-            window_slope<K>(std::abs(d1) * inv_a, p1, q1);
-            window_slope<K>(std::abs(d2) * inv_a, p2, q2);
-            q0 *= d0 < 0 ? -inv_a : inv_a;
-            q1 *= d1 < 0 ? -inv_a : inv_a;
-            q2 *= d2 < 0 ? -inv_a : inv_a;
-            phi = p0 * p1 * p2;
-            g0 = q0 * p1 * p2;
-            g1 = p0 * q1 * p2;
-            g2 = p0 * p1 * q2;
-        }
-        else
-        {
-            const real_t r = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-            real_t q;
-            window_slope<K>(r * inv_a, phi, q);
-            const real_t f = r > 0.0 ? q * inv_a / r : 0.0; // phi'(0) = 0 for every kernel
-            g0 = f * d0;
-            g1 = f * d1;
-            g2 = f * d2;
-        }
+        window_gradient_at<K, S>(d0, d1, d2, inv_a, phi, g0, g1, g2);
         const bool covers = phi > 0.0;
         phi = covers ? phi : 0.0;
         g0 = covers ? g0 : 0.0;

@@ -188,11 +188,7 @@ template <KernelType K, SupportShape S> void RkRegionValues::windows(const Vec3&
     for (std::size_t k = 0; k < n; ++k)
     {
         const real_t d0 = x0 - px[k], d1 = x1 - py[k], d2 = x2 - pz[k];
-        real_t phi;
-        if constexpr (S == SupportShape::Box)
-            phi = window<K>(std::abs(d0) * ia[k]) * window<K>(std::abs(d1) * ia[k]) * window<K>(std::abs(d2) * ia[k]);
-        else
-            phi = window<K>(std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) * ia[k]);
+        real_t phi = window_at<K, S>(d0, d1, d2, ia[k]);
         const bool covers = phi > 0.0; // the truncated Gaussian can round to <= 0 at the edge
         phi = covers ? phi : 0.0;
         const real_t a = ra[k]; // loaded whether or not it covers: no branch in the loop
