@@ -135,7 +135,8 @@ void BM_CloudForcePass(benchmark::State& state)
     omp_set_num_threads(saved);
 }
 /// The semi-Lagrangian force pass (operators/semi_lagrangian_block.hpp) on the column wave's
-/// lattice (studies/decks/column_wave_rkpm.yaml: 5,025 particles at 200 mm, 10,025 at 400 mm),
+/// lattice (studies/decks/column_wave_rkpm.yaml: 5,025 particles at 200 mm, 10,025 at 400 mm,
+/// 300,025 at 12,000 mm),
 /// with a deforming velocity field: mode 0 rebuilds the tables every pass (the default), mode 1
 /// resets the reference every 10 passes (semi_lagrangian.reset_interval: 10), mode 2 is the
 /// deck's Lagrangian block (SCNI + MSCNI) of the same part for comparison, mode 3 is mode 0
@@ -227,6 +228,12 @@ BENCHMARK(BM_CloudForcePass)
 BENCHMARK(BM_SemiLagrangianPass)
     ->ArgNames({"threads", "length", "mode"})
     ->ArgsProduct({{1, 2}, {200, 400}, {0, 1, 2, 3, 4}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+// the larger size: 300,025 particles (a 12 m column), every step against the Lagrangian block
+BENCHMARK(BM_SemiLagrangianPass)
+    ->ArgNames({"threads", "length", "mode"})
+    ->ArgsProduct({{1, 2}, {12000}, {0, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
