@@ -1,7 +1,9 @@
 #include "rkfem/operators/semi_lagrangian_block.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <sstream>
 
@@ -124,6 +126,17 @@ constexpr real_t kCoverPivot = 1e-3;
 /// SD-SNNI's sample points per cell (sub_point_offset), the most any pass samples.
 constexpr int kSubPoints = 36;
 
+/// SD-SNNI's sample points: the face centres of a cell's eight half-size sub-cells, 36 distinct
+/// ones. In cell coordinates (x = x_L + c + sum_i xi_i e_i, xi in [-1, 1]^3) point q = 12 i + 4 a +
+/// 2 j + k lies at xi_i = a - 1 and +-1/2 (j, k: 0 for -1/2) on the two other axes, i + 1 and i + 2
+/// (mod 3): the 24 quarters of the cell's faces (a = 0, 2) and the 12 of its midplanes (a = 1).
+Vec3 sub_point_offset(const Cell& cell, int q)
+{
+    const int i = q / 12, a = (q / 4) % 3, j = (q / 2) % 2, k = q % 2;
+    return cell.c + static_cast<real_t>(a - 1) * cell.e[i] + (j ? 0.5 : -0.5) * cell.e[(i + 1) % 3] +
+           (k ? 0.5 : -0.5) * cell.e[(i + 2) % 3];
+}
+
 /// Per-thread scratch of the fast passes (kept between steps), in flat arrays. The candidates
 /// are the row's particles (not free ones, where `free` is given) whose supports reach the cell's
 /// sample points (collect). At each sample point q (a face centre, or one of SD-SNNI's 36
@@ -136,13 +149,15 @@ constexpr int kSubPoints = 36;
 struct FastScratch
 {
     /// Which of the row's particles a cell's candidates are: those whose support covers one of
-    /// its six face centres (SNNI's points; in a body's interior 81 of the 125 of FaceBox),
-    /// those that reach the box of its face centres (the cells halved toward the particle,
-    /// gradient_cell, have their points in it), or the box of its corners (SD-SNNI's sub-cell
-    /// face centres lie past the face centres' box on a rotated or sheared cell).
+    /// its sample points (SNNI's six face centres: in a body's interior 81 of the 125 of
+    /// FaceBox; SD-SNNI's 36 points), each point's own listed, or those that reach a box: of its
+    /// face centres (the cells halved toward the particle, gradient_cell, have their points in
+    /// it) or of its corners (SD-SNNI's points lie past the face centres' box on a rotated or
+    /// sheared cell).
     enum class Reach
     {
         FaceCentres,
+        SubCellPoints,
         FaceBox,
         WholeCell,
     };
@@ -157,7 +172,7 @@ struct FastScratch
     // per sample point q, packed (the covering candidates), cap apart
     std::vector<index_t> idx; ///< kSubPoints x cap: the covering candidates
     std::vector<index_t> all; ///< 0, 1, ..., cap - 1 (every candidate)
-    bool listed = false;      ///< idx's rows 0..5 hold the face centres' candidates (collect, FaceCentres)
+    int listed = 0;           ///< idx's first rows hold the listed points' candidates (collect)
     std::vector<real_t> psi;  ///< kSubPoints x cap: Psi
     std::vector<real_t> grad; ///< 18 x cap: grad Psi at the six face centres (3 f + d)
     std::size_t m[kSubPoints] = {};
@@ -166,7 +181,7 @@ struct FastScratch
     std::size_t n = 0, cap = 0; ///< candidates; the arrays' room per point
     // per row entry (collect): the offset from the cell's centre, the support, the points reached
     std::vector<real_t> rx, ry, rz, ra;
-    std::vector<int> rbits;
+    std::vector<std::uint64_t> rbits;
     std::size_t rcap = 0;
     real_t n_cover = 0.0, a_min = 0.0; ///< the last point's covering count and least radius
     RkSample sample;                   ///< orders above 1
@@ -207,13 +222,22 @@ struct FastScratch
             grad.resize(18 * cap);
         }
         const Vec3 xc = xL + cell.c;
+        // the listed points (offsets from the cell's centre) and the box
+        Vec3 points[kSubPoints];
+        int np = 0;
+        if (reach == Reach::FaceCentres)
+            for (; np < 6; ++np)
+                points[np] = (np % 2 == 0 ? -1.0 : 1.0) * cell.e[np / 2];
+        else if (reach == Reach::SubCellPoints)
+            for (; np < kSubPoints; ++np)
+                points[np] = sub_point_offset(cell, np) - cell.c;
+        const bool whole = reach == Reach::WholeCell || reach == Reach::SubCellPoints;
         Vec3 ext = Vec3::Zero();
         for (int i = 0; i < 3; ++i)
-            ext =
-                reach == Reach::WholeCell ? Vec3(ext + cell.e[i].cwiseAbs()) : Vec3(ext.cwiseMax(cell.e[i].cwiseAbs()));
+            ext = whole ? Vec3(ext + cell.e[i].cwiseAbs()) : Vec3(ext.cwiseMax(cell.e[i].cwiseAbs()));
         // in vector lanes over the row: each particle's offset from the cell's centre and the
-        // points it reaches (bit f: face centre f; bit 6: the box of the reach), then the
-        // candidates and each face's list in row order
+        // points it reaches (bit q: point q; bit 63: the box), then the candidates and each
+        // point's list in row order
         if (rcap < static_cast<std::size_t>(nr))
         {
             rcap = static_cast<std::size_t>(nr);
@@ -225,7 +249,8 @@ struct FastScratch
         const real_t* xs = x.data();
         const real_t* rad = radius.data();
         real_t *qx = rx.data(), *qy = ry.data(), *qz = rz.data(), *qa = ra.data();
-        int* bits = rbits.data();
+        std::uint64_t* bits = rbits.data();
+        constexpr std::uint64_t box_bit = std::uint64_t{1} << 63;
         const std::size_t b3 = 3 * static_cast<std::size_t>(begin);
         RKFEM_SIMD()
         for (index_t k = 0; k < nr; ++k)
@@ -237,50 +262,47 @@ struct FastScratch
             qy[k] = p1;
             qz[k] = p2;
             qa[k] = a;
-            bits[k] = std::abs(p0) < a + x0 && std::abs(p1) < a + x1 && std::abs(p2) < a + x2 ? 64 : 0;
+            bits[k] = std::abs(p0) < a + x0 && std::abs(p1) < a + x1 && std::abs(p2) < a + x2 ? box_bit : 0;
         }
-        if (reach == Reach::FaceCentres)
+        // bit q: the support covers point q, as the windows' test
+        for (int q = 0; q < np; ++q)
         {
-            // bit f: the support covers face centre f (x_L + c -+ e_i), as the windows' test
-            for (int f = 0; f < 6; ++f)
+            const real_t e0 = points[q][0], e1 = points[q][1], e2 = points[q][2];
+            const std::uint64_t bit = std::uint64_t{1} << q;
+            if (shape == SupportShape::Box)
             {
-                const Vec3 e = (f % 2 == 0 ? -1.0 : 1.0) * cell.e[f / 2];
-                const real_t e0 = e[0], e1 = e[1], e2 = e[2];
-                const int bit = 1 << f;
-                if (shape == SupportShape::Box)
+                RKFEM_SIMD()
+                for (index_t k = 0; k < nr; ++k)
                 {
-                    RKFEM_SIMD()
-                    for (index_t k = 0; k < nr; ++k)
-                    {
-                        const real_t a = qa[k];
-                        const bool in =
-                            std::abs(qx[k] - e0) < a && std::abs(qy[k] - e1) < a && std::abs(qz[k] - e2) < a;
-                        bits[k] |= in ? bit : 0;
-                    }
+                    const real_t a = qa[k];
+                    const bool in = std::abs(qx[k] - e0) < a && std::abs(qy[k] - e1) < a && std::abs(qz[k] - e2) < a;
+                    bits[k] |= in ? bit : 0;
                 }
-                else
+            }
+            else
+            {
+                RKFEM_SIMD()
+                for (index_t k = 0; k < nr; ++k)
                 {
-                    RKFEM_SIMD()
-                    for (index_t k = 0; k < nr; ++k)
-                    {
-                        const real_t d0 = qx[k] - e0, d1 = qy[k] - e1, d2 = qz[k] - e2, a = qa[k];
-                        bits[k] |= d0 * d0 + d1 * d1 + d2 * d2 < a * a ? bit : 0;
-                    }
+                    const real_t d0 = qx[k] - e0, d1 = qy[k] - e1, d2 = qz[k] - e2, a = qa[k];
+                    bits[k] |= d0 * d0 + d1 * d1 + d2 * d2 < a * a ? bit : 0;
                 }
             }
         }
         std::size_t count = 0;
-        listed = reach == Reach::FaceCentres;
-        std::fill_n(m, 6, 0);
+        listed = np;
+        std::fill_n(m, kSubPoints, 0);
+        const std::uint64_t wanted = np > 0 ? ~box_bit : box_bit;
         for (index_t k = 0; k < nr; ++k)
         {
-            const int b = bits[k];
-            if (b < 64 || (listed && b == 64) || (free != nullptr && (*free)[static_cast<std::size_t>(row[k])]))
+            std::uint64_t b = bits[k] & wanted;
+            if (b == 0 || (free != nullptr && (*free)[static_cast<std::size_t>(row[k])]))
                 continue;
-            if (listed)
-                for (int f = 0; f < 6; ++f)
-                    if (b & (1 << f))
-                        idx[static_cast<std::size_t>(f) * cap + m[f]++] = static_cast<index_t>(count);
+            for (; np > 0 && b != 0; b &= b - 1)
+            {
+                const int q = std::countr_zero(b);
+                idx[static_cast<std::size_t>(q) * cap + m[q]++] = static_cast<index_t>(count);
+            }
             cand_k[count] = k;
             px[count] = qx[k];
             py[count] = qy[k];
@@ -291,14 +313,15 @@ struct FastScratch
         }
         n = count;
     }
-    /// Where the candidates are those covering the face centres, those of the face centres' box
-    /// instead (for a cell halved toward the particle); false where they are already.
+    /// Where the candidates are the listed points', those of the points' box instead (for a cell
+    /// halved toward the particle); false where they are already.
     bool widen()
     {
-        if (reach_ != Reach::FaceCentres)
+        if (listed == 0)
             return false;
         const Collected c = at;
-        collect(c.cell, c.xL, c.row, c.nr, c.begin, *c.x, *c.radius, c.free, c.shape, Reach::FaceBox);
+        collect(c.cell, c.xL, c.row, c.nr, c.begin, *c.x, *c.radius, c.free, c.shape,
+                reach_ == Reach::SubCellPoints ? Reach::WholeCell : Reach::FaceBox);
         return true;
     }
     void reset_cover() { std::fill_n(cover.begin(), n, 0.0); }
@@ -424,9 +447,9 @@ struct FastScratch
     /// where the moment matrix is singular (kCoverPivot).
     bool functions_at(int q, const Vec3& off, const RkParams& rk, bool gradients)
     {
-        // the candidates to look at: the face's own (collect's lists, for the cell's face
-        // centres), or every one
-        const bool own = listed && q < 6;
+        // the candidates to look at: the point's own (collect's lists, for the cell's own
+        // points), or every one
+        const bool own = q < listed;
         const index_t* id = own ? &idx[static_cast<std::size_t>(q) * cap] : all.data();
         const std::size_t len = own ? m[q] : n;
         switch (rk.kernel)
@@ -658,16 +681,6 @@ template <class Out> void scatter_forces(const FastScratch& sc, Out&& out)
         }
 }
 
-/// SD-SNNI's sample points: the face centres of a cell's eight half-size sub-cells, 36 distinct
-/// ones. In cell coordinates (x = x_L + c + sum_i xi_i e_i, xi in [-1, 1]^3) point q = 12 i + 4 a +
-/// 2 j + k lies at xi_i = a - 1 and +-1/2 (j, k: 0 for -1/2) on the two other axes, i + 1 and i + 2
-/// (mod 3): the 24 quarters of the cell's faces (a = 0, 2) and the 12 of its midplanes (a = 1).
-Vec3 sub_point_offset(const Cell& cell, int q)
-{
-    const int i = q / 12, a = (q / 4) % 3, j = (q / 2) % 2, k = q % 2;
-    return cell.c + static_cast<real_t>(a - 1) * cell.e[i] + (j ? 0.5 : -0.5) * cell.e[(i + 1) % 3] +
-           (k ? 0.5 : -0.5) * cell.e[(i + 2) % 3];
-}
 /// Face f (0..5, as Cell::area's) of sub-cell s (bit i of s: the +1/2 half along axis i): its
 /// sample point q and its outward area vector (a quarter of the cell's face f area).
 int sub_face_point(int s, int f)
@@ -1294,7 +1307,7 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                    if (separated_at_start(L))
                        return;
                    sc.collect(cell, xL, row, n, begin, x, radius_, &free_, opt_.rk.support,
-                              FastScratch::Reach::WholeCell);
+                              FastScratch::Reach::SubCellPoints);
                    // the functions at the 36 points; where one on the cell's surface is not covered, the
                    // cell halved on that side, toward the particle (gradient_cell's rule), up to four times
                    Cell gcell = cell;
@@ -1311,7 +1324,10 @@ void SemiLagrangianForceBlock::points_sub_cells(const NodeSet& nodes, real_t dt)
                        if (!covered && a == 1)
                            break; // a midplane point: the cell's own middle is not covered
                        if (!covered)
+                       {
+                           sc.widen(); // the halved cell's points may reach particles no listed point did
                            halve(gcell, 2 * (failed / 12) + a / 2);
+                       }
                    }
                    if (!covered)
                    {
