@@ -136,3 +136,48 @@ TEST(Impact, InterpolatedCraterOfAKnownDamageField)
     EXPECT_EQ(r.crater_depth, c.depth);
     EXPECT_EQ(r.crater_volume, c.volume);
 }
+
+// On a semi-Lagrangian RK target the apparent depth reads the surface node under the point of
+// impact while its particle is in the body, and the nearest surface node on the plane whose
+// particle has not separated once it has left (a fragment is not the crater's floor).
+TEST(Impact, ApparentDepthOnASemiLagrangianTargetSkipsSeparatedParticles)
+{
+    Model m = test::model_from(R"(
+title: RK crater
+time: {end: 1 us}
+parts:
+  target:
+    generator: {type: box, size: [4 mm, 4 mm, 4 mm], divisions: [4, 4, 4]}
+    material: {model: elastic, rho: 2000 kg/m^3, E: 30 GPa, nu: 0.2}
+    formulation: rkpm
+    kinematics: semi-lagrangian
+impact: {target: target, point: [2 mm, 2 mm, 4 mm], direction: [0, 0, -1]}
+)");
+    const ImpactAnalysis impact(m, m.deck().impact);
+    const index_t s = impact.surface_node();
+    EXPECT_EQ(impact.attached_surface_node(m), s);
+    // the node under the point 0.3 mm down, the rest of the surface 0.1 mm
+    std::vector<index_t> plane;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (std::abs(m.nodes.x0[3 * i + 2] - 4e-3) < 1e-12)
+        {
+            plane.push_back(i);
+            m.nodes.u[3 * i + 2] = i == s ? -0.3e-3 : -0.1e-3;
+        }
+    ASSERT_EQ(plane.size(), 25u);
+    EXPECT_NEAR(impact.apparent_depth(m), 0.3e-3, 1e-15);
+    // the particle under the point separates (its committed cell and volume ratio emptied)
+    std::vector<real_t>& ratio = test::sl_block(m).nodal_points()->jacobian;
+    ratio[static_cast<std::size_t>(s)] = 0.0;
+    const index_t next = impact.attached_surface_node(m);
+    ASSERT_GE(next, 0);
+    EXPECT_NE(next, s);
+    const Vec3 r(m.nodes.x0[3 * next] - 2e-3, m.nodes.x0[3 * next + 1] - 2e-3, m.nodes.x0[3 * next + 2] - 4e-3);
+    EXPECT_NEAR(r.norm(), 1e-3, 1e-12); // one of its four neighbours at 1 mm
+    EXPECT_NEAR(impact.apparent_depth(m), 0.1e-3, 1e-15);
+    // the whole surface gone: no depth to read
+    for (const index_t i : plane)
+        ratio[static_cast<std::size_t>(i)] = 0.0;
+    EXPECT_EQ(impact.attached_surface_node(m), -1);
+    EXPECT_EQ(impact.apparent_depth(m), 0.0);
+}

@@ -1,5 +1,7 @@
 #include "rkfem/analysis/impact.hpp"
 
+#include "rkfem/operators/semi_lagrangian_block.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -52,18 +54,18 @@ ImpactAnalysis::ImpactAnalysis(const Model& model, const ImpactSpec& spec) : spe
         hi = hi.cwiseMax(reference(model, i));
     }
     tolerance_ = 1e-6 * (hi - lo).norm();
-    real_t best = kNoLimit;
+    std::vector<std::pair<real_t, index_t>> on_plane;
     for (index_t i = part.node_begin; i < part.node_end; ++i)
     {
         const Vec3 r = reference(model, i) - spec.point;
-        if (std::abs(r.dot(spec.direction)) > tolerance_)
-            continue;
-        if (r.norm() < best)
-        {
-            best = r.norm();
-            surface_node_ = i;
-        }
+        if (std::abs(r.dot(spec.direction)) <= tolerance_)
+            on_plane.emplace_back(r.norm(), i);
     }
+    std::stable_sort(on_plane.begin(), on_plane.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [distance, i] : on_plane)
+        plane_nodes_.push_back(i);
+    if (!plane_nodes_.empty())
+        surface_node_ = plane_nodes_.front();
     if (surface_node_ < 0)
         throw DeckError({spec.loc.where, spec.loc.path + ".point"},
                         "no node of part '" + spec.target +
@@ -71,9 +73,22 @@ ImpactAnalysis::ImpactAnalysis(const Model& model, const ImpactSpec& spec) : spe
                         "expected the point of impact on the target's original surface");
 }
 
+index_t ImpactAnalysis::attached_surface_node(const Model& model) const
+{
+    const SemiLagrangianForceBlock* sl = model.semi_lagrangian_block(target_);
+    if (sl == nullptr)
+        return surface_node_;
+    const PartInfo& part = model.parts[static_cast<std::size_t>(target_)];
+    for (const index_t i : plane_nodes_)
+        if (sl->nodal_points()->jacobian[static_cast<std::size_t>(i - part.node_begin)] != 0.0)
+            return i; // a separated particle's cell (and volume ratio) is empty
+    return -1;
+}
+
 real_t ImpactAnalysis::apparent_depth(const Model& model) const
 {
-    return model.physical(model.nodes.u, surface_node_).dot(spec_.direction);
+    const index_t s = attached_surface_node(model);
+    return s < 0 ? 0.0 : model.physical(model.nodes.u, s).dot(spec_.direction);
 }
 
 real_t ImpactAnalysis::residual_velocity(const Model& model) const

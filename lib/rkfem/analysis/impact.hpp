@@ -3,7 +3,9 @@
 /// What an impact did (deck key impact), in the seed's terms (footnotes 4 and 5 of its Table 3):
 ///   - apparent crater depth: the displacement along the shot line d of the target's surface node
 ///     under the point of impact p (the node of the target's original surface, |(X - p) . d|
-///     within 1e-6 of the part's size, nearest to p);
+///     within 1e-6 of the part's size, nearest to p); on a semi-Lagrangian RK target, of the
+///     nearest such node that has not separated (a particle that left the kernels is a fragment,
+///     not the crater's floor: the measure then moves to its neighbour on the surface);
 ///   - actual crater depth: the depth below the original surface, along d, of the crater once
 ///     material at or above the damage threshold (0.95) is removed. Removed: the target's eroded
 ///     elements and its elements whose mean damage is at or above the threshold. The crater: the
@@ -23,6 +25,8 @@
 ///     remaining elements), the momentum the target carries along d, the target's volume with
 ///     damage above 0.5 and above the threshold (eroded elements included: they failed), and the
 ///     eroded mass.
+#include <vector>
+
 #include "rkfem/core/types.hpp"
 
 namespace rkfem
@@ -64,12 +68,17 @@ class ImpactAnalysis
     /// Everything.
     ImpactMeasures measure(const Model& model) const;
     index_t surface_node() const { return surface_node_; }
+    /// The surface node the apparent depth reads now: surface_node(), or on a semi-Lagrangian
+    /// target the nearest node on the plane through p (in the reference) whose particle has not
+    /// separated (-1: all have).
+    index_t attached_surface_node(const Model& model) const;
 
   private:
     const ImpactSpec& spec_;
     index_t target_ = -1, projectile_ = -1; ///< part (= block) indices
     index_t surface_node_ = -1;
-    real_t tolerance_ = 0.0; ///< on the plane through p
+    std::vector<index_t> plane_nodes_; ///< the target's nodes on the plane through p, nearest to p first
+    real_t tolerance_ = 0.0;           ///< on the plane through p
     /// Element e of the target's block (-1: its eroded elements, index k) with damage at or above
     /// the threshold, or eroded
     bool removed(const Model& model, index_t e) const;

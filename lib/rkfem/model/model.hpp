@@ -87,6 +87,8 @@ class Model final : public ExplicitOperator
     index_t n_blocks() const { return static_cast<index_t>(blocks_.size()); }
     ForceBlock& block(index_t k) { return *blocks_[static_cast<std::size_t>(k)].block; }
     const ForceBlock& block(index_t k) const { return *blocks_[static_cast<std::size_t>(k)].block; }
+    /// The semi-Lagrangian RK block of a part (null: it has none).
+    const SemiLagrangianForceBlock* semi_lagrangian_block(index_t part) const;
     /// The part's nodal block (fem-nodal, rkpm, the nodal side of a coupled part); null for
     /// Gauss-point FE parts.
     NodalBlock* nodal_block(index_t part);
@@ -390,8 +392,6 @@ class Model final : public ExplicitOperator
     void refresh_contact_surfaces();
     /// A kernel contact's bodies: the blocks of the semi-Lagrangian parts it names (DeckError else).
     std::vector<const SemiLagrangianForceBlock*> kernel_contact_bodies(const ContactSpec& c) const;
-    /// The semi-Lagrangian RK block of a part (null: it has none).
-    const SemiLagrangianForceBlock* semi_lagrangian_block(index_t part) const;
     /// The dofs any load can put a force on (ascending): f_ext is zero everywhere else, so the
     /// load pass zeroes and the external work sums only these. f_ext_prev_ is per loaded dof.
     std::vector<index_t> loaded_dofs_;
