@@ -139,12 +139,13 @@ Vec3 sub_point_offset(const Cell& cell, int q)
 
 /// Per-thread scratch of the fast passes (kept between steps), in flat arrays. The candidates
 /// are the row's particles (not free ones, where `free` is given) whose supports reach the cell's
-/// sample points (collect). At each sample point q (a face centre, or one of SD-SNNI's 36
-/// points) the windows of every candidate are formed in one loop in vector lanes, the covering
-/// ones (about 36 of the 81 candidates of a face centre inside a body) packed, and the rest on
-/// the packed arrays: the moment sums (rk_region_detail's, as the set-up's region evaluator
-/// forms them), the 4 x 4 solve, the values (and gradients), and later the point's velocity and
-/// its forces. The plain twin is points_plain's evaluate_at (rk_solve_sample over the covering
+/// sample points, and each point's own list of them (collect: about 56 of a P6 particle's 200
+/// row entries cover a face centre). At each sample point q (a face centre, or one of SD-SNNI's
+/// 36 points) the windows of its listed candidates (every candidate, where the cell was halved)
+/// are formed in one loop in vector lanes, those that do not cover it dropped (pack), and the
+/// rest on the packed arrays: the moment sums (rk_region_detail's, as the set-up's region
+/// evaluator forms them), the 4 x 4 solve, the values (and gradients), and later the point's
+/// velocity and its forces. The plain twin is points_plain's evaluate_at (rk_solve_sample over the covering
 /// particles one by one): the same functions to round-off.
 struct FastScratch
 {
@@ -196,16 +197,15 @@ struct FastScratch
         const std::vector<real_t>* radius;
         const std::vector<char>* free;
         SupportShape shape;
+        Reach reach;
     } at{};
-    Reach reach_ = Reach::FaceBox;
 
     /// The candidates of the cell about xL by `reach`, in row order.
     void collect(const Cell& cell, const Vec3& xL, const index_t* row, index_t nr, index_t begin,
                  const std::vector<real_t>& x, const std::vector<real_t>& radius, const std::vector<char>* free,
                  SupportShape shape, Reach reach)
     {
-        at = {cell, xL, row, nr, begin, &x, &radius, free, shape};
-        reach_ = reach;
+        at = {cell, xL, row, nr, begin, &x, &radius, free, shape, reach};
         if (cap < static_cast<std::size_t>(nr))
         {
             cap = static_cast<std::size_t>(nr);
@@ -321,7 +321,7 @@ struct FastScratch
             return false;
         const Collected c = at;
         collect(c.cell, c.xL, c.row, c.nr, c.begin, *c.x, *c.radius, c.free, c.shape,
-                reach_ == Reach::SubCellPoints ? Reach::WholeCell : Reach::FaceBox);
+                c.reach == Reach::SubCellPoints ? Reach::WholeCell : Reach::FaceBox);
         return true;
     }
     void reset_cover() { std::fill_n(cover.begin(), n, 0.0); }
@@ -416,10 +416,7 @@ struct FastScratch
             const index_t* id = covering(q);
             const real_t* ps = values(q);
             const real_t t0 = t[q][0], t1 = t[q][1], t2 = t[q][2];
-            const real_t* s = S == nullptr ? nullptr : S[q];
-            const real_t *g0 = gradients(q < 6 ? q : 0, 0), *g1 = gradients(q < 6 ? q : 0, 1),
-                         *g2 = gradients(q < 6 ? q : 0, 2);
-            if (s == nullptr)
+            if (S == nullptr)
             {
                 RKFEM_SIMD()
                 for (std::size_t e = 0; e < m[q]; ++e)
@@ -431,6 +428,8 @@ struct FastScratch
                 }
                 continue;
             }
+            const real_t* s = S[q]; // q a face centre
+            const real_t *g0 = gradients(q, 0), *g1 = gradients(q, 1), *g2 = gradients(q, 2);
             RKFEM_SIMD()
             for (std::size_t e = 0; e < m[q]; ++e)
             {
@@ -563,8 +562,8 @@ struct FastScratch
         const real_t s[10] = {s0, s1, s2, s3, s11, s12, s13, s22, s23, s33};
         std::copy(s, s + 10, out);
     }
-    /// Order 1 (RkRegionValues::gradients_linear's algebra): b = M^-1 e_0, db_i = -M^-1 dM_i b,
-    /// Psi_k = phi_k b.H_k, grad_i Psi_k = phi_k (db_i.H_k + b_{1+i} / s) + dphi_ki b.H_k.
+    /// Order 1 (rk_region_detail's algebra, as RkRegionValues::gradients_linear): b = M^-1 e_0,
+    /// Psi_k = phi_k b.H_k, gradients by linear_gradient_coefficients and linear_value_gradient.
     bool solve_linear(int q, bool gradients)
     {
         using namespace rk_region_detail;
@@ -589,32 +588,17 @@ struct FastScratch
                 ps[k] = ph[k] * (c0 + c1 * d0[k] + c2 * d1[k] + c3 * d2[k]);
             return true;
         }
-        const Eigen::Vector4d m0 = M.col(0) * inv_s;
-        const real_t* slopes[3] = {kq0.data(), kq1.data(), kq2.data()};
-        real_t e[3][4];
-        for (int i = 0; i < 3; ++i)
-        {
-            real_t slope_sums[10];
-            moments(count, slopes[i], slope_sums);
-            Eigen::Matrix4d dM = scaled_moments(slope_sums, inv_s);
-            dM.row(1 + i) += m0.transpose();
-            dM.col(1 + i) += m0;
-            const Eigen::Vector4d db = -ldlt.solve(dM * b);
-            e[i][0] = db[0] + b[1 + i] * inv_s;
-            for (int j = 1; j < 4; ++j)
-                e[i][j] = db[j] * inv_s;
-        }
-        const real_t *r0 = slopes[0], *r1 = slopes[1], *r2 = slopes[2];
+        real_t slope_sums[3][10], e[3][4];
+        moments(count, kq0.data(), slope_sums[0]);
+        moments(count, kq1.data(), slope_sums[1]);
+        moments(count, kq2.data(), slope_sums[2]);
+        linear_gradient_coefficients(M, ldlt, b, slope_sums, inv_s, e);
+        const real_t c[4] = {c0, c1, c2, c3};
+        const real_t *r0 = kq0.data(), *r1 = kq1.data(), *r2 = kq2.data();
         real_t *g0 = &grad[(3 * static_cast<std::size_t>(q)) * cap], *g1 = g0 + cap, *g2 = g1 + cap;
         RKFEM_SIMD()
         for (std::size_t k = 0; k < count; ++k)
-        {
-            const real_t bH = c0 + c1 * d0[k] + c2 * d1[k] + c3 * d2[k];
-            ps[k] = ph[k] * bH;
-            g0[k] = ph[k] * (e[0][0] + e[0][1] * d0[k] + e[0][2] * d1[k] + e[0][3] * d2[k]) + r0[k] * bH;
-            g1[k] = ph[k] * (e[1][0] + e[1][1] * d0[k] + e[1][2] * d1[k] + e[1][3] * d2[k]) + r1[k] * bH;
-            g2[k] = ph[k] * (e[2][0] + e[2][1] * d0[k] + e[2][2] * d1[k] + e[2][3] * d2[k]) + r2[k] * bH;
-        }
+            linear_value_gradient(c, e, ph[k], r0[k], r1[k], r2[k], d0[k], d1[k], d2[k], ps[k], g0[k], g1[k], g2[k]);
         return true;
     }
     /// Other orders: the packed point through rk_solve_sample.

@@ -230,6 +230,40 @@ class Ldlt4
     int perm_[4] = {};
 };
 
+/// Order 1's gradient coefficients (RkRegionValues::gradients_linear's algebra): with M's scaled
+/// sums, its factors, b = M^-1 e_0 and the window gradients' sums t_i (add_moments' order),
+/// dM_i = t_i + (e_{1+i} m0^T + m0 e_{1+i}^T) / s (m0 = M e_0: the basis' own derivative),
+/// db_i = -M^-1 dM_i b, and e_i = (db_i0 + b_{1+i} / s, db_i1 / s, db_i2 / s, db_i3 / s), so that
+/// grad_i Psi_k = phi_k (e_i0 + e_i1 d0 + e_i2 d1 + e_i3 d2) + dphi_ki b.H_k (linear_value_gradient).
+inline void linear_gradient_coefficients(const Eigen::Matrix4d& M, const Ldlt4& ldlt, const Eigen::Vector4d& b,
+                                         const real_t (&slope_sums)[3][10], real_t inv_s, real_t (&e)[3][4])
+{
+    const Eigen::Vector4d m0 = M.col(0) * inv_s;
+    for (int i = 0; i < 3; ++i)
+    {
+        Eigen::Matrix4d dM = scaled_moments(slope_sums[i], inv_s);
+        dM.row(1 + i) += m0.transpose();
+        dM.col(1 + i) += m0;
+        const Eigen::Vector4d db = -ldlt.solve(dM * b);
+        e[i][0] = db[0] + b[1 + i] * inv_s; // + b . dH_i / s, constant for order 1
+        for (int j = 1; j < 4; ++j)
+            e[i][j] = db[j] * inv_s;
+    }
+}
+
+/// One candidate's order-1 value and gradient at offset d from its window phi and the window's
+/// gradient q: c = (b_0, b_1 / s, b_2 / s, b_3 / s), e from linear_gradient_coefficients.
+RKFEM_LANE_INLINE void linear_value_gradient(const real_t (&c)[4], const real_t (&e)[3][4], real_t phi, real_t q0,
+                                             real_t q1, real_t q2, real_t d0, real_t d1, real_t d2, real_t& psi,
+                                             real_t& g0, real_t& g1, real_t& g2)
+{
+    const real_t bH = c[0] + c[1] * d0 + c[2] * d1 + c[3] * d2;
+    psi = phi * bH;
+    g0 = phi * (e[0][0] + e[0][1] * d0 + e[0][2] * d1 + e[0][3] * d2) + q0 * bH;
+    g1 = phi * (e[1][0] + e[1][1] * d0 + e[1][2] * d1 + e[1][3] * d2) + q1 * bH;
+    g2 = phi * (e[2][0] + e[2][1] * d0 + e[2][2] * d1 + e[2][3] * d2) + q2 * bH;
+}
+
 /// evaluate's pivot test on an Eigen LDL^T: every pivot above 1e-12 of the largest in magnitude
 template <int m> inline bool pivots_ok(const Eigen::LDLT<Eigen::Matrix<real_t, m, m>>& ldlt)
 {

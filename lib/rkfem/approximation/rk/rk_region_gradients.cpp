@@ -41,36 +41,16 @@ void RkRegionValues::gradients_linear(const Vec3& x)
     const Eigen::Matrix4d M = scaled_moments(sum_, inv_s);
     const Ldlt4 ldlt = factor_moments(rk_, x, n_cover_, M);
     const Eigen::Vector4d b = ldlt.solve(Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
-    const Eigen::Vector4d m0 = M.col(0) * inv_s;
-    Eigen::Vector4d db[3];
-    for (int i = 0; i < 3; ++i)
-    {
-        Eigen::Matrix4d dM = scaled_moments(slope_sum_[i], inv_s);
-        dM.row(1 + i) += m0.transpose();
-        dM.col(1 + i) += m0;
-        db[i] = -ldlt.solve(dM * b);
-    }
-    const real_t c0 = b[0], c1 = b[1] * inv_s, c2 = b[2] * inv_s, c3 = b[3] * inv_s;
+    const real_t c[4] = {b[0], b[1] * inv_s, b[2] * inv_s, b[3] * inv_s};
     real_t e[3][4];
-    for (int i = 0; i < 3; ++i)
-    {
-        e[i][0] = db[i][0] + b[1 + i] * inv_s; // + b . dH_i / s, constant for order 1
-        for (int j = 1; j < 4; ++j)
-            e[i][j] = db[i][j] * inv_s;
-    }
+    linear_gradient_coefficients(M, ldlt, b, slope_sum_, inv_s, e);
     const std::size_t n = ids_.size();
     const real_t *dx = dx_.data(), *dy = dy_.data(), *dz = dz_.data(), *phi = phi_.data();
     const real_t *q0 = dphi_[0].data(), *q1 = dphi_[1].data(), *q2 = dphi_[2].data();
     real_t *psi = psi_.data(), *g0 = grad_[0].data(), *g1 = grad_[1].data(), *g2 = grad_[2].data();
     RKFEM_SIMD()
     for (std::size_t k = 0; k < n; ++k)
-    {
-        const real_t bH = c0 + c1 * dx[k] + c2 * dy[k] + c3 * dz[k];
-        psi[k] = phi[k] * bH;
-        g0[k] = phi[k] * (e[0][0] + e[0][1] * dx[k] + e[0][2] * dy[k] + e[0][3] * dz[k]) + q0[k] * bH;
-        g1[k] = phi[k] * (e[1][0] + e[1][1] * dx[k] + e[1][2] * dy[k] + e[1][3] * dz[k]) + q1[k] * bH;
-        g2[k] = phi[k] * (e[2][0] + e[2][1] * dx[k] + e[2][2] * dy[k] + e[2][3] * dz[k]) + q2[k] * bH;
-    }
+        linear_value_gradient(c, e, phi[k], q0[k], q1[k], q2[k], dx[k], dy[k], dz[k], psi[k], g0[k], g1[k], g2[k]);
 }
 
 /// Order 2: solve_and_fill's sums, one candidate at a time.
