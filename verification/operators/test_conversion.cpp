@@ -22,6 +22,7 @@
 #include <utility>
 
 #include "../support.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/time/central_difference.hpp"
 
@@ -224,6 +225,19 @@ std::pair<real_t, real_t> converting_column(const std::vector<std::string>& over
     EXPECT_EQ(run.converted, convert ? 3 * 3 * 24 : 0);
     return {run.momentum_error, run.energy_error};
 }
+
+/// The column with `overrides` converting in three events keeps its momentum to 1e-12 and balances
+/// within 5 % of the column that never converts.
+void expect_column_conserves(const char* label, const std::vector<std::string>& overrides)
+{
+    const auto [p_conv, e_conv] = converting_column(overrides, true);
+    const auto [p_plain, e_plain] = converting_column(overrides, false);
+    std::printf("%s, 600 steps, 3 conversions: |p - p0| / sum m|v| = %.2e, balance error %.2e (never converted: "
+                "%.2e, %.2e)\n",
+                label, p_conv, e_conv, p_plain, e_plain);
+    EXPECT_LT(p_conv, 1e-12);
+    EXPECT_LT(e_conv, 1.05 * e_plain);
+}
 } // namespace
 
 TEST(ConversionDynamics, FreeColumnConservesMomentumAndEnergyThroughConversions)
@@ -231,13 +245,7 @@ TEST(ConversionDynamics, FreeColumnConservesMomentumAndEnergyThroughConversions)
     // no conditions, no loads: a deforming velocity field; the column converts from the top
     // in three events. Momentum of the unknowns stays what it was; the energy ledger balances as
     // well as in the run that never converts
-    const auto [p_conv, e_conv] = converting_column({}, true);
-    const auto [p_plain, e_plain] = converting_column({}, false);
-    std::printf("free column, 600 steps, 3 conversions: |p - p0| / sum m|v| = %.2e, balance error %.2e "
-                "(never converted: %.2e, %.2e)\n",
-                p_conv, e_conv, p_plain, e_plain);
-    EXPECT_LT(p_conv, 1e-12);
-    EXPECT_LT(e_conv, 1.05 * e_plain);
+    expect_column_conserves("free column", {});
 }
 
 namespace
@@ -803,6 +811,30 @@ real_t side_stress(const Model& m, index_t e, int k)
     return s.block.stress[k * s.block.stress_stride + static_cast<std::size_t>(s.local[e])];
 }
 
+/// Per-element states averaged over node i's elements (their octants are equal), their largest
+/// failed flag, and the node's share of their reference volume (V0 / 8 each).
+struct NodeMean
+{
+    std::array<real_t, 6> stress{};
+    real_t eps = 0.0, failed = 0.0, volume0 = 0.0;
+};
+NodeMean node_mean(const HexBlock& mesh, const std::vector<std::array<real_t, 6>>& s0, const std::vector<real_t>& eps0,
+                   const std::vector<real_t>& failed0, index_t i)
+{
+    NodeMean m;
+    const index_t k0 = mesh.node_elem_offsets[i], k1 = mesh.node_elem_offsets[i + 1];
+    for (index_t k = k0; k < k1; ++k)
+    {
+        const index_t e = mesh.node_elem_slots[k] / 8;
+        for (int c = 0; c < 6; ++c)
+            m.stress[c] += s0[e][c] / static_cast<real_t>(k1 - k0);
+        m.eps += eps0[e] / static_cast<real_t>(k1 - k0);
+        m.failed = std::max(m.failed, failed0[e]);
+        m.volume0 += mesh.volume0[e] / 8.0;
+    }
+    return m;
+}
+
 /// The point of local node i of the part's nodal block
 index_t point_of_node(const NodalBlock& nb, index_t i)
 {
@@ -901,17 +933,9 @@ TEST(ConversionFem1pt, PointsTakeTheVolumeWeightedMeanAndTheLargestDamage)
     std::vector<real_t> eps1(s1.size()), failed1(s1.size());
     for (index_t i = 0; i < m.nodes.size(); ++i)
     {
-        std::array<real_t, 6> mean{};
-        real_t eps = 0.0, failed = 0.0;
-        const index_t k0 = mesh.node_elem_offsets[i], k1 = mesh.node_elem_offsets[i + 1];
-        for (index_t k = k0; k < k1; ++k)
-        {
-            const index_t e = mesh.node_elem_slots[k] / 8;
-            for (int c = 0; c < 6; ++c)
-                mean[c] += s0[e][c] / static_cast<real_t>(k1 - k0);
-            eps += eps0[e] / static_cast<real_t>(k1 - k0);
-            failed = std::max(failed, failed0[e]);
-        }
+        const NodeMean nm = node_mean(mesh, s0, eps0, failed0, i);
+        const std::array<real_t, 6>& mean = nm.stress;
+        const real_t eps = nm.eps, failed = nm.failed;
         const std::size_t p = static_cast<std::size_t>(point_of_node(nb, i));
         for (int c = 0; c < 6; ++c)
         {
@@ -980,14 +1004,7 @@ TEST(ConversionFem1pt, FreeColumnConservesMomentumAndEnergyThroughConversions)
     // under both discretizations' stable steps: the ledger's leapfrog correction of the kinetic
     // energy, -dt^2 / 8 sum m a.a, takes the step it is measured with, so the 5 % smaller stable
     // step of the first RK region alone moves the measured balance by 2.5e-4 (0.9 of that term)
-    const std::vector<std::string> fem_1pt = {"parts.column.formulation=fem-1pt", "time.dt_max=0.12us"};
-    const auto [p_conv, e_conv] = converting_column(fem_1pt, true);
-    const auto [p_plain, e_plain] = converting_column(fem_1pt, false);
-    std::printf("fem-1pt free column, 600 steps, 3 conversions: |p - p0| / sum m|v| = %.2e, balance error %.2e "
-                "(never converted: %.2e, %.2e)\n",
-                p_conv, e_conv, p_plain, e_plain);
-    EXPECT_LT(p_conv, 1e-12);
-    EXPECT_LT(e_conv, 1.05 * e_plain);
+    expect_column_conserves("fem-1pt free column", {"parts.column.formulation=fem-1pt", "time.dt_max=0.12us"});
 }
 
 TEST(ConversionFem1pt, KccHistoryTakesTheVolumeWeightedMeanTheLargestDamageAndKeepsItsCrackBand)
@@ -1027,4 +1044,181 @@ TEST(ConversionFem1pt, KccHistoryTakesTheVolumeWeightedMeanTheLargestDamageAndKe
     EXPECT_EQ(to.kcc_state[1].ev_min, -4e-3);
     EXPECT_EQ(to.kcc_state[1].eps_p, 2e-3);
     EXPECT_EQ(to.kcc_state[1].tension_scale, 5.0);
+}
+
+// fem-1pt parts with kinematics: semi-lagrangian convert into semi-Lagrangian particles
+// (adaptivity/conversion_semi_lagrangian.cpp): the converted elements' octants go to particles at
+// their corners, which share the nodes with the FE elements that stay. Checked: each particle takes
+// the volume-weighted mean of its octants' stress and history and the largest damage, the nodes
+// keep mass and momentum exactly; the cells hold the converted elements' current volume to
+// round-off; under a linear velocity field the particles' stress follows the FE elements' uniform
+// stress (SNNI reproduces linear fields on any parallelepiped) and the internal forces sum to zero;
+// a free column converting in three events keeps its momentum and balances as the one that never
+// converts; the deck's refusals name the key.
+namespace
+{
+const std::vector<std::string> to_sl = {"parts.b.kinematics=semi-lagrangian"};
+
+real_t total_mass(const NodeSet& nodes)
+{
+    real_t s = 0.0;
+    for (real_t x : nodes.mass)
+        s += x;
+    return s;
+}
+} // namespace
+
+TEST(ConversionSemiLagrangian, ParticlesTakeTheVolumeWeightedMeanAndTheLargestDamage)
+{
+    // every element a state of its own (stress, plastic strain, every fifth failed) and the nodes a
+    // velocity: converted whole, each particle holds the mean of its elements' states (their
+    // octants are equal), the largest failed flag, and their reference volume; mass and momentum
+    // stay what they were
+    Model m = test::model_from(box_1pt, to_sl);
+    HexBlock& fe = m.meshes[0];
+    const HexBlock mesh = fe; // the elements before they leave
+    const index_t ne = fe.n_elements();
+    std::vector<std::array<real_t, 6>> s0(static_cast<std::size_t>(ne));
+    std::vector<real_t> eps0(static_cast<std::size_t>(ne)), failed0(static_cast<std::size_t>(ne));
+    for (index_t e = 0; e < ne; ++e)
+    {
+        for (int k = 0; k < 6; ++k)
+            s0[e][k] = fe.stress[k * fe.stress_stride + e] = 1e6 * (k + 1) * std::sin(0.7 * e + k);
+        eps0[e] = fe.plastic.eps_p[e] = 1e-3 * (1 + e % 7);
+        failed0[e] = fe.plastic.failed[e] = e % 5 == 0 ? 1.0 : 0.0;
+    }
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        for (int d = 0; d < 3; ++d)
+            m.nodes.v[3 * i + d] = std::cos(1.3 * i + d);
+    const Vec3 p0 = test::momentum(m.nodes);
+    const real_t mv = test::momentum_scale(m.nodes), mass0 = total_mass(m.nodes);
+    const SemiLagrangianForceBlock& sl = *m.semi_lagrangian_block(0);
+    ASSERT_EQ(sl.active_particles(), 0); // dormant before the first event
+
+    ASSERT_EQ(m.convert_elements(0, std::vector<char>(static_cast<std::size_t>(ne), 1)), ne);
+    EXPECT_EQ(m.meshes[0].n_elements(), 0);
+    EXPECT_EQ(m.rk_element_count(0), ne);
+    const NodalBlock& st = *sl.nodal_points();
+    ASSERT_EQ(sl.active_particles(), m.nodes.size());
+    real_t ds = 0.0, deps = 0.0, smax = 0.0, dv = 0.0;
+    index_t wrong_flags = 0;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+    {
+        const NodeMean nm = node_mean(mesh, s0, eps0, failed0, i);
+        const std::array<real_t, 6>& mean = nm.stress;
+        const real_t eps = nm.eps, failed = nm.failed, v0 = nm.volume0;
+        for (int c = 0; c < 6; ++c)
+        {
+            ds = std::max(ds, std::abs(st.stress[c * st.stress_stride + i] - mean[c]));
+            smax = std::max(smax, std::abs(mean[c]));
+        }
+        deps = std::max(deps, std::abs(st.plastic.eps_p[i] - eps) / eps);
+        wrong_flags += st.plastic.failed[i] != failed;
+        dv = std::max(dv, std::abs(st.points.weight[i] - v0) / v0);
+    }
+    const real_t dp = (test::momentum(m.nodes) - p0).norm() / mv, dm = std::abs(total_mass(m.nodes) - mass0) / mass0;
+    std::printf("fem-1pt box converted whole into semi-Lagrangian particles: stress off the mean %.2e of the largest, "
+                "plastic strain %.2e, %d wrong flags, reference volume %.2e, mass %.2e, momentum %.2e\n",
+                ds / smax, deps, static_cast<int>(wrong_flags), dv, dm, dp);
+    EXPECT_LT(ds / smax, 1e-14);
+    EXPECT_LT(deps, 1e-14);
+    EXPECT_EQ(wrong_flags, 0);
+    EXPECT_LT(dv, 1e-14);
+    EXPECT_EQ(dm, 0.0); // the nodes' masses are not touched
+    EXPECT_EQ(dp, 0.0);
+}
+
+TEST(ConversionSemiLagrangian, LinearFieldKeepsItsUniformStressAndTheCellsHoldTheVolume)
+{
+    // the box under a linear velocity field; after step 3 its upper half converts (48 elements),
+    // after step 6 the next layer too (16: its particles at z = 3 mm take their lower octants and
+    // blend them with what they hold). At each event the cells hold the converted elements'
+    // current volume; every step after, the particles' stress is the FE elements' uniform stress
+    // of the run that never converts, and the internal forces sum to zero
+    const real_t A[3][3] = {{1.0, 0.3, -0.2}, {0.1, -0.5, 0.4}, {0.25, 0.2, 0.7}}; // 1/s
+    const real_t dt = 1e-8;
+    Model plain = test::model_from(box_1pt, to_sl), conv = test::model_from(box_1pt, to_sl);
+    const SemiLagrangianForceBlock& sl = *conv.semi_lagrangian_block(0);
+    real_t dvol = 0.0, ds = 0.0, smax = 0.0, fsum = 0.0;
+    for (int step = 1; step <= 9; ++step)
+    {
+        if (step == 4 || step == 7)
+        {
+            // the converted elements' current volume: those above the cut, in the run that stays FE
+            const real_t cut = step == 4 ? 3e-3 : 2e-3;
+            const std::vector<char> above = elements_above(plain, cut);
+            real_t v_elements = 0.0;
+            for (index_t e = 0; e < plain.meshes[0].n_elements(); ++e)
+                if (above[e])
+                    v_elements += element_volume(plain.meshes[0], plain.nodes, e);
+            ASSERT_EQ(conv.convert_elements(0, elements_above(conv, cut)), step == 4 ? 48 : 16);
+            real_t v_cells = 0.0;
+            for (index_t p = 0; p < sl.n_particles(); ++p)
+                if (!sl.dormant(p))
+                    v_cells += sl.volume(p);
+            dvol = std::max(dvol, std::abs(v_cells - v_elements) / v_elements);
+        }
+        for (Model* m : {&plain, &conv})
+        {
+            test::linear_velocity_step(m->nodes, A, dt);
+            m->compute_forces(step * dt, dt, step);
+            m->commit();
+        }
+        if (step < 4)
+            continue;
+        const HexBlock& ref = plain.meshes[0];
+        const NodalBlock& st = *sl.nodal_points();
+        for (int k = 0; k < 6; ++k)
+        {
+            const real_t uniform = ref.stress[k * ref.stress_stride];
+            smax = std::max(smax, std::abs(uniform));
+            const HexBlock& fe = conv.meshes[0];
+            for (index_t e = 0; e < fe.n_elements(); ++e)
+                ds = std::max(ds, std::abs(fe.stress[k * fe.stress_stride + e] - uniform));
+            for (index_t p = 0; p < sl.n_particles(); ++p)
+                if (!sl.dormant(p))
+                    ds = std::max(ds, std::abs(st.stress[k * st.stress_stride + p] - uniform));
+        }
+        Vec3 f = Vec3::Zero();
+        real_t fmax = 0.0;
+        for (index_t i = 0; i < conv.nodes.size(); ++i)
+            for (int d = 0; d < 3; ++d)
+            {
+                f[d] += conv.nodes.f_int[3 * i + d];
+                fmax = std::max(fmax, std::abs(conv.nodes.f_int[3 * i + d]));
+            }
+        fsum = std::max(fsum, f.norm() / fmax);
+    }
+    std::printf("fem-1pt box, upper half then one more layer into semi-Lagrangian particles: %d active, cells' "
+                "volume off the elements' %.2e, stress off the uniform %.2e of it, sum of internal forces %.2e of "
+                "the largest\n",
+                static_cast<int>(sl.active_particles()), dvol, ds / smax, fsum);
+    EXPECT_EQ(sl.active_particles(), 5 * 5 * 5);
+    EXPECT_LT(dvol, 1e-13);
+    EXPECT_LT(ds / smax, 1e-10);
+    EXPECT_LT(fsum, 1e-12);
+}
+
+TEST(ConversionSemiLagrangian, FreeColumnConservesMomentumAndEnergyThroughConversions)
+{
+    // ConversionFem1pt's free column converting into semi-Lagrangian particles (the flags are per
+    // element of the FE block that is left)
+    expect_column_conserves(
+        "fem-1pt free column into semi-Lagrangian particles",
+        {"parts.column.formulation=fem-1pt", "parts.column.kinematics=semi-lagrangian", "time.dt_max=0.1us"});
+}
+
+TEST(ConversionSemiLagrangian, DeckErrorsNameTheKey)
+{
+    auto error = [](const std::vector<std::string>& sets)
+    {
+        std::vector<std::string> all = to_sl;
+        all.insert(all.end(), sets.begin(), sets.end());
+        return test::model_error(box_1pt, all);
+    };
+    EXPECT_NE(error({"parts.b.conversion.revert={damage: 0.1}"}).find("parts.b.conversion"), std::string::npos);
+    EXPECT_NE(error({"parts.b.semi_lagrangian={reset_interval: 10}"}).find("reset_interval"), std::string::npos);
+    EXPECT_NE(error({"parts.b.formulation=fem-nodal"}).find("parts.b.kinematics"), std::string::npos);
+    EXPECT_NE(error({"parts.b.conversion=~"}).find("parts.b.kinematics"), std::string::npos);
+    EXPECT_EQ(error({}), "");
 }

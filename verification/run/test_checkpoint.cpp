@@ -178,6 +178,18 @@ TEST(Checkpoint, ConvertingFem1ptBarRestartsWithTheSameBits)
                               "5 us");
 }
 
+// The same bar converting into semi-Lagrangian particles: the restart removes the converted
+// elements from the FE block as the run had, then loads the particles' cells, volumes, state and
+// activation as they were saved
+TEST(Checkpoint, ConvertingIntoSemiLagrangianParticlesRestartsWithTheSameBits)
+{
+    expect_restarts_reproduce("conversion_sl", deck_path("concrete_bar_conversion.yaml"),
+                              "--set parts.bar.formulation=fem-1pt --set parts.bar.transition=~ "
+                              "--set parts.bar.kinematics=semi-lagrangian --set parts.bar.generator.element_size=5mm "
+                              "--set time.end=40us --set parts.bar.conversion.interval=3us",
+                              "10 us");
+}
+
 // RK back to FE: a block sheared and back converts at 173 us and reverts at 298 us; restarts
 // from checkpoints before the conversion, while it is RK and after the reversion give the same bits
 TEST(Checkpoint, ConversionAndReversionRestartWithTheSameBits)

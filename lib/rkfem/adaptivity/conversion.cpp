@@ -151,6 +151,13 @@ index_t Model::flip_elements(index_t part, const std::vector<char>& flags, bool 
 
 index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
 {
+    RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), "convert_elements: no part " << part);
+    if (deck_.parts[static_cast<std::size_t>(part)].converts_to_semi_lagrangian())
+    {
+        // the flags are per element of the part's FE block now; the conversion counts its own
+        const index_t n = convert_to_semi_lagrangian(part, convert);
+        return n;
+    }
     const index_t added = flip_elements(part, convert, true, "convert_elements");
     converted_elements_ += added;
     return added;
@@ -236,7 +243,8 @@ void Model::buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<c
     for (int layer = 0; layer < c.buffer; ++layer)
         node_neighbour_layer(
             conn, info.node_begin, info.node_end - info.node_begin, convert, marked,
-            [&](std::size_t e) { return !convert[e] && !rk[e]; }, [&](std::size_t e) { convert[e] = 2; });
+            [&](std::size_t e) { return !convert[e] && (rk.empty() || !rk[e]); },
+            [&](std::size_t e) { convert[e] = 2; });
     // the cap: the triggered ones first, then the buffer's, each in element order
     std::int64_t left = c.max_per_event > 0 ? c.max_per_event : std::numeric_limits<std::int64_t>::max();
     for (const char kind : {char{1}, char{2}})

@@ -80,8 +80,8 @@ index_t ImpactAnalysis::attached_surface_node(const Model& model) const
         return surface_node_;
     const PartInfo& part = model.parts[static_cast<std::size_t>(target_)];
     for (const index_t i : plane_nodes_)
-        if (sl->nodal_points()->jacobian[static_cast<std::size_t>(i - part.node_begin)] != 0.0)
-            return i; // a separated particle's cell (and volume ratio) is empty
+        if (!sl->separated(i - part.node_begin))
+            return i;
     return -1;
 }
 
@@ -121,6 +121,11 @@ real_t ImpactAnalysis::actual_depth(const Model& model) const
     for (index_t e = 0; e < blk.n_elements(); ++e)
         if (removed(model, e))
             cells.push_back(blk.conn.data() + 8 * e);
+    // elements converted into particles: by their particles' damage
+    const Model::ErodedElements& converted = model.converted(target_);
+    for (std::size_t k = 0; k < converted.volume0.size(); ++k)
+        if (model.converted_element_damage(target_, k) >= spec_.damage)
+            cells.push_back(converted.conn.data() + 8 * k);
     if (cells.empty())
         return 0.0;
     // faces shared between removed cells join them; a face on the original surface seeds
@@ -192,6 +197,9 @@ ImpactAnalysis::Crater ImpactAnalysis::crater(const Model& model) const
                blk.volume0[static_cast<std::size_t>(e)]);
     for (std::size_t k = 0; k < gone.volume0.size(); ++k)
         spread(gone.conn.data() + 8 * k, 1.0, gone.volume0[k]);
+    const Model::ErodedElements& converted = model.converted(target_);
+    for (std::size_t k = 0; k < converted.volume0.size(); ++k)
+        spread(converted.conn.data() + 8 * k, model.converted_element_damage(target_, k), converted.volume0[k]);
     std::vector<real_t> dn(static_cast<std::size_t>(nn), 0.0);
     for (std::size_t i = 0; i < dn.size(); ++i)
         dn[i] = weight[i] > 0.0 ? sum[i] / weight[i] : 0.0;
@@ -313,6 +321,13 @@ ImpactMeasures ImpactAnalysis::measure(const Model& model) const
     {
         r.damaged_volume_half += v;
         r.damaged_volume_threshold += v;
+    }
+    const Model::ErodedElements& converted = model.converted(target_);
+    for (std::size_t k = 0; k < converted.volume0.size(); ++k)
+    {
+        const real_t d = model.converted_element_damage(target_, k);
+        r.damaged_volume_half += d > 0.5 ? converted.volume0[k] : 0.0;
+        r.damaged_volume_threshold += d >= spec_.damage ? converted.volume0[k] : 0.0;
     }
     for (index_t b = 0; b < static_cast<index_t>(model.meshes.size()); ++b)
         for (real_t v : model.eroded(b).volume0)

@@ -169,8 +169,12 @@ struct PartSpec
     std::vector<std::string> ignored;
     SourceLocation loc;
 
-    /// FE and RK in one part: RK regions, or conversion that makes them during the run.
-    bool coupled() const { return !regions.empty() || converts(); }
+    /// FE and RK in one part on one nodal block: RK regions, or conversion that makes Lagrangian
+    /// ones during the run.
+    bool coupled() const { return !regions.empty() || (converts() && !semi_lagrangian); }
+    /// A fem-1pt part whose conversion makes semi-Lagrangian particles (an FE block and a block
+    /// of particles, dormant until their elements convert).
+    bool converts_to_semi_lagrangian() const { return converts() && semi_lagrangian; }
 };
 
 struct SetSpec

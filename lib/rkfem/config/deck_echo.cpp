@@ -360,7 +360,7 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
         os << "    kinematics: semi-lagrangian\n    semi_lagrangian: {neighbour_skin: " << p.neighbour_skin
            << ", reset_interval: " << p.reset_interval << ", separation_damage: " << p.separation_damage
            << ", plastic_scaling: " << (p.sl_plastic_scaling ? "true" : "false") << "}\n";
-    if (is_nodal(p.formulation) || p.coupled())
+    if (is_nodal(p.formulation) || p.coupled() || p.semi_lagrangian)
         os << "    nodal_integration: {scheme: " << p.nodal.scheme << ", stabilization: " << p.nodal.stabilization
            << ", stabilization_coefficient: " << p.nodal.stabilization_coefficient
            << ", dt_factor: " << p.nodal.dt_factor << ", facet_points: " << p.nodal.facet_points
@@ -377,7 +377,7 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
     }
     if (p.coupled())
         os << "    transition: " << p.transition << "\n";
-    if (p.formulation == Formulation::Rkpm || p.coupled())
+    if (p.formulation == Formulation::Rkpm || p.coupled() || p.semi_lagrangian)
         os << "    rk: {order: " << p.rk.order << ", kernel: " << p.rk.kernel << ", support: " << p.rk.support
            << ", normalized_support: " << p.rk.normalized_support << ", drop_tolerance: " << p.rk.drop_tolerance
            << ", share_translates: " << (p.rk.share_translates ? "true" : "false") << "}\n";

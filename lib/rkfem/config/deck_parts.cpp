@@ -132,7 +132,8 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
                     "semi-Lagrangian particles are integrated on cells about their current positions (SNNI); " +
                         p.nodal.scheme + " needs cells of the reference configuration",
                     "expected scheme: snni or sd-snni with kinematics: semi-lagrangian");
-        if ((p.nodal.scheme == "snni" || sd) && (p.formulation != Formulation::Rkpm || s.has("regions")))
+        if ((p.nodal.scheme == "snni" || sd) &&
+            ((p.formulation != Formulation::Rkpm && !p.semi_lagrangian) || s.has("regions")))
             ni.fail("scheme", p.nodal.scheme + " integrates RK particles of an rkpm part on their own cells",
                     "expected scheme: scni, sd-scni or dni on a " + f +
                         (s.has("regions") ? " part with regions" : " part"));
@@ -182,9 +183,19 @@ void read_nodal_integration(const Context& ctx, const Section& s, const std::str
 void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
 {
     p.semi_lagrangian = s.choice("kinematics", {"lagrangian", "semi-lagrangian"}, "lagrangian") == "semi-lagrangian";
-    if (p.semi_lagrangian && p.formulation != Formulation::Rkpm)
+    // a converting fem-1pt part's RK regions may be semi-Lagrangian: its converted elements' nodes
+    // become particles with kernels in the current configuration (Model::convert_to_semi_lagrangian)
+    const bool converting = p.formulation == Formulation::Fem1pt && p.converts();
+    if (p.semi_lagrangian && p.formulation != Formulation::Rkpm && !converting)
         s.fail("kinematics", "semi-lagrangian moves the kernels of RK particles with the material",
-               "expected formulation: rkpm with kinematics: semi-lagrangian (or kinematics: lagrangian)");
+               "expected formulation: rkpm with kinematics: semi-lagrangian (or kinematics: lagrangian), or "
+               "formulation: fem-1pt with conversion (its RK regions semi-Lagrangian)");
+    if (p.semi_lagrangian && converting && s.has("regions"))
+        s.fail("regions", "are Lagrangian RK regions, and this converting part's RK regions are semi-Lagrangian",
+               "expected regions or kinematics: semi-lagrangian on a fem-1pt part, not both");
+    if (p.semi_lagrangian && converting && p.conversion.revert.active())
+        s.fail("conversion", "turns semi-Lagrangian particles back into FE elements (revert), which is not built",
+               "expected conversion without revert on a part with kinematics: semi-lagrangian");
     if (!s.has("semi_lagrangian"))
         return;
     if (!p.semi_lagrangian)
@@ -201,6 +212,9 @@ void read_kinematics(const Context& ctx, const Section& s, PartSpec& p)
                 "expected 1 (kernels rebuilt every step) or N > 1 (Lagrangian RK reset to the current configuration "
                 "every N steps)");
     p.reset_interval = static_cast<index_t>(every);
+    if (converting && p.reset_interval > 1)
+        sl.fail("reset_interval", "resets a reference that particles made by conversion do not have",
+                "expected reset_interval: 1 on a converting part");
     p.separation_damage = sl.quantity("separation_damage", dim::none, 0.0);
     if (!(p.separation_damage >= 0.0 && p.separation_damage <= 1.0))
         sl.fail("separation_damage", "is outside [0, 1]",
@@ -249,7 +263,7 @@ void read_regions(const Context& ctx, const Section& s, PartSpec& p)
 /// functions, into p.rk; noted as ignored where the formulation does not use it.
 void read_rk(const Context& ctx, const Section& s, const std::string& f, PartSpec& p)
 {
-    if (p.formulation != Formulation::Rkpm && !p.coupled())
+    if (p.formulation != Formulation::Rkpm && !p.coupled() && !p.semi_lagrangian)
         ignore(p, s, "rk", f);
     Section r(ctx, s.node("rk"), s.path("rk"), "rk");
     p.rk.loc = r.loc();

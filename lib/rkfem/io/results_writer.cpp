@@ -198,14 +198,9 @@ void ResultsWriter::write_mesh(const Model& model)
     // cloud parts: each particle is a vertex cell; with any, the XDMF topology is mixed
     // (XDMF cell codes: 9 hexahedron + 8 ids, 1 polyvertex + count 1 + id)
     mesh.n_cells = model.n_cells();
-    std::vector<index_t> particles;
-    for (index_t ip = 0; ip < static_cast<index_t>(model.parts.size()); ++ip)
-        if (model.is_cloud(ip))
-            for (index_t i = model.parts[ip].node_begin; i < model.parts[ip].node_end; ++i)
-            {
-                particles.push_back(i);
-                part.push_back(ip);
-            }
+    const std::vector<index_t> particles = model.output_particles();
+    for (index_t i : particles)
+        part.push_back(model.nodes.part[i]);
     if (!particles.empty())
     {
         std::vector<index_t> topo;
@@ -305,22 +300,19 @@ void ResultsWriter::write_frame(const Model& model, real_t time)
             delta[c] = model.element_history(static_cast<index_t>(b), e, Model::History::KccDelta);
             zone[c] = model.element_zone(static_cast<index_t>(b), e);
         }
-    for (index_t ip = 0; ip < static_cast<index_t>(model.parts.size()); ++ip)
+    // particles: cloud parts' and those a semi-Lagrangian conversion made (vertex cells)
+    for (index_t i : model.output_particles())
     {
-        if (!model.is_cloud(ip))
-            continue;
-        const NodalBlock& nb = *model.nodal_block(ip);
-        for (index_t i = model.parts[ip].node_begin; i < model.parts[ip].node_end; ++i, ++c)
-        {
-            put_stress(model.nodal_stress(i));
-            volume[c] = 0.0;
-            const index_t l = i - nb.node_begin;
-            for (index_t k = nb.owner_offsets[l]; k < nb.owner_offsets[l + 1]; ++k)
-                volume[c] += nb.points.weight[nb.owner_points[k]] * nb.jacobian[nb.owner_points[k]];
-            eps[c] = model.nodal_history(i, Model::History::PlasticStrain);
-            damage[c] = model.nodal_history(i, Model::History::Damage);
-            delta[c] = model.nodal_history(i, Model::History::KccDelta);
-        }
+        const NodalBlock& nb = *model.particle_points(i);
+        put_stress(model.nodal_stress(i));
+        volume[c] = 0.0;
+        const index_t l = i - nb.node_begin;
+        for (index_t k = nb.owner_offsets[l]; k < nb.owner_offsets[l + 1]; ++k)
+            volume[c] += nb.points.weight[nb.owner_points[k]] * nb.jacobian[nb.owner_points[k]];
+        eps[c] = model.nodal_history(i, Model::History::PlasticStrain);
+        damage[c] = model.nodal_history(i, Model::History::Damage);
+        delta[c] = model.nodal_history(i, Model::History::KccDelta);
+        ++c;
     }
     write_field(g, "stress", stress.data(), n_cells, 6);
     write_field(g, "pressure", pressure.data(), n_cells, 1);

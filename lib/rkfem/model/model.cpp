@@ -161,7 +161,7 @@ void check_mesh(const PartSpec& ps, HexMesh& mesh, std::vector<std::string>& not
     // on a triangle when both its solids repeat the same node of it: tetrahedra are written so
     // (canonical_tetrahedra), and a triangle that still is not (a prism's or a pyramid's against
     // another solid's) is refused
-    if (ps.coupled())
+    if (ps.coupled() || ps.converts_to_semi_lagrangian())
         for (index_t e = 0; e < mesh.n_elements(); ++e)
             if (const int n = distinct_nodes(mesh.conn.data() + 8 * static_cast<std::size_t>(e)); n < 8)
                 throw DeckError({ps.loc.where, ps.loc.path + ".formulation"},
@@ -303,6 +303,9 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
     meshes.push_back(std::move(blk));
     if (integrates) // the Gauss-point part's mesh block is its integration block
         blocks_.push_back({std::make_unique<HexForceBlock>(meshes.back()), static_cast<index_t>(ip), false});
+    // semi-Lagrangian conversion: the particles its elements' octants will go to, dormant now
+    if (ps.converts_to_semi_lagrangian())
+        build_semi_lagrangian_part(ps, ip, mesh, info.node_begin, true);
     parts.push_back(std::move(info));
 }
 
@@ -352,16 +355,20 @@ void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& 
 /// A semi-Lagrangian rkpm part: the Lagrangian build (SCNI, no stabilization) gives the particles'
 /// volumes, masses, step lengths and supports; the block takes them and rebuilds its own tables
 /// in the current configuration every step.
-void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset)
+void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset,
+                                       bool dormant)
 {
     PartSpec lagrangian = ps;
     lagrangian.semi_lagrangian = false;
+    lagrangian.formulation = Formulation::Rkpm;
+    lagrangian.conversion = ElementCriteria{};
     lagrangian.nodal.scheme = "scni";
     lagrangian.nodal.stabilization = "none";
     NodalBlock nb = ps.generator.type == GeneratorSpec::Type::Cloud ? build_cloud_block(lagrangian, mesh, offset)
                                                                     : build_nodal_block(lagrangian, mesh, offset);
     nb.part = static_cast<index_t>(ip);
-    add_nodal_mass(nb, nodes);
+    if (!dormant)
+        add_nodal_mass(nb, nodes);
     RKFEM_REQUIRE(nb.rk, "semi-Lagrangian part '" << ps.name << "': the build kept no RK functions");
     std::vector<real_t> radius(static_cast<std::size_t>(nb.rk->size()));
     real_t a_max = 0.0;
@@ -438,7 +445,9 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     opt.plastic_scaling = ps.sl_plastic_scaling && opt.reset_interval == 1;
     opt.stabilization_coefficient = ps.nodal.stabilization == "none" ? 0.0 : ps.nodal.stabilization_coefficient;
     opt.sub_cells = ps.nodal.scheme == "sd-snni";
-    part_nodal_.back() = static_cast<index_t>(blocks_.size());
+    opt.dormant = dormant;
+    if (!dormant) // a converting part's particles are no nodal block of the part: its FE block integrates it
+        part_nodal_.back() = static_cast<index_t>(blocks_.size());
     blocks_.push_back(
         {std::make_unique<SemiLagrangianForceBlock>(std::move(nb), std::move(radius), std::move(cells), opt),
          static_cast<index_t>(ip), false});
@@ -619,6 +628,7 @@ Model Model::build(const Deck& deck)
     m.reaction_inertia_.assign(m.conditions.size(), 0.0);
     m.contact.resize(m.nodes.size());
     m.eroded_.resize(m.meshes.size());
+    m.converted_.resize(m.meshes.size());
     m.build_contacts();
     m.check_initial_overlaps();
     m.plan_assembly();
@@ -630,6 +640,8 @@ Model Model::build(const Deck& deck)
     for (index_t ip = 0; ip < static_cast<index_t>(m.parts.size()); ++ip)
         if (NodalBlock* nb = m.nodal_block(ip))
             nb->rk.reset();
+        else if (SemiLagrangianForceBlock* sl = m.semi_lagrangian_block(ip))
+            sl->nodal_points()->rk.reset();
     return m;
 }
 } // namespace rkfem

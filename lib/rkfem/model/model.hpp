@@ -89,6 +89,7 @@ class Model final : public ExplicitOperator
     const ForceBlock& block(index_t k) const { return *blocks_[static_cast<std::size_t>(k)].block; }
     /// The semi-Lagrangian RK block of a part (null: it has none).
     const SemiLagrangianForceBlock* semi_lagrangian_block(index_t part) const;
+    SemiLagrangianForceBlock* semi_lagrangian_block(index_t part);
     /// The part's nodal block (fem-nodal, rkpm, the nodal side of a coupled part); null for
     /// Gauss-point FE parts.
     NodalBlock* nodal_block(index_t part);
@@ -222,8 +223,16 @@ class Model final : public ExplicitOperator
     real_t nodal_history(index_t node, History h) const;
     /// Cloud parts (generator type cloud) have no elements: their particles are the output cells.
     bool is_cloud(index_t part) const;
-    /// Output cells: every element, then (per part, in part order) the particles of cloud parts.
+    /// Output cells: every element, then (per part, in part order) the particles of cloud parts
+    /// and the particles a semi-Lagrangian conversion has made (output_particles).
     index_t n_cells() const;
+    /// The nodes written as vertex cells after the elements, in part order: every particle of a
+    /// cloud part, the particles of a converting fem-1pt part that are not dormant (fragments
+    /// included).
+    std::vector<index_t> output_particles() const;
+    /// The stress points that node `node` owns as a particle: its part's nodal block, or the
+    /// conversion's particles once it is one; null for FE nodes.
+    const NodalBlock* particle_points(index_t node) const;
     /// What a step's force pass works through: the elements of Gauss-point FE parts (and of
     /// coupled parts' 1-point FE sides), the stress points of nodal parts (one per particle or
     /// node under SCNI): the count that ns per element-cycle divides by.
@@ -275,7 +284,9 @@ class Model final : public ExplicitOperator
     /// kinematic map, RK constraints and loaded dofs are rebuilt in the reference configuration.
     /// No state moves: every point (one per node, then the MSCNI sub-cells) keeps its stress,
     /// history and weight, the nodes keep mass, u and v, so momentum and the energy ledger carry
-    /// over exactly. Returns how many elements became RK.
+    /// over exactly. Returns how many elements became RK. A fem-1pt part with kinematics:
+    /// semi-lagrangian: the flags are per element of its FE block now, whose flagged elements
+    /// become semi-Lagrangian particles (adaptivity/conversion_semi_lagrangian.cpp).
     index_t convert_elements(index_t part, const std::vector<char>& convert);
     /// Per element of a coupled part: 1 where it is RK (regions, then conversion); empty for
     /// other parts.
@@ -301,6 +312,14 @@ class Model final : public ExplicitOperator
         std::vector<real_t> volume0;
     };
     const ErodedElements& eroded(index_t block) const { return eroded_[static_cast<std::size_t>(block)]; }
+    /// The elements a conversion into semi-Lagrangian particles removed from a block (their
+    /// material lives on in the particles; PartSpec::converts_to_semi_lagrangian).
+    const ErodedElements& converted(index_t block) const { return converted_[static_cast<std::size_t>(block)]; }
+    /// Damage of the k-th element of converted(block): the mean of its nodes' particles'.
+    real_t converted_element_damage(index_t block, std::size_t k) const;
+    /// How many of a converting part's elements are RK now (coupled parts: its RK flags;
+    /// semi-Lagrangian conversion: the elements handed to particles).
+    index_t rk_element_count(index_t part) const;
     /// Incremented by every event that changes the cells (output writes a new mesh).
     int topology_version() const { return topology_version_; }
 
@@ -324,7 +343,10 @@ class Model final : public ExplicitOperator
     // Model::build's steps, in order (model.cpp, model_sets.cpp)
     void build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, index_t& elem_offset);
     void build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset, const HexBlock& blk);
-    void build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset);
+    /// `dormant`: the particles of a fem-1pt part's semi-Lagrangian conversion (no mass of their
+    /// own; the part's FE block holds it).
+    void build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset,
+                                    bool dormant = false);
     FeSide build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb);
     std::vector<index_t> parts_named(const std::string& name) const;
     void build_node_sets();
@@ -365,7 +387,15 @@ class Model final : public ExplicitOperator
     void reversion_flags(index_t part, std::vector<char>& revert) const;
     /// The part's mesh in the reference configuration, local node numbering.
     HexMesh part_mesh(index_t part) const;
-    std::vector<ErodedElements> eroded_; ///< per block
+    /// Conversion into semi-Lagrangian particles (PartSpec::converts_to_semi_lagrangian;
+    /// adaptivity/conversion_semi_lagrangian.cpp): the flagged elements of the part's 1-point
+    /// block hand their octants to the particles at their corners, and leave the block. Returns
+    /// how many converted.
+    index_t convert_to_semi_lagrangian(index_t part, const std::vector<char>& convert);
+    /// The elements of a Gauss-point block with keep[e] == 0 leave it, recorded in `record`.
+    void drop_elements(index_t block, const std::vector<char>& keep, ErodedElements& record);
+    std::vector<ErodedElements> eroded_;    ///< per block
+    std::vector<ErodedElements> converted_; ///< per block (semi-Lagrangian conversion)
     /// The one list of integration blocks (operators/force_block.hpp), in the order of the parts;
     /// plan_assembly() decides which add and which write.
     struct PlannedBlock

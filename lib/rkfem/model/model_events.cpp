@@ -23,7 +23,11 @@ void Model::remove_elements(index_t block, const std::vector<char>& keep)
                                                                  << "' is integrated at its nodes; only Gauss-point "
                                                                     "FE parts lose elements");
     eroded_.resize(meshes.size());
-    ErodedElements& gone = eroded_[static_cast<std::size_t>(block)];
+    drop_elements(block, keep, eroded_[static_cast<std::size_t>(block)]);
+}
+
+void Model::drop_elements(index_t block, const std::vector<char>& keep, ErodedElements& gone)
+{
     const HexBlock& blk = meshes[block];
     for (index_t e = 0; e < blk.n_elements(); ++e)
         if (!keep[static_cast<std::size_t>(e)])
@@ -199,6 +203,7 @@ bool Model::apply_events(real_t t, std::int64_t step)
                     continue;
                 next = (std::floor(t / interval * (1 + kScheduleSlack)) + 1) * interval;
             }
+            // (semi-Lagrangian conversion: the block's elements are all FE, no flags)
             const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(b)];
             std::vector<char>& convert = event_flags_; // scratch kept between steps: no allocation
             convert.assign(static_cast<std::size_t>(ne), 0);
@@ -206,7 +211,7 @@ bool Model::apply_events(real_t t, std::int64_t step)
             const bool any = parallel_for_any("rkfem::conversion_criteria", ne,
                                               [&](index_t e)
                                               {
-                                                  if (rk[e] || !meets(ps.conversion, b, e))
+                                                  if ((!rk.empty() && rk[e]) || !meets(ps.conversion, b, e))
                                                       return false;
                                                   convert[e] = 1;
                                                   return true;

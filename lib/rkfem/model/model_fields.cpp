@@ -1,5 +1,6 @@
 // What output and probes read: physical values, stresses and histories per element and node.
 #include "rkfem/model/model.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 
 #include <algorithm>
 
@@ -71,12 +72,34 @@ real_t Model::element_history(index_t b, index_t e, History h) const
     return s / npe;
 }
 
-real_t Model::nodal_history(index_t node, History h) const
+const NodalBlock* Model::particle_points(index_t node) const
 {
     const index_t ip = nodes.part[node];
-    if (!nodal_block(ip))
+    if (const NodalBlock* nb = nodal_block(ip))
+        return nb;
+    if (!deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian())
+        return nullptr;
+    const SemiLagrangianForceBlock* sl = semi_lagrangian_block(ip);
+    return sl->dormant(node - sl->nodal_points()->node_begin) ? nullptr : sl->nodal_points();
+}
+
+std::vector<index_t> Model::output_particles() const
+{
+    std::vector<index_t> out;
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+        if (is_cloud(ip) || deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian())
+            for (index_t i = parts[ip].node_begin; i < parts[ip].node_end; ++i)
+                if (is_cloud(ip) || particle_points(i))
+                    out.push_back(i);
+    return out;
+}
+
+real_t Model::nodal_history(index_t node, History h) const
+{
+    const NodalBlock* points = particle_points(node);
+    if (!points)
         return 0.0;
-    const NodalBlock& nb = *nodal_block(ip);
+    const NodalBlock& nb = *points;
     if (!nb.plastic.active())
         return 0.0;
     const index_t i = node - nb.node_begin;
@@ -94,11 +117,7 @@ bool Model::is_cloud(index_t part) const
 
 index_t Model::n_cells() const
 {
-    index_t n = n_elements();
-    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
-        if (is_cloud(ip))
-            n += parts[ip].node_end - parts[ip].node_begin;
-    return n;
+    return n_elements() + static_cast<index_t>(output_particles().size());
 }
 
 index_t Model::n_work_items() const
@@ -142,9 +161,9 @@ Sym6 Model::element_stress(index_t b, index_t e) const
 Sym6 Model::nodal_stress(index_t node) const
 {
     const index_t ip = nodes.part[node];
-    if (nodal_block(ip))
+    if (const NodalBlock* points = particle_points(node))
     {
-        const NodalBlock& nb = *nodal_block(ip);
+        const NodalBlock& nb = *points;
         const index_t i = node - nb.node_begin;
         const std::size_t np = nb.stress_stride;
         Sym6 s = Sym6::Zero();

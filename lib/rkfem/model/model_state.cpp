@@ -7,6 +7,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/state_archive.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 
 namespace rkfem
 {
@@ -104,6 +105,25 @@ void Model::save_state(StateArchive& a) const
             a.put(prefix + "reference", nb.reference);
         save_plastic(a, prefix, nb.plastic);
     }
+    // semi-Lagrangian conversion: the particles' state and activation, the elements they took
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+    {
+        if (!deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian())
+            continue;
+        const SemiLagrangianForceBlock& sl = *semi_lagrangian_block(ip);
+        const NodalBlock& nb = *sl.nodal_points();
+        const std::string prefix = "sl_conversion." + std::to_string(ip) + ".";
+        a.put(prefix + "stress", nb.stress);
+        a.put(prefix + "stab_stress", nb.stab_stress);
+        a.put(prefix + "jacobian", nb.jacobian);
+        a.put(prefix + "cells", nb.cells);
+        a.put(prefix + "weight", nb.points.weight);
+        a.put(prefix + "dormant", sl.dormant_flags());
+        a.put(prefix + "width0", sl.widths0());
+        save_plastic(a, prefix, nb.plastic);
+        a.put(prefix + "converted.conn", converted_[static_cast<std::size_t>(ip)].conn);
+        a.put(prefix + "converted.volume0", converted_[static_cast<std::size_t>(ip)].volume0);
+    }
     a.put_value("energy", energy);
     a.put("part_energy", part_energy_);
     a.put("f_ext_prev", f_ext_prev_);
@@ -200,6 +220,30 @@ void Model::load_state(const StateArchive& a)
         if (!nb.reference.empty())
             a.get_same_size(prefix + "reference", nb.reference);
         load_plastic(a, prefix, nb.plastic);
+    }
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+    {
+        if (!deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian())
+            continue;
+        SemiLagrangianForceBlock& sl = *semi_lagrangian_block(ip);
+        NodalBlock& nb = *sl.nodal_points();
+        const std::string prefix = "sl_conversion." + std::to_string(ip) + ".";
+        a.get_same_size(prefix + "stress", nb.stress);
+        nb.stress_trial = nb.stress;
+        a.get_same_size(prefix + "stab_stress", nb.stab_stress);
+        nb.stab_stress_trial = nb.stab_stress;
+        a.get_same_size(prefix + "jacobian", nb.jacobian);
+        a.get_same_size(prefix + "cells", nb.cells);
+        nb.cells_trial = nb.cells;
+        a.get_same_size(prefix + "weight", nb.points.weight);
+        load_plastic(a, prefix, nb.plastic);
+        std::vector<real_t> dormant, width0;
+        a.get(prefix + "dormant", dormant);
+        a.get(prefix + "width0", width0);
+        sl.restore_activation(dormant, width0);
+        ErodedElements& took = converted_[static_cast<std::size_t>(ip)];
+        a.get(prefix + "converted.conn", took.conn);
+        a.get(prefix + "converted.volume0", took.volume0);
     }
     energy = a.value<Energies>("energy");
     a.get("part_energy", part_energy_);

@@ -828,10 +828,16 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
             for (int k = 0; k < 3; ++k)
                 cells[12 * p + 3 + 4 * static_cast<std::size_t>(k)] = 0.5 * std::cbrt(state_.points.weight[p]);
     }
+    RKFEM_REQUIRE(!opt_.dormant || !resets(),
+                  "semi-Lagrangian block: dormant particles (conversion) need tables rebuilt every step");
+    if (opt_.dormant)
+        cells.assign(12 * n, 0.0); // empty until a conversion gives one
     state_.cells = std::move(cells);
     state_.cells_trial = state_.cells;
     state_.jacobian.resize(n);
-    for (std::size_t p = 0; p < n; ++p)
+    if (opt_.dormant)
+        std::fill(state_.jacobian.begin(), state_.jacobian.end(), 0.0);
+    for (std::size_t p = 0; p < n && !opt_.dormant; ++p)
     {
         const real_t V = Cell(&state_.cells[12 * p]).volume();
         RKFEM_REQUIRE(V > 0.0, "semi-Lagrangian block: particle " << p << "'s cell has volume " << V);
@@ -839,9 +845,11 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     }
     volume_trial_ = state_.jacobian;
     v0_ = state_.points.weight;
-    width0_.resize(n);
-    for (std::size_t p = 0; p < n; ++p)
+    width0_.assign(n, 1.0); // dormant: any positive width (a dormant support is its start's)
+    for (std::size_t p = 0; p < n && !opt_.dormant; ++p)
         width0_[p] = Cell(&state_.cells[12 * p]).longest_half_edge();
+    if (opt_.dormant)
+        dormant_.assign(n, 1);
     radius_ = radius0_;
     if (resets())
     {
@@ -861,6 +869,45 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     point_sums_.assign(4 * n, 0.0);
     bad_.assign(n, 0);
     free_.assign(n, 0);
+}
+
+void SemiLagrangianForceBlock::activate(index_t p, const real_t* cell, real_t V0, real_t w0)
+{
+    const std::size_t q = static_cast<std::size_t>(p);
+    RKFEM_REQUIRE(p >= 0 && p < n_particles() && V0 > 0.0 && w0 > 0.0, "semi-Lagrangian activation: particle "
+                                                                           << p << " of " << n_particles() << ", V0 "
+                                                                           << V0 << ", w0 " << w0);
+    const real_t V = Cell(cell).volume();
+    RKFEM_REQUIRE(V > 0.0, "semi-Lagrangian activation: particle " << p << "'s cell has volume " << V);
+    if (dormant(p))
+    {
+        const std::size_t m = static_cast<std::size_t>(subs()), ns = m * static_cast<std::size_t>(n_particles());
+        for (int k = 0; k < 6; ++k)
+            for (std::size_t f = 0; f < m; ++f)
+                state_.stab_stress[k * ns + m * q + f] = state_.stab_stress_trial[k * ns + m * q + f] = 0.0;
+        dormant_[q] = 0;
+    }
+    std::copy_n(cell, 12, &state_.cells[12 * q]);
+    std::copy_n(cell, 12, &state_.cells_trial[12 * q]);
+    state_.points.weight[q] = v0_[q] = V0;
+    state_.jacobian[q] = volume_trial_[q] = V / V0;
+    width0_[q] = w0;
+    radius_built_.clear(); // the next pass builds the lists again
+}
+
+void SemiLagrangianForceBlock::restore_activation(const std::vector<real_t>& dormant, const std::vector<real_t>& w0)
+{
+    const std::size_t n = static_cast<std::size_t>(n_particles());
+    RKFEM_REQUIRE(dormant.size() == n && w0.size() == n, "semi-Lagrangian block: a checkpoint's activation has "
+                                                             << dormant.size() << " flags and " << w0.size()
+                                                             << " widths for " << n << " particles");
+    dormant_.assign(n, 0);
+    for (std::size_t p = 0; p < n; ++p)
+        dormant_[p] = dormant[p] != 0.0;
+    width0_ = w0;
+    v0_ = state_.points.weight;
+    volume_trial_ = state_.jacobian;
+    radius_built_.clear();
 }
 
 Vec3 SemiLagrangianForceBlock::outward_normal(index_t p, const std::vector<real_t>& x) const
@@ -937,6 +984,8 @@ void SemiLagrangianForceBlock::update_neighbours(const std::vector<real_t>& x)
                                                [&](index_t p)
                                                {
                                                    real_t s = 0.0;
+                                                   if (dormant(p))
+                                                       return -s; // in no list
                                                    for (int d = 0; d < 3; ++d)
                                                    {
                                                        const real_t u = x[b + 3 * p + d] - x_built_[3 * p + d];
@@ -972,7 +1021,6 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
     const real_t R = a_max + r_max + skin;
     const bool box = opt_.rk.support == SupportShape::Box;
     // the cell list's 27 bins about a particle hold every particle within R along each axis
-    const CellList cells(x_built_, R);
     auto within = [&](index_t i, index_t j)
     {
         real_t s = 0.0, m = 0.0;
@@ -985,7 +1033,34 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
         const real_t r = std::max(radius_[j] + cell_reach_[i], radius_[i] + cell_reach_[j]) + skin;
         return box ? m < r : s < r * r;
     };
-    build_neighbour_rows(cells, x_built_, np, within, offsets_, ids_);
+    if (dormant_.empty())
+        build_neighbour_rows(CellList(x_built_, R), x_built_, np, within, offsets_, ids_);
+    else
+    {
+        // conversion: rows for the particles that are not dormant, over them alone (in order, so
+        // each row stays ascending); a dormant particle's row is empty
+        std::vector<index_t> on;
+        std::vector<real_t> xa;
+        for (index_t p = 0; p < np; ++p)
+            if (!dormant(p))
+            {
+                on.push_back(p);
+                xa.insert(xa.end(), x_built_.begin() + 3 * p, x_built_.begin() + 3 * p + 3);
+            }
+        std::vector<index_t> off, ids;
+        const CellList active_cells(xa, R);
+        build_neighbour_rows(
+            active_cells, xa, static_cast<index_t>(on.size()),
+            [&](index_t i, index_t j) { return within(on[i], on[j]); }, off, ids);
+        offsets_.assign(static_cast<std::size_t>(np) + 1, 0);
+        for (std::size_t k = 0; k < on.size(); ++k)
+            offsets_[static_cast<std::size_t>(on[k]) + 1] = off[k + 1] - off[k];
+        for (index_t p = 0; p < np; ++p)
+            offsets_[p + 1] += offsets_[p];
+        ids_.resize(ids.size());
+        for (std::size_t k = 0; k < ids.size(); ++k)
+            ids_[k] = on[static_cast<std::size_t>(ids[k])];
+    }
     plan_assembly();
     ++rebuilds_;
 }
@@ -1086,7 +1161,7 @@ std::size_t SemiLagrangianForceBlock::memory_bytes() const
     for (const std::vector<index_t>* v : {&offsets_, &ids_, &transpose_, &b.points.owner, &b.points.offsets,
                                           &b.points.nodes, &scatter_.node_chunk_offsets, &scatter_.node_chunks})
         n += bytes(*v);
-    n += bytes(b.points.grad) + bytes(bad_) + bytes(free_);
+    n += bytes(b.points.grad) + bytes(bad_) + bytes(free_) + bytes(dormant_);
     b.plastic.each_array(
         [&](const auto& committed, const auto& trial)
         {

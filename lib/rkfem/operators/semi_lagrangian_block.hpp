@@ -121,6 +121,11 @@ struct SemiLagrangianOptions
     /// How forces are assembled (plan_assembly): Automatic takes the chunked scatter where the
     /// particles' order is local enough; tests force either.
     Assembly assembly = Assembly::Automatic;
+    /// Conversion into semi-Lagrangian regions (every-step tables only): every particle starts
+    /// dormant, a node of the FE elements around it, outside the kernels and integrating nothing
+    /// (as a separated particle, without counting as one), until activate() gives it a cell and
+    /// the material of the elements' octants it takes over (Model::convert_to_semi_lagrangian).
+    bool dormant = false;
 };
 
 class SemiLagrangianForceBlock final : public ForceBlock
@@ -156,14 +161,39 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// contact, section 3.6; sum_J Psi_J is 1 everywhere). Zero where the gradient vanishes to
     /// round-off (inside a uniform body), for a separated particle, and before the lists exist.
     Vec3 outward_normal(index_t p, const std::vector<real_t>& x) const;
-    /// Particles that have separated (their committed cells are empty).
+    /// Whether particle p has separated (its committed cell is empty and it is not dormant).
+    bool separated(index_t p) const { return state_.jacobian[p] == 0.0 && !dormant(p); }
+    /// Whether particle p is dormant: an FE node not yet converted (SemiLagrangianOptions::dormant).
+    bool dormant(index_t p) const { return !dormant_.empty() && dormant_[static_cast<std::size_t>(p)] != 0; }
+    /// Particles that have separated.
     index_t free_particles() const
     {
         index_t n = 0;
         for (index_t p = 0; p < n_particles(); ++p)
-            n += state_.jacobian[p] == 0.0;
+            n += separated(p);
         return n;
     }
+    /// Particles that take part (neither dormant nor separated).
+    index_t active_particles() const
+    {
+        index_t n = 0;
+        for (index_t p = 0; p < n_particles(); ++p)
+            n += state_.jacobian[p] != 0.0;
+        return n;
+    }
+    /// Conversion: particle p takes the cell `cell` (12 values, its current configuration) over
+    /// the reference volume V0 (its material's, so that its volume ratio is the cell's volume
+    /// over V0) and the width w0 its support's stretch is measured from (the longest half-edge of
+    /// the same cell in the reference configuration). The caller sets its stress and history
+    /// (nodal_points()); its face stresses start at zero where it was dormant. The lists are
+    /// built again at the next pass.
+    void activate(index_t p, const real_t* cell, real_t V0, real_t w0);
+    /// The widths w0 (checkpoints keep them with the state, the dormant flags as 0/1 values).
+    const std::vector<real_t>& widths0() const { return width0_; }
+    std::vector<real_t> dormant_flags() const { return {dormant_.begin(), dormant_.end()}; }
+    /// A checkpoint's activation (after its state is loaded into nodal_points()): the dormant
+    /// flags and widths, the reference volumes from the points' weights.
+    void restore_activation(const std::vector<real_t>& dormant, const std::vector<real_t>& w0);
     std::size_t neighbour_entries() const { return ids_.size(); }
     /// Whether the forces are assembled by the chunked scatter (else the per-pair gather).
     bool scatters() const { return !scatter_.empty(); }
@@ -281,5 +311,6 @@ class SemiLagrangianForceBlock final : public ForceBlock
     std::vector<real_t> point_sums_; ///< per particle: d_int, d_bv, d_stab, dt
     std::vector<char> bad_;          ///< per particle: a bad volume
     std::vector<char> free_;         ///< per particle: separated (its committed cell is empty)
+    std::vector<char> dormant_;      ///< per particle: dormant (SemiLagrangianOptions::dormant); empty: none
 };
 } // namespace rkfem

@@ -87,8 +87,7 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
     for (index_t p = 0; p < static_cast<index_t>(m.parts.size()); ++p)
         if (m.deck().parts[static_cast<std::size_t>(p)].converts())
         {
-            const std::vector<char>& rk = m.rk_elements(p);
-            rows.push_back(static_cast<real_t>(std::count(rk.begin(), rk.end(), 1)));
+            rows.push_back(static_cast<real_t>(m.rk_element_count(p)));
         }
     if (std::any_of(m.deck().parts.begin(), m.deck().parts.end(), [](const PartSpec& p) { return p.converts(); }))
         rows.insert(rows.end(),
