@@ -867,6 +867,8 @@ SemiLagrangianForceBlock::SemiLagrangianForceBlock(NodalBlock state, std::vector
     }
     cell_reach_.assign(n, 0.0);
     point_sums_.assign(4 * n, 0.0);
+    for (std::size_t p = 0; p < n && opt_.dormant; ++p)
+        point_sums_[4 * p + 3] = kNoLimit; // a dormant particle's pass: nothing, no step limit
     bad_.assign(n, 0);
     free_.assign(n, 0);
 }
@@ -1255,7 +1257,8 @@ bool SemiLagrangianForceBlock::separated_at_start(index_t L)
     bad_[L] = 0;
     if (!free_[static_cast<std::size_t>(L)])
         return false;
-    separate_trial(L);
+    if (!dormant(L)) // a dormant particle's trial state is empty from the start
+        separate_trial(L);
     return true;
 }
 
