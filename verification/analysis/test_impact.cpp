@@ -7,6 +7,8 @@
 
 #include "../support.hpp"
 #include "rkfem/analysis/impact.hpp"
+#include "rkfem/analysis/spall.hpp"
+#include "rkfem/run/simulation.hpp"
 
 using namespace rkfem;
 
@@ -77,6 +79,40 @@ TEST(Impact, CraterDepthsDamagedVolumeAndProjectileOfAKnownCrater)
     }
     m.remove_elements(0, keep2);
     EXPECT_NEAR(impact.actual_depth(m), 3e-3, 1e-15);
+}
+
+// The same crater made by conversion into semi-Lagrangian particles instead of erosion: the
+// converted column's particles failed (damage 1), its elements count as removed by their
+// particles' damage, and the measures are the eroded crater's
+TEST(Impact, ElementsConvertedIntoParticlesCountByTheirParticlesDamage)
+{
+    const std::vector<std::string> sl = {"parts.target.erosion=~", "parts.target.conversion={principal_strain: 10}",
+                                         "parts.target.kinematics=semi-lagrangian"};
+    Model eroded = test::model_from(deck), converted = test::model_from(deck, sl);
+    std::vector<char> column(64, 0);
+    for (int iz = 2; iz < 4; ++iz)
+        for (int iy = 1; iy < 3; ++iy)
+            for (int ix = 1; ix < 3; ++ix)
+                column[static_cast<std::size_t>(ix + 4 * iy + 16 * iz)] = 1;
+    std::vector<char> keep(64, 1);
+    for (std::size_t e = 0; e < 64; ++e)
+        keep[e] = !column[e];
+    eroded.remove_elements(0, keep);
+    ASSERT_EQ(converted.convert_elements(0, column), 8);
+    NodalBlock& st = *converted.semi_lagrangian_block(0)->nodal_points();
+    for (index_t p = 0; p < st.n_points(); ++p)
+        st.plastic.failed[static_cast<std::size_t>(p)] = 1.0; // dormant ones hold no element of the column
+    const ImpactMeasures a = ImpactAnalysis(eroded, eroded.deck().impact).measure(eroded),
+                         b = ImpactAnalysis(converted, converted.deck().impact).measure(converted);
+    std::printf("crater by conversion: actual %.4f mm, interpolated %.4f mm, volume %.4f mm^3 (eroded: %.4f, %.4f, "
+                "%.4f), damaged volume %.3f mm^3, eroded mass %.3g g\n",
+                1e3 * b.actual_depth, 1e3 * b.crater_depth, 1e9 * b.crater_volume, 1e3 * a.actual_depth,
+                1e3 * a.crater_depth, 1e9 * a.crater_volume, 1e9 * b.damaged_volume_threshold, 1e3 * b.eroded_mass);
+    EXPECT_NEAR(b.actual_depth, 2e-3, 1e-15);
+    EXPECT_NEAR(b.crater_depth, a.crater_depth, 1e-15);
+    EXPECT_NEAR(b.crater_volume, a.crater_volume, 1e-20);
+    EXPECT_NEAR(b.damaged_volume_threshold, 8e-9, 1e-20);
+    EXPECT_EQ(b.eroded_mass, 0.0); // converted material is not gone
 }
 
 TEST(Impact, DeckErrorsNameTheKey)
@@ -180,4 +216,107 @@ impact: {target: target, point: [2 mm, 2 mm, 4 mm], direction: [0, 0, -1]}
         ratio[static_cast<std::size_t>(i)] = 0.0;
     EXPECT_EQ(impact.attached_surface_node(m), -1);
     EXPECT_EQ(impact.apparent_depth(m), 0.0);
+}
+
+// Spall measures (analysis/spall.hpp). A known crack: a 1 x 1 x 10 mm J2 column (fem-1pt) whose
+// fifth element from the back face (z = 0) has failed, the layer below it moving out of the back
+// face at 3 m/s and the rest at 1 m/s into the part.
+namespace
+{
+const char* spall_column = R"(
+time: {end: 1 us}
+parts:
+  c:
+    generator: {type: box, size: [1 mm, 1 mm, 10 mm], divisions: [1, 1, 10]}
+    material: {model: j2, rho: 2000 kg/m^3, E: 30 GPa, nu: 0.2, sigy: 30 MPa, etan: 1 GPa, fail: 0.5}
+    formulation: fem-1pt
+spall: {part: c, point: [0, 0, 0], direction: [0, 0, 1]}
+)";
+} // namespace
+
+TEST(Spall, ThicknessAndFlyOffVelocityOfAKnownCrack)
+{
+    Model m = test::model_from(spall_column);
+    const SpallAnalysis spall(m, m.deck().spall);
+    ASSERT_EQ(spall.column().size(), 11u);
+    EXPECT_EQ(spall.measure(m).thickness, 0.0); // no crack
+    HexBlock& b = m.meshes[0];
+    index_t cracked = -1;
+    for (index_t e = 0; e < b.n_elements(); ++e)
+    {
+        real_t z = 0.0;
+        for (int a = 0; a < 8; ++a)
+            z += m.nodes.x0[3 * b.conn[8 * e + a] + 2] / 8.0;
+        if (std::abs(z - 4.5e-3) < 1e-9)
+            cracked = e;
+    }
+    ASSERT_GE(cracked, 0);
+    b.plastic.failed[static_cast<std::size_t>(cracked)] = 1.0;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        m.nodes.v[3 * i + 2] = m.nodes.x0[3 * i + 2] < 4.5e-3 ? -3.0 : 1.0;
+    const SpallMeasures r = spall.measure(m);
+    std::printf("spall of a known crack: thickness %.4f mm, fly-off %.3f m/s, back face %.3f m/s\n", 1e3 * r.thickness,
+                r.fly_off_velocity, r.back_face_velocity);
+    EXPECT_NEAR(r.thickness, 4.5e-3, 1e-15); // the cracked element's middle
+    EXPECT_NEAR(r.fly_off_velocity, 3.0, 1e-14);
+    EXPECT_NEAR(r.back_face_velocity, 3.0, 1e-14);
+    // the element eroded: nothing holds the segment, which counts as cracked
+    std::vector<char> keep(static_cast<std::size_t>(b.n_elements()), 1);
+    keep[static_cast<std::size_t>(cracked)] = 0;
+    m.remove_elements(0, keep);
+    EXPECT_NEAR(spall.measure(m).thickness, 4.5e-3, 1e-15);
+    // a point on no line of nodes
+    const Model off = test::model_from(spall_column, {"spall.point=[0.5 mm, 0, 0]"});
+    std::string what;
+    try
+    {
+        SpallAnalysis(off, off.deck().spall);
+    }
+    catch (const DeckError& e)
+    {
+        what = e.what();
+    }
+    EXPECT_NE(what.find("spall.point"), std::string::npos) << what;
+    EXPECT_NE(test::model_error(spall_column, {"spall.part=d"}).find("spall.part"), std::string::npos);
+}
+
+// A rectangular compressive pulse of length L = c0 T (T = 30 us) and amplitude rho c0 v0 = 16.9 MPa,
+// 4.7 times the K&C tensile strength, driven into the top of a 300 mm K&C bar (f'c 40 MPa, crack
+// band regularized, no rate effects): reflected from the free bottom as tension, it first meets
+// the tensile strength at the depth L / 2 = 52.8 mm, and the layer there takes the pulse's
+// momentum and flies off at 2 v0 = 4 m/s, less what the crack's fracture energy takes. The
+// discrete pulse's edges spread over a few elements as it travels (the tension then meets the
+// strength a little before the tail has passed): the crack comes out 4-8 % shallow, and the layer
+// flies off at 82-89 % of 2 v0 (2.5 and 1.25 mm elements).
+TEST(Spall, ARectangularPulseSpallsABarAtHalfItsLength)
+{
+    const std::string bar = R"(
+time: {end: 160 us, stepper: central-difference}
+parts:
+  bar:
+    generator: {type: box, size: [5 mm, 5 mm, 300 mm], divisions: [1, 1, 120]}
+    material: {model: kcc, rho: 2400 kg/m^3, fc: 40 MPa, rate_effects: false, fracture_energy: auto}
+    formulation: fem-1pt
+node_sets:
+  struck: {part: bar, select: {type: named, name: top}}
+boundary_conditions:
+  - {node_set: struck, velocity: {z: {curve: [[0, -2 m/s], [30 us, -2 m/s], [30.001 us, 0]]}}}
+spall: {part: bar, point: [0, 0, 0], direction: [0, 0, 1]}
+)";
+    for (const int n : {120, 240})
+    {
+        Model m = test::model_from(bar, {"parts.bar.generator.divisions=[1, 1, " + std::to_string(n) + "]"});
+        const MaterialSpec& mat = m.deck().parts[0].material;
+        const real_t c0 = std::sqrt(mat.E / mat.rho), half = 0.5 * c0 * 30e-6;
+        RunOptions opt;
+        opt.progress = false;
+        const RunSummary s = run_simulation(m, opt);
+        ASSERT_EQ(s.status, "completed") << s.message;
+        const SpallMeasures r = SpallAnalysis(m, m.deck().spall).measure(m);
+        std::printf("K&C bar, %d elements: spall %.2f mm deep (L / 2 = %.2f mm), fly-off %.3f m/s (2 v0 = 4)\n", n,
+                    1e3 * r.thickness, 1e3 * half, r.fly_off_velocity);
+        EXPECT_NEAR(r.thickness, half, 0.1 * half);
+        EXPECT_GT(r.fly_off_velocity, 0.8 * 4.0);
+        EXPECT_LT(r.fly_off_velocity, 4.0);
+    }
 }

@@ -212,12 +212,14 @@ ImpactAnalysis::Crater ImpactAnalysis::crater(const Model& model) const
         const Vec3 r = x - spec_.point;
         return (r - r.dot(spec_.direction) * spec_.direction).norm();
     };
-    // all cells (live and eroded) and the node-to-cell adjacency through their edges
+    // all cells (live, eroded and converted) and the node-to-cell adjacency through their edges
     std::vector<const index_t*> cells;
     for (index_t e = 0; e < blk.n_elements(); ++e)
         cells.push_back(blk.conn.data() + 8 * e);
     for (std::size_t k = 0; k < gone.volume0.size(); ++k)
         cells.push_back(gone.conn.data() + 8 * k);
+    for (std::size_t k = 0; k < converted.volume0.size(); ++k)
+        cells.push_back(converted.conn.data() + 8 * k);
     static constexpr int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
                                          {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
     std::vector<std::vector<index_t>> node_cells(static_cast<std::size_t>(nn));
@@ -277,9 +279,10 @@ ImpactAnalysis::Crater ImpactAnalysis::crater(const Model& model) const
     {
         if (!touched[c])
             continue;
-        const real_t v = c < static_cast<std::size_t>(blk.n_elements())
-                             ? blk.volume0[c]
-                             : gone.volume0[c - static_cast<std::size_t>(blk.n_elements())];
+        const std::size_t n_live = static_cast<std::size_t>(blk.n_elements()), n_gone = gone.volume0.size();
+        const real_t v = c < n_live            ? blk.volume0[c]
+                         : c < n_live + n_gone ? gone.volume0[c - n_live]
+                                               : converted.volume0[c - n_live - n_gone];
         int hits = 0;
         for (int i = 0; i < 4; ++i)
             for (int j = 0; j < 4; ++j)

@@ -8,19 +8,19 @@
 ///     not the crater's floor: the measure then moves to its neighbour on the surface);
 ///   - actual crater depth: the depth below the original surface, along d, of the crater once
 ///     material at or above the damage threshold (0.95) is removed. Removed: the target's eroded
-///     elements and its elements whose mean damage is at or above the threshold. The crater: the
+///     elements and its elements whose mean damage is at or above the threshold (elements a
+///     conversion handed to semi-Lagrangian particles: the mean of their corner particles'). The crater: the
 ///     removed elements joined by shared faces to one with a face on the original surface (all
 ///     four nodes on the plane through p normal to d). Its depth: the largest (X - p) . d over the
 ///     crater elements' nodes, X their reference positions (where the material was);
 ///   - the crater without the mesh's quantization: damage averaged to the nodes (each node the
 ///     volume-weighted mean over the target elements around it, an eroded element counting as
-///     damage 1) and interpolated trilinearly in each element; the crater is the region where
-///     that field is at or above the threshold, connected through element edges to the
-///     original surface. Its depth: the deepest point, along d, of the crater's nodes and of the
-///     threshold's crossings on element edges that leave them (linear along the edge); its
-///     diameter: twice the largest distance from the shot line of the crater's outline on the
-///     original surface; its volume: the elements touched by it, each sampled at 4 x 4 x 4 points
-///     of the interpolated field (reference positions throughout);
+///     damage 1, a converted one as its particles' mean) and interpolated trilinearly in each element; the crater is
+///     the region where that field is at or above the threshold, connected through element edges to the original
+///     surface. Its depth: the deepest point, along d, of the crater's nodes and of the threshold's crossings on
+///     element edges that leave them (linear along the edge); its diameter: twice the largest distance from the shot
+///     line of the crater's outline on the original surface; its volume: the elements touched by it, each sampled at 4
+///     x 4 x 4 points of the interpolated field (reference positions throughout);
 ///   - the projectile's residual velocity (its momentum along d over its mass) and mass (of its
 ///     remaining elements), the momentum the target carries along d, the target's volume with
 ///     damage above 0.5 and above the threshold (eroded elements included: they failed), and the

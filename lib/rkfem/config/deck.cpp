@@ -254,6 +254,32 @@ void check_set_references(const Deck& deck)
     }
 }
 
+/// The part a section's key names, when it names one (empty: none), is one of the deck's.
+void require_part(const Section& s, const char* key, const std::string& name, const Deck& deck)
+{
+    if (name.empty() ||
+        std::any_of(deck.parts.begin(), deck.parts.end(), [&](const PartSpec& p) { return p.name == name; }))
+        return;
+    std::vector<std::string> names;
+    for (const auto& p : deck.parts)
+        names.push_back(p.name);
+    s.fail(key, "unknown part '" + name + "'", "expected one of " + join(names));
+}
+
+/// A measure's `direction` (unit; `fallback` when not given) and `damage` threshold (0.95 when not
+/// given); `direction_is` and `damage_is` say what each is, for the errors.
+void read_line(const Section& s, const Vec3& fallback, const std::string& direction_is, const std::string& damage_is,
+               Vec3& direction, real_t& damage)
+{
+    direction = s.vec3("direction", dim::none, fallback);
+    if (!(direction.norm() > 0.0))
+        s.fail("direction", "is the zero vector", "expected " + direction_is);
+    direction.normalize();
+    damage = s.quantity("damage", dim::none, 0.95);
+    if (!(damage > 0.0 && damage <= 1.0))
+        s.fail("damage", "is outside (0, 1]", "expected " + damage_is);
+}
+
 /// impact: the target and projectile parts, point, direction and damage, into deck.impact.
 void read_impact(const Context& ctx, const Section& top, Deck& deck)
 {
@@ -265,28 +291,30 @@ void read_impact(const Context& ctx, const Section& top, Deck& deck)
         im.target = s.text("target");
         im.projectile = s.text("projectile", "");
         im.point = s.vec3("point", dim::length);
-        im.direction = s.vec3("direction", dim::none, -Vec3::UnitZ());
-        if (!(im.direction.norm() > 0.0))
-            s.fail("direction", "is the zero vector", "expected the shot line's direction, into the target");
-        im.direction.normalize();
-        im.damage = s.quantity("damage", dim::none, 0.95);
-        if (!(im.damage > 0.0 && im.damage <= 1.0))
-            s.fail("damage", "is outside (0, 1]", "expected the damage at which material counts as gone (0.95)");
-        for (const char* key : {"target", "projectile"})
-        {
-            const std::string name = std::string(key) == "target" ? im.target : im.projectile;
-            if (name.empty() ||
-                std::any_of(deck.parts.begin(), deck.parts.end(), [&](const PartSpec& p) { return p.name == name; }))
-                continue;
-            std::vector<std::string> names;
-            for (const auto& p : deck.parts)
-                names.push_back(p.name);
-            s.fail(key, "unknown part '" + name + "'", "expected one of " + join(names));
-        }
+        read_line(s, -Vec3::UnitZ(), "the shot line's direction, into the target",
+                  "the damage at which material counts as gone (0.95)", im.direction, im.damage);
+        require_part(s, "target", im.target, deck);
+        require_part(s, "projectile", im.projectile, deck);
         if (im.target == im.projectile)
             s.fail("projectile", "is the target", "expected the projectile's part, not the target's");
         im.loc = s.loc();
     }
+}
+
+/// spall: the part, point, direction and damage, into deck.spall.
+void read_spall(const Context& ctx, const Section& top, Deck& deck)
+{
+    if (!top.has("spall"))
+        return;
+    Section s(ctx, top.node("spall"), "spall", "spall");
+    SpallSpec& sp = deck.spall;
+    sp.active = true;
+    sp.part = s.text("part");
+    sp.point = s.vec3("point", dim::length);
+    read_line(s, Vec3::UnitZ(), "the direction into the part from its back face",
+              "the damage at which the material has cracked (0.95)", sp.direction, sp.damage);
+    require_part(s, "part", sp.part, deck);
+    sp.loc = s.loc();
 }
 
 /// probes: the mapping of probe names to points (and parts), into out.
@@ -360,6 +388,7 @@ Deck build(const YAML::Node& root, Context& ctx)
     read_conditions(ctx, root, top, deck);
     check_set_references(deck);
     read_impact(ctx, top, deck);
+    read_spall(ctx, top, deck);
     read_probes(ctx, root, top, deck.probes);
     read_section_planes(ctx, root, top, deck.sections);
     return deck;

@@ -280,6 +280,18 @@ struct ImpactSpec
     SourceLocation loc;
 };
 
+/// Spall measures (deck key spall; analysis/spall.hpp): along a line into a part from a point on
+/// its back face, where the material has cracked through and how fast the layer behind flies off.
+struct SpallSpec
+{
+    bool active = false;
+    std::string part;
+    Vec3 point = Vec3::Zero();      ///< a point of the back face (reference)
+    Vec3 direction = Vec3::UnitZ(); ///< into the part, normal to the back face (unit)
+    real_t damage = 0.95;           ///< the crack: nodal damage at or above this
+    SourceLocation loc;
+};
+
 struct Deck
 {
     std::string path;
@@ -295,6 +307,7 @@ struct Deck
     std::vector<SectionSpec> sections;
     std::vector<ContactSpec> contacts;
     ImpactSpec impact;
+    SpallSpec spall;
     SourceLocation time_loc;
 };
 

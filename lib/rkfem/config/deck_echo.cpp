@@ -539,6 +539,14 @@ void write_contacts(std::ostringstream& os, const std::vector<ContactSpec>& cont
     }
 }
 
+/// Writes the spall line, when the deck has one.
+void write_spall(std::ostringstream& os, const SpallSpec& spall)
+{
+    if (spall.active)
+        os << "spall: {part: " << scalar(spall.part) << ", point: " << vec(spall.point)
+           << ", direction: " << vec(spall.direction) << ", damage: " << spall.damage << "}\n";
+}
+
 /// Writes the impact line, when the deck has an impact.
 void write_impact(std::ostringstream& os, const ImpactSpec& impact)
 {
@@ -599,6 +607,7 @@ std::string to_yaml(const Deck& d, int digits)
     write_loads(os, d.loads);
     write_contacts(os, d.contacts);
     write_impact(os, d.impact);
+    write_spall(os, d.spall);
     write_probes(os, d.probes);
     write_sections(os, d.sections);
     return os.str();

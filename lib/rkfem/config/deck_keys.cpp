@@ -158,7 +158,8 @@ std::vector<SectionDoc> build_table()
           list_of(KeyKind::List, "contacts", "type",
                   {"contact.surface-to-surface", "contact.single-surface", "contact.rigid-wall", "contact.kernel"},
                   "Contact definitions."),
-          section("impact", "impact", "A projectile impact's target, shot line and crater measures.")}});
+          section("impact", "impact", "A projectile impact's target, shot line and crater measures."),
+          section("spall", "spall", "A back face's spall measures: crack depth and fly-off velocity.")}});
     t.push_back(
         {"time",
          "time",
@@ -669,6 +670,14 @@ std::vector<SectionDoc> build_table()
                   required(vec3("point", dim::length, "", "The point of impact on the target's surface.")),
                   vec3("direction", dim::none, "[0, 0, -1]", "The shot line's direction, into the target."),
                   quantity("damage", dim::none, "0.95", "The damage at which material counts as gone.")}});
+    t.push_back({"spall",
+                 "spall",
+                 "Spall at a back face: along a line into the part, the depth where the material first cracked "
+                 "through and the velocity of the layer behind it (history.csv and summary.json).",
+                 {required(text("part", "", "The part.")),
+                  required(vec3("point", dim::length, "", "A point of the back face (reference).")),
+                  vec3("direction", dim::none, "[0, 0, 1]", "Into the part, normal to the back face."),
+                  quantity("damage", dim::none, "0.95", "The nodal damage at which the material has cracked.")}});
     // --- the material-point deck ---
     t.push_back(
         {"material-point",

@@ -104,7 +104,7 @@ std::string flow(const YAML::Node& n)
 
 /// The rkfem settings no keyword carries, as `$rkfem: KEY.PATH: VALUE` comment lines: LS-DYNA skips
 /// them, the import puts each back where it was (the RK and nodal-integration settings of RK parts,
-/// the stepper, outputs, probes, sections, impact measures), so the round trip keeps them.
+/// the stepper, outputs, probes, sections, impact and spall measures), so the round trip keeps them.
 std::string Exporter::carried() const
 {
     const YAML::Node r = YAML::Load(to_yaml(d_, 17)); // 17 digits: the same doubles read back
@@ -133,7 +133,7 @@ std::string Exporter::carried() const
             os << "$rkfem: time." << key << ": " << flow(time[key]) << "\n";
     if (t.stepper == StepperKind::ArkodeErk)
         os << "$rkfem: time.erk_table: " << flow(time["erk_table"]) << "\n";
-    for (const char* key : {"output", "probes", "sections", "impact"})
+    for (const char* key : {"output", "probes", "sections", "impact", "spall"})
         if (r[key])
             os << "$rkfem: " << key << ": " << flow(r[key]) << "\n";
     if (carry_conditions_)

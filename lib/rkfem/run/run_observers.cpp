@@ -57,9 +57,10 @@ real_t load_value(const LoadSpec& l, real_t t)
     return std::sqrt(f2);
 }
 
-/// impact: the analysis, with the actual depth as last computed (at field outputs)
+/// impact: the analysis, with the actual depth as last computed (at field outputs); spall: its
+/// analysis (a column of nodes: every row)
 void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, const ImpactAnalysis* impact,
-                real_t actual_depth)
+                real_t actual_depth, const SpallAnalysis* spall)
 {
     const Energies& e = m.energy;
     rows.insert(rows.end(),
@@ -67,6 +68,11 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
                  e.eroded, e.total(), e.balance_error(), e.hourglass_ratio(), e.hourglass_to_total()});
     if (impact)
         rows.insert(rows.end(), {impact->apparent_depth(m), actual_depth, impact->residual_velocity(m)});
+    if (spall)
+    {
+        const SpallMeasures s = spall->measure(m);
+        rows.insert(rows.end(), {s.thickness, s.fly_off_velocity, s.back_face_velocity});
+    }
     thread_local std::vector<Vec3> reactions; // kept between rows: no allocation per row
     m.reactions(reactions);
     for (const Vec3& r : reactions)
@@ -111,6 +117,8 @@ std::vector<std::string> history_columns(const Model& m)
         "external_work", "contact", "eroded",  "total",    "balance_error", "hourglass_ratio", "hourglass_to_total"};
     if (m.deck().impact.active)
         c.insert(c.end(), {"apparent_depth", "actual_depth", "residual_velocity"});
+    if (m.deck().spall.active)
+        c.insert(c.end(), {"spall_thickness", "spall_velocity", "back_face_velocity"});
     std::vector<std::string> sets;
     for (const auto& b : m.deck().boundary_conditions)
         sets.push_back(b.node_set);
@@ -229,6 +237,8 @@ RunRecord::RunRecord(const Model& model, const RunOptions& opt, RunSummary& sum)
         flush_rows(0); // the rows before the checkpoint, as the run wrote them
     if (model.deck().impact.active)
         impact_ = std::make_unique<ImpactAnalysis>(model, model.deck().impact);
+    if (model.deck().spall.active)
+        spall_ = std::make_unique<SpallAnalysis>(model, model.deck().spall);
 }
 
 void RunRecord::flush_rows(std::size_t first)
@@ -270,7 +280,7 @@ void RunRecord::observe(const Model& model, const LoopState& loop, bool final)
             [&]
             {
                 const std::size_t first = sum_.history.size() / sum_.history_columns.size();
-                append_row(model, t, loop.dt_last, sum_.history, impact_.get(), actual_depth_);
+                append_row(model, t, loop.dt_last, sum_.history, impact_.get(), actual_depth_, spall_.get());
                 flush_rows(first);
                 if (history_interval_ > 0)
                     advance_past(next_history_, t, history_interval_);
@@ -332,6 +342,11 @@ void RunRecord::finish(const Model& model, const RunOptions& opt)
     {
         sum_.has_impact = true;
         sum_.impact = impact_->measure(model);
+    }
+    if (spall_)
+    {
+        sum_.has_spall = true;
+        sum_.spall = spall_->measure(model);
     }
     if (csv_.is_open())
     {

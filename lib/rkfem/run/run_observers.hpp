@@ -71,6 +71,7 @@ class RunRecord
     std::unique_ptr<ResultsWriter> writer_;
     std::ofstream csv_;
     std::unique_ptr<ImpactAnalysis> impact_;
+    std::unique_ptr<SpallAnalysis> spall_;
     real_t actual_depth_ = 0.0; ///< the crater's, at the last frame
     real_t next_output_ = 0.0, next_history_ = 0.0;
     real_t output_interval_ = 0.0, history_interval_ = 0.0, end_ = 0.0;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "rkfem/analysis/impact.hpp"
+#include "rkfem/analysis/spall.hpp"
 #include "rkfem/model/model.hpp"
 #include "rkfem/run/thread_governor.hpp"
 
@@ -89,6 +90,8 @@ struct RunSummary
     std::int64_t steps_on_one_thread = 0; ///< steps run on one thread while more were allowed
     bool has_impact = false;              ///< the deck has an impact key
     ImpactMeasures impact;                ///< at the end
+    bool has_spall = false;               ///< the deck has a spall key
+    SpallMeasures spall;                  ///< at the end
     std::vector<std::string> history_columns;
     std::vector<real_t> history; ///< rows x columns, row-major
 };

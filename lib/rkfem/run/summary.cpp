@@ -216,6 +216,10 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
           << ", \"damaged_volume_threshold\": " << num(im.damaged_volume_threshold)
           << ", \"eroded_mass\": " << num(im.eroded_mass) << "},\n";
     }
+    if (s.has_spall)
+        o << "  \"spall\": {\"thickness\": " << num(s.spall.thickness)
+          << ", \"fly_off_velocity\": " << num(s.spall.fly_off_velocity)
+          << ", \"back_face_velocity\": " << num(s.spall.back_face_velocity) << "},\n";
     // each part's extent at the end (its nodes' current positions; nodes of eroded elements
     // included): a Taylor bar's final length and foot
     o << "  \"parts\": {";
