@@ -22,6 +22,7 @@
 #include <utility>
 
 #include "../support.hpp"
+#include "rkfem/contact/kernel_contact.hpp"
 #include "rkfem/operators/semi_lagrangian_block.hpp"
 #include "rkfem/run/simulation.hpp"
 #include "rkfem/time/central_difference.hpp"
@@ -1221,4 +1222,55 @@ TEST(ConversionSemiLagrangian, DeckErrorsNameTheKey)
     EXPECT_NE(error({"parts.b.formulation=fem-nodal"}).find("parts.b.kinematics"), std::string::npos);
     EXPECT_NE(error({"parts.b.conversion=~"}).find("parts.b.kinematics"), std::string::npos);
     EXPECT_EQ(error({}), "");
+}
+
+TEST(ConversionSemiLagrangian, KernelSelfContactTakesNoDormantParticle)
+{
+    // the box with kernel self-contact (fragments meeting the body), squeezed along z: while its
+    // particles are dormant (FE nodes) none takes part in a pair, though their cubes press into each
+    // other; once the box has converted and a failed particle separates, it meets its neighbours
+    Model m = test::model_from(
+        box_1pt, {"parts.b.kinematics=semi-lagrangian", "parts.b.semi_lagrangian={separation_damage: 0.5}",
+                  "contacts=[{type: kernel, surfaces: [b]}]", "time.stepper=central-difference"});
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        m.nodes.v[3 * i + 2] = -2e3 * (m.nodes.x0[3 * i + 2] - 3e-3); // 2e3 1/s toward the middle
+    const auto& contact = dynamic_cast<const KernelContact&>(*m.contacts[0]);
+    CentralDifference cd;
+    StepReport r = cd.initialize(m, 0.0);
+    real_t t = 0.0;
+    index_t dormant_pairs = 0;
+    for (int k = 1; k <= 5; ++k)
+    {
+        r = cd.step(m, t, 1e-8, k);
+        t = r.t;
+        dormant_pairs += contact.pairs();
+    }
+    m.refresh_motion();
+    const index_t ne = m.meshes[0].n_elements();
+    ASSERT_EQ(m.convert_elements(0, std::vector<char>(static_cast<std::size_t>(ne), 1)), ne);
+    // the particle at the middle of the box fails: it separates at the next commit
+    const SemiLagrangianForceBlock& sl = *m.semi_lagrangian_block(0);
+    index_t middle = -1;
+    for (index_t i = 0; i < m.nodes.size(); ++i)
+        if (std::abs(m.nodes.x0[3 * i] - 2e-3) + std::abs(m.nodes.x0[3 * i + 1] - 2e-3) +
+                std::abs(m.nodes.x0[3 * i + 2] - 3e-3) <
+            1e-9)
+            middle = i;
+    ASSERT_GE(middle, 0);
+    m.semi_lagrangian_block(0)->nodal_points()->plastic.failed[static_cast<std::size_t>(middle)] = 1.0;
+    r.dt_stable = m.restart_after_event(cd, t, 1e-8);
+    index_t fragment_pairs = 0;
+    for (int k = 6; k <= 10; ++k)
+    {
+        r = cd.step(m, t, 1e-8, k);
+        t = r.t;
+        fragment_pairs += contact.pairs();
+    }
+    std::printf("kernel self-contact on a converting box: %d pairs over 5 steps while dormant, %d over 5 steps once "
+                "converted with %d separated particle(s)\n",
+                static_cast<int>(dormant_pairs), static_cast<int>(fragment_pairs),
+                static_cast<int>(sl.free_particles()));
+    EXPECT_EQ(dormant_pairs, 0);
+    EXPECT_EQ(sl.free_particles(), 1);
+    EXPECT_GT(fragment_pairs, 0);
 }

@@ -43,6 +43,7 @@ void KernelContact::set_bodies(std::vector<const SemiLagrangianForceBlock*> bodi
     normal_.assign(3 * n, 0.0);
     near_.assign(n, 0);
     separated_.assign(n, 0);
+    dormant_.assign(n, 0);
     dp_.assign(3 * n, 0.0);
     built_ = false;
 }
@@ -71,7 +72,8 @@ void KernelContact::gather(const PhysicalNodes& nodes, const ContactClock& clock
                          }
                          real_t* c = &cell_[12 * static_cast<std::size_t>(k)];
                          const bool separated = s.jacobian[p] == 0.0;
-                         separated_[k] = separated;
+                         separated_[k] = b->separated(p);
+                         dormant_[k] = b->dormant(p);
                          real_t reach = 0.0;
                          if (separated)
                          {
@@ -105,7 +107,9 @@ void KernelContact::update_candidates()
     // self-contact: the pairs with a separated particle, so the lists go stale when one separates
     const index_t n_separated =
         self ? static_cast<index_t>(std::count(separated_.begin(), separated_.end(), char{1})) : 0;
-    if (built_ && n_separated == separated_built_)
+    // conversion: particles that stop being dormant join the pairs
+    const index_t n_dormant = static_cast<index_t>(std::count(dormant_.begin(), dormant_.end(), char{1}));
+    if (built_ && n_separated == separated_built_ && n_dormant == dormant_built_)
     {
         // two particles approach by at most twice the largest motion since the build, and the
         // cells' reaches grow by at most reach - reach_built_ each
@@ -128,7 +132,8 @@ void KernelContact::update_candidates()
         cells, x_, n,
         [&](index_t i, index_t j)
         {
-            if (j <= i || (self ? !(separated_[i] || separated_[j]) : body_[i] == body_[j]))
+            if (j <= i || dormant_[i] || dormant_[j] ||
+                (self ? !(separated_[i] || separated_[j]) : body_[i] == body_[j]))
                 return false;
             const std::size_t i3 = 3 * static_cast<std::size_t>(i), j3 = 3 * static_cast<std::size_t>(j);
             const real_t dx = x_[j3] - x_[i3], dy = x_[j3 + 1] - x_[i3 + 1], dz = x_[j3 + 2] - x_[i3 + 2];
@@ -141,6 +146,7 @@ void KernelContact::update_candidates()
             near_[k] = near_[ids_[e]] = 1;
     x_built_ = x_;
     separated_built_ = n_separated;
+    dormant_built_ = n_dormant;
     built_ = true;
     ++rebuilds_;
 }

@@ -123,7 +123,10 @@ class KernelContact final : public ContactAlgorithm
     int iterations_ = 0;
     std::vector<char> near_;      ///< per particle: in a candidate pair
     std::vector<char> separated_; ///< per particle: separated (its cell empty)
+    /// per particle: dormant (an FE node of a converting part, not yet a particle): in no pair
+    std::vector<char> dormant_;
     index_t separated_built_ = 0; ///< self-contact: separated particles at the last build
+    index_t dormant_built_ = 0;   ///< dormant particles at the last build
     real_t dt_bound_ = kNoLimit;
     Vec3 resultant_ = Vec3::Zero();
     index_t active_ = 0, n_pairs_ = 0, rebuilds_ = 0;

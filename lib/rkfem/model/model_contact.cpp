@@ -282,13 +282,6 @@ std::vector<const SemiLagrangianForceBlock*> Model::kernel_contact_bodies(const 
                             "expected the names of semi-Lagrangian RK parts (kernel contact acts between particles)");
         const index_t ip = static_cast<index_t>(part - parts.begin());
         const SemiLagrangianForceBlock* found = semi_lagrangian_block(ip);
-        if (found != nullptr && deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian())
-            throw DeckError({c.loc.where, c.loc.path + ".surfaces"},
-                            "part '" + name +
-                                "' is a converting fem-1pt part, whose particles kernel contact does "
-                                "not take yet",
-                            "expected semi-Lagrangian rkpm parts; the converting part meets others through surface "
-                            "contact");
         if (found == nullptr)
             throw DeckError({c.loc.where, c.loc.path + ".surfaces"},
                             "part '" + name + "' is not a semi-Lagrangian RK part",
