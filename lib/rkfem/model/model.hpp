@@ -234,7 +234,8 @@ class Model final : public ExplicitOperator
     /// conversion's particles once it is one; null for FE nodes.
     const NodalBlock* particle_points(index_t node) const;
     /// What a step's force pass works through: the elements of Gauss-point FE parts (and of
-    /// coupled parts' 1-point FE sides), the stress points of nodal parts (one per particle or
+    /// coupled parts' 1-point FE sides, and the particles a semi-Lagrangian conversion has made
+    /// that have not separated), the stress points of nodal parts (one per particle or
     /// node under SCNI): the count that ns per element-cycle divides by.
     index_t n_work_items() const;
     real_t element_plastic_strain(index_t block, index_t e) const

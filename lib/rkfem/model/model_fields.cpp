@@ -128,6 +128,8 @@ index_t Model::n_work_items() const
     for (index_t b = 0; b < static_cast<index_t>(meshes.size()); ++b)
         if (fe_side(b))
             n += fe_side(b)->block.n_elements();
+        else if (deck_.parts[static_cast<std::size_t>(b)].converts_to_semi_lagrangian())
+            n += semi_lagrangian_block(b)->active_particles(); // and the particles it has made
     return n;
 }
 
