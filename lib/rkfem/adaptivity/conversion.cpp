@@ -152,12 +152,9 @@ index_t Model::flip_elements(index_t part, const std::vector<char>& flags, bool 
 index_t Model::convert_elements(index_t part, const std::vector<char>& convert)
 {
     RKFEM_REQUIRE(part >= 0 && part < static_cast<index_t>(parts.size()), "convert_elements: no part " << part);
+    // the flags are per element of the part's FE block now; the conversion counts its own
     if (deck_.parts[static_cast<std::size_t>(part)].converts_to_semi_lagrangian())
-    {
-        // the flags are per element of the part's FE block now; the conversion counts its own
-        const index_t n = convert_to_semi_lagrangian(part, convert);
-        return n;
-    }
+        return convert_to_semi_lagrangian(part, convert);
     const index_t added = flip_elements(part, convert, true, "convert_elements");
     converted_elements_ += added;
     return added;

@@ -23,8 +23,9 @@
 // converted elements' faces, the FE elements' gradients reach the particles' nodes as FE
 // functions, and the particles' functions are built from the particles alone. Linear fields are
 // reproduced on both sides (each interpolates the nodal velocities exactly for them), so the
-// patch test's strain is exact; the integration constraint across the interface is not (the
-// test measures the interface's force residual under a uniform stress).
+// patch test's strain is exact (ConversionSemiLagrangian's linear field: the stress to round-off,
+// the internal forces summing to zero); the integration constraint across the interface is not
+// kept, and no test measures its force residual there yet.
 #include <algorithm>
 #include <cmath>
 #include <string>

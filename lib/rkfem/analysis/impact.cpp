@@ -1,31 +1,21 @@
 #include "rkfem/analysis/impact.hpp"
 
-#include "rkfem/operators/semi_lagrangian_block.hpp"
-
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <unordered_map>
 
+#include "rkfem/analysis/analysis_detail.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/model/model.hpp"
+#include "rkfem/operators/semi_lagrangian_block.hpp"
 
 namespace rkfem
 {
 namespace
 {
-index_t part_index(const Model& m, const std::string& name)
-{
-    for (std::size_t i = 0; i < m.parts.size(); ++i)
-        if (m.parts[i].name == name)
-            return static_cast<index_t>(i);
-    return -1;
-}
-
-Vec3 reference(const Model& m, index_t i)
-{
-    return {m.nodes.x0[3 * i], m.nodes.x0[3 * i + 1], m.nodes.x0[3 * i + 2]};
-}
+using analysis_detail::part_index;
+using analysis_detail::reference;
 
 /// A face as the sorted ids of its 4 nodes.
 using FaceKey = std::array<index_t, 4>;
@@ -47,13 +37,7 @@ ImpactAnalysis::ImpactAnalysis(const Model& model, const ImpactSpec& spec) : spe
     projectile_ = spec.projectile.empty() ? -1 : part_index(model, spec.projectile);
     RKFEM_REQUIRE(target_ >= 0, "impact: no part '" << spec.target << "'");
     const PartInfo& part = model.parts[static_cast<std::size_t>(target_)];
-    Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
-    for (index_t i = part.node_begin; i < part.node_end; ++i)
-    {
-        lo = lo.cwiseMin(reference(model, i));
-        hi = hi.cwiseMax(reference(model, i));
-    }
-    tolerance_ = 1e-6 * (hi - lo).norm();
+    tolerance_ = analysis_detail::on_line_tolerance(model, target_);
     std::vector<std::pair<real_t, index_t>> on_plane;
     for (index_t i = part.node_begin; i < part.node_end; ++i)
     {

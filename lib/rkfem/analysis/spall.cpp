@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <string>
 
+#include "rkfem/analysis/analysis_detail.hpp"
 #include "rkfem/core/error.hpp"
 #include "rkfem/model/model.hpp"
 
@@ -12,26 +12,16 @@ namespace rkfem
 {
 SpallAnalysis::SpallAnalysis(const Model& model, const SpallSpec& spec) : spec_(spec)
 {
-    for (index_t ip = 0; ip < static_cast<index_t>(model.parts.size()); ++ip)
-        if (model.parts[static_cast<std::size_t>(ip)].name == spec.part)
-            part_ = ip;
+    part_ = analysis_detail::part_index(model, spec.part);
     if (part_ < 0)
         throw DeckError({spec.loc.where, spec.loc.path + ".part"}, "unknown part '" + spec.part + "'",
                         "expected a part of the deck");
     const PartInfo& part = model.parts[static_cast<std::size_t>(part_)];
-    // the part's size: its bounding box's diagonal (reference)
-    Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
-    for (index_t i = part.node_begin; i < part.node_end; ++i)
-    {
-        const Vec3 X(model.nodes.x0[3 * i], model.nodes.x0[3 * i + 1], model.nodes.x0[3 * i + 2]);
-        lo = lo.cwiseMin(X);
-        hi = hi.cwiseMax(X);
-    }
-    const real_t tol = 1e-6 * (hi - lo).norm();
+    const real_t tol = analysis_detail::on_line_tolerance(model, part_);
     std::vector<std::pair<real_t, index_t>> on;
     for (index_t i = part.node_begin; i < part.node_end; ++i)
     {
-        const Vec3 r = Vec3(model.nodes.x0[3 * i], model.nodes.x0[3 * i + 1], model.nodes.x0[3 * i + 2]) - spec.point;
+        const Vec3 r = analysis_detail::reference(model, i) - spec.point;
         const real_t s = r.dot(spec.direction);
         if ((r - s * spec.direction).norm() <= tol && s >= -tol)
             on.emplace_back(std::max(s, 0.0), i);

@@ -71,11 +71,10 @@ void KernelContact::gather(const PhysicalNodes& nodes, const ContactClock& clock
                                  ns.v[i3 + d] + dt * (ns.f_ext[i3 + d] - ns.f_int[i3 + d] + channel.force(i3 + d)) / m;
                          }
                          real_t* c = &cell_[12 * static_cast<std::size_t>(k)];
-                         const bool separated = s.jacobian[p] == 0.0;
                          separated_[k] = b->separated(p);
                          dormant_[k] = b->dormant(p);
                          real_t reach = 0.0;
-                         if (separated)
+                         if (s.jacobian[p] == 0.0) // an empty cell: separated (or dormant, in no pair)
                          {
                              // the cube of the particle's starting volume about it
                              const real_t half = 0.5 * std::cbrt(s.points.weight[p]);

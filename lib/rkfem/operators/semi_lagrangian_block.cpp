@@ -1022,7 +1022,8 @@ void SemiLagrangianForceBlock::build_neighbours(const std::vector<real_t>& x)
         a_max = std::max(a_max, radius_[p]), r_max = std::max(r_max, cell_reach_[p]);
     const real_t R = a_max + r_max + skin;
     const bool box = opt_.rk.support == SupportShape::Box;
-    // the cell list's 27 bins about a particle hold every particle within R along each axis
+    // a cell list of bin size R: the 27 bins about a particle hold every particle within R along
+    // each axis
     auto within = [&](index_t i, index_t j)
     {
         real_t s = 0.0, m = 0.0;
