@@ -241,6 +241,21 @@ TEST(Checkpoint, SemiLagrangianParticlesRestartWithTheSameBits)
                               "4 us");
 }
 
+// Refinement: particles split as the column wave's front passes 100 MPa near the driven end,
+// before and after the checkpoints; the restart loads the particles' reference positions,
+// masses, cells, supports, levels and families as saved, and the children's conditions (the
+// column's lateral hold, inherited) are made again from the families
+TEST(Checkpoint, RefiningParticlesRestartWithTheSameBits)
+{
+    expect_restarts_reproduce("sl_refinement", deck_path("column_wave_rkpm.yaml"),
+                              "--set time.end=4us --set time.stepper=central-difference"
+                              " --set parts.column.formulation=rkpm --set parts.column.kinematics=semi-lagrangian"
+                              " --set 'parts.column.nodal_integration={scheme: snni}'"
+                              " --set 'parts.column.refinement={pressure: 100 MPa, max_new_particles: 7000, region: "
+                              "[{select: {type: box, min: [-1 mm, -1 mm, 2 mm], max: [5 mm, 5 mm, 30 mm]}}]}'",
+                              "1 us");
+}
+
 // Kernel contact between two semi-Lagrangian RK bars, restarted while they are in contact: its
 // pairs are found again at the restart's positions and summed in particle order, so only the
 // step bound of the last evaluation is state (and its counts, for the histories)

@@ -39,7 +39,7 @@ ImpactAnalysis::ImpactAnalysis(const Model& model, const ImpactSpec& spec) : spe
     const PartInfo& part = model.parts[static_cast<std::size_t>(target_)];
     tolerance_ = analysis_detail::on_line_tolerance(model, target_);
     std::vector<std::pair<real_t, index_t>> on_plane;
-    for (index_t i = part.node_begin; i < part.node_end; ++i)
+    for (index_t i = part.node_begin; i < part.mesh_node_end; ++i)
     {
         const Vec3 r = reference(model, i) - spec.point;
         if (std::abs(r.dot(spec.direction)) <= tolerance_)

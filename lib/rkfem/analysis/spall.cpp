@@ -19,7 +19,7 @@ SpallAnalysis::SpallAnalysis(const Model& model, const SpallSpec& spec) : spec_(
     const PartInfo& part = model.parts[static_cast<std::size_t>(part_)];
     const real_t tol = analysis_detail::on_line_tolerance(model, part_);
     std::vector<std::pair<real_t, index_t>> on;
-    for (index_t i = part.node_begin; i < part.node_end; ++i)
+    for (index_t i = part.node_begin; i < part.mesh_node_end; ++i)
     {
         const Vec3 r = analysis_detail::reference(model, i) - spec.point;
         const real_t s = r.dot(spec.direction);

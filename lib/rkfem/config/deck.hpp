@@ -130,6 +130,33 @@ struct SelectorSpec
     std::vector<std::array<long long, 4>> segments; ///< Segments: each sorted; the list sorted
 };
 
+/// Adaptive refinement of a semi-Lagrangian RK part (issue #49; digest rkpm-methods.md section 6):
+/// a particle whose indicator reaches `threshold` at a check splits into the eight half-size
+/// parallelepipeds of its cell (Model::refine_particles), and eight siblings whose indicators have
+/// all fallen below `coarsen_below` merge back into one (Model::coarsen_particles). The deck names
+/// the indicator by its key (`pressure: 100 MPa`) and coarsening as a fraction of it.
+struct RefinementSpec
+{
+    enum class Indicator
+    {
+        Damage,                 ///< the material's 0..1 damage index (PlasticPoints::damage)
+        EffectivePlasticStrain, ///< the effective plastic strain
+        Pressure,               ///< |p| [Pa]: where a stress wave or a penetrator's front is
+        VonMises,               ///< sqrt(3 J2) [Pa]
+    };
+    Indicator indicator = Indicator::Damage;
+    real_t threshold = 0.0;      ///< split at or above this (0: no refinement)
+    real_t coarsen_below = -1.0; ///< merge siblings all below this (negative: never)
+    int max_level = 1;           ///< splits a particle of the start may go through (1 or 2)
+    /// particles the part may gain (the pool of dormant particles reserved at set-up; 0: seven per
+    /// particle of the start, enough for every particle to split once)
+    std::int64_t max_new_particles = 0;
+    real_t interval = 0.0;            ///< checks at the first step end at or past each multiple [s] (0: every step)
+    std::vector<SelectorSpec> region; ///< only particles inside one of these volumes split (empty: all)
+    SourceLocation loc;
+    bool active() const { return threshold > 0.0; }
+};
+
 struct PartSpec
 {
     std::string name;
@@ -161,6 +188,8 @@ struct PartSpec
     /// into RK particles between steps (fem-nodal parts: the state stays at the nodes).
     ElementCriteria conversion;
     bool converts() const { return conversion.active(); }
+    /// Adaptive refinement and coarsening (semi-Lagrangian rkpm parts)
+    RefinementSpec refinement;
     std::vector<SelectorSpec> regions;
     std::string transition = "mixed"; ///< mixed | ramp (coupled parts)
     SourceLocation regions_loc;       ///< where `regions` is given

@@ -375,6 +375,29 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
             os << "}\n";
         }
     }
+    if (p.refinement.active())
+    {
+        const RefinementSpec& f = p.refinement;
+        static const char* names[] = {"damage", "effective_plastic_strain", "pressure", "von_mises"};
+        const bool stress =
+            f.indicator == RefinementSpec::Indicator::Pressure || f.indicator == RefinementSpec::Indicator::VonMises;
+        os << "    refinement:\n      " << names[static_cast<int>(f.indicator)] << ": " << f.threshold
+           << (stress ? " Pa" : "") << "\n";
+        if (f.coarsen_below >= 0.0)
+            os << "      coarsen_fraction: " << f.coarsen_below / f.threshold << "\n";
+        os << "      max_level: " << f.max_level << "\n      max_new_particles: " << f.max_new_particles
+           << "\n      interval: " << f.interval << " s\n";
+        if (!f.region.empty())
+        {
+            os << "      region:\n";
+            for (const auto& r : f.region)
+            {
+                os << "        - {";
+                selector(os, r);
+                os << "}\n";
+            }
+        }
+    }
     if (p.coupled())
         os << "    transition: " << p.transition << "\n";
     if (p.formulation == Formulation::Rkpm || p.coupled() || p.semi_lagrangian)

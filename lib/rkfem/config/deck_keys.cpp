@@ -218,7 +218,10 @@ std::vector<SectionDoc> build_table()
           choice("kinematics", {"lagrangian", "semi-lagrangian"}, "lagrangian",
                  "RK kernels in the reference (lagrangian) or the current configuration (semi-lagrangian, rkpm "
                  "parts)."),
-          section("semi_lagrangian", "semi_lagrangian", "Settings of semi-Lagrangian RK particles.")}});
+          section("semi_lagrangian", "semi_lagrangian", "Settings of semi-Lagrangian RK particles."),
+          section("refinement", "refinement",
+                  "Adaptive refinement of semi-Lagrangian particles: splitting where an indicator is high, "
+                  "merging where it has fallen.")}});
     t.push_back(
         {"generator.box",
          "generator: box",
@@ -492,6 +495,23 @@ std::vector<SectionDoc> build_table()
                   quantity("damage", dim::none, "", "The damage at or below which it is benign again."),
                   quantity("effective_plastic_strain", dim::none, "",
                            "The effective plastic strain at or below which it is benign again.")}});
+    t.push_back(
+        {"refinement",
+         "refinement",
+         "Particle splitting and merging (rkpm parts with kinematics: semi-lagrangian): a particle whose indicator "
+         "reaches the threshold splits into the eight half-size parallelepipeds of its cell, conserving mass and "
+         "momentum; eight siblings all below coarsen_below merge back.",
+         {quantity("damage", dim::none, "", "Split at this damage index (one indicator only)."),
+          quantity("effective_plastic_strain", dim::none, "", "Split at this effective plastic strain."),
+          quantity("pressure", dim::pressure, "", "Split at this |pressure|."),
+          quantity("von_mises", dim::pressure, "", "Split at this sqrt(3 J2)."),
+          quantity("coarsen_fraction", dim::none, "",
+                   "Eight siblings all below this fraction of the threshold merge back (default: never)."),
+          integer("max_level", "1", "Splits a particle of the start may go through, 1 or 2."),
+          integer("max_new_particles", "0",
+                  "Particles the part may gain, a multiple of 7 (0: 7 per particle of the start)."),
+          quantity("interval", dim::time, "0", "Time between checks (0: after every step)."),
+          list_of(KeyKind::List, "region", "", {"region"}, "Volumes outside which no particle splits.")}});
     t.push_back(
         {"semi_lagrangian",
          "semi_lagrangian",

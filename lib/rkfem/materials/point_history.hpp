@@ -226,6 +226,31 @@ struct PlasticPoints
         for (std::size_t p = 0; p < h.size() && p < kcc_state.size(); ++p)
             kcc_state[p].tension_scale = kcc_trial[p].tension_scale = scale[p];
     }
+    /// Point p's crack-band length alone (set_lengths for one point: a particle made by splitting).
+    void set_length(std::size_t p, real_t h)
+    {
+        if (kind == Kind::Cscm && p < cscm_state.size())
+        {
+            const CscmModel::Softening sf = cscm.softening(h);
+            cscm_state[p].A = cscm_trial[p].A = sf.A;
+            cscm_state[p].C = cscm_trial[p].C = sf.C;
+        }
+        if (kind == Kind::Kcc && kcc.fracture_energy > 0 && p < kcc_state.size())
+            kcc_state[p].tension_scale = kcc_trial[p].tension_scale = kcc_tension_scales(kcc, {h})[0];
+    }
+    /// n points, the first ones kept as they are and the new ones at the arrays' initial values
+    /// (a pool of particles reserved for refinement; each takes a state when it is used).
+    void grow(std::size_t n)
+    {
+        each_array(
+            [&](auto& committed, auto& trial)
+            {
+                if (committed.empty())
+                    return;
+                committed.resize(n);
+                trial.resize(n);
+            });
+    }
     void commit()
     {
         each_array([](auto& committed, auto& trial) { committed.swap(trial); });

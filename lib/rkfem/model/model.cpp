@@ -12,6 +12,7 @@
 #include "rkfem/core/error.hpp"
 #include "rkfem/core/memory_limit.hpp"
 #include "rkfem/core/setup_progress.hpp"
+#include "rkfem/core/stream_stores.hpp"
 #include "rkfem/discretization/generators.hpp"
 #include "rkfem/model/material_from_deck.hpp"
 #include "rkfem/model/nodal_block_build.hpp"
@@ -230,6 +231,17 @@ std::string PartInfo::node_name(index_t i) const
            " in results.h5)";
 }
 
+namespace
+{
+/// The dormant particles a refining part reserves after its own (RefinementSpec::max_new_particles).
+index_t refinement_pool(const PartSpec& ps, index_t n_nodes)
+{
+    if (!ps.refinement.active())
+        return 0;
+    return ps.refinement.max_new_particles > 0 ? static_cast<index_t>(ps.refinement.max_new_particles) : 7 * n_nodes;
+}
+} // namespace
+
 /// The nodes, output mesh and blocks of part ip (its nodes from `offset` on, its elements from
 /// `elem_offset` on); advances both past the part.
 void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, index_t& elem_offset)
@@ -238,7 +250,8 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
     PartInfo info;
     info.name = ps.name;
     info.node_begin = offset;
-    info.node_end = offset + mesh.n_nodes();
+    info.mesh_node_end = offset + mesh.n_nodes();
+    info.node_end = info.mesh_node_end + refinement_pool(ps, mesh.n_nodes());
     info.element_offset = elem_offset;
     for (index_t i = 0; i < mesh.n_nodes(); ++i)
         for (int k = 0; k < 3; ++k)
@@ -247,6 +260,10 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
             nodes.x0[g] = nodes.x[g] = mesh.x[3 * i + k];
             nodes.v[g] = ps.initial_velocity[k];
         }
+    // a refining part's pool: dormant particles with no mass, parked on its first node
+    for (index_t i = info.mesh_node_end; i < info.node_end; ++i)
+        for (int k = 0; k < 3; ++k)
+            nodes.x0[3 * static_cast<std::size_t>(i) + k] = nodes.x[3 * static_cast<std::size_t>(i) + k] = mesh.x[k];
     for (index_t i = info.node_begin; i < info.node_end; ++i)
         nodes.part[i] = static_cast<index_t>(ip);
     for (const auto& f : mesh.faces)
@@ -271,7 +288,7 @@ void Model::build_part(std::size_t ip, const HexMesh& mesh, index_t& offset, ind
     for (auto& c : blk.conn)
         c += offset;
     blk.node_begin = info.node_begin;
-    blk.node_end = info.node_end;
+    blk.node_end = info.mesh_node_end;
     blk.initialize(nodes);
     if (!blk.mesh_only)
     {
@@ -352,6 +369,43 @@ void Model::build_nodal_part(const PartSpec& ps, std::size_t ip, const HexMesh& 
     }
 }
 
+namespace
+{
+/// A refining part's pool: k points after the built ones, each owned by its own node (the pool's
+/// nodes follow the part's), no volume and no state yet (SemiLagrangianOptions::spares keeps
+/// them dormant; a split gives each its cell, volume, lengths and state), no support.
+void append_dormant_points(NodalBlock& nb, index_t k, std::vector<real_t>& radius)
+{
+    const std::size_t n0 = static_cast<std::size_t>(nb.n_points()), n = n0 + static_cast<std::size_t>(k);
+    IntegrationOperator& pts = nb.points;
+    for (std::size_t p = n0; p < n; ++p)
+    {
+        pts.weight.push_back(0.0);
+        pts.position.insert(pts.position.end(), 3, 0.0);
+        pts.owner.push_back(nb.node_begin + static_cast<index_t>(p));
+        pts.offsets.push_back(pts.offsets.back());
+        nb.owner_points.push_back(static_cast<index_t>(p));
+        nb.owner_offsets.push_back(static_cast<index_t>(nb.owner_points.size()));
+    }
+    nb.length0.resize(n, 0.0);
+    nb.jacobian.resize(n, 0.0);
+    radius.resize(n, 0.0);
+    const std::size_t stride = batch8_stride(n);
+    for (LineVector<real_t>* v : {&nb.stress, &nb.stress_trial})
+    {
+        LineVector<real_t> w(6 * stride, 0.0);
+        for (int c = 0; c < 6; ++c)
+            std::copy_n(v->begin() + static_cast<std::ptrdiff_t>(c * nb.stress_stride), n0,
+                        w.begin() + static_cast<std::ptrdiff_t>(c * stride));
+        *v = std::move(w);
+    }
+    nb.stress_stride = stride;
+    if (nb.plastic.active())
+        nb.plastic.grow(n);
+    nb.node_end += k;
+}
+} // namespace
+
 /// A semi-Lagrangian rkpm part: the Lagrangian build (SCNI, no stabilization) gives the particles'
 /// volumes, masses, step lengths and supports; the block takes them and rebuilds its own tables
 /// in the current configuration every step.
@@ -374,6 +428,9 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     real_t a_max = 0.0;
     for (index_t i = 0; i < nb.rk->size(); ++i)
         a_max = std::max(a_max, radius[i] = nb.rk->radius(i));
+    const index_t pool = refinement_pool(ps, mesh.n_nodes());
+    if (pool > 0)
+        append_dormant_points(nb, pool, radius);
     // mesh parts: each node's cell is the box of its dual cell (the node and the centroids of its
     // elements), scaled to the node's volume; the boxes of a box mesh tile it. Clouds: the cube of
     // the particle's volume, moved inside the body where it stuck out of one of the body's planes
@@ -436,6 +493,7 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
             }
         }
     }
+    cells.resize(12 * static_cast<std::size_t>(nb.n_points()), 0.0); // the pool's: empty
     SemiLagrangianOptions opt;
     opt.rk = nb.rk->params();
     opt.skin = ps.neighbour_skin * a_max;
@@ -446,6 +504,7 @@ void Model::build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const
     opt.stabilization_coefficient = ps.nodal.stabilization == "none" ? 0.0 : ps.nodal.stabilization_coefficient;
     opt.sub_cells = ps.nodal.scheme == "sd-snni";
     opt.dormant = dormant;
+    opt.spares = pool;
     if (!dormant) // a converting part's particles are no nodal block of the part: its FE block integrates it
         part_nodal_.back() = static_cast<index_t>(blocks_.size());
     blocks_.push_back(
@@ -605,7 +664,7 @@ Model Model::build(const Deck& deck)
     {
         generated.push_back(generate(p.generator));
         check_mesh(p, generated.back(), m.setup_notes);
-        n_nodes += generated.back().n_nodes();
+        n_nodes += generated.back().n_nodes() + refinement_pool(p, generated.back().n_nodes());
     }
     m.nodes.resize(n_nodes);
     index_t offset = 0, elem_offset = 0;
@@ -629,9 +688,12 @@ Model Model::build(const Deck& deck)
     m.contact.resize(m.nodes.size());
     m.eroded_.resize(m.meshes.size());
     m.converted_.resize(m.meshes.size());
+    m.families_.resize(m.parts.size());
+    m.next_refinement_check_.assign(m.parts.size(), 0.0);
     m.build_contacts();
     m.check_initial_overlaps();
     m.plan_assembly();
+    m.base_conditions_ = m.conditions;
     for (const DofCondition& c : m.conditions)
         m.constrained_dofs_.push_back(c.dof);
     std::sort(m.constrained_dofs_.begin(), m.constrained_dofs_.end());

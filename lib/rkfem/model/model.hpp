@@ -34,6 +34,9 @@ struct PartInfo
 {
     std::string name;
     index_t node_begin = 0, node_end = 0;
+    /// The end of the part's own nodes: node_end, or where a refining part's pool of dormant
+    /// particles begins (they come after its nodes, in no set, face or selection)
+    index_t mesh_node_end = 0;
     index_t element_offset = 0; ///< first global element index of the part's block
     std::vector<Quad> faces;    ///< boundary faces (global node ids)
     std::map<std::string, std::vector<index_t>> named_faces;
@@ -297,6 +300,29 @@ class Model final : public ExplicitOperator
     /// state stays at the nodes, so the event rebuilds tables only. Returns how many went back.
     index_t revert_elements(index_t part, const std::vector<char>& revert);
     index_t reverted_elements() const { return reverted_elements_; }
+    /// Adaptive refinement of a semi-Lagrangian part (issue #49; deck `refinement`;
+    /// adaptivity/refinement.cpp): each flagged particle (local numbering, active, below the
+    /// deck's max_level) splits into the eight parallelepipeds of its cell
+    /// (SemiLagrangianForceBlock::split), taking seven dormant particles of the part's pool while
+    /// there are any. The children take the parent's conditions. Each child
+    /// gets mass m / 8, and u and v from the particle's smoothed gradients, u_k = u_p + G_u (x_k -
+    /// x_p), v_k = v_p + G_v (x_k - x_p), the velocities then shifted by one common vector so that
+    /// their momentum is the particle's exactly (zero for a cell centred on its particle), so a
+    /// linear field carries over to round-off; x0_k = x_k - u_k. The change of kinetic energy is
+    /// booked with the events' (Energies::eroded). Returns how many particles split.
+    index_t refine_particles(index_t part, const std::vector<char>& split);
+    /// Coarsening: each family of eight siblings (the children of one split, none split again)
+    /// whose flags (local numbering) are all set merges back into one particle
+    /// (SemiLagrangianForceBlock::merge) at the siblings' centre of mass, with their summed mass,
+    /// momentum and mean displacement; the others go back to the pool. Returns how many merged.
+    index_t coarsen_particles(index_t part, const std::vector<char>& merge);
+    index_t refined_particles() const { return refined_particles_; }
+    index_t coarsened_particles() const { return coarsened_particles_; }
+    /// A refining part's families (each the 8 local particles of one split, the kept one first).
+    const std::vector<std::array<index_t, 8>>& families(index_t part) const
+    {
+        return families_[static_cast<std::size_t>(part)];
+    }
     /// Is RK element e of part b benign by the conversion's revert measures?
     bool benign(const ElementCriteria::Reversion& r, index_t b, index_t e) const;
     /// Conversion events rebuild the whole part (true) or only the points where the
@@ -360,6 +386,22 @@ class Model final : public ExplicitOperator
     index_t eroded_elements_ = 0;
     index_t converted_elements_ = 0;
     index_t reverted_elements_ = 0;
+    index_t refined_particles_ = 0, coarsened_particles_ = 0;
+    std::vector<std::vector<std::array<index_t, 8>>> families_; ///< per part (refinement)
+    std::vector<real_t> next_refinement_check_;                 ///< per part (refinement.interval)
+    /// The kinetic energy the events of this step changed themselves (refinement's interpolated
+    /// velocities, coarsening's merged momenta), which restart_after_event books as an event's
+    /// and not as the supports' work.
+    real_t event_kinetic_ = 0.0;
+    /// Refinement's checks after a step (apply_events): the particles whose indicator is at or
+    /// past the threshold split, families all below coarsen_below merge.
+    bool refinement_events(index_t part, real_t t);
+    /// The conditions the deck set (Model::build), before refinement gave children theirs.
+    std::vector<DofCondition> base_conditions_;
+    /// conditions = the deck's, and each refined particle's children take their parent's
+    /// (families in the order they were made); the per-condition state (reactions, prescribed
+    /// velocities' last values) kept by dof, the plans rebuilt.
+    void refresh_refined_conditions();
     std::vector<std::vector<char>> rk_elements_; ///< per part (coupled parts; empty otherwise)
     /// per part: the elements the deck's regions make RK (parts with regions; empty otherwise): they
     /// never revert

@@ -41,8 +41,10 @@ ContactSurface Model::contact_surface(const std::vector<std::string>& names, con
                     if (n >= begin && n < begin + sl->n_particles())
                         on_face[static_cast<std::size_t>(n - begin)] = 1;
             for (index_t p = 0; p < sl->n_particles(); ++p)
-                if (!on_face[static_cast<std::size_t>(p)])
+                if (!on_face[static_cast<std::size_t>(p)] && sl->nodal_points()->points.weight[p] > 0.0)
                 {
+                    // (not a refinement's pool particle, which has no volume while it sleeps; a
+                    // refinement event refreshes the surfaces with the children's volumes)
                     s.particles.push_back(begin + p);
                     s.particle_radius.push_back(0.5 * std::cbrt(sl->nodal_points()->points.weight[p]));
                 }

@@ -183,6 +183,29 @@ bool Model::benign(const ElementCriteria::Reversion& r, index_t b, index_t e) co
            !(r.aspect_ratio > 0 && g.aspect_ratio() > r.aspect_ratio);
 }
 
+namespace
+{
+/// Runs an event; an error it throws (an event that cannot be made is no input error) stops the
+/// run there as an instability does, with its output so far and this state written.
+template <class Event> void stops_the_run(real_t t, std::int64_t step, Event&& event)
+{
+    try
+    {
+        event();
+    }
+    catch (const InstabilityError&)
+    {
+        throw;
+    }
+    catch (const Error& e)
+    {
+        std::ostringstream os;
+        os << e.what() << " (at t = " << t << " s, step " << step << ")";
+        throw InstabilityError(os.str(), t);
+    }
+}
+} // namespace
+
 bool Model::apply_events(real_t t, std::int64_t step)
 {
     bool changed = false;
@@ -190,6 +213,12 @@ bool Model::apply_events(real_t t, std::int64_t step)
     {
         const PartSpec& ps = deck_.parts[static_cast<std::size_t>(b)];
         const index_t ne = meshes[b].n_elements();
+        if (ps.refinement.active())
+        {
+            stops_the_run(t, step, [&] { changed = refinement_events(b, t) || changed; });
+            if (!ps.converts())
+                continue;
+        }
         if (ps.converts())
         {
             // evolutionary coupling: FE and transition elements that meet the criteria turn RK
@@ -221,36 +250,26 @@ bool Model::apply_events(real_t t, std::int64_t step)
                 refresh_motion(); // the motion of the step, before the model changes
                 buffer_and_cap(b, ps.conversion, convert);
             }
-            try
-            {
-                if (any && convert_elements(b, convert) > 0)
-                    changed = true;
-                // and back: RK elements whose region has become benign (the same check times)
-                if (ps.conversion.revert.active())
-                {
-                    std::vector<char>& revert = event_flags_;
-                    reversion_flags(b, revert);
-                    if (std::find(revert.begin(), revert.end(), char{1}) != revert.end())
-                    {
-                        if (!any)
-                            refresh_motion();
-                        if (revert_elements(b, revert) > 0)
-                            changed = true;
-                    }
-                }
-            }
-            catch (const InstabilityError&)
-            {
-                throw;
-            }
-            catch (const Error& e)
-            {
-                // the run stops there (with its output so far and this state written), as on an
-                // instability: a conversion that cannot be made is no input error
-                std::ostringstream os;
-                os << e.what() << " (at t = " << t << " s, step " << step << ")";
-                throw InstabilityError(os.str(), t);
-            }
+            // a conversion that cannot be made is no input error: the run stops there
+            stops_the_run(t, step,
+                          [&]
+                          {
+                              if (any && convert_elements(b, convert) > 0)
+                                  changed = true;
+                              // and back: RK elements whose region has become benign (the same check times)
+                              if (ps.conversion.revert.active())
+                              {
+                                  std::vector<char>& revert = event_flags_;
+                                  reversion_flags(b, revert);
+                                  if (std::find(revert.begin(), revert.end(), char{1}) != revert.end())
+                                  {
+                                      if (!any)
+                                          refresh_motion();
+                                      if (revert_elements(b, revert) > 0)
+                                          changed = true;
+                                  }
+                              }
+                          });
             continue;
         }
         // J2 failure on Gauss-point elements deletes the element once all its points have failed
@@ -343,8 +362,11 @@ real_t Model::restart_after_event(TimeStepper& stepper, real_t t, real_t dt)
     const real_t kinetic = energy.kinetic;
     const StepReport rep = stepper.initialize(*this, t);
     // prescribed velocities imposed again through a new kinematic map (a conversion made
-    // constrained nodes particles): the supports did that work
-    energy.external_work += energy.kinetic - kinetic;
+    // constrained nodes particles): the supports did that work; what the events changed
+    // themselves (refinement's velocities) is theirs
+    energy.external_work += energy.kinetic - kinetic - event_kinetic_;
+    energy.eroded -= event_kinetic_;
+    event_kinetic_ = 0.0;
     energy.book_event(nodes, event_a_, dt);
     return rep.dt_stable;
 }

@@ -75,22 +75,30 @@ real_t Model::element_history(index_t b, index_t e, History h) const
 const NodalBlock* Model::particle_points(index_t node) const
 {
     const index_t ip = nodes.part[node];
-    if (const NodalBlock* nb = nodal_block(ip))
-        return nb;
-    if (!deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian())
-        return nullptr;
-    const SemiLagrangianForceBlock* sl = semi_lagrangian_block(ip);
-    return sl->dormant(node - sl->nodal_points()->node_begin) ? nullptr : sl->nodal_points();
+    const PartSpec& ps = deck_.parts[static_cast<std::size_t>(ip)];
+    if (ps.converts_to_semi_lagrangian() || ps.refinement.active())
+    {
+        // dormant particles (not converted yet, or a refinement's pool) have no point to show
+        const SemiLagrangianForceBlock* sl = semi_lagrangian_block(ip);
+        return sl->dormant(node - sl->nodal_points()->node_begin) ? nullptr : sl->nodal_points();
+    }
+    return nodal_block(ip);
 }
 
 std::vector<index_t> Model::output_particles() const
 {
     std::vector<index_t> out;
     for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
-        if (is_cloud(ip) || deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian())
+    {
+        const PartSpec& ps = deck_.parts[static_cast<std::size_t>(ip)];
+        // clouds, and the particles conversion and refinement make (a refining mesh part: all
+        // its particles, the mesh's elements joining only those of the start)
+        const bool sleeps = ps.converts_to_semi_lagrangian() || ps.refinement.active();
+        if (is_cloud(ip) || sleeps)
             for (index_t i = parts[ip].node_begin; i < parts[ip].node_end; ++i)
-                if (is_cloud(ip) || particle_points(i))
+                if (!sleeps || particle_points(i))
                     out.push_back(i);
+    }
     return out;
 }
 
@@ -124,7 +132,11 @@ index_t Model::n_work_items() const
 {
     index_t n = 0;
     for (index_t b = 0; b < static_cast<index_t>(meshes.size()); ++b)
-        n += nodal_block(b) ? nodal_block(b)->n_points() : meshes[b].n_elements();
+        n += deck_.parts[static_cast<std::size_t>(b)].refinement.active() &&
+                     !deck_.parts[static_cast<std::size_t>(b)].converts_to_semi_lagrangian()
+                 ? semi_lagrangian_block(b)->active_particles() // not the pool
+             : nodal_block(b) ? nodal_block(b)->n_points()
+                              : meshes[b].n_elements();
     for (index_t b = 0; b < static_cast<index_t>(meshes.size()); ++b)
         if (fe_side(b))
             n += fe_side(b)->block.n_elements();

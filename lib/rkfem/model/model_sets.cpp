@@ -100,7 +100,7 @@ void Model::build_node_sets()
             {
                 if (s.select.name == "all")
                 {
-                    for (index_t i = pi.node_begin; i < pi.node_end; ++i)
+                    for (index_t i = pi.node_begin; i < pi.mesh_node_end; ++i)
                         ids.push_back(i);
                     continue;
                 }
@@ -130,16 +130,16 @@ void Model::build_node_sets()
                 if (!has_file_ids(pi, s))
                     continue;
                 const std::vector<long long> wanted = selected_ids(s.select);
-                for (index_t i = pi.node_begin; i < pi.node_end; ++i)
+                for (index_t i = pi.node_begin; i < pi.mesh_node_end; ++i)
                     if (std::binary_search(wanted.begin(), wanted.end(),
                                            pi.node_ids[static_cast<std::size_t>(i - pi.node_begin)]))
                         ids.push_back(i);
             }
             else
             {
-                const real_t tol =
-                    s.select.tolerance >= 0 ? s.select.tolerance : default_tolerance(nodes, pi.node_begin, pi.node_end);
-                for (index_t i = pi.node_begin; i < pi.node_end; ++i)
+                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
+                                                           : default_tolerance(nodes, pi.node_begin, pi.mesh_node_end);
+                for (index_t i = pi.node_begin; i < pi.mesh_node_end; ++i)
                     if (matches(s.select, Vec3(nodes.x0[3 * i], nodes.x0[3 * i + 1], nodes.x0[3 * i + 2]), tol))
                         ids.push_back(i);
             }
@@ -185,8 +185,8 @@ void Model::build_face_sets()
                                     "cloud part '" + pi.name + "' has no face set named '" + s.select.name + "'",
                                     cylinder ? "expected one of top, bottom, side (a cylinder body)"
                                              : "expected one of xmin, xmax, ymin, ymax, zmin, zmax, top, bottom, side");
-                const real_t tol =
-                    s.select.tolerance >= 0 ? s.select.tolerance : default_tolerance(nodes, pi.node_begin, pi.node_end);
+                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
+                                                           : default_tolerance(nodes, pi.node_begin, pi.mesh_node_end);
                 for (const CellFacetPoint& fp : nodal_block(ip)->boundary_facets)
                 {
                     const Vec3 n = fp.nda.normalized();
@@ -236,8 +236,8 @@ void Model::build_face_sets()
             }
             else
             {
-                const real_t tol =
-                    s.select.tolerance >= 0 ? s.select.tolerance : default_tolerance(nodes, pi.node_begin, pi.node_end);
+                const real_t tol = s.select.tolerance >= 0 ? s.select.tolerance
+                                                           : default_tolerance(nodes, pi.node_begin, pi.mesh_node_end);
                 for (const auto& f : pi.faces)
                 {
                     bool all = true;
@@ -266,7 +266,7 @@ void Model::build_probes_and_sections()
         index_t best = -1;
         real_t best_d = kNoLimit;
         for (index_t ip : parts_named(p.part))
-            for (index_t i = parts[ip].node_begin; i < parts[ip].node_end; ++i)
+            for (index_t i = parts[ip].node_begin; i < parts[ip].mesh_node_end; ++i)
             {
                 const real_t dd =
                     (Vec3(nodes.x0[3 * i], nodes.x0[3 * i + 1], nodes.x0[3 * i + 2]) - p.point).squaredNorm();
@@ -289,9 +289,10 @@ void Model::build_probes_and_sections()
         for (index_t ip : parts_named(sc.part))
         {
             known = true;
-            const real_t tol =
-                sc.tolerance >= 0 ? sc.tolerance : default_tolerance(nodes, parts[ip].node_begin, parts[ip].node_end);
-            for (index_t i = parts[ip].node_begin; i < parts[ip].node_end; ++i)
+            const real_t tol = sc.tolerance >= 0
+                                   ? sc.tolerance
+                                   : default_tolerance(nodes, parts[ip].node_begin, parts[ip].mesh_node_end);
+            for (index_t i = parts[ip].node_begin; i < parts[ip].mesh_node_end; ++i)
                 if ((Vec3(nodes.x0[3 * i], nodes.x0[3 * i + 1], nodes.x0[3 * i + 2]) - sc.point).dot(sc.normal) >= -tol)
                     side.push_back(i);
         }

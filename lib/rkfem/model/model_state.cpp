@@ -2,6 +2,7 @@
 // from the deck (tables, masses' layout, conditions) is built again; what a run changed is saved:
 // nodal kinematics and masses, committed material state, the ledger and its previous-step terms,
 // the elements erosion removed and those conversion made RK.
+#include <algorithm>
 #include <string>
 
 #include "rkfem/core/error.hpp"
@@ -124,6 +125,32 @@ void Model::save_state(StateArchive& a) const
         a.put(prefix + "converted.conn", converted_[static_cast<std::size_t>(ip)].conn);
         a.put(prefix + "converted.volume0", converted_[static_cast<std::size_t>(ip)].volume0);
     }
+    // refinement: the particles' reference positions, volumes, activation, supports, lengths,
+    // levels and families (the state itself is the nodal block's, above)
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+    {
+        if (!deck_.parts[static_cast<std::size_t>(ip)].refinement.active())
+            continue;
+        const SemiLagrangianForceBlock& sl = *semi_lagrangian_block(ip);
+        const NodalBlock& nb = *sl.nodal_points();
+        const std::string prefix = "sl_refinement." + std::to_string(ip) + ".";
+        const PartInfo& info = parts[static_cast<std::size_t>(ip)];
+        a.put(prefix + "x0", std::vector<real_t>(nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_begin),
+                                                 nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_end)));
+        a.put(prefix + "weight", nb.points.weight);
+        a.put(prefix + "dormant", sl.dormant_flags());
+        a.put(prefix + "width0", sl.widths0());
+        a.put(prefix + "radius0", sl.radii0());
+        a.put(prefix + "length0", nb.length0);
+        a.put(prefix + "levels", sl.levels());
+        std::vector<index_t> flat;
+        for (const auto& f : families_[static_cast<std::size_t>(ip)])
+            flat.insert(flat.end(), f.begin(), f.end());
+        a.put(prefix + "families", flat);
+    }
+    a.put_value("refined_particles", refined_particles_);
+    a.put_value("coarsened_particles", coarsened_particles_);
+    a.put("next_refinement_check", next_refinement_check_);
     a.put_value("energy", energy);
     a.put("part_energy", part_energy_);
     a.put("f_ext_prev", f_ext_prev_);
@@ -245,6 +272,44 @@ void Model::load_state(const StateArchive& a)
         a.get(prefix + "converted.conn", took.conn);
         a.get(prefix + "converted.volume0", took.volume0);
     }
+    for (index_t ip = 0; ip < static_cast<index_t>(parts.size()); ++ip)
+    {
+        if (!deck_.parts[static_cast<std::size_t>(ip)].refinement.active())
+            continue;
+        SemiLagrangianForceBlock& sl = *semi_lagrangian_block(ip);
+        NodalBlock& nb = *sl.nodal_points();
+        const std::string prefix = "sl_refinement." + std::to_string(ip) + ".";
+        const PartInfo& info = parts[static_cast<std::size_t>(ip)];
+        std::vector<real_t> x0, dormant, width0, radius0, length0, levels;
+        a.get(prefix + "x0", x0);
+        if (x0.size() != 3 * static_cast<std::size_t>(info.node_end - info.node_begin))
+            throw Error("checkpoint: part '" + info.name + "' has " + std::to_string(x0.size() / 3) +
+                        " refining particles' positions for " + std::to_string(info.node_end - info.node_begin));
+        std::copy(x0.begin(), x0.end(), nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_begin));
+        a.get_same_size(prefix + "weight", nb.points.weight);
+        a.get(prefix + "dormant", dormant);
+        a.get(prefix + "width0", width0);
+        a.get(prefix + "radius0", radius0);
+        a.get(prefix + "length0", length0);
+        a.get(prefix + "levels", levels);
+        sl.restore_activation(dormant, width0);
+        sl.restore_refinement(radius0, length0, levels);
+        std::vector<index_t> flat;
+        a.get(prefix + "families", flat);
+        auto& fam = families_[static_cast<std::size_t>(ip)];
+        fam.clear();
+        for (std::size_t k = 0; k + 8 <= flat.size(); k += 8)
+            fam.push_back(
+                {flat[k], flat[k + 1], flat[k + 2], flat[k + 3], flat[k + 4], flat[k + 5], flat[k + 6], flat[k + 7]});
+        update_coordinates();
+        refresh_refined_conditions(); // the children's conditions (their state loads below)
+    }
+    if (std::any_of(deck_.parts.begin(), deck_.parts.end(), [](const PartSpec& p) { return p.refinement.active(); }))
+        refresh_contact_surfaces(); // the particles' spheres of the volumes loaded
+    refined_particles_ = a.has("refined_particles") ? a.value<index_t>("refined_particles") : 0;
+    coarsened_particles_ = a.has("coarsened_particles") ? a.value<index_t>("coarsened_particles") : 0;
+    if (a.has("next_refinement_check"))
+        a.get("next_refinement_check", next_refinement_check_);
     energy = a.value<Energies>("energy");
     a.get("part_energy", part_energy_);
     a.get("f_ext_prev", f_ext_prev_);

@@ -114,7 +114,9 @@ void Model::accelerations()
     nonfinite_a_ = parallel_for_any("rkfem::accelerations", n,
                                     [&](index_t i)
                                     {
-                                        const real_t inv_m = 1.0 / nodes.mass[i];
+                                        // a refining part's pool of dormant particles has no mass
+                                        const real_t m = nodes.mass[i];
+                                        const real_t inv_m = m > 0.0 ? 1.0 / m : 0.0;
                                         real_t flag = 0.0;
                                         for (int k = 0; k < 3; ++k)
                                         {

@@ -279,9 +279,6 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
     return nb;
 }
 
-namespace
-{
-/// Is point c inside region r (box, within radius of a cylinder's axis, sphere)?
 bool inside_region(const SelectorSpec& r, const Vec3& c)
 {
     switch (r.type)
@@ -299,7 +296,6 @@ bool inside_region(const SelectorSpec& r, const Vec3& c)
         return false;
     }
 }
-} // namespace
 
 std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh)
 {

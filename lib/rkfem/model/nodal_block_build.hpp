@@ -22,6 +22,8 @@ NodalBlock build_nodal_block(const PartSpec& ps, const HexMesh& mesh, index_t of
 
 /// Per element of a part's mesh: 1 if its centroid lies in one of the part's RK regions.
 std::vector<char> rk_region_elements(const PartSpec& ps, const HexMesh& mesh);
+/// Is point c inside region r (box, within radius of a cylinder's axis, sphere)?
+bool inside_region(const SelectorSpec& r, const Vec3& c);
 
 /// Builds the block of a coupled FE-RK part (a fem-nodal part with regions or conversion): the
 /// mixed or ramp approximation of approximation/coupling/coupled_shapes.hpp over the whole mesh,

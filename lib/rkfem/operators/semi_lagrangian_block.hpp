@@ -126,6 +126,9 @@ struct SemiLagrangianOptions
     /// (as a separated particle, without counting as one), until activate() gives it a cell and
     /// the material of the elements' octants it takes over (Model::convert_to_semi_lagrangian).
     bool dormant = false;
+    /// Refinement's pool: the last `spares` particles start dormant (no mass at their nodes) and
+    /// wake as the children of a split (split(); Model::refine_particles).
+    index_t spares = 0;
 };
 
 class SemiLagrangianForceBlock final : public ForceBlock
@@ -194,6 +197,31 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// A checkpoint's activation (after its state is loaded into nodal_points()): the dormant
     /// flags and widths, the reference volumes from the points' weights.
     void restore_activation(const std::vector<real_t>& dormant, const std::vector<real_t>& w0);
+    /// Refinement (Model::refine_particles; digest rkpm-methods.md section 6.2): particle p's
+    /// cell splits into its eight half-size parallelepipeds, which tile it. Child k (bits 0-2 of k:
+    /// the + side along e_1, e_2, e_3) sits at the centre of its own, xp + c + sum_i -+ e_i / 2;
+    /// p is child 0 and the dormant particles spare[0..6] are children 1-7. Each child takes the
+    /// cell (centred on it, half-edges e_i / 2), reference volume V0 / 8, width w0 / 2, support
+    /// radius0 / 2 and step length l0 / 2, p's stress, face stresses, volume ratio and history
+    /// (its crack band the cube root of its own V0), and p's level + 1. xp: p's position; the
+    /// children's positions are written into x. The lists are built again at the next pass.
+    void split(index_t p, const index_t (&spare)[7], const Vec3& xp, Vec3 (&x)[8]);
+    /// Coarsening (Model::coarsen_particles): eight siblings (family[0] stays, the others become
+    /// dormant again) merge into one particle at xs. Its cell: centred on the mean of their
+    /// cells' centres (x[k] + c_k), half-edges twice their mean half-edges, scaled to the sum of
+    /// their volumes (a split undone with no motion between gives the parent's cell back exactly);
+    /// reference volume the sum of theirs, w0, radius0 and l0 twice family[0]'s; stress and face
+    /// stresses the volume-weighted means, history blended by reference volume (damage the
+    /// largest: PlasticPoints::blend_point); level - 1.
+    void merge(const index_t (&family)[8], const Vec3& xs, const Vec3 (&x)[8]);
+    /// The times particle p's line of ancestors split (0: a particle of the start).
+    int level(index_t p) const { return level_[static_cast<std::size_t>(p)]; }
+    /// Refinement's checkpoint: the support radii and step lengths at the start (split halves
+    /// them), the levels (as 0/1/2 values).
+    const std::vector<real_t>& radii0() const { return radius0_; }
+    std::vector<real_t> levels() const { return {level_.begin(), level_.end()}; }
+    void restore_refinement(const std::vector<real_t>& radius0, const std::vector<real_t>& length0,
+                            const std::vector<real_t>& levels);
     std::size_t neighbour_entries() const { return ids_.size(); }
     /// Whether the forces are assembled by the chunked scatter (else the per-pair gather).
     bool scatters() const { return !scatter_.empty(); }
@@ -218,6 +246,14 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// moment matrix at a face centre. For tests and probes (allocates; rebuilds the lists).
     bool smoothed_gradient(index_t p, const std::vector<real_t>& x, std::vector<index_t>& nodes,
                            std::vector<real_t>& grad, std::vector<real_t>* face_gradients = nullptr);
+
+    /// Smoothed gradients of nodal fields at particles, one list build for all (refinement: the
+    /// linear part of v and u about a particle that splits): for each particle p of `particles`
+    /// and each field f (3 values per node, global numbering), G = sum_J f_J (x) b_J(p) into out
+    /// (9 values, row-major, per particle and field, fields inner). False where a particle's cell
+    /// is not covered (a singular moment matrix). Allocates.
+    bool field_gradients(const std::vector<index_t>& particles, const std::vector<real_t>& x,
+                         const std::vector<const std::vector<real_t>*>& fields, std::vector<real_t>& out);
 
     /// The block's SNNI tables in positions x as integration operators, for static solves (the
     /// manufactured-solution sweep) and tests; global node ids, built by the plain pass's algebra
@@ -312,5 +348,9 @@ class SemiLagrangianForceBlock final : public ForceBlock
     std::vector<char> bad_;          ///< per particle: a bad volume
     std::vector<char> free_;         ///< per particle: separated (its committed cell is empty)
     std::vector<char> dormant_;      ///< per particle: dormant (SemiLagrangianOptions::dormant); empty: none
+    std::vector<char> level_;        ///< per particle: splits in its line (refinement)
+    /// per particle: a particle of another level in its neighbour row (refinement's interfaces,
+    /// whose step is halved: see add_forces); empty while every particle is of one level
+    std::vector<char> mixed_;
 };
 } // namespace rkfem

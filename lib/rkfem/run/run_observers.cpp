@@ -98,6 +98,10 @@ void append_row(const Model& m, real_t t, real_t dt, std::vector<real_t>& rows, 
     if (std::any_of(m.deck().parts.begin(), m.deck().parts.end(), [](const PartSpec& p) { return p.converts(); }))
         rows.insert(rows.end(),
                     {static_cast<real_t>(m.converted_elements()), static_cast<real_t>(m.reverted_elements())});
+    if (std::any_of(m.deck().parts.begin(), m.deck().parts.end(),
+                    [](const PartSpec& p) { return p.refinement.active(); }))
+        rows.insert(rows.end(),
+                    {static_cast<real_t>(m.refined_particles()), static_cast<real_t>(m.coarsened_particles())});
     for (index_t n : m.probe_nodes)
     {
         const Vec3 u = m.physical(m.nodes.u, n), v = m.physical(m.nodes.v, n);
@@ -143,6 +147,10 @@ std::vector<std::string> history_columns(const Model& m)
     // and the events' running totals (summary.json's converted_elements and reverted_elements)
     if (std::any_of(m.deck().parts.begin(), m.deck().parts.end(), [](const PartSpec& p) { return p.converts(); }))
         c.insert(c.end(), {"converted_elements", "reverted_elements"});
+    // refinement's running totals (summary.json's refined_particles and coarsened_particles)
+    if (std::any_of(m.deck().parts.begin(), m.deck().parts.end(),
+                    [](const PartSpec& p) { return p.refinement.active(); }))
+        c.insert(c.end(), {"refined_particles", "coarsened_particles"});
     for (const auto& p : m.deck().probes)
     {
         for (const char* q : {"ux", "uy", "uz", "vx", "vy", "vz"})

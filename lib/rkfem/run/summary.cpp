@@ -159,6 +159,8 @@ void write_summary_json(const std::string& path, const Model& model, const RunOp
     o << "  \"eroded_elements\": " << model.eroded_elements() << ",\n";
     o << "  \"converted_elements\": " << model.converted_elements() << ",\n";
     o << "  \"reverted_elements\": " << model.reverted_elements() << ",\n";
+    o << "  \"refined_particles\": " << model.refined_particles() << ",\n";
+    o << "  \"coarsened_particles\": " << model.coarsened_particles() << ",\n";
     o << "  \"threads\": " << max_threads() << ",\n";
     o << "  \"thread_switches\": " << s.thread_switches << ",\n";
     o << "  \"steps_on_one_thread\": " << s.steps_on_one_thread << ",\n";
