@@ -242,9 +242,9 @@ TEST(Checkpoint, SemiLagrangianParticlesRestartWithTheSameBits)
 }
 
 // Refinement: particles split as the column wave's front passes 100 MPa near the driven end,
-// before and after the checkpoints; the restart loads the particles' reference positions,
-// masses, cells, supports, levels and families as saved, and the children's conditions (the
-// column's lateral hold, inherited) are made again from the families
+// before and after the checkpoints (and, behind a pulse, merge back); the restart loads the
+// particles' reference positions, masses, cells, supports, levels and families as saved, and the
+// children's conditions (the column's lateral hold, inherited) are made again from the families
 TEST(Checkpoint, RefiningParticlesRestartWithTheSameBits)
 {
     expect_restarts_reproduce("sl_refinement", deck_path("column_wave_rkpm.yaml"),
@@ -254,6 +254,19 @@ TEST(Checkpoint, RefiningParticlesRestartWithTheSameBits)
                               " --set 'parts.column.refinement={pressure: 100 MPa, max_new_particles: 7000, region: "
                               "[{select: {type: box, min: [-1 mm, -1 mm, 2 mm], max: [5 mm, 5 mm, 30 mm]}}]}'",
                               "1 us");
+    // and merging back behind a 1 us pulse: restarts before, among and after the merges (the
+    // families that are left, and the pool's particles given back)
+    expect_restarts_reproduce("sl_coarsening", deck_path("column_wave_rkpm.yaml"),
+                              "--set time.end=8us --set time.stepper=central-difference"
+                              " --set parts.column.generator.size=[4mm,4mm,40mm]"
+                              " --set parts.column.formulation=rkpm --set parts.column.kinematics=semi-lagrangian"
+                              " --set 'parts.column.nodal_integration={scheme: snni}'"
+                              " --set 'boundary_conditions.1.velocity={z: {curve: [[0, 10 m/s], [1 us, 10 m/s], "
+                              "[1.5 us, 0], [1 s, 0]]}}'"
+                              " --set 'parts.column.refinement={pressure: 100 MPa, coarsen_fraction: 0.25, "
+                              "max_new_particles: 3500, region: [{select: {type: box, min: [-1 mm, -1 mm, 5 mm], max: "
+                              "[5 mm, 5 mm, 25 mm]}}]}'",
+                              "2 us");
 }
 
 // Kernel contact between two semi-Lagrangian RK bars, restarted while they are in contact: its
