@@ -262,13 +262,7 @@ std::vector<SelectorSpec> read_volumes(const Context& ctx, const Section& s, con
 /// particle splitting and merging, into p.refinement.
 void read_refinement(const Context& ctx, const Section& s, PartSpec& p)
 {
-    if (p.converts_to_semi_lagrangian())
-        // built and run (Model::refine_particles keeps FE nodes), but P6 at 1 in went unstable 3 us
-        // after its first 8 splits (children at the crater's edge thrown up at 340 m/s) while the
-        // same target all semi-Lagrangian did not: refused until the cause is found
-        s.fail("refinement", "splits the particles a conversion makes, which is not verified yet",
-               "expected refinement on a part with formulation: rkpm and kinematics: semi-lagrangian");
-    if (!(p.formulation == Formulation::Rkpm && p.semi_lagrangian))
+    if (!(p.formulation == Formulation::Rkpm && p.semi_lagrangian) && !p.converts_to_semi_lagrangian())
         s.fail("refinement", "splits semi-Lagrangian RK particles",
                "expected formulation: rkpm with kinematics: semi-lagrangian on a part with refinement");
     if (p.reset_interval > 1)

@@ -327,8 +327,10 @@ void Model::plan_assembly()
     for (std::size_t k = 0; k < blocks_.size(); ++k)
     {
         const index_t part = blocks_[k].part;
-        if (static_cast<index_t>(k) == part_nodal_[static_cast<std::size_t>(part)])
-            range.emplace_back(nodal_block(part)->node_begin, nodal_block(part)->node_end);
+        // a block with nodal points covers their nodes (a converting part's semi-Lagrangian block
+        // holds a refinement's pool past the FE mesh's nodes, whose forces it adds)
+        if (const NodalBlock* nb = std::as_const(*blocks_[k].block).nodal_points())
+            range.emplace_back(nb->node_begin, nb->node_end);
         else
             range.emplace_back(meshes[static_cast<std::size_t>(part)].node_begin,
                                meshes[static_cast<std::size_t>(part)].node_end);
