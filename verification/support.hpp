@@ -312,6 +312,15 @@ inline SemiLagrangianForceBlock& sl_block(Model& m)
     throw std::runtime_error("no semi-Lagrangian block");
 }
 
+/// The nodes' total mass.
+inline real_t total_mass(const NodeSet& nodes)
+{
+    real_t s = 0.0;
+    for (real_t m : nodes.mass)
+        s += m;
+    return s;
+}
+
 /// sum_I m_I |v_I|: the scale momentum errors are measured against.
 inline real_t momentum_scale(const NodeSet& nodes)
 {

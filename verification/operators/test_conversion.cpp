@@ -1059,14 +1059,7 @@ TEST(ConversionFem1pt, KccHistoryTakesTheVolumeWeightedMeanTheLargestDamageAndKe
 namespace
 {
 const std::vector<std::string> to_sl = {"parts.b.kinematics=semi-lagrangian"};
-
-real_t total_mass(const NodeSet& nodes)
-{
-    real_t s = 0.0;
-    for (real_t x : nodes.mass)
-        s += x;
-    return s;
-}
+using test::total_mass;
 } // namespace
 
 TEST(ConversionSemiLagrangian, ParticlesTakeTheVolumeWeightedMeanAndTheLargestDamage)

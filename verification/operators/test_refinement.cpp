@@ -46,13 +46,7 @@ Vec3 at(const std::vector<real_t>& a, index_t i)
     return {a[3 * i], a[3 * i + 1], a[3 * i + 2]};
 }
 
-real_t total_mass(const NodeSet& n)
-{
-    real_t s = 0.0;
-    for (real_t m : n.mass)
-        s += m;
-    return s;
-}
+using test::total_mass;
 
 /// Flags for the particles (of the part's start) whose reference position lies within `half`
 /// of the box's centre along each axis.

@@ -246,23 +246,15 @@ void Model::refresh_refined_conditions()
             if (had_v)
                 bc_v_prev_[k] = it->second[2];
         }
-    constrained_dofs_.clear();
-    for (const DofCondition& c : conditions)
-        constrained_dofs_.push_back(c.dof);
-    std::sort(constrained_dofs_.begin(), constrained_dofs_.end());
+    collect_constrained_dofs();
     plan_conditions();
 }
 
 bool Model::refinement_events(index_t part, real_t t)
 {
     const RefinementSpec& r = deck_.parts[static_cast<std::size_t>(part)].refinement;
-    if (r.interval > 0.0)
-    {
-        real_t& next = next_refinement_check_[static_cast<std::size_t>(part)];
-        if (t < next)
-            return false;
-        next = (std::floor(t / r.interval * (1 + kScheduleSlack)) + 1) * r.interval;
-    }
+    if (!check_due(next_refinement_check_[static_cast<std::size_t>(part)], t, r.interval))
+        return false;
     const SemiLagrangianForceBlock* sl = semi_lagrangian_block(part);
     const NodalBlock& st = *sl->nodal_points();
     const index_t begin = parts[static_cast<std::size_t>(part)].node_begin, n = sl->n_particles();

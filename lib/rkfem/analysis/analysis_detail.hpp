@@ -28,7 +28,7 @@ inline real_t on_line_tolerance(const Model& m, index_t part)
 {
     const PartInfo& p = m.parts[static_cast<std::size_t>(part)];
     Vec3 lo = Vec3::Constant(kNoLimit), hi = Vec3::Constant(-kNoLimit);
-    for (index_t i = p.node_begin; i < p.node_end; ++i)
+    for (index_t i = p.node_begin; i < p.mesh_node_end; ++i) // not a refining part's pool
     {
         lo = lo.cwiseMin(reference(m, i));
         hi = hi.cwiseMax(reference(m, i));

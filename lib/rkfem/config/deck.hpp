@@ -144,6 +144,16 @@ struct RefinementSpec
         Pressure,               ///< |p| [Pa]: where a stress wave or a penetrator's front is
         VonMises,               ///< sqrt(3 J2) [Pa]
     };
+    static constexpr Indicator kIndicators[] = {Indicator::Damage, Indicator::EffectivePlasticStrain,
+                                                Indicator::Pressure, Indicator::VonMises};
+    /// The deck key that names an indicator (and gives its threshold)
+    static const char* key(Indicator i)
+    {
+        constexpr const char* names[] = {"damage", "effective_plastic_strain", "pressure", "von_mises"};
+        return names[static_cast<int>(i)];
+    }
+    /// Whether an indicator is a stress (its threshold has units of pressure)
+    static bool is_stress(Indicator i) { return i == Indicator::Pressure || i == Indicator::VonMises; }
     Indicator indicator = Indicator::Damage;
     real_t threshold = 0.0;      ///< split at or above this (0: no refinement)
     real_t coarsen_below = -1.0; ///< merge siblings all below this (negative: never)

@@ -378,11 +378,8 @@ void write_part_options(std::ostringstream& os, const PartSpec& p)
     if (p.refinement.active())
     {
         const RefinementSpec& f = p.refinement;
-        static const char* names[] = {"damage", "effective_plastic_strain", "pressure", "von_mises"};
-        const bool stress =
-            f.indicator == RefinementSpec::Indicator::Pressure || f.indicator == RefinementSpec::Indicator::VonMises;
-        os << "    refinement:\n      " << names[static_cast<int>(f.indicator)] << ": " << f.threshold
-           << (stress ? " Pa" : "") << "\n";
+        os << "    refinement:\n      " << RefinementSpec::key(f.indicator) << ": " << f.threshold
+           << (RefinementSpec::is_stress(f.indicator) ? " Pa" : "") << "\n";
         if (f.coarsen_below >= 0.0)
             os << "      coarsen_fraction: " << f.coarsen_below / f.threshold << "\n";
         os << "      max_level: " << f.max_level << "\n      max_new_particles: " << f.max_new_particles

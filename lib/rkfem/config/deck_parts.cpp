@@ -5,7 +5,6 @@
 #include <fstream>
 #include <set>
 #include <sstream>
-#include <utility>
 
 #include "rkfem/core/error.hpp"
 
@@ -277,20 +276,13 @@ void read_refinement(const Context& ctx, const Section& s, PartSpec& p)
     RefinementSpec& f = p.refinement;
     f.loc = r.loc();
     // one indicator, given as its threshold (the keys of conversion's criteria)
-    const std::pair<const char*, RefinementSpec::Indicator> keys[] = {
-        {"damage", RefinementSpec::Indicator::Damage},
-        {"effective_plastic_strain", RefinementSpec::Indicator::EffectivePlasticStrain},
-        {"pressure", RefinementSpec::Indicator::Pressure},
-        {"von_mises", RefinementSpec::Indicator::VonMises}};
     int given = 0;
-    for (const auto& [key, ind] : keys)
-        if (r.has(key))
+    for (const RefinementSpec::Indicator ind : RefinementSpec::kIndicators)
+        if (const char* key = RefinementSpec::key(ind); r.has(key))
         {
             ++given;
             f.indicator = ind;
-            const bool stress =
-                ind == RefinementSpec::Indicator::Pressure || ind == RefinementSpec::Indicator::VonMises;
-            f.threshold = r.quantity(key, stress ? dim::pressure : dim::none);
+            f.threshold = r.quantity(key, RefinementSpec::is_stress(ind) ? dim::pressure : dim::none);
             if (!(f.threshold > 0.0))
                 r.fail(key, "is not positive", "expected the value at which a particle splits, > 0");
         }

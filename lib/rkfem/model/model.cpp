@@ -694,9 +694,7 @@ Model Model::build(const Deck& deck)
     m.check_initial_overlaps();
     m.plan_assembly();
     m.base_conditions_ = m.conditions;
-    for (const DofCondition& c : m.conditions)
-        m.constrained_dofs_.push_back(c.dof);
-    std::sort(m.constrained_dofs_.begin(), m.constrained_dofs_.end());
+    m.collect_constrained_dofs();
     // the RK parts' shape functions served the set-up (the face loads above sample them); the
     // run reads only what was built from them (64 bytes a P1 particle)
     for (index_t ip = 0; ip < static_cast<index_t>(m.parts.size()); ++ip)

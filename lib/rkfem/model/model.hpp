@@ -396,6 +396,11 @@ class Model final : public ExplicitOperator
     /// Refinement's checks after a step (apply_events): the particles whose indicator is at or
     /// past the threshold split, families all below coarsen_below merge.
     bool refinement_events(index_t part, real_t t);
+    /// A check of an event every `interval` (0: every step), at the first step end at or past
+    /// each multiple of it: false before `next`, else true with `next` moved to the next multiple.
+    static bool check_due(real_t& next, real_t t, real_t interval);
+    /// constrained_dofs_ from conditions (ascending)
+    void collect_constrained_dofs();
     /// The conditions the deck set (Model::build), before refinement gave children theirs.
     std::vector<DofCondition> base_conditions_;
     /// conditions = the deck's, and each refined particle's children take their parent's

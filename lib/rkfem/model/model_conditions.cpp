@@ -43,6 +43,14 @@ void Model::impose_velocity(real_t t, real_t dt, bool half_step)
     impose_velocity(t, dt, half_step, nodes.v.data());
 }
 
+void Model::collect_constrained_dofs()
+{
+    constrained_dofs_.clear();
+    for (const DofCondition& c : conditions)
+        constrained_dofs_.push_back(c.dof);
+    std::sort(constrained_dofs_.begin(), constrained_dofs_.end());
+}
+
 void Model::plan_conditions()
 {
     still_conditions_.clear();

@@ -206,6 +206,16 @@ template <class Event> void stops_the_run(real_t t, std::int64_t step, Event&& e
 }
 } // namespace
 
+bool Model::check_due(real_t& next, real_t t, real_t interval)
+{
+    if (interval <= 0.0)
+        return true;
+    if (t < next)
+        return false;
+    next = (std::floor(t / interval * (1 + kScheduleSlack)) + 1) * interval;
+    return true;
+}
+
 bool Model::apply_events(real_t t, std::int64_t step)
 {
     bool changed = false;
@@ -223,15 +233,9 @@ bool Model::apply_events(real_t t, std::int64_t step)
         {
             // evolutionary coupling: FE and transition elements that meet the criteria turn RK
             // (at the first step end at or past each multiple of the interval)
-            const real_t interval = ps.conversion.interval;
-            if (interval > 0.0)
-            {
-                next_conversion_check_.resize(meshes.size(), 0.0);
-                real_t& next = next_conversion_check_[static_cast<std::size_t>(b)];
-                if (t < next)
-                    continue;
-                next = (std::floor(t / interval * (1 + kScheduleSlack)) + 1) * interval;
-            }
+            next_conversion_check_.resize(meshes.size(), 0.0);
+            if (!check_due(next_conversion_check_[static_cast<std::size_t>(b)], t, ps.conversion.interval))
+                continue;
             // (semi-Lagrangian conversion: the block's elements are all FE, no flags)
             const std::vector<char>& rk = rk_elements_[static_cast<std::size_t>(b)];
             std::vector<char>& convert = event_flags_; // scratch kept between steps: no allocation

@@ -137,9 +137,12 @@ void Model::save_state(StateArchive& a) const
         const PartInfo& info = parts[static_cast<std::size_t>(ip)];
         a.put(prefix + "x0", std::vector<real_t>(nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_begin),
                                                  nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_end)));
-        a.put(prefix + "weight", nb.points.weight);
-        a.put(prefix + "dormant", sl.dormant_flags());
-        a.put(prefix + "width0", sl.widths0());
+        if (!deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian()) // else sl_conversion's
+        {
+            a.put(prefix + "weight", nb.points.weight);
+            a.put(prefix + "dormant", sl.dormant_flags());
+            a.put(prefix + "width0", sl.widths0());
+        }
         a.put(prefix + "radius0", sl.radii0());
         a.put(prefix + "length0", nb.length0);
         a.put(prefix + "levels", sl.levels());
@@ -280,19 +283,23 @@ void Model::load_state(const StateArchive& a)
         NodalBlock& nb = *sl.nodal_points();
         const std::string prefix = "sl_refinement." + std::to_string(ip) + ".";
         const PartInfo& info = parts[static_cast<std::size_t>(ip)];
-        std::vector<real_t> x0, dormant, width0, radius0, length0, levels;
+        std::vector<real_t> x0, radius0, length0, levels;
         a.get(prefix + "x0", x0);
         if (x0.size() != 3 * static_cast<std::size_t>(info.node_end - info.node_begin))
             throw Error("checkpoint: part '" + info.name + "' has " + std::to_string(x0.size() / 3) +
                         " refining particles' positions for " + std::to_string(info.node_end - info.node_begin));
         std::copy(x0.begin(), x0.end(), nodes.x0.begin() + 3 * static_cast<std::ptrdiff_t>(info.node_begin));
-        a.get_same_size(prefix + "weight", nb.points.weight);
-        a.get(prefix + "dormant", dormant);
-        a.get(prefix + "width0", width0);
+        if (!deck_.parts[static_cast<std::size_t>(ip)].converts_to_semi_lagrangian()) // else loaded above
+        {
+            std::vector<real_t> dormant, width0;
+            a.get_same_size(prefix + "weight", nb.points.weight);
+            a.get(prefix + "dormant", dormant);
+            a.get(prefix + "width0", width0);
+            sl.restore_activation(dormant, width0);
+        }
         a.get(prefix + "radius0", radius0);
         a.get(prefix + "length0", length0);
         a.get(prefix + "levels", levels);
-        sl.restore_activation(dormant, width0);
         sl.restore_refinement(radius0, length0, levels);
         std::vector<index_t> flat;
         a.get(prefix + "families", flat);
@@ -301,11 +308,13 @@ void Model::load_state(const StateArchive& a)
         for (std::size_t k = 0; k + 8 <= flat.size(); k += 8)
             fam.push_back(
                 {flat[k], flat[k + 1], flat[k + 2], flat[k + 3], flat[k + 4], flat[k + 5], flat[k + 6], flat[k + 7]});
-        update_coordinates();
-        refresh_refined_conditions(); // the children's conditions (their state loads below)
     }
     if (std::any_of(deck_.parts.begin(), deck_.parts.end(), [](const PartSpec& p) { return p.refinement.active(); }))
-        refresh_contact_surfaces(); // the particles' spheres of the volumes loaded
+    {
+        update_coordinates();         // the reference positions loaded
+        refresh_refined_conditions(); // the children's conditions (their state loads below)
+        refresh_contact_surfaces();   // the particles' spheres of the volumes loaded
+    }
     refined_particles_ = a.has("refined_particles") ? a.value<index_t>("refined_particles") : 0;
     coarsened_particles_ = a.has("coarsened_particles") ? a.value<index_t>("coarsened_particles") : 0;
     if (a.has("next_refinement_check"))

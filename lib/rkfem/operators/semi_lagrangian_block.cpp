@@ -2082,7 +2082,6 @@ void SemiLagrangianForceBlock::merge(const index_t (&family)[8], const Vec3& xs,
     Cell merged;
     merged.e[0] = merged.e[1] = merged.e[2] = Vec3::Zero();
     real_t V = 0.0, V0 = 0.0, sig[6] = {0, 0, 0, 0, 0, 0};
-    std::vector<real_t> stab(6 * m, 0.0);
     PlasticPoints::Share shares[8];
     for (int k = 0; k < 8; ++k)
     {
@@ -2099,11 +2098,7 @@ void SemiLagrangianForceBlock::merge(const index_t (&family)[8], const Vec3& xs,
         V += Vk;
         V0 += state_.points.weight[c];
         for (int s = 0; s < 6; ++s)
-        {
             sig[s] += Vk * state_.stress[s * ss + c];
-            for (std::size_t f = 0; f < m; ++f)
-                stab[s * m + f] += Vk * state_.stab_stress[s * ns + m * c + f];
-        }
         shares[k] = {&state_.plastic, c, state_.points.weight[c]};
     }
     RKFEM_REQUIRE(V > 0.0, "semi-Lagrangian merge: the siblings of particle " << family[0] << " have no volume");

@@ -210,9 +210,10 @@ class SemiLagrangianForceBlock final : public ForceBlock
     /// dormant again) merge into one particle at xs. Its cell: centred on the mean of their
     /// cells' centres (x[k] + c_k), half-edges twice their mean half-edges, scaled to the sum of
     /// their volumes (a split undone with no motion between gives the parent's cell back exactly);
-    /// reference volume the sum of theirs, w0, radius0 and l0 twice family[0]'s; stress and face
-    /// stresses the volume-weighted means, history blended by reference volume (damage the
-    /// largest: PlasticPoints::blend_point); level - 1.
+    /// reference volume the sum of theirs, w0, radius0 and l0 twice family[0]'s; stress the
+    /// volume-weighted mean, face stresses zero (the children's belong to their own cells'
+    /// faces), history blended by reference volume (damage the largest: PlasticPoints::
+    /// blend_point); level - 1.
     void merge(const index_t (&family)[8], const Vec3& xs, const Vec3 (&x)[8]);
     /// The times particle p's line of ancestors split (0: a particle of the start).
     int level(index_t p) const { return level_[static_cast<std::size_t>(p)]; }
