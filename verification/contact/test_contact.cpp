@@ -791,7 +791,10 @@ namespace
 {
 // two elastic blocks with non-matching meshes (4 x 4 below, 3 x 3 above), a pressure on the top,
 // rollers on the symmetry planes x = 0 and y = 0 and the bottom; dynamic relaxation to the static
-// state, where the stress is uniaxial: sigma_zz = -p everywhere, sigma_xx = sigma_yy = 0
+// state, where the stress is uniaxial: sigma_zz = -p everywhere, sigma_xx = sigma_yy = 0. The
+// stiffness hourglass form at QM 0.4 is the stiffness the node-to-segment bands below were measured
+// at (QM 0.05 before the form took Flanagan-Belytschko's 1/sqrt(8) normalization, 2026-12-08): the
+// slave forces excite hourglass modes, and at QM 0.05 now the element stress is 11 % and 5.4 % off
 const char* patch_deck = R"(
 title: contact patch test
 time: {end: 150 us, stepper: central-difference, mass_damping: 3e5 1/s, energy_error_limit: 1}
@@ -800,12 +803,12 @@ parts:
     generator: {type: box, origin: [0, 0, 0], size: [10 mm, 10 mm, 10 mm], divisions: [4, 4, 3]}
     material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
     formulation: fem-1pt
-    hourglass: {type: stiffness, coefficient: 0.05}
+    hourglass: {type: stiffness, coefficient: 0.4}
   upper:
     generator: {type: box, origin: [0, 0, 10 mm], size: [10 mm, 10 mm, 10 mm], divisions: [3, 3, 3]}
     material: {model: elastic, rho: 7850 kg/m^3, E: 200 GPa, nu: 0.3}
     formulation: fem-1pt
-    hourglass: {type: stiffness, coefficient: 0.05}
+    hourglass: {type: stiffness, coefficient: 0.4}
 node_sets:
   x0: {select: {type: plane, point: [0, 0, 0], normal: [1, 0, 0]}}
   y0: {select: {type: plane, point: [0, 0, 0], normal: [0, 1, 0]}}

@@ -169,7 +169,9 @@ Hex1ptElement hex1pt_reference(const HexBlock& blk, const NodeSet& nodes, index_
             for (int I = 0; I < 8; ++I)
                 for (int d = 0; d < 3; ++d)
                     bb += b[I][d] * b[I][d];
-            const real_t ch = hg == HourglassType::Stiffness ? qm * mat.plane_wave_modulus() * bb / (3.0 * V)
+            // stiffness: Flanagan-Belytschko's k = QM (lambda + 2 mu) sum|b|^2 / (3 V) acts on their
+            // normalized modes Gamma / sqrt(8), rate and force both: on our +-1 vectors that is k / 8
+            const real_t ch = hg == HourglassType::Stiffness ? qm * mat.plane_wave_modulus() * bb / (24.0 * V)
                                                              : 0.25 * qm * mat.rho * c * lc * lc;
             for (int a = 0; a < 4; ++a)
             {

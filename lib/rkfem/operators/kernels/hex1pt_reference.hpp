@@ -14,7 +14,9 @@
 ///   hourglass (mode a = 0..3, base vectors Gamma_a): h_a = sum_J Gamma_aJ x_J,
 ///     g_a = sum_J Gamma_aJ v_J, qdot_a = g_a - L h_a (the plain viscous form: g_a);
 ///     Q_a = c_h qdot_a (viscous, c_h = QM rho0 c lc^2 / 4) or Q_a += c_h dt qdot_a (stiffness,
-///     c_h = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V); with plastic_scaling on an inelastic block
+///     c_h = QM (lambda + 2 mu) sum_I |b_I|^2 / (24 V): Flanagan-Belytschko's / (3 V) on their
+///     modes Gamma / sqrt(8), 0.5 QM (lambda + 2 mu) h per node on a cube; with plastic_scaling on
+///     an inelastic block
 ///     the increment is scaled by the share of the step the material took elastically,
 ///     assumed_strain_tangent_share);
 ///     assumed strain (LS-DYNA IHQ 6): kernels/assumed_strain_hourglass.hpp, the stored forces

@@ -329,8 +329,9 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
     {
         const real_t qm = blk.hourglass.coefficient;
         // hourglass coefficient: viscous a_h = QM rho c V^(2/3) / 4 with V^(2/3) taken as lc^2
-        // (equal for cubes); stiffness k = QM (lambda + 2 mu) sum_I |b_I|^2 / (3 V)
-        // (Flanagan-Belytschko), sum_I |b_I|^2 = 8 sum_k |B_k|^2 by the modes' orthogonality
+        // (equal for cubes); stiffness k = QM (lambda + 2 mu) sum_I |b_I|^2 / (24 V)
+        // (Flanagan-Belytschko's / (3 V) on their modes normalized by 1/sqrt(8); the reference
+        // kernel), sum_I |b_I|^2 = 8 sum_k |B_k|^2 by the modes' orthogonality
         dvec coef;
         if constexpr (HG == HourglassType::Stiffness)
         {
@@ -338,7 +339,7 @@ RKFEM_WIDE_VECTORS void force_1pt_batch(HexBlock& blk, const NodeSet& nodes, ind
             for (int k = 1; k <= 6; ++k)
                 for (int d = k == 1 ? 1 : 0; d < 3; ++d)
                     bb = mul_add(B[k][d], B[k][d], bb);
-            coef = (qm * mat.plane_wave_modulus() * 8.0 / 3.0) * bb * inv_v;
+            coef = (qm * mat.plane_wave_modulus() / 3.0) * bb * inv_v;
         }
         else
             coef = 0.25 * qm * mat.rho * c * lc * lc;
