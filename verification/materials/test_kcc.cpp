@@ -216,6 +216,18 @@ TEST(KccConcrete, TabulatedCrackBandScalesHoldToTheExactSolves)
     EXPECT_EQ(few[0], kcc_tension_scale_for_length(m, 0.01));
     EXPECT_EQ(few[1], kcc_tension_scale_for_length(m, 0.02));
     EXPECT_EQ(few[2], few[0]);
+    // a cache (PlasticPoints keeps one per block for its events) gives the same bits: on first
+    // use it solves and keeps the lengths; asked again, it solves none and returns the same scales
+    KccScaleCache solved;
+    EXPECT_EQ(kcc_tension_scales(m, {0.01, 0.02, 0.01}, &solved), few);
+    ASSERT_EQ(solved.size(), 2u);
+    solved[0.01] = -1.0; // a marker: a lookup, not a new solve, answers the next call
+    EXPECT_EQ(kcc_tension_scales(m, {0.02, 0.01}, &solved), (std::vector<real_t>{few[1], -1.0}));
+    KccScaleCache graded;
+    EXPECT_EQ(kcc_tension_scales(m, h, &graded), s);
+    EXPECT_EQ(graded.size(), static_cast<std::size_t>(kExactLengths));
+    EXPECT_EQ(kcc_tension_scales(m, h, &graded), s);
+    EXPECT_EQ(graded.size(), static_cast<std::size_t>(kExactLengths));
 }
 
 TEST(KccConcrete, VolumetricDamageB3InHydrostaticTension)

@@ -428,7 +428,7 @@ real_t kcc_tension_scale_for_length(const KccModel& m, real_t h)
 
 namespace rkfem
 {
-std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real_t>& h)
+std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real_t>& h, KccScaleCache* solved)
 {
     // distinct lengths to 1 nm
     std::vector<long long> keys(h.size());
@@ -454,21 +454,37 @@ std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real
             lengths.push_back(std::exp(lo + (hi - lo) * i / (kExactLengths - 1)));
     }
     std::vector<real_t> scales(lengths.size());
-    const int n = static_cast<int>(lengths.size());
-    // the narrow bracket's end works once; lengths outside it take the widest (rare)
-    real_t narrow[2];
-    parallel_for_tasks("rkfem::kcc::narrow_bracket", 2,
-                       [&](index_t e) { narrow[e] = kcc_tension_work(m, e == 0 ? kNarrowLo : kNarrowHi); });
-    parallel_for_tasks("rkfem::kcc::tension_scales", n,
-                       [&](index_t i)
-                       {
-                           const real_t len = lengths[static_cast<std::size_t>(i)];
-                           const real_t target = m.fracture_energy / len;
-                           scales[static_cast<std::size_t>(i)] =
-                               narrow[0] > target && narrow[1] < target
-                                   ? scale_for_length(m, len, kNarrowLo, kNarrowHi, narrow[0], narrow[1])
-                                   : kcc_tension_scale_for_length(m, len);
-                       });
+    // the lengths no earlier call solved (all of them without a cache): the same length always
+    // gets the same scale, so a cached one is the bits a solve would give
+    std::vector<index_t> todo;
+    for (std::size_t i = 0; i < lengths.size(); ++i)
+    {
+        const auto it = solved ? solved->find(lengths[i]) : KccScaleCache::iterator{};
+        if (solved && it != solved->end())
+            scales[i] = it->second;
+        else
+            todo.push_back(static_cast<index_t>(i));
+    }
+    if (!todo.empty())
+    {
+        // the narrow bracket's end works once; lengths outside it take the widest (rare)
+        real_t narrow[2];
+        parallel_for_tasks("rkfem::kcc::narrow_bracket", 2,
+                           [&](index_t e) { narrow[e] = kcc_tension_work(m, e == 0 ? kNarrowLo : kNarrowHi); });
+        parallel_for_tasks("rkfem::kcc::tension_scales", static_cast<index_t>(todo.size()),
+                           [&](index_t t)
+                           {
+                               const std::size_t i = static_cast<std::size_t>(todo[static_cast<std::size_t>(t)]);
+                               const real_t len = lengths[i];
+                               const real_t target = m.fracture_energy / len;
+                               scales[i] = narrow[0] > target && narrow[1] < target
+                                               ? scale_for_length(m, len, kNarrowLo, kNarrowHi, narrow[0], narrow[1])
+                                               : kcc_tension_scale_for_length(m, len);
+                           });
+        if (solved)
+            for (const index_t i : todo)
+                (*solved)[lengths[static_cast<std::size_t>(i)]] = scales[static_cast<std::size_t>(i)];
+    }
     for (std::size_t p = 0; p < h.size(); ++p)
     {
         if (exact)

@@ -1,4 +1,5 @@
 #pragma once
+#include <map>
 #include <vector>
 /// @file kcc_concrete.hpp
 /// K&C concrete, Release III (MAT_072R3 analog) stress update at one material point, after Malvar,
@@ -91,9 +92,13 @@ real_t kcc_tension_scale_for_length(const KccModel& m, real_t h);
 /// graded or distorted mesh, where nearly every element differs) get log s interpolated linearly
 /// in log h between the exact scales at kExactLengths lengths spaced evenly in log h over the
 /// range (the tabulation error is held to the exact solve in verification/materials/test_kcc).
-/// The exact solves run in parallel.
+/// The exact solves run in parallel. With a cache, lengths it holds are not solved again and the
+/// new ones are added (a block's events ask for the same few lengths again and again: P5's
+/// refinement events spent 95 % of their time re-solving them).
 inline constexpr int kExactLengths = 16;
-std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real_t>& h);
+using KccScaleCache = std::map<real_t, real_t>; ///< the scale per length solved [m -> 1]
+std::vector<real_t> kcc_tension_scales(const KccModel& m, const std::vector<real_t>& h,
+                                       KccScaleCache* solved = nullptr);
 
 /// Updates stress s (Voigt, tension positive) and state over dt; returns the plastic work
 /// density increment (>= 0).
