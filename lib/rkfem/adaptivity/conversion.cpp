@@ -57,8 +57,8 @@ void Model::set_rk_elements(index_t part, const std::vector<char>& rk)
         };
         if (fe_side(part))
         {
-            rebuild_fe_side_part(part, mesh, rk);
-            take_rows(nb);
+            if (rebuild_fe_side_part(part, mesh, rk, changed))
+                take_rows(nb);
         }
         else if (rebuild_whole_part_ || all_fe)
         {

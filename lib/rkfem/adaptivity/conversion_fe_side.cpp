@@ -1,7 +1,8 @@
 // Evolutionary coupling of fem-1pt parts (LS-DYNA-style models): a converting part's FE elements
 // are a 1-point block (its FE side) and its transition and RK elements a nodal block whose points
-// sit at their nodes. An event builds both again for the new RK elements and hands the material
-// over octant by octant:
+// sit at their nodes. An event builds both again for the new RK elements (the nodal block's rows
+// where the approximation changed, the others taken from the old block: update_fe_side_block)
+// and hands the material over octant by octant:
 //   - every element is cut into its 8 corner octants (reference volume V0 / 8 each); an octant
 //     belongs to its element's Gauss point while the element is FE, and to the point of its
 //     corner node while it is not (that node's SCNI cell is the union of such octants);
@@ -16,6 +17,7 @@
 //     volume per point) with each node's momentum kept; the kinetic energy that costs is booked as
 //     the event's (Energies::eroded).
 #include <algorithm>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -51,19 +53,9 @@ index_t point_of(const NodalBlock& nb, index_t i)
     return nb.owner_points[k0];
 }
 
-/// The rank of each non-FE element among them (its MSCNI sub-cells are 8 rank + corner), -1 for FE.
-std::vector<index_t> sub_cell_ranks(const std::vector<char>& fe_element)
-{
-    std::vector<index_t> rank(fe_element.size(), -1);
-    index_t k = 0;
-    for (std::size_t e = 0; e < fe_element.size(); ++e)
-        if (!fe_element[e])
-            rank[e] = k++;
-    return rank;
-}
 } // namespace
 
-void Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::vector<char>& rk)
+bool Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::vector<char>& rk, ChangedRows& changed)
 {
     const PartSpec& ps = deck_.parts[static_cast<std::size_t>(part)];
     const HexBlock& shape = meshes[static_cast<std::size_t>(part)]; // conn, volume0, node -> elements
@@ -72,7 +64,12 @@ void Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::v
     const FeSide& side = side_block.side();
     const index_t begin = parts[part].node_begin, n = parts[part].node_end - begin, ne = shape.n_elements();
 
-    NodalBlock fresh = build_coupled_block(ps, mesh, begin, &rk);
+    // the nodal block where the approximation changed (the others' rows as they were), its
+    // crack-band scales those solved before
+    const std::shared_ptr<KccScaleCache> scales = nb.plastic.kcc_scales;
+    NodalBlock fresh = rebuild_whole_part_
+                           ? build_coupled_block(ps, mesh, begin, &rk, scales)
+                           : update_fe_side_block(ps, mesh, begin, rk_elements_[part], rk, nb, changed, scales);
     fresh.part = nb.part;
     FeSide fresh_side = build_fe_side(ps, mesh, shape, fresh);
     const HexBlock& old_fb = side.block;
@@ -178,8 +175,8 @@ void Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::v
     // MSCNI: sub-cell 8 rank + a of each non-FE element; one that was there keeps its stress
     if (fresh.n_stab() > 0)
     {
-        const std::vector<index_t> rank_old = sub_cell_ranks(nb.fe_element),
-                                   rank_new = sub_cell_ranks(fresh.fe_element);
+        const std::vector<index_t> rank_old = coupled_sub_cell_ranks(nb.fe_element),
+                                   rank_new = coupled_sub_cell_ranks(fresh.fe_element);
         const std::size_t ns_old = static_cast<std::size_t>(nb.n_stab()),
                           ns_new = static_cast<std::size_t>(fresh.n_stab());
         for (index_t e = 0; e < ne; ++e)
@@ -234,5 +231,6 @@ void Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::v
 
     nb = std::move(fresh);
     side_block.reset(std::move(fresh_side));
+    return rebuild_whole_part_;
 }
 } // namespace rkfem

@@ -7,6 +7,7 @@
 /// per point; the branch on the kind is uniform over a block.
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
@@ -29,7 +30,10 @@ struct PlasticPoints
     Kind kind = Kind::None;
     J2Params params;
     KccModel kcc;
-    KccScaleCache kcc_scales_solved; ///< kcc's tensile damage scales per crack-band length solved
+    /// kcc's tensile damage scales per crack-band length solved (set_lengths, set_length). Shared
+    /// by the blocks a converting part builds again at each event (its FE side and nodal block:
+    /// Model hands the old blocks' cache to the new ones), so each length is solved once per part.
+    std::shared_ptr<KccScaleCache> kcc_scales = std::make_shared<KccScaleCache>();
     std::vector<real_t> eps_p, eps_p_trial, failed, failed_trial; ///< J2; eps_p also for output (Kcc)
     std::vector<KccState> kcc_state, kcc_trial;
     CscmModel cscm;
@@ -47,7 +51,7 @@ struct PlasticPoints
     {
         kind = Kind::Kcc;
         kcc = m;
-        kcc_scales_solved.clear();
+        kcc_scales = std::make_shared<KccScaleCache>();
     }
     /// CSCM points of model m.
     void set_cscm(const CscmModel& m)
@@ -224,7 +228,7 @@ struct PlasticPoints
         }
         if (kind != Kind::Kcc || !(kcc.fracture_energy > 0))
             return;
-        const std::vector<real_t> scale = kcc_tension_scales(kcc, h, &kcc_scales_solved);
+        const std::vector<real_t> scale = kcc_tension_scales(kcc, h, kcc_scales.get());
         for (std::size_t p = 0; p < h.size() && p < kcc_state.size(); ++p)
             kcc_state[p].tension_scale = kcc_trial[p].tension_scale = scale[p];
     }
@@ -238,8 +242,7 @@ struct PlasticPoints
             cscm_state[p].C = cscm_trial[p].C = sf.C;
         }
         if (kind == Kind::Kcc && kcc.fracture_energy > 0 && p < kcc_state.size())
-            kcc_state[p].tension_scale = kcc_trial[p].tension_scale =
-                kcc_tension_scales(kcc, {h}, &kcc_scales_solved)[0];
+            kcc_state[p].tension_scale = kcc_trial[p].tension_scale = kcc_tension_scales(kcc, {h}, kcc_scales.get())[0];
     }
     /// n points, the first ones kept as they are and the new ones at the arrays' initial values
     /// (a pool of particles reserved for refinement; each takes a state when it is used).

@@ -525,6 +525,8 @@ FeSide Model::build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBl
     fb.bulk_viscosity = ps.bulk_viscosity;
     fb.material = blk.material;
     configure_points(fb.plastic, ps.material);
+    if (fb.plastic.kind == PlasticPoints::Kind::Kcc && nb.plastic.kind == PlasticPoints::Kind::Kcc)
+        fb.plastic.kcc_scales = nb.plastic.kcc_scales;
     fb.node_begin = blk.node_begin;
     fb.node_end = blk.node_end;
     for (index_t e = 0; e < mesh.n_elements(); ++e)

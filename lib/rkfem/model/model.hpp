@@ -30,6 +30,7 @@ namespace rkfem
 {
 class StateArchive;
 class SemiLagrangianForceBlock;
+struct ChangedRows;
 struct PartInfo
 {
     std::string name;
@@ -374,6 +375,8 @@ class Model final : public ExplicitOperator
     /// own; the part's FE block holds it).
     void build_semi_lagrangian_part(const PartSpec& ps, std::size_t ip, const HexMesh& mesh, index_t offset,
                                     bool dormant = false);
+    /// The FE side's points take up the nodal block's K&C crack-band scales (shared: a converting
+    /// part's blocks solve each length once).
     FeSide build_fe_side(const PartSpec& ps, const HexMesh& mesh, const HexBlock& blk, const NodalBlock& nb);
     std::vector<index_t> parts_named(const std::string& name) const;
     void build_node_sets();
@@ -422,7 +425,11 @@ class Model final : public ExplicitOperator
     /// the RK elements rk (the block keeps its kinematic rows for the caller), each new point's
     /// state blended from the material it takes over (adaptivity/conversion_fe_side.cpp), the
     /// nodes' masses those of the new blocks with their momentum kept.
-    void rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::vector<char>& rk);
+    /// A fem-1pt FE side and its nodal block built again for the RK set rk (the nodal block where
+    /// the approximation changed only: update_fe_side_block; whole with set_rebuild_whole_part),
+    /// the state handed over. Returns false and fills `changed` with the physical-value rows that
+    /// changed; true where the new nodal block holds every node's row (the whole rebuild).
+    bool rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::vector<char>& rk, ChangedRows& changed);
     /// Conversion's buffer layers and cap per event (ElementCriteria::buffer, max_per_event) on
     /// the triggered elements' flags (nonzero: convert).
     void buffer_and_cap(index_t part, const ElementCriteria& c, std::vector<char>& convert) const;

@@ -2,6 +2,7 @@
 /// @file nodal_block_build.hpp
 /// Nodal blocks from deck parts: fem-nodal and rkpm parts on meshes, cloud parts on Voronoi
 /// cells, coupled FE-RK parts; their lumped mass.
+#include <memory>
 #include <vector>
 
 #include "rkfem/config/deck.hpp"
@@ -32,8 +33,11 @@ bool inside_region(const SelectorSpec& r, const Vec3& c);
 /// which may hold no element (all FE) or every element. With a fem-nodal FE side the points
 /// (one per node, then MSCNI's sub-cells) and their weights do not depend on the set, so a
 /// block rebuilt for another set takes over the state of the old one point for point.
+/// `scales`: the K&C crack-band scales the block's points take up (a converting part's, shared
+/// by the blocks it builds again at each event; null: the block's own).
 NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
-                               const std::vector<char>* rk_elements = nullptr);
+                               const std::vector<char>* rk_elements = nullptr,
+                               std::shared_ptr<KccScaleCache> scales = nullptr);
 
 /// A coupled block (fem-nodal FE side, built by build_coupled_block for `rk_old`) brought to the
 /// RK set `rk_new` in place, where the approximation changed only: elements whose kind changes
@@ -54,6 +58,25 @@ struct ChangedRows
 };
 ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
                                  const std::vector<char>& rk_old, const std::vector<char>& rk_new, NodalBlock& nb);
+
+/// Per element of a coupled block with a fem-1pt FE side: its rank among the transition and RK
+/// elements (fe_element 0), whose MSCNI sub-cells are 8 rank + corner; -1 for FE elements.
+std::vector<index_t> coupled_sub_cell_ranks(const std::vector<char>& fe_element);
+
+/// The nodal block of a coupled part with a fem-1pt FE side (`old`, built by build_coupled_block
+/// for `rk_old`) for the RK set `rk_new`, built where the approximation changed only: the nodes
+/// update_coupled_block rebuilds (those of elements whose kind changes or that a changed
+/// particle's support reaches) take new SCNI rows and MSCNI sub-cells, built on the sub-mesh of
+/// the transition and RK elements around them; every other point and sub-cell takes its row
+/// from `old`. The points come in build_coupled_block's order (one per node of the transition
+/// and RK elements, in the order the elements first name them), with the same operators to
+/// round-off (verification/operators/test_conversion). A new block: zero stress, fresh history,
+/// crack bands set (through `scales`, as build_coupled_block); `old` is not touched. `rows`
+/// gets the physical-value rows of the nodes whose rows changed, as update_coupled_block
+/// returns them. An all-FE `rk_new` is built whole.
+NodalBlock update_fe_side_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                                const std::vector<char>& rk_old, const std::vector<char>& rk_new, const NodalBlock& old,
+                                ChangedRows& rows, std::shared_ptr<KccScaleCache> scales = nullptr);
 
 /// The convex body a cloud part's Voronoi cells are clipped to: its box, or the prism of planes
 /// tangent to its cylinder (at least 128, about 8 pi radius / mean spacing of n_particles).

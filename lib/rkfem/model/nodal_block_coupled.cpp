@@ -56,6 +56,17 @@ class SubMeshShapes final : public ShapeEvaluator
 
 namespace
 {
+/// The block's per-node particle and per-element FE flags from the shapes.
+void set_coupled_flags(const CoupledShapes& shapes, index_t nn, index_t ne, NodalBlock& nb)
+{
+    nb.particle.resize(static_cast<std::size_t>(nn));
+    nb.fe_element.resize(static_cast<std::size_t>(ne));
+    for (index_t i = 0; i < nn; ++i)
+        nb.particle[i] = shapes.is_particle(i);
+    for (index_t e = 0; e < ne; ++e)
+        nb.fe_element[e] = shapes.kind(e) == CoupledShapes::Kind::Fe;
+}
+
 /// The part's elements with keep[e] != 0 as a mesh of their own: element k is elements[k] of the
 /// part (element_to_sub the inverse, -1 for the others), node j is sub_to_part[j] (part_to_sub the
 /// inverse), boundary faces extracted.
@@ -93,7 +104,8 @@ SubMesh sub_mesh(const HexMesh& mesh, const std::vector<char>& keep)
 }
 } // namespace
 
-NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset, const std::vector<char>* rk_set)
+NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset, const std::vector<char>* rk_set,
+                               std::shared_ptr<KccScaleCache> scales)
 {
     const std::vector<char> rk_elements = rk_set ? *rk_set : rk_region_elements(ps, mesh);
     index_t n_rk = 0;
@@ -104,6 +116,8 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
         // no RK element yet: nodal-integrated FE on the same cells as a coupled block's; with a
         // fem-1pt FE side, no point (every element is the side's)
         NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+        if (scales)
+            nb.plastic.kcc_scales = scales;
         const FemShapes shapes(mesh);
         const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
         if (ps.formulation == Formulation::FemNodal && stabilized)
@@ -136,6 +150,8 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
                         n_rk == 0 ? "expected regions that hold some of the part's elements"
                                   : "expected formulation: rkpm for an all-RK part, or smaller regions");
     NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
+    if (scales)
+        nb.plastic.kcc_scales = std::move(scales);
     const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
     try
     {
@@ -186,12 +202,7 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
             }
             nb.interp_offsets.push_back(static_cast<index_t>(nb.interp_nodes.size()));
         }
-        nb.particle.resize(static_cast<std::size_t>(mesh.n_nodes()));
-        nb.fe_element.resize(static_cast<std::size_t>(mesh.n_elements()));
-        for (index_t i = 0; i < mesh.n_nodes(); ++i)
-            nb.particle[i] = shapes.is_particle(i);
-        for (index_t e = 0; e < mesh.n_elements(); ++e)
-            nb.fe_element[e] = shapes.kind(e) == CoupledShapes::Kind::Fe;
+        set_coupled_flags(shapes, mesh.n_nodes(), mesh.n_elements(), nb);
     }
     catch (const SingularMomentError& e)
     {
@@ -297,11 +308,20 @@ void splice_rows(IntegrationOperator& op, const std::vector<char>& replace, cons
 }
 } // namespace
 
-ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
-                                 const std::vector<char>& rk_old, const std::vector<char>& rk_new, NodalBlock& nb)
+namespace
+{
+/// Where the approximation changes from RK set rk_old to rk_new (update_coupled_block): the nodes
+/// whose points change (those of elements whose kind changes, and of transition and RK elements
+/// that the support of a particle that appears, disappears or changes its radius reaches, both
+/// radii), and every element around them (those that name one of these nodes).
+struct ChangeRegion
+{
+    std::vector<char> node_changes, around;
+};
+ChangeRegion change_region(const HexMesh& mesh, const RkParams& params, const std::vector<char>& rk_old,
+                           const std::vector<char>& rk_new)
 {
     const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
-    const RkParams params = rk_params(ps.rk);
     auto layout = [&](const std::vector<char>& rk)
     {
         for (char c : rk)
@@ -360,16 +380,52 @@ ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_
         }
     }
     // the nodes whose points change, and every element around them
-    std::vector<char> node_changes(static_cast<std::size_t>(nn), 0);
+    ChangeRegion r;
+    std::vector<char>& node_changes = r.node_changes;
+    node_changes.assign(static_cast<std::size_t>(nn), 0);
     for (index_t e = 0; e < ne; ++e)
         if (affected[e])
             for (int a = 0; a < 8; ++a)
                 node_changes[mesh.conn[8 * e + a]] = 1;
-    std::vector<char> around(static_cast<std::size_t>(ne), 0);
+    std::vector<char>& around = r.around;
+    around.assign(static_cast<std::size_t>(ne), 0);
     for (index_t e = 0; e < ne; ++e)
         for (int a = 0; a < 8; ++a)
             around[e] = around[e] || node_changes[mesh.conn[8 * e + a]];
-    const SubMesh sm = sub_mesh(mesh, around);
+    return r;
+}
+
+/// The physical-value rows of the nodes with node_changes[i], appended to rows (columns global).
+void changed_rows(const CoupledShapes& shapes, const std::vector<char>& node_changes, index_t offset, ChangedRows& rows)
+{
+    std::vector<index_t> row_nodes;
+    std::vector<real_t> row_values;
+    for (index_t i = 0; i < static_cast<index_t>(node_changes.size()); ++i)
+    {
+        if (!node_changes[i])
+            continue;
+        row_nodes.clear();
+        row_values.clear();
+        shapes.node_row(i, row_nodes, row_values);
+        rows.node.push_back(i);
+        for (std::size_t k = 0; k < row_nodes.size(); ++k)
+        {
+            rows.columns.push_back(row_nodes[k] + offset);
+            rows.values.push_back(row_values[k]);
+        }
+        rows.offsets.push_back(static_cast<index_t>(rows.columns.size()));
+    }
+}
+} // namespace
+
+ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                                 const std::vector<char>& rk_old, const std::vector<char>& rk_new, NodalBlock& nb)
+{
+    const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
+    const RkParams params = rk_params(ps.rk);
+    const ChangeRegion region = change_region(mesh, params, rk_old, rk_new);
+    const std::vector<char>& node_changes = region.node_changes;
+    const SubMesh sm = sub_mesh(mesh, region.around);
     ChangedRows rows;
     if (sm.elements.empty())
         return rows;
@@ -405,28 +461,8 @@ ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_
                     }
             splice_rows(nb.stabilization, replace, stab, from_stab);
         }
-        // physical values at the nodes whose rows changed
-        std::vector<index_t> row_nodes;
-        std::vector<real_t> row_values;
-        for (index_t i = 0; i < nn; ++i)
-        {
-            if (!node_changes[i])
-                continue;
-            row_nodes.clear();
-            row_values.clear();
-            shapes.node_row(i, row_nodes, row_values);
-            rows.node.push_back(i);
-            for (std::size_t k = 0; k < row_nodes.size(); ++k)
-            {
-                rows.columns.push_back(row_nodes[k] + offset);
-                rows.values.push_back(row_values[k]);
-            }
-            rows.offsets.push_back(static_cast<index_t>(rows.columns.size()));
-        }
-        for (index_t i = 0; i < nn; ++i)
-            nb.particle[i] = shapes.is_particle(i);
-        for (index_t e = 0; e < ne; ++e)
-            nb.fe_element[e] = shapes.kind(e) == CoupledShapes::Kind::Fe;
+        changed_rows(shapes, node_changes, offset, rows);
+        set_coupled_flags(shapes, nn, ne, nb);
     }
     catch (const SingularMomentError& e)
     {
@@ -434,6 +470,169 @@ ChangedRows update_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_
     }
     nb.build_tables();
     return rows;
+}
+
+namespace
+{
+/// Row q of `from` appended to `to` (weight, position, entries), its nodes less `shift`.
+void copy_row(IntegrationOperator& to, const IntegrationOperator& from, index_t q, index_t shift)
+{
+    for (index_t k = from.offsets[q]; k < from.offsets[q + 1]; ++k)
+    {
+        to.nodes.push_back(from.nodes[k] - shift);
+        for (int d = 0; d < 3; ++d)
+            to.grad.push_back(from.grad[3 * k + d]);
+    }
+    to.offsets.push_back(static_cast<index_t>(to.nodes.size()));
+    to.weight.push_back(from.weight[q]);
+    for (int d = 0; d < 3; ++d)
+        to.position.push_back(from.position[3 * q + d]);
+}
+
+} // namespace
+
+std::vector<index_t> coupled_sub_cell_ranks(const std::vector<char>& fe_element)
+{
+    std::vector<index_t> rank(fe_element.size(), -1);
+    index_t k = 0;
+    for (std::size_t e = 0; e < fe_element.size(); ++e)
+        if (!fe_element[e])
+            rank[e] = k++;
+    return rank;
+}
+
+NodalBlock update_fe_side_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
+                                const std::vector<char>& rk_old, const std::vector<char>& rk_new, const NodalBlock& old,
+                                ChangedRows& rows, std::shared_ptr<KccScaleCache> scales)
+{
+    const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
+    rows = ChangedRows{};
+    if (std::find(rk_new.begin(), rk_new.end(), char{1}) == rk_new.end())
+    {
+        // every element FE: no point; every node's row the identity
+        NodalBlock nb = build_coupled_block(ps, mesh, offset, &rk_new, std::move(scales));
+        for (index_t i = 0; i < nn; ++i)
+        {
+            rows.node.push_back(i);
+            rows.columns.push_back(i + offset);
+            rows.values.push_back(1.0);
+            rows.offsets.push_back(static_cast<index_t>(rows.columns.size()));
+        }
+        std::vector<index_t>().swap(nb.interp_offsets);
+        std::vector<index_t>().swap(nb.interp_nodes);
+        std::vector<real_t>().swap(nb.interp_values);
+        return nb;
+    }
+    const RkParams params = rk_params(ps.rk);
+    const ChangeRegion region = change_region(mesh, params, rk_old, rk_new);
+    const std::vector<char>& node_changes = region.node_changes;
+    NodalBlock nb = block_frame(ps, nn, offset);
+    if (scales)
+        nb.plastic.kcc_scales = std::move(scales);
+    const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+    if (stabilized)
+        nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
+    const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
+    try
+    {
+        const CoupledShapes shapes(mesh, rk_new, params, t);
+        // the block's elements (transition and RK) and, among them, those around a changed node:
+        // the changed nodes' cells are whole there (every element of such a node is around it)
+        std::vector<char> keep(static_cast<std::size_t>(ne)), local(static_cast<std::size_t>(ne));
+        for (index_t e = 0; e < ne; ++e)
+        {
+            keep[e] = shapes.kind(e) != CoupledShapes::Kind::Fe;
+            local[e] = keep[e] && region.around[e];
+        }
+        const SubMesh sm = sub_mesh(mesh, local);
+        IntegrationOperator scni, sd, stab;
+        if (!sm.elements.empty())
+        {
+            const SubMeshShapes sub_shapes(shapes, sm.elements);
+            build_scni_sd(sm.mesh, sub_shapes, scni, stabilized ? &sd : nullptr);
+            if (stabilized)
+                stab = build_mscni_stabilization(scni, sd);
+        }
+        // the old block's point of each node (-1: none) and its elements' sub-cell ranks
+        std::vector<index_t> old_point(static_cast<std::size_t>(nn), -1);
+        for (index_t i = 0; i + 1 < static_cast<index_t>(old.owner_offsets.size()); ++i)
+            if (old.owner_offsets[i + 1] > old.owner_offsets[i])
+                old_point[i] = old.owner_points[old.owner_offsets[i]];
+        const std::vector<index_t> old_rank = coupled_sub_cell_ranks(old.fe_element);
+        // the points: one per node of the block's elements, in the order the elements name them
+        std::vector<index_t> point_of(static_cast<std::size_t>(nn), -1), order;
+        for (index_t e = 0; e < ne; ++e)
+            if (keep[e])
+                for (int a = 0; a < 8; ++a)
+                {
+                    const index_t i = mesh.conn[8 * e + a];
+                    if (point_of[i] < 0)
+                    {
+                        point_of[i] = static_cast<index_t>(order.size());
+                        order.push_back(i);
+                    }
+                }
+        auto reserve = [](IntegrationOperator& op, index_t n_points, std::size_t n_entries)
+        {
+            op.weight.reserve(static_cast<std::size_t>(n_points));
+            op.position.reserve(3 * static_cast<std::size_t>(n_points));
+            op.owner.reserve(static_cast<std::size_t>(n_points));
+            op.offsets.reserve(static_cast<std::size_t>(n_points) + 1);
+            op.nodes.reserve(n_entries);
+            op.grad.reserve(3 * n_entries);
+        };
+        reserve(nb.points, static_cast<index_t>(order.size()), old.points.nodes.size() + scni.nodes.size());
+        for (const index_t i : order)
+        {
+            if (node_changes[i])
+                copy_row(nb.points, scni, sm.part_to_sub[i], 0);
+            else
+            {
+                RKFEM_REQUIRE(old_point[i] >= 0, "fem-1pt conversion: node " << i << " of part '" << ps.name
+                                                                             << "' keeps its cell but had no point");
+                copy_row(nb.points, old.points, old_point[i], offset);
+            }
+            nb.points.owner.push_back(i);
+        }
+        if (stabilized)
+        {
+            // MSCNI: sub-cell 8 rank + a of each of the block's elements, in element order
+            index_t n_keep = 0;
+            for (char k : keep)
+                n_keep += k;
+            reserve(nb.stabilization, 8 * n_keep, old.stabilization.nodes.size() + stab.nodes.size());
+            nb.stabilization.parent.reserve(8 * static_cast<std::size_t>(n_keep));
+            for (index_t e = 0; e < ne; ++e)
+            {
+                if (!keep[e])
+                    continue;
+                for (int a = 0; a < 8; ++a)
+                {
+                    const index_t i = mesh.conn[8 * e + a];
+                    if (node_changes[i])
+                        copy_row(nb.stabilization, stab, 8 * sm.element_to_sub[e] + a, 0);
+                    else
+                    {
+                        RKFEM_REQUIRE(old_rank[e] >= 0 && old.n_stab() > 0,
+                                      "fem-1pt conversion: element " << e << " of part '" << ps.name
+                                                                     << "' keeps its sub-cells but had none");
+                        copy_row(nb.stabilization, old.stabilization, 8 * old_rank[e] + a, offset);
+                    }
+                    nb.stabilization.owner.push_back(i);
+                    nb.stabilization.parent.push_back(point_of[i]);
+                }
+            }
+        }
+        changed_rows(shapes, node_changes, offset, rows);
+        set_coupled_flags(shapes, nn, ne, nb);
+    }
+    catch (const SingularMomentError& e)
+    {
+        throw singular_support(ps, e);
+    }
+    const std::vector<real_t> l0 = nodal_spacing(mesh, false);
+    finish_block(nb, offset, l0, l0);
+    return nb;
 }
 
 } // namespace rkfem
