@@ -10,48 +10,13 @@
 
 namespace rkfem
 {
-/// The rotation on six scalars (the element kernels' lane loops vectorize over this form; the
-/// array form below calls it). T is real_t or a lane vector (simd::dvec) of simd::kLanes points.
-template <class T> inline void rotate_stress(T w0, T w1, T w2, real_t dt, T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
-{
-    using simd::mul_add;
-    using simd::neg_mul_add;
-    const real_t h = 0.5 * dt;
-    const T a = h * w0, b = h * w1, c = h * w2; // half-step spin: xy, yz, zx
-    // A = h W = [[0, a, -c], [-a, 0, b], [c, -b, 0]]; Cayley transform of a skew matrix:
-    // R = (1 - A)^-1 (1 + A) = 1 + k (A + A^2), k = 2 / (1 + a^2 + b^2 + c^2).
-    // (mul_add(x, y, z) is x y + z: fused on lane vectors, in this order unfused on scalars)
-    const T k = 2.0 / mul_add(c, c, mul_add(b, b, mul_add(a, a, 1.0)));
-    // A^2 (symmetric): [[-a2-c2, bc, ab], [bc, -a2-b2, ac], [ab, ac, -b2-c2]]
-    const T r00 = mul_add(k, neg_mul_add(c, c, -(a * a)), 1.0), r11 = mul_add(k, neg_mul_add(b, b, -(a * a)), 1.0),
-            r22 = mul_add(k, neg_mul_add(c, c, -(b * b)), 1.0);
-    const T r01 = k * mul_add(b, c, a), r10 = k * mul_add(b, c, -a);
-    const T r02 = k * mul_add(a, b, -c), r20 = k * mul_add(a, b, c);
-    const T r12 = k * mul_add(a, c, b), r21 = k * mul_add(a, c, -b);
-    const T s00 = s0, s11 = s1, s22 = s2, s01 = s3, s12 = s4, s20 = s5;
-    // T = R S, row . column as x0 y0 + x1 y1 + x2 y2 left to right
-    auto dot = [](T x0, T y0, T x1, T y1, T x2, T y2) { return mul_add(x2, y2, mul_add(x1, y1, x0 * y0)); };
-    const T t00 = dot(r00, s00, r01, s01, r02, s20), t01 = dot(r00, s01, r01, s11, r02, s12),
-            t02 = dot(r00, s20, r01, s12, r02, s22);
-    const T t10 = dot(r10, s00, r11, s01, r12, s20), t11 = dot(r10, s01, r11, s11, r12, s12),
-            t12 = dot(r10, s20, r11, s12, r12, s22);
-    const T t20 = dot(r20, s00, r21, s01, r22, s20), t21 = dot(r20, s01, r21, s11, r22, s12),
-            t22 = dot(r20, s20, r21, s12, r22, s22);
-    // S' = T R^T
-    s0 = dot(t00, r00, t01, r01, t02, r02);
-    s1 = dot(t10, r10, t11, r11, t12, r12);
-    s2 = dot(t20, r20, t21, r21, t22, r22);
-    s3 = dot(t00, r10, t01, r11, t02, r12);
-    s4 = dot(t10, r20, t11, r21, t12, r22);
-    s5 = dot(t20, r00, t21, r01, t22, r02);
-}
-
 /// The Hughes-Winget rotation R of a step (row-major entries), for points that share a spin (a
-/// particle's NSNI sub-points): formed once, each stress rotated by it. hughes_winget and
-/// rotate_stress(R, ...) are rotate_stress(w, ...) above in two parts, the same expressions, so the
-/// same values (ObjectiveRate.HughesWingetRotationIsOrthogonalAndSharedOnce); rotate_stress(w, ...)
-/// keeps its own body because GCC contracts products and sums into FMAs per inlined context,
-/// and the material updates that call it keep their compiled arithmetic (and their bits).
+/// particle's NSNI sub-points): formed once, each stress rotated by it. rotate_stress(w, ...)
+/// below is these two parts called in turn, so a stress rotated from the spin and one rotated by
+/// the shared R are the same bits (ObjectiveRate.HughesWingetRotationIsOrthogonalAndSharedOnce).
+/// Until 2026-12-08 rotate_stress(w, ...) had a body of its own with the same expressions, which
+/// GCC contracts into FMAs per inlined context and per CPU (-march=native): built on that day's
+/// machine, the two forms differed in the last bits (the test failed at HEAD c5b6b52 there).
 template <class T> struct Rotation
 {
     T r00, r01, r02, r10, r11, r12, r20, r21, r22;
@@ -103,6 +68,13 @@ template <class T> inline void rotate_stress(const Rotation<T>& R, T& s0, T& s1,
     s3 = dot(t00, R.r10, t01, R.r11, t02, R.r12);
     s4 = dot(t10, R.r20, t11, R.r21, t12, R.r22);
     s5 = dot(t20, R.r00, t21, R.r01, t22, R.r02);
+}
+
+/// The rotation on six scalars (the element kernels' lane loops vectorize over this form; the
+/// array form below calls it). T is real_t or a lane vector (simd::dvec) of simd::kLanes points.
+template <class T> inline void rotate_stress(T w0, T w1, T w2, real_t dt, T& s0, T& s1, T& s2, T& s3, T& s4, T& s5)
+{
+    rotate_stress(hughes_winget(w0, w1, w2, dt), s0, s1, s2, s3, s4, s5);
 }
 
 inline void rotate_stress(const real_t w[3], real_t dt, real_t s[6])
