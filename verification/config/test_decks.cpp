@@ -209,6 +209,10 @@ TEST(Decks, KccRateLawsRoundTripAndTheirMistakesNameTheKey)
     EXPECT_EQ(run("check " + write_deck("omega0.yaml", with("false, omega: 0"))).code, 0);
     expect_rejected("omega2.yaml", with("false, omega: 1.5"), ":7: parts.col.material.omega",
                     "expected 0 <= omega <= 1");
+    // edrop 0 (no post-peak decay) is valid; below 0 it is not
+    EXPECT_EQ(run("check " + write_deck("edrop0.yaml", with("false, edrop: 0"))).code, 0);
+    expect_rejected("edrop_negative.yaml", with("false, edrop: -1"), ":7: parts.col.material.edrop",
+                    "expected edrop >= 0");
     expect_rejected("fc_huge.yaml", replace(good, kcc, "{model: kcc, rho: 2400 kg/m^3, fc: 1e6 MPa}"),
                     ":7: parts.col.material.fc", "expected 1 MPa <= fc <= 500 MPa");
     expect_rejected("rate_cap.yaml", with("{law: ceb-fip, compression_cap: 0.5}"),

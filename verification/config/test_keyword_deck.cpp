@@ -346,7 +346,7 @@ TEST(KeywordDeck, UserSetKccParametersComeThroughAsWritten)
       << "*PART\nconcrete\n1,1,1,8,1\n*SECTION_SOLID\n1,1\n*HOURGLASS\n1,3,0.1\n"
       << "*MAT_CONCRETE_DAMAGE_REL3\n1,2300,0.19\n"
       << v(k.ft) << "," << v(k.a0) << "," << v(k.a1) << "," << v(k.a2) << "," << v(k.b1) << "," << v(k.omega) << ","
-      << v(k.a1f) << "\n0,0,0,0,0,0,0,13\n";
+      << v(k.a1f) << "\n0,0,1.5,0,0,0,0,13\n"; // EDROP 1.5
     ASSERT_GE(k.eta_table.size(), 13u);
     for (int i = 0; i < 8; ++i)
         c << (i ? "," : "") << v(k.eta_table[i].first);
@@ -399,6 +399,7 @@ TEST(KeywordDeck, UserSetKccParametersComeThroughAsWritten)
                         {q.omega, k.omega},
                         {q.ft, k.ft}})
         EXPECT_EQ(a, b);
+    EXPECT_EQ(q.edrop, 1.5);
     for (int i = 0; i < 13; ++i)
         EXPECT_EQ(q.eta_table[static_cast<std::size_t>(i)], k.eta_table[static_cast<std::size_t>(i)]);
     EXPECT_EQ(r.eos_strain, g.eos_strain);

@@ -4,6 +4,7 @@
 // negative; objectivity under a rigid rotation.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 
 #include "rkfem/analysis/material_point.hpp"
@@ -132,6 +133,50 @@ TEST(KccConcrete, RigidRotationKeepsInvariants)
         3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
     EXPECT_NEAR((s[0] + s[1] + s[2]) / tr0, 1.0, 1e-10);
     EXPECT_NEAR(vm1 / vm0, 1.0, 1e-10);
+}
+
+TEST(KccConcrete, PostPeakDilatancyDecaysAsEtaToTheEdrop)
+{
+    // a point sheared under compression (shear with some compaction) past the peak; from the same
+    // state one step with edrop 0 and one with edrop 2: the damage moves alike (the dilatancy acts
+    // on the pressure one step later), and the dilatant volumetric strain of the step is
+    // omega eta(lambda)^edrop of the undecayed one past the peak, the same bits before it
+    const KccModel m0 = KccModel::from_fc(45.6 * MPa, 2400);
+    KccModel m2 = m0;
+    m2.surfaces.edrop = 2.0;
+    const real_t d[6] = {-0.2, 0.0, 0.0, 2.0, 0.0, 0.0}, w[3] = {0, 0, 0}, dt = 2e-6;
+    real_t s[6] = {};
+    KccState st;
+    int before = 0, after = 0;
+    for (int k = 0; k < 6000 && after < 5; ++k)
+    {
+        real_t s0[6], s2[6];
+        std::copy(s, s + 6, s0);
+        std::copy(s, s + 6, s2);
+        KccState a = st, b = st;
+        kcc_update(m0, d, w, dt, s0, a);
+        kcc_update(m2, d, w, dt, s2, b);
+        ASSERT_EQ(a.lambda, b.lambda) << k;
+        const real_t dv0 = a.ev_plastic - st.ev_plastic, dv2 = b.ev_plastic - st.ev_plastic;
+        const real_t eta = m0.surfaces.eta(a.lambda);
+        if (dv0 > 0.0 && a.lambda <= m0.surfaces.lambda_m)
+        {
+            EXPECT_EQ(dv2, dv0) << "before the peak, step " << k;
+            ++before;
+        }
+        else if (dv0 > 0.0 && eta > 0.2 && eta < 0.8)
+        {
+            std::printf("step %d: lambda %.3e, eta %.3f: dilatancy %.3e with edrop 2 against %.3e (ratio %.6f, eta^2 "
+                        "%.6f)\n",
+                        k, a.lambda, eta, dv2, dv0, dv2 / dv0, eta * eta);
+            EXPECT_NEAR(dv2 / dv0, eta * eta, 1e-12) << k;
+            ++after;
+        }
+        std::copy(s0, s0 + 6, s);
+        st = a;
+    }
+    EXPECT_GE(before, 1);
+    EXPECT_GE(after, 1);
 }
 
 TEST(KccConcrete, CrackBandScalingOfTheTensileDamage)

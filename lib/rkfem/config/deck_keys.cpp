@@ -361,6 +361,8 @@ std::vector<SectionDoc> build_table()
                          quantity("b2", dim::none, "", "Tensile damage scaling b2."),
                          quantity("b3", dim::none, "", "Triaxial tensile damage scaling b3."),
                          quantity("omega", dim::none, "", "The fraction of associated dilatancy, 0-1."),
+                         quantity("edrop", dim::none, "",
+                                  "Post-peak dilatancy decay: omega eta(lambda)^edrop past the peak (0: none)."),
                          quantity("ft", dim::pressure, "", "The tensile strength."),
                          pairs("eta", dim::none, dim::none,
                                "The damage function [[lambda, eta], ...]: lambda from 0 increasing, eta in [0, 1] "

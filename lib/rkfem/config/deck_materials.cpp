@@ -106,7 +106,7 @@ const std::vector<std::pair<std::string, Dimension>>& concrete_override_keys(con
         {"a1f", dim::none},          {"a2f", Dimension{-1, 1, 2}},
         {"b1", dim::none},           {"b2", dim::none},
         {"b3", dim::none},           {"omega", dim::none},
-        {"ft", dim::pressure}};
+        {"edrop", dim::none},        {"ft", dim::pressure}};
     return model == "cscm" ? cscm_keys : kcc_keys;
 }
 
@@ -175,6 +175,11 @@ void read_overrides(const Section& s, const std::string& model,
                 // the fraction of associated dilatancy: 0 (volume-preserving flow) to 1
                 if (!(v >= 0.0 && v <= 1.0))
                     s.fail(k, "is out of range", "expected 0 <= omega <= 1 (0: no dilatancy, 1: associated flow)");
+            }
+            else if (k == "edrop")
+            {
+                if (!(v >= 0.0))
+                    s.fail(k, "is out of range", "expected edrop >= 0 (0: no post-peak decay of the dilatancy)");
             }
             else if (!(v > 0) && !any_sign)
                 s.fail(k, "must be positive", "expected a positive " + k);

@@ -250,6 +250,7 @@ class Importer
     std::string eos(const PartCard& p, const Cards& at);
     std::string concrete(const std::string& base, const Cards& c, const PartCard& p);
     std::string kcc_user_set(const Cards& c, const PartCard& p, double rho, double pr);
+    std::string edrop(const Cards& c);
     std::string rate_effects(const Cards& c);
     std::string erosion(long long mid);
     void hourglass(const PartCard& p, const std::string& formulation, const std::set<std::string>& carried,
@@ -1024,11 +1025,21 @@ std::string Importer::kcc_user_set(const Cards& c, const PartCard& p, double rho
     if (k1 > 0.0)
         os << ", E: " << num(si(3.0 * k1 * (1.0 - 2.0 * pr), kStress));
     os << ", fracture_energy: 0";
-    os << rate_effects(c) << "}";
+    os << edrop(c) << rate_effects(c) << "}";
     note(c.where(1), "user-set K&C: f'c " + q(fc, kStress) + " from the maximum surface in uniaxial compression, E " +
                          "from the EOS's first unloading bulk modulus, b2 as given (fracture_energy 0: no crack-band "
                          "scaling)");
     return os.str();
+}
+
+/// MAT_072R3's EDROP as the kcc material's edrop (blank or 0: none, rkfem's default; LS-DYNA's
+/// manual gives no formula, docs/theory/materials.md states rkfem's).
+std::string Importer::edrop(const Cards& c)
+{
+    const double e = c.number(2, 2, 0.0, "EDROP");
+    if (e < 0.0)
+        c.fail(2, "EDROP", "EDROP " + num(e) + " is negative", "expected EDROP >= 0 (post-peak dilatancy decay)");
+    return e > 0.0 ? ", edrop: " + num(e) : "";
 }
 
 /// MAT_072R3's LCRATE as the kcc material's rate_effects: 0 none, -1 rkfem's default law, else the curve.
@@ -1064,7 +1075,7 @@ std::string Importer::concrete(const std::string& base, const Cards& c, const Pa
         os << "{model: kcc, rho: " << q(rho, kDensity) << ", fc: " << q(-a0, kStress);
         if (pr != 0.0)
             os << ", nu: " << num(pr);
-        os << rate_effects(c);
+        os << edrop(c) << rate_effects(c);
         if (c.number(2, 6, 0.0, "LOCWIDTH") != 0.0)
             note(c.where(2), "LOCWIDTH is not read: rkfem's K&C scales softening by the element size (crack band) with "
                              "fracture_energy");

@@ -241,10 +241,13 @@ static inline real_t kcc_shear_return(const KccModel& m, real_t wlode, real_t rf
             x *= scale;
         st.lambda += dep * dlam_per_ep;
         st.eps_p += dep;
-        // partially associated dilatancy: d ev_p = omega dep d(w Delta sigma)/dp
+        // partially associated dilatancy: d ev_p = omega dep d(w Delta sigma)/dp, past the peak
+        // omega eta(lambda)^edrop (0 on the residual surface)
         const real_t dsdp = kcc_dilatancy_slope(k, p, rf, wlode, st.lambda);
+        const real_t decay =
+            k.edrop > 0.0 && st.lambda > k.lambda_m ? std::pow(std::max(k.eta(st.lambda), 0.0), k.edrop) : 1.0;
         // acts on the pressure from the next update on (explicit, one step lag)
-        st.ev_plastic += k.omega * dep * dsdp;
+        st.ev_plastic += k.omega * decay * dep * dsdp;
     }
     return work;
 }

@@ -26,6 +26,13 @@ struct KccParameters
     real_t a0y = 0, a1y = 0, a2y = 0; ///< yield surface
     real_t a1f = 0, a2f = 0;          ///< residual surface: p / (a1f + a2f p)
     real_t b1 = 1.6, b2 = 1.35, b3 = 1.15, omega = 0.5;
+    /// Post-peak dilatancy decay (MAT_072R3's EDROP, whose formula LS-DYNA does not publish):
+    /// past the peak the dilatancy is omega eta(lambda)^edrop, so it vanishes on the residual
+    /// surface (eta = 0: crushed concrete flows at constant volume); 0 (the default): omega
+    /// throughout. Published MAT_072R3 calibrations set 1 (Yin et al. 2023, Cem. Concr. Compos.
+    /// 137, 104911, their deck's EDROP), as the P6 and P4 decks do; docs/theory/materials.md says
+    /// what it changes.
+    real_t edrop = 0.0;
     std::vector<std::pair<real_t, real_t>> eta_table; ///< (lambda, eta), 13 points
     real_t lambda_m = 5.6e-5;                         ///< first lambda where eta = 1
     real_t lambda_z = 5.7e-4;                         ///< first lambda after the peak where eta returns to 0

@@ -71,6 +71,7 @@ KccModel kcc_model(const MaterialSpec& m)
                                   {"b2", &k.b2},
                                   {"b3", &k.b3},
                                   {"omega", &k.omega},
+                                  {"edrop", &k.edrop},
                                   {"ft", &k.ft}});
     if (!m.kcc_eta.empty())
     {

@@ -73,6 +73,7 @@ void kcc(std::ostringstream& os, const KccModel& m)
     l.add("b2", k.b2, "", g.b2);
     l.add("b3", k.b3, "", g.b3);
     l.add("omega", k.omega, "", g.omega);
+    l.add("edrop", k.edrop, "", g.edrop);
     l.add("lambda_m", k.lambda_m, "", g.lambda_m);
     l.add("lambda_z", k.lambda_z, "", g.lambda_z);
     l.add("fbc/fc", k.alpha_biaxial, "");
