@@ -64,12 +64,13 @@ bool Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::v
     const FeSide& side = side_block.side();
     const index_t begin = parts[part].node_begin, n = parts[part].node_end - begin, ne = shape.n_elements();
 
-    // the nodal block where the approximation changed (the others' rows as they were), its
-    // crack-band scales those solved before
+    // the nodal block where the approximation changed (the others' rows as they were; whole,
+    // every row with it, where asked or where no element is RK), its crack-band scales those
+    // solved before
     const std::shared_ptr<KccScaleCache> scales = nb.plastic.kcc_scales;
-    NodalBlock fresh = rebuild_whole_part_
-                           ? build_coupled_block(ps, mesh, begin, &rk, scales)
-                           : update_fe_side_block(ps, mesh, begin, rk_elements_[part], rk, nb, changed, scales);
+    const bool whole = rebuild_whole_part_ || std::find(rk.begin(), rk.end(), char{1}) == rk.end();
+    NodalBlock fresh = whole ? build_coupled_block(ps, mesh, begin, &rk, scales)
+                             : update_fe_side_block(ps, mesh, begin, rk_elements_[part], rk, nb, changed, scales);
     fresh.part = nb.part;
     FeSide fresh_side = build_fe_side(ps, mesh, shape, fresh);
     const HexBlock& old_fb = side.block;
@@ -231,6 +232,6 @@ bool Model::rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::v
 
     nb = std::move(fresh);
     side_block.reset(std::move(fresh_side));
-    return rebuild_whole_part_;
+    return whole;
 }
 } // namespace rkfem

@@ -428,7 +428,8 @@ class Model final : public ExplicitOperator
     /// A fem-1pt FE side and its nodal block built again for the RK set rk (the nodal block where
     /// the approximation changed only: update_fe_side_block; whole with set_rebuild_whole_part),
     /// the state handed over. Returns false and fills `changed` with the physical-value rows that
-    /// changed; true where the new nodal block holds every node's row (the whole rebuild).
+    /// changed; true where the new nodal block holds every node's row (the whole rebuild, also
+    /// taken where no element is RK).
     bool rebuild_fe_side_part(index_t part, const HexMesh& mesh, const std::vector<char>& rk, ChangedRows& changed);
     /// Conversion's buffer layers and cap per event (ElementCriteria::buffer, max_per_event) on
     /// the triggered elements' flags (nonzero: convert).

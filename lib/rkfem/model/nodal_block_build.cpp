@@ -50,11 +50,13 @@ RkParams rk_params(const RkSpec& spec)
 }
 namespace nodal_build_detail
 {
-NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset)
+NodalBlock block_frame(const PartSpec& ps, index_t n_nodes, index_t offset, std::shared_ptr<KccScaleCache> scales)
 {
     NodalBlock nb;
     nb.material = ElasticParams::from_E_nu(ps.material.rho, ps.material.E, ps.material.nu);
     configure_points(nb.plastic, ps.material);
+    if (scales)
+        nb.plastic.kcc_scales = std::move(scales);
     nb.node_begin = offset;
     nb.node_end = offset + n_nodes;
     nb.dt_factor = ps.nodal.dt_factor > 0 ? ps.nodal.dt_factor : default_dt_factor(ps);

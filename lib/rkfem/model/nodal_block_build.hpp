@@ -73,7 +73,7 @@ std::vector<index_t> coupled_sub_cell_ranks(const std::vector<char>& fe_element)
 /// round-off (verification/operators/test_conversion). A new block: zero stress, fresh history,
 /// crack bands set (through `scales`, as build_coupled_block); `old` is not touched. `rows`
 /// gets the physical-value rows of the nodes whose rows changed, as update_coupled_block
-/// returns them. An all-FE `rk_new` is built whole.
+/// returns them. `rk_new` holds an RK element (an all-FE set is build_coupled_block's).
 NodalBlock update_fe_side_block(const PartSpec& ps, const HexMesh& mesh, index_t offset,
                                 const std::vector<char>& rk_old, const std::vector<char>& rk_new, const NodalBlock& old,
                                 ChangedRows& rows, std::shared_ptr<KccScaleCache> scales = nullptr);

@@ -56,6 +56,12 @@ class SubMeshShapes final : public ShapeEvaluator
 
 namespace
 {
+/// Does a coupled part's nodal block carry MSCNI's stabilization?
+bool coupled_mscni(const PartSpec& ps)
+{
+    return ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+}
+
 /// The block's per-node particle and per-element FE flags from the shapes.
 void set_coupled_flags(const CoupledShapes& shapes, index_t nn, index_t ne, NodalBlock& nb)
 {
@@ -115,11 +121,9 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
     {
         // no RK element yet: nodal-integrated FE on the same cells as a coupled block's; with a
         // fem-1pt FE side, no point (every element is the side's)
-        NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
-        if (scales)
-            nb.plastic.kcc_scales = scales;
+        NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset, std::move(scales));
         const FemShapes shapes(mesh);
-        const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+        const bool stabilized = coupled_mscni(ps);
         if (ps.formulation == Formulation::FemNodal && stabilized)
         {
             IntegrationOperator sd;
@@ -149,14 +153,12 @@ NodalBlock build_coupled_block(const PartSpec& ps, const HexMesh& mesh, index_t 
                                   : "contain every element of the part, leaving no FE region",
                         n_rk == 0 ? "expected regions that hold some of the part's elements"
                                   : "expected formulation: rkpm for an all-RK part, or smaller regions");
-    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset);
-    if (scales)
-        nb.plastic.kcc_scales = std::move(scales);
+    NodalBlock nb = block_frame(ps, mesh.n_nodes(), offset, std::move(scales));
     const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
     try
     {
         const CoupledShapes shapes(mesh, rk_elements, rk_params(ps.rk), t);
-        const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+        const bool stabilized = coupled_mscni(ps);
         if (ps.formulation == Formulation::FemNodal)
         {
             // every node's dual cell
@@ -506,30 +508,14 @@ NodalBlock update_fe_side_block(const PartSpec& ps, const HexMesh& mesh, index_t
                                 ChangedRows& rows, std::shared_ptr<KccScaleCache> scales)
 {
     const index_t ne = mesh.n_elements(), nn = mesh.n_nodes();
+    RKFEM_REQUIRE(std::find(rk_new.begin(), rk_new.end(), char{1}) != rk_new.end(),
+                  "update_fe_side_block: part '" << ps.name << "' has no RK element (build it whole)");
     rows = ChangedRows{};
-    if (std::find(rk_new.begin(), rk_new.end(), char{1}) == rk_new.end())
-    {
-        // every element FE: no point; every node's row the identity
-        NodalBlock nb = build_coupled_block(ps, mesh, offset, &rk_new, std::move(scales));
-        for (index_t i = 0; i < nn; ++i)
-        {
-            rows.node.push_back(i);
-            rows.columns.push_back(i + offset);
-            rows.values.push_back(1.0);
-            rows.offsets.push_back(static_cast<index_t>(rows.columns.size()));
-        }
-        std::vector<index_t>().swap(nb.interp_offsets);
-        std::vector<index_t>().swap(nb.interp_nodes);
-        std::vector<real_t>().swap(nb.interp_values);
-        return nb;
-    }
     const RkParams params = rk_params(ps.rk);
     const ChangeRegion region = change_region(mesh, params, rk_old, rk_new);
     const std::vector<char>& node_changes = region.node_changes;
-    NodalBlock nb = block_frame(ps, nn, offset);
-    if (scales)
-        nb.plastic.kcc_scales = std::move(scales);
-    const bool stabilized = ps.nodal.stabilization == "mscni" && ps.nodal.stabilization_coefficient > 0;
+    NodalBlock nb = block_frame(ps, nn, offset, std::move(scales));
+    const bool stabilized = coupled_mscni(ps);
     if (stabilized)
         nb.stabilization_coefficient = ps.nodal.stabilization_coefficient;
     const Transition t = ps.transition == "ramp" ? Transition::Ramp : Transition::Mixed;
